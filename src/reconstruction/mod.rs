@@ -1,0 +1,561 @@
+//! Reconstruction: turns each polygon's adaptive radiosity samples ([`SampledQuadtree`]) into a
+//! continuous, C1 function made of bicubic Hermite patches (the paper's reconstructed radiosity
+//! patches, RRPs, sec. 3.3-3.5), which the rasterizer evaluates per pixel and the texture backend
+//! resamples.
+//!
+//! Pipeline per polygon, all in f64:
+//! 1. [`estimate`]: Hermite data (value, f_u, f_v, twist f_uv) at every original sample, in global
+//!    parameter units, one set per vertex shared by every patch touching it ([`Estimator`]);
+//! 2. [`refine`]: leaves with a T-vertex inside an edge are midpoint-subdivided, new points take
+//!    their data from the parent polynomial (C1 argument in that module), and subtrees whose data
+//!    equal their parent polynomial are merged back, so flat regions cost one patch;
+//! 3. each final leaf becomes a [`PatchCoeffs`]: the bicubic in power basis over local (s, t),
+//!    stored as f32 (3 x 16 coefficients + origin and inverse width, 208 bytes).
+//!
+//! What is stored: the power-basis patches and a 4-byte-per-node tree for [`Reconstruction::locate`];
+//! the per-vertex Hermite data are derived, used during construction and dropped
+//! ([`ReconstructionStats`] reports what storing them instead would cost).
+//!
+//! Invariants: every original sample is reproduced at its vertex (to f32 rounding, or to the merge
+//! tolerance of 1e-7 of the polygon's largest value); linear functions are reproduced exactly on any
+//! tree; an undivided polygon is the bilinear interpolant of its corners (plain estimator); no
+//! coefficient is NaN or infinite (checked; construction fails otherwise). Evaluation clamps (u, v)
+//! into [0, 1]^2 (NaN to 0) and local (s, t) into [0, 1]^2, so border values are the patch's edge
+//! values. Nothing is clamped in value: the plain estimator can overshoot (ring below zero) near
+//! sharp shadow edges; that is what [`Estimator::Monotone`] is for.
+//!
+//! Default estimator: [`Estimator::Monotone`]. Measured by
+//! `cargo test --release reconstruction::tests::overshoot_report -- --nocapture` (numbers in
+//! the doc of [`Estimator`]): on a step the plain estimator undershoots by 7.4 % of the step and
+//! the monotone one by 0; on a spot-like function the plain one rings below zero while the monotone
+//! one stays inside the sample range; on smooth functions the monotone estimator's error is within
+//! a small factor of the plain one's. Negative radiosity near shadow boundaries is a visible artifact, a
+//! slightly larger error on smooth regions is not, so Monotone is the default.
+//!
+//! Level of detail ([`MipChain`]): level 0 is resampled from the RRP at the requested size;
+//! each coarser level is an area-weighted box filter of the previous one (exact for odd sizes).
+//! Box filtering keeps every level's mean equal to level 0's and averages sharp shadow edges
+//! instead of aliasing them, which point-resampling the RRP at 1x1 would do.
+
+mod estimate;
+mod hermite;
+mod refine;
+#[cfg(test)]
+mod tests;
+
+use glam::Vec3;
+use rayon::prelude::*;
+
+use crate::error::{Error, Result};
+use crate::quadtree::{SampledQuadtree, LATTICE, MAX_DEPTH};
+use estimate::Samples;
+pub use hermite::HermiteData;
+use hermite::PatchPoly;
+use refine::Refined;
+
+/// How vertex derivatives are estimated from the samples.
+///
+/// Measured overshoot (`overshoot_report` test, depth-7 adaptive trees, values in [0, 1]):
+/// see the module docs for why [`Estimator::Monotone`] is the default.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Estimator {
+    /// Central differences of the piecewise-bilinear interpolant at the smallest adjacent leaf
+    /// width (Catmull-Rom on regular grids); one-sided at the border. Most accurate on smooth
+    /// data, overshoots at steps.
+    Plain,
+    /// Fritsch-Butland harmonic mean of the two secants per axis (0 at extrema), twist 0 where an
+    /// axis was limited; one-sided at the border. No overshoot on axis-aligned steps.
+    #[default]
+    Monotone,
+}
+
+/// One bicubic patch in power basis over local (s, t) in [0,1]^2, s = (u - u0) * inv_w,
+/// t = (v - v0) * inv_w: f_c(s,t) = sum_{i,j<4} c[c][4*j + i] * s^i * t^j.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[repr(C, align(16))]
+pub struct PatchCoeffs {
+    /// Power coefficients per channel (R, G, B); `c[ch][4 * j + i]` multiplies s^i t^j.
+    pub c: [[f32; 16]; 3],
+    /// Lower-left corner u of the patch's cell (a dyadic number, exact in f32).
+    pub u0: f32,
+    /// Lower-left corner v of the patch's cell.
+    pub v0: f32,
+    /// Inverse cell width, a power of two (exact).
+    pub inv_w: f32,
+    /// Padding to 16-byte alignment.
+    pub _pad: f32,
+}
+
+/// Clamps into [0, 1], NaN to 0 (NaN fails the comparison; `f32::clamp` would keep it).
+#[inline(always)]
+fn clamp01(x: f32) -> f32 {
+    if x >= 0.0 {
+        x.min(1.0)
+    } else {
+        0.0
+    }
+}
+
+impl PatchCoeffs {
+    /// Value at global (u, v). Local (s, t) are clamped into [0, 1] (NaN to 0), so a point outside
+    /// the cell evaluates the nearest edge. With u0 dyadic and inv_w a power of two, s is exact for
+    /// u inside the cell, so the cell's edges are evaluated at exactly s = 0 or 1.
+    #[inline(always)]
+    pub fn eval(&self, u: f32, v: f32) -> Vec3 {
+        let s = clamp01((u - self.u0) * self.inv_w);
+        let t = clamp01((v - self.v0) * self.inv_w);
+        let mut out = [0.0f32; 3];
+        for (o, c) in out.iter_mut().zip(self.c.iter()) {
+            let row =
+                |j: usize| ((c[4 * j + 3] * s + c[4 * j + 2]) * s + c[4 * j + 1]) * s + c[4 * j];
+            *o = ((row(3) * t + row(2)) * t + row(1)) * t + row(0);
+        }
+        Vec3::from_array(out)
+    }
+
+    /// Value and global partials d/du, d/dv at (u, v), computed in f64 from the f32 coefficients.
+    pub fn eval_grad_f64(&self, u: f64, v: f64) -> ([f64; 3], [f64; 3], [f64; 3]) {
+        let iw = self.inv_w as f64;
+        let cl = |x: f64| if x.is_nan() { 0.0 } else { x.clamp(0.0, 1.0) };
+        let s = cl((u - self.u0 as f64) * iw);
+        let t = cl((v - self.v0 as f64) * iw);
+        let (mut f, mut fu, mut fv) = ([0.0; 3], [0.0; 3], [0.0; 3]);
+        for ch in 0..3 {
+            let c = &self.c[ch];
+            let k = |i: usize, j: usize| c[4 * j + i] as f64;
+            let mut rows = [0.0f64; 4];
+            let mut drows = [0.0f64; 4];
+            for (j, (r, dr)) in rows.iter_mut().zip(drows.iter_mut()).enumerate() {
+                *r = ((k(3, j) * s + k(2, j)) * s + k(1, j)) * s + k(0, j);
+                *dr = (3.0 * k(3, j) * s + 2.0 * k(2, j)) * s + k(1, j);
+            }
+            f[ch] = ((rows[3] * t + rows[2]) * t + rows[1]) * t + rows[0];
+            fu[ch] = (((drows[3] * t + drows[2]) * t + drows[1]) * t + drows[0]) * iw;
+            fv[ch] = ((3.0 * rows[3] * t + 2.0 * rows[2]) * t + rows[1]) * iw;
+        }
+        (f, fu, fv)
+    }
+
+    fn from_poly(p: &PatchPoly, level: u32) -> PatchCoeffs {
+        let mut c = [[0.0f32; 16]; 3];
+        for (dst, src) in c.iter_mut().zip(p.c.iter()) {
+            for (d, s) in dst.iter_mut().zip(src.iter()) {
+                *d = *s as f32;
+            }
+        }
+        PatchCoeffs {
+            c,
+            u0: p.u0 as f32,
+            v0: p.v0 as f32,
+            inv_w: (1u32 << level) as f32,
+            _pad: 0.0,
+        }
+    }
+
+    fn is_finite(&self) -> bool {
+        self.c.iter().flatten().all(|x| x.is_finite())
+    }
+}
+
+/// Sizes and memory of a reconstruction, summed over polygons. Bytes are what is stored unless
+/// the field says otherwise.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct ReconstructionStats {
+    /// Number of polygons.
+    pub polygons: usize,
+    /// Patches stored (leaves of the refined, merged trees).
+    pub patches: usize,
+    /// Distinct patch corners (vertices of the final trees).
+    pub vertices: usize,
+    /// Samples given (vertices of the input trees).
+    pub original_samples: usize,
+    /// Final vertices made by T-vertex refinement (not samples).
+    pub derived_points: usize,
+    /// Tree nodes turned back into leaves because their children reproduced them.
+    pub merged_nodes: usize,
+    /// Leaves of the input trees.
+    pub input_leaves: usize,
+    /// Nodes of the stored locate trees.
+    pub tree_nodes: usize,
+    /// Stored bytes: patches (208 B each) + locate tree (4 B per node) + polygon roots.
+    pub bytes: usize,
+    /// Bytes if Hermite vertex data were stored instead of patches (48 B of f32 data + 8 B key per
+    /// vertex, + the tree); patches would then be derived at load time.
+    pub hermite_bytes: usize,
+    /// Patches of full grids at each polygon's input depth (4^depth per polygon).
+    pub full_grid_patches: usize,
+    /// Bytes of those full-grid patches (208 B each).
+    pub full_grid_bytes: usize,
+    /// Texels of equal-quality radiosity textures: per polygon (2^depth + 1)^2 samples rounded up
+    /// to a power-of-two square.
+    pub texture_texels: usize,
+    /// Those textures at 3 x 8 bits.
+    pub texture_bytes_8: usize,
+    /// Those textures at 3 x 12 bits.
+    pub texture_bytes_12: usize,
+    /// Those textures at 3 x 32-bit float.
+    pub texture_bytes_32: usize,
+}
+
+/// Tag of a leaf in the encoded locate tree.
+const LEAF: u32 = 1 << 31;
+
+/// The RRPs of every polygon of a scene, in scene polygon order.
+#[derive(Debug, Clone)]
+pub struct Reconstruction {
+    patches: Vec<PatchCoeffs>,
+    /// Locate trees of all polygons: a leaf is `LEAF | global patch id`, an internal node the
+    /// absolute index of its first child (children in the quadtree's (0,0),(1,0),(0,1),(1,1) order).
+    nodes: Vec<u32>,
+    /// Index in `nodes` of each polygon's root.
+    roots: Vec<u32>,
+    stats: ReconstructionStats,
+}
+
+/// One polygon's finished f64 reconstruction (before f32 conversion); also used by tests.
+#[derive(Debug, Clone)]
+pub(crate) struct PolygonRrp {
+    refined: Refined,
+    /// Depth and leaf count of the input tree, samples given.
+    input_depth: u32,
+    input_leaves: usize,
+    samples: usize,
+}
+
+impl PolygonRrp {
+    /// The f64 patch of leaf node `id` of the final tree.
+    pub(crate) fn poly(&self, id: u32) -> PatchPoly {
+        let cell = self.refined.tree.node(id).cell;
+        PatchPoly::from_corners(cell, &refine::corner_data(&self.refined.data, cell))
+    }
+}
+
+/// Builds one polygon's RRP in f64. `index` only labels errors.
+pub(crate) fn build_polygon(
+    index: usize,
+    sq: &SampledQuadtree,
+    estimator: Estimator,
+) -> Result<PolygonRrp> {
+    let bad = |msg: String| Error::Runtime(format!("reconstruction of polygon {index}: {msg}"));
+    if sq.keys.len() != sq.values.len() {
+        return Err(bad(format!(
+            "{} sample keys but {} values",
+            sq.keys.len(),
+            sq.values.len()
+        )));
+    }
+    if sq.keys != sq.tree.vertex_keys() {
+        return Err(bad(
+            "sample keys are not exactly the sorted vertices of the tree's leaves".into(),
+        ));
+    }
+    let mut scale = 0.0f64;
+    let mut values = Vec::with_capacity(sq.values.len());
+    for (k, v) in sq.keys.iter().zip(&sq.values) {
+        if !v.is_finite() {
+            return Err(bad(format!(
+                "sample at (u, v) = ({}, {}) is not finite: {v}",
+                k.u(),
+                k.v()
+            )));
+        }
+        let a = [v.x as f64, v.y as f64, v.z as f64];
+        scale = a.iter().fold(scale, |m, x| m.max(x.abs()));
+        values.push(a);
+    }
+    let samples = Samples::new(&sq.tree, &sq.keys, values);
+    let data = estimate::estimate(&samples, estimator);
+    let refined = refine::refine(&sq.tree, &sq.keys, &data, scale);
+    Ok(PolygonRrp {
+        refined,
+        input_depth: sq.tree.depth(),
+        input_leaves: sq.tree.leaf_count(),
+        samples: sq.keys.len(),
+    })
+}
+
+#[inline(always)]
+fn lattice_f32(x: f32) -> u32 {
+    // x * 2^16 is exact; `as` saturates, and NaN fails the comparison and maps to 0.
+    let y = (x * LATTICE as f32).floor();
+    if y >= 0.0 {
+        (y as u32).min(LATTICE - 1)
+    } else {
+        0
+    }
+}
+
+#[inline(always)]
+fn lattice_f64(x: f64) -> u32 {
+    let y = (x * LATTICE as f64).floor();
+    if y >= 0.0 {
+        (y as u32).min(LATTICE - 1)
+    } else {
+        0
+    }
+}
+
+impl Reconstruction {
+    /// Reconstructs every polygon (in parallel; the result does not depend on the thread count).
+    ///
+    /// Errors ([`Error::Runtime`], naming the first bad polygon in order): sample keys that are
+    /// not the tree's vertices, non-finite samples, or values so large that a coefficient
+    /// overflows f32.
+    pub fn build(polygons: &[SampledQuadtree], estimator: Estimator) -> Result<Reconstruction> {
+        let built: Vec<Result<PolygonRrp>> = polygons
+            .par_iter()
+            .enumerate()
+            .map(|(i, sq)| build_polygon(i, sq, estimator))
+            .collect();
+        let mut patches = Vec::new();
+        let mut nodes: Vec<u32> = Vec::new();
+        let mut roots = Vec::with_capacity(polygons.len());
+        let mut st = ReconstructionStats {
+            polygons: polygons.len(),
+            ..Default::default()
+        };
+        for (index, b) in built.into_iter().enumerate() {
+            let p = b?;
+            let tree = &p.refined.tree;
+            let base = nodes.len();
+            roots.push(base as u32);
+            for (id, n) in tree.nodes().iter().enumerate() {
+                if n.is_leaf() {
+                    let pc = PatchCoeffs::from_poly(&p.poly(id as u32), n.cell.level);
+                    if !pc.is_finite() {
+                        return Err(Error::Runtime(format!(
+                            "reconstruction of polygon {index}: a patch coefficient overflows \
+                             f32 (sample values too large)"
+                        )));
+                    }
+                    nodes.push(LEAF | patches.len() as u32);
+                    patches.push(pc);
+                } else {
+                    nodes.push((base + n.first_child as usize) as u32);
+                }
+                if patches.len() >= LEAF as usize || nodes.len() >= LEAF as usize {
+                    return Err(Error::Runtime(
+                        "reconstruction: more than 2^31 patches or tree nodes".into(),
+                    ));
+                }
+            }
+            st.patches += tree.leaf_count();
+            st.vertices += p.refined.data.len();
+            st.original_samples += p.samples;
+            st.derived_points += p.refined.derived_points;
+            st.merged_nodes += p.refined.merged_nodes;
+            st.input_leaves += p.input_leaves;
+            st.full_grid_patches += 1usize << (2 * p.input_depth);
+            let side = ((1usize << p.input_depth) + 1).next_power_of_two();
+            st.texture_texels += side * side;
+        }
+        let patch_size = std::mem::size_of::<PatchCoeffs>();
+        st.tree_nodes = nodes.len();
+        st.bytes = patches.len() * patch_size + 4 * nodes.len() + 4 * roots.len();
+        st.hermite_bytes = st.vertices * (48 + 8) + 4 * nodes.len() + 4 * roots.len();
+        st.full_grid_bytes = st.full_grid_patches * patch_size;
+        st.texture_bytes_8 = st.texture_texels * 3;
+        st.texture_bytes_12 = st.texture_texels * 3 * 12 / 8;
+        st.texture_bytes_32 = st.texture_texels * 12;
+        Ok(Reconstruction {
+            patches,
+            nodes,
+            roots,
+            stats: st,
+        })
+    }
+
+    /// Number of polygons.
+    pub fn polygon_count(&self) -> usize {
+        self.roots.len()
+    }
+
+    #[inline(always)]
+    fn locate_lattice(&self, polygon: u32, i: u32, j: u32) -> u32 {
+        let mut n = self.roots[polygon as usize] as usize;
+        let mut level = 0u32;
+        loop {
+            let e = self.nodes[n];
+            if e & LEAF != 0 {
+                return e & !LEAF;
+            }
+            let sh = MAX_DEPTH - 1 - level;
+            n = e as usize + ((i >> sh) & 1) as usize + 2 * ((j >> sh) & 1) as usize;
+            level += 1;
+        }
+    }
+
+    /// Global patch id of the patch covering (u, v) of `polygon` (u, v clamped to [0,1], NaN to
+    /// 0). On a shared edge the patch on the upper side is returned (both evaluate equally there),
+    /// at u or v = 1 the last patch. Panics if `polygon >= polygon_count()` (a caller bug, like an
+    /// out-of-range slice index).
+    #[inline]
+    pub fn locate(&self, polygon: u32, u: f32, v: f32) -> u32 {
+        self.locate_lattice(polygon, lattice_f32(u), lattice_f32(v))
+    }
+
+    /// The patch's coefficients. Panics if `id` is not a patch id returned by [`Self::locate`].
+    #[inline]
+    pub fn patch(&self, id: u32) -> &PatchCoeffs {
+        &self.patches[id as usize]
+    }
+
+    /// All patches, in global id order.
+    pub fn patches(&self) -> &[PatchCoeffs] {
+        &self.patches
+    }
+
+    /// Value at (u, v), clamped into [0, 1]^2 (NaN to 0).
+    #[inline]
+    pub fn eval(&self, polygon: u32, u: f32, v: f32) -> Vec3 {
+        let (u, v) = (clamp01(u), clamp01(v));
+        self.patch(self.locate(polygon, u, v)).eval(u, v)
+    }
+
+    /// Value, d/du and d/dv per channel at (u, v) (clamped into [0, 1]^2, NaN to 0), evaluated in
+    /// f64 from the stored coefficients; derivatives in global parameter units.
+    pub fn eval_grad(&self, polygon: u32, u: f64, v: f64) -> (Vec3, Vec3, Vec3) {
+        let cl = |x: f64| if x.is_nan() { 0.0 } else { x.clamp(0.0, 1.0) };
+        let (u, v) = (cl(u), cl(v));
+        let id = self.locate_lattice(polygon, lattice_f64(u), lattice_f64(v));
+        let (f, fu, fv) = self.patch(id).eval_grad_f64(u, v);
+        let to = |a: [f64; 3]| Vec3::new(a[0] as f32, a[1] as f32, a[2] as f32);
+        (to(f), to(fu), to(fv))
+    }
+
+    /// Evaluates `uv.len().min(out.len())` points: `out[k] = eval(polygon, uv[k])`. The patch
+    /// found for one point is reused while the next points stay inside it (coherent pixel runs
+    /// skip the tree descent).
+    pub fn eval_many(&self, polygon: u32, uv: &[[f32; 2]], out: &mut [Vec3]) {
+        debug_assert_eq!(uv.len(), out.len());
+        let mut cur: Option<(&PatchCoeffs, f32, f32, f32, f32)> = None;
+        for (p, o) in uv.iter().zip(out.iter_mut()) {
+            let (u, v) = (clamp01(p[0]), clamp01(p[1]));
+            // Reuse only for points strictly inside the cached cell's half-open range, which is
+            // exactly where locate would return it again.
+            let pc = match cur {
+                Some((pc, u0, v0, u1, v1)) if u >= u0 && u < u1 && v >= v0 && v < v1 => pc,
+                _ => {
+                    let pc = self.patch(self.locate(polygon, u, v));
+                    let w = 1.0 / pc.inv_w;
+                    cur = Some((pc, pc.u0, pc.v0, pc.u0 + w, pc.v0 + w));
+                    pc
+                }
+            };
+            *o = pc.eval(u, v);
+        }
+    }
+
+    /// Resamples `polygon` into an n x m texture: texel (i, j) is the value at
+    /// u = (i + 0.5) / n, v = (j + 0.5) / m (computed in f64, rounded to f32), row-major with
+    /// j = row (v). Empty if n or m is 0.
+    pub fn resample(&self, polygon: u32, n: u32, m: u32) -> Vec<Vec3> {
+        let mut uv = Vec::with_capacity(n as usize * m as usize);
+        for j in 0..m {
+            let v = texel_centre(j, m);
+            for i in 0..n {
+                uv.push([texel_centre(i, n), v]);
+            }
+        }
+        let mut out = vec![Vec3::ZERO; uv.len()];
+        self.eval_many(polygon, &uv, &mut out);
+        out
+    }
+
+    /// A level-of-detail chain: level 0 resampled at n x m, then each level half the size
+    /// (`max(1, size / 2)` per axis) down to 1 x 1, box-filtered from the previous one with area
+    /// weights. Empty if n or m is 0.
+    pub fn resample_lod(&self, polygon: u32, n: u32, m: u32) -> MipChain {
+        if n == 0 || m == 0 {
+            return MipChain { levels: Vec::new() };
+        }
+        let mut levels = vec![MipLevel {
+            width: n,
+            height: m,
+            texels: self.resample(polygon, n, m),
+        }];
+        while let Some(last) = levels.last().filter(|l| l.width > 1 || l.height > 1) {
+            let next = last.downsample();
+            levels.push(next);
+        }
+        MipChain { levels }
+    }
+
+    /// Sizes and memory.
+    pub fn stats(&self) -> ReconstructionStats {
+        self.stats
+    }
+}
+
+/// Texel centre coordinate (k + 0.5) / n, in f64 rounded to f32.
+#[inline]
+pub fn texel_centre(k: u32, n: u32) -> f32 {
+    ((k as f64 + 0.5) / n as f64) as f32
+}
+
+/// A level-of-detail chain of resampled textures, finest first.
+#[derive(Debug, Clone, PartialEq)]
+pub struct MipChain {
+    /// Levels, level 0 the finest, the last 1 x 1.
+    pub levels: Vec<MipLevel>,
+}
+
+/// One level of a [`MipChain`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct MipLevel {
+    /// Texels per row.
+    pub width: u32,
+    /// Rows.
+    pub height: u32,
+    /// Row-major texels, `width * height` of them.
+    pub texels: Vec<Vec3>,
+}
+
+/// Area weights of a box filter from `src` texels to `dst` texels along one axis: destination
+/// texel x covers source interval [x src / dst, (x + 1) src / dst); each entry lists the source
+/// texels it overlaps with their overlap length divided by the footprint length (summing to 1).
+fn box_weights(src: u32, dst: u32) -> Vec<Vec<(usize, f64)>> {
+    let r = src as f64 / dst as f64;
+    (0..dst)
+        .map(|x| {
+            let (a, b) = (x as f64 * r, (x + 1) as f64 * r);
+            let lo = a.floor() as u32;
+            let hi = (b.ceil() as u32).min(src);
+            (lo..hi)
+                .filter_map(|k| {
+                    let ov = (b.min(k as f64 + 1.0) - a.max(k as f64)) / r;
+                    (ov > 0.0).then_some((k as usize, ov))
+                })
+                .collect()
+        })
+        .collect()
+}
+
+impl MipLevel {
+    fn downsample(&self) -> MipLevel {
+        let (w, h) = (self.width, self.height);
+        let (nw, nh) = ((w / 2).max(1), (h / 2).max(1));
+        let wx = box_weights(w, nw);
+        let wy = box_weights(h, nh);
+        let mut texels = Vec::with_capacity(nw as usize * nh as usize);
+        for ys in &wy {
+            for xs in &wx {
+                let mut acc = [0.0f64; 3];
+                for &(y, a) in ys {
+                    for &(x, b) in xs {
+                        let t = self.texels[y * w as usize + x];
+                        for (c, tc) in acc.iter_mut().zip(t.to_array()) {
+                            *c += a * b * tc as f64;
+                        }
+                    }
+                }
+                texels.push(Vec3::new(acc[0] as f32, acc[1] as f32, acc[2] as f32));
+            }
+        }
+        MipLevel {
+            width: nw,
+            height: nh,
+            texels,
+        }
+    }
+}

@@ -1,0 +1,161 @@
+//! T-vertex refinement (paper sec. 3.5) and merging: turns one polygon's unrestricted sample tree
+//! plus the estimated Hermite data into the tree of patches that is finally stored.
+//!
+//! **Refinement.** A leaf with an *original sample* strictly inside one of its edges (a T-vertex
+//! carrying its own data) is midpoint-subdivided. Child corners that already carry data (original
+//! samples, or points made earlier) keep it; new points take value, f_u, f_v and f_uv from the
+//! parent patch polynomial. This repeats until no leaf has an original sample inside an edge. An
+//! original sample inside an edge of a cell of width s is the midpoint of that edge, or the same
+//! size cell across the edge would not have been split, so checking the four edge midpoints is
+//! enough.
+//!
+//! **Why the result is C1.** On an edge of a bicubic Hermite patch, the value and the
+//! cross-derivative are cubic Hermite interpolants of the data at the edge's two endpoints (value
+//! and along-edge derivative; cross-derivative and twist). Two patches sharing an edge with the
+//! same endpoint data therefore agree to first order along it. Where a small leaf meets a larger
+//! one, the small edge's endpoints lie on the large edge: they are corners of the large leaf, or
+//! new points inside its edge. A new point on an edge of leaf X was made by splitting the leaf Y
+//! across that edge (never a smaller one: a smaller dyadic cell cannot have Y's edge midpoint
+//! inside an edge), from Y's polynomial, whose edge cubic is, by induction on creation order,
+//! the restriction of X's edge cubic; so the new point's data lie on X's edge cubic, and a cubic
+//! restricted to a sub-interval is reproduced exactly by Hermite interpolation of its endpoint
+//! data. Hence every leaf's edge agrees with its neighbours' to first order, T-vertex edges
+//! included, with no cascade of splits: only leaves touching real T-vertices are refined.
+//!
+//! **Merging.** A fully conforming refinement would also split the neighbours of new points; all
+//! those children would reproduce their parent polynomial. More generally, any node whose four
+//! children are leaves and whose new child corners (centre, edge midpoints) carry data equal to
+//! the node's polynomial (within `MERGE_TOL` times the polygon's largest |value|, comparing
+//! value and size-scaled derivatives) needs no patches of its own: the children are merged into
+//! it, bottom-up. This also collapses original subdivision wherever the samples are reproduced
+//! by a coarser patch (e.g. linear regions). C1 then holds up to that tolerance.
+
+use std::collections::HashMap;
+
+use super::hermite::{HermiteData, PatchPoly};
+use crate::quadtree::{Cell, Quadtree, VertexKey};
+
+/// Merge tolerance relative to the polygon's largest |value|: just below one f32 ulp of that
+/// value (1.2e-7), so merging only drops detail the f32 samples and coefficients cannot carry
+/// anyway; far above f64 rounding (~1e-15) and far below the 1e-5 C1 requirement.
+pub(crate) const MERGE_TOL: f64 = 1e-7;
+
+/// The refined, merged patch tree of one polygon, with the Hermite data of its vertices.
+#[derive(Debug, Clone)]
+pub(crate) struct Refined {
+    /// Final tree: its leaves are the patches.
+    pub tree: Quadtree,
+    /// Hermite data at every corner of every final leaf (global units).
+    pub data: HashMap<VertexKey, HermiteData>,
+    /// Points created by refinement (not original samples) that survive as final corners.
+    pub derived_points: usize,
+    /// Nodes turned back into leaves by merging.
+    pub merged_nodes: usize,
+}
+
+/// The Hermite data of `cell`'s corners in patch order (0,0), (1,0), (0,1), (1,1).
+pub(crate) fn corner_data(data: &HashMap<VertexKey, HermiteData>, cell: Cell) -> [HermiteData; 4] {
+    let [c00, c10, c11, c01] = cell.corners();
+    // Callers keep every corner of every leaf in `data`; the default never shows up.
+    [c00, c10, c01, c11].map(|k| data.get(&k).copied().unwrap_or_default())
+}
+
+/// The four edge midpoints of `cell` (bottom, right, top, left). Only for size >= 2.
+fn edge_midpoints(cell: Cell) -> [VertexKey; 4] {
+    let o = cell.origin();
+    let s = cell.size();
+    let h = s / 2;
+    [
+        VertexKey::new(o.i + h, o.j),
+        VertexKey::new(o.i + s, o.j + h),
+        VertexKey::new(o.i + h, o.j + s),
+        VertexKey::new(o.i, o.j + h),
+    ]
+}
+
+/// Refines and merges one polygon. `keys` (sorted) and `data` are the original samples and their
+/// estimated Hermite data; `scale` is the largest |value| of the polygon (for the merge test).
+pub(crate) fn refine(
+    tree: &Quadtree,
+    keys: &[VertexKey],
+    data: &[HermiteData],
+    scale: f64,
+) -> Refined {
+    let mut t = tree.clone();
+    let mut map: HashMap<VertexKey, HermiteData> =
+        keys.iter().copied().zip(data.iter().copied()).collect();
+    let is_original = |k: VertexKey| keys.binary_search(&k).is_ok();
+
+    // Depth-first over the leaves (a stack: deterministic order).
+    let mut stack: Vec<u32> = t.leaves();
+    stack.reverse();
+    while let Some(id) = stack.pop() {
+        let cell = t.node(id).cell;
+        if cell.size() < 2 || !edge_midpoints(cell).into_iter().any(is_original) {
+            continue;
+        }
+        let poly = PatchPoly::from_corners(cell, &corner_data(&map, cell));
+        let first = t.split(id);
+        for child in cell.children() {
+            for k in child.corners() {
+                map.entry(k)
+                    .or_insert_with(|| poly.hermite_at(k.u(), k.v()));
+            }
+        }
+        for q in (0..4).rev() {
+            stack.push(first + q);
+        }
+    }
+
+    // Merge bottom-up: children always have larger indices than their parent.
+    let tol = MERGE_TOL * scale.max(f64::MIN_POSITIVE);
+    let nodes = t.nodes();
+    let mut leaf_now: Vec<bool> = nodes.iter().map(|n| n.is_leaf()).collect();
+    let mut merged_nodes = 0usize;
+    for id in (0..nodes.len()).rev() {
+        let n = nodes[id];
+        if n.is_leaf() || !(0..4).all(|q| leaf_now[n.first_child as usize + q]) {
+            continue;
+        }
+        let poly = PatchPoly::from_corners(n.cell, &corner_data(&map, n.cell));
+        let mut inner = edge_midpoints(n.cell).to_vec();
+        inner.push(n.cell.centre());
+        let agrees = inner.iter().all(|k| {
+            map.get(k)
+                .is_some_and(|d| poly.agrees_with(k.u(), k.v(), d, tol))
+        });
+        if agrees {
+            leaf_now[id] = true;
+            merged_nodes += 1;
+        }
+    }
+
+    // Compact: rebuild the tree without the merged-away subtrees.
+    let mut out = Quadtree::new();
+    let mut work = vec![(0u32, 0u32)];
+    while let Some((old, new)) = work.pop() {
+        if leaf_now[old as usize] {
+            continue;
+        }
+        let of = t.node(old).first_child;
+        let nf = out.split(new);
+        for q in 0..4 {
+            work.push((of + q, nf + q));
+        }
+    }
+    let mut data_out = HashMap::new();
+    for n in out.nodes().iter().filter(|n| n.is_leaf()) {
+        for k in n.cell.corners() {
+            if let Some(d) = map.get(&k) {
+                data_out.insert(k, *d);
+            }
+        }
+    }
+    let derived_points = data_out.keys().filter(|&&k| !is_original(k)).count();
+    Refined {
+        tree: out,
+        data: data_out,
+        derived_points,
+        merged_nodes,
+    }
+}
