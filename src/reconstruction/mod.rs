@@ -104,11 +104,28 @@ impl PatchCoeffs {
     pub fn eval(&self, u: f32, v: f32) -> Vec3 {
         let s = clamp01((u - self.u0) * self.inv_w);
         let t = clamp01((v - self.v0) * self.inv_w);
+        // The 16 monomials s^i t^j once, then one 16-wide dot product per channel: independent
+        // multiply-adds the compiler vectorizes (Horner would be a 6-deep dependency chain).
+        // All monomials lie in [0, 1], so the sum is as accurate as Horner's.
+        let (s2, t2) = (s * s, t * t);
+        let sp = [1.0, s, s2, s2 * s];
+        let tp = [1.0, t, t2, t2 * t];
+        let mut m = [0.0f32; 16];
+        for (j, tj) in tp.iter().enumerate() {
+            for (i, si) in sp.iter().enumerate() {
+                m[4 * j + i] = si * tj;
+            }
+        }
         let mut out = [0.0f32; 3];
         for (o, c) in out.iter_mut().zip(self.c.iter()) {
-            let row =
-                |j: usize| ((c[4 * j + 3] * s + c[4 * j + 2]) * s + c[4 * j + 1]) * s + c[4 * j];
-            *o = ((row(3) * t + row(2)) * t + row(1)) * t + row(0);
+            // Four lanes of partial sums (one 4-wide vector), added in a fixed order.
+            let mut acc = [0.0f32; 4];
+            for (cq, mq) in c.chunks_exact(4).zip(m.chunks_exact(4)) {
+                for l in 0..4 {
+                    acc[l] += cq[l] * mq[l];
+                }
+            }
+            *o = (acc[0] + acc[1]) + (acc[2] + acc[3]);
         }
         Vec3::from_array(out)
     }

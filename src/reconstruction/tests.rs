@@ -75,13 +75,22 @@ fn grey(f: impl Fn(f64, f64) -> f64) -> impl Fn(f64, f64) -> Vec3 {
     move |u, v| Vec3::splat(f(u, v) as f32)
 }
 
+/// A random unrestricted tree: each choice splits either one of the four children made by the
+/// previous split (odd choices: deep chains beside shallow leaves, many-level T-vertex jumps) or
+/// any leaf (even choices), never beyond `max_depth`.
 fn random_tree(choices: &[u32], max_depth: u32) -> Quadtree {
     let mut t = Quadtree::new();
+    let mut last: Option<u32> = None;
     for &r in choices {
-        let leaves = t.leaves();
-        let id = leaves[r as usize % leaves.len()];
-        if t.node(id).cell.level < max_depth {
-            t.split(id);
+        let id = match last {
+            Some(first) if r & 1 == 1 => first + (r >> 1) % 4,
+            _ => {
+                let leaves = t.leaves();
+                leaves[(r >> 1) as usize % leaves.len()]
+            }
+        };
+        if t.node(id).is_leaf() && t.node(id).cell.level < max_depth {
+            last = Some(t.split(id));
         }
     }
     t
@@ -472,7 +481,7 @@ proptest! {
         a in -5.0f64..5.0, b in -5.0f64..5.0, c in -5.0f64..5.0,
         pts in prop::collection::vec((0.0f32..=1.0, 0.0f32..=1.0), 20),
     ) {
-        let tree = random_tree(&choices, 9);
+        let tree = random_tree(&choices, 12);
         let f = |u: f64, v: f64| a + b * u + c * v;
         let sq = SampledQuadtree::from_fn(tree, |u, v| Vec3::new(f(u, v) as f32, f(v, u) as f32, 1.0));
         for e in [Estimator::Plain, Estimator::Monotone] {
@@ -498,7 +507,7 @@ proptest! {
 
     #[test]
     fn c1_on_random_unrestricted_trees(choices in prop::collection::vec(any::<u32>(), 1..50)) {
-        let tree = random_tree(&choices, 9);
+        let tree = random_tree(&choices, 12);
         let f = |u: f64, v: f64| {
             Vec3::new(
                 (1.0 + 0.5 * (3.0 * u + 1.0).sin() * (2.0 * v).cos()) as f32,
