@@ -535,3 +535,82 @@ proptest! {
         }
     }
 }
+
+/// RMS error against the true function over a 512^2 grid of points.
+fn rms_error(f: impl Fn(f64, f64) -> f64, approx: impl Fn(f64, f64) -> f64) -> f64 {
+    let n = 512;
+    let mut se = 0.0;
+    for j in 0..n {
+        for i in 0..n {
+            let (u, v) = ((i as f64 + 0.37) / n as f64, (j as f64 + 0.61) / n as f64);
+            se += (approx(u, v) - f(u, v)).powi(2);
+        }
+    }
+    (se / (n * n) as f64).sqrt()
+}
+
+/// Bilinear texture lookup (clamp to edge) of an n x n texture sampled from `f` at texel centres,
+/// its values quantized to `bits` (0: float).
+fn texture_lookup(f: &impl Fn(f64, f64) -> f64, n: usize, bits: u32) -> impl Fn(f64, f64) -> f64 {
+    let q = |x: f64| {
+        if bits == 0 {
+            x
+        } else {
+            let l = ((1u32 << bits) - 1) as f64;
+            (x * l).round() / l
+        }
+    };
+    let tex: Vec<f64> = (0..n * n)
+        .map(|k| {
+            q(f(
+                ((k % n) as f64 + 0.5) / n as f64,
+                ((k / n) as f64 + 0.5) / n as f64,
+            ))
+        })
+        .collect();
+    move |u, v| {
+        let x = (u * n as f64 - 0.5).clamp(0.0, (n - 1) as f64);
+        let y = (v * n as f64 - 0.5).clamp(0.0, (n - 1) as f64);
+        let (i, j) = ((x as usize).min(n - 2), (y as usize).min(n - 2));
+        let (s, t) = (x - i as f64, y - j as f64);
+        let at = |a: usize, b: usize| tex[b * n + a];
+        (1.0 - t) * ((1.0 - s) * at(i, j) + s * at(i + 1, j))
+            + t * ((1.0 - s) * at(i, j + 1) + s * at(i + 1, j + 1))
+    }
+}
+
+#[test]
+fn equal_quality_texture_report() {
+    // Which bilinearly filtered radiosity texture matches the RRP's accuracy on two-spots? The
+    // textures sample the *true* function (the best a texture can do); prints the comparison.
+    let tree = criterion_tree(&two_spots, 2, 7, 1e-3);
+    let sq = SampledQuadtree::from_fn(tree, grey(two_spots));
+    let rec = build1(&sq, Estimator::default());
+    let s = rec.stats();
+    let rrp = rms_error(two_spots, |u, v| rec.eval(0, u as f32, v as f32).x as f64);
+    eprintln!(
+        "RRP (monotone): rms {rrp:.2e}, {} patches, {} B stored ({} B as Hermite vertex data)",
+        s.patches, s.bytes, s.hermite_bytes
+    );
+    let mut errs = Vec::new();
+    for n in [64usize, 128, 256, 512] {
+        for bits in [8u32, 12, 0] {
+            let e = rms_error(two_spots, texture_lookup(&two_spots, n, bits));
+            let bytes = n * n * 3 * if bits == 0 { 32 } else { bits as usize } / 8;
+            eprintln!(
+                "texture {n:4}^2 x {:>5}: rms {e:.2e}, {bytes} B",
+                if bits == 0 {
+                    "f32".to_string()
+                } else {
+                    format!("{bits} b")
+                }
+            );
+            errs.push((n, bits, e));
+        }
+    }
+    // 8-bit quantization alone costs about 1/255/sqrt(12) = 1.1e-3 rms (measured 8.6e-4 at
+    // 256^2), several times the RRP's error (~1e-4).
+    assert!(errs.iter().filter(|e| e.1 == 8).all(|e| e.2 > 4.0 * rrp));
+    // The texture sampled at the input's own resolution class (128^2) is less accurate.
+    assert!(errs.iter().filter(|e| e.0 <= 128).all(|e| e.2 > rrp));
+}
