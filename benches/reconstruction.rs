@@ -39,6 +39,19 @@ fn bench(c: &mut Criterion) {
         b.iter(|| Reconstruction::build(black_box(&polys), Estimator::Monotone).unwrap())
     });
     let rec = Reconstruction::build(&polys, Estimator::Monotone).unwrap();
+    let st = rec.stats();
+    eprintln!(
+        "tree: {} leaves, depth {}; RRP: {} patches, {} B stored, full grid {} B, \
+         texture 8/12/32 bit {}/{}/{} B",
+        st.input_leaves,
+        polys[0].tree.depth(),
+        st.patches,
+        st.bytes,
+        st.full_grid_bytes,
+        st.texture_bytes_8,
+        st.texture_bytes_12,
+        st.texture_bytes_32
+    );
     let n = 256usize;
     let uv: Vec<[f32; 2]> = (0..n * n)
         .map(|k| {

@@ -18,7 +18,7 @@
 //!
 //! Invariants: every original sample is reproduced at its vertex (to f32 rounding, or to the merge
 //! tolerance of 1e-7 of the polygon's largest value); linear functions are reproduced exactly on any
-//! tree; an undivided polygon is the bilinear interpolant of its corners (plain estimator); no
+//! tree; an undivided polygon is the bilinear interpolant of its corners (both estimators); no
 //! coefficient is NaN or infinite (checked; construction fails otherwise). Evaluation clamps (u, v)
 //! into [0, 1]^2 (NaN to 0) and local (s, t) into [0, 1]^2, so border values are the patch's edge
 //! values. Nothing is clamped in value: the plain estimator can overshoot (ring below zero) near
@@ -37,9 +37,10 @@
 //!
 //! On unrestricted trees the plain estimator is much worse than Catmull-Rom's 7.4 % on a uniform
 //! step: a derivative estimated at the finest leaf width next to a discontinuity is scaled by the
-//! width of a coarse neighbouring patch. The monotone estimator's secants are exactly the adjacent
-//! patches' own secants (g is bilinear inside each leaf), so Fritsch-Butland's bound
-//! |slope| <= 2 min(secants) holds per patch and axis-aligned steps stay in range; it rings
+//! width of a coarse neighbouring patch. At a vertex that is a corner of the leaves on both sides
+//! along an axis, the monotone estimator's secants are exactly those leaves' own secants (g is
+//! bilinear inside each leaf), so Fritsch-Butland's |slope| <= 2 min(secants) keeps every patch
+//! inside Fritsch-Carlson's monotone region and axis-aligned steps stay in range; it rings
 //! slightly (0.18 %) only in 2-D, and costs ~30 % rms on smooth data. Negative radiosity at
 //! shadow edges is visible; that rms difference is not.
 //!
