@@ -614,3 +614,90 @@ fn equal_quality_texture_report() {
     // The texture sampled at the input's own resolution class (128^2) is less accurate.
     assert!(errs.iter().filter(|e| e.0 <= 128).all(|e| e.2 > rrp));
 }
+
+#[test]
+fn figure_2_t_vertices_keep_their_samples() {
+    // Paper fig. 2 in small: the upper-right quadrant refined once more makes T-vertices at
+    // (1/2, 3/4) and (3/4, 1/2) on the edges of the upper-left and lower-right quadrants. Those
+    // two are midpoint-subdivided (4 + 4 patches), the lower-left quadrant and the refined one
+    // stay: 1 + 4 + 4 + 4 = 13 patches. The T-vertex samples are kept, not replaced by the coarse
+    // edge's interpolation (the paper's first, lossy approach).
+    let mut t = Quadtree::new();
+    let c = t.split(0);
+    t.split(c + 3);
+    let f = |u: f64, v: f64| Vec3::splat((1.0 + (4.0 * u).sin() * (3.0 * v).cos()) as f32);
+    let sq = SampledQuadtree::from_fn(t, f);
+    let p = build_polygon(0, &sq, Estimator::Plain).unwrap();
+    assert_eq!(p.refined.tree.leaf_count(), 13);
+    assert_eq!(p.refined.tree.depth_histogram(), vec![0, 1, 12]);
+    let rec = build1(&sq, Estimator::Plain);
+    assert_eq!(rec.stats().patches, 13);
+    // Each T-vertex with an offset that steps into the coarse side it splits.
+    for (u, v, du, dv) in [(0.5f32, 0.75f32, -1e-3f32, 0.0f32), (0.75, 0.5, 0.0, -1e-3)] {
+        let want = f(u as f64, v as f64);
+        // f32 evaluation of O(1) coefficients: a few ulps.
+        assert!((rec.eval(0, u, v) - want).abs().max_element() < 1e-6);
+        // The refined coarse side, evaluated at its edge, gives the sample too.
+        let coarse_side = rec.patch(rec.locate(0, u + du, v + dv));
+        assert!((coarse_side.eval(u, v) - want).abs().max_element() < 1e-6);
+    }
+    let (jv, jd) = c1_jumps(&p);
+    // f64 rounding of O(10) numbers.
+    assert!(jv < 1e-12 && jd < 1e-12, "{jv} {jd}");
+}
+
+#[test]
+fn same_bytes_for_any_thread_count() {
+    let polys: Vec<SampledQuadtree> = (0..6)
+        .map(|k| {
+            let tree = criterion_tree(&two_spots, k % 3, 5 + k % 2, 2e-3);
+            SampledQuadtree::from_fn(tree, |u, v| {
+                Vec3::splat((two_spots(u, v) + k as f64) as f32)
+            })
+        })
+        .collect();
+    let run = |threads: usize| {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap();
+        pool.install(|| Reconstruction::build(&polys, Estimator::default()).unwrap())
+    };
+    let (a, b) = (run(1), run(3));
+    assert_eq!(a.stats(), b.stats());
+    let bits = |r: &Reconstruction| -> Vec<u32> {
+        r.patches()
+            .iter()
+            .flat_map(|p| p.c.iter().flatten().map(|x| x.to_bits()))
+            .collect()
+    };
+    assert_eq!(bits(&a), bits(&b));
+    assert_eq!(a.polygon_count(), 6);
+}
+
+#[test]
+fn eval_grad_matches_finite_differences() {
+    let tree = criterion_tree(&two_spots, 2, 6, 2e-3);
+    let sq = SampledQuadtree::from_fn(tree, grey(two_spots));
+    let rec = build1(&sq, Estimator::Plain);
+    let h = 1e-4;
+    for k in 0..200 {
+        let (u, v) = (
+            0.01 + 0.98 * ((k * 37) % 200) as f64 / 200.0,
+            0.01 + 0.98 * k as f64 / 200.0,
+        );
+        let (f, fu, fv) = rec.eval_grad(0, u, v);
+        let g = |a: f64, b: f64| rec.eval_grad(0, a, b).0.x as f64;
+        let (du, dv) = (
+            (g(u + h, v) - g(u - h, v)) / (2.0 * h),
+            (g(u, v + h) - g(u, v - h)) / (2.0 * h),
+        );
+        // C1 patches: the central difference errs by h^2/6 f''' (|f'''| < ~1e5 here: ~2e-4) plus
+        // f32 rounding of the values (1e-7 / h = 1e-3); gradients reach ~10.
+        assert!(
+            (fu.x as f64 - du).abs() < 5e-3 && (fv.x as f64 - dv).abs() < 5e-3,
+            "{u} {v}: {fu} {du}"
+        );
+        assert!((f.x - rec.eval(0, u as f32, v as f32).x).abs() < 1e-6);
+    }
+}
