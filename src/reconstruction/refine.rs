@@ -4,23 +4,32 @@
 //! **Refinement.** A leaf with an *original sample* strictly inside one of its edges (a T-vertex
 //! carrying its own data) is midpoint-subdivided. Child corners that already carry data (original
 //! samples, or points made earlier) keep it; new points take value, f_u, f_v and f_uv from the
-//! parent patch polynomial. This repeats until no leaf has an original sample inside an edge. An
-//! original sample inside an edge of a cell of width s is the midpoint of that edge, or the same
-//! size cell across the edge would not have been split, so checking the four edge midpoints is
-//! enough.
+//! parent patch polynomial; data, once given to a point, never change. This repeats until no leaf
+//! has an original sample inside an edge. If an original sample lies inside an edge of a cell,
+//! the same-size cell across that edge was split in the input, so the edge midpoint is an
+//! original sample too: checking the four edge midpoints is enough.
 //!
 //! **Why the result is C1.** On an edge of a bicubic Hermite patch, the value and the
 //! cross-derivative are cubic Hermite interpolants of the data at the edge's two endpoints (value
-//! and along-edge derivative; cross-derivative and twist). Two patches sharing an edge with the
-//! same endpoint data therefore agree to first order along it. Where a small leaf meets a larger
-//! one, the small edge's endpoints lie on the large edge: they are corners of the large leaf, or
-//! new points inside its edge. A new point on an edge of leaf X was made by splitting the leaf Y
-//! across that edge (never a smaller one: a smaller dyadic cell cannot have Y's edge midpoint
-//! inside an edge), from Y's polynomial, whose edge cubic is, by induction on creation order,
-//! the restriction of X's edge cubic; so the new point's data lie on X's edge cubic, and a cubic
-//! restricted to a sub-interval is reproduced exactly by Hermite interpolation of its endpoint
-//! data. Hence every leaf's edge agrees with its neighbours' to first order, T-vertex edges
-//! included, with no cascade of splits: only leaves touching real T-vertices are refined.
+//! and along-edge derivative; cross-derivative and twist). So two patches whose shared edge has
+//! the same endpoint data agree to first order along it, and a patch agrees to first order with
+//! any data taken from points of its own edge cubics (Hermite interpolation reproduces a cubic
+//! from its endpoint data on any sub-interval).
+//!
+//! Claim: every *new* point M strictly inside an edge of a final leaf X carries data on X's edge
+//! cubic. M was made by splitting some cell Y, from Y's polynomial. M is not Y's centre and X does
+//! not lie inside Y (then M would be a corner of X), so M is the midpoint of Y's edge E_Y and X
+//! lies across E_Y; X is not smaller than Y (a smaller dyadic edge cannot contain the midpoint of
+//! E_Y in its interior), so E_Y lies within X's edge. Each endpoint of E_Y is a corner of X, or a
+//! point strictly inside X's edge that existed before M; such a point is not an original sample
+//! (X, a final leaf, has none inside its edges), so by induction on creation order its data lie
+//! on X's edge cubic. Then Y's edge cubic is X's restricted to E_Y, and M's data lie on it.
+//!
+//! Now take two final leaves sharing an edge segment, A not larger than B: A's edge endpoints are
+//! corners of B or new points inside B's edge, all on B's edge cubics by the claim, so A's edge
+//! cubics are B's restricted: value and first derivatives agree along the whole edge, T-vertex
+//! edges included. No cascade of splits is needed: only leaves touching real T-vertices are
+//! refined. (The `c1_on_random_unrestricted_trees` proptest checks this on deep random trees.)
 //!
 //! **Merging.** A fully conforming refinement would also split the neighbours of new points; all
 //! those children would reproduce their parent polynomial. More generally, any node whose four
