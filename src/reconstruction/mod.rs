@@ -227,6 +227,9 @@ pub struct ReconstructionStats {
 const LEAF: u32 = 1 << 31;
 
 /// The RRPs of every polygon of a scene, in scene polygon order.
+///
+/// Methods taking a `polygon` index panic if it is `>= polygon_count()`: that is a caller bug,
+/// like an out-of-range slice index, not bad input.
 #[derive(Debug, Clone)]
 pub struct Reconstruction {
     patches: Vec<PatchCoeffs>,

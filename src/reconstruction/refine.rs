@@ -40,9 +40,37 @@
 //! by a coarser patch (e.g. linear regions). C1 then holds up to that tolerance.
 
 use std::collections::HashMap;
+use std::hash::{BuildHasherDefault, Hasher};
 
 use super::hermite::{HermiteData, PatchPoly};
 use crate::quadtree::{Cell, Quadtree, VertexKey};
+
+/// A fast hasher for lattice keys (two u32 of at most 17 bits): a multiplicative hash of the
+/// packed pair. Keys are not attacker-controlled, so SipHash's DoS resistance is not needed; the
+/// map is only ever looked up, never iterated in an order that matters, so output stays
+/// deterministic.
+#[derive(Default)]
+pub(crate) struct KeyHasher(u64);
+
+impl Hasher for KeyHasher {
+    fn finish(&self) -> u64 {
+        self.0
+    }
+    fn write(&mut self, bytes: &[u8]) {
+        for &b in bytes {
+            self.write_u64(b as u64);
+        }
+    }
+    fn write_u32(&mut self, x: u32) {
+        self.write_u64(x as u64);
+    }
+    fn write_u64(&mut self, x: u64) {
+        self.0 = (self.0.rotate_left(21) ^ x).wrapping_mul(0x9E37_79B9_7F4A_7C15);
+    }
+}
+
+/// Vertex data keyed by lattice point.
+pub(crate) type KeyMap<V> = HashMap<VertexKey, V, BuildHasherDefault<KeyHasher>>;
 
 /// Merge tolerance relative to the polygon's largest |value|: just below one f32 ulp of that
 /// value (1.2e-7), so merging only drops detail the f32 samples and coefficients cannot carry
@@ -55,7 +83,7 @@ pub(crate) struct Refined {
     /// Final tree: its leaves are the patches.
     pub tree: Quadtree,
     /// Hermite data at every corner of every final leaf (global units).
-    pub data: HashMap<VertexKey, HermiteData>,
+    pub data: KeyMap<HermiteData>,
     /// Points created by refinement (not original samples) that survive as final corners.
     pub derived_points: usize,
     /// Nodes turned back into leaves by merging.
@@ -63,7 +91,7 @@ pub(crate) struct Refined {
 }
 
 /// The Hermite data of `cell`'s corners in patch order (0,0), (1,0), (0,1), (1,1).
-pub(crate) fn corner_data(data: &HashMap<VertexKey, HermiteData>, cell: Cell) -> [HermiteData; 4] {
+pub(crate) fn corner_data(data: &KeyMap<HermiteData>, cell: Cell) -> [HermiteData; 4] {
     let [c00, c10, c11, c01] = cell.corners();
     // Callers keep every corner of every leaf in `data`; the default never shows up.
     [c00, c10, c01, c11].map(|k| data.get(&k).copied().unwrap_or_default())
@@ -91,8 +119,7 @@ pub(crate) fn refine(
     scale: f64,
 ) -> Refined {
     let mut t = tree.clone();
-    let mut map: HashMap<VertexKey, HermiteData> =
-        keys.iter().copied().zip(data.iter().copied()).collect();
+    let mut map: KeyMap<HermiteData> = keys.iter().copied().zip(data.iter().copied()).collect();
     let is_original = |k: VertexKey| keys.binary_search(&k).is_ok();
 
     // Depth-first over the leaves (a stack: deterministic order).
@@ -152,7 +179,7 @@ pub(crate) fn refine(
             work.push((of + q, nf + q));
         }
     }
-    let mut data_out = HashMap::new();
+    let mut data_out = KeyMap::default();
     for n in out.nodes().iter().filter(|n| n.is_leaf()) {
         for k in n.cell.corners() {
             if let Some(d) = map.get(&k) {
