@@ -196,7 +196,6 @@ impl<'a> Cx<'a> {
 
         // Inline polygons.
         for (i, p) in file.polygons.iter().enumerate() {
-            let span = p.span();
             let p = p.get_ref();
             let key = format!("polygons[{i}]");
             let vs = p.vertices.get_ref();
@@ -228,7 +227,8 @@ impl<'a> Cx<'a> {
             };
             let object = objects.len() as u32;
             objects.push(p.name.clone().unwrap_or_else(|| key.clone()));
-            let location = self.loc(span.clone(), key.clone());
+            // Geometry problems are reported at the vertex list.
+            let location = self.loc(p.vertices.span(), format!("{key}.vertices"));
             let built = build_face(&corners, mat, object)
                 .map_err(|msg| Error::input(location.clone(), msg))?;
             if let Some(w) = built.warning {
@@ -693,7 +693,10 @@ pub(crate) fn build_face(
         .fold(0.0, f64::max);
     // Same degeneracy threshold as `Polygon::build`: twice the area against the squared size.
     if len <= 1e-12 * size2 {
-        return Err("has zero area (its corners are collinear or coincide)".to_string());
+        return Err(
+            "has zero net area (its corners are collinear or coincide, or it crosses itself)"
+                .to_string(),
+        );
     }
     let nh = normal / len;
     let centroid = corners.iter().copied().sum::<DVec3>() / n as f64;

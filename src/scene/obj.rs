@@ -146,7 +146,7 @@ pub(crate) fn include(
         .filter(|(_, l)| matches!(l.split_whitespace().next(), Some("f") | Some("l")))
         .map(|(i, _)| i + 1)
         .collect();
-    let total_faces: usize = models.iter().map(|m| m.mesh.face_arities.len()).sum();
+    let total_faces: usize = models.iter().map(|m| arities(&m.mesh).len()).sum();
     let lines_known = total_faces == face_lines.len();
 
     let stem = obj_path
@@ -269,7 +269,7 @@ pub(crate) fn include(
         };
 
         let mut start = 0usize;
-        for (local, &arity) in mesh.face_arities.iter().enumerate() {
+        for (local, &arity) in arities(mesh).iter().enumerate() {
             let arity = arity as usize;
             let loc = face_loc(face_no, local);
             face_no += 1;
@@ -328,6 +328,16 @@ fn decimal(x: f64) -> f64 {
         return x;
     }
     format!("{f}").parse::<f64>().unwrap_or(x)
+}
+
+/// The vertex count of every face of `mesh`. tobj leaves `face_arities` empty when every face
+/// of a mesh is a triangle, even with `triangulate: false`.
+fn arities(mesh: &tobj::Mesh) -> Vec<u32> {
+    if mesh.face_arities.is_empty() {
+        vec![3; mesh.indices.len() / 3]
+    } else {
+        mesh.face_arities.clone()
+    }
 }
 
 /// `Ke r g b` or `Ke x` (grey).
