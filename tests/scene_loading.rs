@@ -805,3 +805,14 @@ fn documented_example_loads() {
     assert_eq!(s.materials[seat.material as usize].name, "red");
     assert!((seat.normal - DVec3::Y).length() < 1e-12);
 }
+
+#[test]
+fn vectors_must_have_exactly_three_numbers() {
+    // Regression: serde's `[f64; 3]` silently dropped a fourth element under toml.
+    let text = edit("eye = [0.5, 0.5, 2.0]", "eye = [0.5, 0.5, 2.0, 7.0]");
+    assert_error(&text, "7.0", &["invalid length 4", "three numbers"]);
+    let text = edit("[1, 1, 0], [0, 1, 0]]", "[1, 1], [0, 1, 0]]");
+    assert_error(&text, "[1, 1], [0, 1, 0]]", &["invalid length 2"]);
+    let text = format!("{BASE}\n[[obj]]\nfile = \"x.obj\"\nscale = \"big\"\n");
+    assert_error(&text, "big", &["a number or three numbers"]);
+}

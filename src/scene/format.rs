@@ -8,12 +8,26 @@
 //! stays `None` and the loader takes the default from the `Default` impls in [`super`], so there
 //! is exactly one place where each default lives. `docs/scene-format.md` documents every key.
 
-use serde::Deserialize;
+use serde::de::Error as _;
+use serde::{Deserialize, Deserializer};
 use std::collections::BTreeMap;
 use toml::Spanned;
 
-/// A 3-vector as written: `[x, y, z]`.
-pub type Vec3 = [f64; 3];
+/// A 3-vector as written: `[x, y, z]`, exactly three numbers.
+///
+/// Not a plain `[f64; 3]`: toml's deserializer lets serde's array impl stop after three elements
+/// and silently drops a fourth (`eye = [0, 0, 1, 3]`); this type refuses any other length.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Vec3(pub [f64; 3]);
+
+impl<'de> Deserialize<'de> for Vec3 {
+    fn deserialize<D: Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        let v = Vec::<f64>::deserialize(d)?;
+        <[f64; 3]>::try_from(v.as_slice())
+            .map(Vec3)
+            .map_err(|_| D::Error::invalid_length(v.len(), &"three numbers [x, y, z]"))
+    }
+}
 
 /// The whole file.
 #[derive(Debug, Deserialize)]
@@ -99,7 +113,7 @@ pub struct PolygonSection {
 
 /// `scale` of an `[[obj]]`: a number or one factor per axis.
 #[derive(Debug, Deserialize)]
-#[serde(untagged)]
+#[serde(untagged, expecting = "a number or three numbers [x, y, z]")]
 pub enum ScaleSpec {
     /// The same factor on every axis.
     Uniform(f64),

@@ -115,7 +115,7 @@ impl<'a> Cx<'a> {
 
     /// A finite 3-vector.
     pub(crate) fn vec3(&self, v: &Spanned<Vec3>, key: &str) -> Result<DVec3> {
-        let a = v.get_ref();
+        let a = v.get_ref().0;
         for (i, x) in a.iter().enumerate() {
             if !in_range(*x) {
                 return Err(self.err(
@@ -125,7 +125,7 @@ impl<'a> Cx<'a> {
                 ));
             }
         }
-        Ok(DVec3::from_array(*a))
+        Ok(DVec3::from_array(a))
     }
 
     /// A finite number.
@@ -208,14 +208,14 @@ impl<'a> Cx<'a> {
             }
             let mut corners = Vec::with_capacity(4);
             for (j, v) in vs.iter().enumerate() {
-                if let Some(x) = v.iter().find(|x| !in_range(**x)) {
+                if let Some(x) = v.0.iter().find(|x| !in_range(**x)) {
                     return Err(self.err(
                         p.vertices.span(),
                         format!("{key}.vertices[{j}]"),
                         format!("has {x}; {FINITE_RULE}"),
                     ));
                 }
-                corners.push(DVec3::from_array(*v));
+                corners.push(DVec3::from_array(v.0));
             }
             let mname = p.material.get_ref();
             let Some(&mat) = by_name.get(mname) else {
@@ -586,8 +586,8 @@ impl<'a> Cx<'a> {
         let mut keyframes = Vec::with_capacity(ks.len());
         for (i, k) in ks.iter().enumerate() {
             let key = format!("camera_path.keyframes[{i}]");
-            let up = k.up.unwrap_or([0.0, 1.0, 0.0]);
-            for (name, v) in [("eye", &k.eye), ("look_at", &k.look_at), ("up", &up)] {
+            let up = k.up.map_or([0.0, 1.0, 0.0], |u| u.0);
+            for (name, v) in [("eye", &k.eye.0), ("look_at", &k.look_at.0), ("up", &up)] {
                 if let Some(x) = v.iter().find(|x| !in_range(**x)) {
                     return Err(self.err(
                         kspan.clone(),
@@ -597,8 +597,8 @@ impl<'a> Cx<'a> {
                 }
             }
             let (eye, look_at, up) = (
-                DVec3::from_array(k.eye),
-                DVec3::from_array(k.look_at),
+                DVec3::from_array(k.eye.0),
+                DVec3::from_array(k.look_at.0),
                 DVec3::from_array(up),
             );
             self.pose(eye, look_at, up, kspan.clone(), &key)?;

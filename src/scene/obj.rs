@@ -64,7 +64,7 @@ pub(crate) fn include(
         Some(s) => {
             let v = match s.get_ref() {
                 ScaleSpec::Uniform(x) => DVec3::splat(*x),
-                ScaleSpec::PerAxis(a) => DVec3::from_array(*a),
+                ScaleSpec::PerAxis(a) => DVec3::from_array(a.0),
             };
             if !v.to_array().iter().all(|x| in_range(*x)) || v.x == 0.0 || v.y == 0.0 || v.z == 0.0
             {
