@@ -191,6 +191,58 @@ mod tests {
     }
 
     #[test]
+    fn summary_of_a_small_scene() {
+        // A 2 x 1 quad lit by a 1 x 1 emitting triangle (area 0.5) and a spot.
+        let text = r#"
+            [camera]
+            eye = [1, 0.5, 3]
+            look_at = [1, 0.5, 0]
+            fov_y = 40
+            [[materials]]
+            name = "w"
+            reflectance = [0.5, 0.5, 0.5]
+            [[materials]]
+            name = "e"
+            reflectance = [0.5, 0.5, 0.5]
+            emission = [1, 2, 3]
+            [[polygons]]
+            vertices = [[0, 0, 0], [2, 0, 0], [2, 1, 0], [0, 1, 0]]
+            material = "w"
+            [[polygons]]
+            vertices = [[0, 0, 1], [0, 1, 1], [1, 1, 1]]
+            material = "e"
+            [[spots]]
+            position = [1, 4, 1]
+            direction = [0, -1, 0]
+            intensity = [1, 1, 1]
+            half_angle = 30
+            [radiosity]
+            min_depth = 1
+            max_depth = 3
+        "#;
+        let scene = crate::scene::parse_scene(text, std::path::Path::new("s.toml")).unwrap();
+        let s = summarize(&scene);
+        assert_eq!((s.polygons, s.quads, s.triangles), (2, 1, 1));
+        assert_eq!((s.materials, s.emitters, s.spots, s.objects), (2, 1, 1, 2));
+        assert_eq!(s.bounds, (DVec3::ZERO, DVec3::new(2.0, 4.0, 1.0)));
+        assert!((s.total_area - 2.5).abs() < 1e-15);
+        // Emission (1 + 2 + 3) over area 0.5.
+        assert!((s.emitted_power - 3.0).abs() < 1e-15);
+        assert_eq!(s.memory_min, 2 * quadtree_bytes(1));
+        assert_eq!(s.memory_max, 2 * quadtree_bytes(3));
+        let table = s.to_string();
+        assert!(
+            table.contains("polygons        2 (1 quads, 1 triangles)\n"),
+            "{table}"
+        );
+        assert!(
+            table.contains("camera          perspective, fov_y 40.00 deg\n"),
+            "{table}"
+        );
+        assert_eq!(table.lines().count(), 15);
+    }
+
+    #[test]
     fn bytes_are_human() {
         assert_eq!(human_bytes(512), "512 B");
         assert_eq!(human_bytes(1536), "1.5 KiB");
