@@ -816,3 +816,56 @@ fn vectors_must_have_exactly_three_numbers() {
     let text = format!("{BASE}\n[[obj]]\nfile = \"x.obj\"\nscale = \"big\"\n");
     assert_error(&text, "big", &["a number or three numbers"]);
 }
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 256, ..ProptestConfig::default() })]
+
+    /// Mutated copies of the Cornell OBJ (and MTL) are loaded or refused, never a panic.
+    /// Regression: this found tobj 4.0.5 panicking on an MTL colour with fewer than three
+    /// values, and an out-of-range face-line lookup for a model without faces.
+    #[test]
+    fn mutated_obj_never_panics(
+        edits in prop::collection::vec((0usize..4000, 0u8..3, "[fvglusemtKd0-9 ./\n-]{0,5}"), 1..8),
+        mtl_edits in prop::collection::vec((0usize..2000, "[Kde0-9 .\n-]{0,4}"), 0..3),
+    ) {
+        let src = scenes().join("cornell-box");
+        let mut obj = std::fs::read(src.join("CornellBox-Original.obj")).unwrap();
+        for (pos, kind, ins) in edits {
+            let p = pos % (obj.len() + 1);
+            match kind {
+                0 => { obj.splice(p..p, ins.bytes()); }
+                1 => { let e = (p + ins.len().max(1)).min(obj.len()); obj.drain(p..e); }
+                _ => { let e = (p + ins.len()).min(obj.len()); obj.splice(p..e, ins.bytes()); }
+            }
+        }
+        let mut mtl = std::fs::read(src.join("CornellBox-Original.mtl")).unwrap();
+        for (pos, ins) in mtl_edits {
+            let p = pos % (mtl.len() + 1);
+            mtl.splice(p..p, ins.bytes());
+        }
+        let dir = std::env::temp_dir().join(format!("pfs-scene-{}-objfuzz", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        std::fs::write(dir.join("CornellBox-Original.obj"), &obj).unwrap();
+        std::fs::write(dir.join("CornellBox-Original.mtl"), &mtl).unwrap();
+        let scene = "[camera]\neye = [0, 1, 4]\nlook_at = [0, 1, 0]\nfov_y = 40\n\n[[obj]]\nfile = \"CornellBox-Original.obj\"\n";
+        let path = dir.join("s.toml");
+        std::fs::write(&path, scene).unwrap();
+        match load_scene(&path) {
+            Ok(s) => check_invariants(&s),
+            Err(e) => prop_assert_eq!(e.exit_code(), EXIT_BAD_INPUT, "{}", e),
+        }
+    }
+}
+
+#[test]
+fn short_mtl_colour_is_an_error_not_a_tobj_panic() {
+    let dir = scratch("obj-short-kd");
+    let obj = "mtllib m.mtl\nv 0 0 0\nv 1 0 0\nv 1 1 0\ng a\nusemtl lamp\nf 1 2 3\n";
+    let scene = write_obj(&dir, obj, "newmtl lamp\nKd 0.5 0.5 0.5\nKe 2\n");
+    let msg = load_scene(&scene).unwrap_err().to_string();
+    let expect = format!(
+        "{}:3: Ke: has 1 values, needs three",
+        dir.join("m.mtl").display()
+    );
+    assert!(msg.starts_with(&expect), "{msg}");
+}

@@ -16,8 +16,7 @@
 //! the corner order of every face is then reversed so fronts stay fronts.
 //!
 //! Materials: an MTL material that a face uses becomes a scene material with the same name
-//! (reflectance from `Kd`, emission from `Ke`: tobj 4 parses it into `emissive`, older
-//! versions kept it in `unknown_param`, and both are read), unless the
+//! (reflectance from `Kd`, emission from `Ke`, which tobj 4 parses into `emissive`), unless the
 //! include's `materials` map overrides it with a scene material. If the name is already taken
 //! (by a `[[materials]]` entry or an earlier include) the new material is named
 //! `<obj file stem>/<name>`, then `<obj file stem>/<name>#2`, `#3`, ... until it is unique.
@@ -32,6 +31,7 @@ use super::load::{build_face, check_emission, check_reflectance, in_range, Cx};
 use super::{Material, Polygon};
 use crate::error::{Error, Location, Result};
 use glam::{DMat3, DVec3};
+use std::cell::RefCell;
 use std::collections::BTreeMap;
 use std::path::Path;
 use toml::Spanned;
@@ -96,15 +96,47 @@ pub(crate) fn include(
         single_index: false,
         ..Default::default()
     };
-    let (models, mtl) = tobj::load_obj(&obj_path, &opts).map_err(|e| {
+    // tobj reads the MTL through this loader so that each MTL is checked first (see
+    // `check_mtl`), and an unreadable MTL is reported by name.
+    let mtl_problem: RefCell<Option<Error>> = RefCell::new(None);
+    let mtl_unreadable: RefCell<Option<String>> = RefCell::new(None);
+    let obj_dir = obj_path
+        .parent()
+        .unwrap_or_else(|| Path::new(""))
+        .to_path_buf();
+    let load_mtl = |name: &Path| -> tobj::MTLLoadResult {
+        let mtl_path = obj_dir.join(name);
+        let mtl_text = match std::fs::read_to_string(&mtl_path) {
+            Ok(t) => t,
+            Err(e) => {
+                *mtl_unreadable.borrow_mut() =
+                    Some(format!("cannot read MTL file {}: {e}", mtl_path.display()));
+                return Err(tobj::LoadError::OpenFileFailed);
+            }
+        };
+        if let Err(e) = check_mtl(&mtl_text, &mtl_path) {
+            mtl_problem.borrow_mut().get_or_insert(e);
+            return Err(tobj::LoadError::MaterialParseError);
+        }
+        tobj::load_mtl_buf(&mut mtl_text.as_bytes())
+    };
+    let parsed = tobj::load_obj_buf(&mut text.as_bytes(), &opts, load_mtl);
+    if let Some(e) = mtl_problem.into_inner() {
+        return Err(e);
+    }
+    let (models, mtl) = parsed.map_err(|e| {
         Error::input(
             Location::file(&obj_path),
             format!("cannot parse OBJ file: {e}"),
         )
     })?;
+    let mtl = match (mtl, mtl_unreadable.into_inner()) {
+        (Err(_), Some(why)) => Err(why),
+        (m, _) => m.map_err(|e| e.to_string()),
+    };
     let (mtl_materials, mtl_error) = match mtl {
         Ok(m) => (m, None),
-        Err(e) => (Vec::new(), Some(e.to_string())),
+        Err(e) => (Vec::new(), Some(e)),
     };
 
     // Material overrides: every key must be an MTL material, every value a scene material.
@@ -161,8 +193,8 @@ pub(crate) fn include(
         let mesh = &model.mesh;
         let face_loc = |face_no: usize, local: usize| {
             let mut loc = Location::file(&obj_path);
-            if lines_known {
-                loc = loc.at_line(face_lines[face_no]);
+            if let Some(&line) = face_lines.get(face_no).filter(|_| lines_known) {
+                loc = loc.at_line(line);
             }
             loc.with_key(format!(
                 "face {} (group `{}`, face {})",
@@ -196,22 +228,15 @@ pub(crate) fn include(
                     );
                     check_reflectance(reflectance)
                         .map_err(|msg| Error::input(mloc.clone(), format!("Kd {msg}")))?;
-                    // tobj 4 parses `Ke` into `emissive`; older versions left it in
-                    // `unknown_param`, which is still read if `emissive` is absent.
-                    let emission = match (m.emissive, m.unknown_param.get("Ke")) {
-                        (Some(ke), _) => DVec3::new(
+                    // tobj 4 parses `Ke` into `emissive` (`check_mtl` made sure it has three
+                    // values); absent means 0.
+                    let emission = m.emissive.map_or(DVec3::ZERO, |ke| {
+                        DVec3::new(
                             decimal(ke[0] as f64),
                             decimal(ke[1] as f64),
                             decimal(ke[2] as f64),
-                        ),
-                        (None, Some(s)) => parse_ke(s).ok_or_else(|| {
-                            Error::input(
-                                mloc.clone(),
-                                format!("Ke `{s}` is not one or three numbers"),
-                            )
-                        })?,
-                        (None, None) => DVec3::ZERO,
-                    };
+                        )
+                    });
                     check_emission(emission)
                         .map_err(|msg| Error::input(mloc.clone(), format!("Ke {msg}")))?;
                     let mut name = m.name.clone();
@@ -330,6 +355,25 @@ fn decimal(x: f64) -> f64 {
     format!("{f}").parse::<f64>().unwrap_or(x)
 }
 
+/// Checks what tobj 4.0.5 would panic on rather than refuse: a colour statement (`Ka`, `Kd`,
+/// `Ks`, `Ke`) with fewer than three values (found by the property test
+/// `mutated_obj_never_panics`). The values themselves are parsed and checked later.
+fn check_mtl(text: &str, path: &Path) -> Result<()> {
+    for (i, line) in text.lines().enumerate() {
+        let mut words = line.split_whitespace();
+        if let Some(k @ ("Ka" | "Kd" | "Ks" | "Ke")) = words.next() {
+            let n = words.count();
+            if n < 3 {
+                return Err(Error::input(
+                    Location::file(path).at_line(i + 1).with_key(k),
+                    format!("has {n} values, needs three (r g b)"),
+                ));
+            }
+        }
+    }
+    Ok(())
+}
+
 /// The vertex count of every face of `mesh`. tobj leaves `face_arities` empty when every face
 /// of a mesh is a triangle, even with `triangulate: false`.
 fn arities(mesh: &tobj::Mesh) -> Vec<u32> {
@@ -337,18 +381,5 @@ fn arities(mesh: &tobj::Mesh) -> Vec<u32> {
         vec![3; mesh.indices.len() / 3]
     } else {
         mesh.face_arities.clone()
-    }
-}
-
-/// `Ke r g b` or `Ke x` (grey).
-fn parse_ke(s: &str) -> Option<DVec3> {
-    let vals: Vec<f64> = s
-        .split_whitespace()
-        .map(|w| w.parse::<f64>().ok())
-        .collect::<Option<Vec<_>>>()?;
-    match vals.as_slice() {
-        [x] => Some(DVec3::splat(*x)),
-        [r, g, b] => Some(DVec3::new(*r, *g, *b)),
-        _ => None,
     }
 }
