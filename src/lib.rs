@@ -14,6 +14,7 @@ pub mod error;
 pub mod output;
 pub mod quadtree;
 pub mod reconstruction;
+pub mod report;
 pub mod scene;
 
 pub use error::{Error, Result};

@@ -17,6 +17,12 @@
 
 use glam::DVec3;
 
+pub mod format;
+pub mod load;
+mod obj;
+
+pub use load::{load_scene, parse_scene};
+
 /// Largest image width or height accepted, in pixels.
 pub const MAX_IMAGE_DIM: u32 = 16384;
 

@@ -1,0 +1,94 @@
+//! `pixelflow-sim check`, run as a process: exit codes 0 (valid scene) and 2 (bad input or
+//! usage), the summary on stdout, warnings and errors on stderr.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn run(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_pixelflow-sim"))
+        .args(args)
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .output()
+        .expect("the binary runs")
+}
+
+fn text(b: &[u8]) -> String {
+    String::from_utf8_lossy(b).into_owned()
+}
+
+fn scratch(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("pfs-cli-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+#[test]
+fn check_valid_scene_prints_summary_and_exits_0() {
+    let out = run(&["check", "scenes/two-spots.toml"]);
+    assert_eq!(out.status.code(), Some(0), "{}", text(&out.stderr));
+    let stdout = text(&out.stdout);
+    assert!(
+        stdout.contains("polygons        1 (1 quads, 0 triangles)"),
+        "{stdout}"
+    );
+    assert!(stdout.contains("spot lights     2"), "{stdout}");
+    assert!(stdout.contains("image           256 x 256"), "{stdout}");
+    assert!(text(&out.stderr).is_empty());
+}
+
+#[test]
+fn check_cornell_warns_on_stderr_and_exits_0() {
+    let out = run(&["check", "scenes/cornell-box.toml"]);
+    assert_eq!(out.status.code(), Some(0), "{}", text(&out.stderr));
+    let stderr = text(&out.stderr);
+    assert!(
+        stderr.starts_with("warning: scenes/cornell-box/CornellBox-Original.obj:62:"),
+        "{stderr}"
+    );
+    assert!(stderr.contains("split into two triangles"), "{stderr}");
+    let stdout = text(&out.stdout);
+    assert!(
+        stdout.contains("polygons        19 (17 quads, 2 triangles)"),
+        "{stdout}"
+    );
+    assert!(stdout.contains("emitters        1 polygons"), "{stdout}");
+}
+
+#[test]
+fn check_bad_scene_names_file_line_and_key_and_exits_2() {
+    let dir = scratch("bad");
+    let scene = dir.join("bad.toml");
+    std::fs::write(
+        &scene,
+        "[camera]\neye = [0, 0, 1]\nlook_at = [0, 0, 0]\nfov_y = 40\n\n[[materials]]\nname = \"m\"\nreflectance = [0.5, 1.2, 0.5]\n",
+    )
+    .unwrap();
+    let out = run(&["check", scene.to_str().unwrap()]);
+    assert_eq!(out.status.code(), Some(2));
+    let stderr = text(&out.stderr);
+    let expect = format!(
+        "error: {}:8: materials[0].reflectance: component 1 is 1.2",
+        scene.display()
+    );
+    assert!(stderr.starts_with(&expect), "{stderr}");
+    assert!(text(&out.stdout).is_empty());
+}
+
+#[test]
+fn check_missing_file_exits_2() {
+    let out = run(&["check", "no/such/scene.toml"]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(text(&out.stderr).contains("no/such/scene.toml: cannot read scene file"));
+}
+
+#[test]
+fn usage_errors_exit_2_and_help_exits_0() {
+    assert_eq!(run(&[]).status.code(), Some(2));
+    assert_eq!(run(&["check"]).status.code(), Some(2));
+    assert_eq!(run(&["frobnicate"]).status.code(), Some(2));
+    let help = run(&["check", "--help"]);
+    assert_eq!(help.status.code(), Some(0));
+    assert!(text(&help.stdout).contains("Load and validate a scene file"));
+    assert!(Path::new(env!("CARGO_BIN_EXE_pixelflow-sim")).exists());
+}
