@@ -10,9 +10,13 @@
 
 #![warn(missing_docs)]
 
+pub mod composition;
 pub mod error;
+pub mod image_out;
 pub mod output;
 pub mod quadtree;
+pub mod raster;
 pub mod scene;
+pub mod shading;
 
 pub use error::{Error, Result};
