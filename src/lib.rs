@@ -13,6 +13,7 @@
 pub mod composition;
 pub mod error;
 pub mod image_out;
+pub mod lanes;
 pub mod output;
 pub mod quadtree;
 pub mod raster;

@@ -27,6 +27,7 @@
 use glam::Vec3;
 use rayon::prelude::*;
 
+use crate::lanes::{F32x8, LANES};
 use crate::raster::gbuffer::{RegionGBuffer, NO_POLYGON};
 
 /// One bicubic patch in power basis over local (s, t) in [0,1]^2, s = (u - u0) * inv_w,
@@ -99,23 +100,16 @@ fn eval_channel(k: &[f32; 16], s: f32, t: f32) -> f32 {
     ((r(3) * t + r(2)) * t + r(1)) * t + r(0)
 }
 
-/// Lanes per block of the deferred pass.
-pub const LANES: usize = 8;
-
-/// Evaluates one channel for 8 lanes with broadcast coefficients; same operations as
-/// [`eval_channel`].
+/// Evaluates one channel for 8 lanes with broadcast coefficients; same operations, in the same
+/// order, as [`eval_channel`].
 #[inline(always)]
-fn eval_channel8(k: &[f32; 16], s: &[f32; LANES], t: &[f32; LANES]) -> [f32; LANES] {
-    let mut out = [0.0f32; LANES];
-    for l in 0..LANES {
-        let (s, t) = (s[l], t[l]);
-        let r3 = ((k[15] * s + k[14]) * s + k[13]) * s + k[12];
-        let r2 = ((k[11] * s + k[10]) * s + k[9]) * s + k[8];
-        let r1 = ((k[7] * s + k[6]) * s + k[5]) * s + k[4];
-        let r0 = ((k[3] * s + k[2]) * s + k[1]) * s + k[0];
-        out[l] = ((r3 * t + r2) * t + r1) * t + r0;
-    }
-    out
+fn eval_channel8(k: &[f32; 16], s: F32x8, t: F32x8) -> F32x8 {
+    let c = |i: usize| F32x8::splat(k[i]);
+    let r3 = ((c(15) * s + c(14)) * s + c(13)) * s + c(12);
+    let r2 = ((c(11) * s + c(10)) * s + c(9)) * s + c(8);
+    let r1 = ((c(7) * s + c(6)) * s + c(5)) * s + c(4);
+    let r0 = ((c(3) * s + c(2)) * s + c(1)) * s + c(0);
+    ((r3 * t + r2) * t + r1) * t + r0
 }
 
 /// Counters of one shading pass.
@@ -132,92 +126,204 @@ pub struct ShadeCounts {
 /// Shades one composited region: returns its `width * height` resolved linear pixels (row-major,
 /// row 0 at the region's top) and the counters.
 pub fn shade_region(gb: &RegionGBuffer, background: Vec3) -> (Vec<Vec3>, ShadeCounts) {
+    let mut out = vec![Vec3::ZERO; (gb.width * gb.height) as usize];
+    let counts = shade_region_into(gb, background, &mut out, gb.width as usize);
+    (out, counts)
+}
+
+/// Shades one composited region into `dst`, whose element 0 is the region's top-left pixel and
+/// whose rows are `pitch` pixels apart (a frame: pitch = frame width).
+///
+/// On x86-64 CPUs with AVX2 the same code is compiled a second time with 8-wide registers and
+/// chosen at run time; without FMA the two builds perform identical IEEE operations, so the image
+/// does not depend on the CPU.
+pub fn shade_region_into(
+    gb: &RegionGBuffer,
+    background: Vec3,
+    dst: &mut [Vec3],
+    pitch: usize,
+) -> ShadeCounts {
+    assert!(
+        gb.height == 0 || dst.len() >= (gb.height as usize - 1) * pitch + gb.width as usize,
+        "destination too small for the region"
+    );
+    #[cfg(target_arch = "x86_64")]
+    {
+        if std::arch::is_x86_feature_detected!("avx2") {
+            // SAFETY: the CPU supports AVX2, checked just above.
+            return unsafe { shade_region_avx2(gb, background, dst, pitch) };
+        }
+    }
+    shade_region_body(gb, background, dst, pitch)
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+fn shade_region_avx2(gb: &RegionGBuffer, bg: Vec3, dst: &mut [Vec3], pitch: usize) -> ShadeCounts {
+    shade_region_body(gb, bg, dst, pitch)
+}
+
+#[inline(always)]
+fn shade_region_body(
+    gb: &RegionGBuffer,
+    background: Vec3,
+    dst: &mut [Vec3],
+    pitch: usize,
+) -> ShadeCounts {
     let (w, h, stride) = (gb.width as usize, gb.height as usize, gb.stride as usize);
     let plane = stride * h;
-    let mut acc = vec![[0.0f32; 3]; plane];
+    // One row of per-channel accumulators (structure of arrays: lanes store contiguously).
+    let mut acc = [
+        vec![0.0f32; stride],
+        vec![0.0f32; stride],
+        vec![0.0f32; stride],
+    ];
     let mut counts = ShadeCounts::default();
     let bg = background.to_array();
-    for si in 0..gb.samples as usize {
-        for y in 0..h {
+    let bg8 = [
+        F32x8::splat(bg[0]),
+        F32x8::splat(bg[1]),
+        F32x8::splat(bg[2]),
+    ];
+    let inv = F32x8::splat(1.0 / gb.samples as f32);
+    for y in 0..h {
+        for si in 0..gb.samples as usize {
             let row = si * plane + y * stride;
             for bx in (0..w).step_by(LANES) {
                 let i0 = row + bx;
                 let polys: &[u32; LANES] = gb.polygon[i0..i0 + LANES].try_into().unwrap();
                 let slots: &[u32; LANES] = gb.slot[i0..i0 + LANES].try_into().unwrap();
-                let us: &[f32; LANES] = gb.u[i0..i0 + LANES].try_into().unwrap();
-                let vs: &[f32; LANES] = gb.v[i0..i0 + LANES].try_into().unwrap();
-                let dst = &mut acc[y * stride + bx..y * stride + bx + LANES];
-                let uniform =
-                    polys.iter().all(|&p| p != NO_POLYGON) && slots.iter().all(|&s| s == slots[0]);
-                if uniform {
+                let u8x = F32x8(gb.u[i0..i0 + LANES].try_into().unwrap());
+                let v8x = F32x8(gb.v[i0..i0 + LANES].try_into().unwrap());
+                let mut empty = [false; LANES];
+                let mut same = true;
+                let mut n_empty = 0;
+                for l in 0..LANES {
+                    empty[l] = polys[l] == NO_POLYGON;
+                    n_empty += empty[l] as usize;
+                    same &= slots[l] == slots[0];
+                }
+                let out = if n_empty == 0 && same {
+                    // The common case: one patch, its coefficients broadcast over the 8 lanes.
                     counts.uniform_blocks += 1;
                     counts.samples_shaded += LANES as u64;
                     let p = &gb.table[slots[0] as usize];
-                    let mut s = [0.0f32; LANES];
-                    let mut t = [0.0f32; LANES];
-                    for l in 0..LANES {
-                        s[l] = (us[l] - p.u0) * p.inv_w;
-                        t[l] = (vs[l] - p.v0) * p.inv_w;
-                    }
-                    for ch in 0..3 {
-                        let r = eval_channel8(&p.c[ch], &s, &t);
-                        for l in 0..LANES {
-                            dst[l][ch] += r[l];
-                        }
-                    }
+                    let s = (u8x - F32x8::splat(p.u0)) * F32x8::splat(p.inv_w);
+                    let t = (v8x - F32x8::splat(p.v0)) * F32x8::splat(p.inv_w);
+                    [
+                        eval_channel8(&p.c[0], s, t),
+                        eval_channel8(&p.c[1], s, t),
+                        eval_channel8(&p.c[2], s, t),
+                    ]
+                } else if n_empty == LANES {
+                    bg8
                 } else {
+                    // Mixed: one broadcast evaluation per distinct patch, committed through masks.
                     counts.mixed_blocks += 1;
-                    for l in 0..LANES {
-                        let c = if polys[l] == NO_POLYGON {
-                            bg
-                        } else {
-                            counts.samples_shaded += 1;
-                            gb.table[slots[l] as usize].eval(us[l], vs[l]).to_array()
-                        };
+                    counts.samples_shaded += (LANES - n_empty) as u64;
+                    let mut out = bg8;
+                    let mut done = empty;
+                    while let Some(first) = done.iter().position(|&d| !d) {
+                        let slot = slots[first];
+                        let p = &gb.table[slot as usize];
+                        let s = (u8x - F32x8::splat(p.u0)) * F32x8::splat(p.inv_w);
+                        let t = (v8x - F32x8::splat(p.v0)) * F32x8::splat(p.inv_w);
+                        let mut m = [false; LANES];
+                        for l in 0..LANES {
+                            m[l] = !done[l] && slots[l] == slot;
+                            done[l] |= m[l];
+                        }
                         for ch in 0..3 {
-                            dst[l][ch] += c[ch];
+                            out[ch] = F32x8::select(&m, eval_channel8(&p.c[ch], s, t), out[ch]);
                         }
                     }
+                    out
+                };
+                for ch in 0..3 {
+                    let a: &mut [f32; LANES] = (&mut acc[ch][bx..bx + LANES]).try_into().unwrap();
+                    *a = if si == 0 {
+                        out[ch].0
+                    } else {
+                        (F32x8(*a) + out[ch]).0
+                    };
                 }
             }
         }
-    }
-    // Box filter: equal weights over the pixel's samples. Padding lanes beyond the region's width
-    // hold NO_POLYGON (the rasterizer masks them), so they are never counted, and never read here.
-    let inv = 1.0 / gb.samples as f32;
-    let mut out = Vec::with_capacity(w * h);
-    for y in 0..h {
-        for x in 0..w {
-            let a = acc[y * stride + x];
-            out.push(sanitize(Vec3::new(a[0] * inv, a[1] * inv, a[2] * inv)));
+        // Box filter: equal weights over the pixel's samples, then the non-finite clamp. Padding
+        // lanes beyond the region's width hold NO_POLYGON and are never written out.
+        for a in acc.iter_mut() {
+            for chunk in a.chunks_exact_mut(LANES) {
+                let c: &mut [f32; LANES] = chunk.try_into().unwrap();
+                let v = if gb.samples == 1 {
+                    F32x8(*c)
+                } else {
+                    F32x8(*c) * inv
+                };
+                *c = sanitize8(v).0;
+            }
+        }
+        let out = &mut dst[y * pitch..y * pitch + w];
+        for (x, o) in out.iter_mut().enumerate() {
+            *o = Vec3::new(acc[0][x], acc[1][x], acc[2][x]);
         }
     }
-    (out, counts)
+    counts
 }
 
-/// Replaces a non-finite channel by 0 (documented clamp: a patch source with non-finite
-/// coefficients must not put NaN or inf into an image).
-#[inline]
-fn sanitize(c: Vec3) -> Vec3 {
-    Vec3::select(c.is_finite_mask(), c, Vec3::ZERO)
+/// Replaces non-finite lanes by 0 (documented clamp: a patch source with non-finite coefficients
+/// must not put NaN or inf into an image).
+#[inline(always)]
+fn sanitize8(c: F32x8) -> F32x8 {
+    let m: [bool; LANES] = std::array::from_fn(|l| c.0[l].is_finite());
+    F32x8::select(&m, c, F32x8::splat(0.0))
 }
 
-/// The deferred pass over many regions in parallel (rayon, one task per region): each region's
-/// resolved pixels, in the order of `regions`, and the summed counters.
-pub fn shade_regions(regions: &[RegionGBuffer], background: Vec3) -> (Vec<Vec<Vec3>>, ShadeCounts) {
-    let results: Vec<(Vec<Vec3>, ShadeCounts)> = regions
-        .par_iter()
-        .map(|gb| shade_region(gb, background))
+/// The deferred pass over a frame: shades every region into a `width` x `height` frame of
+/// `background`, in parallel (rayon) over bands of `region_size` rows; regions are placed by their
+/// own origin, and every pixel no region covers keeps the background. Returns the frame (row-major,
+/// row 0 at the top) and the summed counters (summed in band order: deterministic).
+pub fn shade_regions(
+    regions: &[RegionGBuffer],
+    background: Vec3,
+    width: u32,
+    height: u32,
+    region_size: u32,
+) -> (Vec<Vec3>, ShadeCounts) {
+    let (w, size) = (width as usize, region_size.max(1) as usize);
+    let mut frame = vec![background; w * height as usize];
+    let bands = (height as usize).div_ceil(size);
+    let mut by_band: Vec<Vec<&RegionGBuffer>> = vec![Vec::new(); bands];
+    for r in regions {
+        let band = r.y0 as usize / size;
+        if band < bands && r.y0 as usize % size == 0 && r.x0 + r.width <= width {
+            by_band[band].push(r);
+        }
+    }
+    let per_band: Vec<ShadeCounts> = frame
+        .par_chunks_mut(w * size)
+        .zip(by_band.par_iter())
+        .map(|(rows, regs)| {
+            let mut c = ShadeCounts::default();
+            for r in regs {
+                let rows_here = rows.len() / w;
+                if (r.height as usize) > rows_here {
+                    continue;
+                }
+                let k = shade_region_into(r, background, &mut rows[r.x0 as usize..], w);
+                c.samples_shaded += k.samples_shaded;
+                c.uniform_blocks += k.uniform_blocks;
+                c.mixed_blocks += k.mixed_blocks;
+            }
+            c
+        })
         .collect();
     let mut total = ShadeCounts::default();
-    let mut out = Vec::with_capacity(results.len());
-    for (px, c) in results {
+    for c in per_band {
         total.samples_shaded += c.samples_shaded;
         total.uniform_blocks += c.uniform_blocks;
         total.mixed_blocks += c.mixed_blocks;
-        out.push(px);
     }
-    (out, total)
+    (frame, total)
 }
 
 #[cfg(test)]
@@ -268,9 +374,12 @@ mod tests {
         let p = poly_patch();
         let s: [f32; 8] = std::array::from_fn(|l| l as f32 * 0.13);
         let t: [f32; 8] = std::array::from_fn(|l| 1.0 - l as f32 * 0.11);
-        let r = eval_channel8(&p.c[1], &s, &t);
+        let r = eval_channel8(&p.c[1], F32x8(s), F32x8(t));
         for l in 0..8 {
-            assert_eq!(r[l].to_bits(), eval_channel(&p.c[1], s[l], t[l]).to_bits());
+            assert_eq!(
+                r.0[l].to_bits(),
+                eval_channel(&p.c[1], s[l], t[l]).to_bits()
+            );
         }
     }
 }

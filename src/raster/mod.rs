@@ -256,8 +256,7 @@ pub fn render_frame(
     let (tx_r, rx_r) = crossbeam::channel::unbounded::<RegionReport>();
     let (tx_c, rx_c) = crossbeam::channel::unbounded::<RegionGBuffer>();
     let mut raster_ms = 0.0;
-    let mut shading_ms = 0.0;
-    let mut shaded: Vec<(RegionGBuffer, Vec<Vec3>, shading::ShadeCounts)> = Vec::new();
+    let mut composited: Vec<RegionGBuffer> = Vec::new();
     let comp_stats = std::thread::scope(|scope| {
         let expected = &expected;
         let compositor = scope.spawn(move || composition::compositor(rx_r, tx_c, expected));
@@ -278,21 +277,21 @@ pub fn render_frame(
             });
         });
         raster_ms = ms(t_raster.elapsed());
-        let t_shade = Instant::now();
-        shaded = rx_c
-            .into_iter()
-            .par_bridge()
-            .map(|gb| {
-                let (px, counts) = shading::shade_region(&gb, background);
-                (gb, px, counts)
-            })
-            .collect();
-        shading_ms = ms(t_shade.elapsed());
+        // The shading stage's input: every composited region, as the compositor finishes it.
+        composited = rx_c.into_iter().collect();
         compositor.join()
     })
     .map_err(|_| Error::Runtime("the compositor thread failed".into()))?;
+    let t_shade = Instant::now();
+    let (pixels, counts) = shading::shade_regions(
+        &composited,
+        background,
+        opts.width,
+        opts.height,
+        opts.region,
+    );
+    let shading_ms = ms(t_shade.elapsed());
 
-    let mut pixels = vec![background; (opts.width * opts.height) as usize];
     let mut stats = FrameStats {
         width: opts.width,
         height: opts.height,
@@ -304,6 +303,7 @@ pub fn render_frame(
         regions_touched: expected.iter().filter(|&&e| e > 0).count() as u32,
         primitives: prims.len() as u32,
         pixels_rasterized: comp_stats.fragments,
+        pixels_shaded: counts.samples_shaded,
         composition_traffic_bytes: comp_stats.traffic_bytes,
         geometry_ms,
         raster_ms,
@@ -311,15 +311,9 @@ pub fn render_frame(
         shading_ms,
         ..FrameStats::default()
     };
-    for (gb, px, counts) in &shaded {
-        stats.pixels_shaded += counts.samples_shaded;
+    for gb in &composited {
         stats.gbuffer_bytes += gb.bytes();
         stats.patch_table_entries += gb.table.len() as u64;
-        for y in 0..gb.height as usize {
-            let dst = (gb.y0 as usize + y) * opts.width as usize + gb.x0 as usize;
-            let src = y * gb.width as usize;
-            pixels[dst..dst + gb.width as usize].copy_from_slice(&px[src..src + gb.width as usize]);
-        }
     }
     stats.frame_ms = stats.geometry_ms + stats.raster_ms + stats.composition_ms + stats.shading_ms;
     Ok(Frame {

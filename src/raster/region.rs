@@ -23,7 +23,7 @@
 
 use super::gbuffer::RegionGBuffer;
 use super::geometry::plane;
-use super::setup::{invert_bilinear, Prim, ONE};
+use super::setup::{clamp_uv, invert_bilinear, triangle_u, InverseKind, Prim, ONE};
 
 /// Lanes per block.
 pub const LANES: usize = 8;
@@ -157,12 +157,39 @@ fn offset_fixed(offsets: &[(f32, f32)], si: usize) -> (i64, i64) {
 /// Rasterizes `prim` into the region G-buffer `gb` at every sample position of `offsets`
 /// (fractions of a pixel, multiples of 1/256). Returns the number of covered samples (fragments,
 /// counted before the depth test).
+///
+/// On x86-64 CPUs with AVX2 the same code is compiled a second time with 8-wide registers and
+/// chosen at run time; without FMA both builds perform identical IEEE operations.
 pub fn rasterize(prim: &Prim, gb: &mut RegionGBuffer, offsets: &[(f32, f32)]) -> u64 {
-    match (prim.perspective, prim.inverse.triangle) {
-        (true, true) => raster_kernel::<true, true>(prim, gb, offsets),
-        (true, false) => raster_kernel::<true, false>(prim, gb, offsets),
-        (false, true) => raster_kernel::<false, true>(prim, gb, offsets),
-        (false, false) => raster_kernel::<false, false>(prim, gb, offsets),
+    #[cfg(target_arch = "x86_64")]
+    {
+        if std::arch::is_x86_feature_detected!("avx2") {
+            // SAFETY: the CPU supports AVX2, checked just above.
+            return unsafe { rasterize_avx2(prim, gb, offsets) };
+        }
+    }
+    rasterize_body(prim, gb, offsets)
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+fn rasterize_avx2(prim: &Prim, gb: &mut RegionGBuffer, offsets: &[(f32, f32)]) -> u64 {
+    rasterize_body(prim, gb, offsets)
+}
+
+const LINEAR: u8 = 0;
+const TRIANGLE: u8 = 1;
+const GENERAL: u8 = 2;
+
+#[inline(always)]
+fn rasterize_body(prim: &Prim, gb: &mut RegionGBuffer, offsets: &[(f32, f32)]) -> u64 {
+    match (prim.perspective, prim.kind) {
+        (true, InverseKind::Linear) => raster_kernel::<true, LINEAR>(prim, gb, offsets),
+        (true, InverseKind::Triangle) => raster_kernel::<true, TRIANGLE>(prim, gb, offsets),
+        (true, InverseKind::General) => raster_kernel::<true, GENERAL>(prim, gb, offsets),
+        (false, InverseKind::Linear) => raster_kernel::<false, LINEAR>(prim, gb, offsets),
+        (false, InverseKind::Triangle) => raster_kernel::<false, TRIANGLE>(prim, gb, offsets),
+        (false, InverseKind::General) => raster_kernel::<false, GENERAL>(prim, gb, offsets),
     }
 }
 
@@ -170,7 +197,8 @@ pub fn rasterize(prim: &Prim, gb: &mut RegionGBuffer, offsets: &[(f32, f32)]) ->
 /// positive; the clamp only keeps a rounding accident from dividing by zero).
 const MIN_Q: f32 = 1e-30;
 
-fn raster_kernel<const PERSP: bool, const TRI: bool>(
+#[inline(always)]
+fn raster_kernel<const PERSP: bool, const KIND: u8>(
     prim: &Prim,
     gb: &mut RegionGBuffer,
     offsets: &[(f32, f32)],
@@ -194,7 +222,8 @@ fn raster_kernel<const PERSP: bool, const TRI: bool>(
         local(plane::TA),
         local(plane::TB),
     );
-    let inv = prim.inverse;
+    let mut inv = prim.inverse;
+    inv.triangle = false; // only the GENERAL kernel calls invert_bilinear
     let id = prim.id;
     let mut fragments = 0u64;
     for si in 0..offsets.len() {
@@ -220,13 +249,14 @@ fn raster_kernel<const PERSP: bool, const TRI: bool>(
                 s[l] = sa.0 * x + sar + w[l] * (sb.0 * x + sbr);
                 t[l] = ta.0 * x + tar + w[l] * (tb.0 * x + tbr);
             }
+            // s, t hold (u, v) for LINEAR and (U, v) for TRIANGLE (folded at setup).
             let mut u = [0.0f32; LANES];
             let mut v = [0.0f32; LANES];
             for l in 0..LANES {
-                let (a, b) = if TRI {
-                    invert_bilinear(&tri_only(inv), s[l], t[l])
-                } else {
-                    invert_bilinear(&quad_only(inv), s[l], t[l])
+                let (a, b) = match KIND {
+                    LINEAR => clamp_uv(s[l], t[l]),
+                    TRIANGLE => clamp_uv(triangle_u(s[l], t[l]), t[l]),
+                    _ => invert_bilinear(&inv, s[l], t[l]),
                 };
                 u[l] = a;
                 v[l] = b;
@@ -247,19 +277,6 @@ fn raster_kernel<const PERSP: bool, const TRI: bool>(
         });
     }
     fragments
-}
-
-/// The inverse with its kind fixed at compile time (lets the triangle/quad branch fold away).
-#[inline(always)]
-fn tri_only(mut inv: super::setup::BilinearInverse) -> super::setup::BilinearInverse {
-    inv.triangle = true;
-    inv
-}
-
-#[inline(always)]
-fn quad_only(mut inv: super::setup::BilinearInverse) -> super::setup::BilinearInverse {
-    inv.triangle = false;
-    inv
 }
 
 /// Coverage counts of a `width` x `height` image: for each pixel, how many of `prims` cover its

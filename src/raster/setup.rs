@@ -65,6 +65,18 @@ pub struct BilinearInverse {
     pub triangle: bool,
 }
 
+/// Which closed form the rasterizer uses for (u, v).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum InverseKind {
+    /// Parallelogram (|d| below 1e-7 of the sides): (u, v) is affine in the plane coordinates,
+    /// so the setup folds it into the per-pixel expressions: u = Ua + w Ub, v = Va + w Vb.
+    Linear,
+    /// Triangle: the barycentric U = u (1 - v) and v are folded the same way; u = U / (1 - v).
+    Triangle,
+    /// General convex quad: the quadratic of [`invert_bilinear`].
+    General,
+}
+
 /// A primitive ready for the region rasterizer.
 #[derive(Clone, Debug)]
 pub struct Prim {
@@ -80,6 +92,9 @@ pub struct Prim {
     pub planes: [super::geometry::Plane; 5],
     /// Inverse of the bilinear map.
     pub inverse: BilinearInverse,
+    /// Which closed form applies. For `Linear` and `Triangle`, `planes[SA..=TB]` hold
+    /// (Ua, Ub, Va, Vb) instead of (Sa, Sb, Ta, Tb).
+    pub kind: InverseKind,
     /// Whether Q is 1/w.
     pub perspective: bool,
 }
@@ -167,13 +182,52 @@ pub fn setup(sp: &ScreenPolygon, width: u32, height: u32) -> Option<Prim> {
         bc: cross(b, c) as f32,
         triangle: sp.triangle,
     };
+    let dn = (d[0] * d[0] + d[1] * d[1]).sqrt();
+    let side = (b[0] * b[0] + b[1] * b[1]).sqrt() + (c[0] * c[0] + c[1] * c[1]).sqrt();
+    let kind = if sp.triangle {
+        InverseKind::Triangle
+    } else if dn <= 1e-7 * side {
+        InverseKind::Linear
+    } else {
+        InverseKind::General
+    };
+    let mut planes = sp.planes;
+    if kind != InverseKind::General {
+        // h = u' b + v c (u' = u for parallelograms, U for triangles): by Cramer's rule
+        // u' = cross(h, c) / cross(b, c), v = cross(b, h) / cross(b, c), linear in h = (s, t),
+        // and s, t are each `A + w B`, so u' and v are too.
+        use super::geometry::{plane as pl, Plane};
+        let det = cross(b, c);
+        let comb = |x: f64, p: Plane, y: f64, q: Plane| Plane {
+            a: (x * p.a + y * q.a) / det,
+            b: (x * p.b + y * q.b) / det,
+            c: (x * p.c + y * q.c) / det,
+        };
+        let (sa, sb, ta, tb) = (
+            planes[pl::SA],
+            planes[pl::SB],
+            planes[pl::TA],
+            planes[pl::TB],
+        );
+        planes[pl::SA] = comb(c[1], sa, -c[0], ta);
+        planes[pl::SB] = comb(c[1], sb, -c[0], tb);
+        planes[pl::TA] = comb(-b[1], sa, b[0], ta);
+        planes[pl::TB] = comb(-b[1], sb, b[0], tb);
+        if !planes
+            .iter()
+            .all(|p| p.a.is_finite() && p.b.is_finite() && p.c.is_finite())
+        {
+            return None;
+        }
+    }
     Some(Prim {
         id: sp.id,
         edges,
         n_edges: n,
         bbox: [px0 as u32, py0 as u32, px1 as u32, py1 as u32],
-        planes: sp.planes,
+        planes,
         inverse,
+        kind,
         perspective: sp.perspective,
     })
 }
@@ -204,9 +258,7 @@ pub fn invert_bilinear(inv: &BilinearInverse, s: f32, t: f32) -> (f32, f32) {
         let det = inv.bc;
         let v = cross(inv.b, h) / det;
         let uu = cross(h, inv.c) / det;
-        let rest = 1.0 - v;
-        let u = if rest > 1e-7 { uu / rest } else { 0.5 };
-        (u, v)
+        (triangle_u(uu, v), v)
     } else {
         // f64 here: f32 x f32 products are exact in f64, so the discriminant keeps its accuracy
         // when the two roots nearly coincide (points near the short edge of a quad degenerating
@@ -225,10 +277,25 @@ pub fn invert_bilinear(inv: &BilinearInverse, s: f32, t: f32) -> (f32, f32) {
         let mm = (m[0] * m[0] + m[1] * m[1]).max(f64::MIN_POSITIVE);
         (((r[0] * m[0] + r[1] * m[1]) / mm) as f32, v as f32)
     };
-    // max/min rather than clamp: they map a NaN to 0 instead of propagating it.
-    #[allow(clippy::manual_clamp)]
-    let clamped = (u.max(0.0).min(1.0), v.max(0.0).min(1.0));
-    clamped
+    clamp_uv(u, v)
+}
+
+/// u of a triangle from its barycentric U = u (1 - v): U / (1 - v), 0.5 at the apex.
+#[inline(always)]
+pub fn triangle_u(uu: f32, v: f32) -> f32 {
+    let rest = 1.0 - v;
+    if rest > 1e-7 {
+        uu / rest
+    } else {
+        0.5
+    }
+}
+
+/// Clamps (u, v) into [0, 1]^2, NaN to 0 (see [`invert_bilinear`] for why).
+#[inline(always)]
+#[allow(clippy::manual_clamp)]
+pub fn clamp_uv(u: f32, v: f32) -> (f32, f32) {
+    (u.max(0.0).min(1.0), v.max(0.0).min(1.0))
 }
 
 #[cfg(test)]
@@ -345,7 +412,7 @@ mod tests {
         // Clockwise on screen (y down) input is reversed; the interior must test positive.
         let sp = screen(
             vec![[0.5, 0.5], [0.5, 4.5], [4.5, 0.5]],
-            [[0.0; 2]; 4],
+            [[0.0, 0.0], [1.0, 0.0], [0.0, 1.0], [0.0, 1.0]],
             true,
         );
         let prim = setup(&sp, 8, 8).unwrap();
