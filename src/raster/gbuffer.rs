@@ -105,33 +105,51 @@ impl RegionGBuffer {
     }
 
     /// Fills `slot`, `table` and `table_ids` from the visible samples: each sample's patch is
-    /// `source.locate(polygon, u, v)`, deduplicated in memory order.
+    /// `source.locate(polygon, u, v)`, deduplicated in memory order. Samples strictly inside the
+    /// previously located patch (whole blocks of 8 at once) reuse it without asking the source.
     pub fn assign_patches(&mut self, source: &dyn PatchSource) {
         self.table.clear();
         self.table_ids.clear();
         let mut index: HashMap<u32, u32> = HashMap::new();
-        // Cache of the last located patch: (polygon, global id, slot).
-        let mut last: Option<(u32, u32, u32)> = None;
-        for i in 0..self.polygon.len() {
-            let p = self.polygon[i];
-            if p == NO_POLYGON {
-                continue;
-            }
-            let (u, v) = (self.u[i], self.v[i]);
-            if let Some((lp, _, ls)) = last {
-                if lp == p && self.table[ls as usize].contains_strictly(u, v, CACHE_MARGIN) {
-                    self.slot[i] = ls;
+        // Cache of the last located patch: (polygon, slot).
+        let mut last: Option<(u32, u32)> = None;
+        for b0 in (0..self.polygon.len()).step_by(8) {
+            // Whole block of 8 on the cached patch: one vector test, one fill.
+            if let Some((lp, ls)) = last {
+                let p = &self.table[ls as usize];
+                let polys: &[u32; 8] = self.polygon[b0..b0 + 8].try_into().unwrap();
+                let us: &[f32; 8] = self.u[b0..b0 + 8].try_into().unwrap();
+                let vs: &[f32; 8] = self.v[b0..b0 + 8].try_into().unwrap();
+                let mut all = true;
+                for l in 0..8 {
+                    all &= polys[l] == lp && p.contains_strictly(us[l], vs[l], CACHE_MARGIN);
+                }
+                if all {
+                    self.slot[b0..b0 + 8].fill(ls);
                     continue;
                 }
             }
-            let id = source.locate(p, u, v);
-            let slot = *index.entry(id).or_insert_with(|| {
-                self.table.push(*source.patch(id));
-                self.table_ids.push(id);
-                (self.table.len() - 1) as u32
-            });
-            self.slot[i] = slot;
-            last = Some((p, id, slot));
+            for i in b0..b0 + 8 {
+                let p = self.polygon[i];
+                if p == NO_POLYGON {
+                    continue;
+                }
+                let (u, v) = (self.u[i], self.v[i]);
+                if let Some((lp, ls)) = last {
+                    if lp == p && self.table[ls as usize].contains_strictly(u, v, CACHE_MARGIN) {
+                        self.slot[i] = ls;
+                        continue;
+                    }
+                }
+                let id = source.locate(p, u, v);
+                let slot = *index.entry(id).or_insert_with(|| {
+                    self.table.push(*source.patch(id));
+                    self.table_ids.push(id);
+                    (self.table.len() - 1) as u32
+                });
+                self.slot[i] = slot;
+                last = Some((p, slot));
+            }
         }
     }
 }

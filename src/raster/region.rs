@@ -24,6 +24,7 @@
 use super::gbuffer::RegionGBuffer;
 use super::geometry::plane;
 use super::setup::{clamp_uv, invert_bilinear, triangle_u, InverseKind, Prim, ONE};
+use crate::lanes::F32x8;
 
 /// Lanes per block.
 pub const LANES: usize = 8;
@@ -230,51 +231,62 @@ fn raster_kernel<const PERSP: bool, const KIND: u8>(
         let off = offset_fixed(offsets, si);
         let (fx, fy) = (off.0 as f32 / ONE as f32, off.1 as f32 / ONE as f32);
         let base = si * plane_len;
-        for_each_block(prim, rect, off, |ly, bx, mask| {
-            let yf = ly as f32 + fy;
-            let (qr, sar, sbr, tar, tbr) = (
-                q.1 * yf + q.2,
-                sa.1 * yf + sa.2,
-                sb.1 * yf + sb.2,
-                ta.1 * yf + ta.2,
-                tb.1 * yf + tb.2,
-            );
-            let mut w = [0.0f32; LANES];
-            let mut s = [0.0f32; LANES];
-            let mut t = [0.0f32; LANES];
-            for l in 0..LANES {
-                let x = (bx + l as u32) as f32 + fx;
-                let qv = q.0 * x + qr;
-                w[l] = if PERSP { 1.0 / qv.max(MIN_Q) } else { qv };
-                s[l] = sa.0 * x + sar + w[l] * (sb.0 * x + sbr);
-                t[l] = ta.0 * x + tar + w[l] * (tb.0 * x + tbr);
-            }
-            // s, t hold (u, v) for LINEAR and (U, v) for TRIANGLE (folded at setup).
-            let mut u = [0.0f32; LANES];
-            let mut v = [0.0f32; LANES];
-            for l in 0..LANES {
-                let (a, b) = match KIND {
-                    LINEAR => clamp_uv(s[l], t[l]),
-                    TRIANGLE => clamp_uv(triangle_u(s[l], t[l]), t[l]),
-                    _ => invert_bilinear(&inv, s[l], t[l]),
-                };
-                u[l] = a;
-                v[l] = b;
-            }
-            let i0 = base + ly as usize * stride + bx as usize;
-            let depth: &mut [f32; LANES] = (&mut gb.depth[i0..i0 + LANES]).try_into().unwrap();
-            let poly: &mut [u32; LANES] = (&mut gb.polygon[i0..i0 + LANES]).try_into().unwrap();
-            let gu: &mut [f32; LANES] = (&mut gb.u[i0..i0 + LANES]).try_into().unwrap();
-            let gv: &mut [f32; LANES] = (&mut gb.v[i0..i0 + LANES]).try_into().unwrap();
-            for l in 0..LANES {
-                let m = mask[l] && (w[l] < depth[l] || (w[l] == depth[l] && id < poly[l]));
-                depth[l] = if m { w[l] } else { depth[l] };
-                poly[l] = if m { id } else { poly[l] };
-                gu[l] = if m { u[l] } else { gu[l] };
-                gv[l] = if m { v[l] } else { gv[l] };
-                fragments += mask[l] as u64;
-            }
-        });
+        for_each_block(
+            prim,
+            rect,
+            off,
+            #[inline(always)]
+            |ly, bx, mask| {
+                let yf = ly as f32 + fy;
+                let (qr, sar, sbr, tar, tbr) = (
+                    q.1 * yf + q.2,
+                    sa.1 * yf + sa.2,
+                    sb.1 * yf + sb.2,
+                    ta.1 * yf + ta.2,
+                    tb.1 * yf + tb.2,
+                );
+                let mut w = [0.0f32; LANES];
+                let mut s = [0.0f32; LANES];
+                let mut t = [0.0f32; LANES];
+                for l in 0..LANES {
+                    let x = (bx + l as u32) as f32 + fx;
+                    let qv = q.0 * x + qr;
+                    w[l] = if PERSP { 1.0 / qv.max(MIN_Q) } else { qv };
+                    s[l] = sa.0 * x + sar + w[l] * (sb.0 * x + sbr);
+                    t[l] = ta.0 * x + tar + w[l] * (tb.0 * x + tbr);
+                }
+                // s, t hold (u, v) for LINEAR and (U, v) for TRIANGLE (folded at setup).
+                let mut u = [0.0f32; LANES];
+                let mut v = [0.0f32; LANES];
+                for l in 0..LANES {
+                    let (a, b) = match KIND {
+                        LINEAR => clamp_uv(s[l], t[l]),
+                        TRIANGLE => clamp_uv(triangle_u(s[l], t[l]), t[l]),
+                        _ => invert_bilinear(&inv, s[l], t[l]),
+                    };
+                    u[l] = a;
+                    v[l] = b;
+                }
+                let i0 = base + ly as usize * stride + bx as usize;
+                let depth: &mut [f32; LANES] = (&mut gb.depth[i0..i0 + LANES]).try_into().unwrap();
+                let poly: &mut [u32; LANES] = (&mut gb.polygon[i0..i0 + LANES]).try_into().unwrap();
+                let gu: &mut [f32; LANES] = (&mut gb.u[i0..i0 + LANES]).try_into().unwrap();
+                let gv: &mut [f32; LANES] = (&mut gb.v[i0..i0 + LANES]).try_into().unwrap();
+                let mut m = [false; LANES];
+                for l in 0..LANES {
+                    m[l] = mask[l] && (w[l] < depth[l] || (w[l] == depth[l] && id < poly[l]));
+                    fragments += mask[l] as u64;
+                }
+                *depth = F32x8::select(&m, F32x8(w), F32x8(*depth)).0;
+                *gu = F32x8::select(&m, F32x8(u), F32x8(*gu)).0;
+                *gv = F32x8::select(&m, F32x8(v), F32x8(*gv)).0;
+                let mut p = [0u32; LANES];
+                for l in 0..LANES {
+                    p[l] = if m[l] { id } else { poly[l] };
+                }
+                *poly = p;
+            },
+        );
     }
     fragments
 }
