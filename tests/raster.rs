@@ -624,3 +624,102 @@ proptest! {
         }
     }
 }
+
+/// Renders `poly` alone in perspective with the (u, v) source and checks every covered pixel
+/// against the exact parameters of the point its centre ray hits, `exact(p)`.
+fn check_perspective_uv(poly: Polygon, exact: impl Fn(DVec3) -> (f64, f64)) -> usize {
+    let (w, h) = (90, 70);
+    let camera = Camera {
+        eye: DVec3::new(0.4, 0.3, 4.0),
+        look_at: DVec3::new(0.0, 0.0, 0.0),
+        up: DVec3::Y,
+        projection: Projection::Perspective { fov_y_deg: 45.0 },
+    };
+    let scene = scene_with(vec![poly.clone()], camera, w, h);
+    let frame = render_frame(&scene, &camera, &UvSource::new(), &FrameOptions::new(w, h)).unwrap();
+    assert_finite_and_in_unit_square(&frame);
+    let f = (camera.look_at - camera.eye).normalize();
+    let r = f.cross(camera.up).normalize();
+    let up = r.cross(f);
+    let ty = (22.5f64).to_radians().tan();
+    let tx = ty * w as f64 / h as f64;
+    let mut checked = 0;
+    for y in 0..h {
+        for x in 0..w {
+            let px = uv_of(&frame, x, y);
+            if px.z != 1.0 {
+                continue;
+            }
+            let nx = (x as f64 + 0.5) / w as f64 * 2.0 - 1.0;
+            let ny = 1.0 - (y as f64 + 0.5) / h as f64 * 2.0;
+            let d = f + r * (nx * tx) + up * (ny * ty);
+            let t = (poly.corners[0] - camera.eye).dot(poly.normal) / d.dot(poly.normal);
+            let (u, v) = exact(camera.eye + d * t);
+            // Pixels covered only through the 1/512-pixel snap of the edges are skipped.
+            if !(0.01..=0.99).contains(&u) || !(0.01..=0.99).contains(&v) {
+                continue;
+            }
+            // Tolerance: f32 plane evaluation at distance ~4 over a ~2-unit polygon gives ~1e-6
+            // relative errors in (s, t); 1e-4 leaves a wide margin yet catches any affine
+            // (not perspective-correct) interpolation, which is off by ~1e-2 here.
+            assert!(
+                (px.x as f64 - u).abs() < 1e-4,
+                "u at ({x}, {y}): {} vs {u}",
+                px.x
+            );
+            assert!(
+                (px.y as f64 - v).abs() < 1e-4,
+                "v at ({x}, {y}): {} vs {v}",
+                px.y
+            );
+            checked += 1;
+        }
+    }
+    checked
+}
+
+#[test]
+fn perspective_uv_of_a_general_quad_is_the_exact_bilinear_inverse() {
+    let quad = Polygon::quad(
+        [
+            DVec3::new(-1.2, -1.0, -0.5),
+            DVec3::new(1.0, -0.8, 0.3),
+            DVec3::new(1.3, 1.1, 0.5),
+            DVec3::new(-0.9, 0.9, -0.5),
+        ],
+        0,
+        0,
+    );
+    // Make it exactly planar: put c2 on the plane of c0, c1, c3.
+    let q = quad.unwrap();
+    let n = (q.corners[1] - q.corners[0]).cross(q.corners[3] - q.corners[0]);
+    let mut c2 = q.corners[2];
+    c2.z -= (c2 - q.corners[0]).dot(n) / n.z;
+    let quad = Polygon::quad([q.corners[0], q.corners[1], c2, q.corners[3]], 0, 0).unwrap();
+    let checked = check_perspective_uv(quad.clone(), |p| newton_uv(&quad, p));
+    assert!(checked > 1000, "only {checked} pixels checked");
+}
+
+#[test]
+fn perspective_uv_of_a_triangle_is_the_collapsed_quad_inverse() {
+    let tri = Polygon::triangle(
+        [
+            DVec3::new(-1.3, -1.0, -0.4),
+            DVec3::new(1.2, -0.7, 0.2),
+            DVec3::new(0.1, 1.2, 0.0),
+        ],
+        0,
+        0,
+    )
+    .unwrap();
+    let [c0, c1, c2, _] = tri.corners;
+    let checked = check_perspective_uv(tri.clone(), |p| {
+        // Barycentrics by areas; v = b2, u = b1 / (b0 + b1).
+        let a = (c1 - c0).cross(c2 - c0).length();
+        let b1 = (p - c0).cross(c2 - c0).length() / a;
+        let b2 = (c1 - c0).cross(p - c0).length() / a;
+        let b0 = 1.0 - b1 - b2;
+        (b1 / (b0 + b1), b2)
+    });
+    assert!(checked > 500, "only {checked} pixels checked");
+}
