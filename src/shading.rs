@@ -290,7 +290,9 @@ pub fn shade_regions(
     region_size: u32,
 ) -> (Vec<Vec3>, ShadeCounts) {
     let (w, size) = (width as usize, region_size.max(1) as usize);
-    let mut frame = vec![background; w * height as usize];
+    // Zeroed memory comes from the allocator without a fill pass; only pixels no region covers
+    // are then written with the background.
+    let mut frame = vec![Vec3::ZERO; w * height as usize];
     let bands = (height as usize).div_ceil(size);
     let mut by_band: Vec<Vec<&RegionGBuffer>> = vec![Vec::new(); bands];
     for r in regions {
@@ -304,15 +306,26 @@ pub fn shade_regions(
         .zip(by_band.par_iter())
         .map(|(rows, regs)| {
             let mut c = ShadeCounts::default();
+            let rows_here = rows.len() / w;
+            let mut covered = vec![false; w];
             for r in regs {
-                let rows_here = rows.len() / w;
-                if (r.height as usize) > rows_here {
+                if r.height as usize != rows_here {
                     continue;
                 }
                 let k = shade_region_into(r, background, &mut rows[r.x0 as usize..], w);
+                covered[r.x0 as usize..(r.x0 + r.width) as usize].fill(true);
                 c.samples_shaded += k.samples_shaded;
                 c.uniform_blocks += k.uniform_blocks;
                 c.mixed_blocks += k.mixed_blocks;
+            }
+            if covered.iter().any(|&c| !c) {
+                for row in rows.chunks_exact_mut(w) {
+                    for (p, &cov) in row.iter_mut().zip(&covered) {
+                        if !cov {
+                            *p = background;
+                        }
+                    }
+                }
             }
             c
         })
@@ -380,6 +393,34 @@ mod tests {
                 r.0[l].to_bits(),
                 eval_channel(&p.c[1], s[l], t[l]).to_bits()
             );
+        }
+    }
+
+    #[test]
+    fn frame_pass_places_regions_and_fills_the_rest_with_background() {
+        use crate::raster::gbuffer::RegionGBuffer;
+        // A 20 x 10 frame of 8 x 8 regions: only region (1, 0) (x 8..16, y 0..8) is present; its
+        // sample at local (2, 3) sees polygon 0 with the constant patch 0.25.
+        let mut gb = RegionGBuffer::new(1, 8, 0, 8, 8, 1);
+        let i = 3 * gb.stride as usize + 2;
+        gb.polygon[i] = 0;
+        gb.depth[i] = 1.0;
+        let mut c = [[0.0f32; 16]; 3];
+        c[0][0] = 0.25;
+        gb.table.push(PatchCoeffs::whole(c));
+        gb.table_ids.push(7);
+        let bg = Vec3::new(1.0, 2.0, 3.0);
+        let (frame, counts) = shade_regions(&[gb], bg, 20, 10, 8);
+        assert_eq!(counts.samples_shaded, 1);
+        for y in 0..10 {
+            for x in 0..20 {
+                let want = if (x, y) == (10, 3) {
+                    Vec3::new(0.25, 0.0, 0.0)
+                } else {
+                    bg
+                };
+                assert_eq!(frame[y * 20 + x], want, "({x}, {y})");
+            }
         }
     }
 }
