@@ -723,3 +723,26 @@ fn perspective_uv_of_a_triangle_is_the_collapsed_quad_inverse() {
     });
     assert!(checked > 500, "only {checked} pixels checked");
 }
+
+#[test]
+fn empty_scene_renders_the_background_everywhere() {
+    let mut scene = scene_with(vec![], ortho_pixels(24, 10), 24, 10);
+    scene.display.background = DVec3::new(0.1, 0.2, 0.3);
+    let f = render_frame(
+        &scene,
+        &scene.camera,
+        &UvSource::new(),
+        &FrameOptions::new(24, 10),
+    )
+    .unwrap();
+    assert!(f.pixels.iter().all(|&p| p == Vec3::new(0.1, 0.2, 0.3)));
+    assert_eq!(
+        (
+            f.stats.primitives,
+            f.stats.regions_touched,
+            f.stats.pixels_shaded
+        ),
+        (0, 0, 0)
+    );
+    assert_eq!(f.stats.composition_traffic_bytes, 0);
+}
