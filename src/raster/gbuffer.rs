@@ -120,10 +120,15 @@ impl RegionGBuffer {
                 let polys: &[u32; 8] = self.polygon[b0..b0 + 8].try_into().unwrap();
                 let us: &[f32; 8] = self.u[b0..b0 + 8].try_into().unwrap();
                 let vs: &[f32; 8] = self.v[b0..b0 + 8].try_into().unwrap();
-                let mut all = true;
+                // Same test as `contains_strictly`, lane by lane without short-circuits.
+                let (lo, hi) = (CACHE_MARGIN, 1.0 - CACHE_MARGIN);
+                let mut inside = [false; 8];
                 for l in 0..8 {
-                    all &= polys[l] == lp && p.contains_strictly(us[l], vs[l], CACHE_MARGIN);
+                    let s = (us[l] - p.u0) * p.inv_w;
+                    let t = (vs[l] - p.v0) * p.inv_w;
+                    inside[l] = (polys[l] == lp) & (s > lo) & (s < hi) & (t > lo) & (t < hi);
                 }
+                let all = inside.iter().fold(true, |a, &b| a & b);
                 if all {
                     self.slot[b0..b0 + 8].fill(ls);
                     continue;
