@@ -125,7 +125,8 @@ fn frame(c: &mut Criterion) {
         let f = render_frame(&scene, &scene.camera, &source, &opts).unwrap();
         eprintln!("frame {size}: {}", serde_json_like(&f.stats));
         g.throughput(Throughput::Elements((size * size) as u64));
-        g.bench_with_input(BenchmarkId::new("room-389", size), &opts, |b, o| {
+        let name = format!("room-{}", scene.polygons.len());
+        g.bench_with_input(BenchmarkId::new(name, size), &opts, |b, o| {
             b.iter(|| render_frame(&scene, &scene.camera, &source, o).unwrap())
         });
     }
@@ -133,6 +134,7 @@ fn frame(c: &mut Criterion) {
         let scene = room(n);
         let source = Grid::new(scene.polygons.len());
         let opts = FrameOptions::new(1024, 1024);
+        g.throughput(Throughput::Elements(1024 * 1024));
         g.bench_with_input(
             BenchmarkId::new(format!("room-{}", scene.polygons.len()), 1024),
             &opts,
