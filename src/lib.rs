@@ -10,11 +10,16 @@
 
 #![warn(missing_docs)]
 
+pub mod composition;
 pub mod error;
+pub mod image_out;
+pub mod lanes;
 pub mod output;
 pub mod quadtree;
+pub mod raster;
 pub mod reconstruction;
 pub mod report;
 pub mod scene;
+pub mod shading;
 
 pub use error::{Error, Result};

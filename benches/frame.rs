@@ -1,0 +1,187 @@
+//! Frame benchmark (issue 5): frame time of the direct method at 512, 1024 and 2048 pixels square
+//! for a code-built room of a few hundred quads seen from inside (every pixel covered), frame time
+//! against polygon count at 1024, and the deferred RRP pass alone in Mpixel/s.
+//!
+//! Run briefly: `cargo bench --bench frame -- --warm-up-time 1 --measurement-time 3`.
+
+use std::path::PathBuf;
+
+use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
+use glam::{DVec3, Vec3};
+use pixelflow_sim::raster::gbuffer::RegionGBuffer;
+use pixelflow_sim::raster::region::{rasterize, RegionGrid};
+use pixelflow_sim::raster::{build_primitives, render_frame, sample_offsets, FrameOptions};
+use pixelflow_sim::scene::{Camera, DisplaySettings, Material, Polygon, Projection, Scene};
+use pixelflow_sim::shading::{shade_regions, PatchCoeffs, PatchSource};
+
+/// A 10 x 4 x 10 room, each wall cut into `n` x `n` quads, with two boxes inside.
+fn room(n: usize) -> Scene {
+    let mut polys = Vec::new();
+    let mut wall = |o: DVec3, a: DVec3, b: DVec3| {
+        for j in 0..n {
+            for i in 0..n {
+                let p = |di: usize, dj: usize| {
+                    o + a * ((i + di) as f64 / n as f64) + b * ((j + dj) as f64 / n as f64)
+                };
+                polys.push(Polygon::quad([p(0, 0), p(1, 0), p(1, 1), p(0, 1)], 0, 0).unwrap());
+            }
+        }
+    };
+    let (x, y, z) = (DVec3::X * 10.0, DVec3::Y * 4.0, DVec3::Z * 10.0);
+    wall(DVec3::ZERO, x, z); // floor
+    wall(y, z, x); // ceiling
+    wall(DVec3::ZERO, y, x); // back
+    wall(z, x, y); // front
+    wall(DVec3::ZERO, z, y); // left
+    wall(x, y, z); // right
+    for (c, s) in [
+        (DVec3::new(3.0, 0.0, 3.0), 1.5),
+        (DVec3::new(6.5, 0.0, 5.0), 1.0),
+    ] {
+        let (a, b, h) = (DVec3::X * s, DVec3::Z * s, DVec3::Y * s * 1.5);
+        for (o, u, v) in [
+            (c, a, h),
+            (c + a, b, h),
+            (c + a + b, -a, h),
+            (c + b, -b, h),
+            (c + h, b, a),
+        ] {
+            polys.push(Polygon::quad([o, o + u, o + u + v, o + v], 0, 0).unwrap());
+        }
+    }
+    Scene {
+        source: PathBuf::new(),
+        camera: Camera {
+            eye: DVec3::new(5.0, 2.0, 9.5),
+            look_at: DVec3::new(5.0, 1.5, 0.0),
+            up: DVec3::Y,
+            projection: Projection::Perspective { fov_y_deg: 60.0 },
+        },
+        width: 1024,
+        height: 1024,
+        materials: vec![Material {
+            name: "white".into(),
+            reflectance: DVec3::splat(0.7),
+            emission: DVec3::ZERO,
+        }],
+        objects: vec!["room".into()],
+        polygons: polys,
+        spots: vec![],
+        radiosity: Default::default(),
+        render: Default::default(),
+        display: DisplaySettings::default(),
+        camera_path: None,
+        warnings: vec![],
+    }
+}
+
+/// 4 x 4 bicubic patches per polygon.
+struct Grid {
+    patches: Vec<PatchCoeffs>,
+}
+
+impl Grid {
+    fn new(polygons: usize) -> Grid {
+        let mut patches = Vec::new();
+        for p in 0..polygons {
+            for k in 0..16u32 {
+                let mut c = [[0.0f32; 16]; 3];
+                for (ch, row) in c.iter_mut().enumerate() {
+                    for (i, x) in row.iter_mut().enumerate() {
+                        *x = ((p as u32 * 7 + k * 5 + ch as u32 * 3 + i as u32) % 9) as f32 * 0.05;
+                    }
+                }
+                patches.push(PatchCoeffs {
+                    c,
+                    u0: (k % 4) as f32 / 4.0,
+                    v0: (k / 4) as f32 / 4.0,
+                    inv_w: 4.0,
+                    _pad: 0.0,
+                });
+            }
+        }
+        Grid { patches }
+    }
+}
+
+impl PatchSource for Grid {
+    fn locate(&self, polygon: u32, u: f32, v: f32) -> u32 {
+        let i = ((u * 4.0) as u32).min(3);
+        let j = ((v * 4.0) as u32).min(3);
+        polygon * 16 + j * 4 + i
+    }
+    fn patch(&self, id: u32) -> &PatchCoeffs {
+        &self.patches[id as usize]
+    }
+}
+
+fn frame(c: &mut Criterion) {
+    let scene = room(8);
+    let source = Grid::new(scene.polygons.len());
+    let mut g = c.benchmark_group("frame");
+    g.sample_size(10);
+    for size in [512u32, 1024, 2048] {
+        let opts = FrameOptions::new(size, size);
+        let f = render_frame(&scene, &scene.camera, &source, &opts).unwrap();
+        eprintln!("frame {size}: {}", serde_json_like(&f.stats));
+        g.throughput(Throughput::Elements((size * size) as u64));
+        let name = format!("room-{}", scene.polygons.len());
+        g.bench_with_input(BenchmarkId::new(name, size), &opts, |b, o| {
+            b.iter(|| render_frame(&scene, &scene.camera, &source, o).unwrap())
+        });
+    }
+    for n in [4usize, 16] {
+        let scene = room(n);
+        let source = Grid::new(scene.polygons.len());
+        let opts = FrameOptions::new(1024, 1024);
+        g.throughput(Throughput::Elements(1024 * 1024));
+        g.bench_with_input(
+            BenchmarkId::new(format!("room-{}", scene.polygons.len()), 1024),
+            &opts,
+            |b, o| b.iter(|| render_frame(&scene, &scene.camera, &source, o).unwrap()),
+        );
+    }
+    g.finish();
+}
+
+fn serde_json_like(s: &pixelflow_sim::raster::FrameStats) -> String {
+    format!(
+        "prims {} regions {} shaded {} table {} geometry {:.2} raster {:.2} composition {:.2} shading {:.2} frame {:.2} ms",
+        s.primitives, s.regions_touched, s.pixels_shaded, s.patch_table_entries, s.geometry_ms, s.raster_ms,
+        s.composition_ms, s.shading_ms, s.frame_ms
+    )
+}
+
+fn deferred(c: &mut Criterion) {
+    let scene = room(8);
+    let source = Grid::new(scene.polygons.len());
+    let (w, h) = (1024, 1024);
+    let opts = FrameOptions::new(w, h);
+    let prims = build_primitives(&scene, &scene.camera, &opts).unwrap();
+    let grid = RegionGrid::new(w, h, opts.region);
+    let bins = grid.bin(prims.iter().enumerate());
+    let offsets = sample_offsets(1).unwrap();
+    let regions: Vec<RegionGBuffer> = (0..grid.count() as u32)
+        .map(|r| {
+            let (x0, y0, rw, rh) = grid.rect(r);
+            let mut gb = RegionGBuffer::new(r, x0, y0, rw, rh, 1);
+            for &k in &bins[r as usize] {
+                rasterize(&prims[k as usize], &mut gb, offsets);
+            }
+            gb.assign_patches(&source);
+            gb
+        })
+        .collect();
+    let (_, counts) = shade_regions(&regions, Vec3::ZERO, w, h, opts.region);
+    eprintln!("deferred: {counts:?}");
+    let mut g = c.benchmark_group("deferred");
+    g.sample_size(20);
+    g.throughput(Throughput::Elements((w * h) as u64));
+    g.bench_function("rrp-1024", |b| {
+        b.iter(|| shade_regions(&regions, Vec3::ZERO, w, h, opts.region))
+    });
+    g.finish();
+}
+
+criterion_group!(benches, frame, deferred);
+criterion_main!(benches);

@@ -1,0 +1,314 @@
+//! Regions: the third stage of the renderer. The screen is cut into square regions (default
+//! 128 x 128, PixelFlow's SIMD array size); each renderer bins its primitives per region by
+//! bounding box and, per region, rasterizes every binned primitive into the region's G-buffer.
+//!
+//! The inner loop works on whole blocks of 8 horizontally adjacent samples, as PixelFlow's
+//! enhanced-memory chips evaluated linear expressions at every pixel at once: the integer edge
+//! functions are fixed-width `[i64; 8]` lanes whose sign bits are OR-ed into a coverage mask, and
+//! depth, 1/w and the plane coordinates are `[f32; 8]` lanes; the bilinear inverse, the depth test
+//! and the writes are computed for all 8 lanes and committed through masks (select), with no
+//! per-sample branch. The only branches are per block (skip a block no sample of which is covered)
+//! and per primitive (perspective or orthographic, quad or triangle), monomorphized out of the loop.
+//!
+//! The per-pixel linear expressions are re-based at each region's origin in f64 and only then
+//! rounded to f32, so their f32 evaluation works with small local coordinates and keeps its
+//! precision anywhere on a 16k-pixel screen.
+//!
+//! Depth test: a sample is written when its depth is smaller, or equal with a smaller polygon id,
+//! so the result does not depend on the order primitives arrive in.
+
+// Lane loops index several fixed-width arrays with one lane index on purpose: that is the form
+// the compiler vectorizes and the reader checks lane by lane.
+#![allow(clippy::needless_range_loop)]
+
+use super::gbuffer::RegionGBuffer;
+use super::geometry::plane;
+use super::setup::{clamp_uv, invert_bilinear, triangle_u, InverseKind, Prim, ONE};
+use crate::lanes::F32x8;
+
+/// Lanes per block.
+pub const LANES: usize = 8;
+
+/// The frame's grid of regions.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct RegionGrid {
+    /// Region side in pixels (a multiple of 8).
+    pub size: u32,
+    /// Regions per row.
+    pub cols: u32,
+    /// Regions per column.
+    pub rows: u32,
+    /// Image width.
+    pub width: u32,
+    /// Image height.
+    pub height: u32,
+}
+
+impl RegionGrid {
+    /// The grid of `size` x `size` regions over a `width` x `height` image.
+    pub fn new(width: u32, height: u32, size: u32) -> RegionGrid {
+        RegionGrid {
+            size,
+            cols: width.div_ceil(size),
+            rows: height.div_ceil(size),
+            width,
+            height,
+        }
+    }
+
+    /// Number of regions.
+    pub fn count(&self) -> usize {
+        (self.cols * self.rows) as usize
+    }
+
+    /// Pixel rectangle (x0, y0, width, height) of region `r`.
+    pub fn rect(&self, r: u32) -> (u32, u32, u32, u32) {
+        let (cx, cy) = (r % self.cols, r / self.cols);
+        let (x0, y0) = (cx * self.size, cy * self.size);
+        (
+            x0,
+            y0,
+            self.size.min(self.width - x0),
+            self.size.min(self.height - y0),
+        )
+    }
+
+    /// Bins primitives: for each region, the indices (into `prims`, ascending) of those whose
+    /// bounding box meets it.
+    pub fn bin<'a>(&self, prims: impl Iterator<Item = (usize, &'a Prim)>) -> Vec<Vec<u32>> {
+        let mut bins = vec![Vec::new(); self.count()];
+        for (i, p) in prims {
+            let [x0, y0, x1, y1] = p.bbox;
+            for ry in y0 / self.size..=y1 / self.size {
+                for rx in x0 / self.size..=x1 / self.size {
+                    bins[(ry * self.cols + rx) as usize].push(i as u32);
+                }
+            }
+        }
+        bins
+    }
+}
+
+/// Calls `visit(local_y, block_x, edge_mask)` for every block of 8 samples of one sample position
+/// (`offset`, fixed point within the pixel) of region `rect` that the primitive covers at least
+/// partly. `mask[l]` is whether lane l is covered (and inside the region).
+#[inline(always)]
+fn for_each_block(
+    prim: &Prim,
+    rect: (u32, u32, u32, u32),
+    offset: (i64, i64),
+    mut visit: impl FnMut(u32, u32, &[bool; LANES]),
+) {
+    let (rx, ry, rw, rh) = rect;
+    let [bx0, by0, bx1, by1] = prim.bbox;
+    if bx1 < rx || by1 < ry || bx0 >= rx + rw || by0 >= ry + rh {
+        return;
+    }
+    let lx0 = (bx0.max(rx) - rx) / LANES as u32 * LANES as u32;
+    let lx1 = bx1.min(rx + rw - 1) - rx; // inclusive
+    let ly0 = by0.max(ry) - ry;
+    let ly1 = by1.min(ry + rh - 1) - ry;
+    let n = prim.n_edges;
+    let edges = &prim.edges[..n];
+    let mut lane_step = [[0i64; LANES]; super::setup::MAX_EDGES];
+    for (k, e) in edges.iter().enumerate() {
+        for (l, s) in lane_step[k].iter_mut().enumerate() {
+            *s = -e.dy * ONE * l as i64;
+        }
+    }
+    let valid: [u32; LANES] = std::array::from_fn(|l| l as u32);
+    let mut row = [0i64; super::setup::MAX_EDGES];
+    for ly in ly0..=ly1 {
+        let y = (ry + ly) as i64 * ONE + offset.1;
+        let x = (rx + lx0) as i64 * ONE + offset.0;
+        for (k, e) in edges.iter().enumerate() {
+            row[k] = e.at(x, y);
+        }
+        let mut bx = lx0;
+        while bx <= lx1 {
+            let mut acc = [0i64; LANES];
+            for k in 0..n {
+                let r = row[k];
+                let st = &lane_step[k];
+                for l in 0..LANES {
+                    acc[l] |= r + st[l];
+                }
+                row[k] = r - edges[k].dy * ONE * LANES as i64;
+            }
+            let mut mask = [false; LANES];
+            let mut any = false;
+            for l in 0..LANES {
+                mask[l] = acc[l] >= 0 && bx + valid[l] < rw;
+                any |= mask[l];
+            }
+            if any {
+                visit(ly, bx, &mask);
+            }
+            bx += LANES as u32;
+        }
+    }
+}
+
+/// Fixed-point offsets within the pixel of sample position `si` out of `samples`.
+fn offset_fixed(offsets: &[(f32, f32)], si: usize) -> (i64, i64) {
+    let (ox, oy) = offsets[si];
+    ((ox * ONE as f32) as i64, (oy * ONE as f32) as i64)
+}
+
+/// Rasterizes `prim` into the region G-buffer `gb` at every sample position of `offsets`
+/// (fractions of a pixel, multiples of 1/256). Returns the number of covered samples (fragments,
+/// counted before the depth test).
+///
+/// On x86-64 CPUs with AVX2 the same code is compiled a second time with 8-wide registers and
+/// chosen at run time; without FMA both builds perform identical IEEE operations.
+pub fn rasterize(prim: &Prim, gb: &mut RegionGBuffer, offsets: &[(f32, f32)]) -> u64 {
+    #[cfg(target_arch = "x86_64")]
+    {
+        if std::arch::is_x86_feature_detected!("avx2") {
+            // SAFETY: the CPU supports AVX2, checked just above.
+            return unsafe { rasterize_avx2(prim, gb, offsets) };
+        }
+    }
+    rasterize_body(prim, gb, offsets)
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+fn rasterize_avx2(prim: &Prim, gb: &mut RegionGBuffer, offsets: &[(f32, f32)]) -> u64 {
+    rasterize_body(prim, gb, offsets)
+}
+
+const LINEAR: u8 = 0;
+const TRIANGLE: u8 = 1;
+const GENERAL: u8 = 2;
+
+#[inline(always)]
+fn rasterize_body(prim: &Prim, gb: &mut RegionGBuffer, offsets: &[(f32, f32)]) -> u64 {
+    match (prim.perspective, prim.kind) {
+        (true, InverseKind::Linear) => raster_kernel::<true, LINEAR>(prim, gb, offsets),
+        (true, InverseKind::Triangle) => raster_kernel::<true, TRIANGLE>(prim, gb, offsets),
+        (true, InverseKind::General) => raster_kernel::<true, GENERAL>(prim, gb, offsets),
+        (false, InverseKind::Linear) => raster_kernel::<false, LINEAR>(prim, gb, offsets),
+        (false, InverseKind::Triangle) => raster_kernel::<false, TRIANGLE>(prim, gb, offsets),
+        (false, InverseKind::General) => raster_kernel::<false, GENERAL>(prim, gb, offsets),
+    }
+}
+
+/// Smallest Q = 1/w accepted (documented clamp: a covered sample has w >= near > 0, so Q is
+/// positive; the clamp only keeps a rounding accident from dividing by zero).
+const MIN_Q: f32 = 1e-30;
+
+#[inline(always)]
+fn raster_kernel<const PERSP: bool, const KIND: u8>(
+    prim: &Prim,
+    gb: &mut RegionGBuffer,
+    offsets: &[(f32, f32)],
+) -> u64 {
+    let rect = (gb.x0, gb.y0, gb.width, gb.height);
+    let stride = gb.stride as usize;
+    let plane_len = stride * gb.height as usize;
+    // Re-base each expression at the region's origin (pixel corner), in f64, then round to f32.
+    let local = |k: usize| {
+        let p = prim.planes[k];
+        (
+            p.a as f32,
+            p.b as f32,
+            p.at(gb.x0 as f64, gb.y0 as f64) as f32,
+        )
+    };
+    let (q, sa, sb, ta, tb) = (
+        local(plane::Q),
+        local(plane::SA),
+        local(plane::SB),
+        local(plane::TA),
+        local(plane::TB),
+    );
+    let mut inv = prim.inverse;
+    inv.triangle = false; // only the GENERAL kernel calls invert_bilinear
+    let id = prim.id;
+    let mut fragments = 0u64;
+    for si in 0..offsets.len() {
+        let off = offset_fixed(offsets, si);
+        let (fx, fy) = (off.0 as f32 / ONE as f32, off.1 as f32 / ONE as f32);
+        let base = si * plane_len;
+        for_each_block(
+            prim,
+            rect,
+            off,
+            #[inline(always)]
+            |ly, bx, mask| {
+                let yf = ly as f32 + fy;
+                let (qr, sar, sbr, tar, tbr) = (
+                    q.1 * yf + q.2,
+                    sa.1 * yf + sa.2,
+                    sb.1 * yf + sb.2,
+                    ta.1 * yf + ta.2,
+                    tb.1 * yf + tb.2,
+                );
+                let mut w = [0.0f32; LANES];
+                let mut s = [0.0f32; LANES];
+                let mut t = [0.0f32; LANES];
+                for l in 0..LANES {
+                    let x = (bx + l as u32) as f32 + fx;
+                    let qv = q.0 * x + qr;
+                    w[l] = if PERSP { 1.0 / qv.max(MIN_Q) } else { qv };
+                    s[l] = sa.0 * x + sar + w[l] * (sb.0 * x + sbr);
+                    t[l] = ta.0 * x + tar + w[l] * (tb.0 * x + tbr);
+                }
+                // s, t hold (u, v) for LINEAR and (U, v) for TRIANGLE (folded at setup).
+                let mut u = [0.0f32; LANES];
+                let mut v = [0.0f32; LANES];
+                for l in 0..LANES {
+                    let (a, b) = match KIND {
+                        LINEAR => clamp_uv(s[l], t[l]),
+                        TRIANGLE => clamp_uv(triangle_u(s[l], t[l]), t[l]),
+                        _ => invert_bilinear(&inv, s[l], t[l]),
+                    };
+                    u[l] = a;
+                    v[l] = b;
+                }
+                let i0 = base + ly as usize * stride + bx as usize;
+                let depth: &mut [f32; LANES] = (&mut gb.depth[i0..i0 + LANES]).try_into().unwrap();
+                let poly: &mut [u32; LANES] = (&mut gb.polygon[i0..i0 + LANES]).try_into().unwrap();
+                let gu: &mut [f32; LANES] = (&mut gb.u[i0..i0 + LANES]).try_into().unwrap();
+                let gv: &mut [f32; LANES] = (&mut gb.v[i0..i0 + LANES]).try_into().unwrap();
+                let mut m = [false; LANES];
+                for l in 0..LANES {
+                    m[l] = mask[l] && (w[l] < depth[l] || (w[l] == depth[l] && id < poly[l]));
+                    fragments += mask[l] as u64;
+                }
+                *depth = F32x8::select(&m, F32x8(w), F32x8(*depth)).0;
+                *gu = F32x8::select(&m, F32x8(u), F32x8(*gu)).0;
+                *gv = F32x8::select(&m, F32x8(v), F32x8(*gv)).0;
+                let mut p = [0u32; LANES];
+                for l in 0..LANES {
+                    p[l] = if m[l] { id } else { poly[l] };
+                }
+                *poly = p;
+            },
+        );
+    }
+    fragments
+}
+
+/// Coverage counts of a `width` x `height` image: for each pixel, how many of `prims` cover its
+/// centre, through the same block edge-function path the rasterizer uses. For tests of
+/// watertightness and of the edge functions.
+pub fn coverage_counts(prims: &[Prim], width: u32, height: u32, region: u32) -> Vec<u32> {
+    let grid = RegionGrid::new(width, height, region);
+    let mut counts = vec![0u32; (width * height) as usize];
+    for r in 0..grid.count() as u32 {
+        let rect = grid.rect(r);
+        for p in prims {
+            for_each_block(p, rect, (ONE / 2, ONE / 2), |ly, bx, mask| {
+                for l in 0..LANES {
+                    let (x, y) = (rect.0 + bx + l as u32, rect.1 + ly);
+                    if mask[l] {
+                        counts[(y * width + x) as usize] += 1;
+                    }
+                }
+            });
+        }
+    }
+    counts
+}

@@ -1,0 +1,426 @@
+//! Shading: the deferred pass, the last stage before the image is written. It reads only a
+//! composited region G-buffer ([`RegionGBuffer`]: per sample a polygon id, (u, v) and a slot into
+//! the region-local patch table) and evaluates the bicubic radiosity reconstruction patch (RRP) of
+//! each sample, then resolves the samples of each pixel with a box filter. It never sees the scene,
+//! as PixelFlow's shader boards never saw it: everything a sample needs was written into the region
+//! by the rasterizer, so shading cost depends on pixels, not on scene complexity.
+//!
+//! Invariants: a patch is a power-basis bicubic over local (s, t) in [0, 1]^2; a sample with
+//! [`NO_POLYGON`] takes the background colour; the result is a finite linear RGB value per pixel.
+//!
+//! Why it is built this way: neighbouring samples nearly always share one patch, so each run of 8
+//! samples with the same slot is evaluated with the patch's 48 coefficients broadcast over 8 lanes
+//! (Horner in s for each of the 4 rows, then Horner in t: 15 multiply-adds per channel per lane,
+//! in fixed-width `[f32; 8]` loops the compiler vectorizes); blocks that mix patches or contain
+//! empty samples fall back to the same arithmetic one lane at a time. Both paths perform the same
+//! IEEE operations in the same order (Rust never contracts `a * b + c` into an FMA), so which path a
+//! sample takes never changes its bits.
+//!
+//! Antialiasing filter: every pixel's N samples (see [`crate::raster::sample_offsets`]) are
+//! averaged with equal weights, a box filter over the pixel's own square; samples that see nothing
+//! contribute the background colour.
+
+// Lane loops index several fixed-width arrays with one lane index on purpose: that is the form
+// the compiler vectorizes and the reader checks lane by lane.
+#![allow(clippy::needless_range_loop)]
+
+use glam::Vec3;
+use rayon::prelude::*;
+
+use crate::lanes::{F32x8, LANES};
+use crate::raster::gbuffer::{RegionGBuffer, NO_POLYGON};
+
+/// One bicubic patch in power basis over local (s, t) in [0,1]^2, s = (u - u0) * inv_w,
+/// t = (v - v0) * inv_w: f_ch(s,t) = sum_{i,j<4} c[ch][4*j + i] * s^i * t^j.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[repr(C, align(16))]
+pub struct PatchCoeffs {
+    /// Coefficients per channel (R, G, B), index `4 * j + i` multiplies s^i t^j.
+    pub c: [[f32; 16]; 3],
+    /// Parameter u of the patch's corner (s = 0).
+    pub u0: f32,
+    /// Parameter v of the patch's corner (t = 0).
+    pub v0: f32,
+    /// Reciprocal of the patch's side in (u, v).
+    pub inv_w: f32,
+    /// Padding to a multiple of 16 bytes.
+    pub _pad: f32,
+}
+
+impl PatchCoeffs {
+    /// A patch over the whole polygon domain (u0 = v0 = 0, side 1) with the given coefficients.
+    pub fn whole(c: [[f32; 16]; 3]) -> PatchCoeffs {
+        PatchCoeffs {
+            c,
+            u0: 0.0,
+            v0: 0.0,
+            inv_w: 1.0,
+            _pad: 0.0,
+        }
+    }
+
+    /// The local coordinates (s, t) of (u, v).
+    #[inline(always)]
+    pub fn local(&self, u: f32, v: f32) -> (f32, f32) {
+        ((u - self.u0) * self.inv_w, (v - self.v0) * self.inv_w)
+    }
+
+    /// Whether (u, v) lies strictly inside the patch's square, farther than `margin` (in local
+    /// units) from its sides.
+    #[inline]
+    pub fn contains_strictly(&self, u: f32, v: f32, margin: f32) -> bool {
+        let (s, t) = self.local(u, v);
+        s > margin && s < 1.0 - margin && t > margin && t < 1.0 - margin
+    }
+
+    /// Evaluates the patch at (u, v), the arithmetic of the vectorized path on one lane.
+    #[inline(always)]
+    pub fn eval(&self, u: f32, v: f32) -> Vec3 {
+        let (s, t) = self.local(u, v);
+        Vec3::new(
+            eval_channel(&self.c[0], s, t),
+            eval_channel(&self.c[1], s, t),
+            eval_channel(&self.c[2], s, t),
+        )
+    }
+}
+
+/// What the direct method needs from a reconstruction.
+pub trait PatchSource: Sync {
+    /// Global id of the patch covering (u, v) of scene polygon `polygon`; (u, v) in [0,1]^2.
+    fn locate(&self, polygon: u32, u: f32, v: f32) -> u32;
+    /// The coefficients of patch `id`.
+    fn patch(&self, id: u32) -> &PatchCoeffs;
+}
+
+/// Horner's scheme: rows in s, then the rows in t.
+#[inline(always)]
+fn eval_channel(k: &[f32; 16], s: f32, t: f32) -> f32 {
+    let r = |j: usize| ((k[4 * j + 3] * s + k[4 * j + 2]) * s + k[4 * j + 1]) * s + k[4 * j];
+    ((r(3) * t + r(2)) * t + r(1)) * t + r(0)
+}
+
+/// Evaluates one channel for 8 lanes with broadcast coefficients; same operations, in the same
+/// order, as [`eval_channel`].
+#[inline(always)]
+fn eval_channel8(k: &[f32; 16], s: F32x8, t: F32x8) -> F32x8 {
+    let c = |i: usize| F32x8::splat(k[i]);
+    let r3 = ((c(15) * s + c(14)) * s + c(13)) * s + c(12);
+    let r2 = ((c(11) * s + c(10)) * s + c(9)) * s + c(8);
+    let r1 = ((c(7) * s + c(6)) * s + c(5)) * s + c(4);
+    let r0 = ((c(3) * s + c(2)) * s + c(1)) * s + c(0);
+    ((r3 * t + r2) * t + r1) * t + r0
+}
+
+/// Counters of one shading pass.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct ShadeCounts {
+    /// Samples that saw a polygon and were evaluated.
+    pub samples_shaded: u64,
+    /// Blocks of 8 evaluated with one broadcast patch.
+    pub uniform_blocks: u64,
+    /// Blocks evaluated lane by lane.
+    pub mixed_blocks: u64,
+}
+
+/// Shades one composited region: returns its `width * height` resolved linear pixels (row-major,
+/// row 0 at the region's top) and the counters.
+pub fn shade_region(gb: &RegionGBuffer, background: Vec3) -> (Vec<Vec3>, ShadeCounts) {
+    let mut out = vec![Vec3::ZERO; (gb.width * gb.height) as usize];
+    let counts = shade_region_into(gb, background, &mut out, gb.width as usize);
+    (out, counts)
+}
+
+/// Shades one composited region into `dst`, whose element 0 is the region's top-left pixel and
+/// whose rows are `pitch` pixels apart (a frame: pitch = frame width).
+///
+/// On x86-64 CPUs with AVX2 the same code is compiled a second time with 8-wide registers and
+/// chosen at run time; without FMA the two builds perform identical IEEE operations, so the image
+/// does not depend on the CPU.
+pub fn shade_region_into(
+    gb: &RegionGBuffer,
+    background: Vec3,
+    dst: &mut [Vec3],
+    pitch: usize,
+) -> ShadeCounts {
+    assert!(
+        gb.height == 0 || dst.len() >= (gb.height as usize - 1) * pitch + gb.width as usize,
+        "destination too small for the region"
+    );
+    #[cfg(target_arch = "x86_64")]
+    {
+        if std::arch::is_x86_feature_detected!("avx2") {
+            // SAFETY: the CPU supports AVX2, checked just above.
+            return unsafe { shade_region_avx2(gb, background, dst, pitch) };
+        }
+    }
+    shade_region_body(gb, background, dst, pitch)
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+fn shade_region_avx2(gb: &RegionGBuffer, bg: Vec3, dst: &mut [Vec3], pitch: usize) -> ShadeCounts {
+    shade_region_body(gb, bg, dst, pitch)
+}
+
+#[inline(always)]
+fn shade_region_body(
+    gb: &RegionGBuffer,
+    background: Vec3,
+    dst: &mut [Vec3],
+    pitch: usize,
+) -> ShadeCounts {
+    let (w, h, stride) = (gb.width as usize, gb.height as usize, gb.stride as usize);
+    let plane = stride * h;
+    // One row of per-channel accumulators (structure of arrays: lanes store contiguously).
+    let mut acc = [
+        vec![0.0f32; stride],
+        vec![0.0f32; stride],
+        vec![0.0f32; stride],
+    ];
+    let mut counts = ShadeCounts::default();
+    let bg = background.to_array();
+    let bg8 = [
+        F32x8::splat(bg[0]),
+        F32x8::splat(bg[1]),
+        F32x8::splat(bg[2]),
+    ];
+    let inv = F32x8::splat(1.0 / gb.samples as f32);
+    for y in 0..h {
+        for si in 0..gb.samples as usize {
+            let row = si * plane + y * stride;
+            for bx in (0..w).step_by(LANES) {
+                let i0 = row + bx;
+                let polys: &[u32; LANES] = gb.polygon[i0..i0 + LANES].try_into().unwrap();
+                let slots: &[u32; LANES] = gb.slot[i0..i0 + LANES].try_into().unwrap();
+                let u8x = F32x8(gb.u[i0..i0 + LANES].try_into().unwrap());
+                let v8x = F32x8(gb.v[i0..i0 + LANES].try_into().unwrap());
+                let mut empty = [false; LANES];
+                let mut same = true;
+                let mut n_empty = 0;
+                for l in 0..LANES {
+                    empty[l] = polys[l] == NO_POLYGON;
+                    n_empty += empty[l] as usize;
+                    same &= slots[l] == slots[0];
+                }
+                let out = if n_empty == 0 && same {
+                    // The common case: one patch, its coefficients broadcast over the 8 lanes.
+                    counts.uniform_blocks += 1;
+                    counts.samples_shaded += LANES as u64;
+                    let p = &gb.table[slots[0] as usize];
+                    let s = (u8x - F32x8::splat(p.u0)) * F32x8::splat(p.inv_w);
+                    let t = (v8x - F32x8::splat(p.v0)) * F32x8::splat(p.inv_w);
+                    [
+                        eval_channel8(&p.c[0], s, t),
+                        eval_channel8(&p.c[1], s, t),
+                        eval_channel8(&p.c[2], s, t),
+                    ]
+                } else if n_empty == LANES {
+                    bg8
+                } else {
+                    // Mixed: one broadcast evaluation per distinct patch, committed through masks.
+                    counts.mixed_blocks += 1;
+                    counts.samples_shaded += (LANES - n_empty) as u64;
+                    let mut out = bg8;
+                    let mut done = empty;
+                    while let Some(first) = done.iter().position(|&d| !d) {
+                        let slot = slots[first];
+                        let p = &gb.table[slot as usize];
+                        let s = (u8x - F32x8::splat(p.u0)) * F32x8::splat(p.inv_w);
+                        let t = (v8x - F32x8::splat(p.v0)) * F32x8::splat(p.inv_w);
+                        let mut m = [false; LANES];
+                        for l in 0..LANES {
+                            m[l] = !done[l] && slots[l] == slot;
+                            done[l] |= m[l];
+                        }
+                        for ch in 0..3 {
+                            out[ch] = F32x8::select(&m, eval_channel8(&p.c[ch], s, t), out[ch]);
+                        }
+                    }
+                    out
+                };
+                for ch in 0..3 {
+                    let a: &mut [f32; LANES] = (&mut acc[ch][bx..bx + LANES]).try_into().unwrap();
+                    *a = if si == 0 {
+                        out[ch].0
+                    } else {
+                        (F32x8(*a) + out[ch]).0
+                    };
+                }
+            }
+        }
+        // Box filter: equal weights over the pixel's samples, then the non-finite clamp. Padding
+        // lanes beyond the region's width hold NO_POLYGON and are never written out.
+        for a in acc.iter_mut() {
+            for chunk in a.chunks_exact_mut(LANES) {
+                let c: &mut [f32; LANES] = chunk.try_into().unwrap();
+                let v = if gb.samples == 1 {
+                    F32x8(*c)
+                } else {
+                    F32x8(*c) * inv
+                };
+                *c = sanitize8(v).0;
+            }
+        }
+        let out = &mut dst[y * pitch..y * pitch + w];
+        for (x, o) in out.iter_mut().enumerate() {
+            *o = Vec3::new(acc[0][x], acc[1][x], acc[2][x]);
+        }
+    }
+    counts
+}
+
+/// Replaces non-finite lanes by 0 (documented clamp: a patch source with non-finite coefficients
+/// must not put NaN or inf into an image).
+#[inline(always)]
+fn sanitize8(c: F32x8) -> F32x8 {
+    let m: [bool; LANES] = std::array::from_fn(|l| c.0[l].is_finite());
+    F32x8::select(&m, c, F32x8::splat(0.0))
+}
+
+/// The deferred pass over a frame: shades every region into a `width` x `height` frame of
+/// `background`, in parallel (rayon) over bands of `region_size` rows; regions are placed by their
+/// own origin, and every pixel no region covers keeps the background. Returns the frame (row-major,
+/// row 0 at the top) and the summed counters (summed in band order: deterministic).
+pub fn shade_regions(
+    regions: &[RegionGBuffer],
+    background: Vec3,
+    width: u32,
+    height: u32,
+    region_size: u32,
+) -> (Vec<Vec3>, ShadeCounts) {
+    let (w, size) = (width as usize, region_size.max(1) as usize);
+    // Zeroed memory comes from the allocator without a fill pass; only pixels no region covers
+    // are then written with the background.
+    let mut frame = vec![Vec3::ZERO; w * height as usize];
+    let bands = (height as usize).div_ceil(size);
+    let mut by_band: Vec<Vec<&RegionGBuffer>> = vec![Vec::new(); bands];
+    for r in regions {
+        let band = r.y0 as usize / size;
+        if band < bands && r.y0 as usize % size == 0 && r.x0 + r.width <= width {
+            by_band[band].push(r);
+        }
+    }
+    let per_band: Vec<ShadeCounts> = frame
+        .par_chunks_mut(w * size)
+        .zip(by_band.par_iter())
+        .map(|(rows, regs)| {
+            let mut c = ShadeCounts::default();
+            let rows_here = rows.len() / w;
+            let mut covered = vec![false; w];
+            for r in regs {
+                if r.height as usize != rows_here {
+                    continue;
+                }
+                let k = shade_region_into(r, background, &mut rows[r.x0 as usize..], w);
+                covered[r.x0 as usize..(r.x0 + r.width) as usize].fill(true);
+                c.samples_shaded += k.samples_shaded;
+                c.uniform_blocks += k.uniform_blocks;
+                c.mixed_blocks += k.mixed_blocks;
+            }
+            if covered.iter().any(|&c| !c) {
+                for row in rows.chunks_exact_mut(w) {
+                    for (p, &cov) in row.iter_mut().zip(&covered) {
+                        if !cov {
+                            *p = background;
+                        }
+                    }
+                }
+            }
+            c
+        })
+        .collect();
+    let mut total = ShadeCounts::default();
+    for c in per_band {
+        total.samples_shaded += c.samples_shaded;
+        total.uniform_blocks += c.uniform_blocks;
+        total.mixed_blocks += c.mixed_blocks;
+    }
+    (frame, total)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn poly_patch() -> PatchCoeffs {
+        let mut c = [[0.0f32; 16]; 3];
+        for (ch, row) in c.iter_mut().enumerate() {
+            for (k, x) in row.iter_mut().enumerate() {
+                *x = ((k * 7 + ch * 3) % 11) as f32 * 0.125 - 0.5;
+            }
+        }
+        PatchCoeffs {
+            c,
+            u0: 0.25,
+            v0: 0.5,
+            inv_w: 4.0,
+            _pad: 0.0,
+        }
+    }
+
+    #[test]
+    fn horner_matches_the_power_basis_sum() {
+        let p = poly_patch();
+        for &(u, v) in &[(0.25, 0.5), (0.3, 0.6), (0.5, 0.75), (0.41, 0.52)] {
+            let (s, t) = ((u - 0.25) * 4.0f64, (v - 0.5) * 4.0f64);
+            let got = p.eval(u as f32, v as f32);
+            for ch in 0..3 {
+                let mut want = 0.0f64;
+                for j in 0..4 {
+                    for i in 0..4 {
+                        want += p.c[ch][4 * j + i] as f64 * s.powi(i as i32) * t.powi(j as i32);
+                    }
+                }
+                // |coefficients| <= 0.75, 16 terms, s, t <= 1: f32 rounding stays below 1e-5.
+                assert!(
+                    (got[ch] as f64 - want).abs() < 1e-5,
+                    "{ch}: {} vs {want}",
+                    got[ch]
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn lane_path_and_scalar_path_agree_bit_for_bit() {
+        let p = poly_patch();
+        let s: [f32; 8] = std::array::from_fn(|l| l as f32 * 0.13);
+        let t: [f32; 8] = std::array::from_fn(|l| 1.0 - l as f32 * 0.11);
+        let r = eval_channel8(&p.c[1], F32x8(s), F32x8(t));
+        for l in 0..8 {
+            assert_eq!(
+                r.0[l].to_bits(),
+                eval_channel(&p.c[1], s[l], t[l]).to_bits()
+            );
+        }
+    }
+
+    #[test]
+    fn frame_pass_places_regions_and_fills_the_rest_with_background() {
+        use crate::raster::gbuffer::RegionGBuffer;
+        // A 20 x 10 frame of 8 x 8 regions: only region (1, 0) (x 8..16, y 0..8) is present; its
+        // sample at local (2, 3) sees polygon 0 with the constant patch 0.25.
+        let mut gb = RegionGBuffer::new(1, 8, 0, 8, 8, 1);
+        let i = 3 * gb.stride as usize + 2;
+        gb.polygon[i] = 0;
+        gb.depth[i] = 1.0;
+        let mut c = [[0.0f32; 16]; 3];
+        c[0][0] = 0.25;
+        gb.table.push(PatchCoeffs::whole(c));
+        gb.table_ids.push(7);
+        let bg = Vec3::new(1.0, 2.0, 3.0);
+        let (frame, counts) = shade_regions(&[gb], bg, 20, 10, 8);
+        assert_eq!(counts.samples_shaded, 1);
+        for y in 0..10 {
+            for x in 0..20 {
+                let want = if (x, y) == (10, 3) {
+                    Vec3::new(0.25, 0.0, 0.0)
+                } else {
+                    bg
+                };
+                assert_eq!(frame[y * 20 + x], want, "({x}, {y})");
+            }
+        }
+    }
+}
