@@ -15,6 +15,7 @@ pub mod error;
 pub mod image_out;
 pub mod lanes;
 pub mod output;
+pub mod pipeline;
 pub mod quadtree;
 pub mod raster;
 pub mod reconstruction;

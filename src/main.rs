@@ -8,6 +8,10 @@
 use anyhow::Context;
 use clap::{Parser, Subcommand};
 use pixelflow_sim::error::EXIT_FAILURE;
+use pixelflow_sim::pipeline::{self, Method, RenderReport};
+use pixelflow_sim::raster::FrameOptions;
+use pixelflow_sim::scene::Camera;
+use pixelflow_sim::{image_out, output, Error};
 use std::path::PathBuf;
 use std::process::ExitCode;
 
@@ -31,6 +35,76 @@ enum Command {
         /// The scene file (`scenes/cornell-box.toml`).
         scene: PathBuf,
     },
+    /// Compute a scene's radiosity solution and save it.
+    ///
+    /// Progressive-refinement shooting with adaptive, unrestricted quadtrees (the `[radiosity]`
+    /// settings of the scene). The solution file is versioned and checksummed and names the
+    /// scene file, so `render <file>` can draw it without solving again.
+    Solve {
+        /// The scene file.
+        scene: PathBuf,
+        /// Where to write the solution (written atomically).
+        #[arg(short, long)]
+        output: PathBuf,
+        /// Worker threads (default: all cores). The solution is identical for any count.
+        #[arg(long)]
+        threads: Option<usize>,
+        /// No progress bar.
+        #[arg(short, long)]
+        quiet: bool,
+    },
+    /// Render a scene (solving it first) or a solution file.
+    ///
+    /// Reconstructs every polygon's radiosity as C1 bicubic patches and renders them the
+    /// PixelFlow way: a region-by-region rasterizer writes each pixel's patch and (u, v) into a
+    /// G-buffer, R virtual renderers are merged by depth, and a deferred pass evaluates every
+    /// pixel's radiosity from its patch. Writes a PNG (exposure and sRGB from the scene's
+    /// `[display]`), optionally the linear radiosity as OpenEXR and the statistics as JSON.
+    /// With `--walkthrough`, renders every frame of the scene's camera path.
+    Render {
+        /// A scene file (`.toml`) or a solution file written by `solve`.
+        input: PathBuf,
+        /// PNG to write (default: `out/<scene>-<method>.png`).
+        #[arg(short, long)]
+        output: Option<PathBuf>,
+        /// Also write the linear radiosity of every pixel as OpenEXR.
+        #[arg(long)]
+        exr: Option<PathBuf>,
+        /// Rendering method (default: the scene's `[render] method`).
+        #[arg(long)]
+        method: Option<String>,
+        /// Image width (default: the scene's).
+        #[arg(long)]
+        width: Option<u32>,
+        /// Image height (default: the scene's).
+        #[arg(long)]
+        height: Option<u32>,
+        /// Samples per pixel: 1, 4 or 16 (default: the scene's `[render] aa`).
+        #[arg(long)]
+        aa: Option<u32>,
+        /// Worker threads (default: all cores). The image is identical for any count.
+        #[arg(long)]
+        threads: Option<usize>,
+        /// Virtual PixelFlow renderers merged by image composition. The image is identical for
+        /// any count.
+        #[arg(long, default_value_t = 1)]
+        renderers: u32,
+        /// Side of the screen regions in pixels (a multiple of 8).
+        #[arg(long, default_value_t = 128)]
+        region: u32,
+        /// Write the frame statistics as JSON to this file.
+        #[arg(long)]
+        stats: Option<PathBuf>,
+        /// Render every frame of the scene's `[camera_path]` (files `<output stem>-NNNN.png`).
+        #[arg(long)]
+        walkthrough: bool,
+        /// Print the statistics.
+        #[arg(short, long)]
+        verbose: bool,
+        /// No progress bar, no "wrote" lines.
+        #[arg(short, long)]
+        quiet: bool,
+    },
 }
 
 fn run(cli: Cli) -> anyhow::Result<()> {
@@ -47,8 +121,128 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 .and_then(|_| out.flush())
                 .context("writing the summary to stdout")?;
         }
+        Command::Solve {
+            scene,
+            output,
+            threads,
+            quiet,
+        } => {
+            let sol = in_pool(threads, || {
+                pipeline::solve_to_file(&scene, &output, !quiet)
+            })??;
+            if !quiet {
+                let s = &sol.stats;
+                eprintln!(
+                    "solved {} in {:.0} ms: {} elements, {} samples ({} T-vertices), {} shots, unshot {:.3}%; wrote {}",
+                    scene.display(),
+                    s.solve_ms,
+                    s.elements,
+                    s.vertices,
+                    s.t_vertices,
+                    s.shots,
+                    100.0 * s.unshot_fraction,
+                    output.display()
+                );
+            }
+        }
+        Command::Render {
+            input,
+            output,
+            exr,
+            method,
+            width,
+            height,
+            aa,
+            threads,
+            renderers,
+            region,
+            stats,
+            walkthrough,
+            verbose,
+            quiet,
+        } => in_pool(threads, || -> anyhow::Result<()> {
+            let p = pipeline::prepare(&input, !quiet)?;
+            let scene = &p.scene;
+            for w in &scene.warnings {
+                eprintln!("warning: {w}");
+            }
+            let method = Method::parse(method.as_deref().unwrap_or(&scene.render.method))?;
+            let opts = FrameOptions {
+                width: width.unwrap_or(scene.width),
+                height: height.unwrap_or(scene.height),
+                aa: aa.unwrap_or(scene.render.aa_samples),
+                renderers,
+                region,
+                cull_back_faces: false,
+            };
+            let png = output.unwrap_or_else(|| pipeline::default_png_path(&input, method));
+            let frames: Vec<(Camera, std::path::PathBuf)> = if walkthrough {
+                let path = scene.camera_path.as_ref().ok_or_else(|| {
+                    Error::Usage(format!(
+                        "--walkthrough: {} has no [camera_path]",
+                        scene.source.display()
+                    ))
+                })?;
+                (0..path.frames)
+                    .map(|k| {
+                        (
+                            pipeline::path_camera(scene, &path.keyframes, k, path.frames),
+                            pipeline::walkthrough_frame_path(&png, k),
+                        )
+                    })
+                    .collect()
+            } else {
+                vec![(scene.camera, png)]
+            };
+            let mut reports = Vec::new();
+            for (camera, png) in &frames {
+                let frame = pipeline::render(&p, method, camera, &opts)?;
+                image_out::write_png(png, &frame, scene.display.exposure)?;
+                if !quiet {
+                    eprintln!("wrote {}", png.display());
+                }
+                if let (Some(exr), false) = (&exr, walkthrough) {
+                    image_out::write_exr(exr, &frame)?;
+                    if !quiet {
+                        eprintln!("wrote {}", exr.display());
+                    }
+                }
+                let report = RenderReport::new(&p, &frame);
+                if verbose {
+                    println!("{}", report.to_json());
+                }
+                reports.push(report);
+            }
+            if let Some(path) = stats {
+                let json = if walkthrough {
+                    serde_json::to_string_pretty(&reports)?
+                } else {
+                    reports[0].to_json()
+                };
+                output::write_atomic(&path, json.as_bytes())?;
+                if !quiet {
+                    eprintln!("wrote {}", path.display());
+                }
+            }
+            Ok(())
+        })??,
     }
     Ok(())
+}
+
+/// Runs `f` in a rayon pool of `threads` workers (all cores when `None`).
+fn in_pool<T: Send>(threads: Option<usize>, f: impl FnOnce() -> T + Send) -> anyhow::Result<T> {
+    match threads {
+        None => Ok(f()),
+        Some(0) => Err(Error::Usage("--threads 0: needs at least one thread".into()).into()),
+        Some(n) => {
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(n)
+                .build()
+                .map_err(|e| Error::Runtime(format!("cannot start {n} threads: {e}")))?;
+            Ok(pool.install(f))
+        }
+    }
 }
 
 fn main() -> ExitCode {

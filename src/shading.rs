@@ -30,60 +30,7 @@ use rayon::prelude::*;
 use crate::lanes::{F32x8, LANES};
 use crate::raster::gbuffer::{RegionGBuffer, NO_POLYGON};
 
-/// One bicubic patch in power basis over local (s, t) in [0,1]^2, s = (u - u0) * inv_w,
-/// t = (v - v0) * inv_w: f_ch(s,t) = sum_{i,j<4} c[ch][4*j + i] * s^i * t^j.
-#[derive(Clone, Copy, Debug, PartialEq)]
-#[repr(C, align(16))]
-pub struct PatchCoeffs {
-    /// Coefficients per channel (R, G, B), index `4 * j + i` multiplies s^i t^j.
-    pub c: [[f32; 16]; 3],
-    /// Parameter u of the patch's corner (s = 0).
-    pub u0: f32,
-    /// Parameter v of the patch's corner (t = 0).
-    pub v0: f32,
-    /// Reciprocal of the patch's side in (u, v).
-    pub inv_w: f32,
-    /// Padding to a multiple of 16 bytes.
-    pub _pad: f32,
-}
-
-impl PatchCoeffs {
-    /// A patch over the whole polygon domain (u0 = v0 = 0, side 1) with the given coefficients.
-    pub fn whole(c: [[f32; 16]; 3]) -> PatchCoeffs {
-        PatchCoeffs {
-            c,
-            u0: 0.0,
-            v0: 0.0,
-            inv_w: 1.0,
-            _pad: 0.0,
-        }
-    }
-
-    /// The local coordinates (s, t) of (u, v).
-    #[inline(always)]
-    pub fn local(&self, u: f32, v: f32) -> (f32, f32) {
-        ((u - self.u0) * self.inv_w, (v - self.v0) * self.inv_w)
-    }
-
-    /// Whether (u, v) lies strictly inside the patch's square, farther than `margin` (in local
-    /// units) from its sides.
-    #[inline]
-    pub fn contains_strictly(&self, u: f32, v: f32, margin: f32) -> bool {
-        let (s, t) = self.local(u, v);
-        s > margin && s < 1.0 - margin && t > margin && t < 1.0 - margin
-    }
-
-    /// Evaluates the patch at (u, v), the arithmetic of the vectorized path on one lane.
-    #[inline(always)]
-    pub fn eval(&self, u: f32, v: f32) -> Vec3 {
-        let (s, t) = self.local(u, v);
-        Vec3::new(
-            eval_channel(&self.c[0], s, t),
-            eval_channel(&self.c[1], s, t),
-            eval_channel(&self.c[2], s, t),
-        )
-    }
-}
+pub use crate::reconstruction::PatchCoeffs;
 
 /// What the direct method needs from a reconstruction.
 pub trait PatchSource: Sync {
@@ -94,6 +41,7 @@ pub trait PatchSource: Sync {
 }
 
 /// Horner's scheme: rows in s, then the rows in t.
+#[cfg(test)]
 #[inline(always)]
 fn eval_channel(k: &[f32; 16], s: f32, t: f32) -> f32 {
     let r = |j: usize| ((k[4 * j + 3] * s + k[4 * j + 2]) * s + k[4 * j + 1]) * s + k[4 * j];

@@ -106,6 +106,31 @@ fn clamp01(x: f32) -> f32 {
 }
 
 impl PatchCoeffs {
+    /// A patch over the whole polygon domain (u0 = v0 = 0, side 1) with the given coefficients.
+    pub fn whole(c: [[f32; 16]; 3]) -> PatchCoeffs {
+        PatchCoeffs {
+            c,
+            u0: 0.0,
+            v0: 0.0,
+            inv_w: 1.0,
+            _pad: 0.0,
+        }
+    }
+
+    /// The local coordinates (s, t) of (u, v), unclamped.
+    #[inline(always)]
+    pub fn local(&self, u: f32, v: f32) -> (f32, f32) {
+        ((u - self.u0) * self.inv_w, (v - self.v0) * self.inv_w)
+    }
+
+    /// Whether (u, v) lies strictly inside the patch's square, farther than `margin` (in local
+    /// units) from its sides.
+    #[inline]
+    pub fn contains_strictly(&self, u: f32, v: f32, margin: f32) -> bool {
+        let (s, t) = self.local(u, v);
+        s > margin && s < 1.0 - margin && t > margin && t < 1.0 - margin
+    }
+
     /// Value at global (u, v). Local (s, t) are clamped into [0, 1] (NaN to 0), so a point outside
     /// the cell evaluates the nearest edge. With u0 dyadic and inv_w a power of two, s is exact for
     /// u inside the cell, so the cell's edges are evaluated at exactly s = 0 or 1.
@@ -586,5 +611,19 @@ impl MipLevel {
             height: nh,
             texels,
         }
+    }
+}
+
+/// The direct method's view of a reconstruction: the rasterizer locates each pixel's patch and
+/// copies its coefficients into the region's patch table.
+impl crate::shading::PatchSource for Reconstruction {
+    #[inline]
+    fn locate(&self, polygon: u32, u: f32, v: f32) -> u32 {
+        Reconstruction::locate(self, polygon, u, v)
+    }
+
+    #[inline]
+    fn patch(&self, id: u32) -> &PatchCoeffs {
+        Reconstruction::patch(self, id)
     }
 }

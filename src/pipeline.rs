@@ -1,0 +1,212 @@
+//! Pipeline: the stages glued into the jobs the command line runs. `solve` turns a scene into a
+//! solution file; `render` takes a scene (and solves it) or a solution file (and loads its scene),
+//! reconstructs the RRPs once, then renders one frame or a whole walkthrough with the chosen
+//! method and writes PNG, EXR and statistics.
+//!
+//! Invariants: every file is written through [`crate::output::write_atomic`]; nothing here knows
+//! how a stage works inside, only the order of the stages; a walkthrough reuses one solution and
+//! one reconstruction for all its frames (it never solves twice). Each stage runs in the caller's
+//! rayon pool, so the thread count is the caller's choice and the pixels do not depend on it.
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use glam::DVec3;
+use serde::Serialize;
+
+use crate::error::{Error, Result};
+use crate::raster::{render_frame, Frame, FrameOptions, FrameStats};
+use crate::radiosity::{self, file as solution_file, Solution, SolveOptions};
+use crate::reconstruction::{Estimator, Reconstruction};
+use crate::scene::{load_scene, Camera, Keyframe, Scene};
+
+/// The rendering methods this build implements.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Method {
+    /// The PixelFlow path: bicubic RRP coefficients rasterized into region G-buffers and
+    /// evaluated per pixel in the deferred pass.
+    Direct,
+}
+
+impl Method {
+    /// Every implemented method's name.
+    pub const NAMES: &'static [&'static str] = &["direct"];
+
+    /// Parses a method name (as on the command line and in `[render] method`).
+    pub fn parse(name: &str) -> Result<Method> {
+        match name {
+            "direct" => Ok(Method::Direct),
+            _ => Err(Error::Usage(format!(
+                "method `{name}` is not available; implemented: {}",
+                Method::NAMES.join(", ")
+            ))),
+        }
+    }
+
+    /// The method's name.
+    pub fn name(self) -> &'static str {
+        match self {
+            Method::Direct => "direct",
+        }
+    }
+}
+
+/// A scene with its solution and reconstruction: everything a frame needs.
+pub struct Prepared {
+    /// The scene.
+    pub scene: Scene,
+    /// Its radiosity solution (solved now, or read from a file).
+    pub solution: Solution,
+    /// The RRPs of every polygon.
+    pub reconstruction: Reconstruction,
+    /// Time spent solving in this run (0 when read from a file), ms.
+    pub solve_ms: f64,
+    /// Time spent building the RRPs, ms.
+    pub reconstruction_ms: f64,
+}
+
+/// Whether `path` is a solution file (by its magic bytes) rather than a scene.
+pub fn is_solution_file(path: &Path) -> bool {
+    use std::io::Read;
+    let mut magic = [0u8; 8];
+    std::fs::File::open(path)
+        .and_then(|mut f| f.read_exact(&mut magic))
+        .map(|_| &magic == solution_file::MAGIC)
+        .unwrap_or(false)
+}
+
+/// Loads a scene, or a solution file and the scene it names; solves a scene that has no
+/// solution; builds the reconstruction.
+pub fn prepare(input: &Path, progress: bool) -> Result<Prepared> {
+    let (scene, solution, solve_ms) = if is_solution_file(input) {
+        let scene_path = solution_file::read_scene_path(input)?;
+        let scene = load_scene(&scene_path)?;
+        let solution = solution_file::read_solution(input, &scene)?;
+        (scene, solution, 0.0)
+    } else {
+        let scene = load_scene(input)?;
+        let t = Instant::now();
+        let solution = radiosity::solve(&scene, &SolveOptions { progress })?;
+        (scene, solution, t.elapsed().as_secs_f64() * 1e3)
+    };
+    let t = Instant::now();
+    let reconstruction = Reconstruction::build(&solution.polygons, Estimator::default())?;
+    let reconstruction_ms = t.elapsed().as_secs_f64() * 1e3;
+    Ok(Prepared {
+        scene,
+        solution,
+        reconstruction,
+        solve_ms,
+        reconstruction_ms,
+    })
+}
+
+/// Solves `scene_path` and writes the solution to `out`.
+pub fn solve_to_file(scene_path: &Path, out: &Path, progress: bool) -> Result<Solution> {
+    let scene = load_scene(scene_path)?;
+    let solution = radiosity::solve(&scene, &SolveOptions { progress })?;
+    solution_file::write_solution(out, &solution, scene_path)?;
+    Ok(solution)
+}
+
+/// Renders one frame of a prepared scene.
+pub fn render(p: &Prepared, method: Method, camera: &Camera, opts: &FrameOptions) -> Result<Frame> {
+    match method {
+        Method::Direct => render_frame(&p.scene, camera, &p.reconstruction, opts),
+    }
+}
+
+/// The statistics written by `--stats`: the frame's counters and stage times, plus the
+/// one-off costs that are not part of `frame_ms`.
+#[derive(Debug, Clone, Serialize)]
+pub struct RenderReport {
+    /// The frame's counters and stage times.
+    #[serde(flatten)]
+    pub frame: FrameStats,
+    /// Solve time in this run (0 when the solution was read from a file), ms.
+    pub solve_ms: f64,
+    /// RRP construction time, ms.
+    pub reconstruction_ms: f64,
+    /// RRP patches stored.
+    pub patches: u64,
+    /// Radiosity samples in the solution.
+    pub samples: u64,
+}
+
+impl RenderReport {
+    /// The report of `frame` rendered from `p`.
+    pub fn new(p: &Prepared, frame: &Frame) -> RenderReport {
+        RenderReport {
+            frame: frame.stats.clone(),
+            solve_ms: p.solve_ms,
+            reconstruction_ms: p.reconstruction_ms,
+            patches: p.reconstruction.stats().patches as u64,
+            samples: p.solution.stats.vertices,
+        }
+    }
+
+    /// Pretty JSON.
+    pub fn to_json(&self) -> String {
+        serde_json::to_string_pretty(self).unwrap_or_else(|_| "{}".into())
+    }
+}
+
+/// The camera of frame `k` of `n` along the scene's camera path: keyframes evenly spaced in
+/// time, Catmull-Rom interpolation of eye and look-at (so the motion is C1 through keyframes),
+/// linear interpolation of up; the projection is the scene camera's.
+pub fn path_camera(scene: &Scene, keyframes: &[Keyframe], k: u32, n: u32) -> Camera {
+    let segs = keyframes.len().saturating_sub(1).max(1);
+    let t = if n <= 1 {
+        0.0
+    } else {
+        k as f64 / (n - 1) as f64 * segs as f64
+    };
+    let i = (t.floor() as usize).min(segs - 1);
+    let f = t - i as f64;
+    let at = |j: isize| keyframes[j.clamp(0, keyframes.len() as isize - 1) as usize];
+    let (k0, k1, k2, k3) = (
+        at(i as isize - 1),
+        at(i as isize),
+        at(i as isize + 1),
+        at(i as isize + 2),
+    );
+    let cr = |p0: DVec3, p1: DVec3, p2: DVec3, p3: DVec3| {
+        let (f2, f3) = (f * f, f * f * f);
+        0.5 * ((2.0 * p1)
+            + (p2 - p0) * f
+            + (2.0 * p0 - 5.0 * p1 + 4.0 * p2 - p3) * f2
+            + (3.0 * p1 - p0 - 3.0 * p2 + p3) * f3)
+    };
+    let eye = cr(k0.eye, k1.eye, k2.eye, k3.eye);
+    let mut look_at = cr(k0.look_at, k1.look_at, k2.look_at, k3.look_at);
+    if (look_at - eye).length_squared() < 1e-18 {
+        // Documented fallback: a spline that brings eye and target together keeps the keyframe
+        // direction instead of producing an undefined view.
+        look_at = eye + (k1.look_at - k1.eye);
+    }
+    let up = k1.up.lerp(k2.up, f);
+    Camera {
+        eye,
+        look_at,
+        up: if up.length_squared() > 0.0 { up } else { k1.up },
+        projection: scene.camera.projection,
+    }
+}
+
+/// Where output goes when the user names no file: `out/<scene stem>-<method>.png`.
+pub fn default_png_path(input: &Path, method: Method) -> PathBuf {
+    let stem = input
+        .file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_else(|| "frame".into());
+    PathBuf::from("out").join(format!("{stem}-{}.png", method.name()))
+}
+
+/// The frame file name of walkthrough frame `k`: `<png stem>-NNNN.png` beside `png`.
+pub fn walkthrough_frame_path(png: &Path, k: u32) -> PathBuf {
+    let stem = png
+        .file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_else(|| "frame".into());
+    png.with_file_name(format!("{stem}-{k:04}.png"))
+}
