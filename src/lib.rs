@@ -13,6 +13,7 @@
 pub mod error;
 pub mod output;
 pub mod quadtree;
+pub mod radiosity;
 pub mod scene;
 
 pub use error::{Error, Result};
