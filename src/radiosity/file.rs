@@ -123,7 +123,10 @@ fn encode_payload(sol: &Solution) -> Vec<u8> {
     let st = &sol.stats;
     w.u64(st.shots);
     w.u64(st.rays_cast);
-    w.u32(st.refinements);
+    w.u32(st.refined_after.len() as u32);
+    for &x in &st.refined_after {
+        w.u64(x);
+    }
     w.f64(st.emitted_power);
     w.f64(st.unshot_fraction);
     w.u32(st.unshot_history.len() as u32);
@@ -310,11 +313,14 @@ pub fn decode(bytes: &[u8], scene: &Scene) -> std::result::Result<Solution, Stri
     let mut stats = SolveStats {
         shots: r.u64()?,
         rays_cast: r.u64()?,
-        refinements: r.u32()?,
-        emitted_power: r.f64()?,
-        unshot_fraction: r.f64()?,
         ..SolveStats::default()
     };
+    let nr = r.count(8)?;
+    for _ in 0..nr {
+        stats.refined_after.push(r.u64()?);
+    }
+    stats.emitted_power = r.f64()?;
+    stats.unshot_fraction = r.f64()?;
     let nh = r.count(8)?;
     for _ in 0..nh {
         stats.unshot_history.push(r.f64()?);

@@ -67,8 +67,10 @@ pub struct SolveStats {
     pub shots: u64,
     /// Shadow rays cast during the solve (including the final gather).
     pub rays_cast: u64,
-    /// Refinement passes run.
-    pub refinements: u32,
+    /// Shots taken before each refinement pass (one entry per pass). A pass re-estimates the
+    /// unshot power from more samples, so `unshot_history` may rise right after it (new samples
+    /// can reveal light the coarser vertices missed); between passes it never rises.
+    pub refined_after: Vec<u64>,
     /// Emitted power, summed over channels (W).
     pub emitted_power: f64,
     /// Unshot power over emitted power at the end.
@@ -189,7 +191,7 @@ pub fn solve(scene: &Scene, opts: &SolveOptions) -> Result<Solution> {
     let mut stats = SolveStats {
         shots: out.shots,
         rays_cast: oracle.tr.rays.load(std::sync::atomic::Ordering::Relaxed),
-        refinements: out.refinements,
+        refined_after: out.refined_after,
         emitted_power: out.emitted,
         unshot_fraction: out.unshot,
         unshot_history: out.history,

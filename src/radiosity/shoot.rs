@@ -77,8 +77,8 @@ pub struct Outcome {
     pub unshot: f64,
     /// Emitted power (sum over channels).
     pub emitted: f64,
-    /// Refinement passes run.
-    pub refinements: u32,
+    /// Number of shots taken before each refinement pass.
+    pub refined_after: Vec<u64>,
 }
 
 /// Progress callback: fraction done in [0, 1].
@@ -207,10 +207,10 @@ pub fn run(scene: &Scene, tr: &mut Transfer<'_>, progress: ProgressFn<'_>) -> Ou
             tr.rays.load(std::sync::atomic::Ordering::Relaxed)
         );
     }
-    let mut refinements = 0;
+    let mut refined_after = Vec::new();
     if emitted > 0.0 {
         refine(scene, tr, &mut polys, &totals, &patch_base, &patch_depth);
-        refinements += 1;
+        refined_after.push(shots);
     }
     update_unshot(&polys, &totals, &mut unshot, tr);
     let mut frac = unshot_fraction(tr, &unshot, emitted, &power);
@@ -256,7 +256,7 @@ pub fn run(scene: &Scene, tr: &mut Transfer<'_>, progress: ProgressFn<'_>) -> Ou
             );
         }
         let splits = refine(scene, tr, &mut polys, &totals, &patch_base, &patch_depth);
-        refinements += 1;
+        refined_after.push(shots);
         if trace {
             eprintln!(
                 "refine {:.0} ms splits {splits} verts {} rays {}",
@@ -280,7 +280,7 @@ pub fn run(scene: &Scene, tr: &mut Transfer<'_>, progress: ProgressFn<'_>) -> Ou
         history,
         unshot: if emitted > 0.0 { frac } else { 0.0 },
         emitted,
-        refinements,
+        refined_after,
     }
 }
 
