@@ -200,12 +200,6 @@ impl Bvh {
         }
     }
 
-    /// Whether the open segment from `a` to `b` hits any of the polygons `set` (the BVH prunes
-    /// the rest: polygons not in `set` are ignored).
-    pub fn occluded_by(&self, a: DVec3, b: DVec3, set: &[u32]) -> bool {
-        set.iter().any(|&q| self.hits(q as usize, a, b - a))
-    }
-
     /// Whether the open segment a + t d, t in (`T_EPS`, 1 - `T_EPS`), hits polygon `i`.
     pub fn hits(&self, i: usize, a: DVec3, d: DVec3) -> bool {
         let c = &self.tris[i];
@@ -225,10 +219,10 @@ pub const T_EPS: f64 = 1e-7;
 fn slab_hit(b: &Aabb, a: DVec3, inv: DVec3) -> bool {
     let t0 = (b.lo - a) * inv;
     let t1 = (b.hi - a) * inv;
-    // NaN (0 * inf on a slab boundary) is treated as "inside" by min/max ordering below.
+    // NaN (0 * inf on a slab boundary) is dropped by min/max, keeping the test conservative.
     let tmin = t0.min(t1).max_element().max(0.0);
     let tmax = t0.max(t1).min_element().min(1.0);
-    !(tmin > tmax)
+    tmin <= tmax || tmin.is_nan() || tmax.is_nan()
 }
 
 /// Moller-Trumbore, double-sided, segment a + t d with t in (T_EPS, 1 - T_EPS).

@@ -15,7 +15,7 @@
 use glam::DVec3;
 
 /// Most vertices a convex polygon can have after one clip of a quad by a plane.
-const MAX_CLIPPED: usize = 8;
+pub const MAX_CLIPPED: usize = 8;
 
 /// A small convex polygon on the stack (at most [`MAX_CLIPPED`] vertices).
 #[derive(Debug, Clone, Copy)]

@@ -8,7 +8,7 @@
 //! function ([`transfer`]) shared with the [`Oracle`], which answers the radiosity at any point
 //! from the converged history (per-shooter totals). Because a vertex's stored value is computed by
 //! the oracle's own gather, `Solution::radiosity` at a vertex returns the stored sample bit for
-//! bit. Solutions are saved and loaded by [`file`].
+//! bit. Solutions are saved and loaded by [`file`](mod@file).
 //!
 //! Invariants: values are linear RGB radiosity (emission included), finite and >= 0 (any
 //! non-finite value would be a bug; [`sanitize`] maps it to 0 rather than let it reach an image);
@@ -157,11 +157,21 @@ pub fn sanitize(c: DVec3) -> Vec3 {
     Vec3::new(f(c.x), f(c.y), f(c.z))
 }
 
+/// Radiosity E + rho * G of material `m` under irradiance G (the one formula of both the solve
+/// and the oracle).
+#[inline]
+pub fn radiosity_from_g(m: &crate::scene::Material, g: DVec3) -> Vec3 {
+    if m.reflectance.max_element() <= 0.0 {
+        return sanitize(m.emission);
+    }
+    sanitize(m.emission + m.reflectance * g)
+}
+
 /// Solves `scene` in the caller's rayon pool.
 ///
-/// Cost: about (shots + one final gather) x vertices x `shadow_rays` shadow rays for receiver /
-/// shooter pairs that can occlude each other, plus the refinement probes; pairs that cannot see
-/// each other or cannot be occluded cast no rays.
+/// Cost: direct shots x vertices, indirect shots x coarse receiver points, and one full gather
+/// (vertices x shooters) per round, each transfer casting `shadow_rays` shadow rays only where an
+/// occluder may cut the pyramid from the receiver to the shooter; see [`shoot`].
 pub fn solve(scene: &Scene, opts: &SolveOptions) -> Result<Solution> {
     check_settings(scene)?;
     let start = Instant::now();
@@ -169,28 +179,17 @@ pub fn solve(scene: &Scene, opts: &SolveOptions) -> Result<Solution> {
     let mut tr = Transfer::new(scene);
     let out = shoot::run(scene, &mut tr, &|f| bar.update(f));
     bar.finish();
-    // Final gather: every sample from the whole history, exactly as the oracle computes it.
-    for (s, t) in out.totals.iter().enumerate() {
-        if *t != DVec3::ZERO {
-            tr.ensure_pairs(s);
-        }
-    }
-    let oracle = Oracle {
-        tr,
-        totals: out.totals.clone(),
-    };
+    // Every vertex's G was gathered from the final history by the oracle's own function, so
+    // E + rho * G here is the oracle's answer at that vertex, bit for bit.
     let mut polygons = Vec::with_capacity(out.trees.len());
-    for (r, (tree, keys)) in out.trees.into_iter().enumerate() {
-        use rayon::prelude::*;
-        let values: Vec<Vec3> = keys
-            .par_iter()
-            .map(|k| oracle.radiosity(r, k.u(), k.v()))
-            .collect();
+    for (r, (tree, keys, g)) in out.trees.into_iter().enumerate() {
+        let m = scene.material_of(r);
+        let values: Vec<Vec3> = g.iter().map(|g| radiosity_from_g(m, *g)).collect();
         polygons.push(SampledQuadtree { tree, keys, values });
     }
     let mut stats = SolveStats {
         shots: out.shots,
-        rays_cast: oracle.tr.rays.load(std::sync::atomic::Ordering::Relaxed),
+        rays_cast: tr.rays.load(std::sync::atomic::Ordering::Relaxed),
         refined_after: out.refined_after,
         emitted_power: out.emitted,
         unshot_fraction: out.unshot,
@@ -308,10 +307,10 @@ impl<'a> Oracle<'a> {
         let u = if u.is_nan() { 0.0 } else { u.clamp(0.0, 1.0) };
         let v = if v.is_nan() { 0.0 } else { v.clamp(0.0, 1.0) };
         if m.reflectance.max_element() <= 0.0 {
-            return sanitize(m.emission);
+            return radiosity_from_g(m, DVec3::ZERO);
         }
         let g = self.tr.gather(&self.totals, polygon, u, v);
-        sanitize(m.emission + m.reflectance * g)
+        radiosity_from_g(m, g)
     }
 }
 

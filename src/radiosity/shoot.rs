@@ -1,42 +1,48 @@
 //! Progressive refinement (shooting, Cohen et al. 1988) over adaptive, unrestricted quadtrees.
 //!
-//! State: per polygon an unrestricted [`Quadtree`], its vertex keys and a working irradiance G at
-//! every vertex (f64); per shooter the total radiosity it has shot so far. Order of work:
+//! State: per polygon an unrestricted [`Quadtree`], its vertex keys and an irradiance G at every
+//! vertex (f64); per shooter the total radiosity it has shot so far (the history). Order of work:
 //! 1. every polygon starts uniformly subdivided to `max(min_depth, its patch depth)` (patch
 //!    depth <= 2, so a shooter patch is always a union of leaves);
-//! 2. spot lights shoot, each once; emitters shoot their emission, in order of power;
+//! 2. direct pass: spot lights shoot, each once, then emitters shoot their emission (largest power
+//!    first), to every vertex;
 //! 3. refine: a leaf splits when the true radiosity at its centre or an edge midpoint differs
 //!    from the bilinear prediction of its corners by more than `tolerance * scale` (luminance),
-//!    where `scale` is the area-weighted mean reflected radiosity of the reflecting polygons; new
-//!    vertices gather from the whole history; T-vertices stay, the tree is never balanced;
-//! 4. reflecting patches shoot their unshot radiosity (largest unshot power first, ties by id)
-//!    until the unshot power falls below `convergence` times the emitted power;
-//! 5. refine again; if that moved the unshot estimate above the threshold, shoot again (at most
-//!    [`MAX_ROUNDS`] rounds);
-//! 6. every vertex's stored value is recomputed by the oracle's gather over the final history, so a
-//!    stored sample and the oracle agree bit for bit, whatever order the shots came in.
+//!    where `scale` is a robust brightness of the scene (see `brightness_scale`), while its depth
+//!    is below `max_depth` and its world-space size above [`min_element_size`]; new vertices
+//!    gather from the whole history; T-vertices stay, the tree is never balanced;
+//! 4. indirect pass: reflecting patches shoot their unshot radiosity (largest unshot power first,
+//!    ties by id) until the unshot power falls below `convergence` times the emitted power. These
+//!    shots go to a fixed coarse set of receiver points per polygon (the vertices of its uniform
+//!    grid one level below its patch depth), not to every vertex: during shooting the receivers
+//!    only serve to estimate the patches' unshot power, which is smooth indirect light, and a
+//!    shot then costs O(coarse points) instead of O(vertices);
+//! 5. every vertex gathers G from the whole history (the oracle's computation), the trees are
+//!    refined again against it, and the unshot power is re-estimated from all vertices; if that
+//!    estimate is still above the threshold, shooting resumes (at most [`MAX_ROUNDS`] rounds);
+//! 6. a stored sample is therefore E + rho * G with G gathered from the final history, exactly
+//!    the oracle's answer, bit for bit, whatever order the shots came in.
 //!
 //! Unshot radiosity of a patch = rho * (integral of G over the patch) / area - total shot, with the
-//! integral taken over the patch's leaves by the trapezoid rule on their corners (T-vertices are
-//! ignored there, which only changes the estimate, never a stored sample). It is clamped at zero
-//! per channel: refinement can lower the integral below what was already shot, and shooting
-//! negative light would create negative radiosity.
+//! integral taken by the trapezoid rule over the patch's leaves (direct light, fine vertices) plus
+//! over its coarse cells (indirect light shot since the last full gather). It is clamped at zero
+//! per channel: a finer estimate can fall below what was already shot, and shooting negative
+//! light would create negative radiosity.
 //!
-//! Parallelism: rayon over receiver vertices (`par_iter` + `collect` in order); every float sum is
+//! Parallelism: rayon over receiver points (`par_iter` + `collect` in order); every float sum is
 //! done serially in a fixed order, so the result is the same for any number of threads.
 
-use std::collections::HashMap;
 use std::time::Instant;
 
 use glam::DVec3;
 use rayon::prelude::*;
 
-use super::transfer::{build_shooters, spot_power, sub_area, ShooterKind, Transfer};
+use super::transfer::{build_shooters, spot_power, sub_area, PairClass, ShooterKind, Transfer};
 use crate::quadtree::{Cell, Quadtree, VertexKey};
 use crate::scene::Scene;
 
-/// Most shoot-then-refine rounds after the direct pass.
-pub const MAX_ROUNDS: u32 = 3;
+/// Most indirect-shooting rounds (each ends with a full gather and a refinement pass).
+pub const MAX_ROUNDS: u32 = 4;
 
 /// Luminance of linear RGB (Rec. 709 weights).
 #[inline]
@@ -44,7 +50,7 @@ pub fn lum(c: DVec3) -> f64 {
     0.2126 * c.x + 0.7152 * c.y + 0.0722 * c.z
 }
 
-/// One leaf, with what the unshot estimate needs.
+/// One leaf (or coarse cell), with what the unshot estimate needs.
 #[derive(Debug, Clone, Copy)]
 struct Leaf {
     corners: [u32; 4],
@@ -58,13 +64,18 @@ struct Poly {
     keys: Vec<VertexKey>,
     g: Vec<DVec3>,
     leaves: Vec<Leaf>,
+    /// Coarse receiver points of the indirect pass, their G since the last full gather, cells.
+    ckeys: Vec<VertexKey>,
+    cg: Vec<DVec3>,
+    cleaves: Vec<Leaf>,
     rho: DVec3,
 }
 
 /// What the solver hands back to `solve`.
 pub struct Outcome {
-    /// Per polygon: tree, keys, and G per key (final gather).
-    pub trees: Vec<(Quadtree, Vec<VertexKey>)>,
+    /// Per polygon: tree, keys, and G at every key gathered from the final history (zero for a
+    /// polygon that does not reflect).
+    pub trees: Vec<(Quadtree, Vec<VertexKey>, Vec<DVec3>)>,
     /// Per shooter: total radiosity shot.
     pub totals: Vec<DVec3>,
     /// Shooter kinds in id order.
@@ -73,7 +84,7 @@ pub struct Outcome {
     pub shots: u64,
     /// Unshot fraction after every shot.
     pub history: Vec<f64>,
-    /// Final unshot fraction.
+    /// Final unshot fraction (estimated from every vertex).
     pub unshot: f64,
     /// Emitted power (sum over channels).
     pub emitted: f64,
@@ -83,6 +94,20 @@ pub struct Outcome {
 
 /// Progress callback: fraction done in [0, 1].
 pub type ProgressFn<'p> = &'p (dyn Fn(f64) + Sync);
+
+fn uniform_tree(depth: u32) -> Quadtree {
+    let mut tree = Quadtree::new();
+    let mut frontier = vec![0u32];
+    for _ in 0..depth {
+        let mut next = Vec::new();
+        for id in frontier {
+            let f = tree.split(id);
+            next.extend(f..f + 4);
+        }
+        frontier = next;
+    }
+    tree
+}
 
 /// Runs the whole solve and returns trees and the shooting history. `tr` must be built on `scene`.
 pub fn run(scene: &Scene, tr: &mut Transfer<'_>, progress: ProgressFn<'_>) -> Outcome {
@@ -96,38 +121,32 @@ pub fn run(scene: &Scene, tr: &mut Transfer<'_>, progress: ProgressFn<'_>) -> Ou
         .iter()
         .enumerate()
         .map(|(i, _)| {
-            let depth = st.min_depth.max(patch_depth[i]).min(st.max_depth);
-            let mut tree = Quadtree::new();
-            let mut frontier = vec![0u32];
-            for _ in 0..depth {
-                let mut next = Vec::new();
-                for id in frontier {
-                    let f = tree.split(id);
-                    next.extend(f..f + 4);
-                }
-                frontier = next;
-            }
+            let tree = uniform_tree(st.min_depth.max(patch_depth[i]).min(st.max_depth));
             let keys = tree.vertex_keys();
-            Poly {
+            let coarse = uniform_tree((patch_depth[i] + 1).min(st.max_depth.max(patch_depth[i])));
+            let ckeys = coarse.vertex_keys();
+            let cleaves = leaves_of(scene, i, &coarse, &ckeys, &patch_base, &patch_depth);
+            let mut p = Poly {
                 g: vec![DVec3::ZERO; keys.len()],
+                leaves: Vec::new(),
                 tree,
                 keys,
-                leaves: Vec::new(),
+                cg: vec![DVec3::ZERO; ckeys.len()],
+                ckeys,
+                cleaves,
                 rho: scene.material_of(i).reflectance,
-            }
+            };
+            p.leaves = leaves_of(scene, i, &p.tree, &p.keys, &patch_base, &patch_depth);
+            p
         })
         .collect();
-    for (i, p) in polys.iter_mut().enumerate() {
-        rebuild_leaves(scene, i, p, &patch_base, &patch_depth);
-    }
 
     // Emitted power and the initial unshot of spots and emitters.
     let mut emitted = 0.0;
     for (s, sg) in tr.shooters.iter().enumerate() {
         match sg.kind {
             ShooterKind::Spot { spot } => {
-                let p = spot_power(&scene.spots[spot as usize]);
-                emitted += p;
+                emitted += spot_power(&scene.spots[spot as usize]);
                 unshot[s] = DVec3::ONE;
             }
             ShooterKind::Emitter { polygon } => {
@@ -150,6 +169,13 @@ pub fn run(scene: &Scene, tr: &mut Transfer<'_>, progress: ProgressFn<'_>) -> Ou
             _ => tr.shooters[s].area * (u.x + u.y + u.z),
         }
     };
+    let frac_of = |tr: &Transfer<'_>, unshot: &[DVec3]| -> f64 {
+        if emitted <= 0.0 {
+            return 0.0;
+        }
+        let total: f64 = (0..unshot.len()).map(|s| power(tr, s, unshot[s])).sum();
+        total / emitted
+    };
     let mut history = Vec::new();
     let mut shots = 0u64;
     let max_shots = 100 * ns as u64 + 100;
@@ -163,64 +189,61 @@ pub fn run(scene: &Scene, tr: &mut Transfer<'_>, progress: ProgressFn<'_>) -> Ou
         };
         progress(done);
     };
-
-    // Direct pass: spots in order, then emitters by power (ties by id).
-    if emitted > 0.0 {
-        let direct: Vec<usize> = (0..ns)
-            .filter(|&s| !matches!(tr.shooters[s].kind, ShooterKind::Patch { .. }))
-            .collect();
-        let mut order = direct.clone();
-        order.sort_by(|&a, &b| {
-            let spot_a = matches!(tr.shooters[a].kind, ShooterKind::Spot { .. });
-            let spot_b = matches!(tr.shooters[b].kind, ShooterKind::Spot { .. });
-            spot_b
-                .cmp(&spot_a)
-                .then_with(|| {
-                    if spot_a && spot_b {
-                        std::cmp::Ordering::Equal
-                    } else {
-                        power(tr, b, unshot[b]).total_cmp(&power(tr, a, unshot[a]))
-                    }
-                })
-                .then(a.cmp(&b))
-        });
-        for s in order {
-            if power(tr, s, unshot[s]) <= 0.0 {
-                continue;
-            }
-            shoot(scene, tr, &mut polys, s, unshot[s]);
-            totals[s] += unshot[s];
-            unshot[s] = DVec3::ZERO;
-            shots += 1;
-            update_unshot(&polys, &totals, &mut unshot, tr);
-            let frac = unshot_fraction(tr, &unshot, emitted, &power);
-            history.push(frac);
-            report(frac);
-        }
-    }
-
     let trace = std::env::var_os("PFS_TRACE").is_some();
     let t0 = Instant::now();
-    if trace {
-        eprintln!(
-            "direct done: shots {shots} rays {}",
-            tr.rays.load(std::sync::atomic::Ordering::Relaxed)
-        );
+    let nverts = |polys: &[Poly]| polys.iter().map(|p| p.keys.len()).sum::<usize>();
+    // Patch integrals of G from the fine vertices (`base`) and from the coarse points (`coarse`).
+    let mut base = vec![DVec3::ZERO; ns];
+    let mut coarse = vec![DVec3::ZERO; ns];
+
+    // Direct pass: spots in id order, then emitters by power (ties by id), to every vertex.
+    let mut direct: Vec<usize> = (0..ns)
+        .filter(|&s| !matches!(tr.shooters[s].kind, ShooterKind::Patch { .. }))
+        .collect();
+    direct.sort_by(|&a, &b| {
+        let spot_a = matches!(tr.shooters[a].kind, ShooterKind::Spot { .. });
+        let spot_b = matches!(tr.shooters[b].kind, ShooterKind::Spot { .. });
+        spot_b
+            .cmp(&spot_a)
+            .then_with(|| {
+                if spot_a && spot_b {
+                    std::cmp::Ordering::Equal
+                } else {
+                    power(tr, b, unshot[b]).total_cmp(&power(tr, a, unshot[a]))
+                }
+            })
+            .then(a.cmp(&b))
+    });
+    for s in direct {
+        if power(tr, s, unshot[s]) <= 0.0 {
+            continue;
+        }
+        let db = unshot[s];
+        shoot(tr, &mut polys, s, db, false);
+        totals[s] += db;
+        unshot[s] = DVec3::ZERO;
+        shots += 1;
+        integrate(&polys, &patch_base, None, false, &mut base);
+        set_unshot(tr, &polys, &totals, &base, &coarse, &mut unshot);
+        let frac = frac_of(tr, &unshot);
+        history.push(frac);
+        report(frac);
     }
     let mut refined_after = Vec::new();
+    let mut frac = 0.0;
     if emitted > 0.0 {
-        refine(scene, tr, &mut polys, &totals, &patch_base, &patch_depth);
         refined_after.push(shots);
-    }
-    update_unshot(&polys, &totals, &mut unshot, tr);
-    let mut frac = unshot_fraction(tr, &unshot, emitted, &power);
-    if trace {
-        eprintln!(
-            "refine1 {:.0} ms verts {} rays {}",
-            elapsed_ms(t0),
-            polys.iter().map(|p| p.keys.len()).sum::<usize>(),
-            tr.rays.load(std::sync::atomic::Ordering::Relaxed)
-        );
+        refine(scene, tr, &mut polys, &totals, &patch_base, &patch_depth);
+        integrate(&polys, &patch_base, None, false, &mut base);
+        set_unshot(tr, &polys, &totals, &base, &coarse, &mut unshot);
+        frac = frac_of(tr, &unshot);
+        if trace {
+            eprintln!(
+                "direct + refine {:.0} ms, shots {shots}, vertices {}, unshot {frac:.4}",
+                elapsed_ms(t0),
+                nverts(&polys)
+            );
+        }
     }
 
     let mut round = 0;
@@ -230,8 +253,8 @@ pub fn run(scene: &Scene, tr: &mut Transfer<'_>, progress: ProgressFn<'_>) -> Ou
             // Largest unshot power, ties by the smaller id.
             let mut best = None;
             let mut best_p = 0.0;
-            for s in 0..ns {
-                let p = power(tr, s, unshot[s]);
+            for (s, u) in unshot.iter().enumerate() {
+                let p = power(tr, s, *u);
                 if p > best_p {
                     best_p = p;
                     best = Some(s);
@@ -239,126 +262,186 @@ pub fn run(scene: &Scene, tr: &mut Transfer<'_>, progress: ProgressFn<'_>) -> Ou
             }
             let Some(s) = best else { break };
             let db = unshot[s];
-            shoot(scene, tr, &mut polys, s, db);
+            let touched = shoot(tr, &mut polys, s, db, true);
             totals[s] += db;
             unshot[s] = DVec3::ZERO;
             shots += 1;
-            update_unshot(&polys, &totals, &mut unshot, tr);
-            frac = unshot_fraction(tr, &unshot, emitted, &power);
+            integrate(&polys, &patch_base, Some(&touched), true, &mut coarse);
+            set_unshot(tr, &polys, &totals, &base, &coarse, &mut unshot);
+            frac = frac_of(tr, &unshot);
             history.push(frac);
             report(frac);
         }
-        if trace {
-            eprintln!(
-                "shot {:.0} ms shots {shots} rays {}",
-                elapsed_ms(t0),
-                tr.rays.load(std::sync::atomic::Ordering::Relaxed)
-            );
-        }
-        let splits = refine(scene, tr, &mut polys, &totals, &patch_base, &patch_depth);
+        // Full gather from the whole history at every vertex, then refine against it.
+        gather_all(tr, &mut polys, &totals);
         refined_after.push(shots);
+        let splits = refine(scene, tr, &mut polys, &totals, &patch_base, &patch_depth);
+        integrate(&polys, &patch_base, None, false, &mut base);
+        for p in polys.iter_mut() {
+            p.cg.iter_mut().for_each(|g| *g = DVec3::ZERO);
+        }
+        coarse.iter_mut().for_each(|c| *c = DVec3::ZERO);
+        set_unshot(tr, &polys, &totals, &base, &coarse, &mut unshot);
+        frac = frac_of(tr, &unshot);
         if trace {
             eprintln!(
-                "refine {:.0} ms splits {splits} verts {} rays {}",
+                "round {round}: {:.0} ms, shots {shots}, splits {splits}, vertices {}, unshot {frac:.4}, rays {}",
                 elapsed_ms(t0),
-                polys.iter().map(|p| p.keys.len()).sum::<usize>(),
+                nverts(&polys),
                 tr.rays.load(std::sync::atomic::Ordering::Relaxed)
             );
         }
-        update_unshot(&polys, &totals, &mut unshot, tr);
-        frac = unshot_fraction(tr, &unshot, emitted, &power);
-        if splits == 0 || frac < conv || shots >= max_shots {
+        if frac < conv || shots >= max_shots {
             break;
         }
     }
+    if emitted > 0.0 && round == 0 {
+        gather_all(tr, &mut polys, &totals);
+    }
     report(1.0);
     Outcome {
-        trees: polys.into_iter().map(|p| (p.tree, p.keys)).collect(),
+        trees: polys.into_iter().map(|p| (p.tree, p.keys, p.g)).collect(),
         totals,
         kinds: tr.shooters.iter().map(|s| s.kind).collect(),
         shots,
         history,
-        unshot: if emitted > 0.0 { frac } else { 0.0 },
+        unshot: frac,
         emitted,
         refined_after,
     }
 }
 
-fn unshot_fraction(
-    tr: &Transfer<'_>,
-    unshot: &[DVec3],
-    emitted: f64,
-    power: &impl Fn(&Transfer<'_>, usize, DVec3) -> f64,
-) -> f64 {
-    if emitted <= 0.0 {
-        return 0.0;
-    }
-    let total: f64 = (0..unshot.len()).map(|s| power(tr, s, unshot[s])).sum();
-    total / emitted
-}
-
-/// Shooter `s` shoots radiosity `db` (per-unit intensity scale for a spot) to every vertex.
-fn shoot(scene: &Scene, tr: &mut Transfer<'_>, polys: &mut [Poly], s: usize, db: DVec3) {
-    tr.ensure_pairs(s);
-    let tr = &*tr;
-    let classes = &tr.pairs[s].as_ref().expect("pairs computed above").class;
+/// Every vertex of every reflecting polygon gathers G from the history `totals`.
+fn gather_all(tr: &Transfer<'_>, polys: &mut [Poly], totals: &[DVec3]) {
     let work: Vec<(u32, u32)> = polys
         .iter()
         .enumerate()
-        .filter(|(r, p)| {
-            classes[*r] != super::transfer::PairClass::Culled && p.rho.max_element() > 0.0
-        })
+        .filter(|(_, p)| p.rho.max_element() > 0.0)
         .flat_map(|(r, p)| (0..p.keys.len() as u32).map(move |k| (r as u32, k)))
         .collect();
-    let _ = scene;
+    let polys_ro = &*polys;
+    let g: Vec<DVec3> = work
+        .par_iter()
+        .map(|&(r, k)| {
+            let key = polys_ro[r as usize].keys[k as usize];
+            tr.gather(totals, r as usize, key.u(), key.v())
+        })
+        .collect();
+    for (&(r, k), g) in work.iter().zip(g) {
+        polys[r as usize].g[k as usize] = g;
+    }
+}
+
+/// Shooter `s` shoots radiosity `db` (per unit intensity scale for a spot) to every vertex, or
+/// to the coarse receiver points if `coarse`. Returns which polygons received or own the shooter.
+fn shoot(
+    tr: &mut Transfer<'_>,
+    polys: &mut [Poly],
+    s: usize,
+    db: DVec3,
+    coarse: bool,
+) -> Vec<bool> {
+    tr.ensure_pairs(s);
+    let tr = &*tr;
+    let classes = &tr.pairs[s].as_ref().expect("pairs computed above").class;
+    let keys = |p: &Poly| if coarse { p.ckeys.len() } else { p.keys.len() };
+    let work: Vec<(u32, u32)> = polys
+        .iter()
+        .enumerate()
+        .filter(|(r, p)| classes[*r] != PairClass::Culled && p.rho.max_element() > 0.0)
+        .flat_map(|(r, p)| (0..keys(p) as u32).map(move |k| (r as u32, k)))
+        .collect();
+    let polys_ro = &*polys;
     let t: Vec<DVec3> = work
         .par_iter()
         .map(|&(r, k)| {
-            let key = polys[r as usize].keys[k as usize];
+            let p = &polys_ro[r as usize];
+            let key = if coarse {
+                p.ckeys[k as usize]
+            } else {
+                p.keys[k as usize]
+            };
             tr.transfer(s, r as usize, key.u(), key.v())
         })
         .collect();
     for (&(r, k), t) in work.iter().zip(t) {
-        polys[r as usize].g[k as usize] += db * t;
+        let p = &mut polys[r as usize];
+        if coarse {
+            p.cg[k as usize] += db * t;
+        } else {
+            p.g[k as usize] += db * t;
+        }
+    }
+    let mut touched: Vec<bool> = classes.iter().map(|c| *c != PairClass::Culled).collect();
+    if let Some(t) = touched.get_mut(tr.shooters[s].polygon as usize) {
+        *t = true;
+    }
+    touched
+}
+
+/// Recomputes the patch integrals of G (fine leaves, or coarse cells if `coarse`) of the
+/// polygons marked in `only` (all if `None`) into `out`, indexed by shooter id.
+fn integrate(polys: &[Poly], base: &[u32], only: Option<&[bool]>, coarse: bool, out: &mut [DVec3]) {
+    for (r, p) in polys.iter().enumerate() {
+        if base[r] == u32::MAX || only.is_some_and(|o| !o[r]) {
+            continue;
+        }
+        let (leaves, g) = if coarse {
+            (&p.cleaves, &p.cg)
+        } else {
+            (&p.leaves, &p.g)
+        };
+        let first = base[r] as usize;
+        let last = leaves
+            .iter()
+            .map(|l| l.patch as usize)
+            .max()
+            .unwrap_or(first);
+        out[first..=last].iter_mut().for_each(|x| *x = DVec3::ZERO);
+        for l in leaves {
+            let avg = 0.25 * l.corners.iter().map(|&c| g[c as usize]).sum::<DVec3>();
+            out[l.patch as usize] += l.area * avg;
+        }
     }
 }
 
-/// Recomputes the unshot radiosity of every reflecting patch from the vertices' G.
-fn update_unshot(polys: &[Poly], totals: &[DVec3], unshot: &mut [DVec3], tr: &Transfer<'_>) {
-    let mut integ: HashMap<u32, DVec3> = HashMap::new();
-    for p in polys {
-        if p.rho.max_element() <= 0.0 {
-            continue;
-        }
-        for l in &p.leaves {
-            let avg = 0.25 * l.corners.iter().map(|&c| p.g[c as usize]).sum::<DVec3>();
-            *integ.entry(l.patch).or_insert(DVec3::ZERO) += l.area * avg;
-        }
-    }
+/// Unshot radiosity of every reflecting patch: rho * (fine + coarse integral) / area - total,
+/// clamped at zero per channel (see the module doc).
+fn set_unshot(
+    tr: &Transfer<'_>,
+    polys: &[Poly],
+    totals: &[DVec3],
+    base: &[DVec3],
+    coarse: &[DVec3],
+    unshot: &mut [DVec3],
+) {
     for (s, sg) in tr.shooters.iter().enumerate() {
         if let ShooterKind::Patch { polygon, .. } = sg.kind {
             let rho = polys[polygon as usize].rho;
-            let i = integ.get(&(s as u32)).copied().unwrap_or(DVec3::ZERO);
             let b = if sg.area > 0.0 {
-                rho * i / sg.area
+                rho * (base[s] + coarse[s]) / sg.area
             } else {
                 DVec3::ZERO
             };
-            // Clamp at zero per channel (see the module doc).
             unshot[s] = (b - totals[s]).max(DVec3::ZERO);
         }
     }
 }
 
-fn rebuild_leaves(scene: &Scene, i: usize, p: &mut Poly, base: &[u32], depth: &[u32]) {
+fn leaves_of(
+    scene: &Scene,
+    i: usize,
+    tree: &Quadtree,
+    keys: &[VertexKey],
+    base: &[u32],
+    depth: &[u32],
+) -> Vec<Leaf> {
     let poly = &scene.polygons[i];
-    let idx = |k: VertexKey, keys: &[VertexKey]| keys.binary_search(&k).map_or(0, |x| x as u32);
-    p.leaves = p
-        .tree
-        .leaves()
+    let idx = |k: VertexKey| keys.binary_search(&k).map_or(0, |x| x as u32);
+    tree.leaves()
         .into_iter()
         .map(|id| {
-            let cell = p.tree.node(id).cell;
+            let cell = tree.node(id).cell;
             let c = cell.corners();
             let patch = if base[i] == u32::MAX {
                 u32::MAX
@@ -369,17 +452,16 @@ fn rebuild_leaves(scene: &Scene, i: usize, p: &mut Poly, base: &[u32], depth: &[
                 base[i] + (cell.y >> sh) * n + (cell.x >> sh)
             };
             Leaf {
-                corners: [
-                    idx(c[0], &p.keys),
-                    idx(c[1], &p.keys),
-                    idx(c[2], &p.keys),
-                    idx(c[3], &p.keys),
-                ],
+                corners: c.map(idx),
                 area: sub_area(poly, cell),
                 patch,
             }
         })
-        .collect();
+        .collect()
+}
+
+fn rebuild_leaves(scene: &Scene, i: usize, p: &mut Poly, base: &[u32], depth: &[u32]) {
+    p.leaves = leaves_of(scene, i, &p.tree, &p.keys, base, depth);
 }
 
 /// Brightness scale for the subdivision test: the larger of
@@ -426,6 +508,7 @@ fn refine(
     if thresh <= 0.0 || !thresh.is_finite() {
         return 0;
     }
+    let min_size = min_element_size(scene);
     let mut pending: Vec<(u32, u32)> = Vec::new();
     for (r, p) in polys.iter().enumerate() {
         if p.rho.max_element() <= 0.0 {
@@ -433,7 +516,7 @@ fn refine(
             continue;
         }
         for id in p.tree.leaves() {
-            if p.tree.node(id).cell.level < st.max_depth {
+            if can_split(scene, r, p.tree.node(id).cell, min_size) {
                 pending.push((r as u32, id));
             }
         }
@@ -496,7 +579,7 @@ fn refine(
             let f = p.tree.split(id);
             splits += 1;
             for c in f..f + 4 {
-                if p.tree.node(c).cell.level < st.max_depth {
+                if can_split(scene, r as usize, p.tree.node(c).cell, min_size) {
                     next.push((r, c));
                 }
             }
@@ -514,6 +597,27 @@ fn refine(
         pending = next;
     }
     splits
+}
+
+/// Smallest element edge worth splitting: the scene's bounding diagonal / 2^max_depth. Depth
+/// limits are per polygon, so without this a small polygon (a 1 m floor tile in a 15 m hall)
+/// would be refined to elements far smaller than a large one's at the same depth; with it,
+/// `max_depth` means "the scene resolved to 1 / 2^max_depth of its size" everywhere.
+pub fn min_element_size(scene: &Scene) -> f64 {
+    let (lo, hi) = scene.bounds();
+    (hi - lo).length() / (1u64 << scene.radiosity.max_depth.min(63)) as f64
+}
+
+/// Whether a leaf may split: below max_depth, and its longer world-space edge (at the cell's
+/// centre) is longer than `min_size`.
+fn can_split(scene: &Scene, r: usize, cell: Cell, min_size: f64) -> bool {
+    if cell.level >= scene.radiosity.max_depth {
+        return false;
+    }
+    let (u0, v0, u1, v1) = cell.bounds();
+    let (du, dv) = scene.polygons[r].tangents(0.5 * (u0 + u1), 0.5 * (v0 + v1));
+    let w = u1 - u0;
+    (du.length() * w).max(dv.length() * w) > min_size
 }
 
 /// Emitted power in luminance (spots and emissive polygons).

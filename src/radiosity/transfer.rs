@@ -415,7 +415,7 @@ impl<'a> Transfer<'a> {
                     return DVec3::ZERO;
                 }
                 let vis = if class == PairClass::Occluded {
-                    self.visibility(s, cands, x)
+                    self.visibility(s, r, cands, x)
                 } else {
                     1.0
                 };
@@ -427,7 +427,7 @@ impl<'a> Transfer<'a> {
     /// Area-weighted fraction of shooter `s`'s sample points visible from `x`, given the pair's
     /// occluder candidates. Candidates that cannot meet the pyramid from `x` over the shooter are
     /// dropped first (no ray can hit them); with none left, visibility is 1 without rays.
-    fn visibility(&self, s: usize, cands: &[u32], x: DVec3) -> f64 {
+    fn visibility(&self, s: usize, r: usize, cands: &[u32], x: DVec3) -> f64 {
         let sg = &self.shooters[s];
         let mut near = [0u32; 16];
         let mut nn = 0usize;
@@ -452,7 +452,7 @@ impl<'a> Transfer<'a> {
             total += w;
             let d = y - x;
             let hit = if many {
-                self.bvh.occluded_by(x, y, cands)
+                self.bvh.occluded(x, y, r as u32, sg.polygon)
             } else {
                 near[..nn].iter().any(|&q| self.bvh.hits(q as usize, x, d))
             };
