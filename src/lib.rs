@@ -17,6 +17,7 @@ pub mod lanes;
 pub mod output;
 pub mod pipeline;
 pub mod quadtree;
+pub mod radiosity;
 pub mod raster;
 pub mod reconstruction;
 pub mod report;

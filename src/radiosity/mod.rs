@@ -1,0 +1,444 @@
+//! Radiosity: the second stage a frame passes through. It turns a [`Scene`] into a [`Solution`]:
+//! for every polygon an unrestricted, adaptively subdivided quadtree over its (u, v) domain with a
+//! true RGB radiosity sample at every leaf vertex, T-vertices included. The reconstruction stage
+//! reads these samples; nothing downstream ever sees an interpolated value.
+//!
+//! The solve is progressive refinement ([`shoot`]) with exact point-to-polygon form factors
+//! ([`formfactor`]) and shadow rays through a BVH ([`bvh`]); the light transfer itself lives in one
+//! function ([`transfer`]) shared with the [`Oracle`], which answers the radiosity at any point
+//! from the converged history (per-shooter totals). Because a vertex's stored value is computed by
+//! the oracle's own gather, `Solution::radiosity` at a vertex returns the stored sample bit for
+//! bit. Solutions are saved and loaded by [`file`](mod@file).
+//!
+//! Invariants: values are linear RGB radiosity (emission included), finite and >= 0 (any
+//! non-finite value would be a bug; [`sanitize`] maps it to 0 rather than let it reach an image);
+//! the solution depends only on the scene (fixed seeds, fixed reduction order), not on the number
+//! of threads of the caller's rayon pool.
+
+pub mod bvh;
+pub mod file;
+pub mod formfactor;
+pub(crate) mod rng;
+pub mod shoot;
+#[cfg(test)]
+pub(crate) mod test_scenes;
+pub mod transfer;
+
+use std::io::IsTerminal;
+use std::time::{Duration, Instant};
+
+use glam::{DVec3, Vec3};
+
+use crate::error::{Error, Location, Result};
+use crate::quadtree::{SampledQuadtree, MAX_DEPTH};
+use crate::scene::Scene;
+pub use transfer::ShooterKind;
+use transfer::Transfer;
+
+/// Options of one solve that are not part of the scene.
+#[derive(Debug, Clone, Default)]
+pub struct SolveOptions {
+    /// Show a progress bar on stderr (only if stderr is a terminal and the solve lasts > 1 s).
+    pub progress: bool,
+}
+
+/// One shooter of the history: what it is and the total radiosity it shot.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Shooter {
+    /// Spot, emitter or reflecting patch.
+    pub kind: ShooterKind,
+    /// Total radiosity shot (W/m^2 per channel). For a spot light: 1 once it has shot (its
+    /// intensity is in the scene), 0 otherwise.
+    pub total: DVec3,
+}
+
+/// Statistics of a solve.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct SolveStats {
+    /// Leaves of all quadtrees (the elements).
+    pub elements: u64,
+    /// Stored samples (vertices of all quadtrees).
+    pub vertices: u64,
+    /// Vertices that lie inside an edge of a neighbouring, larger leaf.
+    pub t_vertices: u64,
+    /// Number of leaves per depth, over all polygons.
+    pub depth_histogram: Vec<u64>,
+    /// Shots taken (spots, emitters and patches; a patch may shoot more than once).
+    pub shots: u64,
+    /// Shadow rays cast during the solve (including the final gather).
+    pub rays_cast: u64,
+    /// Shots taken before each refinement pass (one entry per pass). A pass re-estimates the
+    /// unshot power from more samples, so `unshot_history` may rise right after it (new samples
+    /// can reveal light the coarser vertices missed); between passes it never rises.
+    pub refined_after: Vec<u64>,
+    /// Emitted power, summed over channels (W).
+    pub emitted_power: f64,
+    /// Unshot power over emitted power at the end.
+    pub unshot_fraction: f64,
+    /// Unshot fraction after every shot, in shot order.
+    pub unshot_history: Vec<f64>,
+    /// Wall-clock solve time in milliseconds. Not saved in solution files (it would make two
+    /// solves of one scene differ); 0 for a solution read from a file.
+    pub solve_ms: f64,
+}
+
+/// A radiosity solution.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Solution {
+    /// One sampled quadtree per scene polygon, in scene order. Values: linear RGB radiosity,
+    /// emission included, finite and >= 0.
+    pub polygons: Vec<SampledQuadtree>,
+    /// The shooting history: every shooter in id order (spots, emitters, patches) with its total.
+    pub shooters: Vec<Shooter>,
+    /// Statistics.
+    pub stats: SolveStats,
+    /// [`scene_hash`] of the scene this solves.
+    pub scene_hash: u64,
+}
+
+/// Largest shadow-ray count accepted per receiver point and shooter.
+pub const MAX_SHADOW_RAYS: u32 = 4096;
+
+fn check_settings(scene: &Scene) -> Result<()> {
+    let s = &scene.radiosity;
+    let loc = |k: &str| Location::file(&scene.source).with_key(format!("radiosity.{k}"));
+    if !(s.tolerance.is_finite() && s.tolerance >= 0.0) {
+        return Err(Error::input(
+            loc("tolerance"),
+            "must be a finite number >= 0",
+        ));
+    }
+    if s.max_depth > MAX_DEPTH {
+        return Err(Error::input(
+            loc("max_depth"),
+            format!("is {}, must be at most {MAX_DEPTH}", s.max_depth),
+        ));
+    }
+    if s.min_depth > s.max_depth {
+        return Err(Error::input(
+            loc("min_depth"),
+            format!(
+                "is {}, must be at most max_depth ({})",
+                s.min_depth, s.max_depth
+            ),
+        ));
+    }
+    if !(s.convergence.is_finite() && s.convergence > 0.0 && s.convergence <= 1.0) {
+        return Err(Error::input(loc("convergence"), "must be in (0, 1]"));
+    }
+    if s.shadow_rays == 0 || s.shadow_rays > MAX_SHADOW_RAYS {
+        return Err(Error::input(
+            loc("shadow_rays"),
+            format!("is {}, must be in 1..={MAX_SHADOW_RAYS}", s.shadow_rays),
+        ));
+    }
+    for (i, p) in scene.polygons.iter().enumerate() {
+        if p.material as usize >= scene.materials.len() {
+            return Err(Error::input(
+                Location::file(&scene.source).with_key(format!("polygons[{i}].material")),
+                "refers to a material that does not exist",
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// Maps a non-finite or negative channel to 0 (documented clamp; never expected to trigger).
+#[inline]
+pub fn sanitize(c: DVec3) -> Vec3 {
+    let f = |x: f64| {
+        let y = x as f32;
+        if y.is_finite() && y > 0.0 {
+            y
+        } else {
+            0.0
+        }
+    };
+    Vec3::new(f(c.x), f(c.y), f(c.z))
+}
+
+/// Radiosity E + rho * G of material `m` under irradiance G (the one formula of both the solve
+/// and the oracle).
+#[inline]
+pub fn radiosity_from_g(m: &crate::scene::Material, g: DVec3) -> Vec3 {
+    if m.reflectance.max_element() <= 0.0 {
+        return sanitize(m.emission);
+    }
+    sanitize(m.emission + m.reflectance * g)
+}
+
+/// Solves `scene` in the caller's rayon pool.
+///
+/// Cost: direct shots x vertices, indirect shots x coarse receiver points, and one full gather
+/// (vertices x shooters) per round, each transfer casting `shadow_rays` shadow rays only where an
+/// occluder may cut the pyramid from the receiver to the shooter; see [`shoot`].
+pub fn solve(scene: &Scene, opts: &SolveOptions) -> Result<Solution> {
+    check_settings(scene)?;
+    let start = Instant::now();
+    let bar = Progress::new(opts.progress);
+    let mut tr = Transfer::new(scene);
+    let out = shoot::run(scene, &mut tr, &|f| bar.update(f));
+    bar.finish();
+    // Every vertex's G was gathered from the final history by the oracle's own function, so
+    // E + rho * G here is the oracle's answer at that vertex, bit for bit.
+    let mut polygons = Vec::with_capacity(out.trees.len());
+    for (r, (tree, keys, g)) in out.trees.into_iter().enumerate() {
+        let m = scene.material_of(r);
+        let values: Vec<Vec3> = g.iter().map(|g| radiosity_from_g(m, *g)).collect();
+        polygons.push(SampledQuadtree { tree, keys, values });
+    }
+    let mut stats = SolveStats {
+        shots: out.shots,
+        rays_cast: tr.rays.load(std::sync::atomic::Ordering::Relaxed),
+        refined_after: out.refined_after,
+        emitted_power: out.emitted,
+        unshot_fraction: out.unshot,
+        unshot_history: out.history,
+        ..SolveStats::default()
+    };
+    fill_tree_stats(&mut stats, &polygons);
+    stats.solve_ms = start.elapsed().as_secs_f64() * 1e3;
+    let shooters = out
+        .kinds
+        .iter()
+        .zip(&out.totals)
+        .map(|(k, t)| Shooter {
+            kind: *k,
+            total: *t,
+        })
+        .collect();
+    Ok(Solution {
+        polygons,
+        shooters,
+        stats,
+        scene_hash: scene_hash(scene),
+    })
+}
+
+/// Fills elements, vertices, T-vertices and the depth histogram from the trees.
+pub fn fill_tree_stats(stats: &mut SolveStats, polygons: &[SampledQuadtree]) {
+    stats.elements = 0;
+    stats.vertices = 0;
+    stats.t_vertices = 0;
+    stats.depth_histogram.clear();
+    for p in polygons {
+        stats.elements += p.tree.leaf_count() as u64;
+        stats.vertices += p.keys.len() as u64;
+        stats.t_vertices += count_t_vertices(&p.tree) as u64;
+        let h = p.tree.depth_histogram();
+        if stats.depth_histogram.len() < h.len() {
+            stats.depth_histogram.resize(h.len(), 0);
+        }
+        for (d, n) in h.into_iter().enumerate() {
+            stats.depth_histogram[d] += n as u64;
+        }
+    }
+}
+
+/// T-vertices of a tree in O(n log n): an interior lattice point that is a corner of exactly two
+/// leaves lies inside the edge of a third (a regular interior vertex is a corner of four leaves,
+/// and no T-vertex can lie on the domain boundary).
+pub fn count_t_vertices(tree: &crate::quadtree::Quadtree) -> usize {
+    use crate::quadtree::LATTICE;
+    let mut corners: Vec<_> = tree
+        .nodes()
+        .iter()
+        .filter(|n| n.is_leaf())
+        .flat_map(|n| n.cell.corners())
+        .collect();
+    corners.sort_unstable();
+    let mut count = 0;
+    let mut i = 0;
+    while i < corners.len() {
+        let k = corners[i];
+        let mut j = i;
+        while j < corners.len() && corners[j] == k {
+            j += 1;
+        }
+        let interior = k.i > 0 && k.i < LATTICE && k.j > 0 && k.j < LATTICE;
+        if interior && j - i == 2 {
+            count += 1;
+        }
+        i = j;
+    }
+    count
+}
+
+/// The radiosity oracle: the radiosity at any point of any polygon from a solution's history.
+///
+/// Build it once (BVH, shooter geometry, pair classes) and query many points; each query costs
+/// O(shooters x `shadow_rays`) (rays only for pairs that can be occluded).
+pub struct Oracle<'a> {
+    tr: Transfer<'a>,
+    totals: Vec<DVec3>,
+}
+
+impl<'a> Oracle<'a> {
+    /// Prepares the oracle of `sol` on `scene` (which must be the scene `sol` solves).
+    pub fn new(sol: &Solution, scene: &'a Scene) -> Result<Oracle<'a>> {
+        if sol.scene_hash != scene_hash(scene) {
+            return Err(Error::Usage(
+                "the solution was computed for another scene".to_string(),
+            ));
+        }
+        let mut tr = Transfer::new(scene);
+        if tr.shooters.len() != sol.shooters.len() {
+            return Err(Error::Runtime(
+                "solution shooters do not match the scene".to_string(),
+            ));
+        }
+        let totals: Vec<DVec3> = sol.shooters.iter().map(|s| s.total).collect();
+        for (s, t) in totals.iter().enumerate() {
+            if *t != DVec3::ZERO {
+                tr.ensure_pairs(s);
+            }
+        }
+        Ok(Oracle { tr, totals })
+    }
+
+    /// Radiosity (linear RGB, emission included) of polygon `polygon` at (u, v) in [0, 1]^2
+    /// (clamped). Out-of-range polygon indices give black.
+    pub fn radiosity(&self, polygon: usize, u: f64, v: f64) -> Vec3 {
+        let scene = self.tr.scene;
+        if polygon >= scene.polygons.len() {
+            return Vec3::ZERO;
+        }
+        let m = scene.material_of(polygon);
+        let u = if u.is_nan() { 0.0 } else { u.clamp(0.0, 1.0) };
+        let v = if v.is_nan() { 0.0 } else { v.clamp(0.0, 1.0) };
+        if m.reflectance.max_element() <= 0.0 {
+            return radiosity_from_g(m, DVec3::ZERO);
+        }
+        let g = self.tr.gather(&self.totals, polygon, u, v);
+        radiosity_from_g(m, g)
+    }
+}
+
+impl Solution {
+    /// Radiosity at (u, v) of polygon `polygon` from the history. Builds an [`Oracle`] per call
+    /// (a BVH and the pair classes: O(shooters x polygons)); for many queries build the oracle
+    /// once with [`Oracle::new`]. Per query cost O(shooters x `shadow_rays`). Returns black if the
+    /// solution is not for `scene`.
+    pub fn radiosity(&self, scene: &Scene, polygon: usize, u: f64, v: f64) -> Vec3 {
+        match Oracle::new(self, scene) {
+            Ok(o) => o.radiosity(polygon, u, v),
+            Err(_) => Vec3::ZERO,
+        }
+    }
+}
+
+/// FNV-1a 64 over bytes.
+#[derive(Debug, Clone, Copy)]
+pub struct Fnv(pub u64);
+
+impl Default for Fnv {
+    fn default() -> Self {
+        Fnv(0xcbf2_9ce4_8422_2325)
+    }
+}
+
+impl Fnv {
+    /// Feeds bytes.
+    pub fn bytes(&mut self, b: &[u8]) {
+        for &x in b {
+            self.0 ^= x as u64;
+            self.0 = self.0.wrapping_mul(0x0000_0100_0000_01b3);
+        }
+    }
+    /// Feeds a u64, little-endian.
+    pub fn u64(&mut self, x: u64) {
+        self.bytes(&x.to_le_bytes());
+    }
+    /// Feeds an f64 by its bits (so -0.0 and 0.0 differ; scenes are compared exactly).
+    pub fn f64(&mut self, x: f64) {
+        self.u64(x.to_bits());
+    }
+    /// Feeds a vector.
+    pub fn vec3(&mut self, v: DVec3) {
+        self.f64(v.x);
+        self.f64(v.y);
+        self.f64(v.z);
+    }
+}
+
+/// A stable hash (FNV-1a 64, little-endian field encoding) of everything in `scene` that the
+/// solution depends on: polygon corners, shapes and materials, reflectance and emission, spot
+/// lights and radiosity settings. Not names, camera, render or display settings.
+pub fn scene_hash(scene: &Scene) -> u64 {
+    let mut h = Fnv::default();
+    h.bytes(b"pixelflow-sim scene v1");
+    h.u64(scene.polygons.len() as u64);
+    for p in &scene.polygons {
+        for c in p.corners {
+            h.vec3(c);
+        }
+        h.u64(p.shape.corner_count() as u64);
+        h.u64(p.material as u64);
+    }
+    h.u64(scene.materials.len() as u64);
+    for m in &scene.materials {
+        h.vec3(m.reflectance);
+        h.vec3(m.emission);
+    }
+    h.u64(scene.spots.len() as u64);
+    for s in &scene.spots {
+        h.vec3(s.position);
+        h.vec3(s.direction);
+        h.vec3(s.intensity);
+        h.f64(s.half_angle);
+        h.f64(s.falloff);
+    }
+    let r = &scene.radiosity;
+    h.f64(r.tolerance);
+    h.u64(r.min_depth as u64);
+    h.u64(r.max_depth as u64);
+    h.f64(r.convergence);
+    h.u64(r.shadow_rays as u64);
+    h.u64(r.seed);
+    h.0
+}
+
+/// A progress bar that appears only after a second, only when enabled and stderr is a terminal.
+struct Progress {
+    enabled: bool,
+    start: Instant,
+    bar: std::sync::Mutex<Option<indicatif::ProgressBar>>,
+}
+
+impl Progress {
+    fn new(enabled: bool) -> Self {
+        Progress {
+            enabled: enabled && std::io::stderr().is_terminal(),
+            start: Instant::now(),
+            bar: std::sync::Mutex::new(None),
+        }
+    }
+
+    fn update(&self, done: f64) {
+        if !self.enabled || self.start.elapsed() < Duration::from_secs(1) {
+            return;
+        }
+        let Ok(mut g) = self.bar.lock() else { return };
+        let bar = g.get_or_insert_with(|| {
+            let b = indicatif::ProgressBar::new(1000);
+            if let Ok(style) = indicatif::ProgressStyle::with_template(
+                "solve [{elapsed_precise}] {wide_bar} {percent}% (log unshot)",
+            ) {
+                b.set_style(style);
+            }
+            b
+        });
+        bar.set_position((done.clamp(0.0, 1.0) * 1000.0) as u64);
+    }
+
+    fn finish(&self) {
+        if let Ok(mut g) = self.bar.lock() {
+            if let Some(b) = g.take() {
+                b.finish_and_clear();
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,661 @@
+//! Progressive refinement (shooting, Cohen et al. 1988) over adaptive, unrestricted quadtrees.
+//!
+//! State: per polygon an unrestricted [`Quadtree`], its vertex keys and an irradiance G at every
+//! vertex (f64); per shooter the total radiosity it has shot so far (the history). Order of work:
+//! 1. every polygon starts uniformly subdivided to `max(min_depth, its patch depth)` (patch
+//!    depth <= 2, so a shooter patch is always a union of leaves);
+//! 2. direct pass: spot lights shoot, each once, then emitters shoot their emission (largest power
+//!    first), to every vertex;
+//! 3. refine: a leaf splits when the true radiosity at its centre or an edge midpoint differs
+//!    from the bilinear prediction of its corners by more than `tolerance * scale` (luminance),
+//!    where `scale` is a robust brightness of the scene (see `brightness_scale`), while its depth
+//!    is below `max_depth` and its world-space size above [`min_element_size`]; new vertices
+//!    gather from the whole history; T-vertices stay, the tree is never balanced;
+//! 4. indirect pass: reflecting patches shoot their unshot radiosity (largest unshot power first,
+//!    ties by id) until the unshot power falls below `convergence` times the emitted power. These
+//!    shots go to a fixed coarse set of receiver points per polygon (the vertices of its uniform
+//!    grid one level below its patch depth), not to every vertex: during shooting the receivers
+//!    only serve to estimate the patches' unshot power, which is smooth indirect light, and a
+//!    shot then costs O(coarse points) instead of O(vertices);
+//! 5. every vertex gathers G from the whole history (the oracle's computation), the trees are
+//!    refined again against it, and the unshot power is re-estimated from all vertices; if that
+//!    estimate is still above the threshold, shooting resumes (at most [`MAX_ROUNDS`] rounds);
+//! 6. a stored sample is therefore E + rho * G with G gathered from the final history, exactly
+//!    the oracle's answer, bit for bit, whatever order the shots came in.
+//!
+//! Unshot radiosity of a patch = rho * (integral of G over the patch) / area - total shot, with the
+//! integral taken by the trapezoid rule over the patch's leaves (direct light, fine vertices) plus
+//! over its coarse cells (indirect light shot since the last full gather). It is clamped at zero
+//! per channel: a finer estimate can fall below what was already shot, and shooting negative
+//! light would create negative radiosity.
+//!
+//! Parallelism: rayon over receiver points (`par_iter` + `collect` in order); every float sum is
+//! done serially in a fixed order, so the result is the same for any number of threads.
+
+use std::time::Instant;
+
+use glam::DVec3;
+use rayon::prelude::*;
+
+use super::transfer::{build_shooters, spot_power, sub_area, PairClass, ShooterKind, Transfer};
+use crate::quadtree::{Cell, Quadtree, VertexKey};
+use crate::scene::Scene;
+
+/// Most indirect-shooting rounds (each ends with a full gather and a refinement pass).
+pub const MAX_ROUNDS: u32 = 4;
+
+/// Luminance of linear RGB (Rec. 709 weights).
+#[inline]
+pub fn lum(c: DVec3) -> f64 {
+    0.2126 * c.x + 0.7152 * c.y + 0.0722 * c.z
+}
+
+/// One leaf (or coarse cell), with what the unshot estimate needs.
+#[derive(Debug, Clone, Copy)]
+struct Leaf {
+    corners: [u32; 4],
+    area: f64,
+    patch: u32,
+}
+
+/// Per-polygon solve state.
+struct Poly {
+    tree: Quadtree,
+    keys: Vec<VertexKey>,
+    g: Vec<DVec3>,
+    leaves: Vec<Leaf>,
+    /// Coarse receiver points of the indirect pass, their G since the last full gather, cells.
+    ckeys: Vec<VertexKey>,
+    cg: Vec<DVec3>,
+    cleaves: Vec<Leaf>,
+    rho: DVec3,
+}
+
+/// What the solver hands back to `solve`.
+pub struct Outcome {
+    /// Per polygon: tree, keys, and G at every key gathered from the final history (zero for a
+    /// polygon that does not reflect).
+    pub trees: Vec<(Quadtree, Vec<VertexKey>, Vec<DVec3>)>,
+    /// Per shooter: total radiosity shot.
+    pub totals: Vec<DVec3>,
+    /// Shooter kinds in id order.
+    pub kinds: Vec<ShooterKind>,
+    /// Shots taken.
+    pub shots: u64,
+    /// Unshot fraction after every shot.
+    pub history: Vec<f64>,
+    /// Final unshot fraction (estimated from every vertex).
+    pub unshot: f64,
+    /// Emitted power (sum over channels).
+    pub emitted: f64,
+    /// Number of shots taken before each refinement pass.
+    pub refined_after: Vec<u64>,
+}
+
+/// Progress callback: fraction done in [0, 1].
+pub type ProgressFn<'p> = &'p (dyn Fn(f64) + Sync);
+
+fn uniform_tree(depth: u32) -> Quadtree {
+    let mut tree = Quadtree::new();
+    let mut frontier = vec![0u32];
+    for _ in 0..depth {
+        let mut next = Vec::new();
+        for id in frontier {
+            let f = tree.split(id);
+            next.extend(f..f + 4);
+        }
+        frontier = next;
+    }
+    tree
+}
+
+/// Runs the whole solve and returns trees and the shooting history. `tr` must be built on `scene`.
+pub fn run(scene: &Scene, tr: &mut Transfer<'_>, progress: ProgressFn<'_>) -> Outcome {
+    let st = &scene.radiosity;
+    let (_, patch_base, patch_depth) = build_shooters(scene);
+    let ns = tr.shooters.len();
+    let mut totals = vec![DVec3::ZERO; ns];
+    let mut unshot = vec![DVec3::ZERO; ns];
+    let mut polys: Vec<Poly> = scene
+        .polygons
+        .iter()
+        .enumerate()
+        .map(|(i, _)| {
+            let tree = uniform_tree(st.min_depth.max(patch_depth[i]).min(st.max_depth));
+            let keys = tree.vertex_keys();
+            let coarse = uniform_tree((patch_depth[i] + 1).min(st.max_depth.max(patch_depth[i])));
+            let ckeys = coarse.vertex_keys();
+            let cleaves = leaves_of(scene, i, &coarse, &ckeys, &patch_base, &patch_depth);
+            let mut p = Poly {
+                g: vec![DVec3::ZERO; keys.len()],
+                leaves: Vec::new(),
+                tree,
+                keys,
+                cg: vec![DVec3::ZERO; ckeys.len()],
+                ckeys,
+                cleaves,
+                rho: scene.material_of(i).reflectance,
+            };
+            p.leaves = leaves_of(scene, i, &p.tree, &p.keys, &patch_base, &patch_depth);
+            p
+        })
+        .collect();
+
+    // Emitted power and the initial unshot of spots and emitters.
+    let mut emitted = 0.0;
+    for (s, sg) in tr.shooters.iter().enumerate() {
+        match sg.kind {
+            ShooterKind::Spot { spot } => {
+                emitted += spot_power(&scene.spots[spot as usize]);
+                unshot[s] = DVec3::ONE;
+            }
+            ShooterKind::Emitter { polygon } => {
+                let e = scene.material_of(polygon as usize).emission;
+                emitted += sg.area * (e.x + e.y + e.z);
+                unshot[s] = e;
+            }
+            ShooterKind::Patch { .. } => {}
+        }
+    }
+    let power = |tr: &Transfer<'_>, s: usize, u: DVec3| -> f64 {
+        match tr.shooters[s].kind {
+            ShooterKind::Spot { spot } => {
+                if u == DVec3::ZERO {
+                    0.0
+                } else {
+                    spot_power(&scene.spots[spot as usize])
+                }
+            }
+            _ => tr.shooters[s].area * (u.x + u.y + u.z),
+        }
+    };
+    let frac_of = |tr: &Transfer<'_>, unshot: &[DVec3]| -> f64 {
+        if emitted <= 0.0 {
+            return 0.0;
+        }
+        let total: f64 = (0..unshot.len()).map(|s| power(tr, s, unshot[s])).sum();
+        total / emitted
+    };
+    let mut history = Vec::new();
+    let mut shots = 0u64;
+    let max_shots = 100 * ns as u64 + 100;
+    let conv = st.convergence;
+    let log_target = -(conv.max(1e-12)).ln();
+    let report = |frac: f64| {
+        let done = if frac <= 0.0 {
+            1.0
+        } else {
+            (-frac.ln() / log_target).clamp(0.0, 1.0)
+        };
+        progress(done);
+    };
+    let trace = std::env::var_os("PFS_TRACE").is_some();
+    let t0 = Instant::now();
+    let nverts = |polys: &[Poly]| polys.iter().map(|p| p.keys.len()).sum::<usize>();
+    // Patch integrals of G from the fine vertices (`base`) and from the coarse points (`coarse`).
+    let mut base = vec![DVec3::ZERO; ns];
+    let mut coarse = vec![DVec3::ZERO; ns];
+
+    // Direct pass: spots in id order, then emitters by power (ties by id), to every vertex.
+    let mut direct: Vec<usize> = (0..ns)
+        .filter(|&s| !matches!(tr.shooters[s].kind, ShooterKind::Patch { .. }))
+        .collect();
+    direct.sort_by(|&a, &b| {
+        let spot_a = matches!(tr.shooters[a].kind, ShooterKind::Spot { .. });
+        let spot_b = matches!(tr.shooters[b].kind, ShooterKind::Spot { .. });
+        spot_b
+            .cmp(&spot_a)
+            .then_with(|| {
+                if spot_a && spot_b {
+                    std::cmp::Ordering::Equal
+                } else {
+                    power(tr, b, unshot[b]).total_cmp(&power(tr, a, unshot[a]))
+                }
+            })
+            .then(a.cmp(&b))
+    });
+    for s in direct {
+        if power(tr, s, unshot[s]) <= 0.0 {
+            continue;
+        }
+        let db = unshot[s];
+        shoot(tr, &mut polys, s, db, false);
+        totals[s] += db;
+        unshot[s] = DVec3::ZERO;
+        shots += 1;
+        integrate(&polys, &patch_base, None, false, &mut base);
+        set_unshot(tr, &polys, &totals, &base, &coarse, &mut unshot);
+        let frac = frac_of(tr, &unshot);
+        history.push(frac);
+        report(frac);
+    }
+    let mut refined_after = Vec::new();
+    let mut frac = 0.0;
+    if emitted > 0.0 {
+        refined_after.push(shots);
+        refine(scene, tr, &mut polys, &totals, &patch_base, &patch_depth);
+        integrate(&polys, &patch_base, None, false, &mut base);
+        set_unshot(tr, &polys, &totals, &base, &coarse, &mut unshot);
+        frac = frac_of(tr, &unshot);
+        if trace {
+            eprintln!(
+                "direct + refine {:.0} ms, shots {shots}, vertices {}, unshot {frac:.4}",
+                elapsed_ms(t0),
+                nverts(&polys)
+            );
+        }
+    }
+
+    let mut round = 0;
+    while emitted > 0.0 && round < MAX_ROUNDS {
+        round += 1;
+        while frac >= conv && shots < max_shots {
+            // Largest unshot power, ties by the smaller id.
+            let mut best = None;
+            let mut best_p = 0.0;
+            for (s, u) in unshot.iter().enumerate() {
+                let p = power(tr, s, *u);
+                if p > best_p {
+                    best_p = p;
+                    best = Some(s);
+                }
+            }
+            let Some(s) = best else { break };
+            let db = unshot[s];
+            let touched = shoot(tr, &mut polys, s, db, true);
+            totals[s] += db;
+            unshot[s] = DVec3::ZERO;
+            shots += 1;
+            integrate(&polys, &patch_base, Some(&touched), true, &mut coarse);
+            set_unshot(tr, &polys, &totals, &base, &coarse, &mut unshot);
+            frac = frac_of(tr, &unshot);
+            history.push(frac);
+            report(frac);
+        }
+        // Full gather from the whole history at every vertex, then refine against it.
+        gather_all(tr, &mut polys, &totals);
+        refined_after.push(shots);
+        let splits = refine(scene, tr, &mut polys, &totals, &patch_base, &patch_depth);
+        integrate(&polys, &patch_base, None, false, &mut base);
+        for p in polys.iter_mut() {
+            p.cg.iter_mut().for_each(|g| *g = DVec3::ZERO);
+        }
+        coarse.iter_mut().for_each(|c| *c = DVec3::ZERO);
+        set_unshot(tr, &polys, &totals, &base, &coarse, &mut unshot);
+        frac = frac_of(tr, &unshot);
+        if trace {
+            eprintln!(
+                "round {round}: {:.0} ms, shots {shots}, splits {splits}, vertices {}, unshot {frac:.4}, rays {}",
+                elapsed_ms(t0),
+                nverts(&polys),
+                tr.rays.load(std::sync::atomic::Ordering::Relaxed)
+            );
+        }
+        if frac < conv || shots >= max_shots {
+            break;
+        }
+    }
+    if emitted > 0.0 && round == 0 {
+        gather_all(tr, &mut polys, &totals);
+    }
+    report(1.0);
+    Outcome {
+        trees: polys.into_iter().map(|p| (p.tree, p.keys, p.g)).collect(),
+        totals,
+        kinds: tr.shooters.iter().map(|s| s.kind).collect(),
+        shots,
+        history,
+        unshot: frac,
+        emitted,
+        refined_after,
+    }
+}
+
+/// Every vertex of every reflecting polygon gathers G from the history `totals`.
+fn gather_all(tr: &Transfer<'_>, polys: &mut [Poly], totals: &[DVec3]) {
+    let work: Vec<(u32, u32)> = polys
+        .iter()
+        .enumerate()
+        .filter(|(_, p)| p.rho.max_element() > 0.0)
+        .flat_map(|(r, p)| (0..p.keys.len() as u32).map(move |k| (r as u32, k)))
+        .collect();
+    let polys_ro = &*polys;
+    let g: Vec<DVec3> = work
+        .par_iter()
+        .map(|&(r, k)| {
+            let key = polys_ro[r as usize].keys[k as usize];
+            tr.gather(totals, r as usize, key.u(), key.v())
+        })
+        .collect();
+    for (&(r, k), g) in work.iter().zip(g) {
+        polys[r as usize].g[k as usize] = g;
+    }
+}
+
+/// Shooter `s` shoots radiosity `db` (per unit intensity scale for a spot) to every vertex, or
+/// to the coarse receiver points if `coarse`. Returns which polygons received or own the shooter.
+fn shoot(
+    tr: &mut Transfer<'_>,
+    polys: &mut [Poly],
+    s: usize,
+    db: DVec3,
+    coarse: bool,
+) -> Vec<bool> {
+    tr.ensure_pairs(s);
+    let tr = &*tr;
+    let classes = &tr.pairs[s].as_ref().expect("pairs computed above").class;
+    let keys = |p: &Poly| if coarse { p.ckeys.len() } else { p.keys.len() };
+    let work: Vec<(u32, u32)> = polys
+        .iter()
+        .enumerate()
+        .filter(|(r, p)| classes[*r] != PairClass::Culled && p.rho.max_element() > 0.0)
+        .flat_map(|(r, p)| (0..keys(p) as u32).map(move |k| (r as u32, k)))
+        .collect();
+    let polys_ro = &*polys;
+    let t: Vec<DVec3> = work
+        .par_iter()
+        .map(|&(r, k)| {
+            let p = &polys_ro[r as usize];
+            let key = if coarse {
+                p.ckeys[k as usize]
+            } else {
+                p.keys[k as usize]
+            };
+            tr.transfer(s, r as usize, key.u(), key.v())
+        })
+        .collect();
+    for (&(r, k), t) in work.iter().zip(t) {
+        let p = &mut polys[r as usize];
+        if coarse {
+            p.cg[k as usize] += db * t;
+        } else {
+            p.g[k as usize] += db * t;
+        }
+    }
+    let mut touched: Vec<bool> = classes.iter().map(|c| *c != PairClass::Culled).collect();
+    if let Some(t) = touched.get_mut(tr.shooters[s].polygon as usize) {
+        *t = true;
+    }
+    touched
+}
+
+/// Recomputes the patch integrals of G (fine leaves, or coarse cells if `coarse`) of the
+/// polygons marked in `only` (all if `None`) into `out`, indexed by shooter id.
+fn integrate(polys: &[Poly], base: &[u32], only: Option<&[bool]>, coarse: bool, out: &mut [DVec3]) {
+    for (r, p) in polys.iter().enumerate() {
+        if base[r] == u32::MAX || only.is_some_and(|o| !o[r]) {
+            continue;
+        }
+        let (leaves, g) = if coarse {
+            (&p.cleaves, &p.cg)
+        } else {
+            (&p.leaves, &p.g)
+        };
+        let first = base[r] as usize;
+        let last = leaves
+            .iter()
+            .map(|l| l.patch as usize)
+            .max()
+            .unwrap_or(first);
+        out[first..=last].iter_mut().for_each(|x| *x = DVec3::ZERO);
+        for l in leaves {
+            let avg = 0.25 * l.corners.iter().map(|&c| g[c as usize]).sum::<DVec3>();
+            out[l.patch as usize] += l.area * avg;
+        }
+    }
+}
+
+/// Unshot radiosity of every reflecting patch: rho * (fine + coarse integral) / area - total,
+/// clamped at zero per channel (see the module doc).
+fn set_unshot(
+    tr: &Transfer<'_>,
+    polys: &[Poly],
+    totals: &[DVec3],
+    base: &[DVec3],
+    coarse: &[DVec3],
+    unshot: &mut [DVec3],
+) {
+    for (s, sg) in tr.shooters.iter().enumerate() {
+        if let ShooterKind::Patch { polygon, .. } = sg.kind {
+            let rho = polys[polygon as usize].rho;
+            let b = if sg.area > 0.0 {
+                rho * (base[s] + coarse[s]) / sg.area
+            } else {
+                DVec3::ZERO
+            };
+            unshot[s] = (b - totals[s]).max(DVec3::ZERO);
+        }
+    }
+}
+
+fn leaves_of(
+    scene: &Scene,
+    i: usize,
+    tree: &Quadtree,
+    keys: &[VertexKey],
+    base: &[u32],
+    depth: &[u32],
+) -> Vec<Leaf> {
+    let poly = &scene.polygons[i];
+    let idx = |k: VertexKey| keys.binary_search(&k).map_or(0, |x| x as u32);
+    tree.leaves()
+        .into_iter()
+        .map(|id| {
+            let cell = tree.node(id).cell;
+            let c = cell.corners();
+            let patch = if base[i] == u32::MAX {
+                u32::MAX
+            } else {
+                let d = depth[i];
+                let sh = cell.level.saturating_sub(d);
+                let n = 1u32 << d;
+                base[i] + (cell.y >> sh) * n + (cell.x >> sh)
+            };
+            Leaf {
+                corners: c.map(idx),
+                area: sub_area(poly, cell),
+                patch,
+            }
+        })
+        .collect()
+}
+
+fn rebuild_leaves(scene: &Scene, i: usize, p: &mut Poly, base: &[u32], depth: &[u32]) {
+    p.leaves = leaves_of(scene, i, &p.tree, &p.keys, base, depth);
+}
+
+/// Brightness scale for the subdivision test: the larger of
+/// - the area-weighted mean luminance of the reflected radiosity rho * G over the reflecting
+///   polygons, measured at the vertices, and
+/// - the mean reflected radiosity the emitted luminous power would give if it fell evenly on the
+///   reflecting area (first bounce only): `emitted_lum * mean_rho_lum / area`.
+///
+/// The second term keeps the scale meaningful when the initial vertices all miss the light (a
+/// narrow spot falling between them): the measured mean is then 0 and would stop refinement.
+fn brightness_scale(polys: &[Poly], emitted_lum: f64) -> f64 {
+    let (mut num, mut den, mut rho_a) = (0.0, 0.0, 0.0);
+    for p in polys {
+        if lum(p.rho) <= 0.0 {
+            continue;
+        }
+        for l in &p.leaves {
+            let avg = 0.25 * l.corners.iter().map(|&c| p.g[c as usize]).sum::<DVec3>();
+            num += l.area * lum(p.rho * avg);
+            den += l.area;
+            rho_a += l.area * lum(p.rho);
+        }
+    }
+    if den > 0.0 && (num / den).is_finite() {
+        let even = emitted_lum * (rho_a / den) / den;
+        let even = if even.is_finite() { even } else { 0.0 };
+        (num / den).max(even)
+    } else {
+        0.0
+    }
+}
+
+/// Adaptive subdivision against the true radiosity; returns the number of splits.
+fn refine(
+    scene: &Scene,
+    tr: &Transfer<'_>,
+    polys: &mut [Poly],
+    totals: &[DVec3],
+    base: &[u32],
+    depth: &[u32],
+) -> usize {
+    let st = &scene.radiosity;
+    let thresh = st.tolerance * brightness_scale(polys, emitted_lum(scene, tr));
+    if thresh <= 0.0 || !thresh.is_finite() {
+        return 0;
+    }
+    let min_size = min_element_size(scene);
+    let mut pending: Vec<(u32, u32)> = Vec::new();
+    for (r, p) in polys.iter().enumerate() {
+        if p.rho.max_element() <= 0.0 {
+            // A non-reflecting polygon's radiosity is its constant emission.
+            continue;
+        }
+        for id in p.tree.leaves() {
+            if can_split(scene, r, p.tree.node(id).cell, min_size) {
+                pending.push((r as u32, id));
+            }
+        }
+    }
+    let mut splits = 0;
+    while !pending.is_empty() {
+        // Probe keys not yet vertices, per polygon, deduplicated and sorted.
+        let mut probes: Vec<(u32, VertexKey)> = Vec::new();
+        for &(r, id) in &pending {
+            let p = &polys[r as usize];
+            for k in test_points(p.tree.node(id).cell) {
+                if p.keys.binary_search(&k).is_err() {
+                    probes.push((r, k));
+                }
+            }
+        }
+        probes.sort_unstable();
+        probes.dedup();
+        let vals: Vec<DVec3> = probes
+            .par_iter()
+            .map(|&(r, k)| tr.gather(totals, r as usize, k.u(), k.v()))
+            .collect();
+        let probe_g = |r: u32, k: VertexKey, polys: &[Poly]| -> DVec3 {
+            let p = &polys[r as usize];
+            match p.keys.binary_search(&k) {
+                Ok(i) => p.g[i],
+                Err(_) => {
+                    let i = probes
+                        .binary_search(&(r, k))
+                        .expect("every test point was probed");
+                    vals[i]
+                }
+            }
+        };
+        let mut split_now: Vec<(u32, u32)> = Vec::new();
+        for &(r, id) in &pending {
+            let p = &polys[r as usize];
+            let cell = p.tree.node(id).cell;
+            let c = cell.corners().map(|k| probe_g(r, k, polys));
+            let tp = test_points(cell);
+            let pred = [
+                0.25 * (c[0] + c[1] + c[2] + c[3]),
+                0.5 * (c[0] + c[1]),
+                0.5 * (c[1] + c[2]),
+                0.5 * (c[2] + c[3]),
+                0.5 * (c[3] + c[0]),
+            ];
+            let bad = tp.iter().zip(pred).any(|(&k, pr)| {
+                let d = p.rho * (probe_g(r, k, polys) - pr);
+                lum(d.abs()) > thresh
+            });
+            if bad {
+                split_now.push((r, id));
+            }
+        }
+        let mut next = Vec::new();
+        let mut touched: Vec<u32> = Vec::new();
+        for &(r, id) in &split_now {
+            let p = &mut polys[r as usize];
+            let f = p.tree.split(id);
+            splits += 1;
+            for c in f..f + 4 {
+                if can_split(scene, r as usize, p.tree.node(c).cell, min_size) {
+                    next.push((r, c));
+                }
+            }
+            touched.push(r);
+        }
+        touched.dedup();
+        for &r in &touched {
+            let keys = polys[r as usize].tree.vertex_keys();
+            let g: Vec<DVec3> = keys.iter().map(|&k| probe_g(r, k, polys)).collect();
+            let p = &mut polys[r as usize];
+            p.keys = keys;
+            p.g = g;
+            rebuild_leaves(scene, r as usize, p, base, depth);
+        }
+        pending = next;
+    }
+    splits
+}
+
+/// Smallest element edge worth splitting: the scene's bounding diagonal / 2^max_depth. Depth
+/// limits are per polygon, so without this a small polygon (a 1 m floor tile in a 15 m hall)
+/// would be refined to elements far smaller than a large one's at the same depth; with it,
+/// `max_depth` means "the scene resolved to 1 / 2^max_depth of its size" everywhere.
+pub fn min_element_size(scene: &Scene) -> f64 {
+    let (lo, hi) = scene.bounds();
+    (hi - lo).length() / (1u64 << scene.radiosity.max_depth.min(63)) as f64
+}
+
+/// Whether a leaf may split: below max_depth, and its longer world-space edge (at the cell's
+/// centre) is longer than `min_size`.
+fn can_split(scene: &Scene, r: usize, cell: Cell, min_size: f64) -> bool {
+    if cell.level >= scene.radiosity.max_depth {
+        return false;
+    }
+    let (u0, v0, u1, v1) = cell.bounds();
+    let (du, dv) = scene.polygons[r].tangents(0.5 * (u0 + u1), 0.5 * (v0 + v1));
+    let w = u1 - u0;
+    (du.length() * w).max(dv.length() * w) > min_size
+}
+
+/// Emitted power in luminance (spots and emissive polygons).
+fn emitted_lum(scene: &Scene, tr: &Transfer<'_>) -> f64 {
+    let mut e = 0.0;
+    for sg in &tr.shooters {
+        match sg.kind {
+            ShooterKind::Spot { spot } => {
+                let s = &scene.spots[spot as usize];
+                let sum = s.intensity.x + s.intensity.y + s.intensity.z;
+                if sum > 0.0 {
+                    e += spot_power(s) * lum(s.intensity) / sum;
+                }
+            }
+            ShooterKind::Emitter { polygon } => {
+                e += sg.area * lum(scene.material_of(polygon as usize).emission);
+            }
+            ShooterKind::Patch { .. } => {}
+        }
+    }
+    e
+}
+
+/// Centre and the four edge midpoints (bottom, right, top, left) of a cell.
+fn test_points(cell: Cell) -> [VertexKey; 5] {
+    let o = cell.origin();
+    let s = cell.size();
+    let h = s / 2;
+    [
+        VertexKey::new(o.i + h, o.j + h),
+        VertexKey::new(o.i + h, o.j),
+        VertexKey::new(o.i + s, o.j + h),
+        VertexKey::new(o.i + h, o.j + s),
+        VertexKey::new(o.i, o.j + h),
+    ]
+}
+
+/// Wall-clock helper kept here so the solver's timing has one definition.
+pub fn elapsed_ms(t: Instant) -> f64 {
+    t.elapsed().as_secs_f64() * 1e3
+}

@@ -1,0 +1,559 @@
+//! Light transfer from one shooter to one receiver point: the single function both the
+//! progressive solver and the radiosity oracle call, so that a sample stored by the solve and the
+//! oracle's answer at the same point are the same computation, bit for bit.
+//!
+//! A shooter is a spot light (a point source), an emissive polygon shooting as a whole, or a fixed
+//! sub-patch of a reflecting polygon (a quadtree cell at a small fixed depth, planar because the
+//! polygon is planar; for a collapsed-quad triangle the cells at v = 1 degenerate to triangles).
+//! Its transfer to a receiver point x with normal n is the irradiance x receives per unit of the
+//! shooter's radiosity: F(x -> shooter) * V for polygons (exact Lambert form factor times the
+//! visible fraction of `shadow_rays` stratified points), I(theta) cos / r^2 * V for spots (one
+//! shadow ray, binary).
+//!
+//! Invariants and why:
+//! - visibility depends only on (receiver point, shooter): the shadow-ray targets of a shooter are
+//!   a fixed stratified set seeded by (scene seed, shooter id) (see [`shooter_samples`]), never by
+//!   a thread or the order of shots;
+//! - receiver points are the polygon's parametric points pulled inside the domain by
+//!   [`EDGE_INSET`], so a point on an edge shared with a perpendicular wall sees that wall as the
+//!   limit from inside the polygon does (the exact edge point would see it edge-on, F = 0);
+//! - each (shooter, receiver polygon) pair is classified once: culled (no transfer possible),
+//!   open (no polygon can intersect the convex hull of the two, so V = 1 without rays), or
+//!   occluded (cast rays). The classification is conservative and deterministic.
+
+use std::sync::atomic::{AtomicU64, Ordering};
+
+use glam::DVec3;
+
+use super::bvh::{Aabb, Bvh};
+use super::formfactor::{point_to_polygon, SmallPoly};
+use super::rng::{seed_of, Rng};
+use crate::quadtree::Cell;
+use crate::scene::{Polygon, Scene, Shape};
+
+/// Receiver points are evaluated at (u, v) clamped into [EDGE_INSET, 1 - EDGE_INSET]^2.
+pub const EDGE_INSET: f64 = 1e-6;
+
+/// What a shooter is.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ShooterKind {
+    /// Spot light `spot` of the scene.
+    Spot {
+        /// Index into `Scene::spots`.
+        spot: u32,
+    },
+    /// An emissive polygon shooting its emission as a whole.
+    Emitter {
+        /// Index into `Scene::polygons`.
+        polygon: u32,
+    },
+    /// A fixed sub-patch (quadtree cell) of a reflecting polygon, shooting reflected light.
+    Patch {
+        /// Index into `Scene::polygons`.
+        polygon: u32,
+        /// The cell of the polygon's domain the patch covers.
+        cell: Cell,
+    },
+}
+
+/// Class of a (shooter, receiver polygon) pair.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum PairClass {
+    /// No light can go from the shooter to any point of the receiver.
+    Culled,
+    /// No polygon can block any segment between them: visibility is 1.
+    Open,
+    /// Shadow rays decide.
+    Occluded,
+}
+
+/// Pair classes of one shooter against every receiver polygon, with the polygons that may
+/// occlude each `Occluded` pair.
+#[derive(Debug, Clone, Default)]
+pub struct Pairs {
+    /// Class per receiver polygon.
+    pub class: Vec<PairClass>,
+    /// Per receiver polygon, the range of its candidates in `cands`.
+    range: Vec<(u32, u32)>,
+    /// Occluder candidates, concatenated.
+    cands: Vec<u32>,
+}
+
+impl Pairs {
+    fn cands(&self, r: usize) -> &[u32] {
+        let (a, n) = self.range[r];
+        &self.cands[a as usize..(a + n) as usize]
+    }
+}
+
+/// The fixed geometry of one shooter.
+#[derive(Debug, Clone)]
+pub struct ShooterGeom {
+    /// What it is.
+    pub kind: ShooterKind,
+    /// Polygon index, or `u32::MAX` for a spot.
+    pub polygon: u32,
+    /// Parametric bounds (u0, v0, u1, v1) on its polygon (whole domain for an emitter).
+    pub bounds: (f64, f64, f64, f64),
+    /// Its outline (empty for a spot).
+    pub outline: SmallPoly,
+    /// Front normal (zero for a spot).
+    pub normal: DVec3,
+    /// Area (0 for a spot).
+    pub area: f64,
+    /// Shadow-ray targets on the shooter with their area weights (empty for a spot).
+    pub samples: Vec<(DVec3, f64)>,
+}
+
+/// `n` stratified (Latin hypercube) points on the cell `bounds` of polygon `p`, each with its area
+/// weight (the area element there), from a stream seeded by (scene seed, shooter id) only.
+///
+/// Every receiver uses the same points of a given shooter. Visibility is then a coherent function
+/// of the receiver point (it changes only where a sample's shadow boundary is crossed), so the
+/// adaptive subdivision follows real shadow edges instead of per-point Monte Carlo noise; and it is
+/// trivially independent of threads and shot order.
+pub fn shooter_samples(
+    p: &Polygon,
+    bounds: (f64, f64, f64, f64),
+    n: usize,
+    seed: u64,
+    id: usize,
+) -> Vec<(DVec3, f64)> {
+    let mut rng = Rng::new(seed_of(&[seed, id as u64]));
+    let mut perm: Vec<u32> = (0..n as u32).collect();
+    for i in (1..n).rev() {
+        let j = rng.below(i as u32 + 1) as usize;
+        perm.swap(i, j);
+    }
+    let (u0, v0, u1, v1) = bounds;
+    perm.iter()
+        .enumerate()
+        .map(|(i, &pv)| {
+            let su = (i as f64 + rng.next_f64()) / n as f64;
+            let sv = (pv as f64 + rng.next_f64()) / n as f64;
+            let u = u0 + (u1 - u0) * su;
+            let v = v0 + (v1 - v0) * sv;
+            let w = match p.shape {
+                // Collapsed quad: the area element is 2 A (1 - v).
+                Shape::Triangle => 1.0 - v,
+                Shape::Quad => p.area_element(u, v),
+            };
+            (p.point(u, v), w)
+        })
+        .collect()
+}
+
+/// Shooter depth of a reflecting polygon: its patches have at most about `1/16` of the total scene
+/// area (so a room of six walls gets four patches per wall),
+/// never more than 16 per polygon (depth 2) and never deeper than `max_depth`.
+pub fn patch_depth(area: f64, total_area: f64, max_depth: u32) -> u32 {
+    let target = total_area / 16.0;
+    let mut d = 0;
+    while d < 2 && area / 4f64.powi(d as i32) > target {
+        d += 1;
+    }
+    d.min(max_depth)
+}
+
+/// Builds every shooter of a scene in id order: spots, then emitters (polygon order), then the
+/// patches of reflecting polygons (polygon order, cells row-major). `patch_base[p]` is the id of
+/// polygon p's first patch (or `u32::MAX` if it does not reflect) and `patch_depth[p]` its depth.
+pub fn build_shooters(scene: &Scene) -> (Vec<ShooterGeom>, Vec<u32>, Vec<u32>) {
+    let mut out = Vec::new();
+    let nrays = scene.radiosity.shadow_rays.max(1) as usize;
+    let seed = scene.radiosity.seed;
+    for (i, _) in scene.spots.iter().enumerate() {
+        out.push(ShooterGeom {
+            kind: ShooterKind::Spot { spot: i as u32 },
+            polygon: u32::MAX,
+            bounds: (0.0, 0.0, 1.0, 1.0),
+            outline: SmallPoly::from_corners(&[]),
+            normal: DVec3::ZERO,
+            area: 0.0,
+            samples: Vec::new(),
+        });
+    }
+    for (i, p) in scene.polygons.iter().enumerate() {
+        if scene.material_of(i).is_emitter() {
+            out.push(ShooterGeom {
+                kind: ShooterKind::Emitter { polygon: i as u32 },
+                polygon: i as u32,
+                bounds: (0.0, 0.0, 1.0, 1.0),
+                outline: SmallPoly::from_corners(p.vertices()),
+                normal: p.normal,
+                area: p.area,
+                samples: shooter_samples(p, (0.0, 0.0, 1.0, 1.0), nrays, seed, out.len()),
+            });
+        }
+    }
+    let total_area: f64 = scene.polygons.iter().map(|p| p.area).sum();
+    let mut base = vec![u32::MAX; scene.polygons.len()];
+    let mut depth = vec![0u32; scene.polygons.len()];
+    for (i, p) in scene.polygons.iter().enumerate() {
+        if scene.material_of(i).reflectance.max_element() <= 0.0 {
+            continue;
+        }
+        let d = patch_depth(p.area, total_area, scene.radiosity.max_depth);
+        base[i] = out.len() as u32;
+        depth[i] = d;
+        let n = 1u32 << d;
+        for y in 0..n {
+            for x in 0..n {
+                let cell = Cell { level: d, x, y };
+                let (u0, v0, u1, v1) = cell.bounds();
+                let c = [
+                    p.point(u0, v0),
+                    p.point(u1, v0),
+                    p.point(u1, v1),
+                    p.point(u0, v1),
+                ];
+                let outline = SmallPoly::from_corners(&c);
+                let area = sub_area(p, cell);
+                out.push(ShooterGeom {
+                    kind: ShooterKind::Patch {
+                        polygon: i as u32,
+                        cell,
+                    },
+                    polygon: i as u32,
+                    bounds: (u0, v0, u1, v1),
+                    outline,
+                    normal: p.normal,
+                    area,
+                    samples: shooter_samples(p, (u0, v0, u1, v1), nrays, seed, out.len()),
+                });
+            }
+        }
+    }
+    (out, base, depth)
+}
+
+/// Area of a cell of a polygon's domain. The area element of a planar quad's bilinear map (and of
+/// a collapsed quad) is linear in u and v, so the midpoint rule is exact.
+pub fn sub_area(p: &Polygon, cell: Cell) -> f64 {
+    let (u0, v0, u1, v1) = cell.bounds();
+    p.area_element(0.5 * (u0 + u1), 0.5 * (v0 + v1)) * (u1 - u0) * (v1 - v0)
+}
+
+/// Everything a transfer needs: the scene, its BVH, the shooters and the pair classes.
+pub struct Transfer<'a> {
+    /// The scene.
+    pub scene: &'a Scene,
+    /// Ray-casting structure over the scene's polygons.
+    pub bvh: Bvh,
+    /// Shooters in id order.
+    pub shooters: Vec<ShooterGeom>,
+    /// Per shooter, the class and occluder candidates of every receiver polygon (computed when
+    /// first needed).
+    pub pairs: Vec<Option<Pairs>>,
+    /// Plane-test tolerance, relative to the scene size.
+    eps: f64,
+    /// Shadow rays cast so far (a sum of integers: independent of scheduling).
+    pub rays: AtomicU64,
+}
+
+impl<'a> Transfer<'a> {
+    /// Builds the BVH and the shooters of `scene`.
+    pub fn new(scene: &'a Scene) -> Self {
+        let (shooters, _, _) = build_shooters(scene);
+        let (lo, hi) = scene.bounds();
+        let eps = 1e-9 * (hi - lo).length().max(1e-300);
+        Transfer {
+            scene,
+            bvh: Bvh::build(&scene.polygons),
+            pairs: vec![None; shooters.len()],
+            shooters,
+            eps,
+            rays: AtomicU64::new(0),
+        }
+    }
+
+    /// Computes the pair classes of shooter `s` against every polygon, if not done yet.
+    pub fn ensure_pairs(&mut self, s: usize) {
+        if self.pairs[s].is_some() {
+            return;
+        }
+        use rayon::prelude::*;
+        let this = &*self;
+        let per: Vec<(PairClass, Vec<u32>)> = (0..self.scene.polygons.len())
+            .into_par_iter()
+            .map(|r| this.classify(s, r))
+            .collect();
+        let mut pairs = Pairs::default();
+        for (c, cands) in per {
+            pairs.class.push(c);
+            pairs
+                .range
+                .push((pairs.cands.len() as u32, cands.len() as u32));
+            pairs.cands.extend(cands);
+        }
+        self.pairs[s] = Some(pairs);
+    }
+
+    /// Class of the pair (shooter `s`, receiver polygon `r`), see [`PairClass`], and for an
+    /// occluded pair the polygons (in index order) that may intersect the convex hull of the two.
+    pub fn classify(&self, s: usize, r: usize) -> (PairClass, Vec<u32>) {
+        let eps = self.eps;
+        let sg = &self.shooters[s];
+        let rp = &self.scene.polygons[r];
+        let rv = rp.vertices();
+        let r0 = rv[0];
+        let above_r = |p: DVec3| rp.normal.dot(p - r0) > eps;
+        let mut hull: Vec<DVec3> = rv.to_vec();
+        match sg.kind {
+            ShooterKind::Spot { spot } => {
+                let pos = self.scene.spots[spot as usize].position;
+                if !above_r(pos) {
+                    return (PairClass::Culled, Vec::new());
+                }
+                hull.push(pos);
+            }
+            _ => {
+                if sg.polygon as usize == r {
+                    return (PairClass::Culled, Vec::new());
+                }
+                let s0 = sg.outline.v[0];
+                if !rv.iter().any(|&p| sg.normal.dot(p - s0) > eps) {
+                    return (PairClass::Culled, Vec::new());
+                }
+                if !sg.outline.verts().iter().any(|&p| above_r(p)) {
+                    return (PairClass::Culled, Vec::new());
+                }
+                hull.extend_from_slice(sg.outline.verts());
+            }
+        }
+        let b = Aabb::of(&hull);
+        let b = Aabb {
+            lo: b.lo - DVec3::splat(eps),
+            hi: b.hi + DVec3::splat(eps),
+        };
+        let mut cands = Vec::new();
+        self.bvh.for_each_overlapping(&b, |q| {
+            if q as usize == r || q == sg.polygon {
+                return;
+            }
+            let qp = &self.scene.polygons[q as usize];
+            let qv = qp.vertices();
+            // Entirely behind or on the receiver's plane: segments leave the receiver forwards.
+            if !qv.iter().any(|&p| above_r(p)) {
+                return;
+            }
+            if sg.polygon != u32::MAX {
+                let s0 = sg.outline.v[0];
+                if !qv.iter().any(|&p| sg.normal.dot(p - s0) > eps) {
+                    return;
+                }
+            }
+            if separated_by_plane(qp.normal, qv[0], &hull, eps) {
+                return;
+            }
+            cands.push(q);
+        });
+        cands.sort_unstable();
+        if cands.is_empty() {
+            (PairClass::Open, cands)
+        } else {
+            (PairClass::Occluded, cands)
+        }
+    }
+
+    /// The receiver point and normal of polygon `r` at (u, v) (pulled inside by [`EDGE_INSET`]).
+    #[inline]
+    pub fn receiver(&self, r: usize, u: f64, v: f64) -> DVec3 {
+        let p = &self.scene.polygons[r];
+        let u = u.clamp(EDGE_INSET, 1.0 - EDGE_INSET);
+        let v = v.clamp(EDGE_INSET, 1.0 - EDGE_INSET);
+        p.point(u, v)
+    }
+
+    /// Irradiance at the receiver point of polygon `r` at (u, v) per unit radiosity of shooter `s`
+    /// (per unit intensity scale for a spot). Requires [`Transfer::ensure_pairs`] for `s`.
+    pub fn transfer(&self, s: usize, r: usize, u: f64, v: f64) -> DVec3 {
+        let owned;
+        let (class, cands): (PairClass, &[u32]) = match &self.pairs[s] {
+            Some(p) => (p.class[r], p.cands(r)),
+            None => {
+                owned = self.classify(s, r);
+                (owned.0, &owned.1)
+            }
+        };
+        if class == PairClass::Culled {
+            return DVec3::ZERO;
+        }
+        let x = self.receiver(r, u, v);
+        let rp = &self.scene.polygons[r];
+        let n = rp.normal;
+        let sg = &self.shooters[s];
+        match sg.kind {
+            ShooterKind::Spot { spot } => {
+                let spot = &self.scene.spots[spot as usize];
+                let d = spot.position - x;
+                let r2 = d.length_squared();
+                if r2 <= 0.0 {
+                    return DVec3::ZERO;
+                }
+                let dist = r2.sqrt();
+                let cos = n.dot(d) / dist;
+                if cos <= 0.0 {
+                    return DVec3::ZERO;
+                }
+                let i = spot.intensity_towards(-d / dist);
+                if i == DVec3::ZERO {
+                    return DVec3::ZERO;
+                }
+                if class == PairClass::Occluded {
+                    self.rays.fetch_add(1, Ordering::Relaxed);
+                    let d = spot.position - x;
+                    if cands.iter().any(|&q| self.bvh.hits(q as usize, x, d)) {
+                        return DVec3::ZERO;
+                    }
+                }
+                i * (cos / r2)
+            }
+            _ => {
+                let f = point_to_polygon(x, n, &sg.outline, sg.normal);
+                if f <= 0.0 {
+                    return DVec3::ZERO;
+                }
+                let vis = if class == PairClass::Occluded {
+                    self.visibility(s, r, cands, x)
+                } else {
+                    1.0
+                };
+                DVec3::splat(f * vis)
+            }
+        }
+    }
+
+    /// Area-weighted fraction of shooter `s`'s sample points visible from `x`, given the pair's
+    /// occluder candidates. Candidates that cannot meet the pyramid from `x` over the shooter are
+    /// dropped first (no ray can hit them); with none left, visibility is 1 without rays.
+    fn visibility(&self, s: usize, r: usize, cands: &[u32], x: DVec3) -> f64 {
+        let sg = &self.shooters[s];
+        let mut near = [0u32; 16];
+        let mut nn = 0usize;
+        let mut many = false;
+        let sides = pyramid_sides(x, &sg.outline);
+        for &q in cands {
+            if self.may_block(q, x, sg, &sides) {
+                if nn < near.len() {
+                    near[nn] = q;
+                    nn += 1;
+                } else {
+                    many = true;
+                    break;
+                }
+            }
+        }
+        if nn == 0 {
+            return 1.0;
+        }
+        let (mut seen, mut total) = (0.0, 0.0);
+        for &(y, w) in &sg.samples {
+            total += w;
+            let d = y - x;
+            let hit = if many {
+                self.bvh.occluded(x, y, r as u32, sg.polygon)
+            } else {
+                near[..nn].iter().any(|&q| self.bvh.hits(q as usize, x, d))
+            };
+            if !hit {
+                seen += w;
+            }
+        }
+        self.rays
+            .fetch_add(sg.samples.len() as u64, Ordering::Relaxed);
+        if total > 0.0 {
+            (seen / total).clamp(0.0, 1.0)
+        } else {
+            0.0
+        }
+    }
+
+    /// Whether polygon `q` may intersect the pyramid with apex `x` over the shooter's outline
+    /// (conservative separating-plane test: the pyramid's side planes, the shooter's plane and
+    /// q's own plane).
+    fn may_block(&self, q: u32, x: DVec3, sg: &ShooterGeom, sides: &Sides) -> bool {
+        let qp = &self.scene.polygons[q as usize];
+        let qv = qp.vertices();
+        for k in 0..sides.len {
+            let n = sides.n[k];
+            if qv.iter().all(|&p| n.dot(p - x) < -sides.tol[k]) {
+                return false;
+            }
+        }
+        let s0 = sg.outline.v[0];
+        if qv.iter().all(|&p| sg.normal.dot(p - s0) <= self.eps) {
+            return false;
+        }
+        let q0 = qv[0];
+        let dx = qp.normal.dot(x - q0);
+        let ds = sg.outline.verts().iter().map(|&p| qp.normal.dot(p - q0));
+        let (lo, hi) = ds.fold((dx, dx), |(a, b), d| (a.min(d), b.max(d)));
+        !(lo >= -self.eps || hi <= self.eps)
+    }
+
+    /// Total irradiance G at polygon `r`, (u, v) from every shooter with a non-zero total, in
+    /// shooter id order: G = sum_s total_s * transfer(s). Radiosity is E + rho * G.
+    pub fn gather(&self, totals: &[DVec3], r: usize, u: f64, v: f64) -> DVec3 {
+        let mut g = DVec3::ZERO;
+        for (s, t) in totals.iter().enumerate() {
+            if *t != DVec3::ZERO {
+                g += *t * self.transfer(s, r, u, v);
+            }
+        }
+        g
+    }
+}
+
+/// Inward normals of the side planes of the pyramid from an apex over a convex outline.
+struct Sides {
+    n: [DVec3; 8],
+    tol: [f64; 8],
+    len: usize,
+}
+
+fn pyramid_sides(x: DVec3, outline: &SmallPoly) -> Sides {
+    let vs = outline.verts();
+    let c = vs.iter().copied().sum::<DVec3>() / vs.len().max(1) as f64;
+    let mut sides = Sides {
+        n: [DVec3::ZERO; 8],
+        tol: [0.0; 8],
+        len: 0,
+    };
+    for i in 0..vs.len() {
+        let a = vs[i] - x;
+        let b = vs[(i + 1) % vs.len()] - x;
+        let mut n = a.cross(b);
+        let scale = a.length() * b.length();
+        if n.length() <= 1e-12 * scale {
+            continue; // apex on the edge's line: no usable plane
+        }
+        if n.dot(c - x) < 0.0 {
+            n = -n;
+        }
+        sides.n[sides.len] = n;
+        sides.tol[sides.len] = 1e-9 * n.length() * (a.length() + b.length());
+        sides.len += 1;
+    }
+    sides
+}
+
+/// Whether all `pts` lie on one closed side of the plane (n, p0), within `eps`.
+fn separated_by_plane(n: DVec3, p0: DVec3, pts: &[DVec3], eps: f64) -> bool {
+    let all_front = pts.iter().all(|&p| n.dot(p - p0) >= -eps);
+    let all_back = pts.iter().all(|&p| n.dot(p - p0) <= eps);
+    all_front || all_back
+}
+
+/// Power of a spot light summed over channels: 2 pi I (1 - cos^(f+1) alpha) / (f + 1).
+pub fn spot_power(s: &crate::scene::SpotLight) -> f64 {
+    let f = s.falloff;
+    let ca = s.half_angle.cos().max(0.0);
+    let p = 2.0 * std::f64::consts::PI * (1.0 - ca.powf(f + 1.0)) / (f + 1.0);
+    let sum = s.intensity.x + s.intensity.y + s.intensity.z;
+    if (p * sum).is_finite() {
+        p * sum
+    } else {
+        0.0
+    }
+}
