@@ -29,6 +29,9 @@
 //! per channel: a finer estimate can fall below what was already shot, and shooting negative
 //! light would create negative radiosity.
 //!
+//! Diagnostics: with the environment variable `PFS_TRACE` set, each phase prints its time, shots,
+//! vertices and unshot fraction to stderr (used to measure the solver; off by default).
+//!
 //! Parallelism: rayon over receiver points (`par_iter` + `collect` in order); every float sum is
 //! done serially in a fixed order, so the result is the same for any number of threads.
 

@@ -1,6 +1,6 @@
 //! Scenes built in code for the solver's tests and timings (the scene loader is a separate
 //! stage): a spot over a plane, the furnace box, a two-spots room, the Cornell box from the
-//! McGuire OBJ data, and a ~1000-polygon room for timing.
+//! McGuire OBJ data.
 
 use glam::DVec3;
 
@@ -360,98 +360,5 @@ pub fn cornell() -> Scene {
             mat("light", [0.78; 3], [17.0, 12.0, 4.0]),
         ],
         vec![],
-    )
-}
-
-/// A room of about 1000 polygons: a 10 x 10 x 3 room whose floor, ceiling and walls are tiled
-/// into 1 x 1 quads (split into two triangles on the floor), 40 small boxes, a ceiling light and
-/// two spots.
-pub fn gallery() -> Scene {
-    let mut polys = Vec::new();
-    let w = 10.0;
-    let h = 3.0;
-    let centre = DVec3::new(w / 2.0, w / 2.0, h / 2.0);
-    for j in 0..10 {
-        for i in 0..10 {
-            let (x, y) = (i as f64, j as f64);
-            let f = |z: f64| {
-                [
-                    DVec3::new(x, y, z),
-                    DVec3::new(x + 1.0, y, z),
-                    DVec3::new(x + 1.0, y + 1.0, z),
-                    DVec3::new(x, y + 1.0, z),
-                ]
-            };
-            let c = f(0.0);
-            polys.push(Polygon::triangle([c[0], c[1], c[2]], 0, 0).expect("tri"));
-            polys.push(Polygon::triangle([c[0], c[2], c[3]], 0, 0).expect("tri"));
-            let mat = if (i, j) == (4, 4) || (i, j) == (5, 5) {
-                2
-            } else {
-                0
-            };
-            polys.push(quad_facing(f(h), centre, mat));
-        }
-    }
-    for k in 0..10 {
-        for z in 0..3 {
-            let (a, zl) = (k as f64, z as f64);
-            let walls = [
-                [
-                    DVec3::new(a, 0.0, zl),
-                    DVec3::new(a + 1.0, 0.0, zl),
-                    DVec3::new(a + 1.0, 0.0, zl + 1.0),
-                    DVec3::new(a, 0.0, zl + 1.0),
-                ],
-                [
-                    DVec3::new(a, w, zl),
-                    DVec3::new(a + 1.0, w, zl),
-                    DVec3::new(a + 1.0, w, zl + 1.0),
-                    DVec3::new(a, w, zl + 1.0),
-                ],
-                [
-                    DVec3::new(0.0, a, zl),
-                    DVec3::new(0.0, a + 1.0, zl),
-                    DVec3::new(0.0, a + 1.0, zl + 1.0),
-                    DVec3::new(0.0, a, zl + 1.0),
-                ],
-                [
-                    DVec3::new(w, a, zl),
-                    DVec3::new(w, a + 1.0, zl),
-                    DVec3::new(w, a + 1.0, zl + 1.0),
-                    DVec3::new(w, a, zl + 1.0),
-                ],
-            ];
-            for (wi, c) in walls.into_iter().enumerate() {
-                let m = if wi == 0 { 1 } else { 0 };
-                polys.push(quad_facing(c, centre, m));
-            }
-        }
-    }
-    let mut rng = super::rng::Rng::new(5);
-    for _ in 0..110 {
-        let x = 0.5 + rng.next_f64() * 8.5;
-        let y = 0.5 + rng.next_f64() * 8.5;
-        let s = 0.2 + rng.next_f64() * 0.4;
-        let hgt = 0.3 + rng.next_f64() * 1.2;
-        let mut faces = box_faces(DVec3::new(x, y, 0.0), DVec3::new(x + s, y + s, hgt), false);
-        faces.remove(0); // the bottom (z = lo) lies on the floor and is never seen
-        polys.extend(faces);
-    }
-    let spot = |x: f64, y: f64| SpotLight {
-        position: DVec3::new(x, y, 2.9),
-        direction: -DVec3::Z,
-        intensity: DVec3::splat(15.0),
-        half_angle: 25f64.to_radians(),
-        falloff: 2.0,
-    };
-    scene(
-        polys,
-        vec![
-            mat("white", [0.7, 0.7, 0.7], [0.0; 3]),
-            mat("red", [0.6, 0.1, 0.1], [0.0; 3]),
-            mat("light", [0.5; 3], [8.0, 8.0, 7.0]),
-        ],
-        vec![spot(2.5, 2.5), spot(7.5, 6.0)],
     )
 }

@@ -418,16 +418,3 @@ fn timing_report() {
         assert!(samples(&sol).all(|(_, _, v)| v.is_finite() && v.min_element() >= 0.0));
     }
 }
-
-#[test]
-fn gallery_timing_tmp() {
-    let s = gallery();
-    eprintln!("gallery polygons {}", s.polygons.len());
-    let sol = solve_quiet(&s);
-    let st = &sol.stats;
-    eprintln!(
-        "gallery: polygons {} solve {:.0} ms vertices {} leaves {} T-vertices {} shots {} rays {} unshot {:.4} depths {:?}",
-        s.polygons.len(), st.solve_ms, st.vertices, st.elements, st.t_vertices, st.shots,
-        st.rays_cast, st.unshot_fraction, st.depth_histogram
-    );
-}

@@ -433,16 +433,30 @@ impl<'a> Transfer<'a> {
         let mut nn = 0usize;
         let mut many = false;
         let sides = pyramid_sides(x, &sg.outline);
-        for &q in cands {
-            if self.may_block(q, x, sg, &sides) {
-                if nn < near.len() {
-                    near[nn] = q;
-                    nn += 1;
-                } else {
-                    many = true;
-                    break;
-                }
+        let mut consider = |q: u32| {
+            if many || !self.may_block(q, x, sg, &sides) {
+                return;
             }
+            if nn < near.len() {
+                near[nn] = q;
+                nn += 1;
+            } else {
+                many = true;
+            }
+        };
+        if cands.len() <= LONG_CANDIDATE_LIST {
+            cands.iter().for_each(|&q| consider(q));
+        } else {
+            // A long list (a large room): only polygons whose boxes meet the pyramid's box can
+            // meet the pyramid; the BVH finds them without walking the whole list.
+            let mut pts = [x; 9];
+            pts[1..=sg.outline.len].copy_from_slice(sg.outline.verts());
+            let b = Aabb::of(&pts[..=sg.outline.len]);
+            self.bvh.for_each_overlapping(&b, |q| {
+                if cands.binary_search(&q).is_ok() {
+                    consider(q);
+                }
+            });
         }
         if nn == 0 {
             return 1.0;
@@ -504,6 +518,9 @@ impl<'a> Transfer<'a> {
         g
     }
 }
+
+/// Occluder lists longer than this are searched through the BVH per receiver point.
+const LONG_CANDIDATE_LIST: usize = 24;
 
 /// Inward normals of the side planes of the pyramid from an apex over a convex outline.
 struct Sides {
