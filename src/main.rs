@@ -127,9 +127,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             threads,
             quiet,
         } => {
-            let sol = in_pool(threads, || {
-                pipeline::solve_to_file(&scene, &output, !quiet)
-            })??;
+            let sol = in_pool(threads, || pipeline::solve_to_file(&scene, &output, !quiet))??;
             if !quiet {
                 let s = &sol.stats;
                 eprintln!(

@@ -15,8 +15,8 @@ use glam::DVec3;
 use serde::Serialize;
 
 use crate::error::{Error, Result};
-use crate::raster::{render_frame, Frame, FrameOptions, FrameStats};
 use crate::radiosity::{self, file as solution_file, Solution, SolveOptions};
+use crate::raster::{render_frame, Frame, FrameOptions, FrameStats};
 use crate::reconstruction::{Estimator, Reconstruction};
 use crate::scene::{load_scene, Camera, Keyframe, Scene};
 
@@ -105,7 +105,7 @@ pub fn prepare(input: &Path, progress: bool) -> Result<Prepared> {
 pub fn solve_to_file(scene_path: &Path, out: &Path, progress: bool) -> Result<Solution> {
     let scene = load_scene(scene_path)?;
     let solution = radiosity::solve(&scene, &SolveOptions { progress })?;
-    solution_file::write_solution(out, &solution, scene_path)?;
+    solution_file::write_solution(out, &solution, Some(scene_path))?;
     Ok(solution)
 }
 

@@ -4,9 +4,10 @@
 //! ```text
 //! magic        8 bytes  "PFSOLN\r\n"
 //! version      u32      FORMAT_VERSION
-//! reserved     u32      0
+//! path_len     u32      bytes of the scene path (0: none)
 //! payload_len  u64      bytes of payload
 //! scene_hash   u64      radiosity::scene_hash of the scene solved
+//! scene_path   path_len UTF-8 absolute path of the scene file (so `render <solution>` works)
 //! payload      ...      trees, keys, values, shooters, stats (see `encode_payload`)
 //! checksum     u64      FNV-1a 64 of every byte before it
 //! ```
@@ -34,15 +35,25 @@ pub const MAGIC: &[u8; 8] = b"PFSOLN\r\n";
 pub const FORMAT_VERSION: u32 = 1;
 const HEADER: usize = 8 + 4 + 4 + 8 + 8;
 
-/// Serializes a solution to bytes (the exact file content).
+/// Serializes a solution to bytes (the exact file content), naming no scene file.
 pub fn encode(sol: &Solution) -> Vec<u8> {
+    encode_with_scene(sol, None)
+}
+
+/// Serializes a solution to bytes, naming the scene file it solves (so `render <solution>` can
+/// load it). The path is stored as UTF-8 between the header and the payload.
+pub fn encode_with_scene(sol: &Solution, scene_path: Option<&Path>) -> Vec<u8> {
     let payload = encode_payload(sol);
-    let mut out = Vec::with_capacity(HEADER + payload.len() + 8);
+    let path = scene_path
+        .map(|p| p.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    let mut out = Vec::with_capacity(HEADER + path.len() + payload.len() + 8);
     out.extend_from_slice(MAGIC);
     out.extend_from_slice(&FORMAT_VERSION.to_le_bytes());
-    out.extend_from_slice(&0u32.to_le_bytes());
+    out.extend_from_slice(&(path.len() as u32).to_le_bytes());
     out.extend_from_slice(&(payload.len() as u64).to_le_bytes());
     out.extend_from_slice(&sol.scene_hash.to_le_bytes());
+    out.extend_from_slice(path.as_bytes());
     out.extend_from_slice(&payload);
     let mut h = Fnv::default();
     h.bytes(&out);
@@ -50,9 +61,35 @@ pub fn encode(sol: &Solution) -> Vec<u8> {
     out
 }
 
-/// Writes `sol` to `path` atomically.
-pub fn write_solution(path: &Path, sol: &Solution) -> Result<()> {
-    crate::output::write_atomic(path, &encode(sol))
+/// Writes `sol` to `path` atomically. `scene_path`, if given, is made absolute and stored so
+/// that the solution file alone is enough to render.
+pub fn write_solution(path: &Path, sol: &Solution, scene_path: Option<&Path>) -> Result<()> {
+    let abs = match scene_path {
+        Some(p) => Some(std::fs::canonicalize(p).map_err(|e| Error::io(p, e))?),
+        None => None,
+    };
+    crate::output::write_atomic(path, &encode_with_scene(sol, abs.as_deref()))
+}
+
+/// The scene file a solution file names (checked: magic, version, length, checksum).
+pub fn read_scene_path(path: &Path) -> Result<std::path::PathBuf> {
+    let bytes =
+        std::fs::read(path).map_err(|e| Error::input(Location::file(path), e.to_string()))?;
+    let env = envelope(&bytes).map_err(|m| Error::input(Location::file(path), m))?;
+    let name = &bytes[HEADER..HEADER + env.path_len];
+    if name.is_empty() {
+        return Err(Error::input(
+            Location::file(path),
+            "this solution file names no scene file; render the scene itself",
+        ));
+    }
+    let name = std::str::from_utf8(name).map_err(|_| {
+        Error::input(
+            Location::file(path),
+            "corrupt solution file: scene path is not UTF-8",
+        )
+    })?;
+    Ok(std::path::PathBuf::from(name))
 }
 
 /// Reads a solution of `scene` from `path`.
@@ -60,6 +97,61 @@ pub fn read_solution(path: &Path, scene: &Scene) -> Result<Solution> {
     let bytes =
         std::fs::read(path).map_err(|e| Error::input(Location::file(path), e.to_string()))?;
     decode(&bytes, scene).map_err(|m| Error::input(Location::file(path), m))
+}
+
+/// Lengths of the checked envelope of a solution file.
+struct Envelope {
+    path_len: usize,
+    body: usize,
+}
+
+/// Checks magic, version, length (truncation) and checksum (corruption).
+fn envelope(bytes: &[u8]) -> std::result::Result<Envelope, String> {
+    if bytes.len() < 8 || &bytes[..8] != MAGIC {
+        return Err("not a pixelflow-sim solution file (bad magic bytes)".to_string());
+    }
+    if bytes.len() < HEADER {
+        return Err(format!(
+            "truncated solution file: {} bytes, the header alone is {HEADER}",
+            bytes.len()
+        ));
+    }
+    let u32_at = |o: usize| u32::from_le_bytes(bytes[o..o + 4].try_into().unwrap_or([0; 4]));
+    let u64_at = |o: usize| u64::from_le_bytes(bytes[o..o + 8].try_into().unwrap_or([0; 8]));
+    let version = u32_at(8);
+    if version != FORMAT_VERSION {
+        return Err(format!(
+            "solution file format version {version}, this program reads version {FORMAT_VERSION}; solve the scene again"
+        ));
+    }
+    let path_len = u32_at(12) as u64;
+    let payload_len = u64_at(16);
+    let expect = (HEADER as u64)
+        .saturating_add(path_len)
+        .saturating_add(payload_len)
+        .saturating_add(8);
+    if (bytes.len() as u64) < expect {
+        return Err(format!(
+            "truncated solution file: {} bytes, expected {expect}",
+            bytes.len()
+        ));
+    }
+    if (bytes.len() as u64) > expect {
+        return Err(format!(
+            "corrupt solution file: {} bytes, expected {expect} (trailing data)",
+            bytes.len()
+        ));
+    }
+    let body = bytes.len() - 8;
+    let mut h = Fnv::default();
+    h.bytes(&bytes[..body]);
+    if h.0 != u64_at(body) {
+        return Err("corrupt solution file: checksum mismatch".to_string());
+    }
+    Ok(Envelope {
+        path_len: path_len as usize,
+        body,
+    })
 }
 
 struct W(Vec<u8>);
@@ -181,46 +273,8 @@ impl R<'_> {
 
 /// Decodes file bytes for `scene`; the error is a message for the user.
 pub fn decode(bytes: &[u8], scene: &Scene) -> std::result::Result<Solution, String> {
-    if bytes.len() < 8 || &bytes[..8] != MAGIC {
-        return Err("not a pixelflow-sim solution file (bad magic bytes)".to_string());
-    }
-    if bytes.len() < HEADER {
-        return Err(format!(
-            "truncated solution file: {} bytes, the header alone is {HEADER}",
-            bytes.len()
-        ));
-    }
-    let u32_at = |o: usize| u32::from_le_bytes(bytes[o..o + 4].try_into().unwrap_or([0; 4]));
-    let u64_at = |o: usize| u64::from_le_bytes(bytes[o..o + 8].try_into().unwrap_or([0; 8]));
-    let version = u32_at(8);
-    if version != FORMAT_VERSION {
-        return Err(format!(
-            "solution file format version {version}, this program reads version {FORMAT_VERSION}; solve the scene again"
-        ));
-    }
-    let payload_len = u64_at(16);
-    let expect = (HEADER as u64)
-        .saturating_add(payload_len)
-        .saturating_add(8);
-    if (bytes.len() as u64) < expect {
-        return Err(format!(
-            "truncated solution file: {} bytes, expected {expect}",
-            bytes.len()
-        ));
-    }
-    if (bytes.len() as u64) > expect {
-        return Err(format!(
-            "corrupt solution file: {} bytes, expected {expect} (trailing data)",
-            bytes.len()
-        ));
-    }
-    let body = bytes.len() - 8;
-    let mut h = Fnv::default();
-    h.bytes(&bytes[..body]);
-    if h.0 != u64_at(body) {
-        return Err("corrupt solution file: checksum mismatch".to_string());
-    }
-    let hash = u64_at(24);
+    let Envelope { path_len, body } = envelope(bytes)?;
+    let hash = u64::from_le_bytes(bytes[24..32].try_into().unwrap_or([0; 8]));
     if hash != scene_hash(scene) {
         return Err(
             "solution file is for another scene (or other radiosity settings); solve this scene again"
@@ -228,7 +282,7 @@ pub fn decode(bytes: &[u8], scene: &Scene) -> std::result::Result<Solution, Stri
         );
     }
     let mut r = R {
-        b: &bytes[HEADER..body],
+        b: &bytes[HEADER + path_len..body],
         at: 0,
     };
     let np = r.u32()? as usize;

@@ -310,7 +310,7 @@ fn solution_file_round_trip_and_errors() {
     s.radiosity.max_depth = 4;
     let mut sol = solve_quiet(&s);
     let path = tmp("a.pfsol");
-    file::write_solution(&path, &sol).expect("write");
+    file::write_solution(&path, &sol, None).expect("write");
     let back = file::read_solution(&path, &s).expect("read");
     sol.stats.solve_ms = 0.0;
     assert_eq!(back, sol);
