@@ -146,8 +146,8 @@ fn two_spots_scene_is_one_unit_square_filling_the_image() {
     // The bright spot points at the upper-left quarter, the dim one elsewhere.
     assert!(small.position.x < 0.5 && small.position.y > 0.5);
     assert!(!(large.position.x < 0.5 && large.position.y > 0.5));
-    assert!((small.half_angle - 15f64.to_radians()).abs() < 1e-15);
-    assert!((large.half_angle - 35f64.to_radians()).abs() < 1e-15);
+    assert!((small.half_angle - 40f64.to_radians()).abs() < 1e-15);
+    assert!((large.half_angle - 60f64.to_radians()).abs() < 1e-15);
     // On-axis radiosity B = rho I / h^2 (FACTS.md): 3.2 for the small spot, 0.5 for the large.
     let b = |l: &pixelflow_sim::scene::SpotLight| 0.8 * l.intensity.x / l.position.z.powi(2);
     assert!((b(small) - 3.2).abs() < 1e-12 && (b(large) - 0.5).abs() < 1e-12);
