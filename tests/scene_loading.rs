@@ -510,6 +510,9 @@ fn other_settings_are_checked() {
     );
     let text = format!("{BASE}\n[render]\naa = 0\n");
     assert_error(&text, "aa", &["render.aa", "is 0"]);
+    // The renderer has sample patterns for 1, 4 and 16 samples only.
+    let text = format!("{BASE}\n[render]\naa = 3\n");
+    assert_error(&text, "aa", &["render.aa", "is 3", "1, 4 or 16"]);
     let text = format!("{BASE}\n[display]\nbackground = [0, -1, 0]\n");
     assert_error(&text, "background", &["display.background", ">= 0"]);
     let text = format!("{BASE}\n[[spots]]\nposition = [0, 0, 1]\ndirection = [0, 0, 0]\nintensity = [1, 1, 1]\nhalf_angle = 30\n");

@@ -33,8 +33,8 @@ use toml::Spanned;
 /// Image width and height when `[image]` does not give them.
 pub const DEFAULT_IMAGE_DIM: u32 = 512;
 
-/// Most antialiasing samples per pixel accepted in `[render] aa`.
-pub const MAX_AA_SAMPLES: u32 = 256;
+/// Antialiasing sample counts the renderer has patterns for (`[render] aa`).
+pub const AA_SAMPLE_COUNTS: [u32; 3] = [1, 4, 16];
 
 /// Most shadow rays per receiver point and source accepted in `[radiosity] shadow_rays`.
 pub const MAX_SHADOW_RAYS: u32 = 4096;
@@ -520,7 +520,15 @@ impl<'a> Cx<'a> {
             s.method = name.clone();
         }
         if let Some(v) = &r.aa {
-            s.aa_samples = self.int(v, "render.aa", 1, i64::from(MAX_AA_SAMPLES), "")? as u32;
+            let x = *v.get_ref();
+            if !AA_SAMPLE_COUNTS.iter().any(|&n| i64::from(n) == x) {
+                return Err(self.err(
+                    v.span(),
+                    "render.aa",
+                    format!("is {x}, must be 1, 4 or 16 samples per pixel"),
+                ));
+            }
+            s.aa_samples = x as u32;
         }
         if let Some(v) = &r.texture_size {
             let x = self.int(v, "render.texture_size", 0, i64::from(MAX_IMAGE_DIM), "")?;

@@ -1,0 +1,158 @@
+//! `pixelflow-sim solve` and `render` as a user runs them: files written, exit codes, and a
+//! render from a solution file equal to a render from the scene.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn bin() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_pixelflow-sim"))
+}
+
+fn scene(name: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("scenes")
+        .join(format!("{name}.toml"))
+}
+
+fn tmp(name: &str) -> PathBuf {
+    let d = Path::new(env!("CARGO_TARGET_TMPDIR")).join("cli_render");
+    std::fs::create_dir_all(&d).unwrap();
+    d.join(name)
+}
+
+fn run(args: &[&str]) -> Output {
+    bin().args(args).output().expect("binary runs")
+}
+
+fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+#[test]
+fn render_writes_png_exr_and_stats() {
+    let png = tmp("ts.png");
+    let exr = tmp("ts.exr");
+    let stats = tmp("ts.json");
+    let o = run(&[
+        "render",
+        scene("two-spots").to_str().unwrap(),
+        "-o",
+        png.to_str().unwrap(),
+        "--exr",
+        exr.to_str().unwrap(),
+        "--stats",
+        stats.to_str().unwrap(),
+        "--quiet",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let img = image::open(&png).expect("PNG decodes").to_rgb8();
+    assert_eq!(img.dimensions(), (256, 256));
+    // The bright spot is in the upper-left quarter (u, v) = (0.25, 0.75): brighter there than in
+    // the lower-right corner, which only the dim spot reaches.
+    assert!(img.get_pixel(64, 64)[0] > img.get_pixel(250, 250)[0]);
+    let hdr = image::open(&exr).expect("EXR decodes").to_rgb32f();
+    // Linear radiosity, not tone-mapped: the bright spot's peak is rho I / r^2 = 0.8 / 0.25 = 3.2
+    // plus the dim spot's small contribution there.
+    let peak = hdr.pixels().map(|p| p[0]).fold(0.0, f32::max);
+    assert!(peak > 3.0 && peak < 3.5, "peak {peak}");
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&stats).unwrap()).unwrap();
+    for key in [
+        "width",
+        "height",
+        "method",
+        "threads",
+        "renderers",
+        "regions_touched",
+        "primitives",
+        "pixels_rasterized",
+        "pixels_shaded",
+        "composition_traffic_bytes",
+        "gbuffer_bytes",
+        "patch_table_entries",
+        "geometry_ms",
+        "raster_ms",
+        "composition_ms",
+        "shading_ms",
+        "frame_ms",
+    ] {
+        assert!(json.get(key).is_some(), "stats lack `{key}`: {json}");
+    }
+    assert_eq!(json["pixels_shaded"], 256 * 256);
+    assert_eq!(json["method"], "direct");
+}
+
+#[test]
+fn render_from_a_solution_file_equals_render_from_the_scene() {
+    let sol = tmp("cb.pfsol");
+    let o = run(&[
+        "solve",
+        scene("cornell-box").to_str().unwrap(),
+        "-o",
+        sol.to_str().unwrap(),
+        "--quiet",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let render = |input: &Path, exr: &Path| {
+        let o = run(&[
+            "render",
+            input.to_str().unwrap(),
+            "--width",
+            "96",
+            "--height",
+            "64",
+            "-o",
+            tmp("cb.png").to_str().unwrap(),
+            "--exr",
+            exr.to_str().unwrap(),
+            "--quiet",
+        ]);
+        assert!(o.status.success(), "{}", stderr(&o));
+        std::fs::read(exr).unwrap()
+    };
+    let a = render(&scene("cornell-box"), &tmp("from-scene.exr"));
+    let b = render(&sol, &tmp("from-solution.exr"));
+    assert!(a == b, "EXR bytes differ between scene and solution input");
+}
+
+#[test]
+fn bad_render_arguments_exit_2_with_a_message() {
+    let ts = scene("two-spots");
+    let ts = ts.to_str().unwrap();
+    let cases: [(&[&str], &str); 5] = [
+        (
+            &["render", ts, "--method", "texture-bicubic"],
+            "not available",
+        ),
+        (&["render", "no/such/scene.toml"], "no/such/scene.toml"),
+        (&["render", ts, "--walkthrough"], "camera_path"),
+        (&["render", ts, "--threads", "0"], "--threads 0"),
+        (&["render", ts, "--aa", "3"], "--aa 3"),
+    ];
+    for (args, needle) in cases {
+        let o = run(args);
+        assert_eq!(o.status.code(), Some(2), "{args:?}: {}", stderr(&o));
+        assert!(stderr(&o).contains(needle), "{args:?}: {}", stderr(&o));
+    }
+}
+
+#[test]
+fn a_corrupt_solution_file_is_bad_input() {
+    let sol = tmp("ts.pfsol");
+    let o = run(&[
+        "solve",
+        scene("two-spots").to_str().unwrap(),
+        "-o",
+        sol.to_str().unwrap(),
+        "--quiet",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let mut bytes = std::fs::read(&sol).unwrap();
+    let mid = bytes.len() / 2;
+    bytes[mid] ^= 0x40;
+    let bad = tmp("ts-corrupt.pfsol");
+    std::fs::write(&bad, &bytes).unwrap();
+    let o = run(&["render", bad.to_str().unwrap(), "--quiet"]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(stderr(&o).contains("checksum"), "{}", stderr(&o));
+}
