@@ -105,6 +105,34 @@ enum Command {
         #[arg(short, long)]
         quiet: bool,
     },
+    /// Measure frame time: render the scene camera's view repeatedly at several sizes and print
+    /// the medians of every stage and the deferred pass's throughput.
+    ///
+    /// Solving and reconstruction happen once, before timing. Give a solution file to skip the
+    /// solve. Timings are wall-clock on this machine; compare methods and sizes measured in the
+    /// same run.
+    Bench {
+        /// A scene file or a solution file.
+        input: PathBuf,
+        /// Square image sizes to measure, comma-separated.
+        #[arg(long, value_delimiter = ',', default_values_t = [512u32, 1024, 2048])]
+        sizes: Vec<u32>,
+        /// Frames timed per size (after one warm-up frame).
+        #[arg(long, default_value_t = 20)]
+        frames: u32,
+        /// Samples per pixel: 1, 4 or 16.
+        #[arg(long, default_value_t = 1)]
+        aa: u32,
+        /// Virtual PixelFlow renderers.
+        #[arg(long, default_value_t = 1)]
+        renderers: u32,
+        /// Worker threads (default: all cores).
+        #[arg(long)]
+        threads: Option<usize>,
+        /// Print JSON instead of the table.
+        #[arg(long)]
+        json: bool,
+    },
 }
 
 fn run(cli: Cli) -> anyhow::Result<()> {
@@ -221,6 +249,38 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 if !quiet {
                     eprintln!("wrote {}", path.display());
                 }
+            }
+            Ok(())
+        })??,
+        Command::Bench {
+            input,
+            sizes,
+            frames,
+            aa,
+            renderers,
+            threads,
+            json,
+        } => in_pool(threads, || -> anyhow::Result<()> {
+            let p = pipeline::prepare(&input, false)?;
+            let base = FrameOptions {
+                aa,
+                renderers,
+                ..FrameOptions::new(p.scene.width, p.scene.height)
+            };
+            let sizes: Vec<(u32, u32)> = sizes.iter().map(|&s| (s, s)).collect();
+            let rows = pipeline::bench(&p, Method::Direct, &sizes, frames, &base)?;
+            if json {
+                println!("{}", serde_json::to_string_pretty(&rows)?);
+            } else {
+                println!(
+                    "{}: {} polygons, {} samples, {} RRP patches, {} threads",
+                    input.display(),
+                    p.scene.polygons.len(),
+                    p.solution.stats.vertices,
+                    p.reconstruction.stats().patches,
+                    rayon::current_num_threads()
+                );
+                print!("{}", pipeline::bench_table(&rows));
             }
             Ok(())
         })??,

@@ -210,3 +210,119 @@ pub fn walkthrough_frame_path(png: &Path, k: u32) -> PathBuf {
         .unwrap_or_else(|| "frame".into());
     png.with_file_name(format!("{stem}-{k:04}.png"))
 }
+
+/// One row of `pixelflow-sim bench`: medians over the frames rendered at one size.
+#[derive(Debug, Clone, Serialize)]
+pub struct BenchRow {
+    /// Method.
+    pub method: String,
+    /// Image width and height.
+    pub width: u32,
+    /// Image height.
+    pub height: u32,
+    /// Samples per pixel.
+    pub aa: u32,
+    /// Frames measured (after one warm-up frame).
+    pub frames: u32,
+    /// Median `frame_ms` (geometry + raster + composition + shading).
+    pub frame_ms: f64,
+    /// Median geometry time, ms.
+    pub geometry_ms: f64,
+    /// Median raster time (binning, rasterization, patch-table fill), ms.
+    pub raster_ms: f64,
+    /// Median compositor busy time, ms.
+    pub composition_ms: f64,
+    /// Median deferred-shading time, ms.
+    pub shading_ms: f64,
+    /// Samples shaded per frame.
+    pub samples_shaded: u64,
+    /// Deferred pass throughput at the median shading time, Msample/s.
+    pub shading_mpix_s: f64,
+    /// Frames per second at the median frame time.
+    pub fps: f64,
+}
+
+fn median(mut xs: Vec<f64>) -> f64 {
+    xs.sort_by(f64::total_cmp);
+    let n = xs.len();
+    if n == 0 {
+        0.0
+    } else if n % 2 == 1 {
+        xs[n / 2]
+    } else {
+        0.5 * (xs[n / 2 - 1] + xs[n / 2])
+    }
+}
+
+/// Renders `frames` frames (after one warm-up) of the scene camera at each size and returns
+/// the medians. Timing is wall-clock inside the frame's stages; the machine is whatever runs it.
+pub fn bench(
+    p: &Prepared,
+    method: Method,
+    sizes: &[(u32, u32)],
+    frames: u32,
+    base: &FrameOptions,
+) -> Result<Vec<BenchRow>> {
+    let frames = frames.max(1);
+    let mut rows = Vec::new();
+    for &(w, h) in sizes {
+        let opts = FrameOptions {
+            width: w,
+            height: h,
+            ..base.clone()
+        };
+        render(p, method, &p.scene.camera, &opts)?;
+        let mut stats = Vec::new();
+        for _ in 0..frames {
+            stats.push(render(p, method, &p.scene.camera, &opts)?.stats);
+        }
+        let med = |f: fn(&FrameStats) -> f64| median(stats.iter().map(f).collect());
+        let shading_ms = med(|s| s.shading_ms);
+        let frame_ms = med(|s| s.frame_ms);
+        let samples = stats[0].pixels_shaded;
+        rows.push(BenchRow {
+            method: method.name().into(),
+            width: w,
+            height: h,
+            aa: opts.aa,
+            frames,
+            frame_ms,
+            geometry_ms: med(|s| s.geometry_ms),
+            raster_ms: med(|s| s.raster_ms),
+            composition_ms: med(|s| s.composition_ms),
+            shading_ms,
+            samples_shaded: samples,
+            shading_mpix_s: if shading_ms > 0.0 {
+                samples as f64 / shading_ms / 1e3
+            } else {
+                0.0
+            },
+            fps: if frame_ms > 0.0 { 1e3 / frame_ms } else { 0.0 },
+        });
+    }
+    Ok(rows)
+}
+
+/// The bench rows as a fixed-width table.
+pub fn bench_table(rows: &[BenchRow]) -> String {
+    let mut s = String::from(
+        "method   size        aa  frame_ms    fps  geometry  raster  compos.  shading  Msample/s\n",
+    );
+    for r in rows {
+        s += &format!(
+            "{:<8} {:>4}x{:<5} {:>3} {:>9.2} {:>6.1} {:>9.2} {:>7.2} {:>8.2} {:>8.2} {:>10.0}\n",
+            r.method,
+            r.width,
+            r.height,
+            r.aa,
+            r.frame_ms,
+            r.fps,
+            r.geometry_ms,
+            r.raster_ms,
+            r.composition_ms,
+            r.shading_ms,
+            r.shading_mpix_s
+        );
+    }
+    s
+}
