@@ -8,10 +8,9 @@
 use anyhow::Context;
 use clap::{Parser, Subcommand};
 use pixelflow_sim::error::EXIT_FAILURE;
-use pixelflow_sim::pipeline::{self, Method, RenderReport};
+use pixelflow_sim::pipeline::{self, Method, RenderEvent, RenderRequest};
 use pixelflow_sim::raster::FrameOptions;
-use pixelflow_sim::scene::Camera;
-use pixelflow_sim::{image_out, output, Error};
+use pixelflow_sim::Error;
 use std::path::PathBuf;
 use std::process::ExitCode;
 
@@ -186,72 +185,30 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             walkthrough,
             verbose,
             quiet,
-        } => in_pool(threads, || -> anyhow::Result<()> {
-            let p = pipeline::prepare(&input, !quiet)?;
-            let scene = &p.scene;
-            for w in &scene.warnings {
-                eprintln!("warning: {w}");
-            }
-            let method = Method::parse(method.as_deref().unwrap_or(&scene.render.method))?;
-            let opts = FrameOptions {
-                width: width.unwrap_or(scene.width),
-                height: height.unwrap_or(scene.height),
-                aa: aa.unwrap_or(scene.render.aa_samples),
+        } => {
+            let req = RenderRequest {
+                input,
+                output,
+                exr,
+                method,
+                width,
+                height,
+                aa,
                 renderers,
                 region,
-                cull_back_faces: false,
+                stats,
+                walkthrough,
+                progress: !quiet,
             };
-            let png = output.unwrap_or_else(|| pipeline::default_png_path(&input, method));
-            let frames: Vec<(Camera, std::path::PathBuf)> = if walkthrough {
-                let path = scene.camera_path.as_ref().ok_or_else(|| {
-                    Error::Usage(format!(
-                        "--walkthrough: {} has no [camera_path]",
-                        scene.source.display()
-                    ))
-                })?;
-                (0..path.frames)
-                    .map(|k| {
-                        (
-                            pipeline::path_camera(scene, &path.keyframes, k, path.frames),
-                            pipeline::walkthrough_frame_path(&png, k),
-                        )
-                    })
-                    .collect()
-            } else {
-                vec![(scene.camera, png)]
-            };
-            let mut reports = Vec::new();
-            for (camera, png) in &frames {
-                let frame = pipeline::render(&p, method, camera, &opts)?;
-                image_out::write_png(png, &frame, scene.display.exposure)?;
-                if !quiet {
-                    eprintln!("wrote {}", png.display());
-                }
-                if let (Some(exr), false) = (&exr, walkthrough) {
-                    image_out::write_exr(exr, &frame)?;
-                    if !quiet {
-                        eprintln!("wrote {}", exr.display());
-                    }
-                }
-                let report = RenderReport::new(&p, &frame);
-                if verbose {
-                    println!("{}", report.to_json());
-                }
-                reports.push(report);
-            }
-            if let Some(path) = stats {
-                let json = if walkthrough {
-                    serde_json::to_string_pretty(&reports)?
-                } else {
-                    reports[0].to_json()
-                };
-                output::write_atomic(&path, json.as_bytes())?;
-                if !quiet {
-                    eprintln!("wrote {}", path.display());
-                }
-            }
-            Ok(())
-        })??,
+            in_pool(threads, || {
+                pipeline::run_render(&req, &mut |event| match event {
+                    RenderEvent::Warning(w) => eprintln!("warning: {w}"),
+                    RenderEvent::Wrote(path) if !quiet => eprintln!("wrote {}", path.display()),
+                    RenderEvent::Frame(report) if verbose => println!("{}", report.to_json()),
+                    _ => {}
+                })
+            })??;
+        }
         Command::Bench {
             input,
             sizes,

@@ -15,6 +15,7 @@ use glam::DVec3;
 use serde::Serialize;
 
 use crate::error::{Error, Result};
+use crate::image_out;
 use crate::radiosity::{self, file as solution_file, Solution, SolveOptions};
 use crate::raster::{render_frame, Frame, FrameOptions, FrameStats};
 use crate::reconstruction::{Estimator, Reconstruction};
@@ -114,6 +115,117 @@ pub fn render(p: &Prepared, method: Method, camera: &Camera, opts: &FrameOptions
     match method {
         Method::Direct => render_frame(&p.scene, camera, &p.reconstruction, opts),
     }
+}
+
+/// What `pixelflow-sim render` was asked to do.
+#[derive(Debug, Clone, Default)]
+pub struct RenderRequest {
+    /// Scene file or solution file.
+    pub input: PathBuf,
+    /// PNG to write (default [`default_png_path`]); walkthrough frames are numbered beside it.
+    pub output: Option<PathBuf>,
+    /// OpenEXR of the linear radiosity to write (single frames only).
+    pub exr: Option<PathBuf>,
+    /// Method name (default: the scene's `[render] method`).
+    pub method: Option<String>,
+    /// Image width (default: the scene's).
+    pub width: Option<u32>,
+    /// Image height (default: the scene's).
+    pub height: Option<u32>,
+    /// Samples per pixel (default: the scene's).
+    pub aa: Option<u32>,
+    /// Virtual renderers.
+    pub renderers: u32,
+    /// Region side in pixels.
+    pub region: u32,
+    /// Where to write the statistics JSON (an array of frames for a walkthrough).
+    pub stats: Option<PathBuf>,
+    /// Render every frame of the scene's camera path.
+    pub walkthrough: bool,
+    /// Show the solve's progress bar.
+    pub progress: bool,
+}
+
+/// What a render job reports as it goes.
+#[derive(Debug)]
+pub enum RenderEvent<'a> {
+    /// A scene warning (a non-planar quad split, ...).
+    Warning(&'a str),
+    /// A file was written.
+    Wrote(&'a Path),
+    /// A frame was rendered.
+    Frame(&'a RenderReport),
+}
+
+/// Runs a render job: prepare once, render one frame or every walkthrough frame, write PNG,
+/// EXR and statistics.
+pub fn run_render(req: &RenderRequest, on: &mut dyn FnMut(RenderEvent<'_>)) -> Result<()> {
+    let p = prepare(&req.input, req.progress)?;
+    let scene = &p.scene;
+    for w in &scene.warnings {
+        on(RenderEvent::Warning(w));
+    }
+    let method = Method::parse(req.method.as_deref().unwrap_or(&scene.render.method))?;
+    let opts = FrameOptions {
+        width: req.width.unwrap_or(scene.width),
+        height: req.height.unwrap_or(scene.height),
+        aa: req.aa.unwrap_or(scene.render.aa_samples),
+        renderers: req.renderers,
+        region: req.region,
+        cull_back_faces: false,
+    };
+    opts.validate()?;
+    if req.walkthrough && req.exr.is_some() {
+        return Err(Error::Usage(
+            "--exr writes one frame; it cannot be combined with --walkthrough".into(),
+        ));
+    }
+    let png = req
+        .output
+        .clone()
+        .unwrap_or_else(|| default_png_path(&req.input, method));
+    let frames: Vec<(Camera, PathBuf)> = if req.walkthrough {
+        let path = scene.camera_path.as_ref().ok_or_else(|| {
+            Error::Usage(format!(
+                "--walkthrough: {} has no [camera_path]",
+                scene.source.display()
+            ))
+        })?;
+        (0..path.frames)
+            .map(|k| {
+                (
+                    path_camera(scene, &path.keyframes, k, path.frames),
+                    walkthrough_frame_path(&png, k),
+                )
+            })
+            .collect()
+    } else {
+        vec![(scene.camera, png)]
+    };
+    let mut reports = Vec::new();
+    for (camera, png) in &frames {
+        let frame = render(&p, method, camera, &opts)?;
+        image_out::write_png(png, &frame, scene.display.exposure)?;
+        on(RenderEvent::Wrote(png));
+        if let Some(exr) = &req.exr {
+            image_out::write_exr(exr, &frame)?;
+            on(RenderEvent::Wrote(exr));
+        }
+        let report = RenderReport::new(&p, &frame);
+        on(RenderEvent::Frame(&report));
+        reports.push(report);
+    }
+    if let Some(path) = &req.stats {
+        let json = if req.walkthrough {
+            serde_json::to_string_pretty(&reports)
+        } else {
+            serde_json::to_string_pretty(&reports[0])
+        }
+        .map_err(|e| Error::Runtime(format!("statistics to JSON: {e}")))?;
+        crate::output::write_atomic(path, json.as_bytes())?;
+        on(RenderEvent::Wrote(path));
+    }
+    Ok(())
 }
 
 /// The statistics written by `--stats`: the frame's counters and stage times, plus the

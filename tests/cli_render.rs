@@ -156,3 +156,54 @@ fn a_corrupt_solution_file_is_bad_input() {
     assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
     assert!(stderr(&o).contains("checksum"), "{}", stderr(&o));
 }
+
+#[test]
+fn walkthrough_renders_every_frame_of_the_camera_path() {
+    // two-spots with a three-frame path sliding the orthographic camera across the plane.
+    let text = std::fs::read_to_string(scene("two-spots")).unwrap()
+        + "\n[camera_path]\nframes = 3\nkeyframes = [\n\
+           { eye = [0.3, 0.5, 2.0], look_at = [0.3, 0.5, 0.0], up = [0.0, 1.0, 0.0] },\n\
+           { eye = [0.7, 0.5, 2.0], look_at = [0.7, 0.5, 0.0], up = [0.0, 1.0, 0.0] },\n]\n";
+    let path = tmp("walk.toml");
+    std::fs::write(&path, text).unwrap();
+    let png = tmp("walk.png");
+    let stats = tmp("walk.json");
+    let o = run(&[
+        "render",
+        path.to_str().unwrap(),
+        "--walkthrough",
+        "--width",
+        "32",
+        "--height",
+        "32",
+        "-o",
+        png.to_str().unwrap(),
+        "--stats",
+        stats.to_str().unwrap(),
+        "--quiet",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let frames: Vec<image::RgbImage> = (0..3)
+        .map(|k| {
+            image::open(tmp(&format!("walk-{k:04}.png")))
+                .expect("frame written")
+                .to_rgb8()
+        })
+        .collect();
+    // The view (1 unit wide) is centred on x = 0.3, 0.5, 0.7: the bright spot at x = 0.25 lands
+    // on image column (0.25 - centre + 0.5) * 32 = 14.4, 8, 1.6, moving left as the camera moves
+    // right.
+    let brightest_column = |img: &image::RgbImage| -> u32 {
+        (0..32)
+            .max_by_key(|&x| (0..32).map(|y| img.get_pixel(x, y)[0] as u32).sum::<u32>())
+            .unwrap()
+    };
+    let cols: Vec<u32> = frames.iter().map(brightest_column).collect();
+    assert!(
+        cols[0].abs_diff(14) <= 1 && cols[1].abs_diff(8) <= 1 && cols[2] <= 2,
+        "{cols:?}"
+    );
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&stats).unwrap()).unwrap();
+    assert_eq!(json.as_array().map(Vec::len), Some(3));
+}
