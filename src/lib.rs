@@ -1,12 +1,13 @@
 //! pixelflow-sim renders radiosity solutions the way Bastos, Goslin and Zhang proposed for the
 //! PixelFlow graphics machine: an adaptive quadtree radiosity solution is reconstructed per polygon
 //! as C1 bicubic Hermite patches (RRPs) that a software, SIMD-style rasterizer and a deferred
-//! shading pass evaluate per pixel, with texture (RAT) and Gouraud-mesh backends beside it for
-//! comparison.
+//! shading pass evaluate per pixel.
 //!
 //! The modules are the stages a frame passes through, in order: [`scene`] (what is rendered),
-//! then the radiosity solve over [`quadtree`]s, reconstruction, rasterization, composition,
-//! shading and the image written by [`output`]. `docs/ARCHITECTURE.md` draws the data flow.
+//! [`radiosity`] (the solve over [`quadtree`]s), [`reconstruction`] (the RRPs), [`raster`]
+//! (regions, G-buffers), [`composition`] (depth merge of the virtual renderers), [`shading`] (the
+//! deferred pass) and [`image_out`] / [`output`] (files). [`pipeline`] strings them into the jobs
+//! the command line runs; [`report`] formats summaries. `docs/ARCHITECTURE.md` draws the data flow.
 
 #![warn(missing_docs)]
 
