@@ -182,9 +182,12 @@ impl Bvh {
         if self.nodes.is_empty() {
             return;
         }
-        let mut stack = vec![0u32];
-        while let Some(id) = stack.pop() {
-            let node = self.nodes[id as usize];
+        // Fixed stack as in `occluded` (no allocation per query; same depth argument).
+        let mut stack = [0u32; 64];
+        let mut sp = 1usize;
+        while sp > 0 {
+            sp -= 1;
+            let node = self.nodes[stack[sp] as usize];
             if !node.bounds.overlaps(b) {
                 continue;
             }
@@ -195,9 +198,10 @@ impl Bvh {
                         f(pi);
                     }
                 }
-            } else {
-                stack.push(node.first + 1);
-                stack.push(node.first);
+            } else if sp + 2 <= stack.len() {
+                stack[sp] = node.first + 1;
+                stack[sp + 1] = node.first;
+                sp += 2;
             }
         }
     }
