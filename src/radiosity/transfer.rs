@@ -276,6 +276,9 @@ pub struct Transfer<'a> {
     eps: f64,
     /// Shadow rays cast so far (a sum of integers: independent of scheduling).
     pub rays: AtomicU64,
+    /// Whether [`Transfer::classify`] drops candidates outside a face of the receiver/shooter
+    /// hull (always on; off only in the test that checks it changes no transfer).
+    use_hull_faces: bool,
 }
 
 impl<'a> Transfer<'a> {
@@ -291,6 +294,7 @@ impl<'a> Transfer<'a> {
             shooters,
             eps,
             rays: AtomicU64::new(0),
+            use_hull_faces: true,
         }
     }
 
@@ -353,7 +357,11 @@ impl<'a> Transfer<'a> {
             lo: b.lo - DVec3::splat(eps),
             hi: b.hi + DVec3::splat(eps),
         };
-        let faces = hull_faces(rv, &hull[rv.len()..], eps);
+        let faces = if self.use_hull_faces {
+            hull_faces(rv, &hull[rv.len()..], eps)
+        } else {
+            Vec::new()
+        };
         let mut cands = Vec::new();
         self.bvh.for_each_overlapping(&b, |q| {
             if q as usize == r || q == sg.polygon {
@@ -648,5 +656,100 @@ pub fn spot_power(s: &crate::scene::SpotLight) -> f64 {
         p * sum
     } else {
         0.0
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::radiosity::test_scenes::cornell;
+
+    /// The hull-face test only drops polygons that cannot block: on the Cornell box (two blocks
+    /// between most wall pairs) every transfer from every shooter to a 5 x 5 grid of points on
+    /// every polygon is the same, bit for bit, with and without it (both sum the same sample
+    /// weights in the same order; a dropped real occluder would make a shadowed point brighter),
+    /// and the test does make pairs open that were occluded and shortens candidate lists.
+    #[test]
+    fn hull_faces_change_no_transfer() {
+        let scene = cornell();
+        let mut tight = Transfer::new(&scene);
+        let mut loose = Transfer::new(&scene);
+        loose.use_hull_faces = false;
+        let (mut cands_tight, mut cands_loose) = (0, 0);
+        for s in 0..tight.shooters.len() {
+            tight.ensure_pairs(s);
+            loose.ensure_pairs(s);
+            for r in 0..scene.polygons.len() {
+                cands_tight += tight.pairs[s].as_ref().unwrap().cands_len(r);
+                cands_loose += loose.pairs[s].as_ref().unwrap().cands_len(r);
+                for i in 0..5 {
+                    for j in 0..5 {
+                        let (u, v) = (0.1 + 0.2 * i as f64, 0.1 + 0.2 * j as f64);
+                        assert_eq!(
+                            tight.transfer(s, r, u, v),
+                            loose.transfer(s, r, u, v),
+                            "shooter {s} receiver {r} ({u}, {v})"
+                        );
+                    }
+                }
+            }
+        }
+        assert!(
+            cands_tight < cands_loose,
+            "candidates {cands_tight} vs {cands_loose}"
+        );
+    }
+
+    /// Hull faces of two parallel unit squares one apart: 4 side faces, each found 4 times (from
+    /// both edges of the face, each with either of the other square's two vertices on it: 16
+    /// planes), every point of both squares on the inner side, and a point beside
+    /// the hull outside at least one of them while the hull's centre is outside none.
+    #[test]
+    fn hull_faces_bound_the_hull() {
+        let sq = |z: f64| {
+            [
+                DVec3::new(0.0, 0.0, z),
+                DVec3::new(1.0, 0.0, z),
+                DVec3::new(1.0, 1.0, z),
+                DVec3::new(0.0, 1.0, z),
+            ]
+        };
+        let (a, b) = (sq(0.0), sq(1.0));
+        let faces = hull_faces(&a, &b, 1e-12);
+        assert_eq!(faces.len(), 16);
+        for (n, p0) in &faces {
+            for p in a.iter().chain(&b) {
+                assert!(n.dot(*p - *p0) >= -1e-12, "{p} outside");
+            }
+        }
+        let outside = |p: DVec3| faces.iter().any(|(n, p0)| n.dot(p - *p0) < -1e-9);
+        assert!(outside(DVec3::new(1.5, 0.5, 0.5)));
+        assert!(!outside(DVec3::new(0.5, 0.5, 0.5)));
+    }
+
+    /// Emitters keep `shadow_rays` targets, reflecting patches get `shadow_rays / 4` (at least 1).
+    #[test]
+    fn patches_cast_fewer_rays_than_emitters() {
+        assert_eq!(patch_rays(8), 2);
+        assert_eq!(patch_rays(3), 1);
+        assert_eq!(patch_rays(1), 1);
+        let scene = cornell();
+        let tr = Transfer::new(&scene);
+        let n = scene.radiosity.shadow_rays as usize;
+        let mut kinds = (0, 0);
+        for sg in &tr.shooters {
+            match sg.kind {
+                ShooterKind::Emitter { .. } => {
+                    assert_eq!(sg.samples.len(), n);
+                    kinds.0 += 1;
+                }
+                ShooterKind::Patch { .. } => {
+                    assert_eq!(sg.samples.len(), patch_rays(n));
+                    kinds.1 += 1;
+                }
+                ShooterKind::Spot { .. } => assert!(sg.samples.is_empty()),
+            }
+        }
+        assert!(kinds.0 > 0 && kinds.1 > 0);
     }
 }
