@@ -362,8 +362,14 @@ impl<'a> Transfer<'a> {
         } else {
             Vec::new()
         };
+        // The same half-spaces the tests below apply per polygon (hull faces, strictly outside
+        // by more than eps), so pruning BVH nodes by them drops only polygons those tests drop.
+        let planes: Vec<(DVec3, DVec3, f64)> = faces
+            .iter()
+            .map(|(n, p0)| (*n, *p0, eps * n.length()))
+            .collect();
         let mut cands = Vec::new();
-        self.bvh.for_each_overlapping(&b, |q| {
+        self.bvh.for_each_in(&b, &planes, |q| {
             if q as usize == r || q == sg.polygon {
                 return;
             }
@@ -473,6 +479,9 @@ impl<'a> Transfer<'a> {
     /// dropped first (no ray can hit them); with none left, visibility is 1 without rays.
     fn visibility(&self, s: usize, r: usize, cands: &[u32], x: DVec3) -> f64 {
         let sg = &self.shooters[s];
+        if sg.samples.len() <= FEW_RAYS {
+            return self.visibility_unfiltered(sg, r, cands, x);
+        }
         let mut near = [0u32; 16];
         let mut nn = 0usize;
         let mut many = false;
@@ -496,7 +505,13 @@ impl<'a> Transfer<'a> {
             let mut pts = [x; 9];
             pts[1..=sg.outline.len].copy_from_slice(sg.outline.verts());
             let b = Aabb::of(&pts[..=sg.outline.len]);
-            self.bvh.for_each_overlapping(&b, |q| {
+            // Pruned by the pyramid's side planes with may_block's own tolerances: a box
+            // wholly outside one holds only polygons may_block rejects.
+            let mut planes = [(DVec3::ZERO, DVec3::ZERO, 0.0); 8];
+            for (k, pl) in planes.iter_mut().enumerate().take(sides.len) {
+                *pl = (sides.n[k], x, sides.tol[k]);
+            }
+            self.bvh.for_each_in(&b, &planes[..sides.len], |q| {
                 if cands.binary_search(&q).is_ok() {
                     consider(q);
                 }
@@ -513,6 +528,35 @@ impl<'a> Transfer<'a> {
                 self.bvh.occluded(x, y, r as u32, sg.polygon)
             } else {
                 near[..nn].iter().any(|&q| self.bvh.hits(q as usize, x, d))
+            };
+            if !hit {
+                seen += w;
+            }
+        }
+        self.rays
+            .fetch_add(sg.samples.len() as u64, Ordering::Relaxed);
+        if total > 0.0 {
+            (seen / total).clamp(0.0, 1.0)
+        } else {
+            0.0
+        }
+    }
+
+    /// [`Transfer::visibility`] for a shooter with few sample points: filtering the candidates
+    /// per receiver point costs about as much as the rays it would save, so the rays test the
+    /// pair's candidates directly (a short list) or go through the BVH (a long one). The answer
+    /// is the same as with filtering: a polygon the filter drops cannot meet any of the rays, and
+    /// one outside the pair's candidates cannot meet the hull that holds them; the weights are
+    /// summed in the same order, so even the rounding is the same.
+    fn visibility_unfiltered(&self, sg: &ShooterGeom, r: usize, cands: &[u32], x: DVec3) -> f64 {
+        let (mut seen, mut total) = (0.0, 0.0);
+        for &(y, w) in &sg.samples {
+            total += w;
+            let hit = if cands.len() <= LONG_CANDIDATE_LIST {
+                let d = y - x;
+                cands.iter().any(|&q| self.bvh.hits(q as usize, x, d))
+            } else {
+                self.bvh.occluded(x, y, r as u32, sg.polygon)
             };
             if !hit {
                 seen += w;
@@ -562,6 +606,10 @@ impl<'a> Transfer<'a> {
         g
     }
 }
+
+/// Shooters with at most this many sample points skip the per-point candidate filter (see
+/// [`Transfer::visibility_unfiltered`]).
+const FEW_RAYS: usize = 2;
 
 /// Occluder lists longer than this are searched through the BVH per receiver point.
 const LONG_CANDIDATE_LIST: usize = 24;
