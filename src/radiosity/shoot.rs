@@ -16,7 +16,10 @@
 //!    shots go to a fixed coarse set of receiver points per polygon (the vertices of its uniform
 //!    grid one level below its patch depth), not to every vertex: during shooting the receivers
 //!    only serve to estimate the patches' unshot power, which is smooth indirect light, and a
-//!    shot then costs O(coarse points) instead of O(vertices);
+//!    shot then costs O(coarse points) instead of O(vertices). Shooting goes on until the coarse
+//!    estimate is below [`SHOOT_MARGIN`] times the threshold (it runs low, and a round that ends
+//!    above the threshold costs another full gather). A patch's coarse transfers are computed
+//!    on its first shot and cached ([`CoarseCache`]), because patches shoot several times;
 //! 5. every vertex gathers G from the whole history (the oracle's computation), the trees are
 //!    refined again against it, and the unshot power is re-estimated from all vertices; if that
 //!    estimate is still above the threshold, shooting resumes (at most [`MAX_ROUNDS`] rounds);
@@ -121,6 +124,17 @@ fn uniform_tree(depth: u32) -> Quadtree {
 
 /// Runs the whole solve and returns trees and the shooting history. `tr` must be built on `scene`.
 pub fn run(scene: &Scene, tr: &mut Transfer<'_>, progress: ProgressFn<'_>) -> Outcome {
+    run_with_cache(scene, tr, progress, COARSE_CACHE_ENTRIES)
+}
+
+/// [`run`] with at most `cache_entries` cached coarse transfers (the result does not depend on
+/// it; tests compare 0 with the default).
+pub(crate) fn run_with_cache(
+    scene: &Scene,
+    tr: &mut Transfer<'_>,
+    progress: ProgressFn<'_>,
+    cache_entries: usize,
+) -> Outcome {
     let st = &scene.radiosity;
     let (_, patch_base, patch_depth) = build_shooters(scene);
     let ns = tr.shooters.len();
@@ -257,7 +271,7 @@ pub fn run(scene: &Scene, tr: &mut Transfer<'_>, progress: ProgressFn<'_>) -> Ou
     }
 
     let (mut t_pairs, mut t_shoot) = (0.0, 0.0);
-    let mut cache = CoarseCache::new(ns);
+    let mut cache = CoarseCache::new(ns, cache_entries);
     let mut round = 0;
     while emitted > 0.0 && round < MAX_ROUNDS {
         round += 1;
@@ -397,11 +411,11 @@ pub struct CoarseCache {
 pub const COARSE_CACHE_ENTRIES: usize = 32 << 20;
 
 impl CoarseCache {
-    fn new(shooters: usize) -> Self {
+    fn new(shooters: usize, budget: usize) -> Self {
         CoarseCache {
             per: vec![None; shooters],
             used: 0,
-            budget: COARSE_CACHE_ENTRIES,
+            budget,
         }
     }
 }

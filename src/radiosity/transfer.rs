@@ -7,8 +7,9 @@
 //! polygon is planar; for a collapsed-quad triangle the cells at v = 1 degenerate to triangles).
 //! Its transfer to a receiver point x with normal n is the irradiance x receives per unit of the
 //! shooter's radiosity: F(x -> shooter) * V for polygons (exact Lambert form factor times the
-//! visible fraction of `shadow_rays` stratified points), I(theta) cos / r^2 * V for spots (one
-//! shadow ray, binary).
+//! visible fraction of `shadow_rays` stratified points for an emitter, of [`patch_rays`] (a
+//! quarter as many) for a reflecting patch), I(theta) cos / r^2 * V for spots (one shadow ray,
+//! binary).
 //!
 //! Invariants and why:
 //! - visibility depends only on (receiver point, shooter): the shadow-ray targets of a shooter are
@@ -19,7 +20,11 @@
 //!   limit from inside the polygon does (the exact edge point would see it edge-on, F = 0);
 //! - each (shooter, receiver polygon) pair is classified once: culled (no transfer possible),
 //!   open (no polygon can intersect the convex hull of the two, so V = 1 without rays), or
-//!   occluded (cast rays). The classification is conservative and deterministic.
+//!   occluded (cast rays, testing only the pair's candidates). A candidate must overlap the
+//!   hull's bounding box, cross both polygons' planes, not be separated from the hull by its own
+//!   plane, and not lie outside a side face of the hull (planes through an edge of one polygon
+//!   and a vertex of the other); the BVH query itself skips subtrees outside those faces. The
+//!   classification is conservative and deterministic.
 
 use std::sync::atomic::{AtomicU64, Ordering};
 
