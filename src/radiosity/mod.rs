@@ -169,9 +169,10 @@ pub fn radiosity_from_g(m: &crate::scene::Material, g: DVec3) -> Vec3 {
 
 /// Solves `scene` in the caller's rayon pool.
 ///
-/// Cost: direct shots x vertices, indirect shots x coarse receiver points, and one full gather
-/// (vertices x shooters) per round, each transfer casting `shadow_rays` shadow rays only where an
-/// occluder may cut the pyramid from the receiver to the shooter; see [`shoot`].
+/// Cost: direct shots x vertices, distinct indirect shooters x coarse receiver points (repeated
+/// shots reuse cached transfers), and one full gather (vertices x shooters) per round, each
+/// transfer casting `shadow_rays` shadow rays for an emitter, `shadow_rays / 4` for a reflecting
+/// patch, only for pairs an occluder may cut; see [`shoot`] and [`transfer`].
 pub fn solve(scene: &Scene, opts: &SolveOptions) -> Result<Solution> {
     check_settings(scene)?;
     let start = Instant::now();

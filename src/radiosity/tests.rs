@@ -245,6 +245,32 @@ fn one_and_two_threads_give_identical_files() {
     assert!(a == b, "1- and 2-thread solutions differ");
 }
 
+/// The coarse-shot cache changes nothing: the Cornell box solved with no cache room gives the
+/// same trees, samples, shot count and history totals, bit for bit (a cached shot adds the same
+/// f32-rounded transfers a computed one does), while patches do shoot more than once (so the
+/// default run really reuses cached transfers).
+#[test]
+fn coarse_cache_changes_nothing() {
+    let mut s = cornell();
+    s.radiosity.max_depth = 4;
+    let run = |entries: usize| {
+        let mut tr = transfer::Transfer::new(&s);
+        shoot::run_with_cache(&s, &mut tr, &|_| {}, entries)
+    };
+    let a = run(0);
+    let b = run(shoot::COARSE_CACHE_ENTRIES);
+    assert_eq!(a.shots, b.shots);
+    assert_eq!(a.totals, b.totals);
+    assert_eq!(a.history, b.history);
+    assert!(a
+        .trees
+        .iter()
+        .zip(&b.trees)
+        .all(|(x, y)| x.1 == y.1 && x.2 == y.2));
+    let shooters_with_total = a.totals.iter().filter(|t| **t != DVec3::ZERO).count() as u64;
+    assert!(a.shots > shooters_with_total, "{} shots", a.shots);
+}
+
 /// On two spots the leaves are deeper under the spots' cone edges than in the flat regions, and
 /// T-vertices exist (the tree is not balanced).
 #[test]
