@@ -10,9 +10,11 @@ use pixelflow_sim::raster::{Frame, FrameOptions};
 fn prepared(name: &str) -> &'static Prepared {
     static TWO_SPOTS: OnceLock<Prepared> = OnceLock::new();
     static CORNELL: OnceLock<Prepared> = OnceLock::new();
+    static GALLERY: OnceLock<Prepared> = OnceLock::new();
     let cell = match name {
         "two-spots" => &TWO_SPOTS,
         "cornell-box" => &CORNELL,
+        "gallery" => &GALLERY,
         _ => panic!("no such scene in this test: {name}"),
     };
     cell.get_or_init(|| {
@@ -88,7 +90,7 @@ fn assert_in_range(p: &Prepared, f: &Frame) {
 
 #[test]
 fn shipped_scenes_render_finite_and_in_range() {
-    for name in ["two-spots", "cornell-box"] {
+    for name in ["two-spots", "cornell-box", "gallery"] {
         let p = prepared(name);
         let mut opts = FrameOptions::new(p.scene.width, p.scene.height);
         opts.aa = 4;
