@@ -525,8 +525,15 @@ impl<'a> Transfer<'a> {
         if nn == 0 {
             return 1.0;
         }
+        let n = self.scene.polygons[r].normal;
+        if !any_in_front(&n, x, &sg.samples) {
+            return 1.0;
+        }
         let (mut seen, mut total) = (0.0, 0.0);
         for &(y, w) in &sg.samples {
+            if n.dot(y - x) <= 0.0 {
+                continue;
+            }
             total += w;
             let d = y - x;
             let hit = if many {
@@ -554,8 +561,15 @@ impl<'a> Transfer<'a> {
     /// one outside the pair's candidates cannot meet the hull that holds them; the weights are
     /// summed in the same order, so even the rounding is the same.
     fn visibility_unfiltered(&self, sg: &ShooterGeom, r: usize, cands: &[u32], x: DVec3) -> f64 {
+        let n = self.scene.polygons[r].normal;
+        if !any_in_front(&n, x, &sg.samples) {
+            return 1.0;
+        }
         let (mut seen, mut total) = (0.0, 0.0);
         for &(y, w) in &sg.samples {
+            if n.dot(y - x) <= 0.0 {
+                continue;
+            }
             total += w;
             let hit = if cands.len() <= LONG_CANDIDATE_LIST {
                 let d = y - x;
@@ -723,6 +737,18 @@ pub fn spot_power(s: &crate::scene::SpotLight) -> f64 {
     }
 }
 
+/// Whether any of the shooter's sample points lies in front of the receiver's plane (normal `n`
+/// at `x`). Visibility counts only those points: the form factor is that of the shooter clipped
+/// to the receiver's front half-space, so visibility must be the fraction of that same part; a
+/// point behind the receiver is not seen by it, and the pair's occluder candidates (which
+/// exclude polygons wholly behind the receiver) say nothing about rays to it. When no sample
+/// point is in front, the front part is a sliver the samples miss: it is taken as visible
+/// (documented bias, bounded by that sliver's small form factor).
+#[inline]
+fn any_in_front(n: &DVec3, x: DVec3, samples: &[(DVec3, f64)]) -> bool {
+    samples.iter().any(|&(y, _)| n.dot(y - x) > 0.0)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -762,6 +788,66 @@ mod tests {
             cands_tight < cands_loose,
             "candidates {cands_tight} vs {cands_loose}"
         );
+    }
+
+    /// Regression (found while speeding up the gallery): a shooter straddling a receiver's
+    /// plane had sample points behind the receiver; the pair's candidates exclude polygons wholly
+    /// behind the receiver, yet rays to those points cross them, so the candidate path and the
+    /// full-BVH path disagreed (Cornell light -> short-box face). Visibility now counts only the
+    /// points in front, like the clipped form factor: every transfer equals the brute-force one
+    /// (all polygons tested, front points only), bit for bit.
+    #[test]
+    fn visibility_counts_only_shooter_points_in_front_of_the_receiver() {
+        let scene = cornell();
+        let mut tr = Transfer::new(&scene);
+        let mut straddling = 0;
+        for s in 0..tr.shooters.len() {
+            tr.ensure_pairs(s);
+            let sg = &tr.shooters[s];
+            if matches!(sg.kind, ShooterKind::Spot { .. }) {
+                continue;
+            }
+            for r in 0..scene.polygons.len() {
+                // Culled pairs (shooter and receiver facing away within the classifier's
+                // tolerance) transfer nothing by design; this test is about visibility.
+                if tr.pairs[s].as_ref().unwrap().class[r] == PairClass::Culled {
+                    continue;
+                }
+                let n = scene.polygons[r].normal;
+                for i in 0..5 {
+                    for j in 0..5 {
+                        let (u, v) = (0.1 + 0.2 * i as f64, 0.1 + 0.2 * j as f64);
+                        let x = tr.receiver(r, u, v);
+                        let f = point_to_polygon(x, n, &sg.outline, sg.normal);
+                        // Grazing configurations (form factor below 1e-9) are decided by the
+                        // classifier's geometric tolerance, not by visibility; skip them.
+                        if f <= 1e-9 {
+                            continue;
+                        }
+                        let behind = sg.samples.iter().any(|&(y, _)| n.dot(y - x) <= 0.0);
+                        let front = sg.samples.iter().any(|&(y, _)| n.dot(y - x) > 0.0);
+                        straddling += usize::from(behind && front);
+                        let (mut seen, mut total) = (0.0, 0.0);
+                        for &(y, w) in &sg.samples {
+                            if n.dot(y - x) <= 0.0 {
+                                continue;
+                            }
+                            total += w;
+                            if !tr.bvh.occluded(x, y, r as u32, sg.polygon) {
+                                seen += w;
+                            }
+                        }
+                        let vis = if front { seen / total } else { 1.0 };
+                        assert_eq!(
+                            tr.transfer(s, r, u, v),
+                            DVec3::splat(f * vis),
+                            "shooter {s} receiver {r} ({u}, {v})"
+                        );
+                    }
+                }
+            }
+        }
+        assert!(straddling > 0, "the case this guards never occurred");
     }
 
     /// Hull faces of two parallel unit squares one apart: 4 side faces (each found 4 times, from
