@@ -38,6 +38,13 @@ pub trait PatchSource: Sync {
     fn locate(&self, polygon: u32, u: f32, v: f32) -> u32;
     /// The coefficients of patch `id`.
     fn patch(&self, id: u32) -> &PatchCoeffs;
+    /// The half-open parameter rectangle `[u_lo, u_hi) x [v_lo, v_hi)`, as
+    /// `[u_lo, u_hi, v_lo, v_hi]`, on which `locate` returns `id` (for the polygon `id` was located
+    /// on), if the source knows it exactly. The rasterizer then skips `locate` for samples inside
+    /// it, which cannot change any result. The default knows nothing: every sample asks `locate`.
+    fn cell(&self, _id: u32) -> Option<[f32; 4]> {
+        None
+    }
 }
 
 /// Horner's scheme: rows in s, then the rows in t.

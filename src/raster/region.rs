@@ -135,10 +135,11 @@ fn for_each_block(
                 }
                 row[k] = r - edges[k].dy * ONE * LANES as i64;
             }
+            // Non-short-circuit `&` / `|`: lane-wise compares the compiler keeps in vector registers.
             let mut mask = [false; LANES];
             let mut any = false;
             for l in 0..LANES {
-                mask[l] = acc[l] >= 0 && bx + valid[l] < rw;
+                mask[l] = (acc[l] >= 0) & (bx + valid[l] < rw);
                 any |= mask[l];
             }
             if any {
@@ -274,7 +275,7 @@ fn raster_kernel<const PERSP: bool, const KIND: u8>(
                 let gv: &mut [f32; LANES] = (&mut gb.v[i0..i0 + LANES]).try_into().unwrap();
                 let mut m = [false; LANES];
                 for l in 0..LANES {
-                    m[l] = mask[l] && (w[l] < depth[l] || (w[l] == depth[l] && id < poly[l]));
+                    m[l] = mask[l] & ((w[l] < depth[l]) | ((w[l] == depth[l]) & (id < poly[l])));
                     fragments += mask[l] as u64;
                 }
                 *depth = F32x8::select(&m, F32x8(w), F32x8(*depth)).0;
