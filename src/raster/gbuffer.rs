@@ -133,6 +133,28 @@ impl RegionGBuffer {
                     self.slot[b0..b0 + 8].fill(ls as u32);
                     continue;
                 }
+                // A block that crosses into the next patch along the row usually ends in the
+                // patch of the sample above its last lane: every lane in one of the two cells
+                // is settled with a second lane-wise test and a select.
+                if b0 % plane >= stride {
+                    let a = self.slot[b0 + 7 - stride] as usize;
+                    if a < cells.len() {
+                        let c2 = &cells[a];
+                        let mut either = [false; 8];
+                        for l in 0..8 {
+                            either[l] = inside[l] | c2.contains(polys[l], us[l], vs[l]);
+                        }
+                        if either.iter().fold(true, |x, &y| x & y) {
+                            let out: &mut [u32; 8] =
+                                (&mut self.slot[b0..b0 + 8]).try_into().unwrap();
+                            for l in 0..8 {
+                                out[l] = if inside[l] { ls as u32 } else { a as u32 };
+                            }
+                            last = Some(out[7] as usize);
+                            continue;
+                        }
+                    }
+                }
             }
             for l in 0..8 {
                 let i = b0 + l;

@@ -316,13 +316,32 @@ fn raster_kernel<const PERSP: bool, const KIND: u8>(
                     ta.1 * yf + ta.2,
                     tb.1 * yf + tb.2,
                 );
+                // Depth first: w alone decides the depth test, so blocks hidden behind what the
+                // region already holds (overdraw) skip the (u, v) work and every store.
+                let mut xs = [0.0f32; LANES];
                 let mut w = [0.0f32; LANES];
+                for l in 0..LANES {
+                    xs[l] = (bx + l as u32) as f32 + fx;
+                    let qv = q.0 * xs[l] + qr;
+                    w[l] = if PERSP { 1.0 / qv.max(MIN_Q) } else { qv };
+                }
+                fragments += covered as u64;
+                let i0 = base + ly as usize * stride + bx as usize;
+                let depth: &mut [f32; LANES] = (&mut gb.depth[i0..i0 + LANES]).try_into().unwrap();
+                let poly: &mut [u32; LANES] = (&mut gb.polygon[i0..i0 + LANES]).try_into().unwrap();
+                let mut m = [false; LANES];
+                let mut pass = false;
+                for l in 0..LANES {
+                    m[l] = mask[l] & ((w[l] < depth[l]) | ((w[l] == depth[l]) & (id < poly[l])));
+                    pass |= m[l];
+                }
+                if !pass {
+                    return;
+                }
                 let mut s = [0.0f32; LANES];
                 let mut t = [0.0f32; LANES];
                 for l in 0..LANES {
-                    let x = (bx + l as u32) as f32 + fx;
-                    let qv = q.0 * x + qr;
-                    w[l] = if PERSP { 1.0 / qv.max(MIN_Q) } else { qv };
+                    let x = xs[l];
                     s[l] = sa.0 * x + sar + w[l] * (sb.0 * x + sbr);
                     t[l] = ta.0 * x + tar + w[l] * (tb.0 * x + tbr);
                 }
@@ -338,16 +357,8 @@ fn raster_kernel<const PERSP: bool, const KIND: u8>(
                     u[l] = a;
                     v[l] = b;
                 }
-                let i0 = base + ly as usize * stride + bx as usize;
-                let depth: &mut [f32; LANES] = (&mut gb.depth[i0..i0 + LANES]).try_into().unwrap();
-                let poly: &mut [u32; LANES] = (&mut gb.polygon[i0..i0 + LANES]).try_into().unwrap();
                 let gu: &mut [f32; LANES] = (&mut gb.u[i0..i0 + LANES]).try_into().unwrap();
                 let gv: &mut [f32; LANES] = (&mut gb.v[i0..i0 + LANES]).try_into().unwrap();
-                fragments += covered as u64;
-                let mut m = [false; LANES];
-                for l in 0..LANES {
-                    m[l] = mask[l] & ((w[l] < depth[l]) | ((w[l] == depth[l]) & (id < poly[l])));
-                }
                 *depth = F32x8::select(&m, F32x8(w), F32x8(*depth)).0;
                 *gu = F32x8::select(&m, F32x8(u), F32x8(*gu)).0;
                 *gv = F32x8::select(&m, F32x8(v), F32x8(*gv)).0;
