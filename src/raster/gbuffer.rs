@@ -242,3 +242,99 @@ impl std::hash::Hasher for IdHasher {
 
 /// Map from global patch id to table slot.
 pub(crate) type IdMap = HashMap<u32, u32, std::hash::BuildHasherDefault<IdHasher>>;
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// n x n square patches per polygon; `cells` says whether it reports them to the cache.
+    struct Grid {
+        n: u32,
+        cells: bool,
+        patches: Vec<PatchCoeffs>,
+    }
+
+    impl Grid {
+        fn new(polygons: u32, n: u32, cells: bool) -> Grid {
+            let mut patches = Vec::new();
+            for p in 0..polygons {
+                for k in 0..n * n {
+                    let mut c = PatchCoeffs::whole([[0.0; 16]; 3]);
+                    c.c[0][0] = (p * n * n + k) as f32;
+                    c.u0 = (k % n) as f32 / n as f32;
+                    c.v0 = (k / n) as f32 / n as f32;
+                    c.inv_w = n as f32;
+                    patches.push(c);
+                }
+            }
+            Grid { n, cells, patches }
+        }
+    }
+
+    impl PatchSource for Grid {
+        fn locate(&self, polygon: u32, u: f32, v: f32) -> u32 {
+            let n = self.n;
+            let i = ((u * n as f32) as u32).min(n - 1);
+            let j = ((v * n as f32) as u32).min(n - 1);
+            polygon * n * n + j * n + i
+        }
+        fn patch(&self, id: u32) -> &PatchCoeffs {
+            &self.patches[id as usize]
+        }
+        // With n a power of two, u * n is exact, so the cell is exactly where `locate` answers.
+        fn cell(&self, id: u32) -> Option<[f32; 4]> {
+            let p = &self.patches[id as usize];
+            let w = 1.0 / p.inv_w;
+            self.cells.then_some([p.u0, p.u0 + w, p.v0, p.v0 + w])
+        }
+    }
+
+    /// Two polygons, smooth (u, v) ramps crossing many patch sides inside blocks, rows that
+    /// change polygon, scattered empty samples and out-of-ramp samples, in 2 sample planes.
+    fn filled(region_w: u32, region_h: u32) -> RegionGBuffer {
+        let mut gb = RegionGBuffer::new(0, 0, 0, region_w, region_h, 2);
+        let mut seed = 12345u32;
+        let stride = gb.stride as usize;
+        for i in 0..gb.len() {
+            seed = seed.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+            let (x, y) = ((i % stride) as f32, ((i / stride) % region_h as usize) as f32);
+            let plane = i / (stride * region_h as usize);
+            if (i % stride) as u32 >= region_w || seed >> 28 == 0 {
+                continue; // padding lane or a hole
+            }
+            gb.polygon[i] = if (y as u32 / 5 + plane as u32) % 3 == 0 { 1 } else { 0 };
+            gb.depth[i] = 1.0;
+            let jitter = if seed >> 27 == 31 { 0.37 } else { 0.0 };
+            gb.u[i] = ((x * 0.0137 + jitter) % 1.0).min(1.0);
+            gb.v[i] = (y * 0.019 + plane as f32 * 0.1).min(1.0);
+        }
+        gb
+    }
+
+    #[test]
+    fn every_sample_gets_the_patch_locate_returns_and_the_table_is_canonical() {
+        let (with, without) = (Grid::new(2, 16, true), Grid::new(2, 16, false));
+        let mut a = filled(72, 40);
+        let mut b = a.clone();
+        a.assign_patches(&with);
+        b.assign_patches(&without);
+        let mut checked = 0;
+        for i in 0..a.len() {
+            let p = a.polygon[i];
+            if p == NO_POLYGON {
+                assert_eq!(a.slot[i], 0);
+                continue;
+            }
+            let want = with.locate(p, a.u[i], a.v[i]);
+            assert_eq!(a.table_ids[a.slot[i] as usize], want, "sample {i}");
+            assert_eq!(a.table[a.slot[i] as usize], *with.patch(want));
+            checked += 1;
+        }
+        assert!(checked > 4000, "only {checked} samples checked");
+        // The cache only skips work: same slots, same table order as asking for every sample.
+        assert_eq!(a.slot, b.slot);
+        assert_eq!(a.table_ids, b.table_ids);
+        // Sanity: the ramps really cross patches (16 x 16 cells over ~1 x 0.9 of the domain).
+        assert!(a.table_ids.len() > 100, "{} patches", a.table_ids.len());
+    }
+}
