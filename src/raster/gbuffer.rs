@@ -297,12 +297,19 @@ mod tests {
         let stride = gb.stride as usize;
         for i in 0..gb.len() {
             seed = seed.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
-            let (x, y) = ((i % stride) as f32, ((i / stride) % region_h as usize) as f32);
+            let (x, y) = (
+                (i % stride) as f32,
+                ((i / stride) % region_h as usize) as f32,
+            );
             let plane = i / (stride * region_h as usize);
             if (i % stride) as u32 >= region_w || seed >> 28 == 0 {
                 continue; // padding lane or a hole
             }
-            gb.polygon[i] = if (y as u32 / 5 + plane as u32) % 3 == 0 { 1 } else { 0 };
+            gb.polygon[i] = if (y as u32 / 5 + plane as u32) % 3 == 0 {
+                1
+            } else {
+                0
+            };
             gb.depth[i] = 1.0;
             let jitter = if seed >> 27 == 31 { 0.37 } else { 0.0 };
             gb.u[i] = ((x * 0.0137 + jitter) % 1.0).min(1.0);

@@ -7,8 +7,13 @@
 //! functions are fixed-width `[i64; 8]` lanes whose sign bits are OR-ed into a coverage mask, and
 //! depth, 1/w and the plane coordinates are `[f32; 8]` lanes; the bilinear inverse, the depth test
 //! and the writes are computed for all 8 lanes and committed through masks (select), with no
-//! per-sample branch. The only branches are per block (skip a block no sample of which is covered)
-//! and per primitive (perspective or orthographic, quad or triangle), monomorphized out of the loop.
+//! per-sample branch. The only branches are per row (a conservative span of covered columns from
+//! the edges' slopes, so thin and slanted primitives do not walk their empty bounding box), per
+//! block (interior blocks skip the per-lane edge test; blocks with no covered sample are skipped;
+//! blocks whose every covered sample fails the depth test skip the (u, v) work and the stores) and
+//! per primitive (perspective or orthographic, quad or triangle, up to 4 or up to 9 edges),
+//! monomorphized out of the loop. None of them changes a result: the exact integer edge test and
+//! the depth test still decide every sample.
 //!
 //! The per-pixel linear expressions are re-based at each region's origin in f64 and only then
 //! rounded to f32, so their f32 evaluation works with small local coordinates and keeps its
