@@ -26,7 +26,7 @@ use std::time::{Duration, Instant};
 
 use crossbeam::channel::{Receiver, Sender};
 
-use crate::raster::gbuffer::{RegionGBuffer, NO_POLYGON};
+use crate::raster::gbuffer::{IdMap, RegionGBuffer, NO_POLYGON};
 use crate::shading::PatchCoeffs;
 
 pub use crate::raster::gbuffer::PIXEL_RECORD_BYTES;
@@ -78,7 +78,7 @@ pub fn composite(mut parts: Vec<RegionGBuffer>) -> RegionGBuffer {
         }
     }
     // Canonical table: memory order of first use.
-    let mut index: HashMap<u32, u32> = HashMap::new();
+    let mut index = IdMap::default();
     let mut table: Vec<PatchCoeffs> = Vec::new();
     let mut ids = Vec::new();
     for i in 0..n {

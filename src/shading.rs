@@ -38,6 +38,13 @@ pub trait PatchSource: Sync {
     fn locate(&self, polygon: u32, u: f32, v: f32) -> u32;
     /// The coefficients of patch `id`.
     fn patch(&self, id: u32) -> &PatchCoeffs;
+    /// The half-open parameter rectangle `[u_lo, u_hi) x [v_lo, v_hi)`, as
+    /// `[u_lo, u_hi, v_lo, v_hi]`, on which `locate` returns `id` (for the polygon `id` was located
+    /// on), if the source knows it exactly. The rasterizer then skips `locate` for samples inside
+    /// it, which cannot change any result. The default knows nothing: every sample asks `locate`.
+    fn cell(&self, _id: u32) -> Option<[f32; 4]> {
+        None
+    }
 }
 
 /// Horner's scheme: rows in s, then the rows in t.
@@ -211,8 +218,9 @@ fn shade_region_body(
             }
         }
         let out = &mut dst[y * pitch..y * pitch + w];
-        for (x, o) in out.iter_mut().enumerate() {
-            *o = Vec3::new(acc[0][x], acc[1][x], acc[2][x]);
+        let [r, g, b] = &acc;
+        for (o, ((r, g), b)) in out.iter_mut().zip(r.iter().zip(g).zip(b)) {
+            *o = Vec3::new(*r, *g, *b);
         }
     }
     counts
@@ -327,6 +335,26 @@ mod tests {
                     got[ch]
                 );
             }
+        }
+    }
+
+    #[test]
+    fn sanitize_zeroes_exactly_the_non_finite_lanes() {
+        let sub = f32::from_bits(1); // smallest subnormal: finite, must survive
+        let x = F32x8([
+            1.0,
+            -0.0,
+            f32::INFINITY,
+            f32::NEG_INFINITY,
+            f32::NAN,
+            f32::MAX,
+            sub,
+            -3.5,
+        ]);
+        let got = sanitize8(x);
+        for l in 0..LANES {
+            let want = if x.0[l].is_finite() { x.0[l] } else { 0.0 };
+            assert_eq!(got.0[l].to_bits(), want.to_bits(), "lane {l}");
         }
     }
 

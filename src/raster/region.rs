@@ -7,8 +7,13 @@
 //! functions are fixed-width `[i64; 8]` lanes whose sign bits are OR-ed into a coverage mask, and
 //! depth, 1/w and the plane coordinates are `[f32; 8]` lanes; the bilinear inverse, the depth test
 //! and the writes are computed for all 8 lanes and committed through masks (select), with no
-//! per-sample branch. The only branches are per block (skip a block no sample of which is covered)
-//! and per primitive (perspective or orthographic, quad or triangle), monomorphized out of the loop.
+//! per-sample branch. The only branches are per row (a conservative span of covered columns from
+//! the edges' slopes, so thin and slanted primitives do not walk their empty bounding box), per
+//! block (interior blocks skip the per-lane edge test; blocks with no covered sample are skipped;
+//! blocks whose every covered sample fails the depth test skip the (u, v) work and the stores) and
+//! per primitive (perspective or orthographic, quad or triangle, up to 4 or up to 9 edges),
+//! monomorphized out of the loop. None of them changes a result: the exact integer edge test and
+//! the depth test still decide every sample.
 //!
 //! The per-pixel linear expressions are re-based at each region's origin in f64 and only then
 //! rounded to f32, so their f32 evaluation works with small local coordinates and keeps its
@@ -23,7 +28,9 @@
 
 use super::gbuffer::RegionGBuffer;
 use super::geometry::plane;
-use super::setup::{clamp_uv, invert_bilinear, triangle_u, InverseKind, Prim, ONE};
+use super::setup::{
+    clamp_uv, invert_bilinear, triangle_u, Edge, InverseKind, Prim, MAX_EDGES, ONE,
+};
 use crate::lanes::F32x8;
 
 /// Lanes per block.
@@ -89,16 +96,23 @@ impl RegionGrid {
     }
 }
 
-/// Calls `visit(local_y, block_x, edge_mask)` for every block of 8 samples of one sample position
-/// (`offset`, fixed point within the pixel) of region `rect` that the primitive covers at least
-/// partly. `mask[l]` is whether lane l is covered (and inside the region).
+/// Calls `visit(local_y, block_x, edge_mask, covered)` for every block of 8 samples of one sample
+/// position (`offset`, fixed point within the pixel) of region `rect` that the primitive covers at
+/// least partly. `mask[l]` is whether lane l is covered (and inside the region); `covered` is the
+/// number of such lanes.
+///
+/// `N` is the number of edge functions evaluated per block, a compile-time constant (4 for
+/// triangles and quads, [`MAX_EDGES`] for clipped polygons) so the edge loop is unrolled; edges
+/// beyond the primitive's own are the constant function 0 (dx = dy = 0, bias 0), which covers
+/// every sample and so leaves the mask unchanged.
 #[inline(always)]
-fn for_each_block(
+fn for_each_block<const N: usize>(
     prim: &Prim,
     rect: (u32, u32, u32, u32),
     offset: (i64, i64),
-    mut visit: impl FnMut(u32, u32, &[bool; LANES]),
+    mut visit: impl FnMut(u32, u32, &[bool; LANES], u32),
 ) {
+    debug_assert!(prim.n_edges <= N);
     let (rx, ry, rw, rh) = rect;
     let [bx0, by0, bx1, by1] = prim.bbox;
     if bx1 < rx || by1 < ry || bx0 >= rx + rw || by0 >= ry + rh {
@@ -108,44 +122,106 @@ fn for_each_block(
     let lx1 = bx1.min(rx + rw - 1) - rx; // inclusive
     let ly0 = by0.max(ry) - ry;
     let ly1 = by1.min(ry + rh - 1) - ry;
-    let n = prim.n_edges;
-    let edges = &prim.edges[..n];
-    let mut lane_step = [[0i64; LANES]; super::setup::MAX_EDGES];
+    // Unused entries of `prim.edges` are `Edge::default()`: the constant 0 (see above).
+    let edges: &[Edge; N] = prim.edges[..N].try_into().unwrap();
+    let mut lane_step = [[0i64; LANES]; N];
+    let mut block_step = [0i64; N];
+    let mut min_step = [0i64; N];
     for (k, e) in edges.iter().enumerate() {
         for (l, s) in lane_step[k].iter_mut().enumerate() {
             *s = -e.dy * ONE * l as i64;
         }
+        block_step[k] = e.dy * ONE * LANES as i64;
+        min_step[k] = (-e.dy * ONE * (LANES as i64 - 1)).min(0);
     }
     let valid: [u32; LANES] = std::array::from_fn(|l| l as u32);
-    let mut row = [0i64; super::setup::MAX_EDGES];
-    for ly in ly0..=ly1 {
+    let mut row = [0i64; N];
+    for ly in ly0..ly1 + 1 {
         let y = (ry + ly) as i64 * ONE + offset.1;
         let x = (rx + lx0) as i64 * ONE + offset.0;
         for (k, e) in edges.iter().enumerate() {
             row[k] = e.at(x, y);
         }
-        let mut bx = lx0;
-        while bx <= lx1 {
-            let mut acc = [0i64; LANES];
-            for k in 0..n {
-                let r = row[k];
-                let st = &lane_step[k];
-                for l in 0..LANES {
-                    acc[l] |= r + st[l];
-                }
-                row[k] = r - edges[k].dy * ONE * LANES as i64;
+        // The row's covered columns p satisfy, for every edge, row + (lx0 - p) * dy * ONE >= 0,
+        // i.e. p >= q (dy < 0) or p <= q (dy > 0) with q = lx0 + row / (dy * ONE). The bounds
+        // are widened by a pixel against f64 rounding (|q| < 2^40, far below a pixel of error),
+        // so the span only skips blocks the exact integer test would reject anyway: it spares
+        // the edge lanes of the empty blocks around thin or slanted primitives.
+        let (mut lo, mut hi) = (lx0 as f64, lx1 as f64);
+        for k in 0..N {
+            let d = (edges[k].dy * ONE) as f64;
+            let q = lx0 as f64 + row[k] as f64 / d;
+            if d < 0.0 {
+                lo = lo.max(q - 1.0);
+            } else if d > 0.0 {
+                hi = hi.min(q + 1.0);
+            } else if row[k] < 0 {
+                hi = -1.0;
+            }
+        }
+        if lo > hi {
+            continue;
+        }
+        // lx0 <= lo <= hi <= lx1 here, so both casts are in range.
+        let start = lo as u32 / LANES as u32 * LANES as u32;
+        let end = hi as u32;
+        for k in 0..N {
+            row[k] -= edges[k].dy * ONE * (start - lx0) as i64;
+        }
+        let mut bx = start;
+        while bx <= end {
+            // Interior blocks first: an edge function is linear along the row, so its smallest
+            // lane value is at lane 0 or lane 7 (`min_step`); when every edge's smallest value is
+            // >= 0 all 8 lanes are covered and the per-lane test is skipped (N scalar adds).
+            let mut inner = 0i64;
+            for k in 0..N {
+                inner |= row[k] + min_step[k];
             }
             let mut mask = [false; LANES];
-            let mut any = false;
-            for l in 0..LANES {
-                mask[l] = acc[l] >= 0 && bx + valid[l] < rw;
-                any |= mask[l];
+            let mut count = 0u32;
+            if inner >= 0 {
+                for l in 0..LANES {
+                    mask[l] = bx + valid[l] < rw;
+                    count += mask[l] as u32;
+                }
+            } else {
+                let mut acc = [0i64; LANES];
+                for k in 0..N {
+                    let r = row[k];
+                    let st = &lane_step[k];
+                    for l in 0..LANES {
+                        acc[l] |= r + st[l];
+                    }
+                }
+                // Non-short-circuit `&`: lane-wise compares without branches.
+                for l in 0..LANES {
+                    mask[l] = (acc[l] >= 0) & (bx + valid[l] < rw);
+                    count += mask[l] as u32;
+                }
             }
-            if any {
-                visit(ly, bx, &mask);
+            for k in 0..N {
+                row[k] -= block_step[k];
+            }
+            if count != 0 {
+                visit(ly, bx, &mask, count);
             }
             bx += LANES as u32;
         }
+    }
+}
+
+/// Runs [`for_each_block`] with the smallest compiled edge count that holds the primitive's edges.
+#[inline(always)]
+fn dispatch_edges(
+    prim: &Prim,
+    rect: (u32, u32, u32, u32),
+    offset: (i64, i64),
+    visit: impl FnMut(u32, u32, &[bool; LANES], u32),
+) {
+    if prim.n_edges <= 4 {
+        for_each_block::<4>(prim, rect, offset, visit)
+    } else {
+        for_each_block::<MAX_EDGES>(prim, rect, offset, visit)
     }
 }
 
@@ -231,12 +307,12 @@ fn raster_kernel<const PERSP: bool, const KIND: u8>(
         let off = offset_fixed(offsets, si);
         let (fx, fy) = (off.0 as f32 / ONE as f32, off.1 as f32 / ONE as f32);
         let base = si * plane_len;
-        for_each_block(
+        dispatch_edges(
             prim,
             rect,
             off,
             #[inline(always)]
-            |ly, bx, mask| {
+            |ly: u32, bx: u32, mask: &[bool; LANES], covered: u32| {
                 let yf = ly as f32 + fy;
                 let (qr, sar, sbr, tar, tbr) = (
                     q.1 * yf + q.2,
@@ -245,13 +321,32 @@ fn raster_kernel<const PERSP: bool, const KIND: u8>(
                     ta.1 * yf + ta.2,
                     tb.1 * yf + tb.2,
                 );
+                // Depth first: w alone decides the depth test, so blocks hidden behind what the
+                // region already holds (overdraw) skip the (u, v) work and every store.
+                let mut xs = [0.0f32; LANES];
                 let mut w = [0.0f32; LANES];
+                for l in 0..LANES {
+                    xs[l] = (bx + l as u32) as f32 + fx;
+                    let qv = q.0 * xs[l] + qr;
+                    w[l] = if PERSP { 1.0 / qv.max(MIN_Q) } else { qv };
+                }
+                fragments += covered as u64;
+                let i0 = base + ly as usize * stride + bx as usize;
+                let depth: &mut [f32; LANES] = (&mut gb.depth[i0..i0 + LANES]).try_into().unwrap();
+                let poly: &mut [u32; LANES] = (&mut gb.polygon[i0..i0 + LANES]).try_into().unwrap();
+                let mut m = [false; LANES];
+                let mut pass = false;
+                for l in 0..LANES {
+                    m[l] = mask[l] & ((w[l] < depth[l]) | ((w[l] == depth[l]) & (id < poly[l])));
+                    pass |= m[l];
+                }
+                if !pass {
+                    return;
+                }
                 let mut s = [0.0f32; LANES];
                 let mut t = [0.0f32; LANES];
                 for l in 0..LANES {
-                    let x = (bx + l as u32) as f32 + fx;
-                    let qv = q.0 * x + qr;
-                    w[l] = if PERSP { 1.0 / qv.max(MIN_Q) } else { qv };
+                    let x = xs[l];
                     s[l] = sa.0 * x + sar + w[l] * (sb.0 * x + sbr);
                     t[l] = ta.0 * x + tar + w[l] * (tb.0 * x + tbr);
                 }
@@ -267,22 +362,16 @@ fn raster_kernel<const PERSP: bool, const KIND: u8>(
                     u[l] = a;
                     v[l] = b;
                 }
-                let i0 = base + ly as usize * stride + bx as usize;
-                let depth: &mut [f32; LANES] = (&mut gb.depth[i0..i0 + LANES]).try_into().unwrap();
-                let poly: &mut [u32; LANES] = (&mut gb.polygon[i0..i0 + LANES]).try_into().unwrap();
                 let gu: &mut [f32; LANES] = (&mut gb.u[i0..i0 + LANES]).try_into().unwrap();
                 let gv: &mut [f32; LANES] = (&mut gb.v[i0..i0 + LANES]).try_into().unwrap();
-                let mut m = [false; LANES];
-                for l in 0..LANES {
-                    m[l] = mask[l] && (w[l] < depth[l] || (w[l] == depth[l] && id < poly[l]));
-                    fragments += mask[l] as u64;
-                }
                 *depth = F32x8::select(&m, F32x8(w), F32x8(*depth)).0;
                 *gu = F32x8::select(&m, F32x8(u), F32x8(*gu)).0;
                 *gv = F32x8::select(&m, F32x8(v), F32x8(*gv)).0;
+                // Integer select through an all-ones / all-zeros lane mask (a vector blend).
                 let mut p = [0u32; LANES];
                 for l in 0..LANES {
-                    p[l] = if m[l] { id } else { poly[l] };
+                    let all = (m[l] as u32).wrapping_neg();
+                    p[l] = (id & all) | (poly[l] & !all);
                 }
                 *poly = p;
             },
@@ -300,14 +389,19 @@ pub fn coverage_counts(prims: &[Prim], width: u32, height: u32, region: u32) -> 
     for r in 0..grid.count() as u32 {
         let rect = grid.rect(r);
         for p in prims {
-            for_each_block(p, rect, (ONE / 2, ONE / 2), |ly, bx, mask| {
-                for l in 0..LANES {
-                    let (x, y) = (rect.0 + bx + l as u32, rect.1 + ly);
-                    if mask[l] {
-                        counts[(y * width + x) as usize] += 1;
+            dispatch_edges(
+                p,
+                rect,
+                (ONE / 2, ONE / 2),
+                |ly, bx, mask: &[bool; LANES], _| {
+                    for l in 0..LANES {
+                        let (x, y) = (rect.0 + bx + l as u32, rect.1 + ly);
+                        if mask[l] {
+                            counts[(y * width + x) as usize] += 1;
+                        }
                     }
-                }
-            });
+                },
+            );
         }
     }
     counts

@@ -626,4 +626,15 @@ impl crate::shading::PatchSource for Reconstruction {
     fn patch(&self, id: u32) -> &PatchCoeffs {
         Reconstruction::patch(self, id)
     }
+
+    /// The patch's cell `[u0, u0 + w) x [v0, v0 + w)`: u0 is a multiple of 2^-16 and w = 1 / inv_w
+    /// a power of two, all exact in f32, and `u * 2^16` is exact, so `u >= u0 && u < u0 + w` holds
+    /// exactly when `locate`'s lattice coordinate falls in the leaf's lattice range (the same
+    /// reasoning as in [`Reconstruction::eval_many`]).
+    #[inline]
+    fn cell(&self, id: u32) -> Option<[f32; 4]> {
+        let p = self.patch(id);
+        let w = 1.0 / p.inv_w;
+        Some([p.u0, p.u0 + w, p.v0, p.v0 + w])
+    }
 }

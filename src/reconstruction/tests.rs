@@ -505,6 +505,31 @@ proptest! {
         }
     }
 
+    /// `PatchSource::cell` is what lets the rasterizer skip `locate`: it must be exactly the set
+    /// where `locate` answers the patch. Every located point lies in its patch's cell (closed at
+    /// u or v = 1, where `locate` clamps), and the cell's extreme floats (its lower corner and the
+    /// largest f32 below its upper sides) all locate to the same patch, down to depth-16 cells.
+    #[test]
+    fn cells_are_exactly_where_locate_answers(
+        choices in prop::collection::vec(any::<u32>(), 1..80),
+        pts in prop::collection::vec((0.0f32..=1.0, 0.0f32..=1.0), 1..40),
+    ) {
+        use crate::shading::PatchSource;
+        let tree = random_tree(&choices, MAX_DEPTH);
+        let sq = SampledQuadtree::from_fn(tree, |u, v| Vec3::splat((u + 2.0 * v) as f32));
+        let rec = build1(&sq, Estimator::Plain);
+        let below = |x: f32| f32::from_bits(x.to_bits() - 1);
+        for (u, v) in pts.into_iter().chain([(1.0, 1.0), (0.0, 1.0), (1.0, 0.0)]) {
+            let id = rec.locate(0, u, v);
+            let [u0, u1, v0, v1] = PatchSource::cell(&rec, id).unwrap();
+            prop_assert!(u >= u0 && (u < u1 || (u == 1.0 && u1 == 1.0)), "u {u} in [{u0}, {u1})");
+            prop_assert!(v >= v0 && (v < v1 || (v == 1.0 && v1 == 1.0)), "v {v} in [{v0}, {v1})");
+            for (cu, cv) in [(u0, v0), (below(u1), v0), (u0, below(v1)), (below(u1), below(v1))] {
+                prop_assert_eq!(rec.locate(0, cu, cv), id);
+            }
+        }
+    }
+
     #[test]
     fn c1_on_random_unrestricted_trees(choices in prop::collection::vec(any::<u32>(), 1..50)) {
         let tree = random_tree(&choices, 12);
