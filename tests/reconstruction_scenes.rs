@@ -35,7 +35,7 @@ fn overshoot(r: &Reconstruction, sol: &[pixelflow_sim::quadtree::SampledQuadtree
 
 #[test]
 fn shipped_scene_rrps_are_compact_and_the_monotone_estimator_does_not_ring() {
-    for name in ["two-spots", "cornell-box"] {
+    for name in ["two-spots", "cornell-box", "gallery"] {
         let path = Path::new(env!("CARGO_MANIFEST_DIR"))
             .join("scenes")
             .join(format!("{name}.toml"));
@@ -68,13 +68,24 @@ fn shipped_scene_rrps_are_compact_and_the_monotone_estimator_does_not_ring() {
             o_plain,
             o_mono
         );
-        // Model only what the scene needs: far fewer patches than full grids at the same depth.
+        // Model only what the scene needs: never more patches than full grids at each polygon's
+        // depth, and far fewer where the subdivision is adaptive and deep (two-spots and the
+        // Cornell box reach depth 7 in places; the gallery's polygons are mostly shallow and
+        // uniformly split, so there the two are close).
         assert!(
-            s.bytes * 2 < s.full_grid_bytes,
-            "{name}: {} B stored vs {} B full grid",
-            s.bytes,
-            s.full_grid_bytes
+            s.patches <= s.full_grid_patches,
+            "{name}: {} patches vs {} in full grids",
+            s.patches,
+            s.full_grid_patches
         );
+        if name != "gallery" {
+            assert!(
+                s.bytes * 2 < s.full_grid_bytes,
+                "{name}: {} B stored vs {} B full grid",
+                s.bytes,
+                s.full_grid_bytes
+            );
+        }
         // The monotone estimator's ringing is a 2-D effect of a fraction of a percent of a
         // polygon's range (module docs: 0.18 % on a spot); 1 % catches a limiter that stopped
         // working, and it never rings more than the plain estimator.
