@@ -525,33 +525,15 @@ impl<'a> Transfer<'a> {
         if nn == 0 {
             return 1.0;
         }
-        let n = self.scene.polygons[r].normal;
-        if !any_in_front(&n, x, &sg.samples) {
-            return 1.0;
-        }
-        let (mut seen, mut total) = (0.0, 0.0);
-        for &(y, w) in &sg.samples {
-            if n.dot(y - x) <= 0.0 {
-                continue;
-            }
-            total += w;
-            let d = y - x;
-            let hit = if many {
+        self.visible_fraction(sg, r, x, |y| {
+            if many {
                 self.bvh.occluded(x, y, r as u32, sg.polygon)
             } else {
-                near[..nn].iter().any(|&q| self.bvh.hits(q as usize, x, d))
-            };
-            if !hit {
-                seen += w;
+                near[..nn]
+                    .iter()
+                    .any(|&q| self.bvh.hits(q as usize, x, y - x))
             }
-        }
-        self.rays
-            .fetch_add(sg.samples.len() as u64, Ordering::Relaxed);
-        if total > 0.0 {
-            (seen / total).clamp(0.0, 1.0)
-        } else {
-            0.0
-        }
+        })
     }
 
     /// [`Transfer::visibility`] for a shooter with few sample points: filtering the candidates
@@ -561,6 +543,25 @@ impl<'a> Transfer<'a> {
     /// one outside the pair's candidates cannot meet the hull that holds them; the weights are
     /// summed in the same order, so even the rounding is the same.
     fn visibility_unfiltered(&self, sg: &ShooterGeom, r: usize, cands: &[u32], x: DVec3) -> f64 {
+        self.visible_fraction(sg, r, x, |y| {
+            if cands.len() <= LONG_CANDIDATE_LIST {
+                cands.iter().any(|&q| self.bvh.hits(q as usize, x, y - x))
+            } else {
+                self.bvh.occluded(x, y, r as u32, sg.polygon)
+            }
+        })
+    }
+
+    /// Area-weighted fraction of the shooter's sample points in front of receiver `r`'s plane
+    /// at `x` that `blocked` does not block, summed in sample order (see [`any_in_front`] for
+    /// why only points in front count, and for the case where none is). Counts the rays cast.
+    fn visible_fraction(
+        &self,
+        sg: &ShooterGeom,
+        r: usize,
+        x: DVec3,
+        blocked: impl Fn(DVec3) -> bool,
+    ) -> f64 {
         let n = self.scene.polygons[r].normal;
         if !any_in_front(&n, x, &sg.samples) {
             return 1.0;
@@ -571,13 +572,7 @@ impl<'a> Transfer<'a> {
                 continue;
             }
             total += w;
-            let hit = if cands.len() <= LONG_CANDIDATE_LIST {
-                let d = y - x;
-                cands.iter().any(|&q| self.bvh.hits(q as usize, x, d))
-            } else {
-                self.bvh.occluded(x, y, r as u32, sg.polygon)
-            };
-            if !hit {
+            if !blocked(y) {
                 seen += w;
             }
         }
