@@ -79,13 +79,13 @@ pub enum Error {
     #[error("{0}")]
     Usage(String),
     /// An operating-system I/O failure on a named path.
-    #[error("{}: {source}", path.display())]
+    #[error("{}: {error}", path.display())]
     Io {
         /// The path that failed.
         path: PathBuf,
-        /// The underlying error.
-        #[source]
-        source: std::io::Error,
+        /// The underlying error (shown in the message, deliberately not chained as a `source`:
+        /// `anyhow`'s `{:#}` would print it twice).
+        error: std::io::Error,
     },
     /// A failure while running that is not the input's fault.
     #[error("{0}")]
@@ -105,7 +105,7 @@ impl Error {
     pub fn io(path: impl AsRef<Path>, source: std::io::Error) -> Self {
         Error::Io {
             path: path.as_ref().to_path_buf(),
-            source,
+            error: source,
         }
     }
 

@@ -10,6 +10,7 @@ use clap::{Parser, Subcommand};
 use pixelflow_sim::error::EXIT_FAILURE;
 use pixelflow_sim::pipeline::{self, Method, RenderEvent, RenderRequest};
 use pixelflow_sim::raster::FrameOptions;
+use pixelflow_sim::scene::MAX_IMAGE_DIM;
 use pixelflow_sim::Error;
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -224,6 +225,12 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 renderers,
                 ..FrameOptions::new(p.scene.width, p.scene.height)
             };
+            if let Some(bad) = sizes.iter().find(|&&s| s == 0 || s > MAX_IMAGE_DIM) {
+                return Err(Error::Usage(format!(
+                    "--sizes {bad}: every size must be in 1..={MAX_IMAGE_DIM}"
+                ))
+                .into());
+            }
             let sizes: Vec<(u32, u32)> = sizes.iter().map(|&s| (s, s)).collect();
             let rows = pipeline::bench(&p, Method::Direct, &sizes, frames, &base)?;
             if json {

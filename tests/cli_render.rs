@@ -207,3 +207,27 @@ fn walkthrough_renders_every_frame_of_the_camera_path() {
         serde_json::from_str(&std::fs::read_to_string(&stats).unwrap()).unwrap();
     assert_eq!(json.as_array().map(Vec::len), Some(3));
 }
+
+#[test]
+fn an_unwritable_output_is_a_runtime_failure_reported_once() {
+    // The output's parent is a regular file, so the directory cannot be created: a failure while
+    // running (exit 1), not bad input; the OS error appears once in the message.
+    let file = tmp("not-a-dir");
+    std::fs::write(&file, b"x").unwrap();
+    let out = file.join("frame.png");
+    let o = run(&[
+        "render",
+        scene("two-spots").to_str().unwrap(),
+        "--width",
+        "8",
+        "--height",
+        "8",
+        "-o",
+        out.to_str().unwrap(),
+        "--quiet",
+    ]);
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    let msg = stderr(&o);
+    assert!(msg.contains("not-a-dir"), "{msg}");
+    assert_eq!(msg.matches("os error").count(), 1, "{msg}");
+}
