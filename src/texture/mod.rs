@@ -20,6 +20,7 @@
 //! solution had at its finest level, which is the paper's equal-quality comparison.
 
 use glam::Vec3;
+use rayon::prelude::*;
 
 use crate::error::{Error, Result};
 use crate::quadtree::SampledQuadtree;
@@ -456,7 +457,7 @@ impl TextureSet {
     }
 
     /// Builds every polygon's texture by resampling its RRP at the side `policy` chooses from
-    /// `depths` (one per polygon, see [`TextureSet::depths`]), with mip chains. Errors if
+    /// `depths` (one per polygon, see [`TextureSet::depths`]), with mip chains, in parallel. Errors if
     /// `depths.len()` differs from the polygon count or as [`TextureSet::sides`].
     pub fn build(recon: &Reconstruction, depths: &[u32], policy: SizePolicy) -> Result<TextureSet> {
         if depths.len() != recon.polygon_count() {
@@ -467,8 +468,10 @@ impl TextureSet {
             )));
         }
         let sides = Self::sides(depths, policy)?;
+        // One independent job per polygon; collect keeps polygon order, so the result does not
+        // depend on the thread count.
         let textures = sides
-            .iter()
+            .par_iter()
             .enumerate()
             .map(|(p, &n)| RadiosityTexture::from_rrp(recon, p as u32, n))
             .collect();

@@ -268,3 +268,31 @@ fn from_texels_rejects_bad_input() {
     let sizes: Vec<_> = t.levels.iter().map(|l| (l.width, l.height)).collect();
     assert_eq!(sizes, [(4, 2), (2, 1), (1, 1)]);
 }
+
+#[test]
+fn from_depth_memory_matches_the_reconstruction_stats() {
+    // ReconstructionStats counts equal-quality textures with the same rule (2^depth + 1 rounded
+    // up to a power of two, squared, 3 / 4.5 / 12 bytes a texel): the two must agree.
+    let mut trees = Vec::new();
+    for d in 0..4u32 {
+        let mut t = Quadtree::new();
+        let mut id = 0;
+        for _ in 0..d {
+            id = t.split(id);
+        }
+        trees.push(SampledQuadtree::from_fn(t, |u, v| {
+            Vec3::new(u as f32, v as f32, 1.0)
+        }));
+    }
+    let recon = Reconstruction::build(&trees, Estimator::default()).unwrap();
+    let set =
+        TextureSet::build(&recon, &TextureSet::depths(&trees), SizePolicy::FromDepth).unwrap();
+    let st = recon.stats();
+    assert_eq!(set.memory.textures, 4);
+    assert_eq!(set.memory.texels, st.texture_texels as u64);
+    assert_eq!(set.memory.texels, 4 + 16 + 64 + 256);
+    assert_eq!(set.memory.bytes[0], st.texture_bytes_8 as u64);
+    assert_eq!(set.memory.bytes[2], st.texture_bytes_32 as u64);
+    let sides: Vec<u32> = set.textures.iter().map(|t| t.width).collect();
+    assert_eq!(sides, [2, 4, 8, 16]);
+}
