@@ -228,6 +228,24 @@ impl RadiosityTexture {
         }
     }
 
+    /// Samples `uv.len().min(out.len())` points of level `level`: `out[k] = sample(level, uv[k])`,
+    /// with the level lookup, the filter match and the cubic's coefficients hoisted out of the
+    /// loop (the form the deferred pass uses for a run of pixels).
+    pub fn sample_many(&self, level: usize, uv: &[[f32; 2]], filter: Filter, out: &mut [Vec3]) {
+        let l = &self.levels[level.min(self.last_level())];
+        let pts = uv.iter().zip(out.iter_mut());
+        match filter {
+            Filter::Nearest => pts.for_each(|(p, o)| *o = nearest(l, clamp01(p[0]), clamp01(p[1]))),
+            Filter::Bilinear => {
+                pts.for_each(|(p, o)| *o = bilinear(l, clamp01(p[0]), clamp01(p[1])))
+            }
+            Filter::Bicubic { b, c } => {
+                let k = Cubic::new(b, c);
+                pts.for_each(|(p, o)| *o = bicubic(l, clamp01(p[0]), clamp01(p[1]), &k))
+            }
+        }
+    }
+
     /// Trilinear-style sampling at a fractional level of detail (from [`lod`]): the filtered
     /// values of levels floor(lod) and floor(lod) + 1 blended linearly by the fraction. `lod` is
     /// clamped to [0, last level] (NaN to 0). Chosen over nearest-level selection because it has

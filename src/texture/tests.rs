@@ -296,3 +296,26 @@ fn from_depth_memory_matches_the_reconstruction_stats() {
     let sides: Vec<u32> = set.textures.iter().map(|t| t.width).collect();
     assert_eq!(sides, [2, 4, 8, 16]);
 }
+
+#[test]
+fn sample_many_equals_sample() {
+    // Same arithmetic in the same order, so bit-identical results.
+    let t = tex(16, |i, j| seq(i) + 0.1 * seq(j + 5));
+    let uv: Vec<[f32; 2]> = (0..200)
+        .map(|k| [(k as f32 * 0.037) % 1.2 - 0.1, (k as f32 * 0.061) % 1.0])
+        .collect();
+    for f in [
+        Filter::Nearest,
+        Filter::Bilinear,
+        Filter::MITCHELL,
+        Filter::CATMULL_ROM,
+    ] {
+        for level in [0, 2, 9] {
+            let mut out = vec![Vec3::ZERO; uv.len()];
+            t.sample_many(level, &uv, f, &mut out);
+            for (p, o) in uv.iter().zip(&out) {
+                assert_eq!(*o, t.sample(level, p[0], p[1], f));
+            }
+        }
+    }
+}
