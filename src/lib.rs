@@ -24,5 +24,6 @@ pub mod reconstruction;
 pub mod report;
 pub mod scene;
 pub mod shading;
+pub mod texture;
 
 pub use error::{Error, Result};

@@ -1,0 +1,321 @@
+//! Tests of the radiosity textures: analytic filter cases, memory arithmetic, RRP resampling.
+
+use super::*;
+use crate::quadtree::Quadtree;
+use crate::reconstruction::Estimator;
+use proptest::prelude::*;
+
+/// A texture whose texel (i, j) holds f(i, j) in all three channels.
+fn tex(n: u32, f: impl Fn(u32, u32) -> f32) -> RadiosityTexture {
+    let mut t = Vec::new();
+    for j in 0..n {
+        for i in 0..n {
+            t.push(Vec3::splat(f(i, j)));
+        }
+    }
+    RadiosityTexture::from_texels(n, n, t).unwrap()
+}
+
+/// A deterministic irregular 1-D sequence (no symmetry that could hide an index error).
+fn seq(i: u32) -> f32 {
+    ((i * 37 + 11) % 17) as f32 * 0.25 - 1.0
+}
+
+#[test]
+fn mitchell_of_a_constant_is_the_constant_everywhere() {
+    // Weights sum to 1 and clamp-to-edge fetches only the constant, so the result is the
+    // constant up to a few f32 roundings of values near 2.5: 1e-5 relative is generous.
+    let t = tex(8, |_, _| 2.5);
+    for filter in [Filter::MITCHELL, Filter::CATMULL_ROM, Filter::Bilinear] {
+        for a in 0..=40 {
+            for b in 0..=40 {
+                let (u, v) = (a as f32 / 40.0, b as f32 / 40.0 * 0.99 + 0.003);
+                let s = t.sample(0, u, v, filter);
+                assert!(
+                    (s - Vec3::splat(2.5)).abs().max_element() < 2.5e-5,
+                    "{u} {v} {s}"
+                );
+            }
+        }
+    }
+}
+
+proptest! {
+    #[test]
+    fn cubic_weights_sum_to_one(t in 0.0f32..1.0, b in 0.0f32..1.0, c in 0.0f32..1.0) {
+        // Exactly 1 in real arithmetic for every (B, C); f32 evaluation of four cubics with
+        // coefficients of order 10 leaves a few ulps: 1e-5.
+        let w = Cubic::new(b, c).weights(t);
+        prop_assert!((w.iter().sum::<f32>() - 1.0).abs() < 1e-5, "{w:?}");
+        // And the branch-free weights agree with the kernel definition.
+        let k = Cubic::new(b, c);
+        let r = [k.k(1.0 + t), k.k(t), k.k(1.0 - t), k.k(2.0 - t)];
+        for (x, y) in w.iter().zip(r) {
+            prop_assert!((x - y).abs() < 1e-6);
+        }
+    }
+
+    #[test]
+    fn no_nan_for_any_coordinate(u in prop::num::f32::ANY, v in prop::num::f32::ANY,
+                                 d in prop::num::f32::ANY) {
+        let t = tex(4, |i, j| seq(i + 4 * j));
+        for f in [Filter::Nearest, Filter::Bilinear, Filter::MITCHELL] {
+            prop_assert!(t.sample(0, u, v, f).is_finite());
+            prop_assert!(t.sample_lod(d, u, v, f).is_finite());
+        }
+        prop_assert!(lod(u, v, d, u, 16, 16).is_finite());
+    }
+}
+
+#[test]
+fn kernel_values_at_integers() {
+    // FACTS.md sec. 3: k(0) = 8/9, k(1) = 1/18, k(2) = 0 for Mitchell.
+    let k = Cubic::new(1.0 / 3.0, 1.0 / 3.0);
+    assert!((k.k(0.0) - 8.0 / 9.0).abs() < 1e-6);
+    assert!((k.k(1.0) - 1.0 / 18.0).abs() < 1e-6);
+    assert!(k.k(2.0).abs() < 1e-6);
+    // The branch-free weights at t = 0 are the same values; the f32 cubic at 2 cancels to a
+    // few ulps of its O(1) terms, hence 1e-6.
+    let want = [1.0 / 18.0, 8.0 / 9.0, 1.0 / 18.0, 0.0];
+    for (w, x) in k.weights(0.0).iter().zip(want) {
+        assert!((w - x).abs() < 1e-6, "{w} vs {x}");
+    }
+}
+
+#[test]
+fn mitchell_at_a_texel_centre_blurs_its_neighbours() {
+    // Constant along v, so the vertical pass sums weights to 1 and the 1-D result remains:
+    // (8/9) f_i + (1/18)(f_{i-1} + f_{i+1}); values are O(1), so 1e-5 absolute.
+    let n = 16;
+    let t = tex(n, |i, _| seq(i));
+    for i in 1..n - 1 {
+        let u = (i as f32 + 0.5) / n as f32;
+        for v in [0.0, 0.3, 0.77, 1.0] {
+            let s = t.sample(0, u, v, Filter::MITCHELL).x;
+            let want = 8.0 / 9.0 * seq(i) + (seq(i - 1) + seq(i + 1)) / 18.0;
+            assert!((s - want).abs() < 1e-5, "i {i}: {s} vs {want}");
+        }
+    }
+    // At the edge the missing neighbour is the edge texel (clamp-to-edge).
+    let s = t.sample(0, 0.5 / n as f32, 0.5, Filter::MITCHELL).x;
+    let want = 8.0 / 9.0 * seq(0) + (seq(0) + seq(1)) / 18.0;
+    assert!((s - want).abs() < 1e-5);
+}
+
+#[test]
+fn catmull_rom_interpolates_texel_centres() {
+    // k(0) = 1, k(+-1) = k(+-2) = 0, so each texel centre returns its texel; only the f32
+    // rounding of u n - 0.5 (which may give t = 1 ulp) remains: 1e-5 on O(1) values.
+    let n = 8;
+    let t = tex(n, |i, j| seq(i) * 1.5 + seq(j + 3));
+    for j in 0..n {
+        for i in 0..n {
+            let (u, v) = ((i as f32 + 0.5) / n as f32, (j as f32 + 0.5) / n as f32);
+            let s = t.sample(0, u, v, Filter::CATMULL_ROM).x;
+            let want = seq(i) * 1.5 + seq(j + 3);
+            assert!((s - want).abs() < 1e-5, "({i}, {j}): {s} vs {want}");
+        }
+    }
+}
+
+#[test]
+fn bilinear_of_a_linear_function_is_exact_inside() {
+    // Texel (i, j) = f at its centre, f linear; inside the texel-centre hull bilinear is exact
+    // in real arithmetic; f32 rounding of values up to ~3 leaves < 1e-5.
+    let n = 16;
+    let f = |u: f32, v: f32| 0.5 + 1.25 * u - 0.75 * v;
+    let t = tex(n, |i, j| {
+        f((i as f32 + 0.5) / n as f32, (j as f32 + 0.5) / n as f32)
+    });
+    let (lo, hi) = (0.5 / n as f32, 1.0 - 0.5 / n as f32);
+    for a in 0..=37 {
+        for b in 0..=37 {
+            let u = lo + (hi - lo) * a as f32 / 37.0;
+            let v = lo + (hi - lo) * b as f32 / 37.0;
+            let s = t.sample(0, u, v, Filter::Bilinear).x;
+            assert!((s - f(u, v)).abs() < 1e-5, "{u} {v}");
+        }
+    }
+}
+
+#[test]
+fn nearest_picks_the_containing_texel() {
+    let t = tex(4, |i, j| (i + 10 * j) as f32);
+    assert_eq!(t.sample(0, 0.3, 0.6, Filter::Nearest).x, 21.0);
+    assert_eq!(t.sample(0, 1.0, 1.0, Filter::Nearest).x, 33.0);
+    assert_eq!(t.sample(0, -5.0, f32::NAN, Filter::Nearest).x, 0.0);
+}
+
+#[test]
+fn memory_of_known_sizes_is_hand_computed() {
+    // Sides 1, 2, 16, 64.
+    let m = TextureMemory::of_sides(&[1, 2, 16, 64]);
+    let base: u64 = 1 + 4 + 256 + 4096; // 4357
+    let chain: u64 = 1 + (4 + 1) + (256 + 64 + 16 + 4 + 1) + (4096 + 1024 + 256 + 64 + 16 + 4 + 1);
+    assert_eq!(m.textures, 4);
+    assert_eq!(m.texels, base);
+    assert_eq!(m.texels_with_chain, chain); // 1 + 5 + 341 + 5461 = 5808
+    assert_eq!(chain, 5808);
+    // 8 bits: 3 bytes a texel.
+    assert_eq!(m.bytes[0], 3 * 4357);
+    // 12 bits: 4.5 bytes a texel, rounded up per texture: 1x1 -> 36 bits = 5 bytes, 2x2 -> 18,
+    // 16x16 -> 1152, 64x64 -> 18432.
+    assert_eq!(m.bytes[1], 5 + 18 + 1152 + 18432);
+    // 32 bits: 12 bytes a texel.
+    assert_eq!(m.bytes[2], 12 * 4357);
+    assert_eq!(m.bytes_with_chain[0], 3 * 5808);
+    // chains at 12 bits: 1 -> 5, 5 -> 22.5 -> 23, 341 -> 1534.5 -> 1535, 5461 -> 24574.5 -> 24575.
+    assert_eq!(m.bytes_with_chain[1], 5 + 23 + 1535 + 24575);
+    assert_eq!(m.bytes_with_chain[2], 12 * 5808);
+}
+
+#[test]
+fn size_policies() {
+    assert_eq!(
+        [0, 1, 2, 3, 6, 20].map(side_from_depth),
+        [2, 4, 8, 16, 128, MAX_TEXTURE_SIZE]
+    );
+    let d = [1, 3, 6];
+    assert_eq!(
+        TextureSet::sides(&d, SizePolicy::FromDepth).unwrap(),
+        [4, 16, 128]
+    );
+    assert_eq!(
+        TextureSet::sides(&d, SizePolicy::Fixed(32)).unwrap(),
+        [32; 3]
+    );
+    assert!(TextureSet::sides(&d, SizePolicy::Fixed(24)).is_err());
+    assert!(TextureSet::sides(&d, SizePolicy::Fixed(0)).is_err());
+    // Full FromDepth at 12 bits with chains: sides 4, 16, 128 fit exactly their own size.
+    let full = TextureMemory::of_sides(&[4, 16, 128]).bytes_with_chain[1];
+    assert_eq!(
+        TextureSet::sides(&d, SizePolicy::Budget(full)).unwrap(),
+        [4, 16, 128]
+    );
+    // One byte less: halve all -> 2, 8, 64.
+    assert_eq!(
+        TextureSet::sides(&d, SizePolicy::Budget(full - 1)).unwrap(),
+        [2, 8, 64]
+    );
+    let ones = TextureMemory::of_sides(&[1, 1, 1]).bytes_with_chain[1];
+    assert_eq!(
+        TextureSet::sides(&d, SizePolicy::Budget(ones)).unwrap(),
+        [1, 1, 1]
+    );
+    assert!(TextureSet::sides(&d, SizePolicy::Budget(ones - 1)).is_err());
+}
+
+#[test]
+fn lod_from_derivatives() {
+    // 64 texels, one pixel steps 1/16 in u: 4 texels a pixel -> lod 2.
+    assert!((lod(1.0 / 16.0, 0.0, 0.0, 1.0 / 64.0, 64, 64) - 2.0).abs() < 1e-6);
+    // Magnification clamps to 0, huge minification to the last level (6).
+    assert_eq!(lod(1e-4, 0.0, 0.0, 1e-4, 64, 64), 0.0);
+    assert_eq!(lod(10.0, 0.0, 0.0, 1.0, 64, 64), 6.0);
+    assert_eq!(lod(f32::NAN, 0.0, 0.0, 0.0, 64, 64), 0.0);
+    // Trilinear: halfway between levels blends them equally.
+    let t = tex(2, |i, _| i as f32 * 2.0); // level 0: 0, 2; level 1: 1
+    let s = t.sample_lod(0.5, 0.5 / 2.0, 0.5, Filter::Bilinear).x;
+    assert!((s - 0.5).abs() < 1e-6);
+}
+
+#[test]
+fn texture_from_a_linear_rrp_reproduces_it_bilinearly() {
+    // A linear radiosity on a refined tree reconstructs exactly (linear functions have exact
+    // Hermite data), texels are its values at centres, and bilinear of linear data is exact in
+    // the texel-centre hull; f32 rounding on values up to ~4: 2e-5.
+    let mut tree = Quadtree::new();
+    let c = tree.split(0);
+    tree.split(c + 3);
+    let f = |u: f64, v: f64| {
+        Vec3::new(
+            (1.0 + 2.0 * u + v) as f32,
+            (0.5 - u) as f32,
+            (v * 3.0) as f32,
+        )
+    };
+    let sq = SampledQuadtree::from_fn(tree, f);
+    let recon = Reconstruction::build(std::slice::from_ref(&sq), Estimator::default()).unwrap();
+    let depths = TextureSet::depths(std::slice::from_ref(&sq));
+    assert_eq!(depths, [2]);
+    let set = TextureSet::build(&recon, &depths, SizePolicy::FromDepth).unwrap();
+    let t = &set.textures[0];
+    assert_eq!((t.width, t.levels.len()), (8, 4));
+    assert_eq!(set.memory.texels, 64);
+    let (lo, hi) = (0.5 / 8.0, 1.0 - 0.5 / 8.0);
+    for a in 0..=23 {
+        for b in 0..=23 {
+            let u = lo + (hi - lo) * a as f32 / 23.0;
+            let v = lo + (hi - lo) * b as f32 / 23.0;
+            let s = t.sample(0, u, v, Filter::Bilinear);
+            let want = f(u as f64, v as f64);
+            assert!(
+                (s - want).abs().max_element() < 2e-5,
+                "{u} {v}: {s} vs {want}"
+            );
+        }
+    }
+    // Wrong depth count is an error, not a panic.
+    assert!(TextureSet::build(&recon, &[], SizePolicy::FromDepth).is_err());
+}
+
+#[test]
+fn from_texels_rejects_bad_input() {
+    assert!(RadiosityTexture::from_texels(3, 4, vec![Vec3::ZERO; 12]).is_err());
+    assert!(RadiosityTexture::from_texels(2, 2, vec![Vec3::ZERO; 3]).is_err());
+    assert!(RadiosityTexture::from_texels(1, 1, vec![Vec3::splat(f32::NAN)]).is_err());
+    let t = RadiosityTexture::from_texels(4, 2, vec![Vec3::ONE; 8]).unwrap();
+    let sizes: Vec<_> = t.levels.iter().map(|l| (l.width, l.height)).collect();
+    assert_eq!(sizes, [(4, 2), (2, 1), (1, 1)]);
+}
+
+#[test]
+fn from_depth_memory_matches_the_reconstruction_stats() {
+    // ReconstructionStats counts equal-quality textures with the same rule (2^depth + 1 rounded
+    // up to a power of two, squared, 3 / 4.5 / 12 bytes a texel): the two must agree.
+    let mut trees = Vec::new();
+    for d in 0..4u32 {
+        let mut t = Quadtree::new();
+        let mut id = 0;
+        for _ in 0..d {
+            id = t.split(id);
+        }
+        trees.push(SampledQuadtree::from_fn(t, |u, v| {
+            Vec3::new(u as f32, v as f32, 1.0)
+        }));
+    }
+    let recon = Reconstruction::build(&trees, Estimator::default()).unwrap();
+    let set =
+        TextureSet::build(&recon, &TextureSet::depths(&trees), SizePolicy::FromDepth).unwrap();
+    let st = recon.stats();
+    assert_eq!(set.memory.textures, 4);
+    assert_eq!(set.memory.texels, st.texture_texels as u64);
+    assert_eq!(set.memory.texels, 4 + 16 + 64 + 256);
+    assert_eq!(set.memory.bytes[0], st.texture_bytes_8 as u64);
+    assert_eq!(set.memory.bytes[2], st.texture_bytes_32 as u64);
+    let sides: Vec<u32> = set.textures.iter().map(|t| t.width).collect();
+    assert_eq!(sides, [2, 4, 8, 16]);
+}
+
+#[test]
+fn sample_many_equals_sample() {
+    // Same arithmetic in the same order, so bit-identical results.
+    let t = tex(16, |i, j| seq(i) + 0.1 * seq(j + 5));
+    let uv: Vec<[f32; 2]> = (0..200)
+        .map(|k| [(k as f32 * 0.037) % 1.2 - 0.1, (k as f32 * 0.061) % 1.0])
+        .collect();
+    for f in [
+        Filter::Nearest,
+        Filter::Bilinear,
+        Filter::MITCHELL,
+        Filter::CATMULL_ROM,
+    ] {
+        for level in [0, 2, 9] {
+            let mut out = vec![Vec3::ZERO; uv.len()];
+            t.sample_many(level, &uv, f, &mut out);
+            for (p, o) in uv.iter().zip(&out) {
+                assert_eq!(*o, t.sample(level, p[0], p[1], f));
+            }
+        }
+    }
+}
