@@ -7,7 +7,8 @@
 //! [`radiosity`] (the solve over [`quadtree`]s), [`reconstruction`] (the RRPs), [`raster`]
 //! (regions, G-buffers), [`composition`] (depth merge of the virtual renderers), [`shading`] (the
 //! deferred pass) and [`image_out`] / [`output`] (files). [`pipeline`] strings them into the jobs
-//! the command line runs; [`report`] formats summaries. `docs/ARCHITECTURE.md` draws the data flow.
+//! the command line runs; [`report`] formats summaries. [`texture`] holds the radiosity textures
+//! (RAT) and their on-screen filters, not yet wired into the renderer. `docs/ARCHITECTURE.md` draws the data flow.
 
 #![warn(missing_docs)]
 
