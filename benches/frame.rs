@@ -4,14 +4,12 @@
 //!
 //! Run briefly: `cargo bench --bench frame -- --warm-up-time 1 --measurement-time 3`.
 
-use std::path::PathBuf;
-
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
 use glam::{DVec3, Vec3};
 use pixelflow_sim::raster::gbuffer::RegionGBuffer;
 use pixelflow_sim::raster::region::{rasterize, RegionGrid};
 use pixelflow_sim::raster::{build_primitives, render_frame, sample_offsets, FrameOptions};
-use pixelflow_sim::scene::{Camera, DisplaySettings, Material, Polygon, Projection, Scene};
+use pixelflow_sim::scene::{Camera, Material, Polygon, Projection, Scene};
 use pixelflow_sim::shading::{shade_regions, PatchCoeffs, PatchSource};
 
 /// A 10 x 4 x 10 room, each wall cut into `n` x `n` quads, with two boxes inside.
@@ -49,30 +47,18 @@ fn room(n: usize) -> Scene {
             polys.push(Polygon::quad([o, o + u, o + u + v, o + v], 0, 0).unwrap());
         }
     }
-    Scene {
-        source: PathBuf::new(),
-        camera: Camera {
-            eye: DVec3::new(5.0, 2.0, 9.5),
-            look_at: DVec3::new(5.0, 1.5, 0.0),
-            up: DVec3::Y,
-            projection: Projection::Perspective { fov_y_deg: 60.0 },
-        },
-        width: 1024,
-        height: 1024,
-        materials: vec![Material {
-            name: "white".into(),
-            reflectance: DVec3::splat(0.7),
-            emission: DVec3::ZERO,
-        }],
-        objects: vec!["room".into()],
-        polygons: polys,
-        spots: vec![],
-        radiosity: Default::default(),
-        render: Default::default(),
-        display: DisplaySettings::default(),
-        camera_path: None,
-        warnings: vec![],
-    }
+    let camera = Camera {
+        eye: DVec3::new(5.0, 2.0, 9.5),
+        look_at: DVec3::new(5.0, 1.5, 0.0),
+        up: DVec3::Y,
+        projection: Projection::Perspective { fov_y_deg: 60.0 },
+    };
+    let white = Material {
+        name: "white".into(),
+        reflectance: DVec3::splat(0.7),
+        emission: DVec3::ZERO,
+    };
+    Scene::new(camera, 1024, 1024, vec![white], polys)
 }
 
 /// 4 x 4 bicubic patches per polygon.

@@ -2,37 +2,22 @@
 //! method against the patch source at pixel centres, antialiasing, and determinism over threads and
 //! renderers. Scenes are built in code; the patch sources are analytic.
 
-use std::path::PathBuf;
-
 use glam::{DVec3, Vec3};
 use pixelflow_sim::raster::geometry::{Plane, ScreenPolygon};
 use pixelflow_sim::raster::region::coverage_counts;
 use pixelflow_sim::raster::setup::{setup, ONE};
 use pixelflow_sim::raster::{build_primitives, render_frame, Frame, FrameOptions};
-use pixelflow_sim::scene::{Camera, DisplaySettings, Material, Polygon, Projection, Scene};
+use pixelflow_sim::scene::{Camera, Material, Polygon, Projection, Scene};
 use pixelflow_sim::shading::{PatchCoeffs, PatchSource};
 use proptest::prelude::*;
 
 fn scene_with(polygons: Vec<Polygon>, camera: Camera, width: u32, height: u32) -> Scene {
-    Scene {
-        source: PathBuf::new(),
-        camera,
-        width,
-        height,
-        materials: vec![Material {
-            name: "grey".into(),
-            reflectance: DVec3::splat(0.5),
-            emission: DVec3::ZERO,
-        }],
-        objects: vec!["code".into()],
-        polygons,
-        spots: vec![],
-        radiosity: Default::default(),
-        render: Default::default(),
-        display: DisplaySettings::default(),
-        camera_path: None,
-        warnings: vec![],
-    }
+    let grey = Material {
+        name: "grey".into(),
+        reflectance: DVec3::splat(0.5),
+        emission: DVec3::ZERO,
+    };
+    Scene::new(camera, width, height, vec![grey], polygons)
 }
 
 /// One patch per polygon whose value is (u, v, 1): the image shows the rasterizer's (u, v).

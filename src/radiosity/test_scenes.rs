@@ -4,10 +4,7 @@
 
 use glam::DVec3;
 
-use crate::scene::{
-    Camera, DisplaySettings, Material, Polygon, Projection, RadiositySettings, RenderSettings,
-    Scene, SpotLight, PLANARITY_TOLERANCE,
-};
+use crate::scene::{Camera, Material, Polygon, Projection, Scene, SpotLight, PLANARITY_TOLERANCE};
 
 /// A material.
 pub fn mat(name: &str, rho: [f64; 3], e: [f64; 3]) -> Material {
@@ -20,25 +17,15 @@ pub fn mat(name: &str, rho: [f64; 3], e: [f64; 3]) -> Material {
 
 /// A scene from parts, with default settings.
 pub fn scene(polygons: Vec<Polygon>, materials: Vec<Material>, spots: Vec<SpotLight>) -> Scene {
+    let camera = Camera {
+        eye: DVec3::new(0.0, 0.0, 5.0),
+        look_at: DVec3::ZERO,
+        up: DVec3::Y,
+        projection: Projection::Perspective { fov_y_deg: 45.0 },
+    };
     Scene {
-        source: std::path::PathBuf::from("<test>"),
-        camera: Camera {
-            eye: DVec3::new(0.0, 0.0, 5.0),
-            look_at: DVec3::ZERO,
-            up: DVec3::Y,
-            projection: Projection::Perspective { fov_y_deg: 45.0 },
-        },
-        width: 64,
-        height: 64,
-        materials,
-        objects: vec!["test".to_string()],
-        polygons,
         spots,
-        radiosity: RadiositySettings::default(),
-        render: RenderSettings::default(),
-        display: DisplaySettings::default(),
-        camera_path: None,
-        warnings: Vec::new(),
+        ..Scene::new(camera, 64, 64, materials, polygons)
     }
 }
 

@@ -351,6 +351,33 @@ pub struct Scene {
 }
 
 impl Scene {
+    /// A scene built in code (tests, benchmarks): the given camera, image size, materials and
+    /// polygons, one object named "code", no spot lights, no source file, default settings.
+    /// The caller keeps the invariants listed in the module docs.
+    pub fn new(
+        camera: Camera,
+        width: u32,
+        height: u32,
+        materials: Vec<Material>,
+        polygons: Vec<Polygon>,
+    ) -> Scene {
+        Scene {
+            source: std::path::PathBuf::new(),
+            camera,
+            width,
+            height,
+            materials,
+            objects: vec!["code".to_string()],
+            polygons,
+            spots: Vec::new(),
+            radiosity: RadiositySettings::default(),
+            render: RenderSettings::default(),
+            display: DisplaySettings::default(),
+            camera_path: None,
+            warnings: Vec::new(),
+        }
+    }
+
     /// The material of polygon `i`.
     pub fn material_of(&self, i: usize) -> &Material {
         &self.materials[self.polygons[i].material as usize]
