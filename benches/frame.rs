@@ -10,7 +10,7 @@ use pixelflow_sim::raster::gbuffer::RegionGBuffer;
 use pixelflow_sim::raster::region::{rasterize, RegionGrid};
 use pixelflow_sim::raster::{build_primitives, render_frame, sample_offsets, FrameOptions};
 use pixelflow_sim::scene::{Camera, Material, Polygon, Projection, Scene};
-use pixelflow_sim::shading::{shade_regions, PatchCoeffs, PatchSource};
+use pixelflow_sim::shading::{shade_regions, PatchCoeffs, PatchSource, Shader};
 
 /// A 10 x 4 x 10 room, each wall cut into `n` x `n` quads, with two boxes inside.
 fn room(n: usize) -> Scene {
@@ -163,13 +163,29 @@ fn deferred(c: &mut Criterion) {
             gb
         })
         .collect();
-    let (_, counts) = shade_regions(&regions, Vec3::ZERO, w, h, opts.region);
+    let (_, counts) = shade_regions(
+        &Shader::Patches(&source),
+        &regions,
+        Vec3::ZERO,
+        w,
+        h,
+        opts.region,
+    );
     eprintln!("deferred: {counts:?}");
     let mut g = c.benchmark_group("deferred");
     g.sample_size(20);
     g.throughput(Throughput::Elements((w * h) as u64));
     g.bench_function("rrp-1024", |b| {
-        b.iter(|| shade_regions(&regions, Vec3::ZERO, w, h, opts.region))
+        b.iter(|| {
+            shade_regions(
+                &Shader::Patches(&source),
+                &regions,
+                Vec3::ZERO,
+                w,
+                h,
+                opts.region,
+            )
+        })
     });
     g.finish();
 }

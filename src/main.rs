@@ -8,7 +8,7 @@
 use anyhow::Context;
 use clap::{Parser, Subcommand};
 use pixelflow_sim::error::EXIT_FAILURE;
-use pixelflow_sim::pipeline::{self, Method, RenderEvent, RenderRequest};
+use pixelflow_sim::pipeline::{self, Method, RenderEvent, RenderRequest, TextureOptions};
 use pixelflow_sim::raster::FrameOptions;
 use pixelflow_sim::scene::MAX_IMAGE_DIM;
 use pixelflow_sim::Error;
@@ -98,6 +98,8 @@ enum Command {
         /// Render every frame of the scene's `[camera_path]` (files `<output stem>-NNNN.png`).
         #[arg(long)]
         walkthrough: bool,
+        #[command(flatten)]
+        texture: TextureArgs,
         /// Print the statistics.
         #[arg(short, long)]
         verbose: bool,
@@ -133,6 +135,41 @@ enum Command {
         #[arg(long)]
         json: bool,
     },
+}
+
+/// Options of the texture methods (ignored by the others).
+#[derive(clap::Args, Debug, Clone)]
+struct TextureArgs {
+    /// Texture methods: one texture side for every polygon, a power of two (default: the
+    /// scene's `[render] texture_size`; 0 there = per polygon from its quadtree depth).
+    #[arg(long)]
+    texture_size: Option<u32>,
+    /// Texture methods: a texture memory budget (12 bits per channel, mip chains included),
+    /// bytes with an optional K, M or G suffix; sides are halved uniformly until it fits.
+    #[arg(long, value_parser = parse_bytes)]
+    texture_budget: Option<u64>,
+    /// `texture-bicubic`: the Mitchell–Netravali (B, C), default 0.333,0.333 (Catmull-Rom:
+    /// 0,0.5).
+    #[arg(long, value_name = "B,C", value_parser = parse_bicubic)]
+    bicubic: Option<(f32, f32)>,
+}
+
+impl TextureArgs {
+    fn options(&self) -> TextureOptions {
+        TextureOptions {
+            size: self.texture_size,
+            budget: self.texture_budget,
+            bicubic: self.bicubic,
+        }
+    }
+}
+
+fn parse_bytes(s: &str) -> Result<u64, String> {
+    pipeline::parse_bytes(s).map_err(|e| e.to_string())
+}
+
+fn parse_bicubic(s: &str) -> Result<(f32, f32), String> {
+    pipeline::parse_bicubic(s).map_err(|e| e.to_string())
 }
 
 fn run(cli: Cli) -> anyhow::Result<()> {
@@ -184,6 +221,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             region,
             stats,
             walkthrough,
+            texture,
             verbose,
             quiet,
         } => {
@@ -200,6 +238,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 stats,
                 walkthrough,
                 progress: !quiet,
+                texture: texture.options(),
             };
             in_pool(threads, || {
                 pipeline::run_render(&req, &mut |event| match event {

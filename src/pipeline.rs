@@ -9,6 +9,7 @@
 //! rayon pool, so the thread count is the caller's choice and the pixels do not depend on it.
 
 use std::path::{Path, PathBuf};
+use std::sync::OnceLock;
 use std::time::Instant;
 
 use glam::DVec3;
@@ -16,27 +17,49 @@ use serde::Serialize;
 
 use crate::error::{Error, Result};
 use crate::image_out;
-use crate::radiosity::{self, file as solution_file, Solution, SolveOptions};
-use crate::raster::{render_frame, Frame, FrameOptions, FrameStats};
+use crate::radiosity::{self, file as solution_file, Oracle, Solution, SolveOptions};
+use crate::raster::{render_frame, render_frame_with, Frame, FrameOptions, FrameStats};
 use crate::reconstruction::{Estimator, Reconstruction};
 use crate::scene::{load_scene, Camera, Keyframe, Scene};
+use crate::shading::Shader;
+use crate::texture::{Filter, SizePolicy, TextureMemory, TextureSet};
 
-/// The rendering methods this build implements.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+/// The rendering methods. They share scene, solve, rasterization and composition; they differ
+/// only in what the deferred pass evaluates (and, for the mesh, in what is rasterized).
+#[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Method {
     /// The PixelFlow path: bicubic RRP coefficients rasterized into region G-buffers and
     /// evaluated per pixel in the deferred pass.
     Direct,
+    /// Radiosity textures (RAT) resampled from the RRPs, filtered on screen.
+    Texture(Filter),
+    /// The adaptively subdivided mesh (T-vertex fans), Gouraud shaded: the paper's "poly" model.
+    Mesh,
+    /// The solver's oracle at every visible sample: no reconstruction at all.
+    Reference,
 }
 
 impl Method {
     /// Every implemented method's name.
-    pub const NAMES: &'static [&'static str] = &["direct"];
+    pub const NAMES: &'static [&'static str] = &[
+        "direct",
+        "texture-nearest",
+        "texture-bilinear",
+        "texture-bicubic",
+        "mesh",
+        "reference",
+    ];
 
-    /// Parses a method name (as on the command line and in `[render] method`).
+    /// Parses a method name (as on the command line and in `[render] method`);
+    /// `texture-bicubic` is Mitchell–Netravali B = C = 1/3 (see [`Method::with_bicubic`]).
     pub fn parse(name: &str) -> Result<Method> {
         match name {
             "direct" => Ok(Method::Direct),
+            "texture-nearest" => Ok(Method::Texture(Filter::Nearest)),
+            "texture-bilinear" => Ok(Method::Texture(Filter::Bilinear)),
+            "texture-bicubic" => Ok(Method::Texture(Filter::MITCHELL)),
+            "mesh" => Ok(Method::Mesh),
+            "reference" => Ok(Method::Reference),
             _ => Err(Error::Usage(format!(
                 "method `{name}` is not available; implemented: {}",
                 Method::NAMES.join(", ")
@@ -48,7 +71,112 @@ impl Method {
     pub fn name(self) -> &'static str {
         match self {
             Method::Direct => "direct",
+            Method::Texture(Filter::Nearest) => "texture-nearest",
+            Method::Texture(Filter::Bilinear) => "texture-bilinear",
+            Method::Texture(Filter::Bicubic { .. }) => "texture-bicubic",
+            Method::Mesh => "mesh",
+            Method::Reference => "reference",
         }
+    }
+
+    /// This method with the bicubic filter's (B, C) replaced, if it is `texture-bicubic`; an
+    /// error for B or C outside [0, 1] or not finite (the Mitchell–Netravali family's useful
+    /// range; Catmull-Rom is (0, 1/2)).
+    pub fn with_bicubic(self, b: f32, c: f32) -> Result<Method> {
+        for (name, x) in [("B", b), ("C", c)] {
+            if !(0.0..=1.0).contains(&x) {
+                return Err(Error::Usage(format!(
+                    "--bicubic: {name} = {x} must be in [0, 1]"
+                )));
+            }
+        }
+        Ok(match self {
+            Method::Texture(Filter::Bicubic { .. }) => Method::Texture(Filter::Bicubic { b, c }),
+            m => m,
+        })
+    }
+}
+
+/// Command-line choices of the texture methods (all optional; the scene's `[render]` gives the
+/// defaults).
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct TextureOptions {
+    /// One texture side for every polygon (`--texture-size`, a power of two).
+    pub size: Option<u32>,
+    /// A texture memory budget in bytes at 12 bits per channel with mip chains
+    /// (`--texture-budget`).
+    pub budget: Option<u64>,
+    /// The bicubic filter's (B, C) (`--bicubic B,C`; default Mitchell–Netravali 1/3, 1/3).
+    pub bicubic: Option<(f32, f32)>,
+}
+
+impl TextureOptions {
+    /// The size policy these options choose for `scene`: a size, a budget, or the scene's
+    /// [`scene_texture_policy`]. Giving both a size and a budget is a usage error.
+    pub fn policy(&self, scene: &Scene) -> Result<SizePolicy> {
+        match (self.size, self.budget) {
+            (Some(_), Some(_)) => Err(Error::Usage(
+                "--texture-size and --texture-budget exclude each other".into(),
+            )),
+            (Some(n), None) => {
+                TextureSet::sides(&[0], SizePolicy::Fixed(n))?;
+                Ok(SizePolicy::Fixed(n))
+            }
+            (None, Some(b)) => Ok(SizePolicy::Budget(b)),
+            (None, None) => Ok(scene_texture_policy(scene)),
+        }
+    }
+
+    /// `method` with these options' bicubic parameters applied.
+    pub fn method(&self, method: Method) -> Result<Method> {
+        match self.bicubic {
+            Some((b, c)) => method.with_bicubic(b, c),
+            None => Ok(method),
+        }
+    }
+}
+
+/// Parses a byte count with an optional binary suffix: `1048576`, `512K`, `4M`, `1G` (K = 1024).
+pub fn parse_bytes(text: &str) -> Result<u64> {
+    let t = text.trim();
+    let (num, mult) = match t.char_indices().last() {
+        Some((i, 'K' | 'k')) => (&t[..i], 1u64 << 10),
+        Some((i, 'M' | 'm')) => (&t[..i], 1 << 20),
+        Some((i, 'G' | 'g')) => (&t[..i], 1 << 30),
+        _ => (t, 1),
+    };
+    num.parse::<u64>()
+        .ok()
+        .and_then(|n| n.checked_mul(mult))
+        .ok_or_else(|| {
+            Error::Usage(format!(
+                "`{text}` is not a byte count (an integer, optionally followed by K, M or G)"
+            ))
+        })
+}
+
+/// Parses `B,C` (two numbers) for `--bicubic`.
+pub fn parse_bicubic(text: &str) -> Result<(f32, f32)> {
+    let parts: Vec<&str> = text.split(',').map(str::trim).collect();
+    match parts.as_slice() {
+        [b, c] => match (b.parse::<f32>(), c.parse::<f32>()) {
+            (Ok(b), Ok(c)) => Ok((b, c)),
+            _ => Err(Error::Usage(format!(
+                "--bicubic {text}: B and C must be numbers"
+            ))),
+        },
+        _ => Err(Error::Usage(format!(
+            "--bicubic {text}: expected B,C (Mitchell-Netravali 0.333,0.333; Catmull-Rom 0,0.5)"
+        ))),
+    }
+}
+
+/// The texture size policy a scene asks for: `[render] texture_size` 0 means per polygon from
+/// its quadtree depth, any other value one fixed size.
+pub fn scene_texture_policy(scene: &Scene) -> SizePolicy {
+    match scene.render.texture_size {
+        0 => SizePolicy::FromDepth,
+        n => SizePolicy::Fixed(n),
     }
 }
 
@@ -64,6 +192,28 @@ pub struct Prepared {
     pub solve_ms: f64,
     /// Time spent building the RRPs, ms.
     pub reconstruction_ms: f64,
+    /// How the texture methods size their textures (default: [`scene_texture_policy`]). Set it
+    /// before the first texture frame: the textures are built once, on first use.
+    pub texture_policy: SizePolicy,
+    textures: OnceLock<(TextureSet, f64)>,
+}
+
+impl Prepared {
+    /// The radiosity textures under [`Prepared::texture_policy`], built on first use (a scene
+    /// rendered only with the direct method never pays for them), with their build time in ms.
+    pub fn textures(&self) -> Result<(&TextureSet, f64)> {
+        if self.textures.get().is_none() {
+            let t = Instant::now();
+            let depths = TextureSet::depths(&self.solution.polygons);
+            let set = TextureSet::build(&self.reconstruction, &depths, self.texture_policy)?;
+            let _ = self.textures.set((set, t.elapsed().as_secs_f64() * 1e3));
+        }
+        let (set, ms) = self
+            .textures
+            .get()
+            .ok_or_else(|| Error::Runtime("texture set missing after build".into()))?;
+        Ok((set, *ms))
+    }
 }
 
 /// Whether `path` is a solution file (by its magic bytes) rather than a scene.
@@ -94,11 +244,13 @@ pub fn prepare(input: &Path, progress: bool) -> Result<Prepared> {
     let reconstruction = Reconstruction::build(&solution.polygons, Estimator::default())?;
     let reconstruction_ms = t.elapsed().as_secs_f64() * 1e3;
     Ok(Prepared {
+        texture_policy: scene_texture_policy(&scene),
         scene,
         solution,
         reconstruction,
         solve_ms,
         reconstruction_ms,
+        textures: OnceLock::new(),
     })
 }
 
@@ -112,9 +264,23 @@ pub fn solve_to_file(scene_path: &Path, out: &Path, progress: bool) -> Result<So
 
 /// Renders one frame of a prepared scene.
 pub fn render(p: &Prepared, method: Method, camera: &Camera, opts: &FrameOptions) -> Result<Frame> {
-    match method {
-        Method::Direct => render_frame(&p.scene, camera, &p.reconstruction, opts),
-    }
+    let mut frame = match method {
+        Method::Direct => render_frame(&p.scene, camera, &p.reconstruction, opts)?,
+        Method::Texture(filter) => {
+            let (set, _) = p.textures()?;
+            render_frame_with(&p.scene, camera, &Shader::Texture { set, filter }, opts)?
+        }
+        Method::Mesh => {
+            return Err(Error::Usage("method `mesh` is not built yet".into()));
+        }
+        Method::Reference => {
+            let oracle = Oracle::new(&p.solution, &p.scene)?;
+            let f = |poly: u32, u: f32, v: f32| oracle.radiosity(poly as usize, u as f64, v as f64);
+            render_frame_with(&p.scene, camera, &Shader::Exact(&f), opts)?
+        }
+    };
+    frame.stats.method = method.name().into();
+    Ok(frame)
 }
 
 /// What `pixelflow-sim render` was asked to do.
@@ -144,6 +310,8 @@ pub struct RenderRequest {
     pub walkthrough: bool,
     /// Show the solve's progress bar.
     pub progress: bool,
+    /// Texture sizes and the bicubic filter's parameters.
+    pub texture: TextureOptions,
 }
 
 /// What a render job reports as it goes.
@@ -160,12 +328,15 @@ pub enum RenderEvent<'a> {
 /// Runs a render job: prepare once, render one frame or every walkthrough frame, write PNG,
 /// EXR and statistics.
 pub fn run_render(req: &RenderRequest, on: &mut dyn FnMut(RenderEvent<'_>)) -> Result<()> {
-    let p = prepare(&req.input, req.progress)?;
+    let mut p = prepare(&req.input, req.progress)?;
+    p.texture_policy = req.texture.policy(&p.scene)?;
     let scene = &p.scene;
     for w in &scene.warnings {
         on(RenderEvent::Warning(w));
     }
-    let method = Method::parse(req.method.as_deref().unwrap_or(&scene.render.method))?;
+    let method = req.texture.method(Method::parse(
+        req.method.as_deref().unwrap_or(&scene.render.method),
+    )?)?;
     let opts = FrameOptions {
         width: req.width.unwrap_or(scene.width),
         height: req.height.unwrap_or(scene.height),
@@ -211,7 +382,7 @@ pub fn run_render(req: &RenderRequest, on: &mut dyn FnMut(RenderEvent<'_>)) -> R
             image_out::write_exr(exr, &frame)?;
             on(RenderEvent::Wrote(exr));
         }
-        let report = RenderReport::new(&p, &frame);
+        let report = RenderReport::new(&p, method, &frame);
         on(RenderEvent::Frame(&report));
         reports.push(report);
     }
@@ -243,12 +414,24 @@ pub struct RenderReport {
     pub patches: u64,
     /// Radiosity samples in the solution.
     pub samples: u64,
+    /// Texture memory and count (texture methods only).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub texture_memory: Option<TextureMemory>,
+    /// Time to resample the textures from the RRPs, once per job (texture methods only), ms.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub texture_build_ms: Option<f64>,
 }
 
 impl RenderReport {
     /// The report of `frame` rendered from `p`.
-    pub fn new(p: &Prepared, frame: &Frame) -> RenderReport {
+    pub fn new(p: &Prepared, method: Method, frame: &Frame) -> RenderReport {
+        let tex = match method {
+            Method::Texture(_) => p.textures().ok(),
+            _ => None,
+        };
         RenderReport {
+            texture_memory: tex.map(|(set, _)| set.memory),
+            texture_build_ms: tex.map(|(_, ms)| ms),
             frame: frame.stats.clone(),
             solve_ms: p.solve_ms,
             reconstruction_ms: p.reconstruction_ms,

@@ -29,6 +29,7 @@ use rayon::prelude::*;
 
 use crate::lanes::{F32x8, LANES};
 use crate::raster::gbuffer::{RegionGBuffer, NO_POLYGON};
+use crate::texture::{lod_from_squares, Filter, Sampler, TextureSet};
 
 pub use crate::reconstruction::PatchCoeffs;
 
@@ -65,6 +66,37 @@ fn eval_channel8(k: &[f32; 16], s: F32x8, t: F32x8) -> F32x8 {
     let r1 = ((c(7) * s + c(6)) * s + c(5)) * s + c(4);
     let r0 = ((c(3) * s + c(2)) * s + c(1)) * s + c(0);
     ((r3 * t + r2) * t + r1) * t + r0
+}
+
+/// The radiosity of a polygon at (u, v), for [`Shader::Exact`].
+pub type ExactFn<'a> = dyn Fn(u32, f32, f32) -> Vec3 + Sync + 'a;
+
+/// What the deferred pass evaluates at each visible sample: the one place where the rendering
+/// methods differ (everything before it, rasterization and composition, is shared).
+#[derive(Clone, Copy)]
+pub enum Shader<'a> {
+    /// The region's patch table, filled by the rasterizer from this source: the direct method
+    /// (RRPs), and the Gouraud mesh (one degree-(1, 1) patch per triangle).
+    Patches(&'a dyn PatchSource),
+    /// The polygon's radiosity texture, filtered, at a per-sample level of detail (RAT).
+    Texture {
+        /// Every polygon's texture (the texture memory every shader board would hold).
+        set: &'a TextureSet,
+        /// The on-screen filter.
+        filter: Filter,
+    },
+    /// A function of (polygon, u, v), evaluated per sample: the reference (the solver's oracle).
+    Exact(&'a ExactFn<'a>),
+}
+
+impl Shader<'_> {
+    /// The patch source whose patches the rasterizer must copy into the regions, if any.
+    pub fn patch_source(&self) -> Option<&dyn PatchSource> {
+        match self {
+            Shader::Patches(s) => Some(*s),
+            _ => None,
+        }
+    }
 }
 
 /// Counters of one shading pass.
@@ -226,6 +258,105 @@ fn shade_region_body(
     counts
 }
 
+/// Shades one region sample by sample with `f(index, x, y)` (index into the G-buffer's planes,
+/// region-local column and row; called only for samples that see a polygon), accumulating the
+/// samples of each pixel in plane order and resolving them exactly as the patch path does (box
+/// filter, then the non-finite clamp).
+fn shade_region_per_sample(
+    gb: &RegionGBuffer,
+    background: Vec3,
+    dst: &mut [Vec3],
+    pitch: usize,
+    f: &mut dyn FnMut(usize, usize, usize) -> Vec3,
+) -> ShadeCounts {
+    let (w, h, stride) = (gb.width as usize, gb.height as usize, gb.stride as usize);
+    let plane = stride * h;
+    let mut counts = ShadeCounts::default();
+    let mut acc = vec![Vec3::ZERO; w];
+    let inv = 1.0 / gb.samples as f32;
+    for y in 0..h {
+        for si in 0..gb.samples as usize {
+            let row = si * plane + y * stride;
+            for (x, a) in acc.iter_mut().enumerate() {
+                let i = row + x;
+                let c = if gb.polygon[i] == NO_POLYGON {
+                    background
+                } else {
+                    counts.samples_shaded += 1;
+                    f(i, x, y)
+                };
+                *a = if si == 0 { c } else { *a + c };
+            }
+        }
+        let out = &mut dst[y * pitch..y * pitch + w];
+        for (o, a) in out.iter_mut().zip(&acc) {
+            let c = if gb.samples == 1 { *a } else { *a * inv };
+            *o = Vec3::from_array(c.to_array().map(|x| if x.is_finite() { x } else { 0.0 }));
+        }
+    }
+    counts
+}
+
+/// Screen-space derivatives of (u, v) at sample `i` (column `x`, row `y` of its plane) by finite
+/// differences with the neighbouring samples of the same polygon in the same plane: forward
+/// where the right (lower) neighbour shows the same polygon, else backward, else 0 (a polygon
+/// one sample wide in that direction, or at the region's edge on both sides: level 0 then).
+/// Returns (du/dx, dv/dx, du/dy, dv/dy), in parameter units per pixel. This is how graphics
+/// hardware has long derived its level of detail (differences within pixel quads).
+#[inline(always)]
+fn uv_derivatives(gb: &RegionGBuffer, i: usize, x: usize, y: usize) -> [f32; 4] {
+    let (w, h, stride) = (gb.width as usize, gb.height as usize, gb.stride as usize);
+    let p = gb.polygon[i];
+    let diff = |a: usize, b: usize| [gb.u[b] - gb.u[a], gb.v[b] - gb.v[a]];
+    let dx = if x + 1 < w && gb.polygon[i + 1] == p {
+        diff(i, i + 1)
+    } else if x > 0 && gb.polygon[i - 1] == p {
+        diff(i - 1, i)
+    } else {
+        [0.0; 2]
+    };
+    let dy = if y + 1 < h && gb.polygon[i + stride] == p {
+        diff(i, i + stride)
+    } else if y > 0 && gb.polygon[i - stride] == p {
+        diff(i - stride, i)
+    } else {
+        [0.0; 2]
+    };
+    [dx[0], dx[1], dy[0], dy[1]]
+}
+
+/// Shades one composited region with any [`Shader`] into `dst` (see [`shade_region_into`]).
+pub fn shade_region_with(
+    shader: &Shader<'_>,
+    gb: &RegionGBuffer,
+    background: Vec3,
+    dst: &mut [Vec3],
+    pitch: usize,
+) -> ShadeCounts {
+    match *shader {
+        Shader::Patches(_) => shade_region_into(gb, background, dst, pitch),
+        Shader::Texture { set, filter } => {
+            let sampler = Sampler::new(filter);
+            let mut f = |i: usize, x: usize, y: usize| {
+                let Some(tex) = set.textures.get(gb.polygon[i] as usize) else {
+                    return Vec3::ZERO;
+                };
+                let [ux, vx, uy, vy] = uv_derivatives(gb, i, x, y);
+                let (tw, th) = (tex.width as f32, tex.height as f32);
+                let lx2 = (ux * tw) * (ux * tw) + (vx * th) * (vx * th);
+                let ly2 = (uy * tw) * (uy * tw) + (vy * th) * (vy * th);
+                let lod = lod_from_squares(lx2, ly2, tex.last_level());
+                sampler.sample(tex, lod, gb.u[i], gb.v[i])
+            };
+            shade_region_per_sample(gb, background, dst, pitch, &mut f)
+        }
+        Shader::Exact(func) => {
+            let mut f = |i: usize, _: usize, _: usize| func(gb.polygon[i], gb.u[i], gb.v[i]);
+            shade_region_per_sample(gb, background, dst, pitch, &mut f)
+        }
+    }
+}
+
 /// Replaces non-finite lanes by 0 (documented clamp: a patch source with non-finite coefficients
 /// must not put NaN or inf into an image).
 #[inline(always)]
@@ -234,11 +365,12 @@ fn sanitize8(c: F32x8) -> F32x8 {
     F32x8::select(&m, c, F32x8::splat(0.0))
 }
 
-/// The deferred pass over a frame: shades every region into a `width` x `height` frame of
+/// The deferred pass over a frame: shades every region with `shader` into a `width` x `height` frame of
 /// `background`, in parallel (rayon) over bands of `region_size` rows; regions are placed by their
 /// own origin, and every pixel no region covers keeps the background. Returns the frame (row-major,
 /// row 0 at the top) and the summed counters (summed in band order: deterministic).
 pub fn shade_regions(
+    shader: &Shader<'_>,
     regions: &[RegionGBuffer],
     background: Vec3,
     width: u32,
@@ -268,7 +400,7 @@ pub fn shade_regions(
                 if r.height as usize != rows_here {
                     continue;
                 }
-                let k = shade_region_into(r, background, &mut rows[r.x0 as usize..], w);
+                let k = shade_region_with(shader, r, background, &mut rows[r.x0 as usize..], w);
                 covered[r.x0 as usize..(r.x0 + r.width) as usize].fill(true);
                 c.samples_shaded += k.samples_shaded;
                 c.uniform_blocks += k.uniform_blocks;
@@ -386,7 +518,16 @@ mod tests {
         gb.table.push(PatchCoeffs::whole(c));
         gb.table_ids.push(7);
         let bg = Vec3::new(1.0, 2.0, 3.0);
-        let (frame, counts) = shade_regions(&[gb], bg, 20, 10, 8);
+        struct Unused;
+        impl PatchSource for Unused {
+            fn locate(&self, _: u32, _: f32, _: f32) -> u32 {
+                unreachable!("the pass reads the region's table")
+            }
+            fn patch(&self, _: u32) -> &PatchCoeffs {
+                unreachable!("the pass reads the region's table")
+            }
+        }
+        let (frame, counts) = shade_regions(&Shader::Patches(&Unused), &[gb], bg, 20, 10, 8);
         assert_eq!(counts.samples_shaded, 1);
         for y in 0..10 {
             for x in 0..20 {

@@ -36,7 +36,7 @@ use serde::Serialize;
 use crate::composition::{self, RegionReport};
 use crate::error::{Error, Result};
 use crate::scene::{Camera, Scene, MAX_IMAGE_DIM};
-use crate::shading::{self, PatchSource};
+use crate::shading::{self, PatchSource, Shader};
 
 use gbuffer::RegionGBuffer;
 use region::RegionGrid;
@@ -224,6 +224,21 @@ pub fn render_frame(
     source: &dyn PatchSource,
     opts: &FrameOptions,
 ) -> Result<Frame> {
+    render_frame_with(scene, camera, &Shader::Patches(source), opts)
+}
+
+/// Renders one frame of `scene` seen by `camera` with any deferred [`Shader`]: the stages up to
+/// composition are the same for every method; only a patch shader makes the rasterizer fill the
+/// regions' patch tables. `stats.method` is `direct` for a patch shader, `texture` or
+/// `reference` otherwise (the pipeline names the method precisely). Runs in the current rayon
+/// pool.
+pub fn render_frame_with(
+    scene: &Scene,
+    camera: &Camera,
+    shader: &Shader<'_>,
+    opts: &FrameOptions,
+) -> Result<Frame> {
+    let source = shader.patch_source();
     opts.validate()?;
     let offsets = sample_offsets(opts.aa)?;
     let background = scene.display.background.as_vec3();
@@ -268,7 +283,9 @@ pub fn render_frame(
             for &k in &bins[r as usize][reg as usize] {
                 fragments += region::rasterize(&prims[k as usize], &mut gb, offsets);
             }
-            gb.assign_patches(source);
+            if let Some(source) = source {
+                gb.assign_patches(source);
+            }
             // A send fails only if the compositor is gone, which the join below reports.
             let _ = tx.send(RegionReport {
                 renderer: r,
@@ -284,6 +301,7 @@ pub fn render_frame(
     .map_err(|_| Error::Runtime("the compositor thread failed".into()))?;
     let t_shade = Instant::now();
     let (pixels, counts) = shading::shade_regions(
+        shader,
         &composited,
         background,
         opts.width,
@@ -295,7 +313,12 @@ pub fn render_frame(
     let mut stats = FrameStats {
         width: opts.width,
         height: opts.height,
-        method: "direct".into(),
+        method: match shader {
+            Shader::Patches(_) => "direct",
+            Shader::Texture { .. } => "texture",
+            Shader::Exact(_) => "reference",
+        }
+        .into(),
         threads: rayon::current_num_threads(),
         renderers: opts.renderers,
         aa: opts.aa,

@@ -268,6 +268,75 @@ impl RadiosityTexture {
     }
 }
 
+/// A [`Filter`] prepared for many lookups (the cubic's coefficients computed once), with the
+/// level-of-detail policy of the deferred pass: nearest filtering takes the nearest mip level
+/// (`round(lod)`, like `GL_NEAREST_MIPMAP_NEAREST`); bilinear and bicubic blend the two nearest
+/// levels ([`RadiosityTexture::sample_lod`], like `GL_LINEAR_MIPMAP_LINEAR`). Under magnification
+/// (lod 0) every filter reads level 0 once.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Sampler {
+    /// The filter.
+    pub filter: Filter,
+    cubic: Cubic,
+}
+
+impl Sampler {
+    /// A sampler for `filter`.
+    pub fn new(filter: Filter) -> Sampler {
+        let cubic = match filter {
+            Filter::Bicubic { b, c } => Cubic::new(b, c),
+            _ => Cubic::new(1.0 / 3.0, 1.0 / 3.0),
+        };
+        Sampler { filter, cubic }
+    }
+
+    #[inline(always)]
+    fn level(&self, l: &MipLevel, u: f32, v: f32) -> Vec3 {
+        let (u, v) = (clamp01(u), clamp01(v));
+        match self.filter {
+            Filter::Nearest => nearest(l, u, v),
+            Filter::Bilinear => bilinear(l, u, v),
+            Filter::Bicubic { .. } => bicubic(l, u, v, &self.cubic),
+        }
+    }
+
+    /// The filtered value of `tex` at (u, v) and level of detail `lod` (clamped to the chain, NaN
+    /// to 0). Equals [`RadiosityTexture::sample_lod`] for bilinear and bicubic filters, and
+    /// [`RadiosityTexture::sample`] at level `round(lod)` for the nearest filter.
+    #[inline]
+    pub fn sample(&self, tex: &RadiosityTexture, lod: f32, u: f32, v: f32) -> Vec3 {
+        let last = tex.last_level();
+        let d = if lod.is_nan() {
+            0.0
+        } else {
+            lod.clamp(0.0, last as f32)
+        };
+        if let Filter::Nearest = self.filter {
+            return self.level(&tex.levels[(d.round() as usize).min(last)], u, v);
+        }
+        let l0 = (d.floor() as usize).min(last);
+        let f = d - l0 as f32;
+        let a = self.level(&tex.levels[l0], u, v);
+        if f <= 0.0 || l0 == last {
+            return a;
+        }
+        let b = self.level(&tex.levels[l0 + 1], u, v);
+        a + (b - a) * f
+    }
+}
+
+/// [`lod`] from squared footprint lengths: `lx2 = |(W du/dx, H dv/dx)|^2` and `ly2` likewise in
+/// y (texels per pixel, squared), for a chain whose last level is `last`. Magnification (both
+/// <= 1) returns 0 without a logarithm; NaN gives 0 and infinity the last level.
+#[inline(always)]
+pub fn lod_from_squares(lx2: f32, ly2: f32, last: usize) -> f32 {
+    let r2 = lx2.max(ly2);
+    if r2.is_nan() || r2 <= 1.0 {
+        return 0.0;
+    }
+    (0.5 * r2.log2()).min(last as f32)
+}
+
 /// Level of detail from screen-space derivatives of (u, v): with the texture of `width` x
 /// `height` texels at level 0, rho = max(|(du/dx, dv/dx)|, |(du/dy, dv/dy)|) in texels per pixel
 /// and lod = log2(rho), clamped to [0, log2(max(width, height))] (the last level of a
@@ -383,7 +452,7 @@ pub fn side_from_depth(depth: u32) -> u32 {
 /// already powers of two), 3 channels per texel, at 8, 12 and 32 bits per channel; bytes are
 /// rounded up to whole bytes per texture (matters only for 12 bits and odd texel counts, e.g.
 /// a 1 x 1 texture: 36 bits -> 5 bytes).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize)]
 pub struct TextureMemory {
     /// Number of textures (one per polygon).
     pub textures: usize,

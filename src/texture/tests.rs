@@ -319,3 +319,52 @@ fn sample_many_equals_sample() {
         }
     }
 }
+
+#[test]
+fn sampler_equals_sample_lod_and_nearest_takes_the_nearest_level() {
+    let t = tex(16, |i, j| seq(i) + 2.0 * seq(j + 3));
+    for filter in [Filter::Bilinear, Filter::MITCHELL, Filter::CATMULL_ROM] {
+        let s = Sampler::new(filter);
+        for &lod in &[0.0f32, 0.3, 1.0, 1.75, 3.5, 4.0, 9.0, -1.0, f32::NAN] {
+            for &(u, v) in &[(0.1f32, 0.2f32), (0.5, 0.5), (0.93, 0.07), (1.0, 0.0)] {
+                // Same operations in the same order: bit-identical.
+                assert_eq!(
+                    s.sample(&t, lod, u, v),
+                    t.sample_lod(lod, u, v, filter),
+                    "{filter:?} {lod} {u} {v}"
+                );
+            }
+        }
+    }
+    let s = Sampler::new(Filter::Nearest);
+    for (lod, level) in [(0.0f32, 0usize), (0.49, 0), (0.51, 1), (2.6, 3), (7.0, 4)] {
+        assert_eq!(
+            s.sample(&t, lod, 0.3, 0.6),
+            t.sample(level, 0.3, 0.6, Filter::Nearest),
+            "{lod}"
+        );
+    }
+}
+
+#[test]
+fn lod_from_squares_agrees_with_lod() {
+    // lod(...) = log2(max(hypot)) = 0.5 log2(max(squares)); f32 rounding of the two forms
+    // differs by a few ulps of values below 12: 1e-5.
+    for &(a, b, c, d) in &[
+        (0.01f32, 0.0f32, 0.0f32, 0.01f32),
+        (0.2, 0.1, -0.05, 0.3),
+        (1.0, 0.0, 0.0, 1.0),
+        (0.001, 0.0, 0.0, 0.001),
+    ] {
+        let (w, h) = (64u32, 64u32);
+        let lx2 = (a * 64.0).powi(2) + (b * 64.0).powi(2);
+        let ly2 = (c * 64.0).powi(2) + (d * 64.0).powi(2);
+        let want = lod(a, b, c, d, w, h);
+        assert!(
+            (lod_from_squares(lx2, ly2, 6) - want).abs() < 1e-5,
+            "{a} {want}"
+        );
+    }
+    assert_eq!(lod_from_squares(f32::NAN, 0.0, 6), 0.0);
+    assert_eq!(lod_from_squares(f32::INFINITY, 0.0, 6), 6.0);
+}
