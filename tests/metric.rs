@@ -553,3 +553,57 @@ fn exr_is_read_exactly_and_hdr_within_rgbe_precision() {
         }
     }
 }
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(64))]
+
+    /// Bad input never panics: any prefix of a valid PFM, PNG or EXR file, and arbitrary bytes
+    /// after a PFM magic, give an image or an error naming the file.
+    #[test]
+    fn damaged_files_give_errors_not_panics(
+        cut in 0.0f64..1.0, junk in proptest::collection::vec(any::<u8>(), 0..64)
+    ) {
+        let pfm_file = pfm(&[vec![[1.0f32, 2.0, 3.0]; 3], vec![[0.5f32; 3]; 3]], true);
+        let png = png8(&[vec![[10u8, 20, 30]; 5], vec![[200u8, 100, 0]; 5]]);
+        let exr = exr_bytes(6, 4, |x, y| [x as f32, y as f32, 0.5]);
+        for (name, bytes) in [("p.pfm", &pfm_file), ("p.png", &png), ("p.exr", &exr)] {
+            let n = (bytes.len() as f64 * cut) as usize;
+            if let Err(e) = decode_image(&bytes[..n], Path::new(name)) {
+                prop_assert!(e.to_string().starts_with(name));
+                prop_assert_eq!(e.exit_code(), 2);
+            }
+        }
+        let mut j = b"PF".to_vec();
+        j.extend_from_slice(&junk);
+        if let Err(e) = decode_image(&j, Path::new("j.pfm")) {
+            prop_assert!(e.to_string().starts_with("j.pfm: PFM: "));
+        }
+    }
+}
+
+#[test]
+fn png_grey_and_alpha_variants_decode_alike() {
+    // A grey 8-bit PNG and an RGBA one (alpha ignored) decode to the same linear values as RGB.
+    let (w, h) = (3u32, 2u32);
+    let codes = [0u8, 40, 128, 200, 254, 255];
+    let mut grey = Vec::new();
+    image::ImageBuffer::<image::Luma<u8>, Vec<u8>>::from_raw(w, h, codes.to_vec())
+        .unwrap()
+        .write_to(&mut Cursor::new(&mut grey), ImageFormat::Png)
+        .unwrap();
+    let rgba_raw: Vec<u8> = codes.iter().flat_map(|&c| [c, c, c, 17]).collect();
+    let mut rgba = Vec::new();
+    image::ImageBuffer::<image::Rgba<u8>, Vec<u8>>::from_raw(w, h, rgba_raw)
+        .unwrap()
+        .write_to(&mut Cursor::new(&mut rgba), ImageFormat::Png)
+        .unwrap();
+    let g = decode_image(&grey, Path::new("g.png")).unwrap();
+    let a = decode_image(&rgba, Path::new("a.png")).unwrap();
+    assert_eq!(g, a);
+    for (i, &c) in codes.iter().enumerate() {
+        let want = srgb_decode(c as f64 / 255.0) as f32;
+        assert_eq!(g.pixels[i], Vec3::splat(want));
+    }
+    // Code 128 is 0.2158605 linear (the sRGB table value).
+    assert!((g.pixels[2].x - 0.215_860_5).abs() < 1e-6);
+}
