@@ -135,6 +135,24 @@ enum Command {
         #[arg(long)]
         json: bool,
     },
+    /// Compare an image with a reference: the perceptual distance and error measures.
+    ///
+    /// Reads two images (OpenEXR, Radiance HDR, PFM, or PNG decoded from sRGB to linear) of the
+    /// same size and prints the perceptual distance of docs/metrics.md (Rushmeier et al. model 1
+    /// with the Mannos-Sakrison CSF), RMSE, PSNR, maximum absolute error, relative luminance
+    /// error and the Mach-band measure, all on luminance. `b` is the reference.
+    Compare {
+        /// The image under test.
+        a: PathBuf,
+        /// The reference image.
+        b: PathBuf,
+        /// Pixels per degree of visual angle (viewing distance) for the contrast sensitivity.
+        #[arg(long, default_value_t = pixelflow_sim::metric::DEFAULT_PPD)]
+        ppd: f64,
+        /// Print JSON instead of the table.
+        #[arg(long)]
+        json: bool,
+    },
 }
 
 /// Options of the texture methods (ignored by the others).
@@ -287,6 +305,14 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             }
             Ok(())
         })??,
+        Command::Compare { a, b, ppd, json } => {
+            let c = pixelflow_sim::metric::compare_files(&a, &b, ppd)?;
+            if json {
+                println!("{}", serde_json::to_string_pretty(&c)?);
+            } else {
+                print!("{}", c.table());
+            }
+        }
     }
     Ok(())
 }
