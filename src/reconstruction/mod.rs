@@ -51,6 +51,7 @@
 
 mod estimate;
 mod hermite;
+pub mod mesh;
 mod refine;
 #[cfg(test)]
 mod tests;
