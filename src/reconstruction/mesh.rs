@@ -181,6 +181,7 @@ fn triangulate(sq: &SampledQuadtree, polygon: usize) -> Result<DomainMesh> {
     let keys = &sq.keys;
     let mut mesh = DomainMesh::default();
     let mut ring: Vec<usize> = Vec::new();
+    let mut verts: Vec<MeshVertex> = Vec::new();
     for leaf in sq.tree.leaves() {
         let cell = sq.tree.node(leaf).cell;
         let corners = cell.corners();
@@ -206,10 +207,10 @@ fn triangulate(sq: &SampledQuadtree, polygon: usize) -> Result<DomainMesh> {
             busy[e] = ring.len() > before;
             mesh.t_vertices += (ring.len() - before) as u64;
         }
-        let verts: Vec<MeshVertex> = ring
-            .iter()
-            .map(|&idx| sample_vertex(sq, polygon, idx))
-            .collect::<Result<_>>()?;
+        verts.clear();
+        for &idx in &ring {
+            verts.push(sample_vertex(sq, polygon, idx)?);
+        }
         let n = verts.len();
         // Corner c touches edges c - 1 and c.
         match (0..4).find(|&c| !busy[c] && !busy[(c + 3) % 4]) {
