@@ -69,7 +69,7 @@ fn distance_to_edges(prims: &[Prim], x: u32, y: u32) -> f64 {
 }
 
 #[test]
-fn cornell_mesh_covers_the_polygons_up_to_vertex_snapping() {
+fn perspective_meshes_cover_the_polygons_up_to_vertex_snapping() {
     // Perspective: a mesh vertex inside an original polygon edge projects exactly onto that
     // edge's projected line (up to f64 rounding, ~1e-9 px), then snaps to the 1/256-pixel grid,
     // moving at most sqrt(2)/2 units; the original edge runs between its two snapped corners, so
@@ -77,7 +77,13 @@ fn cornell_mesh_covers_the_polygons_up_to_vertex_snapping() {
     // original boundary are therefore within sqrt(2) units of each other: a sample may be
     // covered differently only within sqrt(2)/256 px of an original edge line. Interior mesh
     // edges share their snapped endpoints exactly, so everywhere else counts must be equal.
-    let (scene, mesh) = solved("cornell-box");
+    for name in ["cornell-box", "gallery"] {
+        check_perspective_coverage(name);
+    }
+}
+
+fn check_perspective_coverage(name: &str) {
+    let (scene, mesh) = solved(name);
     assert!(mesh.stats.t_vertices > 0, "the test needs T-vertices");
     let bound = std::f64::consts::SQRT_2 + 1e-6;
     for size in [256u32, 512] {
@@ -101,7 +107,7 @@ fn cornell_mesh_covers_the_polygons_up_to_vertex_snapping() {
             }
         }
         let covered = want.iter().filter(|&&c| c > 0).count();
-        println!("cornell {size}: {differ} of {covered} covered samples differ, all near edges");
+        println!("{name} {size}: {differ} of {covered} covered samples differ, all near edges");
         // Within sqrt(2)/256 px of an edge lies a band of 2 * sqrt(2) / 256 ~ 1.1 % of a pixel
         // per pixel of edge length; the box's edges are a few thousand pixels long at 512^2.
         assert!(differ <= covered / 1000, "{differ} differing samples");
