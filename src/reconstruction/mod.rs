@@ -44,6 +44,9 @@
 //! slightly (0.18 %) only in 2-D, and costs ~30 % rms on smooth data. Negative radiosity at
 //! shadow edges is visible; that rms difference is not.
 //!
+//! The Gouraud mesh comparison backend (the paper's "poly" model) lives in [`mesh`]: the same
+//! quadtrees triangulated without cracks, one degree-(1, 1) patch per triangle.
+//!
 //! Level of detail ([`MipChain`]): level 0 is resampled from the RRP at the requested size;
 //! each coarser level is an area-weighted box filter of the previous one (exact for odd sizes).
 //! Box filtering keeps every level's mean equal to level 0's and averages sharp shadow edges
@@ -51,6 +54,7 @@
 
 mod estimate;
 mod hermite;
+pub mod mesh;
 mod refine;
 #[cfg(test)]
 mod tests;
