@@ -4,17 +4,19 @@
 //! shading pass evaluate per pixel.
 //!
 //! The modules are the stages a frame passes through, in order: [`scene`] (what is rendered),
-//! [`radiosity`] (the solve over [`quadtree`]s), [`reconstruction`] (the RRPs), [`raster`]
-//! (regions, G-buffers), [`composition`] (depth merge of the virtual renderers), [`shading`] (the
-//! deferred pass) and [`image_out`] / [`output`] (files). [`pipeline`] strings them into the jobs
-//! the command line runs; [`report`] formats summaries; [`metric`] (with [`image_in`] reading the
-//! files) measures images against a reference for `compare` and the experiments. [`texture`] holds the radiosity textures
-//! (RAT) and their on-screen filters, not yet wired into the renderer. `docs/ARCHITECTURE.md` draws the data flow.
+//! [`radiosity`] (the solve over [`quadtree`]s), [`reconstruction`] (the RRPs, and the Gouraud
+//! mesh they replace), [`texture`] (the radiosity textures, RAT), [`raster`] (regions,
+//! G-buffers), [`composition`] (depth merge of the virtual renderers), [`shading`] (the deferred
+//! pass, one shader per method), [`image_out`] / [`output`] (files) and [`metric`] (distances
+//! between images, with [`image_in`] to read them). [`pipeline`] and [`experiment`] string the
+//! stages into the jobs the command line runs; [`report`] formats summaries.
+//! `docs/ARCHITECTURE.md` draws the data flow.
 
 #![warn(missing_docs)]
 
 pub mod composition;
 pub mod error;
+pub mod experiment;
 pub mod image_in;
 pub mod image_out;
 pub mod lanes;

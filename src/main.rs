@@ -8,9 +8,11 @@
 use anyhow::Context;
 use clap::{Parser, Subcommand};
 use pixelflow_sim::error::EXIT_FAILURE;
+use pixelflow_sim::experiment;
 use pixelflow_sim::pipeline::{self, Method, RenderEvent, RenderRequest, TextureOptions};
 use pixelflow_sim::raster::FrameOptions;
 use pixelflow_sim::scene::MAX_IMAGE_DIM;
+use pixelflow_sim::texture::Filter;
 use pixelflow_sim::Error;
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -107,6 +109,75 @@ enum Command {
         #[arg(short, long)]
         quiet: bool,
     },
+    /// The paper's Table 1 for a scene: triangles and vertices of the original, mesh and RAT
+    /// models, model sizes, texture memory and count, RRP memory; with `--frames`, the frame
+    /// times of mesh, texture-bilinear, texture-bicubic and direct measured in one run.
+    ///
+    /// Sizes are decimal MB; the byte accounting of each model is in `docs/performance.md`.
+    Stats {
+        /// A scene file or a solution file.
+        input: PathBuf,
+        /// Frames timed per method (after one warm-up); 0 = sizes only.
+        #[arg(long, default_value_t = 0)]
+        frames: u32,
+        /// Frame width for the timings.
+        #[arg(long, default_value_t = 1024)]
+        width: u32,
+        /// Frame height for the timings.
+        #[arg(long, default_value_t = 1024)]
+        height: u32,
+        /// Samples per pixel: 1, 4 or 16.
+        #[arg(long, default_value_t = 1)]
+        aa: u32,
+        #[command(flatten)]
+        texture: TextureArgs,
+        /// Worker threads (default: all cores).
+        #[arg(long)]
+        threads: Option<usize>,
+        /// Print JSON instead of the table.
+        #[arg(long)]
+        json: bool,
+    },
+    /// Rerun the paper's experiments: `fig5`, `fig6`, `table1`, or `all` (which also writes
+    /// `docs/experiments.md` when given `--doc`).
+    ///
+    /// fig5: the two-spots plane in texture space, the oracle reference, the paper's depth-9
+    /// reference, a depth-2 (5 x 5) quadtree, its bilinear and bicubic (RRP) resampling to 256 x 256
+    /// and the direct method; fig6: the RRP resampled to an 8 x 8 texture drawn with bilinear and
+    /// Mitchell-Netravali filters, and direct; each with the perceptual distance to the reference
+    /// beside the paper's numbers. table1: `stats` of the shipped scenes beside the paper's Table 1.
+    Experiment {
+        /// `fig5`, `fig6`, `table1` or `all`.
+        which: String,
+        /// Directory for the images (default: `out/experiments`).
+        #[arg(long, default_value = "out/experiments")]
+        out_dir: PathBuf,
+        /// With `all`: write the Markdown report to this file (`docs/experiments.md`); image
+        /// links are relative to its directory.
+        #[arg(long)]
+        doc: Option<PathBuf>,
+        /// The texture-space scene of fig5 and fig6.
+        #[arg(long, default_value = "scenes/two-spots.toml")]
+        scene: PathBuf,
+        /// Image side of fig5 and fig6.
+        #[arg(long, default_value_t = 256)]
+        size: u32,
+        /// Pixels per degree of the perceptual metric.
+        #[arg(long, default_value_t = pixelflow_sim::metric::DEFAULT_PPD)]
+        ppd: f64,
+        /// table1: the scenes (default: the three shipped scenes).
+        #[arg(long, value_delimiter = ',')]
+        scenes: Vec<PathBuf>,
+        /// table1: frames timed per method at 1024 x 1024 (0 = sizes only).
+        #[arg(long, default_value_t = 10)]
+        frames: u32,
+        /// Worker threads (default: all cores).
+        #[arg(long)]
+        threads: Option<usize>,
+        /// Print JSON instead of tables.
+        #[arg(long)]
+        json: bool,
+    },
     /// Measure frame time: render the scene camera's view repeatedly at several sizes and print
     /// the medians of every stage and the deferred pass's throughput.
     ///
@@ -116,6 +187,12 @@ enum Command {
     Bench {
         /// A scene file or a solution file.
         input: PathBuf,
+        /// Methods to measure, comma-separated (`direct`, `texture-bilinear`, ...), each at
+        /// every size, interleaved per size so they see the same machine state.
+        #[arg(long, value_delimiter = ',', default_values_t = [String::from("direct")])]
+        methods: Vec<String>,
+        #[command(flatten)]
+        texture: TextureArgs,
         /// Square image sizes to measure, comma-separated.
         #[arg(long, value_delimiter = ',', default_values_t = [512u32, 1024, 2048])]
         sizes: Vec<u32>,
@@ -267,8 +344,79 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 })
             })??;
         }
+        Command::Stats {
+            input,
+            frames,
+            width,
+            height,
+            aa,
+            texture,
+            threads,
+            json,
+        } => in_pool(threads, || -> anyhow::Result<()> {
+            let mut p = pipeline::prepare(&input, false)?;
+            let topts = texture.options();
+            p.texture_policy = topts.policy(&p.scene)?;
+            let bicubic = match topts.method(Method::parse("texture-bicubic")?)? {
+                Method::Texture(f) => f,
+                _ => Filter::MITCHELL,
+            };
+            let opts = FrameOptions {
+                aa,
+                ..FrameOptions::new(width, height)
+            };
+            opts.validate()?;
+            let stats = pipeline::model_stats(&p, frames, &opts, bicubic)?;
+            if json {
+                println!("{}", serde_json::to_string_pretty(&stats)?);
+            } else {
+                print!("{}", pixelflow_sim::report::model_stats_text(&stats));
+            }
+            Ok(())
+        })??,
+        Command::Experiment {
+            which,
+            out_dir,
+            doc,
+            scene,
+            size,
+            ppd,
+            scenes,
+            frames,
+            threads,
+            json,
+        } => in_pool(threads, || -> anyhow::Result<()> {
+            let req = experiment::Request {
+                which: experiment::Which::parse(&which)?,
+                figures: experiment::FigureOptions {
+                    size,
+                    ppd,
+                    out_dir: Some(out_dir),
+                    ..experiment::FigureOptions::paper(&scene)
+                },
+                scenes: if scenes.is_empty() {
+                    experiment::SHIPPED_SCENES
+                        .iter()
+                        .map(PathBuf::from)
+                        .collect()
+                } else {
+                    scenes
+                },
+                frames,
+                doc,
+            };
+            let results = experiment::run(&req, &mut |path| eprintln!("wrote {}", path.display()))?;
+            if json {
+                println!("{}", serde_json::to_string_pretty(&results)?);
+            } else {
+                print!("{}", experiment::results_text(&results));
+            }
+            Ok(())
+        })??,
         Command::Bench {
             input,
+            methods,
+            texture,
             sizes,
             frames,
             aa,
@@ -276,7 +424,13 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             threads,
             json,
         } => in_pool(threads, || -> anyhow::Result<()> {
-            let p = pipeline::prepare(&input, false)?;
+            let mut p = pipeline::prepare(&input, false)?;
+            let topts = texture.options();
+            p.texture_policy = topts.policy(&p.scene)?;
+            let methods = methods
+                .iter()
+                .map(|m| topts.method(Method::parse(m)?))
+                .collect::<Result<Vec<_>, _>>()?;
             let base = FrameOptions {
                 aa,
                 renderers,
@@ -289,7 +443,12 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 .into());
             }
             let sizes: Vec<(u32, u32)> = sizes.iter().map(|&s| (s, s)).collect();
-            let rows = pipeline::bench(&p, Method::Direct, &sizes, frames, &base)?;
+            let mut rows = Vec::new();
+            for &size in &sizes {
+                for &m in &methods {
+                    rows.extend(pipeline::bench(&p, m, &[size], frames, &base)?);
+                }
+            }
             if json {
                 println!("{}", serde_json::to_string_pretty(&rows)?);
             } else {

@@ -19,6 +19,7 @@ use crate::error::{Error, Result};
 use crate::image_out;
 use crate::radiosity::{self, file as solution_file, Oracle, Solution, SolveOptions};
 use crate::raster::{render_frame, render_frame_with, Frame, FrameOptions, FrameStats};
+use crate::reconstruction::mesh::{MeshModel, MeshStats};
 use crate::reconstruction::{Estimator, Reconstruction};
 use crate::scene::{load_scene, Camera, Keyframe, Scene};
 use crate::shading::Shader;
@@ -196,6 +197,7 @@ pub struct Prepared {
     /// before the first texture frame: the textures are built once, on first use.
     pub texture_policy: SizePolicy,
     textures: OnceLock<(TextureSet, f64)>,
+    mesh: OnceLock<(MeshModel, f64)>,
 }
 
 impl Prepared {
@@ -213,6 +215,21 @@ impl Prepared {
             .get()
             .ok_or_else(|| Error::Runtime("texture set missing after build".into()))?;
         Ok((set, *ms))
+    }
+
+    /// The Gouraud mesh of the solution (T-vertex fans), built on first use, with its build
+    /// time in ms.
+    pub fn mesh(&self) -> Result<(&MeshModel, f64)> {
+        if self.mesh.get().is_none() {
+            let t = Instant::now();
+            let mesh = MeshModel::build(&self.scene, &self.solution.polygons)?;
+            let _ = self.mesh.set((mesh, t.elapsed().as_secs_f64() * 1e3));
+        }
+        let (mesh, ms) = self
+            .mesh
+            .get()
+            .ok_or_else(|| Error::Runtime("mesh missing after build".into()))?;
+        Ok((mesh, *ms))
     }
 }
 
@@ -251,6 +268,7 @@ pub fn prepare(input: &Path, progress: bool) -> Result<Prepared> {
         solve_ms,
         reconstruction_ms,
         textures: OnceLock::new(),
+        mesh: OnceLock::new(),
     })
 }
 
@@ -271,7 +289,8 @@ pub fn render(p: &Prepared, method: Method, camera: &Camera, opts: &FrameOptions
             render_frame_with(&p.scene, camera, &Shader::Texture { set, filter }, opts)?
         }
         Method::Mesh => {
-            return Err(Error::Usage("method `mesh` is not built yet".into()));
+            let (mesh, _) = p.mesh()?;
+            render_frame(&mesh.scene, camera, mesh, opts)?
         }
         Method::Reference => {
             let oracle = Oracle::new(&p.solution, &p.scene)?;
@@ -420,6 +439,12 @@ pub struct RenderReport {
     /// Time to resample the textures from the RRPs, once per job (texture methods only), ms.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub texture_build_ms: Option<f64>,
+    /// The mesh's triangles, vertices and size (mesh method only).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub mesh: Option<MeshStats>,
+    /// Time to triangulate the mesh, once per job (mesh method only), ms.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub mesh_build_ms: Option<f64>,
 }
 
 impl RenderReport {
@@ -429,7 +454,13 @@ impl RenderReport {
             Method::Texture(_) => p.textures().ok(),
             _ => None,
         };
+        let mesh = match method {
+            Method::Mesh => p.mesh().ok(),
+            _ => None,
+        };
         RenderReport {
+            mesh: mesh.map(|(m, _)| m.stats),
+            mesh_build_ms: mesh.map(|(_, ms)| ms),
             texture_memory: tex.map(|(set, _)| set.memory),
             texture_build_ms: tex.map(|(_, ms)| ms),
             frame: frame.stats.clone(),
@@ -601,11 +632,11 @@ pub fn bench(
 /// The bench rows as a fixed-width table.
 pub fn bench_table(rows: &[BenchRow]) -> String {
     let mut s = String::from(
-        "method   size        aa  frame_ms    fps  geometry  raster  compos.  shading  Msample/s\n",
+        "method            size        aa  frame_ms    fps  geometry  raster  compos.  shading  Msample/s\n",
     );
     for r in rows {
         s += &format!(
-            "{:<8} {:>4}x{:<5} {:>3} {:>9.2} {:>6.1} {:>9.2} {:>7.2} {:>8.2} {:>8.2} {:>10.0}\n",
+            "{:<17} {:>4}x{:<5} {:>3} {:>9.2} {:>6.1} {:>9.2} {:>7.2} {:>8.2} {:>8.2} {:>10.0}\n",
             r.method,
             r.width,
             r.height,
@@ -620,4 +651,92 @@ pub fn bench_table(rows: &[BenchRow]) -> String {
         );
     }
     s
+}
+
+/// The paper's Table 1 for one scene: sizes of the original, mesh ("poly") and RAT models, the
+/// RRP memory, and optionally frame rates of each method measured in one run.
+#[derive(Debug, Clone, Serialize)]
+pub struct ModelStats {
+    /// Scene file.
+    pub scene: String,
+    /// Original model: triangles (2 per quad) and distinct corner positions.
+    pub original: MeshStats,
+    /// Mesh model: the adaptive quadtrees triangulated with T-vertex fans.
+    pub mesh: MeshStats,
+    /// RAT model triangles (the original triangles: textures replace the subdivision).
+    pub rat_triangles: u64,
+    /// RAT model vertices: corners are not shared between polygons, since each carries its own
+    /// texture coordinates (4 per quad, 3 per triangle).
+    pub rat_vertices: u64,
+    /// RAT model geometry size: `rat_vertices` x (12 B position + 8 B texture coordinates) +
+    /// `rat_triangles` x 12 B indices.
+    pub rat_bytes: u64,
+    /// Texture memory and texture count under the job's size policy.
+    pub texture_memory: TextureMemory,
+    /// RRP storage, bytes (patches + locate trees, [`crate::reconstruction::ReconstructionStats`]).
+    pub rrp_bytes: u64,
+    /// RRP patches.
+    pub rrp_patches: u64,
+    /// Radiosity samples of the solution.
+    pub samples: u64,
+    /// Frame times per method (medians), if frames were measured.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub frames: Vec<BenchRow>,
+}
+
+/// Bytes per RAT vertex in [`ModelStats::rat_bytes`]: position (3 x f32) + (u, v) (2 x f32).
+pub const RAT_BYTES_PER_VERTEX: u64 = 20;
+
+/// The methods `stats --frames` measures, in the paper's Table 1 order plus the direct method.
+pub const STATS_METHODS: [Method; 4] = [
+    Method::Mesh,
+    Method::Texture(Filter::Bilinear),
+    Method::Texture(Filter::MITCHELL),
+    Method::Direct,
+];
+
+/// Table 1 for a prepared scene; with `frames > 0`, each of [`STATS_METHODS`] is rendered
+/// `frames` times (after a warm-up) at `opts`'s size and the medians are reported. The bicubic
+/// filter is `bicubic`'s (Mitchell–Netravali unless given).
+pub fn model_stats(
+    p: &Prepared,
+    frames: u32,
+    opts: &FrameOptions,
+    bicubic: Filter,
+) -> Result<ModelStats> {
+    let (mesh, _) = p.mesh()?;
+    let (textures, _) = p.textures()?;
+    let original = MeshStats::original(&p.scene);
+    let (rat_triangles, rat_vertices) =
+        p.scene
+            .polygons
+            .iter()
+            .fold((0, 0), |(t, v), poly| match poly.shape {
+                crate::scene::Shape::Triangle => (t + 1, v + 3),
+                crate::scene::Shape::Quad => (t + 2, v + 4),
+            });
+    let rs = p.reconstruction.stats();
+    let mut rows = Vec::new();
+    if frames > 0 {
+        for m in STATS_METHODS {
+            let m = match m {
+                Method::Texture(Filter::Bicubic { .. }) => Method::Texture(bicubic),
+                m => m,
+            };
+            rows.extend(bench(p, m, &[(opts.width, opts.height)], frames, opts)?);
+        }
+    }
+    Ok(ModelStats {
+        scene: p.scene.source.display().to_string(),
+        original,
+        mesh: mesh.stats,
+        rat_triangles,
+        rat_vertices,
+        rat_bytes: rat_vertices * RAT_BYTES_PER_VERTEX + rat_triangles * 12,
+        texture_memory: textures.memory,
+        rrp_bytes: rs.bytes as u64,
+        rrp_patches: rs.patches as u64,
+        samples: p.solution.stats.vertices,
+        frames: rows,
+    })
 }

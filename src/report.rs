@@ -175,6 +175,104 @@ impl fmt::Display for SceneSummary {
     }
 }
 
+/// Decimal megabytes (10^6 bytes), as Table 1 prints sizes.
+fn mb(bytes: u64) -> f64 {
+    bytes as f64 / 1e6
+}
+
+/// Thousands separators: 158670 -> "158,670".
+pub fn grouped(n: u64) -> String {
+    let s = n.to_string();
+    let mut out = String::new();
+    for (i, ch) in s.chars().enumerate() {
+        if i > 0 && (s.len() - i) % 3 == 0 {
+            out.push(',');
+        }
+        out.push(ch);
+    }
+    out
+}
+
+/// The `stats` table for one scene: the paper's Table 1 columns (original, mesh and RAT models,
+/// sizes, texture memory and count) plus the RRP memory, and the measured frame times with the
+/// ratios the project tracks (direct / bilinear, direct / bicubic, mesh / direct).
+pub fn model_stats_text(s: &crate::pipeline::ModelStats) -> String {
+    let mut t = format!("{}: {} radiosity samples\n", s.scene, grouped(s.samples));
+    t += "model            triangles    vertices   size (MB)\n";
+    t += &format!(
+        "original      {:>12} {:>11} {:>11.3}\n",
+        grouped(s.original.triangles),
+        grouped(s.original.vertices),
+        mb(s.original.bytes)
+    );
+    t += &format!(
+        "mesh (poly)   {:>12} {:>11} {:>11.3}   ({} T-vertices)\n",
+        grouped(s.mesh.triangles),
+        grouped(s.mesh.vertices),
+        mb(s.mesh.bytes),
+        grouped(s.mesh.t_vertices)
+    );
+    t += &format!(
+        "RAT           {:>12} {:>11} {:>11.3}\n",
+        grouped(s.rat_triangles),
+        grouped(s.rat_vertices),
+        mb(s.rat_bytes)
+    );
+    let m = &s.texture_memory;
+    t += &format!(
+        "texture memory: {} textures, {} texels; {:.3} / {:.3} / {:.3} MB at 8 / 12 / 32 bits \
+         per channel ({:.3} / {:.3} / {:.3} MB with mip chains)\n",
+        grouped(m.textures as u64),
+        grouped(m.texels),
+        mb(m.bytes[0]),
+        mb(m.bytes[1]),
+        mb(m.bytes[2]),
+        mb(m.bytes_with_chain[0]),
+        mb(m.bytes_with_chain[1]),
+        mb(m.bytes_with_chain[2]),
+    );
+    t += &format!(
+        "RRP memory: {} patches, {:.3} MB\n",
+        grouped(s.rrp_patches),
+        mb(s.rrp_bytes)
+    );
+    if let Some(r0) = s.frames.first() {
+        t += &format!(
+            "frame times at {} x {}, AA {}, median of {} frames:\n",
+            r0.width, r0.height, r0.aa, r0.frames
+        );
+        for r in &s.frames {
+            t += &format!(
+                "  {:<17} {:>9.2} ms {:>8.1} fps   (raster {:.2} ms, shading {:.2} ms)\n",
+                r.method, r.frame_ms, r.fps, r.raster_ms, r.shading_ms
+            );
+        }
+        let ms = |name: &str| {
+            s.frames
+                .iter()
+                .find(|r| r.method == name)
+                .map(|r| r.frame_ms)
+        };
+        let ratio = |a: Option<f64>, b: Option<f64>| match (a, b) {
+            (Some(a), Some(b)) if b > 0.0 => format!("{:.2}", a / b),
+            _ => "-".into(),
+        };
+        let (d, bl, bc, me) = (
+            ms("direct"),
+            ms("texture-bilinear"),
+            ms("texture-bicubic"),
+            ms("mesh"),
+        );
+        t += &format!(
+            "  ratios: direct/bilinear {}, direct/bicubic {}, mesh/direct {}\n",
+            ratio(d, bl),
+            ratio(d, bc),
+            ratio(me, d)
+        );
+    }
+    t
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -267,7 +267,7 @@ fn shade_region_per_sample(
     background: Vec3,
     dst: &mut [Vec3],
     pitch: usize,
-    f: &mut dyn FnMut(usize, usize, usize) -> Vec3,
+    mut f: impl FnMut(usize, usize, usize) -> Vec3,
 ) -> ShadeCounts {
     let (w, h, stride) = (gb.width as usize, gb.height as usize, gb.stride as usize);
     let plane = stride * h;
@@ -337,7 +337,7 @@ pub fn shade_region_with(
         Shader::Patches(_) => shade_region_into(gb, background, dst, pitch),
         Shader::Texture { set, filter } => {
             let sampler = Sampler::new(filter);
-            let mut f = |i: usize, x: usize, y: usize| {
+            let f = |i: usize, x: usize, y: usize| {
                 let Some(tex) = set.textures.get(gb.polygon[i] as usize) else {
                     return Vec3::ZERO;
                 };
@@ -348,11 +348,11 @@ pub fn shade_region_with(
                 let lod = lod_from_squares(lx2, ly2, tex.last_level());
                 sampler.sample(tex, lod, gb.u[i], gb.v[i])
             };
-            shade_region_per_sample(gb, background, dst, pitch, &mut f)
+            shade_region_per_sample(gb, background, dst, pitch, f)
         }
         Shader::Exact(func) => {
-            let mut f = |i: usize, _: usize, _: usize| func(gb.polygon[i], gb.u[i], gb.v[i]);
-            shade_region_per_sample(gb, background, dst, pitch, &mut f)
+            let f = |i: usize, _: usize, _: usize| func(gb.polygon[i], gb.u[i], gb.v[i]);
+            shade_region_per_sample(gb, background, dst, pitch, f)
         }
     }
 }

@@ -11,7 +11,7 @@ use std::path::Path;
 use glam::Vec3;
 use pixelflow_sim::quadtree::{Cell, Quadtree, SampledQuadtree};
 use pixelflow_sim::raster::{render_frame, render_frame_with, Frame, FrameOptions};
-use pixelflow_sim::reconstruction::{Estimator, Reconstruction};
+use pixelflow_sim::reconstruction::{mesh::MeshModel, Estimator, Reconstruction};
 use pixelflow_sim::scene::{load_scene, Scene};
 use pixelflow_sim::shading::Shader;
 use pixelflow_sim::texture::{Filter, RadiosityTexture, SizePolicy, TextureMemory, TextureSet};
@@ -80,6 +80,11 @@ impl Backends {
         render_frame_with(&self.scene, &self.scene.camera, &shader, opts).unwrap()
     }
 
+    fn mesh(&self, opts: &FrameOptions) -> Frame {
+        let mesh = MeshModel::build(&self.scene, &self.trees).unwrap();
+        render_frame(&mesh.scene, &self.scene.camera, &mesh, opts).unwrap()
+    }
+
     fn exact(&self, opts: &FrameOptions, f: fn(f64, f64) -> Vec3) -> Frame {
         let func = move |_: u32, u: f32, v: f32| f(u as f64, v as f64);
         render_frame_with(&self.scene, &self.scene.camera, &Shader::Exact(&func), opts).unwrap()
@@ -118,6 +123,7 @@ fn a_constant_is_the_constant_through_every_backend_everywhere() {
     let opts = FrameOptions::new(96, 96);
     // Everywhere, borders included: clamp-to-edge of a constant is the constant.
     assert!(worst(&b.direct(&opts), c, 0.0) < ROUNDING);
+    assert!(worst(&b.mesh(&opts), c, 0.0) < ROUNDING);
     assert!(worst(&b.exact(&opts, c), c, 0.0) < ROUNDING);
     for filter in [
         Filter::Nearest,
@@ -140,6 +146,7 @@ fn a_linear_function_is_reproduced_by_every_backend() {
     // The RRP of linear samples is the linear function (C1 Hermite with exact slopes), the
     // Gouraud mesh on a parallelogram interpolates it exactly, the exact shader is f itself.
     assert!(worst(&b.direct(&opts), linear, 0.0) < ROUNDING);
+    assert!(worst(&b.mesh(&opts), linear, 0.0) < ROUNDING);
     assert!(worst(&b.exact(&opts, linear), linear, 0.0) < ROUNDING);
     for side in [16u32, 64] {
         let texel = 1.0 / side as f64;

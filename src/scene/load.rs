@@ -531,7 +531,8 @@ impl<'a> Cx<'a> {
             s.aa_samples = x as u32;
         }
         if let Some(v) = &r.texture_size {
-            let x = self.int(v, "render.texture_size", 0, i64::from(MAX_IMAGE_DIM), "")?;
+            let max = i64::from(crate::texture::MAX_TEXTURE_SIZE);
+            let x = self.int(v, "render.texture_size", 0, max, "")?;
             if x != 0 && (x as u64).count_ones() != 1 {
                 return Err(self.err(
                     v.span(),
