@@ -165,6 +165,10 @@ enum Command {
         /// Pixels per degree of the perceptual metric.
         #[arg(long, default_value_t = pixelflow_sim::metric::DEFAULT_PPD)]
         ppd: f64,
+        /// fig5, fig6: the RRPs' derivative estimator, `monotone` (default) or `plain`
+        /// (central differences).
+        #[arg(long, default_value = "monotone")]
+        estimator: String,
         /// table1: the scenes (default: the three shipped scenes).
         #[arg(long, value_delimiter = ',')]
         scenes: Vec<PathBuf>,
@@ -381,6 +385,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             scene,
             size,
             ppd,
+            estimator,
             scenes,
             frames,
             threads,
@@ -391,6 +396,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 figures: experiment::FigureOptions {
                     size,
                     ppd,
+                    estimator: experiment::parse_estimator(&estimator)?,
                     out_dir: Some(out_dir),
                     ..experiment::FigureOptions::paper(&scene)
                 },
