@@ -996,9 +996,10 @@ fn figure_findings(f: &Figure) -> String {
     }
     if let Some(c) = f.panel("full").and_then(|p| p.versus_reference.as_ref()) {
         t += &format!(
-            "- The paper's own reference (depth-9 full sampling, bilinear) is {:.4} from the \
-             oracle: small against the reconstructions' distances, so the choice of reference \
-             does not change the ordering.\n",
+            "- The paper's own reference (the full sampling, shown bilinearly) is {:.4} from the \
+             oracle reference. At 256 x 256 with depth 9 the 513 x 513 samples include every \
+             pixel centre, so the two references are the same image and the paper's choice of \
+             reference changes nothing here.\n",
             c.perceptual_distance
         );
     }
