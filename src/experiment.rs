@@ -742,10 +742,11 @@ pub fn table1_markdown(rows: &[ModelStats]) -> String {
 }
 
 /// The shipped scenes Table 1 is computed for by default.
-pub const SHIPPED_SCENES: [&str; 3] = [
+pub const SHIPPED_SCENES: [&str; 4] = [
     "scenes/two-spots.toml",
     "scenes/cornell-box.toml",
     "scenes/gallery.toml",
+    "scenes/gallery-fine.toml",
 ];
 
 /// Parses `monotone` or `plain`.

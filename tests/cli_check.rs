@@ -92,3 +92,18 @@ fn usage_errors_exit_2_and_help_exits_0() {
     assert!(text(&help.stdout).contains("Load and validate a scene file"));
     assert!(Path::new(env!("CARGO_BIN_EXE_pixelflow-sim")).exists());
 }
+
+#[test]
+fn gallery_fine_is_the_gallery_with_a_finer_solve() {
+    // Same geometry, lights, camera and path as gallery.toml; only [radiosity] differs.
+    use pixelflow_sim::scene::load_scene;
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
+    let a = load_scene(&root.join("scenes/gallery.toml")).unwrap();
+    let b = load_scene(&root.join("scenes/gallery-fine.toml")).unwrap();
+    assert_eq!(a.polygons.len(), b.polygons.len());
+    assert_eq!(a.spots, b.spots);
+    assert_eq!(a.camera, b.camera);
+    assert_eq!(a.camera_path, b.camera_path);
+    assert!(b.radiosity.tolerance < a.radiosity.tolerance);
+    assert!(b.radiosity.max_depth > a.radiosity.max_depth);
+}
