@@ -77,6 +77,12 @@ pub fn composite(mut parts: Vec<RegionGBuffer>) -> RegionGBuffer {
             }
         }
     }
+    // Shaders without patches (textures, the reference) leave every table empty: nothing to
+    // rebuild, and no slot means anything.
+    if parts.iter().all(|p| p.table_ids.is_empty()) {
+        out.slot.fill(0);
+        return out;
+    }
     // Canonical table: memory order of first use.
     let mut index = IdMap::default();
     let mut table: Vec<PatchCoeffs> = Vec::new();
@@ -187,5 +193,31 @@ mod tests {
             let id = ab.table_ids[ab.slot[i] as usize];
             assert_eq!(ab.table[ab.slot[i] as usize].c[0][0], id as f32);
         }
+    }
+
+    #[test]
+    fn parts_without_patch_tables_merge_by_depth() {
+        // Regression: texture and reference frames fill no patch tables; merging two renderers'
+        // parts indexed the empty tables and panicked the compositor thread.
+        const N: u32 = NO_POLYGON;
+        let inf = f32::INFINITY;
+        let mut a = part(
+            &[1.0, 2.0, inf, inf, inf, inf, inf, inf],
+            &[4, 4, N, N, N, N, N, N],
+            &[0; 8],
+        );
+        let mut b = part(
+            &[2.0, 1.0, 3.0, inf, inf, inf, inf, inf],
+            &[7, 7, 7, N, N, N, N, N],
+            &[0; 8],
+        );
+        for g in [&mut a, &mut b] {
+            g.table.clear();
+            g.table_ids.clear();
+            g.slot.fill(0);
+        }
+        let m = composite(vec![a, b]);
+        assert_eq!(m.polygon[..4], [4, 7, 7, N]);
+        assert!(m.table.is_empty() && m.slot.iter().all(|&s| s == 0));
     }
 }

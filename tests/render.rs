@@ -144,3 +144,46 @@ fn cornell_light_is_the_brightest_thing_and_walls_keep_their_colour() {
         "brightest red {max}, brightest non-emitter {other}"
     );
 }
+
+#[test]
+fn every_method_is_identical_for_any_threads_and_renderers() {
+    // The texture, mesh and reference methods share the rasterizer and compositor; their
+    // deferred passes read only composited regions (textures: level of detail from differences
+    // inside a region), so threads and renderers must not change a bit either.
+    use pixelflow_sim::texture::Filter;
+    let p = prepared("cornell-box");
+    for method in [
+        Method::Texture(Filter::Nearest),
+        Method::Texture(Filter::Bilinear),
+        Method::Texture(Filter::MITCHELL),
+        Method::Mesh,
+        Method::Reference,
+    ] {
+        let mut opts = FrameOptions::new(64, 48);
+        opts.aa = 4;
+        opts.region = 16;
+        let run = |opts: &FrameOptions, threads: usize| {
+            rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap()
+                .install(|| pipeline::render(p, method, &p.scene.camera, opts))
+                .expect("render")
+        };
+        let reference = run(&opts, 1);
+        assert!(reference.pixels.iter().all(|c| c.is_finite()));
+        for (threads, renderers) in [(2, 1), (2, 3)] {
+            opts.renderers = renderers;
+            let f = run(&opts, threads);
+            let same = f
+                .pixels
+                .iter()
+                .zip(&reference.pixels)
+                .all(|(a, b)| a.to_array().map(f32::to_bits) == b.to_array().map(f32::to_bits));
+            assert!(
+                same,
+                "{method:?}: threads {threads}, renderers {renderers} differ"
+            );
+        }
+    }
+}
