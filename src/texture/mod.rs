@@ -26,8 +26,11 @@ use crate::error::{Error, Result};
 use crate::quadtree::SampledQuadtree;
 use crate::reconstruction::{MipLevel, Reconstruction};
 
+mod lanes;
 #[cfg(test)]
 mod tests;
+
+pub use lanes::Rgb8;
 
 /// Largest texture side any policy produces (4096 x 4096 texels, 192 MiB at 32-bit floats).
 /// Deeper quadtrees are clamped to this side under [`SizePolicy::FromDepth`].
