@@ -404,7 +404,8 @@ pub fn shade_region_texture_into(
             return unsafe { shade_texture_avx2(set, &sampler, gb, background, dst, pitch) };
         }
     }
-    shade_texture_body(set, &sampler, gb, background, dst, pitch)
+    // SAFETY: HW = false: portable code only.
+    unsafe { shade_texture_body::<false>(set, &sampler, gb, background, dst, pitch) }
 }
 
 #[cfg(target_arch = "x86_64")]
@@ -417,7 +418,8 @@ fn shade_texture_avx2(
     dst: &mut [Vec3],
     pitch: usize,
 ) -> ShadeCounts {
-    shade_texture_body(set, sampler, gb, bg, dst, pitch)
+    // SAFETY: this function is only called on CPUs with AVX2, which HW = true requires.
+    unsafe { shade_texture_body::<true>(set, sampler, gb, bg, dst, pitch) }
 }
 
 /// Lane form of `uv_derivatives` for the 8 samples starting at plane index `i0` (column `bx`,
@@ -542,8 +544,12 @@ fn uv_derivatives8_uniform(
     [ux, vx, uy, vy]
 }
 
+/// The texture pass body; `HW` selects the AVX2 gather instruction for the texel loads.
+///
+/// # Safety
+/// With `HW = true` the CPU must support AVX2.
 #[inline(always)]
-fn shade_texture_body(
+unsafe fn shade_texture_body<const HW: bool>(
     set: &TextureSet,
     sampler: &Sampler,
     gb: &RegionGBuffer,
@@ -598,7 +604,12 @@ fn shade_texture_body(
                     let th = F32x8::splat(tex.height as f32);
                     let lx2 = (ux * tw) * (ux * tw) + (vx * th) * (vx * th);
                     let ly2 = (uy * tw) * (uy * tw) + (vy * th) * (vy * th);
-                    sampler.sample8(tex, lx2, ly2, u8x, v8x, &[true; LANES])
+                    {
+                        // SAFETY: as required of this function's caller.
+                        unsafe {
+                            sampler.sample8_with::<HW>(tex, lx2, ly2, u8x, v8x, &[true; LANES])
+                        }
+                    }
                 } else {
                     // Mixed polygons or empty lanes: one lane group per distinct polygon.
                     let u8x = F32x8(gb.u[i0..i0 + LANES].try_into().unwrap());
@@ -621,7 +632,8 @@ fn shade_texture_body(
                                 let th = F32x8::splat(tex.height as f32);
                                 let lx2 = (ux * tw) * (ux * tw) + (vx * th) * (vx * th);
                                 let ly2 = (uy * tw) * (uy * tw) + (vy * th) * (vy * th);
-                                sampler.sample8(tex, lx2, ly2, u8x, v8x, &m)
+                                // SAFETY: as required of this function's caller.
+                                unsafe { sampler.sample8_with::<HW>(tex, lx2, ly2, u8x, v8x, &m) }
                             }
                         };
                         for ch in 0..3 {
@@ -954,7 +966,10 @@ mod tests {
             let c_got = shade_region_texture_into(&set, filter, &gb, bg, &mut got, pitch);
             // The portable build of the body too (the dispatcher above picks AVX2 if present).
             let mut port = vec![Vec3::splat(-7.0); pitch * h];
-            shade_texture_body(&set, &Sampler::new(filter), &gb, bg, &mut port, pitch);
+            // SAFETY: HW = false: portable code only.
+            unsafe {
+                shade_texture_body::<false>(&set, &Sampler::new(filter), &gb, bg, &mut port, pitch)
+            };
             assert_eq!(c_got.samples_shaded, c_want.samples_shaded, "{filter:?}");
             assert!(
                 c_got.uniform_blocks > 0 && c_got.mixed_blocks > 0,

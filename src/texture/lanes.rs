@@ -36,7 +36,13 @@ pub type Rgb8 = [F32x8; 3];
 /// clamped rows and columns of a level whose `texels.len() == width * height`, see
 /// [`check_level`]).
 #[inline(always)]
-unsafe fn gather(texels: &[Vec3], idx: &[i32; LANES]) -> Rgb8 {
+unsafe fn gather<const HW: bool>(texels: &[Vec3], idx: &[i32; LANES]) -> Rgb8 {
+    #[cfg(target_arch = "x86_64")]
+    if HW {
+        // SAFETY: HW is only instantiated on AVX2 CPUs (see `Sampler::sample8_with`); the
+        // indices are valid as required of the caller.
+        return unsafe { gather_avx2(texels, idx) };
+    }
     let mut r = [[0.0f32; LANES]; 3];
     for l in 0..LANES {
         // SAFETY: the caller guarantees 0 <= idx[l] < texels.len().
@@ -46,6 +52,30 @@ unsafe fn gather(texels: &[Vec3], idx: &[i32; LANES]) -> Rgb8 {
         r[2][l] = t.z;
     }
     [F32x8(r[0]), F32x8(r[1]), F32x8(r[2])]
+}
+
+/// [`gather`] with the AVX2 gather instruction: one 8-lane gather per channel from the `Vec3`
+/// array (`repr(C)`, 3 consecutive f32), at float offsets 3 idx + channel.
+///
+/// Safety: the CPU supports AVX2 and every `idx[l]` is a valid index of `texels`.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[inline]
+unsafe fn gather_avx2(texels: &[Vec3], idx: &[i32; LANES]) -> Rgb8 {
+    use std::arch::x86_64::*;
+    let base = texels.as_ptr() as *const f32;
+    let mut out = [F32x8::splat(0.0); 3];
+    // SAFETY: idx holds 8 i32 (unaligned load); 3 idx + ch < 3 texels.len() <= 3 2^24 fits in
+    // i32 and addresses a float of `texels`; F32x8 is 32-byte aligned for the stores.
+    unsafe {
+        let i = _mm256_loadu_si256(idx.as_ptr() as *const __m256i);
+        let i3 = _mm256_add_epi32(i, _mm256_add_epi32(i, i));
+        for (ch, o) in out.iter_mut().enumerate() {
+            let g = _mm256_i32gather_ps::<4>(base.add(ch), i3);
+            _mm256_store_ps(o.0.as_mut_ptr(), g);
+        }
+    }
+    out
 }
 
 /// The level invariant the unchecked gathers rely on: `texels.len() == width * height`, both
@@ -111,18 +141,18 @@ fn index(row: F32x8, w: f32, col: F32x8) -> [i32; LANES] {
 
 /// Lane form of `nearest`: floor(u n) clamped to the edge.
 #[inline(always)]
-fn nearest8(lv: &MipLevel, u: F32x8, v: F32x8) -> Rgb8 {
+fn nearest8<const HW: bool>(lv: &MipLevel, u: F32x8, v: F32x8) -> Rgb8 {
     check_level(lv);
     let (w, h) = (lv.width as f32, lv.height as f32);
     let i = clamp_index(floor8(u * F32x8::splat(w)), 0.0, w - 1.0);
     let j = clamp_index(floor8(v * F32x8::splat(h)), 0.0, h - 1.0);
     // SAFETY: clamped row and column of a level checked by check_level.
-    unsafe { gather(&lv.texels, &index(j, w, i)) }
+    unsafe { gather::<HW>(&lv.texels, &index(j, w, i)) }
 }
 
 /// Lane form of `bilinear`.
 #[inline(always)]
-fn bilinear8(lv: &MipLevel, u: F32x8, v: F32x8) -> Rgb8 {
+fn bilinear8<const HW: bool>(lv: &MipLevel, u: F32x8, v: F32x8) -> Rgb8 {
     check_level(lv);
     let (w, h) = (lv.width as f32, lv.height as f32);
     let (i, s) = split8(u, lv.width);
@@ -132,10 +162,10 @@ fn bilinear8(lv: &MipLevel, u: F32x8, v: F32x8) -> Rgb8 {
     // SAFETY: clamped rows and columns of a level checked by check_level.
     let (t00, t10, t01, t11) = unsafe {
         (
-            gather(&lv.texels, &index(r0, w, c0)),
-            gather(&lv.texels, &index(r0, w, c1)),
-            gather(&lv.texels, &index(r1, w, c0)),
-            gather(&lv.texels, &index(r1, w, c1)),
+            gather::<HW>(&lv.texels, &index(r0, w, c0)),
+            gather::<HW>(&lv.texels, &index(r0, w, c1)),
+            gather::<HW>(&lv.texels, &index(r1, w, c0)),
+            gather::<HW>(&lv.texels, &index(r1, w, c1)),
         )
     };
     let one = F32x8::splat(1.0);
@@ -161,7 +191,7 @@ fn weights8(k: &Cubic, t: F32x8) -> [F32x8; 4] {
 /// Lane form of `bicubic`: per row j - 1 .. j + 2 the 4 clamped columns are gathered and
 /// filtered with the u weights, then accumulated (from 0, as the scalar code) with the v weight.
 #[inline(always)]
-fn bicubic8(lv: &MipLevel, u: F32x8, v: F32x8, k: &Cubic) -> Rgb8 {
+fn bicubic8<const HW: bool>(lv: &MipLevel, u: F32x8, v: F32x8, k: &Cubic) -> Rgb8 {
     check_level(lv);
     let (w, h) = (lv.width as f32, lv.height as f32);
     let (i, s) = split8(u, lv.width);
@@ -180,10 +210,10 @@ fn bicubic8(lv: &MipLevel, u: F32x8, v: F32x8, k: &Cubic) -> Rgb8 {
         // SAFETY: clamped rows and columns of a level checked by check_level.
         let tx = unsafe {
             [
-                gather(&lv.texels, &index(row, w, cols[0])),
-                gather(&lv.texels, &index(row, w, cols[1])),
-                gather(&lv.texels, &index(row, w, cols[2])),
-                gather(&lv.texels, &index(row, w, cols[3])),
+                gather::<HW>(&lv.texels, &index(row, w, cols[0])),
+                gather::<HW>(&lv.texels, &index(row, w, cols[1])),
+                gather::<HW>(&lv.texels, &index(row, w, cols[2])),
+                gather::<HW>(&lv.texels, &index(row, w, cols[3])),
             ]
         };
         for ch in 0..3 {
@@ -197,11 +227,11 @@ fn bicubic8(lv: &MipLevel, u: F32x8, v: F32x8, k: &Cubic) -> Rgb8 {
 impl Sampler {
     /// Filters one level for 8 lanes of already clamped coordinates.
     #[inline(always)]
-    fn level8(&self, lv: &MipLevel, u: F32x8, v: F32x8) -> Rgb8 {
+    fn level8<const HW: bool>(&self, lv: &MipLevel, u: F32x8, v: F32x8) -> Rgb8 {
         match self.filter {
-            Filter::Nearest => nearest8(lv, u, v),
-            Filter::Bilinear => bilinear8(lv, u, v),
-            Filter::Bicubic { .. } => bicubic8(lv, u, v, &self.cubic),
+            Filter::Nearest => nearest8::<HW>(lv, u, v),
+            Filter::Bilinear => bilinear8::<HW>(lv, u, v),
+            Filter::Bicubic { .. } => bicubic8::<HW>(lv, u, v, &self.cubic),
         }
     }
 
@@ -216,6 +246,25 @@ impl Sampler {
     /// blends two levels (bilinear and bicubic under minification).
     #[inline(always)]
     pub fn sample8(
+        &self,
+        tex: &RadiosityTexture,
+        lx2: F32x8,
+        ly2: F32x8,
+        u: F32x8,
+        v: F32x8,
+        mask: &[bool; LANES],
+    ) -> Rgb8 {
+        // SAFETY: HW = false uses only portable code.
+        unsafe { self.sample8_with::<false>(tex, lx2, ly2, u, v, mask) }
+    }
+
+    /// [`Sampler::sample8`], with the texel loads done by the AVX2 gather instruction when `HW`
+    /// (same values: a gather is a load).
+    ///
+    /// # Safety
+    /// With `HW = true` the CPU must support AVX2 (callers check it at run time).
+    #[inline(always)]
+    pub(crate) unsafe fn sample8_with<const HW: bool>(
         &self,
         tex: &RadiosityTexture,
         lx2: F32x8,
@@ -260,7 +309,7 @@ impl Sampler {
             vc.0[l] = clamp01(v.0[l]);
         }
         if magnified {
-            return self.level8(&tex.levels[0], uc, vc);
+            return self.level8::<HW>(&tex.levels[0], uc, vc);
         }
         let mut out = [F32x8::splat(0.0); 3];
         let mut done = [false; LANES];
@@ -276,9 +325,9 @@ impl Sampler {
                 done[l] |= m[l];
                 any_blend |= m[l] && blend[l];
             }
-            let mut a = self.level8(&tex.levels[lv], uc, vc);
+            let mut a = self.level8::<HW>(&tex.levels[lv], uc, vc);
             if any_blend {
-                let b = self.level8(&tex.levels[lv + 1], uc, vc);
+                let b = self.level8::<HW>(&tex.levels[lv + 1], uc, vc);
                 let f = F32x8(frac);
                 for ch in 0..3 {
                     a[ch] = F32x8::select(&blend, a[ch] + (b[ch] - a[ch]) * f, a[ch]);
