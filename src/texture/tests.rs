@@ -385,12 +385,27 @@ proptest! {
         // The lane form promises the scalar sampler's bits in every masked lane, for every filter,
         // texture size and level of detail (magnified, blended, clamped to the last level).
         let n = 1u32 << side_log;
-        let t = tex(n, |i, j| seq(i * 3 + j * 5 + 1) + 0.1 * j as f32);
+        // Distinct channels, so that a channel mix-up in the gathers shows.
+        let texels = (0..n * n)
+            .map(|k| Vec3::new(seq(k), seq(k * 7 + 3) + 2.0, 0.5 * seq(k * 13 + 5) - 3.0))
+            .collect();
+        let t = RadiosityTexture::from_texels(n, n, texels).unwrap();
         let filter = [Filter::Nearest, Filter::Bilinear, Filter::Bicubic { b, c }][filter_kind];
         let s = Sampler::new(filter);
         let u = F32x8(uv.map(|p| p.0));
         let v = F32x8(uv.map(|p| p.1));
         let got = s.sample8(&t, F32x8(lx2), F32x8(ly2), u, v, &mask);
+        // The AVX2 gather variant too, where the CPU has it (it loads the same texels).
+        #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx2") {
+            // SAFETY: AVX2 is available, checked just above.
+            let hw = unsafe { s.sample8_with::<true>(&t, F32x8(lx2), F32x8(ly2), u, v, &mask) };
+            for l in (0..8).filter(|&l| mask[l]) {
+                for ch in 0..3 {
+                    prop_assert_eq!(hw[ch].0[l].to_bits(), got[ch].0[l].to_bits());
+                }
+            }
+        }
         for l in 0..8 {
             if !mask[l] {
                 continue;
