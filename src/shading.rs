@@ -16,6 +16,13 @@
 //! IEEE operations in the same order (Rust never contracts `a * b + c` into an FMA), so which path a
 //! sample takes never changes its bits.
 //!
+//! The radiosity-texture (RAT) method runs the same block structure
+//! ([`shade_region_texture_into`]): per block of 8 samples the (u, v) derivatives, the level of
+//! detail and the filter are computed in lanes ([`crate::texture::Sampler::sample8`]) with the
+//! texels gathered per lane, one lane group per distinct polygon of the block, so that the
+//! direct-versus-texture comparison sets two equally careful inner loops against each other. It
+//! too reproduces its scalar sample-by-sample form bit for bit (kept as the tests' reference).
+//!
 //! Antialiasing filter: every pixel's N samples (see [`crate::raster::sample_offsets`]) are
 //! averaged with equal weights, a box filter over the pixel's own square; samples that see nothing
 //! contribute the background colour.
@@ -106,9 +113,9 @@ impl Shader<'_> {
 pub struct ShadeCounts {
     /// Samples that saw a polygon and were evaluated.
     pub samples_shaded: u64,
-    /// Blocks of 8 evaluated with one broadcast patch.
+    /// Blocks of 8 evaluated with one broadcast patch (texture methods: one polygon's texture).
     pub uniform_blocks: u64,
-    /// Blocks evaluated lane by lane.
+    /// Blocks that mix patches (texture methods: polygons) or contain empty samples.
     pub mixed_blocks: u64,
 }
 

@@ -6,7 +6,8 @@
 //! resamples every polygon's RRP (not its raw samples) at texel centres `(i + 0.5) / N` into an
 //! N x N level 0 and box-filters a mip chain down to 1 x 1 ([`Reconstruction::resample_lod`]).
 //! The deferred pass then calls [`RadiosityTexture::sample`] / [`RadiosityTexture::sample_lod`]
-//! with a [`Filter`] and a level of detail from [`lod`].
+//! with a [`Filter`] and a level of detail from [`lod`]; its hot loop uses the lane form
+//! [`Sampler::sample8`] (8 samples per call, module `lanes`), which returns the same bits.
 //!
 //! Invariants: every texture is square with a power-of-two side between 1 and
 //! [`MAX_TEXTURE_SIZE`]; its chain has `log2(side) + 1` levels, the last 1 x 1; all texels are
