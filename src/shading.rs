@@ -44,7 +44,7 @@ pub use crate::reconstruction::PatchCoeffs;
 
 /// What the direct method needs from a reconstruction.
 pub trait PatchSource: Sync {
-    /// Global id of the patch covering (u, v) of scene polygon `polygon`; (u, v) in [0,1]^2.
+    /// Global id of the patch covering (u, v) of scene polygon `polygon`; (u, v) in `[0, 1]^2`.
     fn locate(&self, polygon: u32, u: f32, v: f32) -> u32;
     /// The coefficients of patch `id`.
     fn patch(&self, id: u32) -> &PatchCoeffs;
