@@ -6,7 +6,8 @@
 //! resamples every polygon's RRP (not its raw samples) at texel centres `(i + 0.5) / N` into an
 //! N x N level 0 and box-filters a mip chain down to 1 x 1 ([`Reconstruction::resample_lod`]).
 //! The deferred pass then calls [`RadiosityTexture::sample`] / [`RadiosityTexture::sample_lod`]
-//! with a [`Filter`] and a level of detail from [`lod`].
+//! with a [`Filter`] and a level of detail from [`lod`]; its hot loop uses the lane form
+//! [`Sampler::sample8`] (8 samples per call, module `lanes`), which returns the same bits.
 //!
 //! Invariants: every texture is square with a power-of-two side between 1 and
 //! [`MAX_TEXTURE_SIZE`]; its chain has `log2(side) + 1` levels, the last 1 x 1; all texels are
@@ -26,8 +27,11 @@ use crate::error::{Error, Result};
 use crate::quadtree::SampledQuadtree;
 use crate::reconstruction::{MipLevel, Reconstruction};
 
+mod lanes;
 #[cfg(test)]
 mod tests;
+
+pub use lanes::Rgb8;
 
 /// Largest texture side any policy produces (4096 x 4096 texels, 192 MiB at 32-bit floats).
 /// Deeper quadtrees are clamped to this side under [`SizePolicy::FromDepth`].
