@@ -214,7 +214,13 @@ impl View {
     /// the near plane, outside the guard band, or edge-on: a plane through the eye projects to a
     /// line and covers no pixel centre).
     pub fn transform(&self, poly: &Polygon, id: u32) -> Option<ScreenPolygon> {
-        let cv: Vec<DVec3> = poly.corners.iter().map(|&c| self.to_view(c)).collect();
+        let cv: [DVec3; 4] = poly.corners.map(|c| self.to_view(c));
+        let k = poly.shape.corner_count();
+        // Trivial rejection before any setup: every corner behind the near plane (the clip
+        // below would return nothing). Cheap culling matters for meshes of 10^5 triangles.
+        if cv[..k].iter().all(|p| p.z < self.near) {
+            return None;
+        }
         let n = self.dir_to_view(poly.normal);
         let c0 = cv[0];
         let d = n.dot(c0);
@@ -316,7 +322,7 @@ impl View {
         // Near plane clip in view space (w >= near), then project.
         let near = self.near;
         let clipped = clip(
-            &cv[..poly.shape.corner_count()],
+            &cv[..k],
             |p| p.z - near,
             |a, b, t| {
                 let mut p = a + t * (b - a);
@@ -329,16 +335,31 @@ impl View {
             return None;
         }
         let mut verts: Vec<[f64; 2]> = clipped.iter().map(|&p| self.project(p)).collect();
+        // Trivial rejection: entirely beyond one side of the image, where no sample lies (sample
+        // positions are strictly inside (0, width) x (0, height)); setup would reject it later.
+        let (w, h) = (self.width as f64, self.height as f64);
+        if verts.iter().all(|p| p[0] < 0.0)
+            || verts.iter().all(|p| p[0] > w)
+            || verts.iter().all(|p| p[1] < 0.0)
+            || verts.iter().all(|p| p[1] > h)
+        {
+            return None;
+        }
         // Guard band clip in screen space: the projective map keeps straight lines straight.
-        let (lo_x, hi_x) = (-GUARD_BAND, self.width as f64 + GUARD_BAND);
-        let (lo_y, hi_y) = (-GUARD_BAND, self.height as f64 + GUARD_BAND);
-        let lerp2 =
-            |a: [f64; 2], b: [f64; 2], t: f64| [a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1])];
-        let key2 = |p: &[f64; 2]| [p[0], p[1], 0.0];
-        verts = clip(&verts, |p| p[0] - lo_x, lerp2, key2);
-        verts = clip(&verts, |p| hi_x - p[0], lerp2, key2);
-        verts = clip(&verts, |p| p[1] - lo_y, lerp2, key2);
-        verts = clip(&verts, |p| hi_y - p[1], lerp2, key2);
+        // Skipped when every vertex is inside the band, where each clip returns its input.
+        let (lo_x, hi_x) = (-GUARD_BAND, w + GUARD_BAND);
+        let (lo_y, hi_y) = (-GUARD_BAND, h + GUARD_BAND);
+        let inside = |p: &[f64; 2]| p[0] >= lo_x && p[0] <= hi_x && p[1] >= lo_y && p[1] <= hi_y;
+        if !verts.iter().all(inside) {
+            let lerp2 = |a: [f64; 2], b: [f64; 2], t: f64| {
+                [a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1])]
+            };
+            let key2 = |p: &[f64; 2]| [p[0], p[1], 0.0];
+            verts = clip(&verts, |p| p[0] - lo_x, lerp2, key2);
+            verts = clip(&verts, |p| hi_x - p[0], lerp2, key2);
+            verts = clip(&verts, |p| p[1] - lo_y, lerp2, key2);
+            verts = clip(&verts, |p| hi_y - p[1], lerp2, key2);
+        }
         if verts.len() < 3 || !verts.iter().all(|p| p[0].is_finite() && p[1].is_finite()) {
             return None;
         }
