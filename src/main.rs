@@ -358,9 +358,8 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             threads,
             json,
         } => in_pool(threads, || -> anyhow::Result<()> {
-            let mut p = pipeline::prepare(&input, false)?;
             let topts = texture.options();
-            p.texture_policy = topts.policy(&p.scene)?;
+            let p = pipeline::prepare_with(&input, false, &topts)?;
             let bicubic = match topts.method(Method::parse("texture-bicubic")?)? {
                 Method::Texture(f) => f,
                 _ => Filter::MITCHELL,
@@ -430,9 +429,8 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             threads,
             json,
         } => in_pool(threads, || -> anyhow::Result<()> {
-            let mut p = pipeline::prepare(&input, false)?;
             let topts = texture.options();
-            p.texture_policy = topts.policy(&p.scene)?;
+            let p = pipeline::prepare_with(&input, false, &topts)?;
             let methods = methods
                 .iter()
                 .map(|m| topts.method(Method::parse(m)?))

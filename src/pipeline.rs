@@ -272,6 +272,13 @@ pub fn prepare(input: &Path, progress: bool) -> Result<Prepared> {
     })
 }
 
+/// [`prepare`], then the texture size policy `texture` chooses for the scene.
+pub fn prepare_with(input: &Path, progress: bool, texture: &TextureOptions) -> Result<Prepared> {
+    let mut p = prepare(input, progress)?;
+    p.texture_policy = texture.policy(&p.scene)?;
+    Ok(p)
+}
+
 /// Solves `scene_path` and writes the solution to `out`.
 pub fn solve_to_file(scene_path: &Path, out: &Path, progress: bool) -> Result<Solution> {
     let scene = load_scene(scene_path)?;
@@ -347,8 +354,7 @@ pub enum RenderEvent<'a> {
 /// Runs a render job: prepare once, render one frame or every walkthrough frame, write PNG,
 /// EXR and statistics.
 pub fn run_render(req: &RenderRequest, on: &mut dyn FnMut(RenderEvent<'_>)) -> Result<()> {
-    let mut p = prepare(&req.input, req.progress)?;
-    p.texture_policy = req.texture.policy(&p.scene)?;
+    let p = prepare_with(&req.input, req.progress, &req.texture)?;
     let scene = &p.scene;
     for w in &scene.warnings {
         on(RenderEvent::Warning(w));

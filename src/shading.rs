@@ -235,34 +235,12 @@ fn shade_region_body(
                     }
                     out
                 };
-                for ch in 0..3 {
-                    let a: &mut [f32; LANES] = (&mut acc[ch][bx..bx + LANES]).try_into().unwrap();
-                    *a = if si == 0 {
-                        out[ch].0
-                    } else {
-                        (F32x8(*a) + out[ch]).0
-                    };
-                }
+                accumulate8(&mut acc, bx, si, &out);
             }
         }
         // Box filter: equal weights over the pixel's samples, then the non-finite clamp. Padding
         // lanes beyond the region's width hold NO_POLYGON and are never written out.
-        for a in acc.iter_mut() {
-            for chunk in a.chunks_exact_mut(LANES) {
-                let c: &mut [f32; LANES] = chunk.try_into().unwrap();
-                let v = if gb.samples == 1 {
-                    F32x8(*c)
-                } else {
-                    F32x8(*c) * inv
-                };
-                *c = sanitize8(v).0;
-            }
-        }
-        let out = &mut dst[y * pitch..y * pitch + w];
-        let [r, g, b] = &acc;
-        for (o, ((r, g), b)) in out.iter_mut().zip(r.iter().zip(g).zip(b)) {
-            *o = Vec3::new(*r, *g, *b);
-        }
+        resolve_row(&mut acc, gb.samples, inv, &mut dst[y * pitch..y * pitch + w]);
     }
     counts
 }
@@ -650,35 +628,49 @@ unsafe fn shade_texture_body<const HW: bool>(
                     counts.mixed_blocks += 1;
                     out
                 };
-                for ch in 0..3 {
-                    let a: &mut [f32; LANES] = (&mut acc[ch][bx..bx + LANES]).try_into().unwrap();
-                    *a = if si == 0 {
-                        out[ch].0
-                    } else {
-                        (F32x8(*a) + out[ch]).0
-                    };
-                }
+                accumulate8(&mut acc, bx, si, &out);
             }
         }
         // Box filter and non-finite clamp, as in the patch path.
-        for a in acc.iter_mut() {
-            for chunk in a.chunks_exact_mut(LANES) {
-                let c: &mut [f32; LANES] = chunk.try_into().unwrap();
-                let v = if gb.samples == 1 {
-                    F32x8(*c)
-                } else {
-                    F32x8(*c) * inv
-                };
-                *c = sanitize8(v).0;
-            }
-        }
-        let out = &mut dst[y * pitch..y * pitch + w];
-        let [r, g, b] = &acc;
-        for (o, ((r, g), b)) in out.iter_mut().zip(r.iter().zip(g).zip(b)) {
-            *o = Vec3::new(*r, *g, *b);
-        }
+        resolve_row(&mut acc, gb.samples, inv, &mut dst[y * pitch..y * pitch + w]);
     }
     counts
+}
+
+/// Adds one block's 8 lanes of RGB to the row accumulators at column `bx` (the first sample
+/// plane `si == 0` stores instead of adding): the same IEEE operations in the same order for every
+/// shader, so samples are always summed in plane order.
+#[inline(always)]
+fn accumulate8(acc: &mut [Vec<f32>; 3], bx: usize, si: usize, out: &[F32x8; 3]) {
+    for ch in 0..3 {
+        let a: &mut [f32; LANES] = (&mut acc[ch][bx..bx + LANES]).try_into().unwrap();
+        *a = if si == 0 {
+            out[ch].0
+        } else {
+            (F32x8(*a) + out[ch]).0
+        };
+    }
+}
+
+/// Resolves one row: the box filter (the mean of `samples` planes, `inv = 1 / samples`), the
+/// non-finite clamp, and the write of the row's `out.len()` pixels.
+#[inline(always)]
+fn resolve_row(acc: &mut [Vec<f32>; 3], samples: u32, inv: F32x8, out: &mut [Vec3]) {
+    for a in acc.iter_mut() {
+        for chunk in a.chunks_exact_mut(LANES) {
+            let c: &mut [f32; LANES] = chunk.try_into().unwrap();
+            let v = if samples == 1 {
+                F32x8(*c)
+            } else {
+                F32x8(*c) * inv
+            };
+            *c = sanitize8(v).0;
+        }
+    }
+    let [r, g, b] = &*acc;
+    for (o, ((r, g), b)) in out.iter_mut().zip(r.iter().zip(g).zip(b)) {
+        *o = Vec3::new(*r, *g, *b);
+    }
 }
 
 /// Replaces non-finite lanes by 0 (documented clamp: a patch source with non-finite coefficients
