@@ -4,8 +4,8 @@
 //! Loading is two steps. [`super::format`] lets `toml` and serde turn the text into structs that
 //! mirror the file (unknown keys and type errors are caught there, with a span); this module then
 //! checks every value semantically, fills in the defaults of the `Default` impls in [`super`],
-//! resolves material names to indices, loads the `[[obj]]` includes through [`super::obj`] and
-//! turns every face into [`Polygon`]s with [`build_face`]. The rules [`Scene`] promises to later
+//! resolves material names to indices, loads the `[[obj]]` includes through `scene::obj` and
+//! turns every face into [`Polygon`]s with `build_face`. The rules [`Scene`] promises to later
 //! stages (finite numbers, reflectance in [0, 1), planar convex faces, at least one polygon and
 //! one light) are all established here, and nothing is silently changed except two documented
 //! repairs: quads within [`PLANARITY_TOLERANCE`] are projected onto their best-fit plane, and
