@@ -1,6 +1,7 @@
 //! Frame benchmark (issue 5): frame time of the direct method at 512, 1024 and 2048 pixels square
 //! for a code-built room of a few hundred quads seen from inside (every pixel covered), frame time
-//! against polygon count at 1024, and the deferred RRP pass alone in Mpixel/s.
+//! against polygon count at 1024, and the deferred pass alone in Mpixel/s: RRPs (direct) and the
+//! texture filters on the same G-buffers.
 //!
 //! Run briefly: `cargo bench --bench frame -- --warm-up-time 1 --measurement-time 3`.
 
@@ -11,6 +12,7 @@ use pixelflow_sim::raster::region::{rasterize, RegionGrid};
 use pixelflow_sim::raster::{build_primitives, render_frame, sample_offsets, FrameOptions};
 use pixelflow_sim::scene::{Camera, Material, Polygon, Projection, Scene};
 use pixelflow_sim::shading::{shade_regions, PatchCoeffs, PatchSource, Shader};
+use pixelflow_sim::texture::{Filter, RadiosityTexture, TextureMemory, TextureSet};
 
 /// A 10 x 4 x 10 room, each wall cut into `n` x `n` quads, with two boxes inside.
 fn room(n: usize) -> Scene {
@@ -187,6 +189,31 @@ fn deferred(c: &mut Criterion) {
             )
         })
     });
+    // The same regions through the texture pass: one 16 x 16 texture per polygon (the 4 x 4
+    // patches of each polygon hold 5 x 5 samples; 16 texels per side is the next power of two
+    // above 2 x 5, generous sampling), magnified as the walls are at 1024^2.
+    let textures = (0..scene.polygons.len())
+        .map(|p| {
+            let texels = (0..16 * 16)
+                .map(|k| Vec3::splat(((p * 7 + k * 5) % 11) as f32 * 0.1))
+                .collect();
+            RadiosityTexture::from_texels(16, 16, texels).unwrap()
+        })
+        .collect();
+    let set = TextureSet {
+        textures,
+        memory: TextureMemory::of_sides(&vec![16; scene.polygons.len()]),
+    };
+    for (name, filter) in [
+        ("texture-nearest-1024", Filter::Nearest),
+        ("texture-bilinear-1024", Filter::Bilinear),
+        ("texture-bicubic-1024", Filter::MITCHELL),
+    ] {
+        let shader = Shader::Texture { set: &set, filter };
+        g.bench_function(name, |b| {
+            b.iter(|| shade_regions(&shader, &regions, Vec3::ZERO, w, h, opts.region))
+        });
+    }
     g.finish();
 }
 

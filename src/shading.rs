@@ -240,7 +240,12 @@ fn shade_region_body(
         }
         // Box filter: equal weights over the pixel's samples, then the non-finite clamp. Padding
         // lanes beyond the region's width hold NO_POLYGON and are never written out.
-        resolve_row(&mut acc, gb.samples, inv, &mut dst[y * pitch..y * pitch + w]);
+        resolve_row(
+            &mut acc,
+            gb.samples,
+            inv,
+            &mut dst[y * pitch..y * pitch + w],
+        );
     }
     counts
 }
@@ -632,7 +637,12 @@ unsafe fn shade_texture_body<const HW: bool>(
             }
         }
         // Box filter and non-finite clamp, as in the patch path.
-        resolve_row(&mut acc, gb.samples, inv, &mut dst[y * pitch..y * pitch + w]);
+        resolve_row(
+            &mut acc,
+            gb.samples,
+            inv,
+            &mut dst[y * pitch..y * pitch + w],
+        );
     }
     counts
 }
