@@ -1,0 +1,227 @@
+//! The patch shader: every visible sample evaluates the bicubic patch its region's table holds
+//! for it (the direct method's RRPs; for the Gouraud mesh, each triangle's degree-(1, 1) patch).
+//!
+//! Neighbouring samples nearly always share one patch, so each block of 8 samples with one slot
+//! is evaluated with the patch's 48 coefficients broadcast over 8 lanes (Horner in s for each of
+//! the 4 rows, then Horner in t: 15 multiply-adds per channel per lane); blocks that mix patches
+//! evaluate one broadcast per distinct patch and merge through masks. Both perform the scalar
+//! operations in the scalar order (Rust never contracts `a * b + c` into an FMA), so which path a
+//! sample takes never changes its bits.
+
+#![allow(clippy::needless_range_loop)]
+
+use glam::Vec3;
+
+use super::{accumulate8, resolve_row, ShadeCounts};
+use crate::lanes::{F32x8, LANES};
+use crate::raster::gbuffer::{RegionGBuffer, NO_POLYGON};
+
+/// Horner's scheme: rows in s, then the rows in t.
+#[cfg(test)]
+#[inline(always)]
+fn eval_channel(k: &[f32; 16], s: f32, t: f32) -> f32 {
+    let r = |j: usize| ((k[4 * j + 3] * s + k[4 * j + 2]) * s + k[4 * j + 1]) * s + k[4 * j];
+    ((r(3) * t + r(2)) * t + r(1)) * t + r(0)
+}
+
+/// Evaluates one channel for 8 lanes with broadcast coefficients; same operations, in the same
+/// order, as [`eval_channel`].
+#[inline(always)]
+fn eval_channel8(k: &[f32; 16], s: F32x8, t: F32x8) -> F32x8 {
+    let c = |i: usize| F32x8::splat(k[i]);
+    let r3 = ((c(15) * s + c(14)) * s + c(13)) * s + c(12);
+    let r2 = ((c(11) * s + c(10)) * s + c(9)) * s + c(8);
+    let r1 = ((c(7) * s + c(6)) * s + c(5)) * s + c(4);
+    let r0 = ((c(3) * s + c(2)) * s + c(1)) * s + c(0);
+    ((r3 * t + r2) * t + r1) * t + r0
+}
+
+/// Shades one composited region: returns its `width * height` resolved linear pixels (row-major,
+/// row 0 at the region's top) and the counters.
+pub fn shade_region(gb: &RegionGBuffer, background: Vec3) -> (Vec<Vec3>, ShadeCounts) {
+    let mut out = vec![Vec3::ZERO; (gb.width * gb.height) as usize];
+    let counts = shade_region_into(gb, background, &mut out, gb.width as usize);
+    (out, counts)
+}
+
+/// Shades one composited region into `dst`, whose element 0 is the region's top-left pixel and
+/// whose rows are `pitch` pixels apart (a frame: pitch = frame width).
+///
+/// On x86-64 CPUs with AVX2 the same code is compiled a second time with 8-wide registers and
+/// chosen at run time; without FMA the two builds perform identical IEEE operations, so the image
+/// does not depend on the CPU.
+pub fn shade_region_into(
+    gb: &RegionGBuffer,
+    background: Vec3,
+    dst: &mut [Vec3],
+    pitch: usize,
+) -> ShadeCounts {
+    assert!(
+        gb.height == 0 || dst.len() >= (gb.height as usize - 1) * pitch + gb.width as usize,
+        "destination too small for the region"
+    );
+    #[cfg(target_arch = "x86_64")]
+    {
+        if std::arch::is_x86_feature_detected!("avx2") {
+            // SAFETY: the CPU supports AVX2, checked just above.
+            return unsafe { shade_region_avx2(gb, background, dst, pitch) };
+        }
+    }
+    shade_region_body(gb, background, dst, pitch)
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+fn shade_region_avx2(gb: &RegionGBuffer, bg: Vec3, dst: &mut [Vec3], pitch: usize) -> ShadeCounts {
+    shade_region_body(gb, bg, dst, pitch)
+}
+
+#[inline(always)]
+fn shade_region_body(
+    gb: &RegionGBuffer,
+    background: Vec3,
+    dst: &mut [Vec3],
+    pitch: usize,
+) -> ShadeCounts {
+    let (w, h, stride) = (gb.width as usize, gb.height as usize, gb.stride as usize);
+    let plane = stride * h;
+    // One row of per-channel accumulators (structure of arrays: lanes store contiguously).
+    let mut acc = [
+        vec![0.0f32; stride],
+        vec![0.0f32; stride],
+        vec![0.0f32; stride],
+    ];
+    let mut counts = ShadeCounts::default();
+    let bg = background.to_array();
+    let bg8 = [
+        F32x8::splat(bg[0]),
+        F32x8::splat(bg[1]),
+        F32x8::splat(bg[2]),
+    ];
+    let inv = F32x8::splat(1.0 / gb.samples as f32);
+    for y in 0..h {
+        for si in 0..gb.samples as usize {
+            let row = si * plane + y * stride;
+            for bx in (0..w).step_by(LANES) {
+                let i0 = row + bx;
+                let polys: &[u32; LANES] = gb.polygon[i0..i0 + LANES].try_into().unwrap();
+                let slots: &[u32; LANES] = gb.slot[i0..i0 + LANES].try_into().unwrap();
+                let u8x = F32x8(gb.u[i0..i0 + LANES].try_into().unwrap());
+                let v8x = F32x8(gb.v[i0..i0 + LANES].try_into().unwrap());
+                let mut empty = [false; LANES];
+                let mut same = true;
+                let mut n_empty = 0;
+                for l in 0..LANES {
+                    empty[l] = polys[l] == NO_POLYGON;
+                    n_empty += empty[l] as usize;
+                    same &= slots[l] == slots[0];
+                }
+                let out = if n_empty == 0 && same {
+                    // The common case: one patch, its coefficients broadcast over the 8 lanes.
+                    counts.uniform_blocks += 1;
+                    counts.samples_shaded += LANES as u64;
+                    let p = &gb.table[slots[0] as usize];
+                    let s = (u8x - F32x8::splat(p.u0)) * F32x8::splat(p.inv_w);
+                    let t = (v8x - F32x8::splat(p.v0)) * F32x8::splat(p.inv_w);
+                    [
+                        eval_channel8(&p.c[0], s, t),
+                        eval_channel8(&p.c[1], s, t),
+                        eval_channel8(&p.c[2], s, t),
+                    ]
+                } else if n_empty == LANES {
+                    bg8
+                } else {
+                    // Mixed: one broadcast evaluation per distinct patch, committed through masks.
+                    counts.mixed_blocks += 1;
+                    counts.samples_shaded += (LANES - n_empty) as u64;
+                    let mut out = bg8;
+                    let mut done = empty;
+                    while let Some(first) = done.iter().position(|&d| !d) {
+                        let slot = slots[first];
+                        let p = &gb.table[slot as usize];
+                        let s = (u8x - F32x8::splat(p.u0)) * F32x8::splat(p.inv_w);
+                        let t = (v8x - F32x8::splat(p.v0)) * F32x8::splat(p.inv_w);
+                        let mut m = [false; LANES];
+                        for l in 0..LANES {
+                            m[l] = !done[l] && slots[l] == slot;
+                            done[l] |= m[l];
+                        }
+                        for ch in 0..3 {
+                            out[ch] = F32x8::select(&m, eval_channel8(&p.c[ch], s, t), out[ch]);
+                        }
+                    }
+                    out
+                };
+                accumulate8(&mut acc, bx, si, &out);
+            }
+        }
+        // Box filter: equal weights over the pixel's samples, then the non-finite clamp. Padding
+        // lanes beyond the region's width hold NO_POLYGON and are never written out.
+        resolve_row(
+            &mut acc,
+            gb.samples,
+            inv,
+            &mut dst[y * pitch..y * pitch + w],
+        );
+    }
+    counts
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::shading::PatchCoeffs;
+
+    fn poly_patch() -> PatchCoeffs {
+        let mut c = [[0.0f32; 16]; 3];
+        for (ch, row) in c.iter_mut().enumerate() {
+            for (k, x) in row.iter_mut().enumerate() {
+                *x = ((k * 7 + ch * 3) % 11) as f32 * 0.125 - 0.5;
+            }
+        }
+        PatchCoeffs {
+            c,
+            u0: 0.25,
+            v0: 0.5,
+            inv_w: 4.0,
+            _pad: 0.0,
+        }
+    }
+
+    #[test]
+    fn horner_matches_the_power_basis_sum() {
+        let p = poly_patch();
+        for &(u, v) in &[(0.25, 0.5), (0.3, 0.6), (0.5, 0.75), (0.41, 0.52)] {
+            let (s, t) = ((u - 0.25) * 4.0f64, (v - 0.5) * 4.0f64);
+            let got = p.eval(u as f32, v as f32);
+            for ch in 0..3 {
+                let mut want = 0.0f64;
+                for j in 0..4 {
+                    for i in 0..4 {
+                        want += p.c[ch][4 * j + i] as f64 * s.powi(i as i32) * t.powi(j as i32);
+                    }
+                }
+                // |coefficients| <= 0.75, 16 terms, s, t <= 1: f32 rounding stays below 1e-5.
+                assert!(
+                    (got[ch] as f64 - want).abs() < 1e-5,
+                    "{ch}: {} vs {want}",
+                    got[ch]
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn lane_path_and_scalar_path_agree_bit_for_bit() {
+        let p = poly_patch();
+        let s: [f32; 8] = std::array::from_fn(|l| l as f32 * 0.13);
+        let t: [f32; 8] = std::array::from_fn(|l| 1.0 - l as f32 * 0.11);
+        let r = eval_channel8(&p.c[1], F32x8(s), F32x8(t));
+        for l in 0..8 {
+            assert_eq!(
+                r.0[l].to_bits(),
+                eval_channel(&p.c[1], s[l], t[l]).to_bits()
+            );
+        }
+    }
+}
