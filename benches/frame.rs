@@ -7,11 +7,13 @@
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
 use glam::{DVec3, Vec3};
+use pixelflow_sim::frame::{render_patches as render_frame, FrameOptions, FrameStats};
 use pixelflow_sim::raster::gbuffer::RegionGBuffer;
 use pixelflow_sim::raster::region::{rasterize, RegionGrid};
-use pixelflow_sim::raster::{build_primitives, render_frame, sample_offsets, FrameOptions};
+use pixelflow_sim::raster::{build_primitives, sample_offsets};
+use pixelflow_sim::reconstruction::{PatchCoeffs, PatchSource};
 use pixelflow_sim::scene::{Camera, Material, Polygon, Projection, Scene};
-use pixelflow_sim::shading::{shade_regions, PatchCoeffs, PatchSource, Shader};
+use pixelflow_sim::shading::{shade_regions, Shader};
 use pixelflow_sim::texture::{Filter, RadiosityTexture, TextureMemory, TextureSet};
 
 /// A 10 x 4 x 10 room, each wall cut into `n` x `n` quads, with two boxes inside.
@@ -137,7 +139,7 @@ fn frame(c: &mut Criterion) {
     g.finish();
 }
 
-fn serde_json_like(s: &pixelflow_sim::raster::FrameStats) -> String {
+fn serde_json_like(s: &FrameStats) -> String {
     format!(
         "prims {} regions {} shaded {} table {} geometry {:.2} raster {:.2} composition {:.2} shading {:.2} frame {:.2} ms",
         s.primitives, s.regions_touched, s.pixels_shaded, s.patch_table_entries, s.geometry_ms, s.raster_ms,
@@ -150,7 +152,7 @@ fn deferred(c: &mut Criterion) {
     let source = Grid::new(scene.polygons.len());
     let (w, h) = (1024, 1024);
     let opts = FrameOptions::new(w, h);
-    let prims = build_primitives(&scene, &scene.camera, &opts).unwrap();
+    let prims = build_primitives(&scene, &scene.camera, w, h, false).unwrap();
     let grid = RegionGrid::new(w, h, opts.region);
     let bins = grid.bin(prims.iter().enumerate());
     let offsets = sample_offsets(1).unwrap();

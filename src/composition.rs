@@ -27,7 +27,7 @@ use std::time::{Duration, Instant};
 use crossbeam::channel::{Receiver, Sender};
 
 use crate::raster::gbuffer::{IdMap, RegionGBuffer, NO_POLYGON};
-use crate::shading::PatchCoeffs;
+use crate::reconstruction::PatchCoeffs;
 
 pub use crate::raster::gbuffer::PIXEL_RECORD_BYTES;
 

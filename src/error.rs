@@ -1,8 +1,9 @@
 //! Errors of the library, and the exit codes the binary maps them to.
 //!
 //! Every fallible public function returns [`Result`]. The variants separate what the *user* got
-//! wrong (a scene file, an argument, a solution file: exit code 2) from what went wrong while
-//! running (an I/O failure writing output, an internal limit: exit code 1). Input errors carry the
+//! wrong (a scene file, an option, a request over a limit, a solution file: exit code 2) from what
+//! went wrong while running (an I/O failure writing output, an internal failure: exit code 1), and
+//! carry what a caller needs to act on them (the location, the option, the limit, the path). Input errors carry the
 //! file, and where known the line and the key, so a message reads like a compiler's:
 //! `scenes/foo.toml:12: materials[2].reflectance: component 0 is 1.2, must be in [0, 1)`.
 //! Library code never panics on bad input; a panic is a bug.
@@ -64,10 +65,32 @@ impl fmt::Display for Location {
     }
 }
 
-/// The library's error type.
+/// What is wrong with a solution file (`.pfsol`), for [`Error::Solution`].
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum SolutionProblem {
+    /// The file cannot be read, or does not start with the solution magic.
+    NotASolution,
+    /// The file ends before its declared contents.
+    Truncated,
+    /// The checksum does not match, or the contents are inconsistent.
+    Corrupt,
+    /// Written by another format version.
+    Version {
+        /// The version in the file.
+        found: u32,
+        /// The version this build reads.
+        supported: u32,
+    },
+    /// The solution belongs to another scene (or the scene changed since it was solved).
+    SceneMismatch,
+}
+
+/// The library's error type. Each variant is a failure a caller can act on; all of them
+/// display as one line in the `file:line: key: what` form the command line prints.
 #[derive(Debug, thiserror::Error)]
 pub enum Error {
-    /// Bad input: a scene, OBJ, solution or image file the user gave is invalid.
+    /// Bad input: a scene, OBJ, MTL or image file the user gave does not parse or holds an
+    /// invalid value, at a location (file, and where known line and key).
     #[error("{location}: {message}")]
     Input {
         /// Where the problem is.
@@ -75,9 +98,39 @@ pub enum Error {
         /// What is wrong, and what would be right.
         message: String,
     },
-    /// Bad usage: an argument value that cannot work (an image size of 0, an unknown method).
-    #[error("{0}")]
-    Usage(String),
+    /// An option or setting that cannot work: an unknown method, an antialiasing count without a
+    /// sample pattern, a texture size that is not a power of two, two options that exclude each
+    /// other. Displayed as `option value: reason`.
+    #[error("{option}{}: {reason}", spaced(value))]
+    InvalidOption {
+        /// The option as the user wrote it (`--aa`, `--method`).
+        option: String,
+        /// The value given.
+        value: String,
+        /// Why it cannot work, and what would.
+        reason: String,
+    },
+    /// A request larger than a limit of the tool (image side, renderers, texture memory).
+    #[error("{what}: {requested} exceeds the limit of {limit}")]
+    ResourceLimit {
+        /// What was asked for (`--width`, `texture budget`).
+        what: String,
+        /// The amount asked for.
+        requested: u64,
+        /// The largest amount accepted.
+        limit: u64,
+    },
+    /// A solution file that cannot be used: not a solution, truncated, corrupt, another format
+    /// version, or solved for another scene.
+    #[error("{}: {message}", path.display())]
+    Solution {
+        /// The solution file.
+        path: PathBuf,
+        /// What is wrong, for a caller to act on.
+        problem: SolutionProblem,
+        /// The same, for a person.
+        message: String,
+    },
     /// An operating-system I/O failure on a named path.
     #[error("{}: {error}", path.display())]
     Io {
@@ -87,7 +140,8 @@ pub enum Error {
         /// `anyhow`'s `{:#}` would print it twice).
         error: std::io::Error,
     },
-    /// A failure while running that is not the input's fault.
+    /// A failure while running that is not the input's fault (an internal invariant, a thread
+    /// that could not start, an encoder failure).
     #[error("{0}")]
     Runtime(String),
 }
@@ -101,6 +155,41 @@ impl Error {
         }
     }
 
+    /// An invalid value `value` of option `option`, with the reason.
+    pub fn invalid_option(
+        option: impl Into<String>,
+        value: impl Into<String>,
+        reason: impl Into<String>,
+    ) -> Self {
+        Error::InvalidOption {
+            option: option.into(),
+            value: value.into(),
+            reason: reason.into(),
+        }
+    }
+
+    /// A request of `requested` for `what` over the `limit`.
+    pub fn limit(what: impl Into<String>, requested: u64, limit: u64) -> Self {
+        Error::ResourceLimit {
+            what: what.into(),
+            requested,
+            limit,
+        }
+    }
+
+    /// A solution file error on `path`.
+    pub fn solution(
+        path: impl AsRef<Path>,
+        problem: SolutionProblem,
+        message: impl Into<String>,
+    ) -> Self {
+        Error::Solution {
+            path: path.as_ref().to_path_buf(),
+            problem,
+            message: message.into(),
+        }
+    }
+
     /// An I/O error on `path`.
     pub fn io(path: impl AsRef<Path>, source: std::io::Error) -> Self {
         Error::Io {
@@ -109,15 +198,29 @@ impl Error {
         }
     }
 
-    /// The process exit code this error maps to: 2 for bad input or usage, 1 otherwise.
+    /// The process exit code this error maps to: 2 for bad input (a file, an option, a request
+    /// over a limit, an unusable solution file), 1 for a failure while running.
     ///
-    /// A missing or unreadable *input* file is reported as [`Error::Input`] by the loaders, so it
-    /// maps to 2; [`Error::Io`] is reserved for failures while running (writing output).
+    /// A missing or unreadable *input* file is reported as [`Error::Input`] (or
+    /// [`Error::Solution`]) by the loaders, so it maps to 2; [`Error::Io`] is reserved for
+    /// failures while running (writing output).
     pub fn exit_code(&self) -> i32 {
         match self {
-            Error::Input { .. } | Error::Usage(_) => EXIT_BAD_INPUT,
+            Error::Input { .. }
+            | Error::InvalidOption { .. }
+            | Error::ResourceLimit { .. }
+            | Error::Solution { .. } => EXIT_BAD_INPUT,
             Error::Io { .. } | Error::Runtime(_) => EXIT_FAILURE,
         }
+    }
+}
+
+/// `" value"`, or nothing for an empty value (an option that takes none, like `--walkthrough`).
+fn spaced(value: &str) -> String {
+    if value.is_empty() {
+        String::new()
+    } else {
+        format!(" {value}")
     }
 }
 
@@ -140,5 +243,35 @@ mod tests {
         );
         assert_eq!(e.exit_code(), EXIT_BAD_INPUT);
         assert_eq!(Error::Runtime("x".into()).exit_code(), EXIT_FAILURE);
+    }
+
+    #[test]
+    fn every_variant_displays_one_line_with_its_exit_code() {
+        let cases = [
+            (
+                Error::invalid_option("--aa", "3", "antialiasing takes 1, 4 or 16 samples"),
+                "--aa 3: antialiasing takes 1, 4 or 16 samples",
+                EXIT_BAD_INPUT,
+            ),
+            (
+                Error::limit("--width", 70000, 65536),
+                "--width: 70000 exceeds the limit of 65536",
+                EXIT_BAD_INPUT,
+            ),
+            (
+                Error::solution("a.pfsol", SolutionProblem::Truncated, "truncated"),
+                "a.pfsol: truncated",
+                EXIT_BAD_INPUT,
+            ),
+            (
+                Error::io("out/x.png", std::io::Error::other("disk full")),
+                "out/x.png: disk full",
+                EXIT_FAILURE,
+            ),
+        ];
+        for (e, text, code) in cases {
+            assert_eq!(e.to_string(), text);
+            assert_eq!(e.exit_code(), code);
+        }
     }
 }

@@ -3,33 +3,47 @@
 //! as C1 bicubic Hermite patches (RRPs) that a software, SIMD-style rasterizer and a deferred
 //! shading pass evaluate per pixel.
 //!
-//! The modules are the stages a frame passes through, in order: [`scene`] (what is rendered),
-//! [`radiosity`] (the solve over [`quadtree`]s), [`reconstruction`] (the RRPs, and the Gouraud
-//! mesh they replace), [`texture`] (the radiosity textures, RAT), [`raster`] (regions,
-//! G-buffers), [`composition`] (depth merge of the virtual renderers), [`shading`] (the deferred
-//! pass, one shader per method), [`image_out`] / [`output`] (files) and [`metric`] (distances
-//! between images, with [`image_in`] to read them). [`pipeline`] and [`experiment`] string the
-//! stages into the jobs the command line runs; [`report`] formats summaries.
-//! `docs/ARCHITECTURE.md` draws the data flow.
+//! The modules are listed in the order data flows through them, and every `use crate::` edge
+//! points from a later module to an earlier one (a test, `tests/architecture.rs`, keeps it so):
+//!
+//! - foundation, used by every stage: [`error`], [`lanes`] (the 8-lane SIMD type), [`output`]
+//!   (atomic files), [`progress`] (the observer through which long jobs report), [`image`] (linear
+//!   images and their files), [`quadtree`], [`method`] (the method names and option limits);
+//! - the frame's stages: [`scene`] (what is rendered) -> [`radiosity`] (the solve) ->
+//!   [`reconstruction`] (the RRPs, and the Gouraud mesh they replace) -> [`texture`] (radiosity
+//!   textures, RAT) -> [`raster`] (renderers, regions, G-buffers) -> [`composition`] (depth merge
+//!   of the renderers) -> [`shading`] (the deferred pass, one shader per method) -> [`frame`] (one
+//!   frame through all of them, timed);
+//! - after the frame: [`metric`] (distances between images) -> [`jobs`] (solve, render, bench,
+//!   stats: what the command line runs) -> [`report`] (text tables) -> [`experiment`] (the paper's
+//!   figures and tables).
+//!
+//! The library has no user interface: it prints nothing, reads no environment variables and
+//! reports progress through [`progress::Observer`]. `docs/ARCHITECTURE.md` draws the data flow.
 
 #![warn(missing_docs)]
 
-pub mod composition;
 pub mod error;
-pub mod experiment;
-pub mod image_in;
-pub mod image_out;
 pub mod lanes;
-pub mod metric;
 pub mod output;
-pub mod pipeline;
+pub mod progress;
+pub mod image;
 pub mod quadtree;
-pub mod radiosity;
-pub mod raster;
-pub mod reconstruction;
-pub mod report;
+pub mod method;
+
 pub mod scene;
-pub mod shading;
+pub mod radiosity;
+pub mod reconstruction;
 pub mod texture;
+pub mod raster;
+pub mod composition;
+pub mod shading;
+pub mod frame;
+
+pub mod metric;
+pub mod jobs;
+pub mod report;
+pub mod experiment;
 
 pub use error::{Error, Result};
+pub use method::Method;

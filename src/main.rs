@@ -5,15 +5,18 @@
 //! [`pixelflow_sim::Error::exit_code`]: 0 success, 2 bad input or usage (clap's own usage errors
 //! also exit 2), 1 a failure while running.
 
-use anyhow::Context;
 use clap::{Parser, Subcommand};
 use pixelflow_sim::error::EXIT_FAILURE;
 use pixelflow_sim::experiment;
-use pixelflow_sim::pipeline::{self, Method, RenderEvent, RenderRequest, TextureOptions};
-use pixelflow_sim::raster::FrameOptions;
-use pixelflow_sim::scene::MAX_IMAGE_DIM;
-use pixelflow_sim::texture::Filter;
+use pixelflow_sim::frame::FrameOptions;
+use pixelflow_sim::jobs::bench::{bench_table, run_bench, BenchRequest};
+use pixelflow_sim::jobs::render::{run_render, RenderEvent, RenderRequest};
+use pixelflow_sim::jobs::solve::solve_to_file;
+use pixelflow_sim::jobs::stats::{run_stats, StatsRequest};
+use pixelflow_sim::jobs::TextureOptions;
+use pixelflow_sim::progress::Silent;
 use pixelflow_sim::Error;
+use std::io::Write;
 use std::path::PathBuf;
 use std::process::ExitCode;
 
@@ -264,11 +267,45 @@ impl TextureArgs {
 }
 
 fn parse_bytes(s: &str) -> Result<u64, String> {
-    pipeline::parse_bytes(s).map_err(|e| e.to_string())
+    pixelflow_sim::method::parse_bytes("--texture-budget", s).map_err(|e| e.to_string())
 }
 
 fn parse_bicubic(s: &str) -> Result<(f32, f32), String> {
-    pipeline::parse_bicubic(s).map_err(|e| e.to_string())
+    pixelflow_sim::method::parse_bicubic(s).map_err(|e| e.to_string())
+}
+
+/// Standard output closed by the reader (`pixelflow-sim ... | head`): not a failure of the
+/// job, which is done; the program ends quietly with exit code 0.
+#[derive(Debug)]
+struct StdoutClosed;
+
+impl std::fmt::Display for StdoutClosed {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str("standard output closed")
+    }
+}
+
+impl std::error::Error for StdoutClosed {}
+
+/// Writes `text` to standard output; a closed pipe becomes [`StdoutClosed`].
+fn out(text: &str) -> anyhow::Result<()> {
+    let mut o = std::io::stdout().lock();
+    match o.write_all(text.as_bytes()).and_then(|_| o.flush()) {
+        Ok(()) => Ok(()),
+        Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => Err(StdoutClosed.into()),
+        Err(e) => Err(anyhow::anyhow!("writing to standard output: {e}")),
+    }
+}
+
+/// A line on standard error (warnings, "wrote" lines); an unwritable stderr is ignored, as there
+/// is nowhere left to report it.
+fn note(text: &str) {
+    let _ = writeln!(std::io::stderr().lock(), "{text}");
+}
+
+/// JSON of `value`, pretty, with a newline.
+fn json<T: serde::Serialize>(value: &T) -> anyhow::Result<String> {
+    Ok(serde_json::to_string_pretty(value)? + "\n")
 }
 
 fn run(cli: Cli) -> anyhow::Result<()> {
@@ -276,14 +313,9 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Check { scene } => {
             let s = pixelflow_sim::scene::load_scene(&scene)?;
             for w in &s.warnings {
-                eprintln!("warning: {w}");
+                note(&format!("warning: {w}"));
             }
-            let summary = pixelflow_sim::report::summarize(&s);
-            use std::io::Write;
-            let mut out = std::io::stdout().lock();
-            write!(out, "{summary}")
-                .and_then(|_| out.flush())
-                .context("writing the summary to stdout")?;
+            out(&pixelflow_sim::report::summarize(&s).to_string())?;
         }
         Command::Solve {
             scene,
@@ -291,10 +323,11 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             threads,
             quiet,
         } => {
-            let sol = in_pool(threads, || pipeline::solve_to_file(&scene, &output, !quiet))??;
+            let observer = Silent;
+            let sol = in_pool(threads, || solve_to_file(&scene, &output, &observer))??;
             if !quiet {
                 let s = &sol.stats;
-                eprintln!(
+                note(&format!(
                     "solved {} in {:.0} ms: {} elements, {} samples ({} T-vertices), {} shots, unshot {:.3}%; wrote {}",
                     scene.display(),
                     s.solve_ms,
@@ -304,7 +337,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                     s.shots,
                     100.0 * s.unshot_fraction,
                     output.display()
-                );
+                ));
             }
         }
         Command::Render {
@@ -336,14 +369,20 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 region,
                 stats,
                 walkthrough,
-                progress: !quiet,
                 texture: texture.options(),
             };
+            let observer = Silent;
+            let mut stdout_closed = false;
             in_pool(threads, || {
-                pipeline::run_render(&req, &mut |event| match event {
-                    RenderEvent::Warning(w) => eprintln!("warning: {w}"),
-                    RenderEvent::Wrote(path) if !quiet => eprintln!("wrote {}", path.display()),
-                    RenderEvent::Frame(report) if verbose => println!("{}", report.to_json()),
+                run_render(&req, &observer, &mut |event| match event {
+                    RenderEvent::Warning(w) => note(&format!("warning: {w}")),
+                    RenderEvent::Wrote(path) if !quiet => {
+                        note(&format!("wrote {}", path.display()))
+                    }
+                    RenderEvent::Frame(report) if verbose && !stdout_closed => {
+                        // A closed stdout stops the printing, not the render.
+                        stdout_closed = out(&(report.to_json() + "\n")).is_err();
+                    }
                     _ => {}
                 })
             })??;
@@ -358,24 +397,21 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             threads,
             json,
         } => in_pool(threads, || -> anyhow::Result<()> {
-            let topts = texture.options();
-            let p = pipeline::prepare_with(&input, false, &topts)?;
-            let bicubic = match topts.method(Method::parse("texture-bicubic")?)? {
-                Method::Texture(f) => f,
-                _ => Filter::MITCHELL,
+            let req = StatsRequest {
+                input,
+                frames,
+                frame: FrameOptions {
+                    aa,
+                    ..FrameOptions::new(width, height)
+                },
+                texture: texture.options(),
             };
-            let opts = FrameOptions {
-                aa,
-                ..FrameOptions::new(width, height)
-            };
-            opts.validate()?;
-            let stats = pipeline::model_stats(&p, frames, &opts, bicubic)?;
+            let stats = run_stats(&req, &Silent)?;
             if json {
-                println!("{}", serde_json::to_string_pretty(&stats)?);
+                out(&self::json(&stats)?)
             } else {
-                print!("{}", pixelflow_sim::report::model_stats_text(&stats));
+                out(&pixelflow_sim::report::model_stats_text(&stats))
             }
-            Ok(())
         })??,
         Command::Experiment {
             which,
@@ -410,13 +446,13 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 frames,
                 doc,
             };
-            let results = experiment::run(&req, &mut |path| eprintln!("wrote {}", path.display()))?;
+            let results =
+                experiment::run(&req, &mut |path| note(&format!("wrote {}", path.display())))?;
             if json {
-                println!("{}", serde_json::to_string_pretty(&results)?);
+                out(&self::json(&results)?)
             } else {
-                print!("{}", experiment::results_text(&results));
+                out(&experiment::results_text(&results))
             }
-            Ok(())
         })??,
         Command::Bench {
             input,
@@ -429,51 +465,36 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             threads,
             json,
         } => in_pool(threads, || -> anyhow::Result<()> {
-            let topts = texture.options();
-            let p = pipeline::prepare_with(&input, false, &topts)?;
-            let methods = methods
-                .iter()
-                .map(|m| topts.method(Method::parse(m)?))
-                .collect::<Result<Vec<_>, _>>()?;
-            let base = FrameOptions {
+            let req = BenchRequest {
+                input,
+                methods,
+                texture: texture.options(),
+                sizes,
+                frames,
                 aa,
                 renderers,
-                ..FrameOptions::new(p.scene.width, p.scene.height)
             };
-            if let Some(bad) = sizes.iter().find(|&&s| s == 0 || s > MAX_IMAGE_DIM) {
-                return Err(Error::Usage(format!(
-                    "--sizes {bad}: every size must be in 1..={MAX_IMAGE_DIM}"
-                ))
-                .into());
-            }
-            let sizes: Vec<(u32, u32)> = sizes.iter().map(|&s| (s, s)).collect();
-            let mut rows = Vec::new();
-            for &size in &sizes {
-                for &m in &methods {
-                    rows.extend(pipeline::bench(&p, m, &[size], frames, &base)?);
-                }
-            }
+            let report = run_bench(&req, &Silent)?;
             if json {
-                println!("{}", serde_json::to_string_pretty(&rows)?);
+                out(&self::json(&report.rows)?)
             } else {
-                println!(
-                    "{}: {} polygons, {} samples, {} RRP patches, {} threads",
-                    input.display(),
-                    p.scene.polygons.len(),
-                    p.solution.stats.vertices,
-                    p.reconstruction.stats().patches,
-                    rayon::current_num_threads()
-                );
-                print!("{}", pipeline::bench_table(&rows));
+                out(&format!(
+                    "{}: {} polygons, {} samples, {} RRP patches, {} threads\n{}",
+                    report.input,
+                    report.polygons,
+                    report.samples,
+                    report.patches,
+                    report.threads,
+                    bench_table(&report.rows)
+                ))
             }
-            Ok(())
         })??,
         Command::Compare { a, b, ppd, json } => {
             let c = pixelflow_sim::metric::compare_files(&a, &b, ppd)?;
             if json {
-                println!("{}", serde_json::to_string_pretty(&c)?);
+                out(&self::json(&c)?)?;
             } else {
-                print!("{}", c.table());
+                out(&c.table())?;
             }
         }
     }
@@ -484,7 +505,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
 fn in_pool<T: Send>(threads: Option<usize>, f: impl FnOnce() -> T + Send) -> anyhow::Result<T> {
     match threads {
         None => Ok(f()),
-        Some(0) => Err(Error::Usage("--threads 0: needs at least one thread".into()).into()),
+        Some(0) => Err(Error::invalid_option("--threads", "0", "needs at least one thread").into()),
         Some(n) => {
             let pool = rayon::ThreadPoolBuilder::new()
                 .num_threads(n)
@@ -499,8 +520,9 @@ fn main() -> ExitCode {
     let cli = Cli::parse();
     match run(cli) {
         Ok(()) => ExitCode::SUCCESS,
+        Err(e) if e.is::<StdoutClosed>() => ExitCode::SUCCESS,
         Err(e) => {
-            eprintln!("error: {e:#}");
+            note(&format!("error: {e:#}"));
             let code = e
                 .downcast_ref::<pixelflow_sim::Error>()
                 .map_or(EXIT_FAILURE, |e| e.exit_code());

@@ -196,7 +196,7 @@ pub fn grouped(n: u64) -> String {
 /// The `stats` table for one scene: the paper's Table 1 columns (original, mesh and RAT models,
 /// sizes, texture memory and count) plus the RRP memory, and the measured frame times with the
 /// ratios the project tracks (direct / bilinear, direct / bicubic, mesh / direct).
-pub fn model_stats_text(s: &crate::pipeline::ModelStats) -> String {
+pub fn model_stats_text(s: &crate::jobs::stats::ModelStats) -> String {
     let mut t = format!("{}: {} radiosity samples\n", s.scene, grouped(s.samples));
     t += "model            triangles    vertices   size (MB)\n";
     t += &format!(

@@ -9,8 +9,9 @@
 use std::path::Path;
 
 use glam::Vec3;
+use pixelflow_sim::frame::{render, render_patches as render_frame, Frame, FrameOptions};
+use pixelflow_sim::method::Method;
 use pixelflow_sim::quadtree::{Cell, Quadtree, SampledQuadtree};
-use pixelflow_sim::raster::{render_frame, render_frame_with, Frame, FrameOptions};
 use pixelflow_sim::reconstruction::{mesh::MeshModel, Estimator, Reconstruction};
 use pixelflow_sim::scene::{load_scene, Scene};
 use pixelflow_sim::shading::Shader;
@@ -77,7 +78,8 @@ impl Backends {
         let depths = TextureSet::depths(&self.trees);
         let set = TextureSet::build(&self.recon, &depths, SizePolicy::Fixed(side)).unwrap();
         let shader = Shader::Texture { set: &set, filter };
-        render_frame_with(&self.scene, &self.scene.camera, &shader, opts).unwrap()
+        let method = Method::Texture(filter);
+        render(&self.scene, &self.scene.camera, &shader, method, opts).unwrap()
     }
 
     fn mesh(&self, opts: &FrameOptions) -> Frame {
@@ -87,7 +89,15 @@ impl Backends {
 
     fn exact(&self, opts: &FrameOptions, f: fn(f64, f64) -> Vec3) -> Frame {
         let func = move |_: u32, u: f32, v: f32| f(u as f64, v as f64);
-        render_frame_with(&self.scene, &self.scene.camera, &Shader::Exact(&func), opts).unwrap()
+        let shader = Shader::Reference(&func);
+        render(
+            &self.scene,
+            &self.scene.camera,
+            &shader,
+            Method::Reference,
+            opts,
+        )
+        .unwrap()
     }
 }
 
@@ -194,13 +204,14 @@ fn minified_textures_use_coarser_levels() {
         memory: TextureMemory::of_sides(&[256]),
     };
     let scene = two_spots();
-    let frame = render_frame_with(
+    let frame = render(
         &scene,
         &scene.camera,
         &Shader::Texture {
             set: &set,
             filter: Filter::Bilinear,
         },
+        Method::Texture(Filter::Bilinear),
         &FrameOptions::new(32, 32),
     )
     .unwrap();

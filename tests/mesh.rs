@@ -5,10 +5,11 @@
 use std::path::Path;
 use std::time::Instant;
 
+use pixelflow_sim::frame::{render_patches as render_frame, FrameOptions};
 use pixelflow_sim::radiosity::{solve, SolveOptions};
+use pixelflow_sim::raster::build_primitives;
 use pixelflow_sim::raster::region::coverage_counts;
 use pixelflow_sim::raster::setup::{Prim, ONE};
-use pixelflow_sim::raster::{build_primitives, render_frame, FrameOptions};
 use pixelflow_sim::reconstruction::mesh::{MeshModel, MeshStats};
 use pixelflow_sim::scene::{load_scene, Scene};
 
@@ -31,7 +32,7 @@ fn solved(name: &str) -> (Scene, MeshModel) {
 
 fn coverage(scene: &Scene, size: u32) -> (Vec<Prim>, Vec<u32>) {
     let opts = FrameOptions::new(size, size);
-    let prims = build_primitives(scene, &scene.camera, &opts).unwrap();
+    let prims = build_primitives(scene, &scene.camera, opts.width, opts.height, false).unwrap();
     let counts = coverage_counts(&prims, size, size, 128);
     (prims, counts)
 }

@@ -9,8 +9,7 @@ use std::path::{Path, PathBuf};
 
 use glam::Vec3;
 use image::{ImageBuffer, ImageFormat, Rgb};
-use pixelflow_sim::image_in::{decode_image, read_image, srgb_decode};
-use pixelflow_sim::image_out::{srgb_encode, to_srgb8};
+use pixelflow_sim::image::{decode_image, read_image, srgb_decode, srgb_encode, to_srgb8};
 use pixelflow_sim::metric::{compare, compare_files, perceptual_distance, LinearImage};
 use proptest::prelude::*;
 

@@ -3,10 +3,11 @@
 //! renderers. Scenes are built in code; the patch sources are analytic.
 
 use glam::{DVec3, Vec3};
+use pixelflow_sim::frame::{render_patches as render_frame, Frame, FrameOptions};
+use pixelflow_sim::raster::build_primitives;
 use pixelflow_sim::raster::geometry::{Plane, ScreenPolygon};
 use pixelflow_sim::raster::region::coverage_counts;
 use pixelflow_sim::raster::setup::{setup, ONE};
-use pixelflow_sim::raster::{build_primitives, render_frame, Frame, FrameOptions};
 use pixelflow_sim::scene::{Camera, Material, Polygon, Projection, Scene};
 use pixelflow_sim::shading::{PatchCoeffs, PatchSource};
 use proptest::prelude::*;
@@ -148,7 +149,14 @@ fn mesh_with_vertices_on_pixel_centres_covers_every_pixel_exactly_once() {
     let scene = scene_with(polys, ortho_pixels(w, h), w, h);
     let mut opts = FrameOptions::new(w, h);
     opts.region = 16;
-    let prims = build_primitives(&scene, &scene.camera, &opts).unwrap();
+    let prims = build_primitives(
+        &scene,
+        &scene.camera,
+        opts.width,
+        opts.height,
+        opts.cull_back_faces,
+    )
+    .unwrap();
     let counts = coverage_counts(&prims, w, h, 16);
     let bad: Vec<_> = counts
         .iter()
@@ -173,7 +181,7 @@ fn perspective_mesh_filling_the_view_covers_every_pixel_exactly_once() {
         projection: Projection::Perspective { fov_y_deg: 60.0 },
     };
     let scene = scene_with(polys, camera, w, h);
-    let prims = build_primitives(&scene, &camera, &FrameOptions::new(w, h)).unwrap();
+    let prims = build_primitives(&scene, &camera, w, h, false).unwrap();
     let counts = coverage_counts(&prims, w, h, 128);
     let bad: Vec<_> = counts
         .iter()

@@ -4,8 +4,10 @@
 use std::path::Path;
 use std::sync::OnceLock;
 
-use pixelflow_sim::pipeline::{self, Method, Prepared};
-use pixelflow_sim::raster::{Frame, FrameOptions};
+use pixelflow_sim::frame::{Frame, FrameOptions};
+use pixelflow_sim::jobs::{prepare_path, render_frame, Prepared, TextureOptions};
+use pixelflow_sim::method::Method;
+use pixelflow_sim::progress::Silent;
 
 fn prepared(name: &str) -> &'static Prepared {
     static TWO_SPOTS: OnceLock<Prepared> = OnceLock::new();
@@ -21,7 +23,7 @@ fn prepared(name: &str) -> &'static Prepared {
         let path = Path::new(env!("CARGO_MANIFEST_DIR"))
             .join("scenes")
             .join(format!("{name}.toml"));
-        pipeline::prepare(&path, false).expect("shipped scene prepares")
+        prepare_path(&path, &TextureOptions::default(), &Silent).expect("shipped scene prepares")
     })
 }
 
@@ -30,7 +32,7 @@ fn render_with(p: &Prepared, opts: &FrameOptions, threads: usize) -> Frame {
         .num_threads(threads)
         .build()
         .unwrap()
-        .install(|| pipeline::render(p, Method::Direct, &p.scene.camera, opts))
+        .install(|| render_frame(p, Method::Direct, &p.scene.camera, opts))
         .expect("render")
 }
 
@@ -150,7 +152,7 @@ fn every_method_is_identical_for_any_threads_and_renderers() {
     // The texture, mesh and reference methods share the rasterizer and compositor; their
     // deferred passes read only composited regions (textures: level of detail from differences
     // inside a region), so threads and renderers must not change a bit either.
-    use pixelflow_sim::texture::Filter;
+    use pixelflow_sim::method::Filter;
     let p = prepared("cornell-box");
     for method in [
         Method::Texture(Filter::Nearest),
@@ -167,7 +169,7 @@ fn every_method_is_identical_for_any_threads_and_renderers() {
                 .num_threads(threads)
                 .build()
                 .unwrap()
-                .install(|| pipeline::render(p, method, &p.scene.camera, opts))
+                .install(|| render_frame(p, method, &p.scene.camera, opts))
                 .expect("render")
         };
         let reference = run(&opts, 1);

@@ -2,12 +2,13 @@
 //! the oracle reference, the coarse quadtree and its reconstructions (bilinear, bicubic RRP,
 //! small textures with on-screen filters, the direct method), each measured against the reference.
 
-use crate::error::{Error, Result};
-use crate::image_out;
+use crate::error::{Error, Location, Result};
+use crate::frame::{self, Frame, FrameOptions};
+use crate::image;
+use crate::method::Method;
 use crate::metric::{compare, Comparison, LinearImage};
 use crate::quadtree::{Quadtree, SampledQuadtree};
 use crate::radiosity::{self, Oracle, SolveOptions};
-use crate::raster::{render_frame, render_frame_with, Frame, FrameOptions};
 use crate::reconstruction::{Estimator, Reconstruction};
 use crate::scene::{load_scene, Scene};
 use crate::shading::Shader;
@@ -117,23 +118,30 @@ impl Setup {
     fn new(path: &Path, falloff: Option<f64>) -> Result<Setup> {
         let mut scene = load_scene(path)?;
         if let Some(f) = falloff {
-            let spot = scene.spots.first_mut().ok_or_else(|| {
-                Error::Usage(format!("{}: no spot light to vary", path.display()))
-            })?;
+            let spot = scene
+                .spots
+                .first_mut()
+                .ok_or_else(|| Error::input(Location::file(path), "no spot light to vary"))?;
             if !(f.is_finite() && f >= 0.0) {
-                return Err(Error::Usage(format!("spot falloff {f} must be >= 0")));
+                return Err(Error::invalid_option(
+                    "spot falloff",
+                    f.to_string(),
+                    "must be >= 0",
+                ));
             }
             spot.falloff = f;
         }
         if scene.polygons.len() != 1 {
-            return Err(Error::Usage(format!(
-                "{}: the figure experiments need a single-polygon texture-space scene \
-                 (scenes/two-spots.toml), this one has {} polygons",
-                path.display(),
-                scene.polygons.len()
-            )));
+            return Err(Error::input(
+                Location::file(path),
+                format!(
+                    "the figure experiments need a single-polygon texture-space scene \
+                     (scenes/two-spots.toml), this one has {} polygons",
+                    scene.polygons.len()
+                ),
+            ));
         }
-        let solution = radiosity::solve(&scene, &SolveOptions { progress: false })?;
+        let solution = radiosity::solve(&scene, &SolveOptions::default())?;
         Ok(Setup { scene, solution })
     }
 
@@ -227,13 +235,7 @@ fn panel(
     let mut file = String::new();
     if let Some(dir) = &opts.out_dir {
         file = format!("{fig}-{key}.png");
-        let frame = Frame {
-            width: image.width,
-            height: image.height,
-            pixels: image.pixels.clone(),
-            stats: Default::default(),
-        };
-        image_out::write_png(&dir.join(&file), &frame, scene.display.exposure)?;
+        image::write_png(&dir.join(&file), image.view(), scene.display.exposure)?;
     }
     Ok(Panel {
         label: label.into(),
@@ -246,16 +248,21 @@ fn panel(
 
 fn check(opts: &FigureOptions) -> Result<()> {
     if opts.size == 0 || opts.size > 4096 {
-        return Err(Error::Usage(format!(
-            "--size {}: must be in 1..=4096",
-            opts.size
-        )));
+        return Err(Error::invalid_option(
+            "--size",
+            opts.size.to_string(),
+            "must be in 1..=4096",
+        ));
     }
     if opts.reference_depth > 12 || opts.coarse_depth > opts.reference_depth {
-        return Err(Error::Usage(format!(
-            "reference depth {} must be at most 12 and at least the coarse depth {}",
-            opts.reference_depth, opts.coarse_depth
-        )));
+        return Err(Error::invalid_option(
+            "reference depth",
+            opts.reference_depth.to_string(),
+            format!(
+                "must be at most 12 and at least the coarse depth {}",
+                opts.coarse_depth
+            ),
+        ));
     }
     if let Some(dir) = &opts.out_dir {
         std::fs::create_dir_all(dir).map_err(|e| Error::Io {
@@ -270,10 +277,11 @@ fn check(opts: &FigureOptions) -> Result<()> {
 /// `reference` backend (the rasterizer's (u, v), the solver's oracle).
 fn oracle_image(setup: &Setup, oracle: &Oracle<'_>, n: u32) -> Result<LinearImage> {
     let f = |p: u32, u: f32, v: f32| oracle.radiosity(p as usize, u as f64, v as f64);
-    let frame = render_frame_with(
+    let frame = frame::render(
         &setup.scene,
         &setup.scene.camera,
-        &Shader::Exact(&f),
+        &Shader::Reference(&f),
+        Method::Reference,
         &FrameOptions::new(n, n),
     )?;
     image_of_frame(frame)
@@ -295,7 +303,7 @@ pub fn fig5(opts: &FigureOptions) -> Result<Figure> {
     let texels = recon.resample(0, n, n);
     // Texel row j holds v = (j + 0.5) / n; image row y shows v = 1 - (y + 0.5) / n: row n-1-y.
     let bicubic = LinearImage::from_fn(n, n, |x, y| texels[((n - 1 - y) * n + x) as usize]);
-    let direct = image_of_frame(render_frame(
+    let direct = image_of_frame(frame::render_patches(
         scene,
         &scene.camera,
         &recon,
@@ -390,14 +398,15 @@ pub fn fig6(opts: &FigureOptions) -> Result<Figure> {
     };
     let fopts = FrameOptions::new(n, n);
     let draw = |filter: Filter| -> Result<LinearImage> {
-        image_of_frame(render_frame_with(
+        image_of_frame(frame::render(
             scene,
             &scene.camera,
             &Shader::Texture { set: &set, filter },
+            Method::Texture(filter),
             &fopts,
         )?)
     };
-    let direct = image_of_frame(render_frame(scene, &scene.camera, &recon, &fopts)?)?;
+    let direct = image_of_frame(frame::render_patches(scene, &scene.camera, &recon, &fopts)?)?;
     let panels = vec![
         panel(
             opts,
@@ -483,7 +492,7 @@ pub fn spot_sweep(opts: &FigureOptions, falloffs: &[f64]) -> Result<Vec<SweepRow
     let spot = scene
         .spots
         .first()
-        .ok_or_else(|| Error::Usage(format!("{}: no spot light", opts.scene.display())))?;
+        .ok_or_else(|| Error::input(Location::file(&opts.scene), "no spot light"))?;
     let h = spot.position.z.abs();
     let spacing = 1.0 / (1u32 << opts.coarse_depth) as f64;
     falloffs

@@ -4,7 +4,7 @@
 
 use super::{table1_markdown, Figure, Request, Results, SweepRow};
 use crate::error::Result;
-use crate::pipeline::ModelStats;
+use crate::jobs::stats::ModelStats;
 use std::path::{Path, PathBuf};
 
 /// The sweep as a Markdown table.

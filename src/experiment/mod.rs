@@ -33,8 +33,8 @@ pub use markdown::{markdown, sweep_markdown};
 pub use table1::{table1, table1_markdown, PaperRow, PAPER_TABLE1};
 
 use crate::error::{Error, Result};
-use crate::pipeline::ModelStats;
-use crate::raster::FrameOptions;
+use crate::frame::FrameOptions;
+use crate::jobs::stats::ModelStats;
 use crate::reconstruction::Estimator;
 use crate::scene::load_scene;
 use serde::Serialize;
@@ -53,9 +53,11 @@ pub fn parse_estimator(s: &str) -> Result<Estimator> {
     match s {
         "monotone" => Ok(Estimator::Monotone),
         "plain" => Ok(Estimator::Plain),
-        _ => Err(Error::Usage(format!(
-            "--estimator {s}: expected monotone or plain"
-        ))),
+        _ => Err(Error::invalid_option(
+            "--estimator",
+            s,
+            "expected monotone or plain",
+        )),
     }
 }
 
@@ -80,9 +82,11 @@ impl Which {
             "fig6" => Ok(Which::Fig6),
             "table1" => Ok(Which::Table1),
             "all" => Ok(Which::All),
-            _ => Err(Error::Usage(format!(
-                "experiment `{s}`: expected fig5, fig6, table1 or all"
-            ))),
+            _ => Err(Error::invalid_option(
+                "experiment",
+                s,
+                "expected fig5, fig6, table1 or all",
+            )),
         }
     }
 }

@@ -1,9 +1,11 @@
 //! Table 1 of the paper: the `stats` of each scene, laid out beside the paper's three models.
 
 use crate::error::Result;
-use crate::pipeline::{self, ModelStats, Prepared};
-use crate::raster::FrameOptions;
-use crate::texture::Filter;
+use crate::frame::FrameOptions;
+use crate::jobs::stats::{model_stats, ModelStats};
+use crate::jobs::{prepare_path, Prepared, TextureOptions};
+use crate::method::Filter;
+use crate::progress::Silent;
 use std::path::{Path, PathBuf};
 
 /// One row of the paper's Table 1 (FACTS.md sec. 1).
@@ -71,8 +73,8 @@ pub fn table1(scenes: &[PathBuf], frames: u32, opts: &FrameOptions) -> Result<Ve
     scenes
         .iter()
         .map(|s| {
-            let p: Prepared = pipeline::prepare(s, false)?;
-            pipeline::model_stats(&p, frames, opts, Filter::MITCHELL)
+            let p: Prepared = prepare_path(s, &TextureOptions::default(), &Silent)?;
+            model_stats(&p, frames, opts, Filter::MITCHELL)
         })
         .collect()
 }

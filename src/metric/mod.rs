@@ -2,7 +2,7 @@
 //! Fig. 5 / Fig. 6 comparisons and `pixelflow-sim compare`.
 //!
 //! This is the last stage of an experiment: it sees only two [`LinearImage`]s (linear RGB, as
-//! written to EXR by [`crate::image_out`] or read by [`crate::image_in`]), never the scene. Every
+//! written to EXR by [`crate::image::write`] or read by [`crate::image::read`]), never the scene. Every
 //! number is computed on the luminance `Y = 0.2126 R + 0.7152 G + 0.0722 B` (Rec. 709 weights), in
 //! `f64`, in a fixed loop order, so the same two images give the same bytes on every run and for
 //! any thread count (nothing here is parallel).
@@ -34,109 +34,13 @@ pub mod perceptual;
 use std::fmt::Write as _;
 use std::path::Path;
 
-use glam::Vec3;
 use serde::Serialize;
 
 use crate::error::{Error, Location, Result};
+use crate::image::mean;
+pub use crate::image::{luminance, LinearImage, LUMINANCE_WEIGHTS};
 
 pub use perceptual::{csf, perceptual_distance, DEFAULT_PPD};
-
-/// Rec. 709 / sRGB luminance weights of linear R, G, B (FACTS.md sec. 4 step 1).
-pub const LUMINANCE_WEIGHTS: [f64; 3] = [0.2126, 0.7152, 0.0722];
-
-/// A linear-RGB image: `width * height` pixels, row-major, row 0 on top.
-#[derive(Debug, Clone, PartialEq)]
-pub struct LinearImage {
-    /// Width in pixels.
-    pub width: u32,
-    /// Height in pixels.
-    pub height: u32,
-    /// Linear RGB pixels, row-major, row 0 on top (`pixels[y * width + x]`).
-    pub pixels: Vec<Vec3>,
-}
-
-impl LinearImage {
-    /// An image, checked: both sizes at least 1 and `pixels.len() == width * height`.
-    pub fn new(width: u32, height: u32, pixels: Vec<Vec3>) -> Result<LinearImage> {
-        let img = LinearImage {
-            width,
-            height,
-            pixels,
-        };
-        img.check_shape()?;
-        Ok(img)
-    }
-
-    /// An image of `width * height` pixels, each `f(x, y)`.
-    pub fn from_fn(width: u32, height: u32, mut f: impl FnMut(u32, u32) -> Vec3) -> LinearImage {
-        let mut pixels = Vec::with_capacity(width as usize * height as usize);
-        for y in 0..height {
-            for x in 0..width {
-                pixels.push(f(x, y));
-            }
-        }
-        LinearImage {
-            width,
-            height,
-            pixels,
-        }
-    }
-
-    /// The pixel at column `x`, row `y` (row 0 on top). Panics outside the image.
-    pub fn get(&self, x: u32, y: u32) -> Vec3 {
-        self.pixels[y as usize * self.width as usize + x as usize]
-    }
-
-    /// The luminance of every pixel, in `f64`, in pixel order.
-    pub fn luminance(&self) -> Vec<f64> {
-        self.pixels.iter().map(|p| luminance(*p)).collect()
-    }
-
-    /// The mean luminance (sequential sum in pixel order, divided by the pixel count; 0 for an
-    /// empty image).
-    pub fn mean_luminance(&self) -> f64 {
-        mean(&self.luminance())
-    }
-
-    /// Errors unless the sizes are at least 1 and the pixel count matches.
-    fn check_shape(&self) -> Result<()> {
-        let n = self.width as usize * self.height as usize;
-        if self.width == 0 || self.height == 0 || self.pixels.len() != n {
-            return Err(Error::Usage(format!(
-                "image of {} x {} holds {} pixels (needs at least 1 x 1 and width * height pixels)",
-                self.width,
-                self.height,
-                self.pixels.len()
-            )));
-        }
-        Ok(())
-    }
-
-    /// The first non-finite pixel, as (x, y, value), if any.
-    pub fn first_non_finite(&self) -> Option<(u32, u32, Vec3)> {
-        let w = self.width.max(1) as usize;
-        self.pixels
-            .iter()
-            .position(|p| !p.is_finite())
-            .map(|i| ((i % w) as u32, (i / w) as u32, self.pixels[i]))
-    }
-}
-
-/// The luminance of a linear RGB value (FACTS.md sec. 4 step 1), in `f64`.
-pub fn luminance(p: Vec3) -> f64 {
-    LUMINANCE_WEIGHTS[0] * p.x as f64
-        + LUMINANCE_WEIGHTS[1] * p.y as f64
-        + LUMINANCE_WEIGHTS[2] * p.z as f64
-}
-
-/// Sequential mean (0 for an empty slice).
-pub(crate) fn mean(v: &[f64]) -> f64 {
-    if v.is_empty() {
-        0.0
-    } else {
-        v.iter().sum::<f64>() / v.len() as f64
-    }
-}
 
 /// Every measure of one image against a reference, as printed by `pixelflow-sim compare`.
 ///
@@ -221,34 +125,42 @@ fn which(i: usize) -> &'static str {
 /// a positive mean luminance in each image. Messages name the image as `a` or `b`.
 fn validate(a: &LinearImage, b: &LinearImage, ppd: f64) -> Result<()> {
     if !(ppd.is_finite() && ppd > 0.0) {
-        return Err(Error::Usage(format!(
-            "--ppd {ppd}: pixels per degree must be a finite number > 0"
-        )));
+        return Err(Error::invalid_option(
+            "--ppd",
+            ppd.to_string(),
+            "pixels per degree must be a finite number > 0",
+        ));
     }
     for (i, img) in [a, b].into_iter().enumerate() {
         img.check_shape()
-            .map_err(|e| Error::Usage(format!("image {}: {e}", which(i))))?;
+            .map_err(|e| Error::invalid_option(format!("image {}", which(i)), "", e.to_string()))?;
     }
     if (a.width, a.height) != (b.width, b.height) {
-        return Err(Error::Usage(format!(
-            "image sizes differ: a is {} x {}, b is {} x {}",
-            a.width, a.height, b.width, b.height
-        )));
+        return Err(Error::invalid_option(
+            "images",
+            "",
+            format!(
+                "sizes differ: a is {} x {}, b is {} x {}",
+                a.width, a.height, b.width, b.height
+            ),
+        ));
     }
     for (i, img) in [a, b].into_iter().enumerate() {
         if let Some((x, y, p)) = img.first_non_finite() {
-            return Err(Error::Usage(format!(
-                "image {}: pixel ({x}, {y}) is {p}, not finite",
-                which(i)
-            )));
+            return Err(Error::invalid_option(
+                format!("image {}", which(i)),
+                "",
+                format!("pixel ({x}, {y}) is {p}, not finite"),
+            ));
         }
         let m = img.mean_luminance();
         // The pixels are finite (checked), so the mean is finite: `<=` catches every bad case.
         if m <= 0.0 {
-            return Err(Error::Usage(format!(
-                "image {}: mean luminance is {m} (all black?): the metric normalises by it and is undefined",
-                which(i)
-            )));
+            return Err(Error::invalid_option(
+                format!("image {}", which(i)),
+                "",
+                format!("mean luminance is {m} (all black?): the metric normalises by it and is undefined"),
+            ));
         }
     }
     Ok(())
@@ -257,7 +169,7 @@ fn validate(a: &LinearImage, b: &LinearImage, ppd: f64) -> Result<()> {
 /// Compares `a` (the image under test) with `b` (the reference): every measure of
 /// [`Comparison`], the perceptual distance at `ppd` pixels per degree.
 ///
-/// Errors ([`Error::Usage`]): `ppd` not finite and positive, an image with a size of 0 or a pixel
+/// Errors ([`Error::InvalidOption`]): `ppd` not finite and positive, an image with a size of 0 or a pixel
 /// count that does not match, different sizes (the message names both), a NaN or infinite pixel,
 /// a mean luminance that is not positive.
 pub fn compare(a: &LinearImage, b: &LinearImage, ppd: f64) -> Result<Comparison> {
@@ -297,25 +209,29 @@ pub fn compare(a: &LinearImage, b: &LinearImage, ppd: f64) -> Result<Comparison>
     })
 }
 
-/// Reads two image files (EXR, Radiance HDR, PFM or PNG; see [`crate::image_in`]) and compares
+/// Reads two image files (EXR, Radiance HDR, PFM or PNG; see [`crate::image::read`]) and compares
 /// them with [`compare`], `b` the reference.
 ///
 /// Errors name the file: unreadable, unknown format, truncated or non-finite ([`Error::Input`],
 /// from the reader), all black ([`Error::Input`] at that file), and different sizes
-/// ([`Error::Usage`] naming both files and both sizes).
+/// ([`Error::InvalidOption`] naming both files and both sizes).
 pub fn compare_files(a: &Path, b: &Path, ppd: f64) -> Result<Comparison> {
-    let ia = crate::image_in::read_image(a)?;
-    let ib = crate::image_in::read_image(b)?;
+    let ia = crate::image::read_image(a)?;
+    let ib = crate::image::read_image(b)?;
     if (ia.width, ia.height) != (ib.width, ib.height) {
-        return Err(Error::Usage(format!(
-            "image sizes differ: {} is {} x {}, {} is {} x {}",
-            a.display(),
-            ia.width,
-            ia.height,
-            b.display(),
-            ib.width,
-            ib.height
-        )));
+        return Err(Error::invalid_option(
+            "images",
+            "",
+            format!(
+                "sizes differ: {} is {} x {}, {} is {} x {}",
+                a.display(),
+                ia.width,
+                ia.height,
+                b.display(),
+                ib.width,
+                ib.height
+            ),
+        ));
     }
     for (path, img) in [(a, &ia), (b, &ib)] {
         let m = img.mean_luminance();
@@ -336,6 +252,7 @@ pub fn compare_files(a: &Path, b: &Path, ppd: f64) -> Result<Comparison> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use glam::Vec3;
 
     fn img(w: u32, h: u32, f: impl Fn(u32, u32) -> f32) -> LinearImage {
         LinearImage::from_fn(w, h, |x, y| Vec3::splat(f(x, y)))

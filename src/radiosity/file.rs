@@ -17,7 +17,7 @@
 //! [`crate::output::write_atomic`]; reading checks, in order, magic, version, length (truncation),
 //! checksum (corruption), scene hash (another scene), then rebuilds every quadtree with
 //! [`Quadtree::from_nodes`] and checks the stored keys are exactly its vertices. Every failure is an
-//! [`Error::Input`] naming the file and what is wrong.
+//! [`Error::Solution`] naming the file, the [`SolutionProblem`] and what is wrong.
 
 use std::path::Path;
 
@@ -25,7 +25,7 @@ use glam::{DVec3, Vec3};
 
 use super::transfer::{build_shooters, ShooterKind};
 use super::{fill_tree_stats, scene_hash, Fnv, Shooter, Solution, SolveStats};
-use crate::error::{Error, Location, Result};
+use crate::error::{Error, Result, SolutionProblem};
 use crate::quadtree::{Cell, Node, Quadtree, SampledQuadtree};
 use crate::scene::Scene;
 
@@ -73,19 +73,20 @@ pub fn write_solution(path: &Path, sol: &Solution, scene_path: Option<&Path>) ->
 
 /// The scene file a solution file names (checked: magic, version, length, checksum).
 pub fn read_scene_path(path: &Path) -> Result<std::path::PathBuf> {
-    let bytes =
-        std::fs::read(path).map_err(|e| Error::input(Location::file(path), e.to_string()))?;
-    let env = envelope(&bytes).map_err(|m| Error::input(Location::file(path), m))?;
+    let bytes = read(path)?;
+    let env = envelope(&bytes).map_err(|b| b.at(path))?;
     let name = &bytes[HEADER..HEADER + env.path_len];
     if name.is_empty() {
-        return Err(Error::input(
-            Location::file(path),
+        return Err(Error::solution(
+            path,
+            SolutionProblem::SceneMismatch,
             "this solution file names no scene file; render the scene itself",
         ));
     }
     let name = std::str::from_utf8(name).map_err(|_| {
-        Error::input(
-            Location::file(path),
+        Error::solution(
+            path,
+            SolutionProblem::Corrupt,
             "corrupt solution file: scene path is not UTF-8",
         )
     })?;
@@ -94,9 +95,35 @@ pub fn read_scene_path(path: &Path) -> Result<std::path::PathBuf> {
 
 /// Reads a solution of `scene` from `path`.
 pub fn read_solution(path: &Path, scene: &Scene) -> Result<Solution> {
-    let bytes =
-        std::fs::read(path).map_err(|e| Error::input(Location::file(path), e.to_string()))?;
-    decode(&bytes, scene).map_err(|m| Error::input(Location::file(path), m))
+    let bytes = read(path)?;
+    decode(&bytes, scene).map_err(|b| b.at(path))
+}
+
+fn read(path: &Path) -> Result<Vec<u8>> {
+    std::fs::read(path).map_err(|e| {
+        Error::solution(
+            path,
+            SolutionProblem::NotASolution,
+            format!("cannot read the solution file: {e}"),
+        )
+    })
+}
+
+/// A decoding failure: what kind, and the message for the user. A plain message (from the
+/// payload reader) is a corrupt file.
+#[derive(Debug)]
+pub struct Bad(pub SolutionProblem, pub String);
+
+impl From<String> for Bad {
+    fn from(m: String) -> Bad {
+        Bad(SolutionProblem::Corrupt, m)
+    }
+}
+
+impl Bad {
+    fn at(self, path: &Path) -> Error {
+        Error::solution(path, self.0, self.1)
+    }
 }
 
 /// Lengths of the checked envelope of a solution file.
@@ -106,22 +133,34 @@ struct Envelope {
 }
 
 /// Checks magic, version, length (truncation) and checksum (corruption).
-fn envelope(bytes: &[u8]) -> std::result::Result<Envelope, String> {
+fn envelope(bytes: &[u8]) -> std::result::Result<Envelope, Bad> {
     if bytes.len() < 8 || &bytes[..8] != MAGIC {
-        return Err("not a pixelflow-sim solution file (bad magic bytes)".to_string());
+        return Err(Bad(
+            SolutionProblem::NotASolution,
+            "not a pixelflow-sim solution file (bad magic bytes)".to_string(),
+        ));
     }
     if bytes.len() < HEADER {
-        return Err(format!(
-            "truncated solution file: {} bytes, the header alone is {HEADER}",
-            bytes.len()
+        return Err(Bad(
+            SolutionProblem::Truncated,
+            format!(
+                "truncated solution file: {} bytes, the header alone is {HEADER}",
+                bytes.len()
+            ),
         ));
     }
     let u32_at = |o: usize| u32::from_le_bytes(bytes[o..o + 4].try_into().unwrap_or([0; 4]));
     let u64_at = |o: usize| u64::from_le_bytes(bytes[o..o + 8].try_into().unwrap_or([0; 8]));
     let version = u32_at(8);
     if version != FORMAT_VERSION {
-        return Err(format!(
-            "solution file format version {version}, this program reads version {FORMAT_VERSION}; solve the scene again"
+        return Err(Bad(
+            SolutionProblem::Version {
+                found: version,
+                supported: FORMAT_VERSION,
+            },
+            format!(
+                "solution file format version {version}, this program reads version {FORMAT_VERSION}; solve the scene again"
+            ),
         ));
     }
     let path_len = u32_at(12) as u64;
@@ -131,22 +170,28 @@ fn envelope(bytes: &[u8]) -> std::result::Result<Envelope, String> {
         .saturating_add(payload_len)
         .saturating_add(8);
     if (bytes.len() as u64) < expect {
-        return Err(format!(
-            "truncated solution file: {} bytes, expected {expect}",
-            bytes.len()
+        return Err(Bad(
+            SolutionProblem::Truncated,
+            format!(
+                "truncated solution file: {} bytes, expected {expect}",
+                bytes.len()
+            ),
         ));
     }
     if (bytes.len() as u64) > expect {
         return Err(format!(
             "corrupt solution file: {} bytes, expected {expect} (trailing data)",
             bytes.len()
-        ));
+        )
+        .into());
     }
     let body = bytes.len() - 8;
     let mut h = Fnv::default();
     h.bytes(&bytes[..body]);
     if h.0 != u64_at(body) {
-        return Err("corrupt solution file: checksum mismatch".to_string());
+        return Err("corrupt solution file: checksum mismatch"
+            .to_string()
+            .into());
     }
     Ok(Envelope {
         path_len: path_len as usize,
@@ -271,20 +316,33 @@ impl R<'_> {
     }
 }
 
-/// Decodes file bytes for `scene`; the error is a message for the user.
-pub fn decode(bytes: &[u8], scene: &Scene) -> std::result::Result<Solution, String> {
+/// Decodes file bytes for `scene`; the error says what kind of problem, with a message for the
+/// user.
+pub fn decode(bytes: &[u8], scene: &Scene) -> std::result::Result<Solution, Bad> {
     let Envelope { path_len, body } = envelope(bytes)?;
     let hash = u64::from_le_bytes(bytes[24..32].try_into().unwrap_or([0; 8]));
     if hash != scene_hash(scene) {
-        return Err(
+        return Err(Bad(
+            SolutionProblem::SceneMismatch,
             "solution file is for another scene (or other radiosity settings); solve this scene again"
                 .to_string(),
-        );
+        ));
     }
-    let mut r = R {
-        b: &bytes[HEADER + path_len..body],
-        at: 0,
-    };
+    Ok(decode_payload(
+        &bytes[HEADER + path_len..body],
+        scene,
+        hash,
+    )?)
+}
+
+/// Decodes the payload (trees, keys, values, shooters, stats) for `scene`; every failure is a
+/// corrupt file.
+fn decode_payload(
+    payload: &[u8],
+    scene: &Scene,
+    hash: u64,
+) -> std::result::Result<Solution, String> {
+    let mut r = R { b: payload, at: 0 };
     let np = r.u32()? as usize;
     if np != scene.polygons.len() {
         return Err(format!(

@@ -278,7 +278,7 @@ impl<'a> Oracle<'a> {
     /// Prepares the oracle of `sol` on `scene` (which must be the scene `sol` solves).
     pub fn new(sol: &Solution, scene: &'a Scene) -> Result<Oracle<'a>> {
         if sol.scene_hash != scene_hash(scene) {
-            return Err(Error::Usage(
+            return Err(Error::Runtime(
                 "the solution was computed for another scene".to_string(),
             ));
         }

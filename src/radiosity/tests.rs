@@ -330,6 +330,15 @@ fn input_message(e: Error) -> String {
     }
 }
 
+fn solution_problem(e: Error) -> (crate::error::SolutionProblem, String) {
+    match e {
+        Error::Solution {
+            problem, message, ..
+        } => (problem, message),
+        other => panic!("expected a solution file error, got {other:?}"),
+    }
+}
+
 #[test]
 fn solution_file_round_trip_and_errors() {
     let mut s = two_spots();
@@ -342,31 +351,39 @@ fn solution_file_round_trip_and_errors() {
     assert_eq!(back, sol);
     let bytes = std::fs::read(&path).expect("bytes");
 
+    use crate::error::SolutionProblem as P;
     let p = tmp("trunc.pfsol");
     std::fs::write(&p, &bytes[..bytes.len() - 10]).expect("w");
-    let m = input_message(file::read_solution(&p, &s).unwrap_err());
-    assert!(m.contains("truncated"), "{m}");
+    let (k, m) = solution_problem(file::read_solution(&p, &s).unwrap_err());
+    assert!(k == P::Truncated && m.contains("truncated"), "{m}");
 
     let mut flipped = bytes.clone();
     flipped[bytes.len() / 2] ^= 0x10;
     std::fs::write(&p, &flipped).expect("w");
-    let m = input_message(file::read_solution(&p, &s).unwrap_err());
-    assert!(m.contains("checksum"), "{m}");
+    let (k, m) = solution_problem(file::read_solution(&p, &s).unwrap_err());
+    assert!(k == P::Corrupt && m.contains("checksum"), "{m}");
 
     let mut other = bytes.clone();
     other[8] = 99;
     std::fs::write(&p, &other).expect("w");
-    let m = input_message(file::read_solution(&p, &s).unwrap_err());
+    let (k, m) = solution_problem(file::read_solution(&p, &s).unwrap_err());
+    assert_eq!(
+        k,
+        P::Version {
+            found: 99,
+            supported: file::FORMAT_VERSION
+        }
+    );
     assert!(m.contains("version 99"), "{m}");
 
     let mut s2 = s.clone();
     s2.materials[0].reflectance.x = 0.4;
-    let m = input_message(file::read_solution(&path, &s2).unwrap_err());
-    assert!(m.contains("another scene"), "{m}");
+    let (k, m) = solution_problem(file::read_solution(&path, &s2).unwrap_err());
+    assert!(k == P::SceneMismatch && m.contains("another scene"), "{m}");
 
     std::fs::write(&p, b"hello").expect("w");
-    let m = input_message(file::read_solution(&p, &s).unwrap_err());
-    assert!(m.contains("magic"), "{m}");
+    let (k, m) = solution_problem(file::read_solution(&p, &s).unwrap_err());
+    assert!(k == P::NotASolution && m.contains("magic"), "{m}");
     let _ = std::fs::remove_dir_all(path.parent().expect("dir"));
 }
 

@@ -19,7 +19,7 @@
 
 use std::collections::HashMap;
 
-use crate::shading::{PatchCoeffs, PatchSource};
+use crate::reconstruction::{PatchCoeffs, PatchSource};
 
 /// Polygon id of a sample that sees nothing.
 pub const NO_POLYGON: u32 = u32::MAX;

@@ -22,7 +22,7 @@
 //! opaque: culling a polygon seen from behind would let the viewer see through it, which is worse
 //! than showing it with the radiosity of its front side (the only one the solver computes). In
 //! closed scenes seen from inside (the Cornell box) every back face is hidden behind front faces, so
-//! the default changes no pixel there; [`crate::raster::FrameOptions::cull_back_faces`] turns culling
+//! the default changes no pixel there; [`crate::frame::FrameOptions::cull_back_faces`] turns culling
 //! on to save raster work in such scenes.
 
 use glam::DVec3;
@@ -117,21 +117,27 @@ impl View {
     /// of view from the camera and the horizontal one from the image's aspect ratio.
     pub fn new(camera: &Camera, width: u32, height: u32, extent: f64) -> Result<View> {
         if width == 0 || height == 0 {
-            return Err(Error::Usage(
-                "image width and height must be at least 1".into(),
+            return Err(Error::invalid_option(
+                "image size",
+                format!("{width} x {height}"),
+                "width and height must be at least 1",
             ));
         }
         let f = camera.look_at - camera.eye;
         if !f.is_finite() || !camera.eye.is_finite() || f.length() == 0.0 {
-            return Err(Error::Usage(
-                "camera: look_at must be finite and differ from eye".into(),
+            return Err(Error::invalid_option(
+                "camera",
+                "",
+                "look_at must be finite and differ from eye",
             ));
         }
         let forward = f.normalize();
         let r = forward.cross(camera.up);
         if !r.is_finite() || r.length() <= 1e-9 * camera.up.length() || r.length() == 0.0 {
-            return Err(Error::Usage(
-                "camera: up must not be parallel to the view direction".into(),
+            return Err(Error::invalid_option(
+                "camera",
+                "",
+                "up must not be parallel to the view direction",
             ));
         }
         let right = r.normalize();
@@ -145,9 +151,11 @@ impl View {
         let (perspective, sx, sy, near) = match camera.projection {
             Projection::Perspective { fov_y_deg } => {
                 if !(fov_y_deg > 0.0 && fov_y_deg < 180.0) {
-                    return Err(Error::Usage(format!(
-                        "camera: field of view {fov_y_deg} must be in (0, 180) degrees"
-                    )));
+                    return Err(Error::invalid_option(
+                        "camera",
+                        "",
+                        format!("field of view {fov_y_deg} must be in (0, 180) degrees"),
+                    ));
                 }
                 let ty = (0.5 * fov_y_deg.to_radians()).tan();
                 let tx = ty * w / h;
@@ -163,8 +171,10 @@ impl View {
                 height: vh,
             } => {
                 if !(vw > 0.0 && vh > 0.0 && vw.is_finite() && vh.is_finite()) {
-                    return Err(Error::Usage(
-                        "camera: orthographic width and height must be positive".into(),
+                    return Err(Error::invalid_option(
+                        "camera",
+                        "",
+                        "orthographic width and height must be positive",
                     ));
                 }
                 (false, w / vw, -h / vh, 0.0)

@@ -48,10 +48,10 @@ use glam::Vec3;
 use rayon::prelude::*;
 use serde::Serialize;
 
+use super::PatchSource;
 use crate::error::{Error, Result};
 use crate::quadtree::{SampledQuadtree, VertexKey};
 use crate::scene::{Polygon, Scene, Shape};
-use crate::shading::PatchSource;
 
 use super::PatchCoeffs;
 
@@ -104,7 +104,7 @@ impl MeshStats {
 }
 
 /// The Gouraud mesh of a radiosity solution: a scene of triangles and one degree-(1, 1) patch per
-/// triangle. Render it with `raster::render_frame(&mesh.scene, camera, &mesh, &opts)`.
+/// triangle. Render it with `frame::render_patches(&mesh.scene, camera, &mesh, &opts)`.
 #[derive(Debug, Clone)]
 pub struct MeshModel {
     /// The input scene with its polygons replaced by the triangles (camera, materials, spots and
@@ -384,8 +384,8 @@ impl PatchSource for MeshModel {
 mod tests {
     use super::*;
     use crate::quadtree::{Quadtree, LATTICE};
+    use crate::raster::build_primitives;
     use crate::raster::region::coverage_counts;
-    use crate::raster::{build_primitives, FrameOptions};
     use crate::scene::{Camera, Material, Projection};
     use glam::DVec3;
     use proptest::prelude::*;
@@ -439,8 +439,7 @@ mod tests {
     }
 
     fn coverage(scene: &Scene, size: u32) -> Vec<u32> {
-        let opts = FrameOptions::new(size, size);
-        let prims = build_primitives(scene, &scene.camera, &opts).unwrap();
+        let prims = build_primitives(scene, &scene.camera, size, size, false).unwrap();
         coverage_counts(&prims, size, size, 32)
     }
 

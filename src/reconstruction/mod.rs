@@ -47,10 +47,8 @@
 //! The Gouraud mesh comparison backend (the paper's "poly" model) lives in [`mesh`]: the same
 //! quadtrees triangulated without cracks, one degree-(1, 1) patch per triangle.
 //!
-//! Level of detail ([`MipChain`]): level 0 is resampled from the RRP at the requested size;
-//! each coarser level is an area-weighted box filter of the previous one (exact for odd sizes).
-//! Box filtering keeps every level's mean equal to level 0's and averages sharp shadow edges
-//! instead of aliasing them, which point-resampling the RRP at 1x1 would do.
+//! Resampling ([`Reconstruction::resample`]) evaluates a polygon's RRP at texel centres; the
+//! texture stage builds its mip chains from that.
 
 mod estimate;
 mod hermite;
@@ -520,25 +518,6 @@ impl Reconstruction {
         out
     }
 
-    /// A level-of-detail chain: level 0 resampled at n x m, then each level half the size
-    /// (`max(1, size / 2)` per axis) down to 1 x 1, box-filtered from the previous one with area
-    /// weights. Empty if n or m is 0.
-    pub fn resample_lod(&self, polygon: u32, n: u32, m: u32) -> MipChain {
-        if n == 0 || m == 0 {
-            return MipChain { levels: Vec::new() };
-        }
-        let mut levels = vec![MipLevel {
-            width: n,
-            height: m,
-            texels: self.resample(polygon, n, m),
-        }];
-        while let Some(last) = levels.last().filter(|l| l.width > 1 || l.height > 1) {
-            let next = last.downsample();
-            levels.push(next);
-        }
-        MipChain { levels }
-    }
-
     /// Sizes and memory.
     pub fn stats(&self) -> ReconstructionStats {
         self.stats
@@ -551,76 +530,24 @@ pub fn texel_centre(k: u32, n: u32) -> f32 {
     ((k as f64 + 0.5) / n as f64) as f32
 }
 
-/// A level-of-detail chain of resampled textures, finest first.
-#[derive(Debug, Clone, PartialEq)]
-pub struct MipChain {
-    /// Levels, level 0 the finest, the last 1 x 1.
-    pub levels: Vec<MipLevel>,
-}
-
-/// One level of a [`MipChain`].
-#[derive(Debug, Clone, PartialEq)]
-pub struct MipLevel {
-    /// Texels per row.
-    pub width: u32,
-    /// Rows.
-    pub height: u32,
-    /// Row-major texels, `width * height` of them.
-    pub texels: Vec<Vec3>,
-}
-
-/// Area weights of a box filter from `src` texels to `dst` texels along one axis: destination
-/// texel x covers source interval [x src / dst, (x + 1) src / dst); each entry lists the source
-/// texels it overlaps with their overlap length divided by the footprint length (summing to 1).
-fn box_weights(src: u32, dst: u32) -> Vec<Vec<(usize, f64)>> {
-    let r = src as f64 / dst as f64;
-    (0..dst)
-        .map(|x| {
-            let (a, b) = (x as f64 * r, (x + 1) as f64 * r);
-            let lo = a.floor() as u32;
-            let hi = (b.ceil() as u32).min(src);
-            (lo..hi)
-                .filter_map(|k| {
-                    let ov = (b.min(k as f64 + 1.0) - a.max(k as f64)) / r;
-                    (ov > 0.0).then_some((k as usize, ov))
-                })
-                .collect()
-        })
-        .collect()
-}
-
-impl MipLevel {
-    fn downsample(&self) -> MipLevel {
-        let (w, h) = (self.width, self.height);
-        let (nw, nh) = ((w / 2).max(1), (h / 2).max(1));
-        let wx = box_weights(w, nw);
-        let wy = box_weights(h, nh);
-        let mut texels = Vec::with_capacity(nw as usize * nh as usize);
-        for ys in &wy {
-            for xs in &wx {
-                let mut acc = [0.0f64; 3];
-                for &(y, a) in ys {
-                    for &(x, b) in xs {
-                        let t = self.texels[y * w as usize + x];
-                        for (c, tc) in acc.iter_mut().zip(t.to_array()) {
-                            *c += a * b * tc as f64;
-                        }
-                    }
-                }
-                texels.push(Vec3::new(acc[0] as f32, acc[1] as f32, acc[2] as f32));
-            }
-        }
-        MipLevel {
-            width: nw,
-            height: nh,
-            texels,
-        }
+/// What the direct method needs from a reconstruction.
+pub trait PatchSource: Sync {
+    /// Global id of the patch covering (u, v) of scene polygon `polygon`; (u, v) in `[0, 1]^2`.
+    fn locate(&self, polygon: u32, u: f32, v: f32) -> u32;
+    /// The coefficients of patch `id`.
+    fn patch(&self, id: u32) -> &PatchCoeffs;
+    /// The half-open parameter rectangle `[u_lo, u_hi) x [v_lo, v_hi)`, as
+    /// `[u_lo, u_hi, v_lo, v_hi]`, on which `locate` returns `id` (for the polygon `id` was located
+    /// on), if the source knows it exactly. The rasterizer then skips `locate` for samples inside
+    /// it, which cannot change any result. The default knows nothing: every sample asks `locate`.
+    fn cell(&self, _id: u32) -> Option<[f32; 4]> {
+        None
     }
 }
 
 /// The direct method's view of a reconstruction: the rasterizer locates each pixel's patch and
 /// copies its coefficients into the region's patch table.
-impl crate::shading::PatchSource for Reconstruction {
+impl PatchSource for Reconstruction {
     #[inline]
     fn locate(&self, polygon: u32, u: f32, v: f32) -> u32 {
         Reconstruction::locate(self, polygon, u, v)

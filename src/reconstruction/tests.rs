@@ -312,31 +312,6 @@ fn resample_matches_direct_evaluation_at_texel_centres() {
 }
 
 #[test]
-fn mip_chain_halves_and_keeps_the_mean() {
-    let tree = criterion_tree(&spot, 1, 6, 2e-3);
-    let sq = SampledQuadtree::from_fn(tree, grey(spot));
-    let rec = build1(&sq, Estimator::default());
-    let chain = rec.resample_lod(0, 7, 5);
-    let sizes: Vec<_> = chain.levels.iter().map(|l| (l.width, l.height)).collect();
-    assert_eq!(sizes, vec![(7, 5), (3, 2), (1, 1)]);
-    assert_eq!(chain.levels[0].texels, rec.resample(0, 7, 5));
-    let mean =
-        |l: &MipLevel| l.texels.iter().map(|t| t.x as f64).sum::<f64>() / l.texels.len() as f64;
-    let m0 = mean(&chain.levels[0]);
-    for l in &chain.levels {
-        assert_eq!(l.texels.len(), (l.width * l.height) as usize);
-        // Area weights sum to one per texel: the mean is kept up to f32 rounding.
-        assert!((mean(l) - m0).abs() < 1e-6, "{} vs {m0}", mean(l));
-    }
-    // Power of two: a level is the plain 2 x 2 average of the previous one.
-    let c = rec.resample_lod(0, 4, 4);
-    let l0 = &c.levels[0].texels;
-    let avg = (l0[0] + l0[1] + l0[4] + l0[5]) * 0.25;
-    assert!((c.levels[1].texels[0] - avg).abs().max_element() < 1e-6);
-    assert_eq!(c.levels.len(), 3);
-}
-
-#[test]
 fn extremes_stay_finite() {
     // Radiosity spanning 1e-8 .. 1e8 with a sharp ridge; depth 12 beside depth 1 along u = 0.5;
     // and an undivided polygon with extreme corners, all in one build.
@@ -532,7 +507,7 @@ proptest! {
         choices in prop::collection::vec(any::<u32>(), 1..80),
         pts in prop::collection::vec((0.0f32..=1.0, 0.0f32..=1.0), 1..40),
     ) {
-        use crate::shading::PatchSource;
+        use crate::reconstruction::PatchSource;
         let tree = random_tree(&choices, MAX_DEPTH);
         let sq = SampledQuadtree::from_fn(tree, |u, v| Vec3::splat((u + 2.0 * v) as f32));
         let rec = build1(&sq, Estimator::Plain);

@@ -24,6 +24,7 @@ use super::{
     RadiositySettings, RenderSettings, Scene, SpotLight, MAX_IMAGE_DIM, PLANARITY_TOLERANCE,
 };
 use crate::error::{Error, Location, Result};
+use crate::method::{Method, AA_SAMPLE_COUNTS, MAX_TEXTURE_SIZE};
 use glam::DVec3;
 use std::collections::BTreeMap;
 use std::ops::Range;
@@ -32,9 +33,6 @@ use toml::Spanned;
 
 /// Image width and height when `[image]` does not give them.
 pub const DEFAULT_IMAGE_DIM: u32 = 512;
-
-/// Antialiasing sample counts the renderer has patterns for (`[render] aa`).
-pub const AA_SAMPLE_COUNTS: [u32; 3] = [1, 4, 16];
 
 /// Most shadow rays per receiver point and source accepted in `[radiosity] shadow_rays`.
 pub const MAX_SHADOW_RAYS: u32 = 4096;
@@ -505,19 +503,13 @@ impl<'a> Cx<'a> {
         let Some(r) = r else { return Ok(s) };
         let r = r.get_ref();
         if let Some(m) = &r.method {
-            let name = m.get_ref();
-            let ok = !name.is_empty()
-                && name
-                    .bytes()
-                    .all(|b| b.is_ascii_lowercase() || b.is_ascii_digit() || b == b'-');
-            if !ok {
-                return Err(self.err(
-                    m.span(),
-                    "render.method",
-                    format!("`{name}` is not a method name (lowercase letters, digits and `-`)"),
-                ));
-            }
-            s.method = name.clone();
+            s.method = Method::parse_option("render.method", m.get_ref()).map_err(|e| {
+                let reason = match e {
+                    Error::InvalidOption { value, reason, .. } => format!("`{value}` {reason}"),
+                    e => e.to_string(),
+                };
+                self.err(m.span(), "render.method", reason)
+            })?;
         }
         if let Some(v) = &r.aa {
             let x = *v.get_ref();
@@ -531,7 +523,7 @@ impl<'a> Cx<'a> {
             s.aa_samples = x as u32;
         }
         if let Some(v) = &r.texture_size {
-            let max = i64::from(crate::texture::MAX_TEXTURE_SIZE);
+            let max = i64::from(MAX_TEXTURE_SIZE);
             let x = self.int(v, "render.texture_size", 0, max, "")?;
             if x != 0 && (x as u64).count_ones() != 1 {
                 return Err(self.err(

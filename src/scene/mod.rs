@@ -17,6 +17,9 @@
 
 use glam::DVec3;
 
+use crate::method::Method;
+
+pub mod camera_path;
 pub mod format;
 pub mod load;
 mod obj;
@@ -284,7 +287,7 @@ impl Default for RadiositySettings {
 #[derive(Debug, Clone, PartialEq)]
 pub struct RenderSettings {
     /// Method used when the command line names none (`direct`, `texture-bilinear`, ...).
-    pub method: String,
+    pub method: Method,
     /// Supersamples per pixel (1 = no antialiasing).
     pub aa_samples: u32,
     /// Texture size for the texture methods (0 = chosen per polygon from its quadtree depth).
@@ -294,7 +297,7 @@ pub struct RenderSettings {
 impl Default for RenderSettings {
     fn default() -> Self {
         RenderSettings {
-            method: "direct".to_string(),
+            method: Method::Direct,
             aa_samples: 1,
             texture_size: 0,
         }

@@ -30,7 +30,7 @@
 //! The module is split by shader: [`patches`] (the direct method and the Gouraud mesh: patch
 //! tables) and [`texture`] (the RAT filters); this file holds what every shader shares: the
 //! [`Shader`] choice, the plane-order accumulation and box-filter resolve every lane shader ends
-//! its blocks and rows with, the per-sample form used by the exact shader, and the frame pass over
+//! its blocks and rows with, the per-sample form used by the reference shader, and the frame pass over
 //! all regions. The two lane shaders keep their own row and block loops: folding them into one
 //! generic block driver measured 25-40 % slower on the RRP pass (criterion, `deferred/rrp-1024`),
 //! so the loops stay written out.
@@ -49,27 +49,12 @@ use crate::lanes::{F32x8, LANES};
 use crate::raster::gbuffer::{RegionGBuffer, NO_POLYGON};
 use crate::texture::{Filter, TextureSet};
 
-pub use crate::reconstruction::PatchCoeffs;
+pub use crate::reconstruction::{PatchCoeffs, PatchSource};
 pub use patches::{shade_region, shade_region_into};
 pub use texture::shade_region_texture_into;
 
-/// What the direct method needs from a reconstruction.
-pub trait PatchSource: Sync {
-    /// Global id of the patch covering (u, v) of scene polygon `polygon`; (u, v) in `[0, 1]^2`.
-    fn locate(&self, polygon: u32, u: f32, v: f32) -> u32;
-    /// The coefficients of patch `id`.
-    fn patch(&self, id: u32) -> &PatchCoeffs;
-    /// The half-open parameter rectangle `[u_lo, u_hi) x [v_lo, v_hi)`, as
-    /// `[u_lo, u_hi, v_lo, v_hi]`, on which `locate` returns `id` (for the polygon `id` was located
-    /// on), if the source knows it exactly. The rasterizer then skips `locate` for samples inside
-    /// it, which cannot change any result. The default knows nothing: every sample asks `locate`.
-    fn cell(&self, _id: u32) -> Option<[f32; 4]> {
-        None
-    }
-}
-
-/// The radiosity of a polygon at (u, v), for [`Shader::Exact`].
-pub type ExactFn<'a> = dyn Fn(u32, f32, f32) -> Vec3 + Sync + 'a;
+/// The radiosity of a polygon at (u, v), for [`Shader::Reference`].
+pub type ReferenceFn<'a> = dyn Fn(u32, f32, f32) -> Vec3 + Sync + 'a;
 
 /// What the deferred pass evaluates at each visible sample: the one place where the rendering
 /// methods differ (everything before it, rasterization and composition, is shared).
@@ -86,7 +71,7 @@ pub enum Shader<'a> {
         filter: Filter,
     },
     /// A function of (polygon, u, v), evaluated per sample: the reference (the solver's oracle).
-    Exact(&'a ExactFn<'a>),
+    Reference(&'a ReferenceFn<'a>),
 }
 
 impl Shader<'_> {
@@ -123,7 +108,7 @@ pub fn shade_region_with(
         Shader::Texture { set, filter } => {
             shade_region_texture_into(set, filter, gb, background, dst, pitch)
         }
-        Shader::Exact(func) => {
+        Shader::Reference(func) => {
             let f = |i: usize, _: usize, _: usize| func(gb.polygon[i], gb.u[i], gb.v[i]);
             shade_region_per_sample(gb, background, dst, pitch, f)
         }

@@ -170,7 +170,7 @@ fn shade_region_body(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::shading::PatchCoeffs;
+    use crate::reconstruction::PatchCoeffs;
 
     fn poly_patch() -> PatchCoeffs {
         let mut c = [[0.0f32; 16]; 3];

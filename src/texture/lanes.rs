@@ -23,9 +23,9 @@
 
 use glam::Vec3;
 
+use super::MipLevel;
 use super::{clamp01, lod_from_squares, Cubic, Filter, RadiosityTexture, Sampler};
 use crate::lanes::{F32x8, LANES};
-use crate::reconstruction::MipLevel;
 
 /// Three channels of 8 lanes (r, g, b).
 pub type Rgb8 = [F32x8; 3];

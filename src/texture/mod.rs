@@ -4,7 +4,7 @@
 //!
 //! Pipeline role: after [`crate::reconstruction`] has built the RRPs, [`TextureSet::build`]
 //! resamples every polygon's RRP (not its raw samples) at texel centres `(i + 0.5) / N` into an
-//! N x N level 0 and box-filters a mip chain down to 1 x 1 ([`Reconstruction::resample_lod`]).
+//! N x N level 0 and box-filters a mip chain down to 1 x 1 ([`mip_chain`]).
 //! The deferred pass then calls [`RadiosityTexture::sample`] / [`RadiosityTexture::sample_lod`]
 //! with a [`Filter`] and a level of detail from [`lod`]; its hot loop uses the lane form
 //! [`Sampler::sample8`] (8 samples per call, module `lanes`), which returns the same bits.
@@ -25,7 +25,7 @@ use rayon::prelude::*;
 
 use crate::error::{Error, Result};
 use crate::quadtree::SampledQuadtree;
-use crate::reconstruction::{MipLevel, Reconstruction};
+use crate::reconstruction::Reconstruction;
 
 mod lanes;
 #[cfg(test)]
@@ -33,9 +33,11 @@ mod tests;
 
 pub use lanes::Rgb8;
 
+/// The on-screen filters are named with the methods, which the scene loader parses.
+pub use crate::method::Filter;
 /// Largest texture side any policy produces (4096 x 4096 texels, 192 MiB at 32-bit floats).
 /// Deeper quadtrees are clamped to this side under [`SizePolicy::FromDepth`].
-pub const MAX_TEXTURE_SIZE: u32 = 4096;
+pub use crate::method::MAX_TEXTURE_SIZE;
 
 /// How each polygon's texture side is chosen.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -52,32 +54,6 @@ pub enum SizePolicy {
     /// the given number of bytes. Power-of-two scales keep every side a power of two. An error if
     /// even all-1 x 1 textures do not fit.
     Budget(u64),
-}
-
-/// On-screen reconstruction filter.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub enum Filter {
-    /// The texel containing the point (no blending).
-    Nearest,
-    /// 2 x 2 bilinear between the surrounding texel centres.
-    Bilinear,
-    /// Separable 4 x 4 Mitchell–Netravali cubic with parameters (B, C).
-    Bicubic {
-        /// B parameter.
-        b: f32,
-        /// C parameter.
-        c: f32,
-    },
-}
-
-impl Filter {
-    /// Mitchell–Netravali with B = C = 1/3, the paper's filter and the default bicubic.
-    pub const MITCHELL: Filter = Filter::Bicubic {
-        b: 1.0 / 3.0,
-        c: 1.0 / 3.0,
-    };
-    /// Catmull-Rom, B = 0, C = 1/2 (interpolating).
-    pub const CATMULL_ROM: Filter = Filter::Bicubic { b: 0.0, c: 0.5 };
 }
 
 /// The Mitchell–Netravali kernel as polynomial coefficients (FACTS.md sec. 3), evaluated in f32.
@@ -167,11 +143,14 @@ impl RadiosityTexture {
     /// Resamples polygon `polygon` of `recon` at `side` x `side` with a full mip chain.
     /// `side` must be a power of two in `1..=MAX_TEXTURE_SIZE` (checked by the callers).
     pub fn from_rrp(recon: &Reconstruction, polygon: u32, side: u32) -> RadiosityTexture {
-        let chain = recon.resample_lod(polygon, side, side);
         RadiosityTexture {
             width: side,
             height: side,
-            levels: chain.levels,
+            levels: mip_chain(MipLevel {
+                width: side,
+                height: side,
+                texels: recon.resample(polygon, side, side),
+            }),
         }
     }
 
@@ -192,18 +171,14 @@ impl RadiosityTexture {
         if texels.iter().any(|t| !t.is_finite()) {
             return Err(Error::Runtime("texture texel is not finite".into()));
         }
-        let mut levels = vec![MipLevel {
-            width,
-            height,
-            texels,
-        }];
-        while let Some(last) = levels.last().filter(|l| l.width > 1 || l.height > 1) {
-            levels.push(downsample(last));
-        }
         Ok(RadiosityTexture {
             width,
             height,
-            levels,
+            levels: mip_chain(MipLevel {
+                width,
+                height,
+                texels,
+            }),
         })
     }
 
@@ -402,45 +377,85 @@ fn bicubic(l: &MipLevel, u: f32, v: f32, k: &Cubic) -> Vec3 {
     acc
 }
 
-/// Halves a level (2 x 2 box, or 2 x 1 / 1 x 2 when one axis is already 1) in f64.
-fn downsample(l: &MipLevel) -> MipLevel {
-    let (w, h) = (l.width as usize, l.height as usize);
-    let (nw, nh) = ((w / 2).max(1), (h / 2).max(1));
-    let (sx, sy) = (w / nw, h / nh);
-    let norm = 1.0 / (sx * sy) as f64;
-    let mut texels = Vec::with_capacity(nw * nh);
-    for y in 0..nh {
-        for x in 0..nw {
-            let mut acc = [0.0f64; 3];
-            for yy in y * sy..(y + 1) * sy {
-                for xx in x * sx..(x + 1) * sx {
-                    let t = l.texels[yy * w + xx];
-                    acc[0] += t.x as f64;
-                    acc[1] += t.y as f64;
-                    acc[2] += t.z as f64;
+/// One level of a mip chain (see [`mip_chain`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct MipLevel {
+    /// Texels per row.
+    pub width: u32,
+    /// Rows.
+    pub height: u32,
+    /// Row-major texels, `width * height` of them.
+    pub texels: Vec<Vec3>,
+}
+
+/// Area weights of a box filter from `src` texels to `dst` texels along one axis: destination
+/// texel x covers source interval [x src / dst, (x + 1) src / dst); each entry lists the source
+/// texels it overlaps with their overlap length divided by the footprint length (summing to 1).
+fn box_weights(src: u32, dst: u32) -> Vec<Vec<(usize, f64)>> {
+    let r = src as f64 / dst as f64;
+    (0..dst)
+        .map(|x| {
+            let (a, b) = (x as f64 * r, (x + 1) as f64 * r);
+            let lo = a.floor() as u32;
+            let hi = (b.ceil() as u32).min(src);
+            (lo..hi)
+                .filter_map(|k| {
+                    let ov = (b.min(k as f64 + 1.0) - a.max(k as f64)) / r;
+                    (ov > 0.0).then_some((k as usize, ov))
+                })
+                .collect()
+        })
+        .collect()
+}
+
+impl MipLevel {
+    fn downsample(&self) -> MipLevel {
+        let (w, h) = (self.width, self.height);
+        let (nw, nh) = ((w / 2).max(1), (h / 2).max(1));
+        let wx = box_weights(w, nw);
+        let wy = box_weights(h, nh);
+        let mut texels = Vec::with_capacity(nw as usize * nh as usize);
+        for ys in &wy {
+            for xs in &wx {
+                let mut acc = [0.0f64; 3];
+                for &(y, a) in ys {
+                    for &(x, b) in xs {
+                        let t = self.texels[y * w as usize + x];
+                        for (c, tc) in acc.iter_mut().zip(t.to_array()) {
+                            *c += a * b * tc as f64;
+                        }
+                    }
                 }
+                texels.push(Vec3::new(acc[0] as f32, acc[1] as f32, acc[2] as f32));
             }
-            texels.push(Vec3::new(
-                (acc[0] * norm) as f32,
-                (acc[1] * norm) as f32,
-                (acc[2] * norm) as f32,
-            ));
         }
-    }
-    MipLevel {
-        width: nw as u32,
-        height: nh as u32,
-        texels,
+        MipLevel {
+            width: nw,
+            height: nh,
+            texels,
+        }
     }
 }
 
-fn check_side(n: u32) -> Result<()> {
-    if n == 0 || !n.is_power_of_two() || n > MAX_TEXTURE_SIZE {
-        return Err(Error::Usage(format!(
-            "texture size {n} is not a power of two in 1..={MAX_TEXTURE_SIZE}"
-        )));
+/// A level-of-detail chain from its finest level: each next level half the size
+/// (`max(1, size / 2)` per axis) down to 1 x 1, box-filtered from the previous one with area
+/// weights (exact for odd sizes; for powers of two the plain 2 x 2 or 2 x 1 average). Box filtering
+/// keeps every level's mean equal to level 0's and averages sharp shadow edges instead of aliasing
+/// them, which point-resampling the RRP at 1 x 1 would do. Empty if level 0 is empty.
+pub fn mip_chain(level0: MipLevel) -> Vec<MipLevel> {
+    if level0.width == 0 || level0.height == 0 {
+        return Vec::new();
     }
-    Ok(())
+    let mut levels = vec![level0];
+    while let Some(last) = levels.last().filter(|l| l.width > 1 || l.height > 1) {
+        let next = last.downsample();
+        levels.push(next);
+    }
+    levels
+}
+
+fn check_side(n: u32) -> Result<()> {
+    crate::method::check_texture_side("--texture-size", n)
 }
 
 /// Side chosen by [`SizePolicy::FromDepth`] for a quadtree of the given depth: the smallest power
@@ -520,7 +535,7 @@ impl TextureSet {
 
     /// The per-polygon sides `policy` chooses for quadtrees of the given depths.
     ///
-    /// Errors ([`Error::Usage`]): a `Fixed` size that is not a power of two in
+    /// Errors ([`Error::InvalidOption`]): a `Fixed` size that is not a power of two in
     /// `1..=MAX_TEXTURE_SIZE`; a `Budget` that even 1 x 1 textures exceed.
     pub fn sides(depths: &[u32], policy: SizePolicy) -> Result<Vec<u32>> {
         let from_depth: Vec<u32> = depths.iter().map(|&d| side_from_depth(d)).collect();
@@ -537,12 +552,15 @@ impl TextureSet {
                         return Ok(s);
                     }
                 }
-                Err(Error::Usage(format!(
-                    "texture budget of {bytes} bytes is below {} bytes, the size of {} 1 x 1 \
-                     textures at 12 bits per channel",
-                    TextureMemory::of_sides(&vec![1; depths.len()]).bytes_with_chain[1],
-                    depths.len()
-                )))
+                Err(Error::invalid_option(
+                    "--texture-budget",
+                    bytes.to_string(),
+                    format!(
+                        "is below {} bytes, the size of {} 1 x 1 textures at 12 bits per channel",
+                        TextureMemory::of_sides(&vec![1; depths.len()]).bytes_with_chain[1],
+                        depths.len()
+                    ),
+                ))
             }
         }
     }

@@ -418,3 +418,35 @@ proptest! {
         }
     }
 }
+
+#[test]
+fn mip_chain_halves_and_keeps_the_mean() {
+    let level = |w: u32, h: u32| MipLevel {
+        width: w,
+        height: h,
+        texels: (0..w * h).map(|i| Vec3::splat(seq(i) + 2.0)).collect(),
+    };
+    let chain = mip_chain(level(7, 5));
+    let sizes: Vec<_> = chain.iter().map(|l| (l.width, l.height)).collect();
+    assert_eq!(sizes, vec![(7, 5), (3, 2), (1, 1)]);
+    assert_eq!(chain[0], level(7, 5));
+    let mean =
+        |l: &MipLevel| l.texels.iter().map(|t| t.x as f64).sum::<f64>() / l.texels.len() as f64;
+    let m0 = mean(&chain[0]);
+    for l in &chain {
+        assert_eq!(l.texels.len(), (l.width * l.height) as usize);
+        // Area weights sum to one per texel: the mean is kept up to f32 rounding of values
+        // below 4 (a few ulps of 4 = 2.4e-7 each).
+        assert!((mean(l) - m0).abs() < 1e-6, "{} vs {m0}", mean(l));
+    }
+    // Power of two: a level is the plain 2 x 2 average of the previous one (exact here: the
+    // texels are multiples of 1/4, so their sums and quarters are exact in f32).
+    let c = mip_chain(level(4, 4));
+    let l0 = &c[0].texels;
+    assert_eq!(c[1].texels[0], (l0[0] + l0[1] + l0[4] + l0[5]) * 0.25);
+    assert_eq!(c.len(), 3);
+    // One axis already 1: the plain pair average.
+    let c = mip_chain(level(4, 1));
+    assert_eq!(c[1].texels[0], (c[0].texels[0] + c[0].texels[1]) * 0.5);
+    assert!(mip_chain(level(0, 3)).is_empty());
+}

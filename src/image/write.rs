@@ -1,4 +1,4 @@
-//! Image output: the last stage, turning a frame's linear radiosity into files, always written
+//! Image output: a frame's linear radiosity into files, always written
 //! atomically through [`crate::output::write_atomic`].
 //!
 //! - PNG (8-bit sRGB): each channel is multiplied by 2^exposure (stops), clamped to [0, 1] (the
@@ -12,12 +12,12 @@
 use std::io::Cursor;
 use std::path::Path;
 
+use ::image::{ImageBuffer, ImageFormat, Rgb};
 use glam::Vec3;
-use image::{ImageBuffer, ImageFormat, Rgb};
 
 use crate::error::{Error, Result};
+use crate::image::ImageView;
 use crate::output::write_atomic;
-use crate::raster::Frame;
 
 /// sRGB transfer function of a linear value in [0, 1].
 pub fn srgb_encode(x: f32) -> f32 {
@@ -37,10 +37,10 @@ pub fn to_srgb8(linear: f32, exposure: f32) -> u8 {
     (srgb_encode(x) * 255.0).round() as u8
 }
 
-fn check(frame: &Frame) -> Result<()> {
+fn check(frame: ImageView<'_>) -> Result<()> {
     if frame.pixels.len() != (frame.width as usize) * (frame.height as usize) || frame.width == 0 {
         return Err(Error::Runtime(format!(
-            "frame of {} x {} holds {} pixels",
+            "image of {} x {} holds {} pixels",
             frame.width,
             frame.height,
             frame.pixels.len()
@@ -49,8 +49,8 @@ fn check(frame: &Frame) -> Result<()> {
     Ok(())
 }
 
-/// Encodes a frame as PNG bytes with the given exposure (stops).
-pub fn encode_png(frame: &Frame, exposure: f64) -> Result<Vec<u8>> {
+/// Encodes an image as PNG bytes with the given exposure (stops).
+pub fn encode_png(frame: ImageView<'_>, exposure: f64) -> Result<Vec<u8>> {
     check(frame)?;
     let e = if exposure.is_finite() {
         exposure as f32
@@ -58,7 +58,7 @@ pub fn encode_png(frame: &Frame, exposure: f64) -> Result<Vec<u8>> {
         0.0
     };
     let mut raw = Vec::with_capacity(frame.pixels.len() * 3);
-    for p in &frame.pixels {
+    for p in frame.pixels {
         raw.extend(p.to_array().iter().map(|&c| to_srgb8(c, e)));
     }
     let img: ImageBuffer<Rgb<u8>, Vec<u8>> = ImageBuffer::from_raw(frame.width, frame.height, raw)
@@ -69,12 +69,12 @@ pub fn encode_png(frame: &Frame, exposure: f64) -> Result<Vec<u8>> {
     Ok(bytes)
 }
 
-/// Encodes a frame as a linear float RGB OpenEXR file's bytes. Non-finite values (none are
+/// Encodes an image as a linear float RGB OpenEXR file's bytes. Non-finite values (none are
 /// produced by the renderer) would be written as 0.
-pub fn encode_exr(frame: &Frame) -> Result<Vec<u8>> {
+pub fn encode_exr(frame: ImageView<'_>) -> Result<Vec<u8>> {
     check(frame)?;
     let mut raw = Vec::with_capacity(frame.pixels.len() * 3);
-    for p in &frame.pixels {
+    for p in frame.pixels {
         let p = Vec3::select(p.is_finite_mask(), *p, Vec3::ZERO);
         raw.extend_from_slice(&p.to_array());
     }
@@ -87,23 +87,23 @@ pub fn encode_exr(frame: &Frame) -> Result<Vec<u8>> {
     Ok(bytes)
 }
 
-/// Writes a frame as an sRGB PNG (exposure in stops), atomically.
-pub fn write_png(path: &Path, frame: &Frame, exposure: f64) -> Result<()> {
+/// Writes an image as an sRGB PNG (exposure in stops), atomically.
+pub fn write_png(path: &Path, frame: ImageView<'_>, exposure: f64) -> Result<()> {
     write_atomic(path, &encode_png(frame, exposure)?)
 }
 
-/// Writes a frame as a linear float EXR, atomically.
-pub fn write_exr(path: &Path, frame: &Frame) -> Result<()> {
+/// Writes an image as a linear float EXR, atomically.
+pub fn write_exr(path: &Path, frame: ImageView<'_>) -> Result<()> {
     write_atomic(path, &encode_exr(frame)?)
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::raster::FrameStats;
+    use crate::image::LinearImage;
 
-    fn frame() -> Frame {
-        Frame {
+    fn frame() -> LinearImage {
+        LinearImage {
             width: 3,
             height: 2,
             pixels: vec![
@@ -114,7 +114,6 @@ mod tests {
                 Vec3::new(f32::NAN, 0.0, 0.0),
                 Vec3::ONE,
             ],
-            stats: FrameStats::default(),
         }
     }
 
@@ -136,13 +135,13 @@ mod tests {
     #[test]
     fn png_and_exr_round_trip() {
         let f = frame();
-        let png = image::load_from_memory(&encode_png(&f, 0.0).unwrap())
+        let png = ::image::load_from_memory(&encode_png(f.view(), 0.0).unwrap())
             .unwrap()
             .to_rgb8();
         assert_eq!(png.dimensions(), (3, 2));
         assert_eq!(png.get_pixel(0, 0).0, [0, 188, 255]);
         assert_eq!(png.get_pixel(1, 1).0, [0, 0, 0]);
-        let exr = image::load_from_memory(&encode_exr(&f).unwrap())
+        let exr = ::image::load_from_memory(&encode_exr(f.view()).unwrap())
             .unwrap()
             .to_rgb32f();
         assert_eq!(exr.get_pixel(1, 0).0, [0.25, 2.0, -1.0]);

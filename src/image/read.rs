@@ -1,5 +1,5 @@
 //! Image input: reads the images `pixelflow-sim compare` measures into a linear-RGB
-//! [`LinearImage`], the counterpart of [`crate::image_out`].
+//! [`LinearImage`], the counterpart of [`crate::image::write`].
 //!
 //! Formats are recognised by their first bytes, not by the file name:
 //! - OpenEXR (`76 2f 31 01`) and Radiance HDR (`#?RADIANCE` / `#?RGBE`): linear floats, decoded by
@@ -13,7 +13,7 @@
 //! - PNG, 8 or 16 bits per channel, greyscale or RGB (alpha is ignored; palettes are expanded by
 //!   the decoder): code values are taken as sRGB and decoded with the exact sRGB EOTF,
 //!   `c / 12.92` for `c <= 0.04045`, `((c + 0.055) / 1.055)^2.4` above, `c` = code / 255 or
-//!   code / 65535. This inverts [`crate::image_out::srgb_encode`] (the encoder's 0.0031308
+//!   code / 65535. This inverts [`crate::image::srgb_encode`] (the encoder's 0.0031308
 //!   threshold maps to 0.04045). A PNG's exposure is not undone: compare PNGs written with the
 //!   same exposure, or EXRs.
 //!
@@ -23,11 +23,11 @@
 
 use std::path::Path;
 
+use ::image::{DynamicImage, ImageFormat};
 use glam::Vec3;
-use image::{DynamicImage, ImageFormat};
 
 use crate::error::{Error, Location, Result};
-use crate::metric::LinearImage;
+use crate::image::LinearImage;
 
 /// Largest accepted PFM side, so a corrupt header cannot ask for an absurd allocation (the data
 /// length is also checked against the file before anything is allocated).
@@ -55,10 +55,10 @@ pub fn decode_image(bytes: &[u8], source: &Path) -> Result<LinearImage> {
     let img = if bytes.starts_with(b"PF") || bytes.starts_with(b"Pf") {
         decode_pfm(bytes, source)?
     } else {
-        match image::guess_format(bytes) {
+        match ::image::guess_format(bytes) {
             Ok(ImageFormat::Png) => decode_png(bytes, source)?,
             Ok(f @ (ImageFormat::OpenExr | ImageFormat::Hdr)) => {
-                let d = image::load_from_memory_with_format(bytes, f)
+                let d = ::image::load_from_memory_with_format(bytes, f)
                     .map_err(|e| err(format!("cannot decode the {f:?} image: {e}")))?;
                 let rgb = d.to_rgb32f();
                 let (w, h) = rgb.dimensions();
@@ -85,7 +85,7 @@ pub fn decode_image(bytes: &[u8], source: &Path) -> Result<LinearImage> {
 /// Decodes a PNG (8 or 16 bits, grey or RGB, alpha ignored) from sRGB to linear.
 fn decode_png(bytes: &[u8], source: &Path) -> Result<LinearImage> {
     let err = |m: String| Error::input(Location::file(source), m);
-    let d = image::load_from_memory_with_format(bytes, ImageFormat::Png)
+    let d = ::image::load_from_memory_with_format(bytes, ImageFormat::Png)
         .map_err(|e| err(format!("cannot decode the PNG image: {e}")))?;
     let sixteen = matches!(
         d,
@@ -223,7 +223,7 @@ mod tests {
         assert!((lo - hi).abs() < 1e-7);
         for i in 0..=1000 {
             let x = i as f32 / 1000.0;
-            let back = srgb_decode(crate::image_out::srgb_encode(x) as f64);
+            let back = srgb_decode(crate::image::srgb_encode(x) as f64);
             assert!((back - x as f64).abs() < 2e-6, "{x}: {back}");
         }
         assert_eq!(srgb_decode(0.0), 0.0);

@@ -1,0 +1,222 @@
+//! The bench job: frame times of one or more methods at several image sizes, measured in one run
+//! with the methods interleaved per size so they see the same machine state. Solving and
+//! reconstruction happen once, before timing; each size gets one warm-up frame, then the medians
+//! of the measured frames are reported (wall-clock frame time, each stage, deferred-pass
+//! throughput).
+
+use std::path::PathBuf;
+
+use serde::Serialize;
+
+use super::render::fps;
+use super::{prepare, render_frame, Input, Prepared, TextureOptions};
+use crate::error::{Error, Result};
+use crate::frame::{FrameOptions, FrameStats};
+use crate::method::Method;
+use crate::progress::Observer;
+use crate::scene::MAX_IMAGE_DIM;
+
+/// What `pixelflow-sim bench` was asked to do.
+#[derive(Debug, Clone)]
+pub struct BenchRequest {
+    /// Scene file or solution file.
+    pub input: PathBuf,
+    /// Method names, each measured at every size.
+    pub methods: Vec<String>,
+    /// Texture sizes and the bicubic filter's parameters.
+    pub texture: TextureOptions,
+    /// Square image sides.
+    pub sizes: Vec<u32>,
+    /// Frames timed per size and method (after one warm-up frame).
+    pub frames: u32,
+    /// Samples per pixel.
+    pub aa: u32,
+    /// Virtual renderers.
+    pub renderers: u32,
+}
+
+/// The result of a bench job: what was measured, and the rows.
+#[derive(Debug, Clone, Serialize)]
+pub struct BenchReport {
+    /// The input.
+    pub input: String,
+    /// Scene polygons.
+    pub polygons: usize,
+    /// Radiosity samples of the solution.
+    pub samples: u64,
+    /// RRP patches.
+    pub patches: usize,
+    /// Worker threads.
+    pub threads: usize,
+    /// One row per size and method, sizes outer, methods inner (the order measured).
+    pub rows: Vec<BenchRow>,
+}
+
+/// Runs a bench job: load the input, check every option (methods, sizes, antialiasing,
+/// renderers, texture options), then prepare once and measure.
+pub fn run_bench(req: &BenchRequest, observer: &dyn Observer) -> Result<BenchReport> {
+    let input = Input::load(&req.input)?;
+    let methods = req
+        .methods
+        .iter()
+        .map(|m| req.texture.method(Method::parse(m)?))
+        .collect::<Result<Vec<_>>>()?;
+    let policy = req.texture.policy(&input.scene)?;
+    for &s in &req.sizes {
+        if s == 0 {
+            return Err(Error::invalid_option("--sizes", "0", "must be at least 1"));
+        }
+        if s > MAX_IMAGE_DIM {
+            return Err(Error::limit("--sizes", s.into(), MAX_IMAGE_DIM.into()));
+        }
+    }
+    let base = FrameOptions {
+        aa: req.aa,
+        renderers: req.renderers,
+        ..FrameOptions::new(input.scene.width, input.scene.height)
+    };
+    base.validate()?;
+    let p = prepare(input, policy, observer)?;
+    let mut rows = Vec::new();
+    for &size in &req.sizes {
+        for &m in &methods {
+            rows.extend(bench(&p, m, &[(size, size)], req.frames, &base)?);
+        }
+    }
+    Ok(BenchReport {
+        input: req.input.display().to_string(),
+        polygons: p.scene.polygons.len(),
+        samples: p.solution.stats.vertices,
+        patches: p.reconstruction.stats().patches,
+        threads: rayon::current_num_threads(),
+        rows,
+    })
+}
+
+/// One row of `pixelflow-sim bench`: medians over the frames rendered at one size.
+#[derive(Debug, Clone, Serialize)]
+pub struct BenchRow {
+    /// Method.
+    pub method: String,
+    /// Image width and height.
+    pub width: u32,
+    /// Image height.
+    pub height: u32,
+    /// Samples per pixel.
+    pub aa: u32,
+    /// Frames measured (after one warm-up frame).
+    pub frames: u32,
+    /// Median wall-clock frame time, ms (see [`FrameStats::frame_ms`]).
+    pub frame_ms: f64,
+    /// Smallest and largest wall-clock frame time of the measured frames, ms.
+    pub frame_ms_range: [f64; 2],
+    /// Median sum of the stage times (composition overlaps rasterization), ms.
+    pub stage_sum_ms: f64,
+    /// Median geometry time, ms.
+    pub geometry_ms: f64,
+    /// Median raster time (binning, rasterization, patch-table fill), ms.
+    pub raster_ms: f64,
+    /// Median compositor busy time, ms.
+    pub composition_ms: f64,
+    /// Median deferred-shading time, ms.
+    pub shading_ms: f64,
+    /// Samples shaded per frame.
+    pub samples_shaded: u64,
+    /// Deferred pass throughput at the median shading time, Msample/s.
+    pub shading_mpix_s: f64,
+    /// Frames per second at the median wall-clock frame time.
+    pub fps: f64,
+}
+
+/// The median of `xs` (the mean of the middle two for an even count; 0 for none).
+pub fn median(mut xs: Vec<f64>) -> f64 {
+    xs.sort_by(f64::total_cmp);
+    let n = xs.len();
+    if n == 0 {
+        0.0
+    } else if n % 2 == 1 {
+        xs[n / 2]
+    } else {
+        0.5 * (xs[n / 2 - 1] + xs[n / 2])
+    }
+}
+
+/// Renders `frames` frames (after one warm-up) of the scene camera at each size and returns
+/// the medians. Timing is wall-clock inside the frame's stages; the machine is whatever runs it.
+pub fn bench(
+    p: &Prepared,
+    method: Method,
+    sizes: &[(u32, u32)],
+    frames: u32,
+    base: &FrameOptions,
+) -> Result<Vec<BenchRow>> {
+    let frames = frames.max(1);
+    let mut rows = Vec::new();
+    for &(w, h) in sizes {
+        let opts = FrameOptions {
+            width: w,
+            height: h,
+            ..base.clone()
+        };
+        render_frame(p, method, &p.scene.camera, &opts)?;
+        let mut stats = Vec::new();
+        for _ in 0..frames {
+            stats.push(render_frame(p, method, &p.scene.camera, &opts)?.stats);
+        }
+        let med = |f: fn(&FrameStats) -> f64| median(stats.iter().map(f).collect());
+        let shading_ms = med(|s| s.shading_ms);
+        let frame_ms = med(|s| s.frame_ms);
+        let lo = stats
+            .iter()
+            .map(|s| s.frame_ms)
+            .fold(f64::INFINITY, f64::min);
+        let hi = stats.iter().map(|s| s.frame_ms).fold(0.0, f64::max);
+        let samples = stats[0].pixels_shaded;
+        rows.push(BenchRow {
+            method: method.name().into(),
+            width: w,
+            height: h,
+            aa: opts.aa,
+            frames,
+            frame_ms,
+            frame_ms_range: [lo, hi],
+            stage_sum_ms: med(|s| s.stage_sum_ms),
+            geometry_ms: med(|s| s.geometry_ms),
+            raster_ms: med(|s| s.raster_ms),
+            composition_ms: med(|s| s.composition_ms),
+            shading_ms,
+            samples_shaded: samples,
+            shading_mpix_s: if shading_ms > 0.0 {
+                samples as f64 / shading_ms / 1e3
+            } else {
+                0.0
+            },
+            fps: fps(frame_ms),
+        });
+    }
+    Ok(rows)
+}
+
+/// The bench rows as a fixed-width table.
+pub fn bench_table(rows: &[BenchRow]) -> String {
+    let mut s = String::from(
+        "method            size        aa  frame_ms    fps  geometry  raster  compos.  shading  Msample/s\n",
+    );
+    for r in rows {
+        s += &format!(
+            "{:<17} {:>4}x{:<5} {:>3} {:>9.2} {:>6.1} {:>9.2} {:>7.2} {:>8.2} {:>8.2} {:>10.0}\n",
+            r.method,
+            r.width,
+            r.height,
+            r.aa,
+            r.frame_ms,
+            r.fps,
+            r.geometry_ms,
+            r.raster_ms,
+            r.composition_ms,
+            r.shading_ms,
+            r.shading_mpix_s
+        );
+    }
+    s
+}

@@ -1,0 +1,274 @@
+//! Jobs: what the command line runs, each built from the stages in the same three steps.
+//!
+//! 1. **Load the input** ([`Input::load`]): a scene file, or a solution file and the scene it
+//!    names. This is cheap (parsing and checking the scene, checking the solution file's envelope)
+//!    and gives every job what it needs to validate its options.
+//! 2. **Plan**: every option and setting is resolved against the scene's defaults and checked
+//!    (method, antialiasing, image size, renderers, region, texture size or budget, camera path),
+//!    so a bad value is refused in milliseconds with an [`crate::Error::InvalidOption`], before
+//!    any solve.
+//! 3. **Prepare and run** ([`prepare`]): solve (or read the solution), build the RRPs, then render,
+//!    measure or tabulate. Textures and the mesh are built lazily on first use, so a job that
+//!    only draws `direct` never pays for them.
+//!
+//! The jobs: [`solve`] (scene to solution file), [`render`] (one frame or a walkthrough to PNG,
+//! EXR and statistics), [`bench`] (frame times, methods interleaved), [`stats`] (the paper's
+//! Table 1). Each runs in the caller's rayon pool, so the thread count is the caller's choice and
+//! the results do not depend on it. Progress reaches the caller through a
+//! [`crate::progress::Observer`]; the library prints nothing.
+
+pub mod bench;
+pub mod render;
+pub mod solve;
+pub mod stats;
+
+use std::path::{Path, PathBuf};
+use std::sync::OnceLock;
+use std::time::Instant;
+
+use crate::error::{Error, Result};
+use crate::method::{check_texture_side, Method};
+use crate::progress::Observer;
+use crate::radiosity::{self, file as solution_file, Solution, SolveOptions};
+use crate::reconstruction::mesh::MeshModel;
+use crate::reconstruction::{Estimator, Reconstruction};
+use crate::scene::{load_scene, Scene};
+use crate::texture::{SizePolicy, TextureSet};
+
+/// A job's input, loaded and checked but not solved: the scene, and the solution file if the
+/// input was one.
+#[derive(Debug, Clone)]
+pub struct Input {
+    /// The path the user gave.
+    pub path: PathBuf,
+    /// The scene (from the file itself, or the one the solution file names).
+    pub scene: Scene,
+    /// The solution file, when the input is one (its envelope is checked already).
+    pub solution_file: Option<PathBuf>,
+}
+
+impl Input {
+    /// Loads a scene file, or a solution file's scene (checking the solution file's magic,
+    /// version, length and checksum). Nothing is solved.
+    pub fn load(path: &Path) -> Result<Input> {
+        if is_solution_file(path) {
+            let scene_path = solution_file::read_scene_path(path)?;
+            Ok(Input {
+                path: path.to_path_buf(),
+                scene: load_scene(&scene_path)?,
+                solution_file: Some(path.to_path_buf()),
+            })
+        } else {
+            Ok(Input {
+                path: path.to_path_buf(),
+                scene: load_scene(path)?,
+                solution_file: None,
+            })
+        }
+    }
+}
+
+/// Whether `path` is a solution file (by its magic bytes) rather than a scene.
+pub fn is_solution_file(path: &Path) -> bool {
+    use std::io::Read;
+    let mut magic = [0u8; 8];
+    std::fs::File::open(path)
+        .and_then(|mut f| f.read_exact(&mut magic))
+        .map(|_| &magic == solution_file::MAGIC)
+        .unwrap_or(false)
+}
+
+/// Command-line choices of the texture methods (all optional; the scene's `[render]` gives the
+/// defaults).
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct TextureOptions {
+    /// One texture side for every polygon (`--texture-size`, a power of two).
+    pub size: Option<u32>,
+    /// A texture memory budget in bytes at 12 bits per channel with mip chains
+    /// (`--texture-budget`).
+    pub budget: Option<u64>,
+    /// The bicubic filter's (B, C) (`--bicubic B,C`; default Mitchell–Netravali 1/3, 1/3).
+    pub bicubic: Option<(f32, f32)>,
+}
+
+impl TextureOptions {
+    /// The size policy these options choose for `scene`, checked against it: a size (a power of
+    /// two in range), a budget (at least what 1 x 1 textures of every polygon of the scene take),
+    /// or the scene's [`scene_texture_policy`]. Giving both a size and a budget is an error.
+    pub fn policy(&self, scene: &Scene) -> Result<SizePolicy> {
+        let policy = match (self.size, self.budget) {
+            (Some(n), Some(_)) => {
+                return Err(Error::invalid_option(
+                    "--texture-size",
+                    n.to_string(),
+                    "excludes --texture-budget; give one of them",
+                ))
+            }
+            (Some(n), None) => {
+                check_texture_side("--texture-size", n)?;
+                SizePolicy::Fixed(n)
+            }
+            (None, Some(b)) => SizePolicy::Budget(b),
+            (None, None) => scene_texture_policy(scene),
+        };
+        // Whether a budget can be met depends only on the polygon count (every texture can
+        // shrink to 1 x 1), which the scene gives before any solve.
+        TextureSet::sides(&vec![0; scene.polygons.len()], policy)?;
+        Ok(policy)
+    }
+
+    /// `method` with these options' bicubic parameters applied (checked).
+    pub fn method(&self, method: Method) -> Result<Method> {
+        match self.bicubic {
+            Some((b, c)) => method.with_bicubic(b, c),
+            None => Ok(method),
+        }
+    }
+}
+
+/// The texture size policy a scene asks for: `[render] texture_size` 0 means per polygon from
+/// its quadtree depth, any other value one fixed size.
+pub fn scene_texture_policy(scene: &Scene) -> SizePolicy {
+    match scene.render.texture_size {
+        0 => SizePolicy::FromDepth,
+        n => SizePolicy::Fixed(n),
+    }
+}
+
+/// A scene with its solution and reconstruction: everything a frame needs.
+pub struct Prepared {
+    /// The scene.
+    pub scene: Scene,
+    /// Its radiosity solution (solved now, or read from a file).
+    pub solution: Solution,
+    /// The RRPs of every polygon.
+    pub reconstruction: Reconstruction,
+    /// Time spent solving in this run (0 when read from a file), ms.
+    pub solve_ms: f64,
+    /// Time spent building the RRPs, ms.
+    pub reconstruction_ms: f64,
+    /// How the texture methods size their textures (default: [`scene_texture_policy`]). Set it
+    /// before the first texture frame: the textures are built once, on first use.
+    pub texture_policy: SizePolicy,
+    textures: OnceLock<(TextureSet, f64)>,
+    mesh: OnceLock<(MeshModel, f64)>,
+}
+
+impl Prepared {
+    /// The radiosity textures under [`Prepared::texture_policy`], built on first use (a scene
+    /// rendered only with the direct method never pays for them), with their build time in ms.
+    pub fn textures(&self) -> Result<(&TextureSet, f64)> {
+        if self.textures.get().is_none() {
+            let t = Instant::now();
+            let depths = TextureSet::depths(&self.solution.polygons);
+            let set = TextureSet::build(&self.reconstruction, &depths, self.texture_policy)?;
+            let _ = self.textures.set((set, t.elapsed().as_secs_f64() * 1e3));
+        }
+        let (set, ms) = self
+            .textures
+            .get()
+            .ok_or_else(|| Error::Runtime("texture set missing after build".into()))?;
+        Ok((set, *ms))
+    }
+
+    /// The Gouraud mesh of the solution (T-vertex fans), built on first use, with its build
+    /// time in ms.
+    pub fn mesh(&self) -> Result<(&MeshModel, f64)> {
+        if self.mesh.get().is_none() {
+            let t = Instant::now();
+            let mesh = MeshModel::build(&self.scene, &self.solution.polygons)?;
+            let _ = self.mesh.set((mesh, t.elapsed().as_secs_f64() * 1e3));
+        }
+        let (mesh, ms) = self
+            .mesh
+            .get()
+            .ok_or_else(|| Error::Runtime("mesh missing after build".into()))?;
+        Ok((mesh, *ms))
+    }
+}
+
+/// Solves the input's scene (or reads its solution file) and builds the reconstruction; the
+/// textures will be sized by `texture_policy`. This is where a job's work starts: plan and
+/// validate before calling it.
+pub fn prepare(
+    input: Input,
+    texture_policy: SizePolicy,
+    observer: &dyn Observer,
+) -> Result<Prepared> {
+    let Input {
+        scene,
+        solution_file: file,
+        ..
+    } = input;
+    let (solution, solve_ms) = match &file {
+        Some(path) => (solution_file::read_solution(path, &scene)?, 0.0),
+        None => {
+            let t = Instant::now();
+            let solution = radiosity::solve(
+                &scene,
+                &SolveOptions {
+                    progress: observer.tracing(),
+                },
+            )?; // TODO observer
+            (solution, t.elapsed().as_secs_f64() * 1e3)
+        }
+    };
+    let t = Instant::now();
+    let reconstruction = Reconstruction::build(&solution.polygons, Estimator::default())?;
+    let reconstruction_ms = t.elapsed().as_secs_f64() * 1e3;
+    Ok(Prepared {
+        texture_policy,
+        scene,
+        solution,
+        reconstruction,
+        solve_ms,
+        reconstruction_ms,
+        textures: OnceLock::new(),
+        mesh: OnceLock::new(),
+    })
+}
+
+/// Loads `path`, checks `texture`'s options against its scene, then solves and reconstructs:
+/// [`Input::load`], [`TextureOptions::policy`] and [`prepare`] in one call.
+pub fn prepare_path(
+    path: &Path,
+    texture: &TextureOptions,
+    observer: &dyn Observer,
+) -> Result<Prepared> {
+    let input = Input::load(path)?;
+    let policy = texture.policy(&input.scene)?;
+    prepare(input, policy, observer)
+}
+
+/// Renders one frame of a prepared scene with `method`.
+pub fn render_frame(
+    p: &Prepared,
+    method: Method,
+    camera: &crate::scene::Camera,
+    opts: &crate::frame::FrameOptions,
+) -> Result<crate::frame::Frame> {
+    use crate::frame;
+    use crate::shading::Shader;
+    match method {
+        Method::Direct => frame::render_patches(&p.scene, camera, &p.reconstruction, opts),
+        Method::Texture(filter) => {
+            let (set, _) = p.textures()?;
+            frame::render(
+                &p.scene,
+                camera,
+                &Shader::Texture { set, filter },
+                method,
+                opts,
+            )
+        }
+        Method::Mesh => {
+            let (mesh, _) = p.mesh()?;
+            frame::render(&mesh.scene, camera, &Shader::Patches(mesh), method, opts)
+        }
+        Method::Reference => {
+            let oracle = radiosity::Oracle::new(&p.solution, &p.scene)?;
+            let f = |poly: u32, u: f32, v: f32| oracle.radiosity(poly as usize, u as f64, v as f64);
+            frame::render(&p.scene, camera, &Shader::Reference(&f), method, opts)
+        }
+    }
+}

@@ -1,0 +1,274 @@
+//! The render job: one frame, or every frame of the scene's camera path, to PNG (and EXR and
+//! statistics JSON on request).
+//!
+//! [`RenderPlan::new`] resolves every option against the scene's defaults and checks it before
+//! [`run_render`] solves anything; a walkthrough reuses one solution and one reconstruction for
+//! all its frames. Every file is written atomically.
+
+use std::path::{Path, PathBuf};
+
+use serde::Serialize;
+
+use super::{prepare, render_frame, Input, Prepared, TextureOptions};
+use crate::error::{Error, Result};
+use crate::frame::{Frame, FrameOptions, FrameStats};
+use crate::image;
+use crate::method::Method;
+use crate::progress::Observer;
+use crate::reconstruction::mesh::MeshStats;
+use crate::scene::{Camera, Scene};
+use crate::texture::{SizePolicy, TextureMemory};
+
+/// What `pixelflow-sim render` was asked to do.
+#[derive(Debug, Clone, Default)]
+pub struct RenderRequest {
+    /// Scene file or solution file.
+    pub input: PathBuf,
+    /// PNG to write (default [`default_png_path`]); walkthrough frames are numbered beside it.
+    pub output: Option<PathBuf>,
+    /// OpenEXR of the linear radiosity to write (single frames only).
+    pub exr: Option<PathBuf>,
+    /// Method name (default: the scene's `[render] method`).
+    pub method: Option<String>,
+    /// Image width (default: the scene's).
+    pub width: Option<u32>,
+    /// Image height (default: the scene's).
+    pub height: Option<u32>,
+    /// Samples per pixel (default: the scene's).
+    pub aa: Option<u32>,
+    /// Virtual renderers.
+    pub renderers: u32,
+    /// Region side in pixels.
+    pub region: u32,
+    /// Where to write the statistics JSON (an array of frames for a walkthrough).
+    pub stats: Option<PathBuf>,
+    /// Render every frame of the scene's camera path.
+    pub walkthrough: bool,
+    /// Texture sizes and the bicubic filter's parameters.
+    pub texture: TextureOptions,
+}
+
+/// A render request resolved against its scene and checked: what will be drawn, how, and where
+/// it goes.
+#[derive(Debug, Clone)]
+pub struct RenderPlan {
+    /// The method, with the bicubic filter's parameters applied.
+    pub method: Method,
+    /// The frame options (checked).
+    pub frame: FrameOptions,
+    /// How textures are sized (checked against the scene's polygon count).
+    pub texture_policy: SizePolicy,
+    /// Each frame's camera and PNG path: one, or the whole camera path.
+    pub frames: Vec<(Camera, PathBuf)>,
+    /// The EXR to write (single frames only).
+    pub exr: Option<PathBuf>,
+    /// The statistics JSON to write.
+    pub stats: Option<PathBuf>,
+    /// Whether this is a walkthrough.
+    pub walkthrough: bool,
+}
+
+impl RenderPlan {
+    /// Resolves `req` against `scene` and checks every option: method and bicubic parameters,
+    /// image size, antialiasing, renderers, region, texture size or budget, `--exr` with
+    /// `--walkthrough`, and that a walkthrough has a camera path.
+    pub fn new(req: &RenderRequest, scene: &Scene) -> Result<RenderPlan> {
+        let method = match &req.method {
+            Some(name) => Method::parse(name)?,
+            None => scene.render.method,
+        };
+        let method = req.texture.method(method)?;
+        let frame = FrameOptions {
+            width: req.width.unwrap_or(scene.width),
+            height: req.height.unwrap_or(scene.height),
+            aa: req.aa.unwrap_or(scene.render.aa_samples),
+            renderers: req.renderers,
+            region: req.region,
+            cull_back_faces: false,
+        };
+        frame.validate()?;
+        let texture_policy = req.texture.policy(scene)?;
+        if req.walkthrough && req.exr.is_some() {
+            return Err(Error::invalid_option(
+                "--exr",
+                req.exr
+                    .as_deref()
+                    .map(|p| p.display().to_string())
+                    .unwrap_or_default(),
+                "writes one frame; it cannot be combined with --walkthrough",
+            ));
+        }
+        let png = req
+            .output
+            .clone()
+            .unwrap_or_else(|| default_png_path(&req.input, method));
+        let frames = if req.walkthrough {
+            let path = scene.camera_path.as_ref().ok_or_else(|| {
+                Error::invalid_option(
+                    "--walkthrough",
+                    "",
+                    format!("{} has no [camera_path]", scene.source.display()),
+                )
+            })?;
+            (0..path.frames)
+                .map(|k| {
+                    (
+                        path.camera(scene.camera.projection, k),
+                        walkthrough_frame_path(&png, k),
+                    )
+                })
+                .collect()
+        } else {
+            vec![(scene.camera, png)]
+        };
+        Ok(RenderPlan {
+            method,
+            frame,
+            texture_policy,
+            frames,
+            exr: req.exr.clone(),
+            stats: req.stats.clone(),
+            walkthrough: req.walkthrough,
+        })
+    }
+}
+
+/// What a render job reports as it goes.
+#[derive(Debug)]
+pub enum RenderEvent<'a> {
+    /// A scene warning (a non-planar quad split, ...).
+    Warning(&'a str),
+    /// A file was written.
+    Wrote(&'a Path),
+    /// A frame was rendered.
+    Frame(&'a RenderReport),
+}
+
+/// Runs a render job: load the input, plan and check every option, then prepare once and
+/// render one frame or every walkthrough frame, writing PNG, EXR and statistics.
+pub fn run_render(
+    req: &RenderRequest,
+    observer: &dyn Observer,
+    on: &mut dyn FnMut(RenderEvent<'_>),
+) -> Result<()> {
+    let input = Input::load(&req.input)?;
+    let plan = RenderPlan::new(req, &input.scene)?;
+    for w in &input.scene.warnings {
+        on(RenderEvent::Warning(w));
+    }
+    let p = prepare(input, plan.texture_policy, observer)?;
+    let exposure = p.scene.display.exposure;
+    let mut reports = Vec::new();
+    for (camera, png) in &plan.frames {
+        let frame = render_frame(&p, plan.method, camera, &plan.frame)?;
+        image::write_png(png, frame.view(), exposure)?;
+        on(RenderEvent::Wrote(png));
+        if let Some(exr) = &plan.exr {
+            image::write_exr(exr, frame.view())?;
+            on(RenderEvent::Wrote(exr));
+        }
+        let report = RenderReport::new(&p, plan.method, &frame);
+        on(RenderEvent::Frame(&report));
+        reports.push(report);
+    }
+    if let Some(path) = &plan.stats {
+        let json = if plan.walkthrough {
+            serde_json::to_string_pretty(&reports)
+        } else {
+            serde_json::to_string_pretty(&reports[0])
+        }
+        .map_err(|e| Error::Runtime(format!("statistics to JSON: {e}")))?;
+        crate::output::write_atomic(path, json.as_bytes())?;
+        on(RenderEvent::Wrote(path));
+    }
+    Ok(())
+}
+
+/// The statistics written by `--stats`: the frame's counters and stage times, plus the
+/// one-off costs that are not part of `frame_ms`.
+#[derive(Debug, Clone, Serialize)]
+pub struct RenderReport {
+    /// The frame's counters and stage times.
+    #[serde(flatten)]
+    pub frame: FrameStats,
+    /// Frames per second of this frame, `1000 / frame_ms` (the wall-clock frame time).
+    pub fps: f64,
+    /// Solve time in this run (0 when the solution was read from a file), ms.
+    pub solve_ms: f64,
+    /// RRP construction time, ms.
+    pub reconstruction_ms: f64,
+    /// RRP patches stored.
+    pub patches: u64,
+    /// Radiosity samples in the solution.
+    pub samples: u64,
+    /// Texture memory and count (texture methods only).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub texture_memory: Option<TextureMemory>,
+    /// Time to resample the textures from the RRPs, once per job (texture methods only), ms.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub texture_build_ms: Option<f64>,
+    /// The mesh's triangles, vertices and size (mesh method only).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub mesh: Option<MeshStats>,
+    /// Time to triangulate the mesh, once per job (mesh method only), ms.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub mesh_build_ms: Option<f64>,
+}
+
+impl RenderReport {
+    /// The report of `frame` rendered from `p`.
+    pub fn new(p: &Prepared, method: Method, frame: &Frame) -> RenderReport {
+        let tex = match method {
+            Method::Texture(_) => p.textures().ok(),
+            _ => None,
+        };
+        let mesh = match method {
+            Method::Mesh => p.mesh().ok(),
+            _ => None,
+        };
+        RenderReport {
+            mesh: mesh.map(|(m, _)| m.stats),
+            mesh_build_ms: mesh.map(|(_, ms)| ms),
+            texture_memory: tex.map(|(set, _)| set.memory),
+            texture_build_ms: tex.map(|(_, ms)| ms),
+            fps: fps(frame.stats.frame_ms),
+            frame: frame.stats.clone(),
+            solve_ms: p.solve_ms,
+            reconstruction_ms: p.reconstruction_ms,
+            patches: p.reconstruction.stats().patches as u64,
+            samples: p.solution.stats.vertices,
+        }
+    }
+
+    /// Pretty JSON.
+    pub fn to_json(&self) -> String {
+        serde_json::to_string_pretty(self).unwrap_or_else(|_| "{}".into())
+    }
+}
+
+/// Frames per second of a frame time in ms (0 for a time of 0).
+pub fn fps(frame_ms: f64) -> f64 {
+    if frame_ms > 0.0 {
+        1e3 / frame_ms
+    } else {
+        0.0
+    }
+}
+
+/// Where output goes when the user names no file: `out/<scene stem>-<method>.png`.
+pub fn default_png_path(input: &Path, method: Method) -> PathBuf {
+    let stem = input
+        .file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_else(|| "frame".into());
+    PathBuf::from("out").join(format!("{stem}-{}.png", method.name()))
+}
+
+/// The frame file name of walkthrough frame `k`: `<png stem>-NNNN.png` beside `png`.
+pub fn walkthrough_frame_path(png: &Path, k: u32) -> PathBuf {
+    let stem = png
+        .file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_else(|| "frame".into());
+    png.with_file_name(format!("{stem}-{k:04}.png"))
+}

@@ -1,0 +1,252 @@
+//! Methods: the ways of drawing a radiosity solution, named once for the whole tool, and the
+//! limits of their parameters.
+//!
+//! A [`Method`] is chosen by the scene file (`[render] method`) or the command line, so the scene
+//! loader must be able to parse and check it before anything is solved: that is why this module
+//! sits below every stage and depends on nothing but the error type. The stages that *implement*
+//! a method (the texture filters, the patch shader, the mesh) live further down the frame
+//! pipeline and take the plain values defined here ([`Filter`], the texture side limits, the
+//! antialiasing sample counts).
+//!
+//! Invariants: [`Method::parse`] and [`Method::name`] are inverse on [`Method::NAMES`]; every
+//! constructor of a [`Filter::Bicubic`] through this module has B and C finite and in [0, 1].
+
+use crate::error::{Error, Result};
+
+/// Antialiasing sample counts per pixel the rasterizer has patterns for.
+pub const AA_SAMPLE_COUNTS: [u32; 3] = [1, 4, 16];
+
+/// Largest texture side of the texture methods (texels per axis).
+pub const MAX_TEXTURE_SIZE: u32 = 4096;
+
+/// On-screen reconstruction filter of the texture methods.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Filter {
+    /// The texel containing the point (no blending).
+    Nearest,
+    /// 2 x 2 bilinear between the surrounding texel centres.
+    Bilinear,
+    /// Separable 4 x 4 Mitchell–Netravali cubic with parameters (B, C).
+    Bicubic {
+        /// B parameter.
+        b: f32,
+        /// C parameter.
+        c: f32,
+    },
+}
+
+impl Filter {
+    /// Mitchell–Netravali with B = C = 1/3, the paper's filter and the default bicubic.
+    pub const MITCHELL: Filter = Filter::Bicubic {
+        b: 1.0 / 3.0,
+        c: 1.0 / 3.0,
+    };
+    /// Catmull-Rom, B = 0, C = 1/2 (interpolating).
+    pub const CATMULL_ROM: Filter = Filter::Bicubic { b: 0.0, c: 0.5 };
+}
+
+/// The rendering methods. They share scene, solve, rasterization and composition; they differ
+/// only in what the deferred pass evaluates (and, for the mesh, in what is rasterized).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Method {
+    /// The PixelFlow path: bicubic RRP coefficients rasterized into region G-buffers and
+    /// evaluated per pixel in the deferred pass.
+    Direct,
+    /// Radiosity textures (RAT) resampled from the RRPs, filtered on screen.
+    Texture(Filter),
+    /// The adaptively subdivided mesh (T-vertex fans), Gouraud shaded: the paper's "poly" model.
+    Mesh,
+    /// The solver's oracle at every visible sample: no reconstruction at all.
+    Reference,
+}
+
+impl Method {
+    /// Every implemented method's name.
+    pub const NAMES: &'static [&'static str] = &[
+        "direct",
+        "texture-nearest",
+        "texture-bilinear",
+        "texture-bicubic",
+        "mesh",
+        "reference",
+    ];
+
+    /// Parses a method name (as on the command line and in `[render] method`);
+    /// `texture-bicubic` is Mitchell–Netravali B = C = 1/3 (see [`Method::with_bicubic`]).
+    /// An unknown name is an [`Error::InvalidOption`] for `option` (`--method`,
+    /// `render.method`) listing the implemented ones.
+    pub fn parse_option(option: &str, name: &str) -> Result<Method> {
+        match name {
+            "direct" => Ok(Method::Direct),
+            "texture-nearest" => Ok(Method::Texture(Filter::Nearest)),
+            "texture-bilinear" => Ok(Method::Texture(Filter::Bilinear)),
+            "texture-bicubic" => Ok(Method::Texture(Filter::MITCHELL)),
+            "mesh" => Ok(Method::Mesh),
+            "reference" => Ok(Method::Reference),
+            _ => Err(Error::invalid_option(
+                option,
+                name,
+                format!("is not a method; implemented: {}", Method::NAMES.join(", ")),
+            )),
+        }
+    }
+
+    /// [`Method::parse_option`] for the command line's `--method`.
+    pub fn parse(name: &str) -> Result<Method> {
+        Method::parse_option("--method", name)
+    }
+
+    /// The method's name.
+    pub fn name(self) -> &'static str {
+        match self {
+            Method::Direct => "direct",
+            Method::Texture(Filter::Nearest) => "texture-nearest",
+            Method::Texture(Filter::Bilinear) => "texture-bilinear",
+            Method::Texture(Filter::Bicubic { .. }) => "texture-bicubic",
+            Method::Mesh => "mesh",
+            Method::Reference => "reference",
+        }
+    }
+
+    /// This method with the bicubic filter's (B, C) replaced, if it is `texture-bicubic`; an
+    /// error for B or C outside [0, 1] or not finite (the Mitchell–Netravali family's useful
+    /// range; Catmull-Rom is (0, 1/2)).
+    pub fn with_bicubic(self, b: f32, c: f32) -> Result<Method> {
+        for (name, x) in [("B", b), ("C", c)] {
+            if !(0.0..=1.0).contains(&x) {
+                return Err(Error::invalid_option(
+                    "--bicubic",
+                    format!("{b},{c}"),
+                    format!("{name} = {x} must be in [0, 1]"),
+                ));
+            }
+        }
+        Ok(match self {
+            Method::Texture(Filter::Bicubic { .. }) => Method::Texture(Filter::Bicubic { b, c }),
+            m => m,
+        })
+    }
+
+    /// Whether the method draws radiosity textures (and so builds them).
+    pub fn uses_textures(self) -> bool {
+        matches!(self, Method::Texture(_))
+    }
+}
+
+/// Checks an antialiasing sample count named `option` (`--aa`, `render.aa`).
+pub fn check_aa(option: &str, aa: u32) -> Result<()> {
+    if AA_SAMPLE_COUNTS.contains(&aa) {
+        Ok(())
+    } else {
+        Err(Error::invalid_option(
+            option,
+            aa.to_string(),
+            "antialiasing takes 1, 4 or 16 samples per pixel",
+        ))
+    }
+}
+
+/// Checks a texture side named `option` (`--texture-size`): a power of two in
+/// `1..=`[`MAX_TEXTURE_SIZE`].
+pub fn check_texture_side(option: &str, n: u32) -> Result<()> {
+    if n == 0 || !n.is_power_of_two() || n > MAX_TEXTURE_SIZE {
+        Err(Error::invalid_option(
+            option,
+            n.to_string(),
+            format!("must be a power of two in 1..={MAX_TEXTURE_SIZE}"),
+        ))
+    } else {
+        Ok(())
+    }
+}
+
+/// Parses a byte count with an optional binary suffix: `1048576`, `512K`, `4M`, `1G` (K = 1024).
+pub fn parse_bytes(option: &str, text: &str) -> Result<u64> {
+    let t = text.trim();
+    let (num, mult) = match t.char_indices().last() {
+        Some((i, 'K' | 'k')) => (&t[..i], 1u64 << 10),
+        Some((i, 'M' | 'm')) => (&t[..i], 1 << 20),
+        Some((i, 'G' | 'g')) => (&t[..i], 1 << 30),
+        _ => (t, 1),
+    };
+    num.parse::<u64>()
+        .ok()
+        .and_then(|n| n.checked_mul(mult))
+        .ok_or_else(|| {
+            Error::invalid_option(
+                option,
+                text,
+                "is not a byte count (an integer, optionally followed by K, M or G)",
+            )
+        })
+}
+
+/// Parses `B,C` (two numbers) for `--bicubic`.
+pub fn parse_bicubic(text: &str) -> Result<(f32, f32)> {
+    let parts: Vec<&str> = text.split(',').map(str::trim).collect();
+    match parts.as_slice() {
+        [b, c] => match (b.parse::<f32>(), c.parse::<f32>()) {
+            (Ok(b), Ok(c)) => Ok((b, c)),
+            _ => Err(Error::invalid_option(
+                "--bicubic",
+                text,
+                "B and C must be numbers",
+            )),
+        },
+        _ => Err(Error::invalid_option(
+            "--bicubic",
+            text,
+            "expected B,C (Mitchell-Netravali 0.333,0.333; Catmull-Rom 0,0.5)",
+        )),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn names_round_trip() {
+        for name in Method::NAMES {
+            assert_eq!(Method::parse(name).unwrap().name(), *name);
+        }
+        let e = Method::parse("texturebilinear").unwrap_err();
+        assert!(matches!(e, Error::InvalidOption { .. }));
+        assert!(e
+            .to_string()
+            .starts_with("--method texturebilinear: is not a method"));
+    }
+
+    #[test]
+    fn option_checks() {
+        for aa in AA_SAMPLE_COUNTS {
+            check_aa("--aa", aa).unwrap();
+        }
+        assert!(check_aa("--aa", 3).is_err());
+        check_texture_side("--texture-size", 1).unwrap();
+        check_texture_side("--texture-size", MAX_TEXTURE_SIZE).unwrap();
+        for bad in [0, 3, 2 * MAX_TEXTURE_SIZE] {
+            assert!(check_texture_side("--texture-size", bad).is_err());
+        }
+        assert_eq!(parse_bytes("--b", "4M").unwrap(), 4 << 20);
+        assert_eq!(parse_bytes("--b", "512k").unwrap(), 512 << 10);
+        assert_eq!(parse_bytes("--b", "17").unwrap(), 17);
+        for bad in ["", "M", "-1", "1.5M", "99999999999G"] {
+            assert!(parse_bytes("--b", bad).is_err(), "{bad}");
+        }
+        assert_eq!(parse_bicubic("0, 0.5").unwrap(), (0.0, 0.5));
+        assert!(parse_bicubic("1").is_err());
+        assert!(Method::Texture(Filter::MITCHELL)
+            .with_bicubic(1.5, 0.0)
+            .is_err());
+        assert!(Method::Texture(Filter::MITCHELL)
+            .with_bicubic(f32::NAN, 0.0)
+            .is_err());
+        assert_eq!(
+            Method::Texture(Filter::MITCHELL)
+                .with_bicubic(0.0, 0.5)
+                .unwrap(),
+            Method::Texture(Filter::CATMULL_ROM)
+        );
+    }
+}
