@@ -9,7 +9,9 @@
 //! G-buffers), [`composition`] (depth merge of the virtual renderers), [`shading`] (the deferred
 //! pass, one shader per method), [`image_out`] / [`output`] (files) and [`metric`] (distances
 //! between images, with [`image_in`] to read them). [`pipeline`] and [`experiment`] string the
-//! stages into the jobs the command line runs; [`report`] formats summaries.
+//! stages into the jobs the command line runs; [`report`] formats summaries. The library draws
+//! nothing and reads no environment: long calls report progress and trace lines to the caller's
+//! [`progress::Observer`].
 //! `docs/ARCHITECTURE.md` draws the data flow.
 
 #![warn(missing_docs)]
@@ -23,6 +25,7 @@ pub mod lanes;
 pub mod metric;
 pub mod output;
 pub mod pipeline;
+pub mod progress;
 pub mod quadtree;
 pub mod radiosity;
 pub mod raster;
