@@ -3,19 +3,24 @@
 //! The binary is thin: clap validates the arguments, the library does the work, and every
 //! library error is printed once to stderr and mapped to the exit code of
 //! [`pixelflow_sim::Error::exit_code`]: 0 success, 2 bad input or usage (clap's own usage errors
-//! also exit 2), 1 a failure while running.
+//! also exit 2), 1 a failure while running. The library draws nothing: the progress bar and the
+//! `--trace` lines are this file's observer ([`Terminal`]).
 
 use anyhow::Context;
 use clap::{Parser, Subcommand};
 use pixelflow_sim::error::EXIT_FAILURE;
 use pixelflow_sim::experiment;
 use pixelflow_sim::pipeline::{self, Method, RenderEvent, RenderRequest, TextureOptions};
+use pixelflow_sim::progress::Observer;
 use pixelflow_sim::raster::FrameOptions;
 use pixelflow_sim::scene::MAX_IMAGE_DIM;
 use pixelflow_sim::texture::Filter;
 use pixelflow_sim::Error;
+use std::io::IsTerminal;
 use std::path::PathBuf;
 use std::process::ExitCode;
+use std::sync::Mutex;
+use std::time::{Duration, Instant};
 
 /// Renders radiosity solutions with C1 bicubic Hermite reconstruction (Bastos, Goslin, Zhang).
 #[derive(Parser, Debug)]
@@ -54,6 +59,9 @@ enum Command {
         /// No progress bar.
         #[arg(short, long)]
         quiet: bool,
+        /// Print the solver's trace lines (phase times, shots, vertices, unshot) to stderr.
+        #[arg(long)]
+        trace: bool,
     },
     /// Render a scene (solving it first) or a solution file.
     ///
@@ -108,6 +116,9 @@ enum Command {
         /// No progress bar, no "wrote" lines.
         #[arg(short, long)]
         quiet: bool,
+        /// Print the solver's trace lines (phase times, shots, vertices, unshot) to stderr.
+        #[arg(long)]
+        trace: bool,
     },
     /// The paper's Table 1 for a scene: triangles and vertices of the original, mesh and RAT
     /// models, model sizes, texture memory and count, RRP memory; with `--frames`, the frame
@@ -137,6 +148,9 @@ enum Command {
         /// Print JSON instead of the table.
         #[arg(long)]
         json: bool,
+        /// When solving a scene, print the solver's trace lines (phase times, shots, vertices, unshot) to stderr.
+        #[arg(long)]
+        trace: bool,
     },
     /// Rerun the paper's experiments: `fig5`, `fig6`, `table1`, or `all` (which also writes
     /// `docs/experiments.md` when given `--doc`).
@@ -215,6 +229,9 @@ enum Command {
         /// Print JSON instead of the table.
         #[arg(long)]
         json: bool,
+        /// When solving a scene, print the solver's trace lines (phase times, shots, vertices, unshot) to stderr.
+        #[arg(long)]
+        trace: bool,
     },
     /// Compare an image with a reference: the perceptual distance and error measures.
     ///
@@ -290,8 +307,12 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             output,
             threads,
             quiet,
+            trace,
         } => {
-            let sol = in_pool(threads, || pipeline::solve_to_file(&scene, &output, !quiet))??;
+            let observer = Terminal::new(!quiet, trace);
+            let sol = in_pool(threads, || {
+                pipeline::solve_to_file(&scene, &output, &observer)
+            })??;
             if !quiet {
                 let s = &sol.stats;
                 eprintln!(
@@ -323,6 +344,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             texture,
             verbose,
             quiet,
+            trace,
         } => {
             let req = RenderRequest {
                 input,
@@ -336,11 +358,11 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 region,
                 stats,
                 walkthrough,
-                progress: !quiet,
                 texture: texture.options(),
             };
+            let observer = Terminal::new(!quiet, trace);
             in_pool(threads, || {
-                pipeline::run_render(&req, &mut |event| match event {
+                pipeline::run_render(&req, &observer, &mut |event| match event {
                     RenderEvent::Warning(w) => eprintln!("warning: {w}"),
                     RenderEvent::Wrote(path) if !quiet => eprintln!("wrote {}", path.display()),
                     RenderEvent::Frame(report) if verbose => println!("{}", report.to_json()),
@@ -357,9 +379,10 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             texture,
             threads,
             json,
+            trace,
         } => in_pool(threads, || -> anyhow::Result<()> {
             let topts = texture.options();
-            let p = pipeline::prepare_with(&input, false, &topts)?;
+            let p = pipeline::prepare_with(&input, &Terminal::new(false, trace), &topts)?;
             let bicubic = match topts.method(Method::parse("texture-bicubic")?)? {
                 Method::Texture(f) => f,
                 _ => Filter::MITCHELL,
@@ -428,9 +451,10 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             renderers,
             threads,
             json,
+            trace,
         } => in_pool(threads, || -> anyhow::Result<()> {
             let topts = texture.options();
-            let p = pipeline::prepare_with(&input, false, &topts)?;
+            let p = pipeline::prepare_with(&input, &Terminal::new(false, trace), &topts)?;
             let methods = methods
                 .iter()
                 .map(|m| topts.method(Method::parse(m)?))
@@ -478,6 +502,80 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         }
     }
     Ok(())
+}
+
+/// The command line's [`Observer`]: a progress bar on stderr that appears once a stage has run
+/// for a second, only if asked for and stderr is a terminal; with `--trace`, the library's trace
+/// lines on stderr (printed above the bar when one is shown).
+struct Terminal {
+    bar: bool,
+    trace: bool,
+    state: Mutex<BarState>,
+}
+
+/// The running stage's start and its bar, once shown.
+#[derive(Default)]
+struct BarState {
+    started: Option<Instant>,
+    bar: Option<indicatif::ProgressBar>,
+}
+
+impl Terminal {
+    fn new(bar: bool, trace: bool) -> Self {
+        Terminal {
+            bar: bar && std::io::stderr().is_terminal(),
+            trace,
+            state: Mutex::default(),
+        }
+    }
+}
+
+impl Observer for Terminal {
+    fn progress(&self, stage: &str, fraction: f64) {
+        if !self.bar {
+            return;
+        }
+        let Ok(mut st) = self.state.lock() else {
+            return;
+        };
+        let elapsed = st.started.get_or_insert_with(Instant::now).elapsed();
+        if elapsed < Duration::from_secs(1) {
+            return;
+        }
+        let bar = st.bar.get_or_insert_with(|| {
+            let b = indicatif::ProgressBar::new(1000)
+                .with_prefix(stage.to_string())
+                .with_elapsed(elapsed);
+            if let Ok(style) = indicatif::ProgressStyle::with_template(
+                "{prefix} [{elapsed_precise}] {wide_bar} {percent}%",
+            ) {
+                b.set_style(style);
+            }
+            b
+        });
+        bar.set_position((fraction.clamp(0.0, 1.0) * 1000.0) as u64);
+    }
+
+    fn finished(&self, _stage: &str) {
+        if let Ok(mut st) = self.state.lock() {
+            st.started = None;
+            if let Some(b) = st.bar.take() {
+                b.finish_and_clear();
+            }
+        }
+    }
+
+    fn tracing(&self) -> bool {
+        self.trace
+    }
+
+    fn trace(&self, line: &str) {
+        let st = self.state.lock().ok();
+        match st.as_ref().and_then(|st| st.bar.as_ref()) {
+            Some(bar) => bar.suspend(|| eprintln!("{line}")),
+            None => eprintln!("{line}"),
+        }
+    }
 }
 
 /// Runs `f` in a rayon pool of `threads` workers (all cores when `None`).

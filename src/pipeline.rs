@@ -17,6 +17,7 @@ use serde::Serialize;
 
 use crate::error::{Error, Result};
 use crate::image_out;
+use crate::progress::Observer;
 use crate::radiosity::{self, file as solution_file, Oracle, Solution, SolveOptions};
 use crate::raster::{render_frame, render_frame_with, Frame, FrameOptions, FrameStats};
 use crate::reconstruction::mesh::{MeshModel, MeshStats};
@@ -244,8 +245,8 @@ pub fn is_solution_file(path: &Path) -> bool {
 }
 
 /// Loads a scene, or a solution file and the scene it names; solves a scene that has no
-/// solution; builds the reconstruction.
-pub fn prepare(input: &Path, progress: bool) -> Result<Prepared> {
+/// solution (reporting to `observer`); builds the reconstruction.
+pub fn prepare(input: &Path, observer: &dyn Observer) -> Result<Prepared> {
     let (scene, solution, solve_ms) = if is_solution_file(input) {
         let scene_path = solution_file::read_scene_path(input)?;
         let scene = load_scene(&scene_path)?;
@@ -254,7 +255,7 @@ pub fn prepare(input: &Path, progress: bool) -> Result<Prepared> {
     } else {
         let scene = load_scene(input)?;
         let t = Instant::now();
-        let solution = radiosity::solve(&scene, &SolveOptions { progress })?;
+        let solution = radiosity::solve(&scene, &SolveOptions { observer })?;
         (scene, solution, t.elapsed().as_secs_f64() * 1e3)
     };
     let t = Instant::now();
@@ -273,16 +274,20 @@ pub fn prepare(input: &Path, progress: bool) -> Result<Prepared> {
 }
 
 /// [`prepare`], then the texture size policy `texture` chooses for the scene.
-pub fn prepare_with(input: &Path, progress: bool, texture: &TextureOptions) -> Result<Prepared> {
-    let mut p = prepare(input, progress)?;
+pub fn prepare_with(
+    input: &Path,
+    observer: &dyn Observer,
+    texture: &TextureOptions,
+) -> Result<Prepared> {
+    let mut p = prepare(input, observer)?;
     p.texture_policy = texture.policy(&p.scene)?;
     Ok(p)
 }
 
-/// Solves `scene_path` and writes the solution to `out`.
-pub fn solve_to_file(scene_path: &Path, out: &Path, progress: bool) -> Result<Solution> {
+/// Solves `scene_path` (reporting to `observer`) and writes the solution to `out`.
+pub fn solve_to_file(scene_path: &Path, out: &Path, observer: &dyn Observer) -> Result<Solution> {
     let scene = load_scene(scene_path)?;
-    let solution = radiosity::solve(&scene, &SolveOptions { progress })?;
+    let solution = radiosity::solve(&scene, &SolveOptions { observer })?;
     solution_file::write_solution(out, &solution, Some(scene_path))?;
     Ok(solution)
 }
@@ -334,8 +339,6 @@ pub struct RenderRequest {
     pub stats: Option<PathBuf>,
     /// Render every frame of the scene's camera path.
     pub walkthrough: bool,
-    /// Show the solve's progress bar.
-    pub progress: bool,
     /// Texture sizes and the bicubic filter's parameters.
     pub texture: TextureOptions,
 }
@@ -352,9 +355,13 @@ pub enum RenderEvent<'a> {
 }
 
 /// Runs a render job: prepare once, render one frame or every walkthrough frame, write PNG,
-/// EXR and statistics.
-pub fn run_render(req: &RenderRequest, on: &mut dyn FnMut(RenderEvent<'_>)) -> Result<()> {
-    let p = prepare_with(&req.input, req.progress, &req.texture)?;
+/// EXR and statistics. A scene is solved reporting to `observer`.
+pub fn run_render(
+    req: &RenderRequest,
+    observer: &dyn Observer,
+    on: &mut dyn FnMut(RenderEvent<'_>),
+) -> Result<()> {
+    let p = prepare_with(&req.input, observer, &req.texture)?;
     let scene = &p.scene;
     for w in &scene.warnings {
         on(RenderEvent::Warning(w));

@@ -5,6 +5,7 @@ use std::path::Path;
 use std::sync::OnceLock;
 
 use pixelflow_sim::pipeline::{self, Method, Prepared};
+use pixelflow_sim::progress::Silent;
 use pixelflow_sim::raster::{Frame, FrameOptions};
 
 fn prepared(name: &str) -> &'static Prepared {
@@ -21,7 +22,7 @@ fn prepared(name: &str) -> &'static Prepared {
         let path = Path::new(env!("CARGO_MANIFEST_DIR"))
             .join("scenes")
             .join(format!("{name}.toml"));
-        pipeline::prepare(&path, false).expect("shipped scene prepares")
+        pipeline::prepare(&path, &Silent).expect("shipped scene prepares")
     })
 }
 

@@ -133,7 +133,7 @@ impl Setup {
                 scene.polygons.len()
             )));
         }
-        let solution = radiosity::solve(&scene, &SolveOptions { progress: false })?;
+        let solution = radiosity::solve(&scene, &SolveOptions::default())?;
         Ok(Setup { scene, solution })
     }
 

@@ -2,6 +2,7 @@
 
 use crate::error::Result;
 use crate::pipeline::{self, ModelStats, Prepared};
+use crate::progress::SILENT;
 use crate::raster::FrameOptions;
 use crate::texture::Filter;
 use std::path::{Path, PathBuf};
@@ -71,7 +72,7 @@ pub fn table1(scenes: &[PathBuf], frames: u32, opts: &FrameOptions) -> Result<Ve
     scenes
         .iter()
         .map(|s| {
-            let p: Prepared = pipeline::prepare(s, false)?;
+            let p: Prepared = pipeline::prepare(s, &SILENT)?;
             pipeline::model_stats(&p, frames, opts, Filter::MITCHELL)
         })
         .collect()
