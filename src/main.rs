@@ -3,7 +3,8 @@
 //! The binary is thin: clap validates the arguments, the library does the work, and every
 //! library error is printed once to stderr and mapped to the exit code of
 //! [`pixelflow_sim::Error::exit_code`]: 0 success, 2 bad input or usage (clap's own usage errors
-//! also exit 2), 1 a failure while running.
+//! also exit 2), 1 a failure while running. The library draws nothing: the progress bar and the
+//! `--trace` lines are this file's observer ([`Terminal`]).
 
 use clap::{Parser, Subcommand};
 use pixelflow_sim::error::EXIT_FAILURE;
@@ -14,11 +15,14 @@ use pixelflow_sim::jobs::render::{run_render, RenderEvent, RenderRequest};
 use pixelflow_sim::jobs::solve::solve_to_file;
 use pixelflow_sim::jobs::stats::{run_stats, StatsRequest};
 use pixelflow_sim::jobs::TextureOptions;
-use pixelflow_sim::progress::Silent;
+use pixelflow_sim::progress::Observer;
 use pixelflow_sim::Error;
+use std::io::IsTerminal;
 use std::io::Write;
 use std::path::PathBuf;
 use std::process::ExitCode;
+use std::sync::Mutex;
+use std::time::{Duration, Instant};
 
 /// Renders radiosity solutions with C1 bicubic Hermite reconstruction (Bastos, Goslin, Zhang).
 #[derive(Parser, Debug)]
@@ -57,6 +61,9 @@ enum Command {
         /// No progress bar.
         #[arg(short, long)]
         quiet: bool,
+        /// Print the solver's trace lines (phase times, shots, vertices, unshot) to stderr.
+        #[arg(long)]
+        trace: bool,
     },
     /// Render a scene (solving it first) or a solution file.
     ///
@@ -111,6 +118,9 @@ enum Command {
         /// No progress bar, no "wrote" lines.
         #[arg(short, long)]
         quiet: bool,
+        /// Print the solver's trace lines (phase times, shots, vertices, unshot) to stderr.
+        #[arg(long)]
+        trace: bool,
     },
     /// The paper's Table 1 for a scene: triangles and vertices of the original, mesh and RAT
     /// models, model sizes, texture memory and count, RRP memory; with `--frames`, the frame
@@ -140,6 +150,9 @@ enum Command {
         /// Print JSON instead of the table.
         #[arg(long)]
         json: bool,
+        /// When solving a scene, print the solver's trace lines (phase times, shots, vertices, unshot) to stderr.
+        #[arg(long)]
+        trace: bool,
     },
     /// Rerun the paper's experiments: `fig5`, `fig6`, `table1`, or `all` (which also writes
     /// `docs/experiments.md` when given `--doc`).
@@ -218,6 +231,9 @@ enum Command {
         /// Print JSON instead of the table.
         #[arg(long)]
         json: bool,
+        /// When solving a scene, print the solver's trace lines (phase times, shots, vertices, unshot) to stderr.
+        #[arg(long)]
+        trace: bool,
     },
     /// Compare an image with a reference: the perceptual distance and error measures.
     ///
@@ -322,8 +338,9 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             output,
             threads,
             quiet,
+            trace,
         } => {
-            let observer = Silent;
+            let observer = Terminal::new(!quiet, trace);
             let sol = in_pool(threads, || solve_to_file(&scene, &output, &observer))??;
             if !quiet {
                 let s = &sol.stats;
@@ -356,6 +373,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             texture,
             verbose,
             quiet,
+            trace,
         } => {
             let req = RenderRequest {
                 input,
@@ -371,7 +389,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 walkthrough,
                 texture: texture.options(),
             };
-            let observer = Silent;
+            let observer = Terminal::new(!quiet, trace);
             let mut stdout_closed = false;
             in_pool(threads, || {
                 run_render(&req, &observer, &mut |event| match event {
@@ -396,6 +414,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             texture,
             threads,
             json,
+            trace,
         } => in_pool(threads, || -> anyhow::Result<()> {
             let req = StatsRequest {
                 input,
@@ -406,7 +425,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 },
                 texture: texture.options(),
             };
-            let stats = run_stats(&req, &Silent)?;
+            let stats = run_stats(&req, &Terminal::new(false, trace))?;
             if json {
                 out(&self::json(&stats)?)
             } else {
@@ -464,6 +483,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             renderers,
             threads,
             json,
+            trace,
         } => in_pool(threads, || -> anyhow::Result<()> {
             let req = BenchRequest {
                 input,
@@ -474,7 +494,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 aa,
                 renderers,
             };
-            let report = run_bench(&req, &Silent)?;
+            let report = run_bench(&req, &Terminal::new(false, trace))?;
             if json {
                 out(&self::json(&report.rows)?)
             } else {
@@ -499,6 +519,80 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         }
     }
     Ok(())
+}
+
+/// The command line's [`Observer`]: a progress bar on stderr that appears once a stage has run
+/// for a second, only if asked for and stderr is a terminal; with `--trace`, the library's trace
+/// lines on stderr (printed above the bar when one is shown).
+struct Terminal {
+    bar: bool,
+    trace: bool,
+    state: Mutex<BarState>,
+}
+
+/// The running stage's start and its bar, once shown.
+#[derive(Default)]
+struct BarState {
+    started: Option<Instant>,
+    bar: Option<indicatif::ProgressBar>,
+}
+
+impl Terminal {
+    fn new(bar: bool, trace: bool) -> Self {
+        Terminal {
+            bar: bar && std::io::stderr().is_terminal(),
+            trace,
+            state: Mutex::default(),
+        }
+    }
+}
+
+impl Observer for Terminal {
+    fn progress(&self, stage: &str, fraction: f64) {
+        if !self.bar {
+            return;
+        }
+        let Ok(mut st) = self.state.lock() else {
+            return;
+        };
+        let elapsed = st.started.get_or_insert_with(Instant::now).elapsed();
+        if elapsed < Duration::from_secs(1) {
+            return;
+        }
+        let bar = st.bar.get_or_insert_with(|| {
+            let b = indicatif::ProgressBar::new(1000)
+                .with_prefix(stage.to_string())
+                .with_elapsed(elapsed);
+            if let Ok(style) = indicatif::ProgressStyle::with_template(
+                "{prefix} [{elapsed_precise}] {wide_bar} {percent}%",
+            ) {
+                b.set_style(style);
+            }
+            b
+        });
+        bar.set_position((fraction.clamp(0.0, 1.0) * 1000.0) as u64);
+    }
+
+    fn finished(&self, _stage: &str) {
+        if let Ok(mut st) = self.state.lock() {
+            st.started = None;
+            if let Some(b) = st.bar.take() {
+                b.finish_and_clear();
+            }
+        }
+    }
+
+    fn tracing(&self) -> bool {
+        self.trace
+    }
+
+    fn trace(&self, line: &str) {
+        let st = self.state.lock().ok();
+        match st.as_ref().and_then(|st| st.bar.as_ref()) {
+            Some(bar) => bar.suspend(|| note(line)),
+            None => note(line),
+        }
+    }
 }
 
 /// Runs `f` in a rayon pool of `threads` workers (all cores when `None`).

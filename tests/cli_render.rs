@@ -115,6 +115,41 @@ fn render_from_a_solution_file_equals_render_from_the_scene() {
     assert!(a == b, "EXR bytes differ between scene and solution input");
 }
 
+/// `--trace` prints the solver's phase lines to stderr, with or without `--quiet`; without it a
+/// quiet solve prints nothing; the solution file is the same either way.
+#[test]
+fn trace_prints_the_solver_phases_and_changes_nothing() {
+    let ts = scene("two-spots");
+    let solve = |name: &str, extra: &[&str]| {
+        let out = tmp(name);
+        let mut args = vec!["solve", ts.to_str().unwrap(), "-o", out.to_str().unwrap()];
+        args.extend(extra);
+        let o = run(&args);
+        assert!(o.status.success(), "{}", stderr(&o));
+        (stderr(&o), std::fs::read(&out).unwrap())
+    };
+    let (quiet, a) = solve("quiet.pfsol", &["--quiet"]);
+    let (traced, b) = solve("traced.pfsol", &["--quiet", "--trace"]);
+    assert!(quiet.is_empty(), "{quiet}");
+    assert!(traced.starts_with("direct + refine "), "{traced}");
+    assert!(traced.contains("\nround 1: "), "{traced}");
+    assert!(a == b, "--trace changed the solution file");
+    let o = run(&[
+        "render",
+        ts.to_str().unwrap(),
+        "-o",
+        tmp("traced.png").to_str().unwrap(),
+        "--width",
+        "32",
+        "--height",
+        "32",
+        "--quiet",
+        "--trace",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(stderr(&o).contains("round 1: "), "{}", stderr(&o));
+}
+
 #[test]
 fn bad_render_arguments_exit_2_with_a_message() {
     let ts = scene("two-spots");

@@ -18,7 +18,7 @@ fn solved(name: &str) -> (Scene, MeshModel) {
         .join("scenes")
         .join(format!("{name}.toml"));
     let scene = load_scene(&path).unwrap();
-    let sol = solve(&scene, &SolveOptions { progress: false }).unwrap();
+    let sol = solve(&scene, &SolveOptions::default()).unwrap();
     let t = Instant::now();
     let mesh = MeshModel::build(&scene, &sol.polygons).unwrap();
     println!(

@@ -11,12 +11,7 @@ use crate::scene::load_scene;
 /// Solves `scene_path` and writes the solution to `out`.
 pub fn solve_to_file(scene_path: &Path, out: &Path, observer: &dyn Observer) -> Result<Solution> {
     let scene = load_scene(scene_path)?;
-    let solution = radiosity::solve(
-        &scene,
-        &SolveOptions {
-            progress: observer.tracing(),
-        },
-    )?; // TODO observer
+    let solution = radiosity::solve(&scene, &SolveOptions { observer })?; // TODO observer
     solution_file::write_solution(out, &solution, Some(scene_path))?;
     Ok(solution)
 }

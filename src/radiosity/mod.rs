@@ -13,7 +13,9 @@
 //! Invariants: values are linear RGB radiosity (emission included), finite and >= 0 (any
 //! non-finite value would be a bug; [`sanitize`] maps it to 0 rather than let it reach an image);
 //! the solution depends only on the scene (fixed seeds, fixed reduction order), not on the number
-//! of threads of the caller's rayon pool.
+//! of threads of the caller's rayon pool nor on the [`Observer`] the caller passes in
+//! [`SolveOptions`], which receives the solve's progress (stage [`STAGE`]) and, when it asks for
+//! them, the solver's trace lines (phase times, shots, vertices, unshot fraction).
 
 pub mod bvh;
 pub mod file;
@@ -24,22 +26,41 @@ pub mod shoot;
 pub(crate) mod test_scenes;
 pub mod transfer;
 
-use std::io::IsTerminal;
-use std::time::{Duration, Instant};
+use std::time::Instant;
 
 use glam::{DVec3, Vec3};
 
 use crate::error::{Error, Location, Result};
+use crate::progress::{Observer, Stage, SILENT};
 use crate::quadtree::{SampledQuadtree, MAX_DEPTH};
 use crate::scene::Scene;
 pub use transfer::ShooterKind;
 use transfer::Transfer;
 
-/// Options of one solve that are not part of the scene.
-#[derive(Debug, Clone, Default)]
-pub struct SolveOptions {
-    /// Show a progress bar on stderr (only if stderr is a terminal and the solve lasts > 1 s).
-    pub progress: bool,
+/// The stage name under which [`solve`] reports progress. Its fraction is the solve's distance
+/// to convergence on a log scale: -ln(unshot fraction) / -ln(`convergence`).
+pub const STAGE: &str = "solve";
+
+/// Options of one solve that are not part of the scene. None of them changes the solution.
+#[derive(Clone, Copy)]
+pub struct SolveOptions<'a> {
+    /// Receives the progress of stage [`STAGE`] and, if it asks for them, trace lines.
+    pub observer: &'a dyn Observer,
+}
+
+impl Default for SolveOptions<'_> {
+    /// Silent.
+    fn default() -> Self {
+        SolveOptions { observer: &SILENT }
+    }
+}
+
+impl std::fmt::Debug for SolveOptions<'_> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("SolveOptions")
+            .field("tracing", &self.observer.tracing())
+            .finish_non_exhaustive()
+    }
 }
 
 /// One shooter of the history: what it is and the total radiosity it shot.
@@ -173,13 +194,16 @@ pub fn radiosity_from_g(m: &crate::scene::Material, g: DVec3) -> Vec3 {
 /// shots reuse cached transfers), and one full gather (vertices x shooters) per round, each
 /// transfer casting `shadow_rays` shadow rays for an emitter, `shadow_rays / 4` for a reflecting
 /// patch, only for pairs an occluder may cut; see [`shoot`] and [`transfer`].
-pub fn solve(scene: &Scene, opts: &SolveOptions) -> Result<Solution> {
+///
+/// Reports to `opts.observer`: progress of stage [`STAGE`] (after the settings are checked),
+/// `finished` once the shooting is done, trace lines if the observer wants them.
+pub fn solve(scene: &Scene, opts: &SolveOptions<'_>) -> Result<Solution> {
     check_settings(scene)?;
     let start = Instant::now();
-    let bar = Progress::new(opts.progress);
+    let mut stage = Stage::start(opts.observer, STAGE);
     let mut tr = Transfer::new(scene);
-    let out = shoot::run(scene, &mut tr, &|f| bar.update(f));
-    bar.finish();
+    let out = shoot::run(scene, &mut tr, &mut stage);
+    drop(stage);
     // Every vertex's G was gathered from the final history by the oracle's own function, so
     // E + rho * G here is the oracle's answer at that vertex, bit for bit.
     let mut polygons = Vec::with_capacity(out.trees.len());
@@ -397,48 +421,6 @@ pub fn scene_hash(scene: &Scene) -> u64 {
     h.u64(r.shadow_rays as u64);
     h.u64(r.seed);
     h.0
-}
-
-/// A progress bar that appears only after a second, only when enabled and stderr is a terminal.
-struct Progress {
-    enabled: bool,
-    start: Instant,
-    bar: std::sync::Mutex<Option<indicatif::ProgressBar>>,
-}
-
-impl Progress {
-    fn new(enabled: bool) -> Self {
-        Progress {
-            enabled: enabled && std::io::stderr().is_terminal(),
-            start: Instant::now(),
-            bar: std::sync::Mutex::new(None),
-        }
-    }
-
-    fn update(&self, done: f64) {
-        if !self.enabled || self.start.elapsed() < Duration::from_secs(1) {
-            return;
-        }
-        let Ok(mut g) = self.bar.lock() else { return };
-        let bar = g.get_or_insert_with(|| {
-            let b = indicatif::ProgressBar::new(1000);
-            if let Ok(style) = indicatif::ProgressStyle::with_template(
-                "solve [{elapsed_precise}] {wide_bar} {percent}% (log unshot)",
-            ) {
-                b.set_style(style);
-            }
-            b
-        });
-        bar.set_position((done.clamp(0.0, 1.0) * 1000.0) as u64);
-    }
-
-    fn finish(&self) {
-        if let Ok(mut g) = self.bar.lock() {
-            if let Some(b) = g.take() {
-                b.finish_and_clear();
-            }
-        }
-    }
 }
 
 #[cfg(test)]

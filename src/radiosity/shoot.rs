@@ -32,8 +32,10 @@
 //! per channel: a finer estimate can fall below what was already shot, and shooting negative
 //! light would create negative radiosity.
 //!
-//! Diagnostics: with the environment variable `PFS_TRACE` set, each phase prints its time, shots,
-//! vertices and unshot fraction to stderr (used to measure the solver; off by default).
+//! Progress and diagnostics go to the caller's [`Observer`] through the solve's [`Stage`]: after
+//! every shot the distance to convergence on a log scale, and, only when the observer is
+//! [`tracing`](Observer::tracing), one trace line per phase with its time, shots, vertices and
+//! unshot fraction (used to measure the solver). Neither changes what is computed.
 //!
 //! Parallelism: rayon over receiver points (`par_iter` + `collect` in order); every float sum is
 //! done serially in a fixed order, so the result is the same for any number of threads.
@@ -44,6 +46,7 @@ use glam::DVec3;
 use rayon::prelude::*;
 
 use super::transfer::{build_shooters, spot_power, sub_area, PairClass, ShooterKind, Transfer};
+use crate::progress::{Observer, Stage};
 use crate::quadtree::{Cell, Quadtree, VertexKey};
 use crate::scene::Scene;
 
@@ -105,9 +108,6 @@ pub struct Outcome {
     pub refined_after: Vec<u64>,
 }
 
-/// Progress callback: fraction done in [0, 1].
-pub type ProgressFn<'p> = &'p (dyn Fn(f64) + Sync);
-
 fn uniform_tree(depth: u32) -> Quadtree {
     let mut tree = Quadtree::new();
     let mut frontier = vec![0u32];
@@ -123,8 +123,9 @@ fn uniform_tree(depth: u32) -> Quadtree {
 }
 
 /// Runs the whole solve and returns trees and the shooting history. `tr` must be built on `scene`.
-pub fn run(scene: &Scene, tr: &mut Transfer<'_>, progress: ProgressFn<'_>) -> Outcome {
-    run_with_cache(scene, tr, progress, COARSE_CACHE_ENTRIES)
+/// Reports progress (and trace lines, if wanted) to `stage`; the caller ends the stage.
+pub fn run(scene: &Scene, tr: &mut Transfer<'_>, stage: &mut Stage<'_>) -> Outcome {
+    run_with_cache(scene, tr, stage, COARSE_CACHE_ENTRIES)
 }
 
 /// [`run`] with at most `cache_entries` cached coarse transfers (the result does not depend on
@@ -132,7 +133,7 @@ pub fn run(scene: &Scene, tr: &mut Transfer<'_>, progress: ProgressFn<'_>) -> Ou
 pub(crate) fn run_with_cache(
     scene: &Scene,
     tr: &mut Transfer<'_>,
-    progress: ProgressFn<'_>,
+    stage: &mut Stage<'_>,
     cache_entries: usize,
 ) -> Outcome {
     let st = &scene.radiosity;
@@ -205,15 +206,18 @@ pub(crate) fn run_with_cache(
     let max_shots = 100 * ns as u64 + 100;
     let conv = st.convergence;
     let log_target = -(conv.max(1e-12)).ln();
-    let report = |frac: f64| {
+    // The unshot fraction may rise after a refinement pass; the stage keeps the reported
+    // fraction non-decreasing.
+    let observer: &dyn Observer = stage.observer();
+    let mut report = |frac: f64| {
         let done = if frac <= 0.0 {
             1.0
         } else {
             (-frac.ln() / log_target).clamp(0.0, 1.0)
         };
-        progress(done);
+        stage.advance(done);
     };
-    let trace = std::env::var_os("PFS_TRACE").is_some();
+    let trace = observer.tracing();
     let t0 = Instant::now();
     let nverts = |polys: &[Poly]| polys.iter().map(|p| p.keys.len()).sum::<usize>();
     // Patch integrals of G from the fine vertices (`base`) and from the coarse points (`coarse`).
@@ -262,11 +266,11 @@ pub(crate) fn run_with_cache(
         set_unshot(tr, &polys, &totals, &base, &coarse, &mut unshot);
         frac = frac_of(tr, &unshot);
         if trace {
-            eprintln!(
+            observer.trace(&format!(
                 "direct + refine {:.0} ms, shots {shots}, vertices {}, unshot {frac:.4}",
                 elapsed_ms(t0),
                 nverts(&polys)
-            );
+            ));
         }
     }
 
@@ -289,11 +293,11 @@ pub(crate) fn run_with_cache(
             let Some(s) = best else { break };
             let db = unshot[s];
             if trace && shots % 100 == 0 {
-                eprintln!(
+                observer.trace(&format!(
                     "  shot {shots}: {:.0} ms, unshot {frac:.4}, rays {}",
                     elapsed_ms(t0),
                     tr.rays.load(std::sync::atomic::Ordering::Relaxed)
-                );
+                ));
             }
             let tp = Instant::now();
             tr.ensure_pairs(s);
@@ -325,18 +329,18 @@ pub(crate) fn run_with_cache(
                     }
                 }
             }
-            eprintln!(
+            observer.trace(&format!(
                 "  shooting done {:.0} ms (pairs {:.0} ms, shots {:.0} ms), shots {shots}, pairs open {open} occluded {occ} (mean cands {:.1}), shooters with total {}",
                 elapsed_ms(t0),
                 t_pairs * 1e3,
                 t_shoot * 1e3,
                 cands as f64 / occ.max(1) as f64,
                 totals.iter().filter(|t| **t != DVec3::ZERO).count()
-            );
+            ));
         }
         gather_all(tr, &mut polys, &totals);
         if trace {
-            eprintln!("  gather done {:.0} ms", elapsed_ms(t0));
+            observer.trace(&format!("  gather done {:.0} ms", elapsed_ms(t0)));
         }
         refined_after.push(shots);
         let splits = refine(scene, tr, &mut polys, &totals, &patch_base, &patch_depth);
@@ -348,12 +352,12 @@ pub(crate) fn run_with_cache(
         set_unshot(tr, &polys, &totals, &base, &coarse, &mut unshot);
         frac = frac_of(tr, &unshot);
         if trace {
-            eprintln!(
+            observer.trace(&format!(
                 "round {round}: {:.0} ms, shots {shots}, splits {splits}, vertices {}, unshot {frac:.4}, rays {}",
                 elapsed_ms(t0),
                 nverts(&polys),
                 tr.rays.load(std::sync::atomic::Ordering::Relaxed)
-            );
+            ));
         }
         if frac < conv || shots >= max_shots {
             break;

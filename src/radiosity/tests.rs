@@ -6,6 +6,7 @@ use glam::{DVec3, Vec3};
 
 use super::test_scenes::*;
 use super::*;
+use crate::progress::{Event, Recorder, Stage, SILENT};
 use crate::quadtree::{Quadtree, VertexKey};
 use crate::scene::{Polygon, SpotLight};
 
@@ -255,7 +256,7 @@ fn coarse_cache_changes_nothing() {
     s.radiosity.max_depth = 4;
     let run = |entries: usize| {
         let mut tr = transfer::Transfer::new(&s);
-        shoot::run_with_cache(&s, &mut tr, &|_| {}, entries)
+        shoot::run_with_cache(&s, &mut tr, &mut Stage::start(&SILENT, STAGE), entries)
     };
     let a = run(0);
     let b = run(shoot::COARSE_CACHE_ENTRIES);
@@ -396,7 +397,10 @@ fn bad_settings_are_input_errors() {
     let mut s = spot_over_plane();
     s.radiosity.min_depth = 9;
     s.radiosity.max_depth = 3;
-    assert!(solve(&s, &SolveOptions::default()).is_err());
+    // Rejected before the stage starts: the observer hears nothing.
+    let r = Recorder::tracing();
+    assert!(solve(&s, &SolveOptions { observer: &r }).is_err());
+    assert!(r.events().is_empty(), "{:?}", r.events());
 }
 
 /// A scene without light: nothing shoots, every sample is 0, nothing is subdivided beyond the
@@ -451,13 +455,70 @@ fn timing_report() {
             s.polygons.len(), st.solve_ms, st.vertices, st.elements, st.t_vertices, st.shots,
             st.rays_cast, st.unshot_fraction, st.depth_histogram
         );
-        if std::env::var_os("PFS_TRACE").is_some() {
-            eprintln!(
-                "{:?}",
-                &st.unshot_history[..st.unshot_history.len().min(12)]
-            );
-        }
+        eprintln!(
+            "  unshot history {:?}",
+            &st.unshot_history[..st.unshot_history.len().min(12)]
+        );
         assert!(st.unshot_fraction < s.radiosity.convergence);
         assert!(samples(&sol).all(|(_, _, v)| v.is_finite() && v.min_element() >= 0.0));
     }
+}
+
+/// Splits what a recorder received into the solve's progress fractions and trace lines, checking
+/// that every progress event belongs to the solve stage, that the fractions start at 0, stay in
+/// [0, 1], never decrease and reach 1, and that the last event is the one `finished("solve")`.
+fn observed(events: &[Event]) -> (Vec<f64>, Vec<String>) {
+    let (mut fractions, mut lines) = (Vec::new(), Vec::new());
+    let (last, rest) = events.split_last().expect("events");
+    assert_eq!(*last, Event::Finished(STAGE.into()));
+    for e in rest {
+        match e {
+            Event::Progress(stage, f) => {
+                assert_eq!(stage, STAGE);
+                fractions.push(*f);
+            }
+            Event::Trace(line) => lines.push(line.clone()),
+            Event::Finished(stage) => panic!("finished({stage}) before the end"),
+        }
+    }
+    assert_eq!(fractions.first(), Some(&0.0));
+    assert_eq!(fractions.last(), Some(&1.0));
+    assert!(fractions.iter().all(|f| (0.0..=1.0).contains(f)));
+    assert!(
+        fractions.windows(2).all(|w| w[0] <= w[1]),
+        "progress went back: {fractions:?}"
+    );
+    (fractions, lines)
+}
+
+/// A recording observer sees the solve's progress (in [0, 1], non-decreasing, ending with
+/// `finished("solve")`) and trace lines only when it asks for them; the solution, and the
+/// progress, are the same whatever the observer.
+#[test]
+fn observer_sees_progress_and_only_requested_traces() {
+    let mut s = cornell();
+    s.radiosity.max_depth = 4;
+    s.radiosity.shadow_rays = 8;
+    let quiet = Recorder::default();
+    let loud = Recorder::tracing();
+    let a = solve(&s, &SolveOptions { observer: &quiet }).expect("solve");
+    let b = solve(&s, &SolveOptions { observer: &loud }).expect("solve");
+    let c = solve_quiet(&s);
+    let (fa, la) = observed(&quiet.events());
+    let (fb, lb) = observed(&loud.events());
+    assert!(la.is_empty(), "traces without tracing: {la:?}");
+    assert!(lb.len() >= 3, "{lb:?}");
+    assert!(lb.iter().any(|l| l.starts_with("round 1:")), "{lb:?}");
+    assert!(lb.iter().all(|l| !l.contains('\n')));
+    assert!(fa.len() > 3, "{fa:?}");
+    assert_eq!(fa, fb);
+    // Bit for bit (the file encoding leaves out only the wall-clock time).
+    assert!(
+        file::encode(&b) == file::encode(&c),
+        "tracing changed the solution"
+    );
+    assert!(
+        file::encode(&a) == file::encode(&c),
+        "recording changed the solution"
+    );
 }
