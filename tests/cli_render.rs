@@ -155,7 +155,7 @@ fn bad_render_arguments_exit_2_with_a_message() {
     let ts = scene("two-spots");
     let ts = ts.to_str().unwrap();
     let cases: [(&[&str], &str); 5] = [
-        (&["render", ts, "--method", "phong"], "not available"),
+        (&["render", ts, "--method", "phong"], "is not a method"),
         (&["render", "no/such/scene.toml"], "no/such/scene.toml"),
         (&["render", ts, "--walkthrough"], "camera_path"),
         (&["render", ts, "--threads", "0"], "--threads 0"),
