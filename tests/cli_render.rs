@@ -74,12 +74,61 @@ fn render_writes_png_exr_and_stats() {
         "raster_ms",
         "composition_ms",
         "shading_ms",
+        "stage_sum_ms",
         "frame_ms",
+        "fps",
+        "uniform_blocks",
+        "mixed_blocks",
     ] {
         assert!(json.get(key).is_some(), "stats lack `{key}`: {json}");
     }
     assert_eq!(json["pixels_shaded"], 256 * 256);
     assert_eq!(json["method"], "direct");
+    // fps is the wall-clock frame time's; the stage sum is the stages' own times added up.
+    let f = |k: &str| json[k].as_f64().unwrap();
+    assert!(f("frame_ms") > 0.0);
+    assert!((f("fps") * f("frame_ms") - 1e3).abs() < 1e-6);
+    let stages = f("geometry_ms") + f("raster_ms") + f("composition_ms") + f("shading_ms");
+    assert!((f("stage_sum_ms") - stages).abs() < 1e-9);
+    // Every 8-sample block is either uniform or mixed: 256 x 256 samples in 128 x 128 regions of
+    // rows of 8-sample blocks is 8192 blocks, all covered (the square fills the image).
+    let blocks = json["uniform_blocks"].as_u64().unwrap() + json["mixed_blocks"].as_u64().unwrap();
+    assert_eq!(blocks, 256 * 256 / 8);
+}
+
+/// A reader that closes its end early (`| head`) ends the program quietly: exit 0, no panic,
+/// for every command that prints to standard output.
+#[test]
+fn a_closed_stdout_ends_quietly() {
+    let ts = scene("two-spots");
+    let ts = ts.to_str().unwrap();
+    let png = tmp("pipe.png");
+    let exr = tmp("pipe.exr");
+    let o = run(&["render", ts, "-o", png.to_str().unwrap(), "--exr", exr.to_str().unwrap(), "-q"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let exr = exr.to_str().unwrap();
+    let exp = tmp("pipe-exp");
+    let cases: [&[&str]; 6] = [
+        &["check", ts],
+        &["compare", exr, exr, "--json"],
+        &["stats", ts, "--json"],
+        &["bench", ts, "--sizes", "16", "--frames", "1"],
+        &["render", ts, "-o", png.to_str().unwrap(), "-q", "-v", "--width", "16", "--height", "16"],
+        &["experiment", "fig6", "--size", "16", "--json", "--out-dir", exp.to_str().unwrap()],
+    ];
+    for args in cases {
+        // The read end is closed before the program starts, so its first write fails with EPIPE.
+        let (reader, writer) = std::io::pipe().unwrap();
+        drop(reader);
+        let o = bin()
+            .args(args)
+            .stdout(writer)
+            .stderr(std::process::Stdio::piped())
+            .output()
+            .unwrap();
+        assert_eq!(o.status.code(), Some(0), "{args:?}: {}", stderr(&o));
+        assert!(!stderr(&o).contains("panicked"), "{args:?}: {}", stderr(&o));
+    }
 }
 
 #[test]

@@ -513,6 +513,19 @@ fn other_settings_are_checked() {
     // The renderer has sample patterns for 1, 4 and 16 samples only.
     let text = format!("{BASE}\n[render]\naa = 3\n");
     assert_error(&text, "aa", &["render.aa", "is 3", "1, 4 or 16"]);
+    // A misspelt method is refused at load time (so `check` catches it), with its line.
+    let text = format!("{BASE}\n[render]\nmethod = \"texturebilinear\"\n");
+    assert_error(
+        &text,
+        "texturebilinear",
+        &["render.method", "`texturebilinear` is not a method", "texture-bilinear"],
+    );
+    let s = parse_scene(
+        &format!("{BASE}\n[render]\nmethod = \"texture-bicubic\"\n"),
+        Path::new("test.toml"),
+    )
+    .unwrap();
+    assert_eq!(s.render.method.name(), "texture-bicubic");
     let text = format!("{BASE}\n[display]\nbackground = [0, -1, 0]\n");
     assert_error(&text, "background", &["display.background", ">= 0"]);
     let text = format!("{BASE}\n[[spots]]\nposition = [0, 0, 1]\ndirection = [0, 0, 0]\nintensity = [1, 1, 1]\nhalf_angle = 30\n");
