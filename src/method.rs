@@ -126,11 +126,6 @@ impl Method {
             m => m,
         })
     }
-
-    /// Whether the method draws radiosity textures (and so builds them).
-    pub fn uses_textures(self) -> bool {
-        matches!(self, Method::Texture(_))
-    }
 }
 
 /// Checks an antialiasing sample count named `option` (`--aa`, `render.aa`).

@@ -215,11 +215,6 @@ impl View {
         }
     }
 
-    /// Whether the projection is perspective.
-    pub fn is_perspective(&self) -> bool {
-        self.perspective
-    }
-
     /// Transforms, clips and sets up polygon `id`; `None` when nothing of it can be seen (behind
     /// the near plane, outside the guard band, or edge-on: a plane through the eye projects to a
     /// line and covers no pixel centre).

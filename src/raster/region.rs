@@ -31,10 +31,7 @@ use super::geometry::plane;
 use super::setup::{
     clamp_uv, invert_bilinear, triangle_u, Edge, InverseKind, Prim, MAX_EDGES, ONE,
 };
-use crate::lanes::F32x8;
-
-/// Lanes per block.
-pub const LANES: usize = 8;
+use crate::lanes::{F32x8, LANES};
 
 /// The frame's grid of regions.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

@@ -350,11 +350,6 @@ impl MeshModel {
             stats,
         })
     }
-
-    /// Number of triangles.
-    pub fn triangle_count(&self) -> usize {
-        self.patches.len()
-    }
 }
 
 /// Each triangle is one scene polygon with one patch: the patch id is the polygon id.

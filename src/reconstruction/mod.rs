@@ -125,14 +125,6 @@ impl PatchCoeffs {
         ((u - self.u0) * self.inv_w, (v - self.v0) * self.inv_w)
     }
 
-    /// Whether (u, v) lies strictly inside the patch's square, farther than `margin` (in local
-    /// units) from its sides.
-    #[inline]
-    pub fn contains_strictly(&self, u: f32, v: f32, margin: f32) -> bool {
-        let (s, t) = self.local(u, v);
-        s > margin && s < 1.0 - margin && t > margin && t < 1.0 - margin
-    }
-
     /// Value at global (u, v). Local (s, t) are clamped into [0, 1] (NaN to 0), so a point outside
     /// the cell evaluates the nearest edge. With u0 dyadic and inv_w a power of two, s is exact for
     /// u inside the cell, so the cell's edges are evaluated at exactly s = 0 or 1.
