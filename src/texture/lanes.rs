@@ -37,6 +37,9 @@ pub type Rgb8 = [F32x8; 3];
 /// [`check_level`]).
 #[inline(always)]
 unsafe fn gather<const HW: bool>(texels: &[Vec3], idx: &[i32; LANES]) -> Rgb8 {
+    // The dispatch is the caller's: HW = true is only instantiated behind
+    // `crate::lanes::avx2_available()` (the texture shader's AVX2 build; never with the
+    // `portable` feature) and in the tests that compare the two gathers on AVX2 CPUs.
     #[cfg(target_arch = "x86_64")]
     if HW {
         // SAFETY: HW is only instantiated on AVX2 CPUs (see `Sampler::sample8_with`); the
