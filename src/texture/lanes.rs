@@ -372,7 +372,7 @@ mod tests {
                 .map(|k| {
                     let x = |c: usize| {
                         let h = (k * 3 + c).wrapping_mul(2654435761) >> 5;
-                        if h % 11 == 0 {
+                        if h.is_multiple_of(11) {
                             odd[h % odd.len()]
                         } else {
                             (h % 1999) as f32 * 0.37 - 300.0
