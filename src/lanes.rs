@@ -6,11 +6,37 @@
 //! Invariant: every operation is the lane-wise IEEE operation and nothing else (no fused
 //! multiply-add, no reassociation), so a lane computes the same bits as the scalar expression
 //! written in the same order.
+//!
+//! AVX2 builds and the `portable` feature: the rasterizer, the patch and texture shaders and
+//! (through the texture shader) the texel gather are compiled twice, a portable body and a
+//! `#[target_feature(enable = "avx2")]` build of the same body; each dispatch site takes the AVX2
+//! build only when [`avx2_available`] says so. Built with the cargo feature `portable`
+//! (`cargo test --release --features portable`), [`avx2_available`] is always `false`, so every
+//! hot loop runs its portable body even on a CPU with AVX2: that is how the portable bodies get
+//! tested on such machines (the default build's tests compare the two builds bit for bit). The
+//! image does not depend on the build.
 
 use std::ops::{Add, Mul, Sub};
 
 /// Number of lanes.
 pub const LANES: usize = 8;
+
+/// Whether the dispatch sites may run their AVX2 builds: the CPU supports AVX2 (detected at run
+/// time; std caches the answer) and the crate was built without the `portable` feature. Always
+/// `false` off x86-64 and with `portable`. The library calls a `#[target_feature(enable =
+/// "avx2")]` function only after this returned `true` (the tests that compare the two builds
+/// check the CPU themselves).
+#[inline(always)]
+pub fn avx2_available() -> bool {
+    #[cfg(target_arch = "x86_64")]
+    {
+        !cfg!(feature = "portable") && std::arch::is_x86_feature_detected!("avx2")
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        false
+    }
+}
 
 /// 8 `f32` lanes.
 #[derive(Clone, Copy, Debug, PartialEq, Default)]
@@ -58,6 +84,15 @@ lane_op!(Mul, mul, *);
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn avx2_builds_run_where_the_cpu_has_avx2_unless_portable() {
+        #[cfg(target_arch = "x86_64")]
+        let cpu = std::arch::is_x86_feature_detected!("avx2");
+        #[cfg(not(target_arch = "x86_64"))]
+        let cpu = false;
+        assert_eq!(avx2_available(), cpu && !cfg!(feature = "portable"));
+    }
 
     #[test]
     fn lanes_compute_the_scalar_expression() {

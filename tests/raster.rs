@@ -739,3 +739,230 @@ fn empty_scene_renders_the_background_everywhere() {
     );
     assert_eq!(f.stats.composition_traffic_bytes, 0);
 }
+
+// The lane paths' two builds. With AVX2 (and without the `portable` feature) `rasterize`,
+// `shade_region_into` and `shade_region_texture_into` run their AVX2 builds; the `_portable`
+// entry points always run the portable bodies. Both must write the same bits. (Without AVX2, or
+// with `portable`, these tests compare the portable build with itself.)
+
+/// The region G-buffers of a frame of `scene` (one renderer: no composition), every binned
+/// primitive rasterized with `raster`, and the fragments it counted.
+fn regions_rasterized_with(
+    scene: &Scene,
+    opts: &FrameOptions,
+    raster: fn(
+        &pixelflow_sim::raster::setup::Prim,
+        &mut pixelflow_sim::raster::gbuffer::RegionGBuffer,
+        &[(f32, f32)],
+    ) -> u64,
+) -> (Vec<pixelflow_sim::raster::gbuffer::RegionGBuffer>, u64) {
+    use pixelflow_sim::raster::{gbuffer::RegionGBuffer, region::RegionGrid, sample_offsets};
+    let prims = build_primitives(scene, &scene.camera, opts).unwrap();
+    let offsets = sample_offsets(opts.aa).unwrap();
+    let grid = RegionGrid::new(opts.width, opts.height, opts.region);
+    let bins = grid.bin(prims.iter().enumerate());
+    let mut fragments = 0;
+    let mut regions = Vec::new();
+    for (r, bin) in bins.iter().enumerate().filter(|(_, b)| !b.is_empty()) {
+        let (x0, y0, w, h) = grid.rect(r as u32);
+        let mut gb = RegionGBuffer::new(r as u32, x0, y0, w, h, offsets.len() as u32);
+        for &k in bin {
+            fragments += raster(&prims[k as usize], &mut gb, offsets);
+        }
+        regions.push(gb);
+    }
+    (regions, fragments)
+}
+
+fn bits(x: &[f32]) -> Vec<u32> {
+    x.iter().map(|x| x.to_bits()).collect()
+}
+
+fn pixel_bits(x: &[Vec3]) -> Vec<[u32; 3]> {
+    x.iter().map(|p| p.to_array().map(f32::to_bits)).collect()
+}
+
+/// busy_scene (perspective: quads, triangles, a floor clipped at the near plane), the jittered
+/// mesh seen orthographically (with a parallelogram over it) and the same mesh seen obliquely.
+fn lane_test_scenes() -> Vec<(&'static str, Scene)> {
+    let (w, h) = (97, 61);
+    let mut flat = mesh(w, h, 8, false, |x, y| DVec3::new(x, y, 0.0));
+    // A parallelogram in front of the mesh: the orthographic linear-inverse kernel.
+    let p = |x: f64, y: f64| DVec3::new(x, y, 0.5);
+    flat.push(
+        Polygon::quad(
+            [p(10.3, 5.2), p(60.7, 5.2), p(70.1, 40.9), p(19.7, 40.9)],
+            0,
+            0,
+        )
+        .unwrap(),
+    );
+    let ortho = scene_with(flat, ortho_pixels(w, h), w, h);
+    let oblique = mesh(w, h, 8, false, |x, y| {
+        DVec3::new(x / 113.0 * 40.0 - 20.0, y / 77.0 * 40.0 - 20.0, 0.0)
+    });
+    let camera = Camera {
+        eye: DVec3::new(0.3, -2.0, 4.0),
+        look_at: DVec3::ZERO,
+        up: DVec3::Y,
+        projection: Projection::Perspective { fov_y_deg: 60.0 },
+    };
+    vec![
+        ("busy", busy_scene(150, 100)),
+        ("ortho mesh", ortho),
+        ("oblique mesh", scene_with(oblique, camera, w, h)),
+    ]
+}
+
+#[test]
+fn rasterizer_avx2_and_portable_builds_write_the_same_gbuffers() {
+    use pixelflow_sim::raster::region::{rasterize, rasterize_portable};
+    use pixelflow_sim::raster::setup::InverseKind;
+    if !pixelflow_sim::lanes::avx2_available() {
+        eprintln!("AVX2 build not in use: comparing the portable build with itself");
+    }
+    // Every compiled kernel (perspective or not x linear, triangle or general inverse) runs.
+    let mut kernels = std::collections::BTreeSet::new();
+    for (name, scene) in lane_test_scenes() {
+        let mut opts = FrameOptions::new(scene.width, scene.height);
+        opts.region = 64; // narrower last column and row of regions
+        let prims = build_primitives(&scene, &scene.camera, &opts).unwrap();
+        for p in &prims {
+            kernels.insert((p.perspective, format!("{:?}", p.kind), p.n_edges > 4));
+        }
+        for aa in [1, 4, 16] {
+            opts.aa = aa;
+            let (want, f_want) = regions_rasterized_with(&scene, &opts, rasterize_portable);
+            let (got, f_got) = regions_rasterized_with(&scene, &opts, rasterize);
+            assert_eq!(f_got, f_want, "{name} aa {aa}: fragments");
+            assert!(f_want > 0 && want.len() == got.len());
+            for (g, p) in got.iter().zip(&want) {
+                let at = format!("{name} aa {aa} region {}", p.region);
+                assert_eq!(bits(&g.depth), bits(&p.depth), "{at}: depth");
+                assert_eq!(g.polygon, p.polygon, "{at}: polygon");
+                assert_eq!(bits(&g.u), bits(&p.u), "{at}: u");
+                assert_eq!(bits(&g.v), bits(&p.v), "{at}: v");
+            }
+        }
+    }
+    for persp in [false, true] {
+        for kind in [
+            InverseKind::Linear,
+            InverseKind::Triangle,
+            InverseKind::General,
+        ] {
+            assert!(
+                kernels
+                    .iter()
+                    .any(|k| k.0 == persp && k.1 == format!("{kind:?}")),
+                "no primitive for perspective {persp}, {kind:?}: {kernels:?}"
+            );
+        }
+    }
+    assert!(
+        kernels.iter().any(|k| k.2),
+        "no clipped primitive (> 4 edges)"
+    );
+}
+
+#[test]
+fn patch_shader_avx2_and_portable_builds_shade_the_same_bits() {
+    use pixelflow_sim::raster::region::rasterize;
+    use pixelflow_sim::shading::patches::{shade_region_into, shade_region_into_portable};
+    let bg = Vec3::new(0.25, -0.5, 3.0);
+    let mut blocks = (0, 0);
+    for (name, scene) in lane_test_scenes() {
+        // Discontinuous 3 x 3 patches per polygon: blocks with one patch and blocks mixing
+        // patches, polygons and empty samples.
+        let source = GridSource::new(scene.polygons.len() as u32, 3);
+        let mut opts = FrameOptions::new(scene.width, scene.height);
+        opts.region = 64;
+        for aa in [1, 4] {
+            opts.aa = aa;
+            let (mut regions, _) = regions_rasterized_with(&scene, &opts, rasterize);
+            for gb in &mut regions {
+                gb.assign_patches(&source);
+                // Rows `pitch` apart, wider than the region, as in a frame.
+                let pitch = gb.width as usize + 5;
+                let n = (gb.height as usize - 1) * pitch + gb.width as usize;
+                let mut want = vec![Vec3::splat(-7.0); n];
+                let mut got = vec![Vec3::splat(-7.0); n];
+                let c_want = shade_region_into_portable(gb, bg, &mut want, pitch);
+                let c_got = shade_region_into(gb, bg, &mut got, pitch);
+                let at = format!("{name} aa {aa} region {}", gb.region);
+                assert_eq!(c_got, c_want, "{at}");
+                assert_eq!(pixel_bits(&got), pixel_bits(&want), "{at}");
+                blocks.0 += c_want.uniform_blocks;
+                blocks.1 += c_want.mixed_blocks;
+            }
+        }
+    }
+    assert!(blocks.0 > 100 && blocks.1 > 100, "{blocks:?}");
+}
+
+#[test]
+fn texture_shader_avx2_and_portable_builds_shade_the_same_bits() {
+    use pixelflow_sim::raster::region::rasterize;
+    use pixelflow_sim::shading::texture::{
+        shade_region_texture_into, shade_region_texture_into_portable,
+    };
+    use pixelflow_sim::texture::{Filter, RadiosityTexture, TextureMemory, TextureSet};
+    let bg = Vec3::new(0.25, -0.5, 3.0);
+    for (name, scene) in lane_test_scenes() {
+        // Textures of 4 to 256 texels a side (magnified and minified, trilinear blends), all
+        // texels distinct; the last 3 polygons have none (they shade black).
+        let n_tex = scene.polygons.len() - 3;
+        let sides: Vec<u32> = (0..n_tex).map(|p| [4, 256, 16, 64][p % 4]).collect();
+        let textures = sides
+            .iter()
+            .enumerate()
+            .map(|(p, &n)| {
+                let t = (0..n * n)
+                    .map(|i| {
+                        let h = (i ^ (p as u32) << 20).wrapping_mul(2654435761) >> 8;
+                        Vec3::new(
+                            (h % 97) as f32 * 0.01,
+                            (h % 89) as f32 * 0.02 - 0.3,
+                            (h % 83) as f32 * 0.5,
+                        )
+                    })
+                    .collect();
+                RadiosityTexture::from_texels(n, n, t).unwrap()
+            })
+            .collect();
+        let set = TextureSet {
+            textures,
+            memory: TextureMemory::of_sides(&sides),
+        };
+        let mut opts = FrameOptions::new(scene.width, scene.height);
+        opts.region = 64;
+        opts.aa = 4;
+        let (regions, _) = regions_rasterized_with(&scene, &opts, rasterize);
+        for filter in [
+            Filter::Nearest,
+            Filter::Bilinear,
+            Filter::MITCHELL,
+            Filter::CATMULL_ROM,
+        ] {
+            let mut blocks = (0, 0);
+            for gb in &regions {
+                let pitch = gb.width as usize + 5;
+                let n = (gb.height as usize - 1) * pitch + gb.width as usize;
+                let mut want = vec![Vec3::splat(-7.0); n];
+                let mut got = vec![Vec3::splat(-7.0); n];
+                let c_want =
+                    shade_region_texture_into_portable(&set, filter, gb, bg, &mut want, pitch);
+                let c_got = shade_region_texture_into(&set, filter, gb, bg, &mut got, pitch);
+                let at = format!("{name} {filter:?} region {}", gb.region);
+                assert_eq!(c_got, c_want, "{at}");
+                assert_eq!(pixel_bits(&got), pixel_bits(&want), "{at}");
+                blocks.0 += c_want.uniform_blocks;
+                blocks.1 += c_want.mixed_blocks;
+            }
+            assert!(
+                blocks.0 > 50 && blocks.1 > 50,
+                "{name} {filter:?}: {blocks:?}"
+            );
+        }
+    }
+}

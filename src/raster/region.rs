@@ -233,15 +233,23 @@ fn offset_fixed(offsets: &[(f32, f32)], si: usize) -> (i64, i64) {
 /// counted before the depth test).
 ///
 /// On x86-64 CPUs with AVX2 the same code is compiled a second time with 8-wide registers and
-/// chosen at run time; without FMA both builds perform identical IEEE operations.
+/// chosen at run time ([`crate::lanes::avx2_available`]; never with the `portable` feature);
+/// without FMA both builds perform identical IEEE operations.
 pub fn rasterize(prim: &Prim, gb: &mut RegionGBuffer, offsets: &[(f32, f32)]) -> u64 {
     #[cfg(target_arch = "x86_64")]
     {
-        if std::arch::is_x86_feature_detected!("avx2") {
+        if crate::lanes::avx2_available() {
             // SAFETY: the CPU supports AVX2, checked just above.
             return unsafe { rasterize_avx2(prim, gb, offsets) };
         }
     }
+    rasterize_portable(prim, gb, offsets)
+}
+
+/// The portable build of [`rasterize`], whatever the CPU: public for the tests that compare it
+/// with the AVX2 build.
+#[doc(hidden)]
+pub fn rasterize_portable(prim: &Prim, gb: &mut RegionGBuffer, offsets: &[(f32, f32)]) -> u64 {
     rasterize_body(prim, gb, offsets)
 }
 

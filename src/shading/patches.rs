@@ -48,8 +48,9 @@ pub fn shade_region(gb: &RegionGBuffer, background: Vec3) -> (Vec<Vec3>, ShadeCo
 /// whose rows are `pitch` pixels apart (a frame: pitch = frame width).
 ///
 /// On x86-64 CPUs with AVX2 the same code is compiled a second time with 8-wide registers and
-/// chosen at run time; without FMA the two builds perform identical IEEE operations, so the image
-/// does not depend on the CPU.
+/// chosen at run time ([`crate::lanes::avx2_available`]; never with the `portable` feature);
+/// without FMA the two builds perform identical IEEE operations, so the image does not depend on
+/// the CPU.
 pub fn shade_region_into(
     gb: &RegionGBuffer,
     background: Vec3,
@@ -62,11 +63,23 @@ pub fn shade_region_into(
     );
     #[cfg(target_arch = "x86_64")]
     {
-        if std::arch::is_x86_feature_detected!("avx2") {
+        if crate::lanes::avx2_available() {
             // SAFETY: the CPU supports AVX2, checked just above.
             return unsafe { shade_region_avx2(gb, background, dst, pitch) };
         }
     }
+    shade_region_into_portable(gb, background, dst, pitch)
+}
+
+/// The portable build of [`shade_region_into`], whatever the CPU: public for the tests that
+/// compare it with the AVX2 build.
+#[doc(hidden)]
+pub fn shade_region_into_portable(
+    gb: &RegionGBuffer,
+    background: Vec3,
+    dst: &mut [Vec3],
+    pitch: usize,
+) -> ShadeCounts {
     shade_region_body(gb, background, dst, pitch)
 }
 

@@ -84,7 +84,8 @@ fn shade_region_texture_scalar(
 ///
 /// Built like the direct path: blocks of 8 samples of a row, derivatives and texture lookups in
 /// [`F32x8`] lanes ([`Sampler::sample8`]), one lane group per distinct polygon of the block
-/// (nearly always one), compiled a second time for AVX2 and chosen at run time. Every lane
+/// (nearly always one), compiled a second time for AVX2 and chosen at run time
+/// ([`crate::lanes::avx2_available`]; never with the `portable` feature). Every lane
 /// performs the scalar operations in the scalar order, so the image has the bits of the
 /// sample-by-sample form and does not depend on the CPU.
 pub fn shade_region_texture_into(
@@ -99,14 +100,29 @@ pub fn shade_region_texture_into(
         gb.height == 0 || dst.len() >= (gb.height as usize - 1) * pitch + gb.width as usize,
         "destination too small for the region"
     );
-    let sampler = Sampler::new(filter);
     #[cfg(target_arch = "x86_64")]
     {
-        if std::arch::is_x86_feature_detected!("avx2") {
+        if crate::lanes::avx2_available() {
+            let sampler = Sampler::new(filter);
             // SAFETY: the CPU supports AVX2, checked just above.
             return unsafe { shade_texture_avx2(set, &sampler, gb, background, dst, pitch) };
         }
     }
+    shade_region_texture_into_portable(set, filter, gb, background, dst, pitch)
+}
+
+/// The portable build of [`shade_region_texture_into`] (portable texel loads too), whatever the
+/// CPU: public for the tests that compare it with the AVX2 build.
+#[doc(hidden)]
+pub fn shade_region_texture_into_portable(
+    set: &TextureSet,
+    filter: Filter,
+    gb: &RegionGBuffer,
+    background: Vec3,
+    dst: &mut [Vec3],
+    pitch: usize,
+) -> ShadeCounts {
+    let sampler = Sampler::new(filter);
     // SAFETY: HW = false: portable code only.
     unsafe { shade_texture_body::<false>(set, &sampler, gb, background, dst, pitch) }
 }

@@ -37,6 +37,9 @@ pub type Rgb8 = [F32x8; 3];
 /// [`check_level`]).
 #[inline(always)]
 unsafe fn gather<const HW: bool>(texels: &[Vec3], idx: &[i32; LANES]) -> Rgb8 {
+    // The dispatch is the caller's: HW = true is only instantiated behind
+    // `crate::lanes::avx2_available()` (the texture shader's AVX2 build; never with the
+    // `portable` feature) and in the tests that compare the two gathers on AVX2 CPUs.
     #[cfg(target_arch = "x86_64")]
     if HW {
         // SAFETY: HW is only instantiated on AVX2 CPUs (see `Sampler::sample8_with`); the
@@ -338,5 +341,76 @@ impl Sampler {
             }
         }
         out
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The AVX2 gather loads the bits the portable gather loads, in every lane and channel, for
+    /// every index of arrays of several lengths (the first and the last texel included) and for
+    /// texels that are not ordinary numbers (the loads must not touch the bits).
+    #[cfg(target_arch = "x86_64")]
+    #[test]
+    fn avx2_gather_loads_the_bits_of_the_portable_gather() {
+        if !std::arch::is_x86_feature_detected!("avx2") {
+            eprintln!("no AVX2 on this CPU: only the portable gather exists here");
+            return;
+        }
+        let odd = [
+            f32::NAN,
+            -f32::NAN,
+            f32::INFINITY,
+            f32::NEG_INFINITY,
+            -0.0,
+            f32::MIN_POSITIVE / 4.0,
+            f32::MAX,
+        ];
+        for n in [1usize, 2, 7, 8, 9, 64, 1000, 4096] {
+            let texels: Vec<Vec3> = (0..n)
+                .map(|k| {
+                    let x = |c: usize| {
+                        let h = (k * 3 + c).wrapping_mul(2654435761) >> 5;
+                        if h.is_multiple_of(11) {
+                            odd[h % odd.len()]
+                        } else {
+                            (h % 1999) as f32 * 0.37 - 300.0
+                        }
+                    };
+                    Vec3::new(x(0), x(1), x(2))
+                })
+                .collect();
+            // Every index in order, in reverse, and scattered, 8 lanes at a time.
+            let orders: [Box<dyn Fn(usize) -> usize>; 3] = [
+                Box::new(|k| k % n),
+                Box::new(|k| n - 1 - k % n),
+                Box::new(|k| (k * 7919 + 13) % n),
+            ];
+            for order in &orders {
+                for k0 in (0..n.max(LANES)).step_by(LANES) {
+                    let idx: [i32; LANES] = std::array::from_fn(|l| order(k0 + l) as i32);
+                    // SAFETY: every index is below n = texels.len(); AVX2 is available.
+                    let (hw, port) = unsafe {
+                        (
+                            gather::<true>(&texels, &idx),
+                            gather::<false>(&texels, &idx),
+                        )
+                    };
+                    for l in 0..LANES {
+                        let t = texels[idx[l] as usize].to_array();
+                        for ch in 0..3 {
+                            assert_eq!(port[ch].0[l].to_bits(), t[ch].to_bits());
+                            assert_eq!(
+                                hw[ch].0[l].to_bits(),
+                                port[ch].0[l].to_bits(),
+                                "n {n}, index {}, channel {ch}",
+                                idx[l]
+                            );
+                        }
+                    }
+                }
+            }
+        }
     }
 }
