@@ -92,7 +92,7 @@ impl FrameOptions {
                 MAX_RENDERERS.into(),
             ));
         }
-        if self.region < 8 || self.region > 1024 || self.region % 8 != 0 {
+        if self.region < 8 || self.region > 1024 || !self.region.is_multiple_of(8) {
             return Err(Error::invalid_option(
                 "--region",
                 self.region.to_string(),

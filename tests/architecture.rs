@@ -92,7 +92,8 @@ fn strip(text: &str) -> String {
             while b.get(j) == Some(&b'#') {
                 j += 1;
             }
-            b.get(j) == Some(&b'"') && (i == 0 || !(b[i - 1].is_ascii_alphanumeric() || b[i - 1] == b'_'))
+            b.get(j) == Some(&b'"')
+                && (i == 0 || !(b[i - 1].is_ascii_alphanumeric() || b[i - 1] == b'_'))
         } {
             // Raw string r#"..."#.
             let mut j = i + 1;
@@ -282,7 +283,10 @@ fn module_of(path: &Path) -> Option<String> {
 /// The directory a file's child modules live in (`src/a/mod.rs` -> `src/a`, `src/a/b.rs` ->
 /// `src/a/b`).
 fn child_dir(path: &Path) -> PathBuf {
-    if path.file_name().is_some_and(|n| n == "mod.rs" || n == "lib.rs") {
+    if path
+        .file_name()
+        .is_some_and(|n| n == "mod.rs" || n == "lib.rs")
+    {
         path.parent().unwrap().to_path_buf()
     } else {
         path.with_extension("")
@@ -341,7 +345,10 @@ fn every_crate_edge_points_down_the_data_flow() {
     let all = edges();
     assert!(all.len() > 50, "the scan found only {} edges", all.len());
     for (file, line, from, to) in &all {
-        let rel = file.strip_prefix(src().parent().unwrap()).unwrap().display();
+        let rel = file
+            .strip_prefix(src().parent().unwrap())
+            .unwrap()
+            .display();
         match (rank(from), rank(to)) {
             (Some(a), Some(b)) if b < a => {}
             (Some(_), Some(_)) => bad.push(format!(
@@ -352,7 +359,11 @@ fn every_crate_edge_points_down_the_data_flow() {
             )),
         }
     }
-    assert!(bad.is_empty(), "edges against the data flow:\n{}", bad.join("\n"));
+    assert!(
+        bad.is_empty(),
+        "edges against the data flow:\n{}",
+        bad.join("\n")
+    );
 }
 
 /// The scanner itself: it sees grouped, nested and inline paths, and ignores comments, strings

@@ -167,7 +167,10 @@ fn bad_texture_options_and_names_exit_2() {
             ],
             "budget",
         ),
-        (vec!["render", &ts, "--method", "phong"], "--method phong: is not a method"),
+        (
+            vec!["render", &ts, "--method", "phong"],
+            "--method phong: is not a method",
+        ),
         (vec!["experiment", "fig7"], "fig5, fig6, table1 or all"),
     ] {
         let o = run(&args);

@@ -104,7 +104,15 @@ fn a_closed_stdout_ends_quietly() {
     let ts = ts.to_str().unwrap();
     let png = tmp("pipe.png");
     let exr = tmp("pipe.exr");
-    let o = run(&["render", ts, "-o", png.to_str().unwrap(), "--exr", exr.to_str().unwrap(), "-q"]);
+    let o = run(&[
+        "render",
+        ts,
+        "-o",
+        png.to_str().unwrap(),
+        "--exr",
+        exr.to_str().unwrap(),
+        "-q",
+    ]);
     assert!(o.status.success(), "{}", stderr(&o));
     let exr = exr.to_str().unwrap();
     let exp = tmp("pipe-exp");
@@ -113,8 +121,27 @@ fn a_closed_stdout_ends_quietly() {
         &["compare", exr, exr, "--json"],
         &["stats", ts, "--json"],
         &["bench", ts, "--sizes", "16", "--frames", "1"],
-        &["render", ts, "-o", png.to_str().unwrap(), "-q", "-v", "--width", "16", "--height", "16"],
-        &["experiment", "fig6", "--size", "16", "--json", "--out-dir", exp.to_str().unwrap()],
+        &[
+            "render",
+            ts,
+            "-o",
+            png.to_str().unwrap(),
+            "-q",
+            "-v",
+            "--width",
+            "16",
+            "--height",
+            "16",
+        ],
+        &[
+            "experiment",
+            "fig6",
+            "--size",
+            "16",
+            "--json",
+            "--out-dir",
+            exp.to_str().unwrap(),
+        ],
     ];
     for args in cases {
         // The read end is closed before the program starts, so its first write fails with EPIPE.

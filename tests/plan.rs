@@ -137,7 +137,10 @@ fn bad_bench_and_stats_options_are_refused_before_the_solve() {
     assert_eq!(stats(|r| r.frame.aa = 5), "--aa");
     assert_eq!(stats(|r| r.frame.width = 0), "--width");
     assert_eq!(stats(|r| r.texture.budget = Some(3)), "--texture-budget");
-    assert_eq!(stats(|r| r.texture.bicubic = Some((0.0, -1.0))), "--bicubic");
+    assert_eq!(
+        stats(|r| r.texture.bicubic = Some((0.0, -1.0))),
+        "--bicubic"
+    );
 }
 
 /// The recorder does see a solve that starts: without this the tests above could pass with an

@@ -757,7 +757,14 @@ fn regions_rasterized_with(
     ) -> u64,
 ) -> (Vec<pixelflow_sim::raster::gbuffer::RegionGBuffer>, u64) {
     use pixelflow_sim::raster::{gbuffer::RegionGBuffer, region::RegionGrid, sample_offsets};
-    let prims = build_primitives(scene, &scene.camera, opts).unwrap();
+    let prims = build_primitives(
+        scene,
+        &scene.camera,
+        opts.width,
+        opts.height,
+        opts.cull_back_faces,
+    )
+    .unwrap();
     let offsets = sample_offsets(opts.aa).unwrap();
     let grid = RegionGrid::new(opts.width, opts.height, opts.region);
     let bins = grid.bin(prims.iter().enumerate());
@@ -826,7 +833,14 @@ fn rasterizer_avx2_and_portable_builds_write_the_same_gbuffers() {
     for (name, scene) in lane_test_scenes() {
         let mut opts = FrameOptions::new(scene.width, scene.height);
         opts.region = 64; // narrower last column and row of regions
-        let prims = build_primitives(&scene, &scene.camera, &opts).unwrap();
+        let prims = build_primitives(
+            &scene,
+            &scene.camera,
+            opts.width,
+            opts.height,
+            opts.cull_back_faces,
+        )
+        .unwrap();
         for p in &prims {
             kernels.insert((p.perspective, format!("{:?}", p.kind), p.n_edges > 4));
         }

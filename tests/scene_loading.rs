@@ -518,7 +518,11 @@ fn other_settings_are_checked() {
     assert_error(
         &text,
         "texturebilinear",
-        &["render.method", "`texturebilinear` is not a method", "texture-bilinear"],
+        &[
+            "render.method",
+            "`texturebilinear` is not a method",
+            "texture-bilinear",
+        ],
     );
     let s = parse_scene(
         &format!("{BASE}\n[render]\nmethod = \"texture-bicubic\"\n"),

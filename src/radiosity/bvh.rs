@@ -330,7 +330,7 @@ fn sah_split(idx: &mut [u32], boxes: &[Aabb], cents: &[DVec3]) -> Option<usize> 
                 continue;
             }
             let cost = lb.half_area() * ln as f64 + rb.half_area() * rn as f64;
-            if best.map_or(true, |(c, _, _)| cost < c) {
+            if best.is_none_or(|(c, _, _)| cost < c) {
                 best = Some((cost, axis, lo + ext * k as f64 / BINS as f64));
             }
         }

@@ -292,7 +292,7 @@ pub(crate) fn run_with_cache(
             }
             let Some(s) = best else { break };
             let db = unshot[s];
-            if trace && shots % 100 == 0 {
+            if trace && shots.is_multiple_of(100) {
                 observer.trace(&format!(
                     "  shot {shots}: {:.0} ms, unshot {frac:.4}, rays {}",
                     elapsed_ms(t0),

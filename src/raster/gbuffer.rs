@@ -305,7 +305,7 @@ mod tests {
             if (i % stride) as u32 >= region_w || seed >> 28 == 0 {
                 continue; // padding lane or a hole
             }
-            gb.polygon[i] = if (y as u32 / 5 + plane as u32) % 3 == 0 {
+            gb.polygon[i] = if (y as u32 / 5 + plane as u32).is_multiple_of(3) {
                 1
             } else {
                 0

@@ -332,7 +332,7 @@ impl MeshModel {
         let mut source_polygon = Vec::with_capacity(total);
         let (mut vertices, mut t_vertices) = (0u64, 0u64);
         for (i, part) in parts.into_iter().enumerate() {
-            source_polygon.extend(std::iter::repeat(i as u32).take(part.triangles.len()));
+            source_polygon.extend(std::iter::repeat_n(i as u32, part.triangles.len()));
             tris.extend(part.triangles);
             patches.extend(part.patches);
             parent_uv.extend(part.uv);

@@ -218,7 +218,7 @@ pub fn shade_regions(
     let mut by_band: Vec<Vec<&RegionGBuffer>> = vec![Vec::new(); bands];
     for r in regions {
         let band = r.y0 as usize / size;
-        if band < bands && r.y0 as usize % size == 0 && r.x0 + r.width <= width {
+        if band < bands && (r.y0 as usize).is_multiple_of(size) && r.x0 + r.width <= width {
             by_band[band].push(r);
         }
     }
