@@ -1,4 +1,4 @@
-//! Frame benchmark (issue 5): frame time of the direct method at 512, 1024 and 2048 pixels square
+//! Frame benchmark: frame time of the direct method at 512, 1024 and 2048 pixels square
 //! for a code-built room of a few hundred quads seen from inside (every pixel covered), frame time
 //! against polygon count at 1024, and the deferred pass alone in Mpixel/s: RRPs (direct) and the
 //! texture filters on the same G-buffers.

@@ -3,7 +3,7 @@
 //! composition network merges, region by region, the G-buffers of every renderer that had
 //! primitives there into one, by depth, ties broken by the smaller polygon id, then hands the
 //! composited region on to the deferred shading stage. PixelFlow built this network in hardware
-//! (a pipelined z-compare over all renderers, FACTS.md sec. 5); here it is a compositor thread
+//! (a pipelined z-compare over all renderers: Molnar, Eyles and Poulton, SIGGRAPH 1992); here it is a compositor thread
 //! between crossbeam channels: renderer tasks -> compositor -> shading.
 //!
 //! Invariants: the merge is commutative and associative (depth, then polygon id, is a total order

@@ -137,7 +137,7 @@ fn distance_grows_with_noise_amplitude() {
     }
 }
 
-/// FACTS.md sec. 4 written out as plainly as possible, with an O(W^2 H^2) DFT, independent of the
+/// The metric of docs/metrics.md written out as plainly as possible, with an O(W^2 H^2) DFT, independent of the
 /// module's code.
 fn direct_distance(a: &[f64], b: &[f64], w: usize, h: usize, ppd: f64) -> f64 {
     let l = |y: &[f64]| -> Vec<f64> {

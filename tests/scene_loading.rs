@@ -1,5 +1,5 @@
 //! Scene loading: the three shipped scenes load with the exact contents their files describe,
-//! every kind of bad input of issue 2 (point 4) is refused with a message that names file, line
+//! every kind of bad input is refused with a message that names file, line
 //! and key, and no input makes the loader panic (property tests on random and mutated files).
 
 use glam::DVec3;
@@ -148,7 +148,7 @@ fn two_spots_scene_is_one_unit_square_filling_the_image() {
     assert!(!(large.position.x < 0.5 && large.position.y > 0.5));
     assert!((small.half_angle - 40f64.to_radians()).abs() < 1e-15);
     assert!((large.half_angle - 60f64.to_radians()).abs() < 1e-15);
-    // On-axis radiosity B = rho I / h^2 (FACTS.md): 3.2 for the small spot, 0.5 for the large.
+    // On-axis radiosity B = rho I / h^2: 3.2 for the small spot, 0.5 for the large.
     let b = |l: &pixelflow_sim::scene::SpotLight| 0.8 * l.intensity.x / l.position.z.powi(2);
     assert!((b(small) - 3.2).abs() < 1e-12 && (b(large) - 0.5).abs() < 1e-12);
     assert_eq!(s.radiosity.max_depth, 7);
@@ -277,7 +277,7 @@ fn defaults_fill_absent_sections() {
 }
 
 // ---------------------------------------------------------------------------------------------
-// Every error of issue 2 point 4 (and the brief's list), with file, line and key.
+// Every kind of bad input, with file, line and key.
 
 #[test]
 fn unknown_keys_are_refused_with_their_line() {

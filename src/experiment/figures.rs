@@ -527,7 +527,7 @@ pub fn figure_text(f: &Figure) -> String {
     let (pb, pl) = f.paper;
     let d = |k: &str| f.distance(k).map_or("-".into(), |x| format!("{x:.4}"));
     let mut t = format!(
-        "{}: perceptual distance to the reference (FACTS.md sec. 4, {} pixels per degree)\n",
+        "{}: perceptual distance to the reference (docs/metrics.md, {} pixels per degree)\n",
         f.name, f.ppd
     );
     t += "                 reference    bicubic   bilinear     direct\n";

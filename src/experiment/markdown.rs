@@ -171,7 +171,7 @@ pub fn markdown(r: &Results, req: &Request, doc: &Path) -> Result<String> {
     );
     t += &format!(
         "Machine: {} worker threads (the project's reference machine has 2 cores and 24 GB). \
-         Perceptual distance: FACTS.md sec. 4 at {} pixels per degree (`docs/metrics.md`); the \
+         Perceptual distance: `docs/metrics.md` at {} pixels per degree; the \
          paper's absolute values cannot be reproduced (its viewing geometry and scaling are \
          unknown), so compare orderings and ratios. All distances are to **the oracle \
          reference**: the solver's exact radiosity at every pixel centre.\n\n",
@@ -286,7 +286,7 @@ pub fn markdown(r: &Results, req: &Request, doc: &Path) -> Result<String> {
 fn discussion(table1: &[ModelStats]) -> String {
     let mut t = String::from(
         "- **Orderings, not values.** Our perceptual distances are on a different scale from the \
-         paper's (FACTS.md sec. 4: unknown viewing geometry and scaling); compare orderings and \
+         paper's (its viewing geometry and scaling are unknown); compare orderings and \
          the bicubic / bilinear ratio.\n\
          - **The reference.** The paper compared with a depth-9 full sampling; we compare with the \
          solver's oracle per pixel. At 256 x 256 the two are the same image (every pixel centre is \

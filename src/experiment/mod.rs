@@ -14,7 +14,7 @@
 //! Invariants: the images depend only on the scene, the sizes and the solver's fixed seeds
 //! (deterministic for any thread count); every number printed comes from
 //! [`crate::metric::compare`] with the stated pixels per degree; the paper's numbers are quoted
-//! beside ours, never mixed into them. FACTS.md sec. 4 warns that the paper's absolute metric
+//! beside ours, never mixed into them. The paper does not give the viewing geometry or scaling of its metric, so its absolute metric
 //! values cannot be reproduced (its viewing geometry and scaling are unknown): compare orderings
 //! and ratios.
 //!

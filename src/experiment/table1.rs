@@ -8,7 +8,7 @@ use crate::method::Filter;
 use crate::progress::Silent;
 use std::path::{Path, PathBuf};
 
-/// One row of the paper's Table 1 (FACTS.md sec. 1).
+/// One row of the paper's Table 1 (Bastos, Goslin and Zhang).
 #[derive(Debug, Clone, Copy)]
 pub struct PaperRow {
     /// Model name.

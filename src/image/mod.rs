@@ -41,7 +41,7 @@ impl LinearImage {
     }
 }
 
-/// Rec. 709 / sRGB luminance weights of linear R, G, B (FACTS.md sec. 4 step 1).
+/// Rec. 709 / sRGB luminance weights of linear R, G, B (`docs/metrics.md`, step 1).
 pub const LUMINANCE_WEIGHTS: [f64; 3] = [0.2126, 0.7152, 0.0722];
 
 /// A linear-RGB image: `width * height` pixels, row-major, row 0 on top.
@@ -124,7 +124,7 @@ impl LinearImage {
     }
 }
 
-/// The luminance of a linear RGB value (FACTS.md sec. 4 step 1), in `f64`.
+/// The luminance of a linear RGB value (`docs/metrics.md`, step 1), in `f64`.
 pub fn luminance(p: Vec3) -> f64 {
     LUMINANCE_WEIGHTS[0] * p.x as f64
         + LUMINANCE_WEIGHTS[1] * p.y as f64

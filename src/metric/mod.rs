@@ -7,7 +7,7 @@
 //! `f64`, in a fixed loop order, so the same two images give the same bytes on every run and for
 //! any thread count (nothing here is parallel).
 //!
-//! - [`perceptual`]: the project's perceptual distance (FACTS.md sec. 4, after Rushmeier et al.
+//! - [`perceptual`]: the project's perceptual distance (`docs/metrics.md`, after Rushmeier et al.
 //!   1995, model 1, with the Mannos–Sakrison contrast sensitivity function). Its module doc quotes
 //!   the definition and says where each step is in the code.
 //! - [`mach`]: the Mach-band measure, the energy of the second differences of the
@@ -53,7 +53,7 @@ pub struct Comparison {
     pub height: u32,
     /// Pixels per degree of visual angle used by the perceptual distance.
     pub ppd: f64,
-    /// The perceptual distance of FACTS.md sec. 4 (dimensionless; 0 for equal images).
+    /// The perceptual distance of `docs/metrics.md` (dimensionless; 0 for equal images).
     pub perceptual_distance: f64,
     /// Root-mean-square luminance difference, `sqrt(mean((Y_a - Y_b)^2))`, in the images' units.
     pub rmse: f64,

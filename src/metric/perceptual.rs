@@ -1,9 +1,9 @@
-//! The perceptual distance: the project's definition (FACTS.md sec. 4), after Rushmeier et al.
+//! The perceptual distance: the project's definition (`docs/metrics.md`), after Rushmeier et al.
 //! 1995, model 1, with the Mannos–Sakrison contrast sensitivity function (CSF). The paper
 //! (Bastos et al., sec. 3.1) uses this model for Fig. 5 and Fig. 6; its viewing geometry and
 //! scaling are unknown, so only ratios of our numbers compare with the paper's.
 //!
-//! The definition, quoted from FACTS.md sec. 4, with where each step is:
+//! The definition (as in `docs/metrics.md`), with where each step is:
 //!
 //! > 1. Both images linear RGB, same size W x H. Luminance Y = 0.2126 R + 0.7152 G + 0.0722 B.
 //!
@@ -60,16 +60,16 @@ use rustfft::FftPlanner;
 use super::{luminance, validate, LinearImage};
 use crate::error::Result;
 
-/// The default viewing geometry: 32 pixels per degree of visual angle (FACTS.md sec. 4 step 5).
+/// The default viewing geometry: 32 pixels per degree of visual angle (`docs/metrics.md`, step 5).
 pub const DEFAULT_PPD: f64 = 32.0;
 
-/// The Mannos–Sakrison contrast sensitivity at `f` cycles per degree (FACTS.md sec. 4 step 6):
+/// The Mannos–Sakrison contrast sensitivity at `f` cycles per degree (`docs/metrics.md`, step 6):
 /// `A(f) = 2.6 (0.0192 + 0.114 f) exp(-(0.114 f)^1.1)`.
 pub fn csf(f: f64) -> f64 {
     2.6 * (0.0192 + 0.114 * f) * (-(0.114 * f).powf(1.1)).exp()
 }
 
-/// The signed frequency of DFT bin `k` of `n`, in cycles per pixel (FACTS.md sec. 4 step 5):
+/// The signed frequency of DFT bin `k` of `n`, in cycles per pixel (`docs/metrics.md`, step 5):
 /// `k / n` for `k < n / 2`, `(k - n) / n` otherwise.
 pub fn bin_frequency(k: usize, n: usize) -> f64 {
     // `2 k < n` is `k < n / 2` without rounding n / 2 (for odd n, n / 2 is not an integer).
@@ -80,7 +80,7 @@ pub fn bin_frequency(k: usize, n: usize) -> f64 {
     }
 }
 
-/// The perceptual distance between two images at `ppd` pixels per degree (FACTS.md sec. 4).
+/// The perceptual distance between two images at `ppd` pixels per degree (`docs/metrics.md`).
 /// Symmetric; 0 for equal images; unchanged when either image is multiplied by a positive
 /// constant. Errors as [`super::compare`].
 pub fn perceptual_distance(a: &LinearImage, b: &LinearImage, ppd: f64) -> Result<f64> {
@@ -162,7 +162,7 @@ mod tests {
 
     #[test]
     fn csf_matches_the_quoted_values() {
-        // FACTS.md: A(0) = 0.0499 (2.6 * 0.0192 = 0.04992 exactly), peak about 0.98 near 7.9 cpd.
+        // Mannos-Sakrison: A(0) = 0.0499 (2.6 * 0.0192 = 0.04992 exactly), peak about 0.98 near 7.9 cpd.
         assert!((csf(0.0) - 0.04992).abs() < 1e-15);
         let (mut best_f, mut best) = (0.0, 0.0);
         for i in 0..=4000 {

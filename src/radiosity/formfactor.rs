@@ -1,7 +1,7 @@
 //! Form factors: the geometric kernel of the radiosity solve. Every transfer of light from a
 //! shooter (a polygon or a sub-patch of one) to a receiver point goes through
 //! [`point_to_polygon`], the exact unoccluded differential-area-to-polygon form factor of
-//! Lambert's formula (FACTS.md sec. 6):
+//! Lambert's formula:
 //!
 //! F = (1 / 2 pi) * sum over edges of angle(r_i, r_{i+1}) * (n . normalize(r_i x r_{i+1})).
 //!

@@ -1,4 +1,4 @@
-//! Tests of the solver against analytic cases (FACTS.md sec. 6) and of its guarantees.
+//! Tests of the solver against analytic cases (closed-form form factors, furnaces) and of its guarantees.
 
 use std::sync::OnceLock;
 

@@ -5,7 +5,7 @@
 //! the leaf containing a point, bilinear from that leaf's four corner samples; at a sample point it
 //! is the sample itself), at a step `h` = width of the smallest leaf having the vertex as a corner.
 //! Stepping by `h` keeps every probe on the lattice and inside leaves adjacent to the vertex, so:
-//! - on a regular grid the plain estimator is exactly FACTS.md's central differences (the patches
+//! - on a regular grid the plain estimator is exactly the usual central differences (the patches
 //!   are tensor-product Catmull-Rom there);
 //! - linear functions are reproduced exactly (g is exact for them, and so are its differences);
 //! - an undivided polygon gets the one-sided differences of its corners, which with the twist

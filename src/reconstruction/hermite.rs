@@ -1,7 +1,7 @@
 //! Bicubic Hermite patch maths in f64: the per-vertex Hermite data, the change from Hermite form
 //! to power basis, and evaluation of a patch with its partial derivatives.
 //!
-//! Conventions (FACTS.md sec. 2): a patch over a square cell of width `w` uses local parameters
+//! Conventions: a patch over a square cell of width `w` uses local parameters
 //! (s, t) in [0, 1]^2 with s = (u - u0) / w; its geometry matrix holds, at each corner, the value,
 //! `w * f_u`, `w * f_v` and `w^2 * f_uv`, where f_u, f_v, f_uv are the *global* derivatives stored
 //! once per vertex ([`HermiteData`]). Every patch touching a vertex therefore sees the same data,

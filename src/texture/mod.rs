@@ -15,7 +15,7 @@
 //! (NaN to 0) and texel indices clamped to the edge (clamp-to-edge addressing). Memory is
 //! accounted as the paper's hardware did ([`TextureMemory`]): power-of-two blocks of 3 channels.
 //!
-//! Why this way: the filters are written out (separable 4 x 4 for the bicubic, FACTS.md sec. 3)
+//! Why this way: the filters are written out (separable 4 x 4 for the bicubic, Mitchell and Netravali 1988)
 //! in f32 so that the cost comparison against the direct method measures the same kind of inner
 //! loop; the sizes follow the quadtree depth so that a texture holds as many samples as the
 //! solution had at its finest level, which is the paper's equal-quality comparison.
@@ -56,7 +56,7 @@ pub enum SizePolicy {
     Budget(u64),
 }
 
-/// The Mitchell–Netravali kernel as polynomial coefficients (FACTS.md sec. 3), evaluated in f32.
+/// The Mitchell–Netravali kernel as polynomial coefficients (Mitchell and Netravali 1988), evaluated in f32.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Cubic {
     /// |x| < 1: coefficients of |x|^3, |x|^2, |x|^1, 1 (already divided by 6).
@@ -131,7 +131,7 @@ fn clamp01(x: f32) -> f32 {
 }
 
 /// Fractional texel position of coordinate `u` on an `n`-texel axis: x = u n - 0.5, i = floor(x),
-/// t = x - i (FACTS.md sec. 3). u must be clamped already.
+/// t = x - i. u must be clamped already.
 #[inline(always)]
 fn split(u: f32, n: u32) -> (i32, f32) {
     let x = u * n as f32 - 0.5;

@@ -69,7 +69,7 @@ proptest! {
 
 #[test]
 fn kernel_values_at_integers() {
-    // FACTS.md sec. 3: k(0) = 8/9, k(1) = 1/18, k(2) = 0 for Mitchell.
+    // Mitchell and Netravali 1988: k(0) = 8/9, k(1) = 1/18, k(2) = 0 for Mitchell.
     let k = Cubic::new(1.0 / 3.0, 1.0 / 3.0);
     assert!((k.k(0.0) - 8.0 / 9.0).abs() < 1e-6);
     assert!((k.k(1.0) - 1.0 / 18.0).abs() < 1e-6);
