@@ -49,7 +49,7 @@ pub struct FrameOptions {
     pub renderers: u32,
     /// Region side in pixels: a multiple of 8 in 8..=1024.
     pub region: u32,
-    /// Cull polygons whose back faces the camera (off by default; see [`geometry`]).
+    /// Cull polygons whose back faces the camera (off by default; see [`crate::raster::geometry`]).
     pub cull_back_faces: bool,
 }
 

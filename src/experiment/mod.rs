@@ -1,5 +1,5 @@
 //! Experiments: the paper's Fig. 5, Fig. 6 and Table 1 rerun on our scenes, extended with the
-//! direct method the paper could only propose. Like [`crate::pipeline`], this is a job module: it
+//! direct method the paper could only propose. Like [`crate::jobs`], this is a job module: it
 //! strings scene loading, the solve, reconstruction, texture resampling, the renderer and the
 //! metric together and writes images and tables; it adds no stage of its own.
 //!

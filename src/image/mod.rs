@@ -1,7 +1,7 @@
 //! Images: the linear-RGB image type every stage after the frame exchanges, and its files.
 //!
 //! [`LinearImage`] (and its borrowed form [`ImageView`]) hold linear radiosity, row-major, row 0 on
-//! top; nothing here applies a tone curve except the PNG encoder. [`write`] turns pixels into
+//! top; nothing here applies a tone curve except the PNG encoder. [`mod@write`] turns pixels into
 //! files (PNG in sRGB with an exposure, OpenEXR in linear float), always atomically; [`read`]
 //! decodes EXR, Radiance HDR, PFM and PNG back into linear RGB, so the metric can compare what the
 //! renderer wrote with any reference.

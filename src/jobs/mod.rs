@@ -12,7 +12,7 @@
 //!    only draws `direct` never pays for them.
 //!
 //! The jobs: [`solve`] (scene to solution file), [`render`] (one frame or a walkthrough to PNG,
-//! EXR and statistics), [`bench`] (frame times, methods interleaved), [`stats`] (the paper's
+//! EXR and statistics), [`mod@bench`] (frame times, methods interleaved), [`stats`] (the paper's
 //! Table 1). Each runs in the caller's rayon pool, so the thread count is the caller's choice and
 //! the results do not depend on it. Progress reaches the caller through a
 //! [`crate::progress::Observer`]; the library prints nothing.
