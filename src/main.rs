@@ -283,11 +283,19 @@ impl TextureArgs {
 }
 
 fn parse_bytes(s: &str) -> Result<u64, String> {
-    pixelflow_sim::method::parse_bytes("--texture-budget", s).map_err(|e| e.to_string())
+    pixelflow_sim::method::parse_bytes("--texture-budget", s).map_err(reason)
 }
 
 fn parse_bicubic(s: &str) -> Result<(f32, f32), String> {
-    pixelflow_sim::method::parse_bicubic(s).map_err(|e| e.to_string())
+    pixelflow_sim::method::parse_bicubic(s).map_err(reason)
+}
+
+/// The reason of an option error, for clap (which names the option and the value itself).
+fn reason(e: Error) -> String {
+    match e {
+        Error::InvalidOption { reason, .. } => reason,
+        e => e.to_string(),
+    }
 }
 
 /// Standard output closed by the reader (`pixelflow-sim ... | head`): not a failure of the
