@@ -235,6 +235,56 @@ enum Command {
         #[arg(long)]
         trace: bool,
     },
+    /// Speed against error: solve the scene at several sampling densities and measure, for every
+    /// method (and texture size), the warm frame time, the bytes it holds and its error against
+    /// the same solution's exact image and against a converged finer solution's.
+    ///
+    /// Prints one row per point, flagging the Pareto fronts of total error against frame time and
+    /// against memory; `--json` and `--csv` write every measure (perceptual distance, RMSE,
+    /// maximum error, Mach-band measure against both references).
+    Sweep {
+        /// A scene file or a solution file (its scene is solved again at every density).
+        input: PathBuf,
+        /// Methods, comma-separated (default: direct and every texture method, and mesh).
+        #[arg(long, value_delimiter = ',', default_values_t = pixelflow_sim::jobs::sweep::DEFAULT_METHODS.map(String::from))]
+        methods: Vec<String>,
+        /// Image size, `WxH`.
+        #[arg(long, default_value = "256x256", value_parser = parse_size)]
+        size: (u32, u32),
+        /// Density levels as factors of the scene's solver tolerance, coarse to fine.
+        #[arg(long, value_delimiter = ',', default_values_t = pixelflow_sim::jobs::sweep::DEFAULT_DENSITIES)]
+        densities: Vec<f64>,
+        /// Tolerance factor of the converged reference solution (solved one level deeper).
+        #[arg(long, default_value_t = 0.25)]
+        reference_density: f64,
+        /// Texture sizes per density: the quadtree-depth sizes halved 0 .. N-1 times.
+        #[arg(long, default_value_t = 4)]
+        texture_levels: u32,
+        /// Frames timed per point and repeat (after a warm-up).
+        #[arg(long, default_value_t = 5)]
+        frames: u32,
+        /// Timing repeats (the spread is over repeats).
+        #[arg(long, default_value_t = 3)]
+        repeats: u32,
+        /// Pixels per degree of the perceptual metric.
+        #[arg(long, default_value_t = pixelflow_sim::metric::DEFAULT_PPD)]
+        ppd: f64,
+        /// Write every point as JSON to this file.
+        #[arg(long)]
+        json: Option<PathBuf>,
+        /// Write every point as CSV to this file.
+        #[arg(long)]
+        csv: Option<PathBuf>,
+        /// Worker threads (default: all cores).
+        #[arg(long)]
+        threads: Option<usize>,
+        /// No progress bar.
+        #[arg(short, long)]
+        quiet: bool,
+        /// Print the solver's trace lines.
+        #[arg(long)]
+        trace: bool,
+    },
     /// Compare an image with a reference: the perceptual distance and error measures.
     ///
     /// Reads two images (OpenEXR, Radiance HDR, PFM, or PNG decoded from sRGB to linear) of the
@@ -295,6 +345,17 @@ fn reason(e: Error) -> String {
     match e {
         Error::InvalidOption { reason, .. } => reason,
         e => e.to_string(),
+    }
+}
+
+/// Parses `WxH` (both at least 1; the upper limit is checked by the job).
+fn parse_size(s: &str) -> Result<(u32, u32), String> {
+    let (w, h) = s
+        .split_once(['x', 'X'])
+        .ok_or_else(|| "expected WxH, for example 256x256".to_string())?;
+    match (w.trim().parse::<u32>(), h.trim().parse::<u32>()) {
+        (Ok(w), Ok(h)) if w > 0 && h > 0 => Ok((w, h)),
+        _ => Err("expected WxH with two integers of at least 1".to_string()),
     }
 }
 
@@ -516,6 +577,50 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                     bench_table(&report.rows)
                 ))
             }
+        })??,
+        Command::Sweep {
+            input,
+            methods,
+            size,
+            densities,
+            reference_density,
+            texture_levels,
+            frames,
+            repeats,
+            ppd,
+            json,
+            csv,
+            threads,
+            quiet,
+            trace,
+        } => in_pool(threads, || -> anyhow::Result<()> {
+            use pixelflow_sim::jobs::sweep;
+            let req = sweep::SweepRequest {
+                input,
+                methods,
+                width: size.0,
+                height: size.1,
+                densities,
+                reference_density,
+                texture_levels,
+                frames,
+                repeats,
+                ppd,
+            };
+            let report = sweep::run_sweep(&req, &Terminal::new(!quiet, trace))?;
+            if let Some(path) = &json {
+                pixelflow_sim::output::write_atomic(path, self::json(&report)?.as_bytes())?;
+                if !quiet {
+                    note(&format!("wrote {}", path.display()));
+                }
+            }
+            if let Some(path) = &csv {
+                pixelflow_sim::output::write_atomic(path, sweep::csv(&report).as_bytes())?;
+                if !quiet {
+                    note(&format!("wrote {}", path.display()));
+                }
+            }
+            out(&sweep::table(&report))
         })??,
         Command::Compare { a, b, ppd, json } => {
             let c = pixelflow_sim::metric::compare_files(&a, &b, ppd)?;

@@ -21,6 +21,7 @@ pub mod bench;
 pub mod render;
 pub mod solve;
 pub mod stats;
+pub mod sweep;
 
 use std::path::{Path, PathBuf};
 use std::sync::OnceLock;

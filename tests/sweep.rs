@@ -1,0 +1,111 @@
+//! `pixelflow-sim sweep` on a small case: two-spots at 64 x 64, two densities, two texture sizes,
+//! one frame per point. Checks the record keys, that errors fall as the sampling density rises,
+//! and that the Pareto flags agree with the numbers. No timing is asserted.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use serde_json::Value;
+
+fn tmp(name: &str) -> PathBuf {
+    let d = Path::new(env!("CARGO_TARGET_TMPDIR")).join("sweep");
+    std::fs::create_dir_all(&d).unwrap();
+    d.join(name)
+}
+
+fn sweep() -> (Vec<Value>, String) {
+    let json = tmp("two-spots.json");
+    let csv = tmp("two-spots.csv");
+    let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/two-spots.toml");
+    let o = Command::new(env!("CARGO_BIN_EXE_pixelflow-sim"))
+        .args([
+            "sweep",
+            scene.to_str().unwrap(),
+            "--size",
+            "64x64",
+            "--densities",
+            "4,1",
+            "--texture-levels",
+            "2",
+            "--frames",
+            "1",
+            "--repeats",
+            "2",
+            "--json",
+            json.to_str().unwrap(),
+            "--csv",
+            csv.to_str().unwrap(),
+            "--quiet",
+        ])
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let v: Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    let points = v["points"].as_array().unwrap().clone();
+    (points, std::fs::read_to_string(&csv).unwrap())
+}
+
+#[test]
+fn a_small_sweep_has_every_key_falling_errors_and_consistent_fronts() {
+    let (points, csv) = sweep();
+    // 2 densities x (direct + mesh + 3 texture methods x 2 sizes) = 16 points.
+    assert_eq!(points.len(), 16);
+    assert_eq!(csv.lines().count(), 17);
+    for p in &points {
+        for key in [
+            "method",
+            "density",
+            "texture",
+            "frame_ms",
+            "frame_ms_spread",
+            "bytes",
+            "error_reconstruction",
+            "error_total",
+            "reconstruction",
+            "total",
+            "pareto_time",
+            "pareto_memory",
+        ] {
+            assert!(p.get(key).is_some(), "point lacks `{key}`: {p}");
+        }
+        for k in ["perceptual", "rmse", "max_abs", "mach_band"] {
+            assert!(p["total"][k].as_f64().unwrap().is_finite(), "{p}");
+        }
+        assert!(p["frame_ms"].as_f64().unwrap() > 0.0);
+        assert!(p["bytes"].as_u64().unwrap() > 0);
+        let texture = p["method"].as_str().unwrap().starts_with("texture-");
+        assert_eq!(p["texture"].is_null(), !texture, "{p}");
+    }
+    // Errors fall as the density rises, for the methods whose accuracy follows the samples.
+    let err = |m: &str, d: u64| {
+        points
+            .iter()
+            .find(|p| p["method"] == m && p["density"] == d)
+            .map(|p| p["error_total"].as_f64().unwrap())
+            .unwrap()
+    };
+    for m in ["direct", "mesh"] {
+        assert!(err(m, 1) < err(m, 0), "{m}: {} -> {}", err(m, 0), err(m, 1));
+    }
+    // The Pareto flags agree with the numbers: a flagged point is dominated by no other point,
+    // an unflagged one by at least one.
+    for (cost, flag) in [("frame_ms", "pareto_time"), ("bytes", "pareto_memory")] {
+        let pts: Vec<(f64, f64)> = points
+            .iter()
+            .map(|p| {
+                (
+                    p[cost].as_f64().unwrap(),
+                    p["error_total"].as_f64().unwrap(),
+                )
+            })
+            .collect();
+        for (i, p) in points.iter().enumerate() {
+            let (c, e) = pts[i];
+            let dominated = pts
+                .iter()
+                .any(|&(c2, e2)| c2 <= c && e2 <= e && (c2 < c || e2 < e));
+            assert_eq!(p[flag].as_bool().unwrap(), !dominated, "{flag}: {p}");
+        }
+        assert!(points.iter().any(|p| p[flag].as_bool().unwrap()));
+    }
+}
