@@ -395,15 +395,16 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             let mut stdout_closed = false;
             in_pool(threads, || {
                 run_render(&req, &observer, &mut |event| match event {
-                    RenderEvent::Warning(w) => note(&format!("warning: {w}")),
+                    RenderEvent::Warning(w) => observer.note(&format!("warning: {w}")),
                     RenderEvent::Wrote(path) if !quiet => {
-                        note(&format!("wrote {}", path.display()))
+                        // Above the walkthrough's bar, not into it.
+                        observer.note(&format!("wrote {}", path.display()))
                     }
                     RenderEvent::Frame(report) if verbose && !stdout_closed => {
                         // A closed stdout stops the printing, not the render.
                         stdout_closed = out(&(report.to_json() + "\n")).is_err();
                     }
-                    RenderEvent::Walkthrough(summary) if !quiet => note(&summary.line()),
+                    RenderEvent::Walkthrough(summary) if !quiet => observer.note(&summary.line()),
                     _ => {}
                 })
             })??;
@@ -566,6 +567,17 @@ impl Terminal {
     }
 }
 
+impl Terminal {
+    /// A line on standard error, printed above the bar when one is shown.
+    fn note(&self, line: &str) {
+        let st = self.state.lock().ok();
+        match st.as_ref().and_then(|st| st.bar.as_ref()) {
+            Some(bar) => bar.suspend(|| note(line)),
+            None => note(line),
+        }
+    }
+}
+
 impl Observer for Terminal {
     fn progress(&self, stage: &str, fraction: f64) {
         if !self.bar {
@@ -612,11 +624,7 @@ impl Observer for Terminal {
     }
 
     fn trace(&self, line: &str) {
-        let st = self.state.lock().ok();
-        match st.as_ref().and_then(|st| st.bar.as_ref()) {
-            Some(bar) => bar.suspend(|| note(line)),
-            None => note(line),
-        }
+        self.note(line);
     }
 }
 
