@@ -104,10 +104,12 @@ enum Command {
         /// Side of the screen regions in pixels (a multiple of 8).
         #[arg(long, default_value_t = 128)]
         region: u32,
-        /// Write the frame statistics as JSON to this file.
+        /// Write the frame statistics as JSON to this file (for a walkthrough: the summary and
+        /// every frame).
         #[arg(long)]
         stats: Option<PathBuf>,
-        /// Render every frame of the scene's `[camera_path]` (files `<output stem>-NNNN.png`).
+        /// Render every frame of the scene's `[camera_path]` (files `<output stem>-NNNN.png`) and
+        /// print a frame-rate summary (fps min / median / max, median stage times).
         #[arg(long)]
         walkthrough: bool,
         #[command(flatten)]
@@ -115,7 +117,7 @@ enum Command {
         /// Print the statistics.
         #[arg(short, long)]
         verbose: bool,
-        /// No progress bar, no "wrote" lines.
+        /// No progress bar, no "wrote" lines, no walkthrough summary.
         #[arg(short, long)]
         quiet: bool,
         /// Print the solver's trace lines (phase times, shots, vertices, unshot) to stderr.
@@ -462,14 +464,16 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             let mut stdout_closed = false;
             in_pool(threads, || {
                 run_render(&req, &observer, &mut |event| match event {
-                    RenderEvent::Warning(w) => note(&format!("warning: {w}")),
+                    RenderEvent::Warning(w) => observer.note(&format!("warning: {w}")),
                     RenderEvent::Wrote(path) if !quiet => {
-                        note(&format!("wrote {}", path.display()))
+                        // Above the walkthrough's bar, not into it.
+                        observer.note(&format!("wrote {}", path.display()))
                     }
                     RenderEvent::Frame(report) if verbose && !stdout_closed => {
                         // A closed stdout stops the printing, not the render.
                         stdout_closed = out(&(report.to_json() + "\n")).is_err();
                     }
+                    RenderEvent::Walkthrough(summary) if !quiet => observer.note(&summary.line()),
                     _ => {}
                 })
             })??;
@@ -636,18 +640,33 @@ fn run(cli: Cli) -> anyhow::Result<()> {
 
 /// The command line's [`Observer`]: a progress bar on stderr that appears once a stage has run
 /// for a second, only if asked for and stderr is a terminal; with `--trace`, the library's trace
-/// lines on stderr (printed above the bar when one is shown).
+/// lines on stderr (printed above the bar when one is shown). Each stage gets its own bar (a
+/// render's `solve`, then its `walkthrough`).
 struct Terminal {
     bar: bool,
     trace: bool,
+    /// How long a stage runs before its bar appears.
+    delay: Duration,
     state: Mutex<BarState>,
 }
 
-/// The running stage's start and its bar, once shown.
+/// The running stage: its name, its start and its bar, once shown.
 #[derive(Default)]
 struct BarState {
+    stage: String,
     started: Option<Instant>,
     bar: Option<indicatif::ProgressBar>,
+}
+
+impl BarState {
+    /// Forgets the stage and clears its bar.
+    fn end(&mut self) {
+        self.stage.clear();
+        self.started = None;
+        if let Some(b) = self.bar.take() {
+            b.finish_and_clear();
+        }
+    }
 }
 
 impl Terminal {
@@ -655,7 +674,19 @@ impl Terminal {
         Terminal {
             bar: bar && std::io::stderr().is_terminal(),
             trace,
+            delay: Duration::from_secs(1),
             state: Mutex::default(),
+        }
+    }
+}
+
+impl Terminal {
+    /// A line on standard error, printed above the bar when one is shown.
+    fn note(&self, line: &str) {
+        let st = self.state.lock().ok();
+        match st.as_ref().and_then(|st| st.bar.as_ref()) {
+            Some(bar) => bar.suspend(|| note(line)),
+            None => note(line),
         }
     }
 }
@@ -668,8 +699,15 @@ impl Observer for Terminal {
         let Ok(mut st) = self.state.lock() else {
             return;
         };
+        if st.started.is_some() && st.stage != stage {
+            // A new stage without the last one's `finished`: its own bar all the same.
+            st.end();
+        }
+        if st.started.is_none() {
+            st.stage = stage.to_string();
+        }
         let elapsed = st.started.get_or_insert_with(Instant::now).elapsed();
-        if elapsed < Duration::from_secs(1) {
+        if elapsed < self.delay {
             return;
         }
         let bar = st.bar.get_or_insert_with(|| {
@@ -686,11 +724,10 @@ impl Observer for Terminal {
         bar.set_position((fraction.clamp(0.0, 1.0) * 1000.0) as u64);
     }
 
-    fn finished(&self, _stage: &str) {
+    fn finished(&self, stage: &str) {
         if let Ok(mut st) = self.state.lock() {
-            st.started = None;
-            if let Some(b) = st.bar.take() {
-                b.finish_and_clear();
+            if st.stage == stage {
+                st.end();
             }
         }
     }
@@ -700,11 +737,7 @@ impl Observer for Terminal {
     }
 
     fn trace(&self, line: &str) {
-        let st = self.state.lock().ok();
-        match st.as_ref().and_then(|st| st.bar.as_ref()) {
-            Some(bar) => bar.suspend(|| note(line)),
-            None => note(line),
-        }
+        self.note(line);
     }
 }
 
@@ -735,5 +768,52 @@ fn main() -> ExitCode {
                 .map_or(EXIT_FAILURE, |e| e.exit_code());
             ExitCode::from(u8::try_from(code).unwrap_or(1))
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A terminal that shows its bar at once.
+    fn terminal() -> Terminal {
+        Terminal {
+            bar: true,
+            trace: false,
+            delay: Duration::ZERO,
+            state: Mutex::default(),
+        }
+    }
+
+    fn shown(t: &Terminal) -> Option<(String, u64)> {
+        let st = t.state.lock().unwrap();
+        st.bar.as_ref().map(|b| (b.prefix(), b.position()))
+    }
+
+    #[test]
+    fn a_stage_after_a_finished_one_gets_a_new_bar() {
+        let t = terminal();
+        t.progress("solve", 0.0);
+        t.progress("solve", 1.0);
+        assert_eq!(shown(&t), Some(("solve".into(), 1000)));
+        t.finished("solve");
+        assert_eq!(shown(&t), None);
+        t.progress("walkthrough", 0.0);
+        assert_eq!(shown(&t), Some(("walkthrough".into(), 0)));
+        t.progress("walkthrough", 0.5);
+        assert_eq!(shown(&t), Some(("walkthrough".into(), 500)));
+        t.finished("walkthrough");
+        assert_eq!(shown(&t), None);
+    }
+
+    #[test]
+    fn a_stage_without_finished_is_replaced_by_the_next() {
+        let t = terminal();
+        t.progress("solve", 0.7);
+        t.progress("walkthrough", 0.25);
+        assert_eq!(shown(&t), Some(("walkthrough".into(), 250)));
+        // A late `finished` of the replaced stage leaves the running one alone.
+        t.finished("solve");
+        assert_eq!(shown(&t), Some(("walkthrough".into(), 250)));
     }
 }

@@ -313,7 +313,110 @@ fn walkthrough_renders_every_frame_of_the_camera_path() {
     );
     let json: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(&stats).unwrap()).unwrap();
-    assert_eq!(json.as_array().map(Vec::len), Some(3));
+    assert_eq!(json["frames"].as_array().map(Vec::len), Some(3));
+    assert_eq!(json["summary"]["frames"], 3);
+    // --quiet: no summary line either.
+    assert!(!stderr(&o).contains("walkthrough:"), "{}", stderr(&o));
+}
+
+/// The walkthrough summary: in the `--stats` JSON beside the frames, consistent with them, and
+/// one line on stderr unless `--quiet`.
+#[test]
+fn walkthrough_summarizes_the_frame_rates() {
+    let png = tmp("gallery-walk.png");
+    let stats = tmp("gallery-walk.json");
+    let o = run(&[
+        "render",
+        scene("gallery").to_str().unwrap(),
+        "--walkthrough",
+        "--width",
+        "32",
+        "--height",
+        "24",
+        "-o",
+        png.to_str().unwrap(),
+        "--stats",
+        stats.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    // The gallery's camera path has 48 frames.
+    let n = 48;
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&stats).unwrap()).unwrap();
+    let summary = &json["summary"];
+    for key in [
+        "frames",
+        "fps_min",
+        "fps_median",
+        "fps_max",
+        "total_ms",
+        "median_frame_ms",
+        "median_geometry_ms",
+        "median_raster_ms",
+        "median_composition_ms",
+        "median_shading_ms",
+        "median_stage_sum_ms",
+        "median_pixels_shaded",
+        "median_uniform_blocks",
+        "median_mixed_blocks",
+    ] {
+        assert!(
+            summary.get(key).is_some(),
+            "summary lacks `{key}`: {summary}"
+        );
+    }
+    assert_eq!(summary["frames"], n);
+    let frames = json["frames"].as_array().expect("frames array");
+    assert_eq!(frames.len(), n);
+    assert!(frames.iter().all(|f| f["width"] == 32 && f["height"] == 24));
+    let s = |k: &str| summary[k].as_f64().unwrap();
+    assert!(s("fps_min") > 0.0);
+    assert!(s("fps_min") <= s("fps_median") && s("fps_median") <= s("fps_max"));
+    // The rates are the frames' `1000 / frame_ms`: the extremes are the slowest and fastest
+    // frames', every frame's rate lies between them, and the total is the frame times' sum.
+    let frame_ms: Vec<f64> = frames
+        .iter()
+        .map(|f| f["frame_ms"].as_f64().unwrap())
+        .collect();
+    let slowest = frame_ms.iter().copied().fold(0.0, f64::max);
+    let fastest = frame_ms.iter().copied().fold(f64::INFINITY, f64::min);
+    let close = |a: f64, b: f64| (a - b).abs() <= 1e-9 * a.abs().max(1.0);
+    assert!(close(s("fps_min"), 1e3 / slowest), "{summary}");
+    assert!(close(s("fps_max"), 1e3 / fastest), "{summary}");
+    assert!(close(s("total_ms"), frame_ms.iter().sum()), "{summary}");
+    for (f, ms) in frames.iter().zip(&frame_ms) {
+        assert!(close(f["fps"].as_f64().unwrap() * ms, 1e3), "{f}");
+    }
+    let mut sorted = frame_ms.clone();
+    sorted.sort_by(f64::total_cmp);
+    assert!(close(
+        s("median_frame_ms"),
+        0.5 * (sorted[n / 2 - 1] + sorted[n / 2])
+    ));
+    assert!(s("median_stage_sum_ms") > 0.0 && s("median_pixels_shaded") > 0.0);
+    // One summary line on stderr, after the frames' "wrote" lines.
+    let err = stderr(&o);
+    let lines: Vec<&str> = err
+        .lines()
+        .filter(|l| l.starts_with("walkthrough: "))
+        .collect();
+    assert_eq!(lines.len(), 1, "{err}");
+    let line = lines[0];
+    assert!(
+        line.starts_with("walkthrough: 48 frames, fps min "),
+        "{line}"
+    );
+    for part in [
+        " / median ",
+        " / max ",
+        "; median ms: geometry ",
+        " raster ",
+        " composition ",
+        " shading ",
+    ] {
+        assert!(line.contains(part), "{line}");
+    }
+    assert!(err.contains("gallery-walk-0047.png"), "{err}");
 }
 
 #[test]

@@ -3,18 +3,20 @@
 //!
 //! [`RenderPlan::new`] resolves every option against the scene's defaults and checks it before
 //! [`run_render`] solves anything; a walkthrough reuses one solution and one reconstruction for
-//! all its frames. Every file is written atomically.
+//! all its frames, reports its progress as the stage [`WALKTHROUGH_STAGE`] and ends with a
+//! [`WalkthroughSummary`]. Every file is written atomically.
 
 use std::path::{Path, PathBuf};
 
 use serde::Serialize;
 
+use super::walkthrough::WalkthroughSummary;
 use super::{prepare, render_frame, Input, Prepared, TextureOptions};
 use crate::error::{Error, Result};
 use crate::frame::{Frame, FrameOptions, FrameStats};
 use crate::image;
 use crate::method::Method;
-use crate::progress::Observer;
+use crate::progress::{Observer, Stage};
 use crate::reconstruction::mesh::MeshStats;
 use crate::scene::{Camera, Scene};
 use crate::texture::{SizePolicy, TextureMemory};
@@ -40,7 +42,8 @@ pub struct RenderRequest {
     pub renderers: u32,
     /// Region side in pixels.
     pub region: u32,
-    /// Where to write the statistics JSON (an array of frames for a walkthrough).
+    /// Where to write the statistics JSON (for a walkthrough, an object with the `summary` and
+    /// the `frames`).
     pub stats: Option<PathBuf>,
     /// Render every frame of the scene's camera path.
     pub walkthrough: bool,
@@ -142,6 +145,20 @@ pub enum RenderEvent<'a> {
     Wrote(&'a Path),
     /// A frame was rendered.
     Frame(&'a RenderReport),
+    /// A walkthrough ended: its summary (the last event of a walkthrough).
+    Walkthrough(&'a WalkthroughSummary),
+}
+
+/// The progress stage of a walkthrough's frames: fraction `k / n` after frame `k` of `n`.
+pub const WALKTHROUGH_STAGE: &str = "walkthrough";
+
+/// The `--stats` JSON of a walkthrough.
+#[derive(Debug, Clone, Serialize)]
+pub struct WalkthroughReport<'a> {
+    /// Frame rates and medians over the frames.
+    pub summary: &'a WalkthroughSummary,
+    /// Every frame's report, in path order.
+    pub frames: &'a [RenderReport],
 }
 
 /// Runs a render job: load the input, plan and check every option, then prepare once and
@@ -158,8 +175,13 @@ pub fn run_render(
     }
     let p = prepare(input, plan.texture_policy, observer)?;
     let exposure = p.scene.display.exposure;
+    let n = plan.frames.len();
+    // The walkthrough's own stage, after the solve's: it ends (also on an error) when dropped.
+    let mut stage = plan
+        .walkthrough
+        .then(|| Stage::start(observer, WALKTHROUGH_STAGE));
     let mut reports = Vec::new();
-    for (camera, png) in &plan.frames {
+    for (k, (camera, png)) in plan.frames.iter().enumerate() {
         let frame = render_frame(&p, plan.method, camera, &plan.frame)?;
         image::write_png(png, frame.view(), exposure)?;
         on(RenderEvent::Wrote(png));
@@ -170,16 +192,29 @@ pub fn run_render(
         let report = RenderReport::new(&p, plan.method, &frame);
         on(RenderEvent::Frame(&report));
         reports.push(report);
+        if let Some(stage) = &mut stage {
+            stage.advance((k + 1) as f64 / n as f64);
+        }
     }
+    drop(stage);
+    let summary = plan.walkthrough.then(|| {
+        let frames: Vec<FrameStats> = reports.iter().map(|r| r.frame.clone()).collect();
+        WalkthroughSummary::new(&frames)
+    });
     if let Some(path) = &plan.stats {
-        let json = if plan.walkthrough {
-            serde_json::to_string_pretty(&reports)
-        } else {
-            serde_json::to_string_pretty(&reports[0])
+        let json = match &summary {
+            Some(summary) => serde_json::to_string_pretty(&WalkthroughReport {
+                summary,
+                frames: &reports,
+            }),
+            None => serde_json::to_string_pretty(&reports[0]),
         }
         .map_err(|e| Error::Runtime(format!("statistics to JSON: {e}")))?;
         crate::output::write_atomic(path, json.as_bytes())?;
         on(RenderEvent::Wrote(path));
+    }
+    if let Some(summary) = &summary {
+        on(RenderEvent::Walkthrough(summary));
     }
     Ok(())
 }
@@ -271,4 +306,126 @@ pub fn walkthrough_frame_path(png: &Path, k: u32) -> PathBuf {
         .map(|s| s.to_string_lossy().into_owned())
         .unwrap_or_else(|| "frame".into());
     png.with_file_name(format!("{stem}-{k:04}.png"))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::progress::{Event, Recorder};
+
+    /// A directory of this test process for `name`'s files.
+    fn tmp(name: &str) -> PathBuf {
+        let d = std::env::temp_dir()
+            .join(format!("pfs-render-{}", std::process::id()))
+            .join(name);
+        std::fs::create_dir_all(&d).expect("temporary directory");
+        d
+    }
+
+    /// The two-spots scene with a `frames`-frame camera path, written into `dir`.
+    fn walk_scene(dir: &Path, frames: u32) -> PathBuf {
+        let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/two-spots.toml");
+        let text = std::fs::read_to_string(scene).expect("two-spots scene")
+            + &format!(
+                "\n[camera_path]\nframes = {frames}\nkeyframes = [\n\
+                 {{ eye = [0.3, 0.5, 2.0], look_at = [0.3, 0.5, 0.0], up = [0.0, 1.0, 0.0] }},\n\
+                 {{ eye = [0.7, 0.5, 2.0], look_at = [0.7, 0.5, 0.0], up = [0.0, 1.0, 0.0] }},\n]\n"
+            );
+        let path = dir.join("walk.toml");
+        std::fs::write(&path, text).expect("scene written");
+        path
+    }
+
+    fn request(input: PathBuf, output: PathBuf) -> RenderRequest {
+        RenderRequest {
+            input,
+            output: Some(output),
+            width: Some(16),
+            height: Some(16),
+            renderers: 1,
+            region: 128,
+            walkthrough: true,
+            ..RenderRequest::default()
+        }
+    }
+
+    /// The fractions of the walkthrough stage and whether it finished after them.
+    fn walkthrough_events(r: &Recorder) -> (Vec<f64>, usize) {
+        let mut fractions = Vec::new();
+        let mut finished = 0;
+        for e in r.events() {
+            match e {
+                Event::Progress(s, f) if s == WALKTHROUGH_STAGE => {
+                    assert_eq!(finished, 0, "progress after finished");
+                    fractions.push(f);
+                }
+                Event::Finished(s) if s == WALKTHROUGH_STAGE => finished += 1,
+                _ => {}
+            }
+        }
+        (fractions, finished)
+    }
+
+    #[test]
+    fn a_walkthrough_reports_its_own_stage_up_to_one_then_finishes() {
+        let dir = tmp("stage");
+        let r = Recorder::default();
+        let mut summaries = Vec::new();
+        let mut frames = 0;
+        let req = request(walk_scene(&dir, 4), dir.join("w.png"));
+        run_render(&req, &r, &mut |e| match e {
+            RenderEvent::Frame(_) => frames += 1,
+            RenderEvent::Walkthrough(s) => summaries.push(s.clone()),
+            _ => {}
+        })
+        .expect("walkthrough renders");
+        let (fractions, finished) = walkthrough_events(&r);
+        assert_eq!(fractions, [0.0, 0.25, 0.5, 0.75, 1.0]);
+        assert_eq!(finished, 1);
+        // The solve's stage ended before the walkthrough's began.
+        let events = r.events();
+        let solve_end = events
+            .iter()
+            .position(|e| matches!(e, Event::Finished(s) if s == "solve"))
+            .expect("the scene was solved");
+        let walk_start = events
+            .iter()
+            .position(|e| matches!(e, Event::Progress(s, _) if s == WALKTHROUGH_STAGE))
+            .expect("the walkthrough started");
+        assert!(solve_end < walk_start, "{events:?}");
+        assert_eq!(frames, 4);
+        assert_eq!(summaries.len(), 1);
+        assert_eq!(summaries[0].frames, 4);
+    }
+
+    #[test]
+    fn a_failing_walkthrough_still_finishes_its_stage() {
+        // The frames' directory is a regular file: the first PNG cannot be written.
+        let dir = tmp("fail");
+        let blocker = dir.join("not-a-dir");
+        std::fs::write(&blocker, b"x").expect("file written");
+        let r = Recorder::default();
+        let req = request(walk_scene(&dir, 3), blocker.join("w.png"));
+        assert!(run_render(&req, &r, &mut |_| {}).is_err());
+        let (fractions, finished) = walkthrough_events(&r);
+        assert_eq!(fractions, [0.0]);
+        assert_eq!(finished, 1);
+    }
+
+    #[test]
+    fn a_single_frame_reports_no_walkthrough_stage() {
+        let dir = tmp("single");
+        let r = Recorder::default();
+        let req = RenderRequest {
+            walkthrough: false,
+            ..request(walk_scene(&dir, 2), dir.join("one.png"))
+        };
+        let mut summary = false;
+        run_render(&req, &r, &mut |e| {
+            summary |= matches!(e, RenderEvent::Walkthrough(_));
+        })
+        .expect("frame renders");
+        assert_eq!(walkthrough_events(&r), (vec![], 0));
+        assert!(!summary);
+    }
 }
