@@ -15,8 +15,8 @@
 //!   of the renderers) -> [`shading`] (the deferred pass, one shader per method) -> [`frame`] (one
 //!   frame through all of them, timed);
 //! - after the frame: [`metric`] (distances between images) -> [`jobs`] (solve, render, bench,
-//!   stats: what the command line runs) -> [`report`] (text tables) -> [`experiment`] (the paper's
-//!   figures and tables).
+//!   stats, sweep: what the command line runs) -> [`report`] (text tables) -> [`plot`] (sweep
+//!   plots) -> [`experiment`] (the paper's figures and tables).
 //!
 //! The library has no user interface: it prints nothing, reads no environment variables and
 //! reports progress through [`progress::Observer`]. `docs/ARCHITECTURE.md` draws the data flow.
@@ -43,6 +43,7 @@ pub mod frame;
 pub mod metric;
 pub mod jobs;
 pub mod report;
+pub mod plot;
 pub mod experiment;
 
 pub use error::{Error, Result};

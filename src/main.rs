@@ -277,6 +277,10 @@ enum Command {
         /// Write every point as CSV to this file.
         #[arg(long)]
         csv: Option<PathBuf>,
+        /// Write the plots (error against frame time and against memory, PNG and SVG) into this
+        /// directory.
+        #[arg(long)]
+        plots: Option<PathBuf>,
         /// Worker threads (default: all cores).
         #[arg(long)]
         threads: Option<usize>,
@@ -594,6 +598,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             ppd,
             json,
             csv,
+            plots,
             threads,
             quiet,
             trace,
@@ -622,6 +627,13 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 pixelflow_sim::output::write_atomic(path, sweep::csv(&report).as_bytes())?;
                 if !quiet {
                     note(&format!("wrote {}", path.display()));
+                }
+            }
+            if let Some(dir) = &plots {
+                for path in pixelflow_sim::plot::sweep_plots(&report, dir)? {
+                    if !quiet {
+                        note(&format!("wrote {}", path.display()));
+                    }
                 }
             }
             out(&sweep::table(&report))

@@ -33,6 +33,7 @@ const ORDER: &[&str] = &[
     "metric",
     "jobs",
     "report",
+    "plot",
     "experiment",
 ];
 

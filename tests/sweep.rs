@@ -7,15 +7,19 @@ use std::process::Command;
 
 use serde_json::Value;
 
-fn tmp(name: &str) -> PathBuf {
-    let d = Path::new(env!("CARGO_TARGET_TMPDIR")).join("sweep");
+/// A file in this test's own directory (the tests run in parallel threads of one process, so
+/// they must not share output paths).
+fn tmp(test: &str, name: &str) -> PathBuf {
+    let d = Path::new(env!("CARGO_TARGET_TMPDIR"))
+        .join("sweep")
+        .join(test);
     std::fs::create_dir_all(&d).unwrap();
     d.join(name)
 }
 
-fn sweep() -> (Vec<Value>, String) {
-    let json = tmp("two-spots.json");
-    let csv = tmp("two-spots.csv");
+fn sweep(test: &str) -> (Vec<Value>, String) {
+    let json = tmp(test, "two-spots.json");
+    let csv = tmp(test, "two-spots.csv");
     let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/two-spots.toml");
     let o = Command::new(env!("CARGO_BIN_EXE_pixelflow-sim"))
         .args([
@@ -35,6 +39,8 @@ fn sweep() -> (Vec<Value>, String) {
             json.to_str().unwrap(),
             "--csv",
             csv.to_str().unwrap(),
+            "--plots",
+            tmp(test, "plots").to_str().unwrap(),
             "--quiet",
         ])
         .output()
@@ -47,7 +53,7 @@ fn sweep() -> (Vec<Value>, String) {
 
 #[test]
 fn a_small_sweep_has_every_key_falling_errors_and_consistent_fronts() {
-    let (points, csv) = sweep();
+    let (points, csv) = sweep("keys");
     // 2 densities x (direct + mesh + 3 texture methods x 2 sizes) = 16 points.
     assert_eq!(points.len(), 16);
     assert_eq!(csv.lines().count(), 17);
@@ -107,5 +113,29 @@ fn a_small_sweep_has_every_key_falling_errors_and_consistent_fronts() {
             assert_eq!(p[flag].as_bool().unwrap(), !dominated, "{flag}: {p}");
         }
         assert!(points.iter().any(|p| p[flag].as_bool().unwrap()));
+    }
+}
+
+#[test]
+fn the_plots_are_png_and_svg_of_the_documented_size() {
+    let _ = sweep("plots");
+    for name in ["error-vs-time", "error-vs-memory"] {
+        let png = tmp("plots", "plots").join(format!("{name}.png"));
+        let img = image::open(&png)
+            .expect("the plot decodes as PNG")
+            .to_rgb8();
+        assert_eq!(img.dimensions(), (1000, 700), "{name}");
+        // Not blank: the white background plus drawn axes, points and text.
+        let dark = img
+            .pixels()
+            .filter(|p| p.0.iter().all(|&c| c < 100))
+            .count();
+        assert!(dark > 1000, "{name}: {dark} dark pixels");
+        let svg =
+            std::fs::read_to_string(tmp("plots", "plots").join(format!("{name}.svg"))).unwrap();
+        assert!(
+            svg.starts_with("<svg") && svg.contains("Pareto front"),
+            "{name}"
+        );
     }
 }
