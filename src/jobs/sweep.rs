@@ -160,6 +160,27 @@ pub struct SweepPoint {
     pub pareto_memory: bool,
 }
 
+/// One solution of a sweep: its tolerance, maximum depth and sample count.
+#[derive(Debug, Clone, Copy, Serialize, PartialEq)]
+pub struct SolutionLevel {
+    /// The solver's subdivision tolerance.
+    pub tolerance: f64,
+    /// The quadtrees' maximum depth.
+    pub max_depth: u32,
+    /// Radiosity samples.
+    pub samples: u64,
+}
+
+impl SolutionLevel {
+    fn of(p: &Prepared) -> SolutionLevel {
+        SolutionLevel {
+            tolerance: p.scene.radiosity.tolerance,
+            max_depth: p.scene.radiosity.max_depth,
+            samples: p.solution.stats.vertices,
+        }
+    }
+}
+
 /// A sweep's result.
 #[derive(Debug, Clone, Serialize)]
 pub struct SweepReport {
@@ -171,10 +192,10 @@ pub struct SweepReport {
     pub height: u32,
     /// Worker threads.
     pub threads: usize,
-    /// Each density level's tolerance and sample count.
-    pub densities: Vec<(f64, u64)>,
-    /// The converged reference's tolerance, maximum depth and sample count.
-    pub reference: (f64, u32, u64),
+    /// Each density level's solution, coarse to fine.
+    pub densities: Vec<SolutionLevel>,
+    /// The converged reference solution.
+    pub reference: SolutionLevel,
     /// The points, density-major, then method, then texture size.
     pub points: Vec<SweepPoint>,
 }
@@ -301,11 +322,7 @@ pub fn run_sweep(req: &SweepRequest, observer: &dyn Observer) -> Result<SweepRep
         &fine.scene.camera,
         &opts,
     )?)?;
-    let reference = (
-        fine.scene.radiosity.tolerance,
-        fine.scene.radiosity.max_depth,
-        fine.solution.stats.vertices,
-    );
+    let reference = SolutionLevel::of(&fine);
     drop(fine);
 
     let mut points = Vec::new();
@@ -313,7 +330,7 @@ pub fn run_sweep(req: &SweepRequest, observer: &dyn Observer) -> Result<SweepRep
     for (level, &factor) in req.densities.iter().enumerate() {
         let p = solve_at(&input, at_density(&input.scene, factor, 0), observer)?;
         let samples = p.solution.stats.vertices;
-        densities.push((p.scene.radiosity.tolerance, samples));
+        densities.push(SolutionLevel::of(&p));
         let recon_ref = image(render_frame(&p, Method::Reference, &p.scene.camera, &opts)?)?;
 
         // Texture sets: the quadtree-depth sides halved k times (a budget equal to that
@@ -500,9 +517,9 @@ pub fn table(report: &SweepReport) -> String {
         report.width,
         report.height,
         report.threads,
-        report.reference.0,
-        report.reference.1,
-        report.reference.2
+        report.reference.tolerance,
+        report.reference.max_depth,
+        report.reference.samples
     );
     for p in &report.points {
         let tex = p
