@@ -270,6 +270,11 @@ struct TextureArgs {
     /// 0,0.5).
     #[arg(long, value_name = "B,C", value_parser = parse_bicubic)]
     bicubic: Option<(f32, f32)>,
+    /// Texture methods: where the texels sit, `centre` (texel i at u = (i + 0.5) / N) or
+    /// `corner` (u = i / (N - 1): samples on the polygon's edges and corners) (default: the
+    /// scene's `[render] texel_placement`, else centre).
+    #[arg(long, value_name = "centre|corner")]
+    texel_placement: Option<String>,
 }
 
 impl TextureArgs {
@@ -278,6 +283,7 @@ impl TextureArgs {
             size: self.texture_size,
             budget: self.texture_budget,
             bicubic: self.bicubic,
+            placement: self.texel_placement.clone(),
         }
     }
 }

@@ -17,7 +17,7 @@ use crate::method::Method;
 use crate::progress::Observer;
 use crate::reconstruction::mesh::MeshStats;
 use crate::scene::{Camera, Scene};
-use crate::texture::{SizePolicy, TextureMemory};
+use crate::texture::{Placement, SizePolicy, TextureMemory};
 
 /// What `pixelflow-sim render` was asked to do.
 #[derive(Debug, Clone, Default)]
@@ -58,6 +58,8 @@ pub struct RenderPlan {
     pub frame: FrameOptions,
     /// How textures are sized (checked against the scene's polygon count).
     pub texture_policy: SizePolicy,
+    /// Where the texels sit (`--texel-placement` or the scene's).
+    pub texture_placement: Placement,
     /// Each frame's camera and PNG path: one, or the whole camera path.
     pub frames: Vec<(Camera, PathBuf)>,
     /// The EXR to write (single frames only).
@@ -70,7 +72,8 @@ pub struct RenderPlan {
 
 impl RenderPlan {
     /// Resolves `req` against `scene` and checks every option: method and bicubic parameters,
-    /// image size, antialiasing, renderers, region, texture size or budget, `--exr` with
+    /// image size, antialiasing, renderers, region, texture size or budget, texel placement,
+    /// `--exr` with
     /// `--walkthrough`, and that a walkthrough has a camera path.
     pub fn new(req: &RenderRequest, scene: &Scene) -> Result<RenderPlan> {
         let method = match &req.method {
@@ -88,6 +91,7 @@ impl RenderPlan {
         };
         frame.validate()?;
         let texture_policy = req.texture.policy(scene)?;
+        let texture_placement = req.texture.placement(scene)?;
         if req.walkthrough && req.exr.is_some() {
             return Err(Error::invalid_option(
                 "--exr",
@@ -125,6 +129,7 @@ impl RenderPlan {
             method,
             frame,
             texture_policy,
+            texture_placement,
             frames,
             exr: req.exr.clone(),
             stats: req.stats.clone(),
@@ -156,7 +161,7 @@ pub fn run_render(
     for w in &input.scene.warnings {
         on(RenderEvent::Warning(w));
     }
-    let p = prepare(input, plan.texture_policy, observer)?;
+    let p = prepare(input, plan.texture_policy, plan.texture_placement, observer)?;
     let exposure = p.scene.display.exposure;
     let mut reports = Vec::new();
     for (camera, png) in &plan.frames {

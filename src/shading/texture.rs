@@ -391,7 +391,7 @@ mod tests {
     /// [0, 1] and a NaN, and (u, v) maps whose scale grows across the region so that the level of
     /// detail runs from magnification over fractional levels to the last level.
     fn mixed_texture_region() -> (TextureSet, RegionGBuffer) {
-        use crate::texture::{RadiosityTexture, TextureMemory};
+        use crate::texture::{Placement, RadiosityTexture, TextureMemory};
         let sides = [4u32, 16, 64];
         let textures: Vec<RadiosityTexture> = sides
             .iter()
@@ -413,6 +413,7 @@ mod tests {
         let set = TextureSet {
             textures,
             memory: TextureMemory::of_sides(&sides),
+            placement: Placement::Centre,
         };
         let (w, h, spp) = (37u32, 13u32, 2u32);
         let mut gb = RegionGBuffer::new(0, 0, 0, w, h, spp);

@@ -238,7 +238,7 @@ fn texture_from_a_linear_rrp_reproduces_it_bilinearly() {
     let recon = Reconstruction::build(std::slice::from_ref(&sq), Estimator::default()).unwrap();
     let depths = TextureSet::depths(std::slice::from_ref(&sq));
     assert_eq!(depths, [2]);
-    let set = TextureSet::build(&recon, &depths, SizePolicy::FromDepth).unwrap();
+    let set = TextureSet::build(&recon, &depths, SizePolicy::FromDepth, Placement::Centre).unwrap();
     let t = &set.textures[0];
     assert_eq!((t.width, t.levels.len()), (8, 4));
     assert_eq!(set.memory.texels, 64);
@@ -256,7 +256,7 @@ fn texture_from_a_linear_rrp_reproduces_it_bilinearly() {
         }
     }
     // Wrong depth count is an error, not a panic.
-    assert!(TextureSet::build(&recon, &[], SizePolicy::FromDepth).is_err());
+    assert!(TextureSet::build(&recon, &[], SizePolicy::FromDepth, Placement::Centre).is_err());
 }
 
 #[test]
@@ -285,8 +285,13 @@ fn from_depth_memory_matches_the_reconstruction_stats() {
         }));
     }
     let recon = Reconstruction::build(&trees, Estimator::default()).unwrap();
-    let set =
-        TextureSet::build(&recon, &TextureSet::depths(&trees), SizePolicy::FromDepth).unwrap();
+    let set = TextureSet::build(
+        &recon,
+        &TextureSet::depths(&trees),
+        SizePolicy::FromDepth,
+        Placement::Centre,
+    )
+    .unwrap();
     let st = recon.stats();
     assert_eq!(set.memory.textures, 4);
     assert_eq!(set.memory.texels, st.texture_texels as u64);
