@@ -588,11 +588,11 @@ pub fn figure_text(f: &Figure) -> String {
             );
         }
     }
-    t += "\npanel       perceptual      RMSE    max abs   rel. lum.  Mach band\n";
+    t += "\npanel            perceptual      RMSE    max abs   rel. lum.  Mach band\n";
     for p in &f.panels {
         if let Some(c) = &p.versus_reference {
             t += &format!(
-                "{:<10} {:>11.4} {:>9.5} {:>10.5} {:>11.5} {:>10.3e}\n",
+                "{:<15} {:>11.4} {:>9.5} {:>10.5} {:>11.5} {:>10.3e}\n",
                 p.key,
                 c.perceptual_distance,
                 c.rmse,
@@ -603,7 +603,7 @@ pub fn figure_text(f: &Figure) -> String {
         }
     }
     for p in &f.panels {
-        t += &format!("  {:<10} {}\n", p.key, p.label);
+        t += &format!("  {:<15} {}\n", p.key, p.label);
     }
     t
 }

@@ -3,14 +3,28 @@
 //! evaluating the RRPs per pixel.
 //!
 //! Pipeline role: after [`crate::reconstruction`] has built the RRPs, [`TextureSet::build`]
-//! resamples every polygon's RRP (not its raw samples) at texel centres `(i + 0.5) / N` into an
-//! N x N level 0 and box-filters a mip chain down to 1 x 1 ([`mip_chain`]).
+//! resamples every polygon's RRP (not its raw samples) into an N x N level 0 and a mip chain
+//! down to 1 x 1, with the texels placed by a [`Placement`]:
+//!
+//! - [`Placement::Centre`] (default): texel i at u = `(i + 0.5) / N`, the filters map u to
+//!   x = u N - 0.5; the chain is box-filtered ([`mip_chain`]). The samples stop half a texel
+//!   short of the polygon's edges, where the filters clamp.
+//! - [`Placement::Corner`] (the lightmap convention): texel i at u = `i / (N - 1)` (0.5 for
+//!   N = 1), the filters map u to x = u (N - 1); the first and last texels lie on the edges, so
+//!   bilinear filtering reproduces a linear function on all of [0, 1]. Each coarser level is
+//!   resampled from the RRP at its own corner positions ([`corner_chain`]): box filtering would
+//!   not keep the corner alignment. The level of detail is still log2 of N texels per unit
+//!   (not N - 1), the same choice of level for both placements.
+//!
+//! Both placements use clamp-to-edge addressing and the same filter code; the placement is
+//! recorded in each [`RadiosityTexture`] and in the [`TextureSet`].
 //! The deferred pass then calls [`RadiosityTexture::sample`] / [`RadiosityTexture::sample_lod`]
 //! with a [`Filter`] and a level of detail from [`lod`]; its hot loop uses the lane form
 //! [`Sampler::sample8`] (8 samples per call, module `lanes`), which returns the same bits.
 //!
 //! Invariants: every texture is square with a power-of-two side between 1 and
-//! [`MAX_TEXTURE_SIZE`]; its chain has `log2(side) + 1` levels, the last 1 x 1; all texels are
+//! [`MAX_TEXTURE_SIZE`]; its chain has `log2(side) + 1` levels, the last 1 x 1, all at one
+//! placement; all texels are
 //! finite (the RRPs are). Sampling never returns NaN or inf: coordinates are clamped to [0, 1]
 //! (NaN to 0) and texel indices clamped to the edge (clamp-to-edge addressing). Memory is
 //! accounted as the paper's hardware did ([`TextureMemory`]): power-of-two blocks of 3 channels.
