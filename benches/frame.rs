@@ -14,7 +14,7 @@ use pixelflow_sim::raster::{build_primitives, sample_offsets};
 use pixelflow_sim::reconstruction::{PatchCoeffs, PatchSource};
 use pixelflow_sim::scene::{Camera, Material, Polygon, Projection, Scene};
 use pixelflow_sim::shading::{shade_regions, Shader};
-use pixelflow_sim::texture::{Filter, RadiosityTexture, TextureMemory, TextureSet};
+use pixelflow_sim::texture::{Filter, Placement, RadiosityTexture, TextureMemory, TextureSet};
 
 /// A 10 x 4 x 10 room, each wall cut into `n` x `n` quads, with two boxes inside.
 fn room(n: usize) -> Scene {
@@ -205,6 +205,7 @@ fn deferred(c: &mut Criterion) {
     let set = TextureSet {
         textures,
         memory: TextureMemory::of_sides(&vec![16; scene.polygons.len()]),
+        placement: Placement::Centre,
     };
     for (name, filter) in [
         ("texture-nearest-1024", Filter::Nearest),

@@ -161,8 +161,8 @@ enum Command {
     ///
     /// fig5: the two-spots plane in texture space, the oracle reference, the paper's depth-9
     /// reference, a depth-2 (5 x 5) quadtree, its bilinear and bicubic (RRP) resampling to 256 x 256
-    /// and the direct method; fig6: the RRP resampled to an 8 x 8 texture drawn with bilinear and
-    /// Mitchell-Netravali filters, and direct; each with the perceptual distance to the reference
+    /// and the direct method; fig6: the RRP resampled to an 8 x 8 texture (texels at centres, then
+    /// at corners) drawn with bilinear and Mitchell-Netravali filters, and direct; each with the perceptual distance to the reference
     /// beside the paper's numbers. table1: `stats` of the shipped scenes beside the paper's Table 1.
     Experiment {
         /// `fig5`, `fig6`, `table1` or `all`.
@@ -326,6 +326,11 @@ struct TextureArgs {
     /// 0,0.5).
     #[arg(long, value_name = "B,C", value_parser = parse_bicubic)]
     bicubic: Option<(f32, f32)>,
+    /// Texture methods: where the texels sit, `centre` (texel i at u = (i + 0.5) / N) or
+    /// `corner` (u = i / (N - 1): samples on the polygon's edges and corners) (default: the
+    /// scene's `[render] texel_placement`, else centre).
+    #[arg(long, value_name = "centre|corner")]
+    texel_placement: Option<String>,
 }
 
 impl TextureArgs {
@@ -334,6 +339,7 @@ impl TextureArgs {
             size: self.texture_size,
             budget: self.texture_budget,
             bicubic: self.bicubic,
+            placement: self.texel_placement.clone(),
         }
     }
 }

@@ -6,7 +6,7 @@
 //! sits below every stage and depends on nothing but the error type. The stages that *implement*
 //! a method (the texture filters, the patch shader, the mesh) live further down the frame
 //! pipeline and take the plain values defined here ([`Filter`], the texture side limits, the
-//! antialiasing sample counts).
+//! antialiasing sample counts, the texel [`Placement`]).
 //!
 //! Invariants: [`Method::parse`] and [`Method::name`] are inverse on [`Method::NAMES`]; every
 //! constructor of a [`Filter::Bicubic`] through this module has B and C finite and in [0, 1].
@@ -43,6 +43,73 @@ impl Filter {
     };
     /// Catmull-Rom, B = 0, C = 1/2 (interpolating).
     pub const CATMULL_ROM: Filter = Filter::Bicubic { b: 0.0, c: 0.5 };
+}
+
+/// Where the texels of a radiosity texture sit in the polygon's (u, v) square, and so how the
+/// texture filters map a coordinate to a texel position (per axis, N texels of a level).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Placement {
+    /// Texel i at u = (i + 0.5) / N, the texel centres of a graphics texture; filters map u to
+    /// x = u N - 0.5. The polygon's edges and corners lie half a texel outside the samples.
+    #[default]
+    Centre,
+    /// The lightmap convention: texel i at u = i / (N - 1) (u = 0.5 for N = 1), so the first
+    /// and last texels lie on the polygon's edges and the corner texels on its corners; filters
+    /// map u to x = u (N - 1).
+    Corner,
+}
+
+impl Placement {
+    /// Every placement's name.
+    pub const NAMES: &'static [&'static str] = &["centre", "corner"];
+
+    /// Parses a placement name for `option` (`--texel-placement`, `render.texel_placement`);
+    /// an unknown name is an [`Error::InvalidOption`] listing the known ones.
+    pub fn parse_option(option: &str, name: &str) -> Result<Placement> {
+        match name {
+            "centre" => Ok(Placement::Centre),
+            "corner" => Ok(Placement::Corner),
+            _ => Err(Error::invalid_option(
+                option,
+                name,
+                format!(
+                    "is not a texel placement; known: {}",
+                    Placement::NAMES.join(", ")
+                ),
+            )),
+        }
+    }
+
+    /// The placement's name.
+    pub fn name(self) -> &'static str {
+        match self {
+            Placement::Centre => "centre",
+            Placement::Corner => "corner",
+        }
+    }
+
+    /// Parameter coordinate of texel `k` of `n` on one axis, computed in f64 and rounded to f32:
+    /// `(k + 0.5) / n` for [`Placement::Centre`], `k / (n - 1)` (0.5 if n = 1) for
+    /// [`Placement::Corner`].
+    #[inline]
+    pub fn texel_position(self, k: u32, n: u32) -> f32 {
+        match self {
+            Placement::Centre => ((k as f64 + 0.5) / n as f64) as f32,
+            Placement::Corner if n <= 1 => 0.5,
+            Placement::Corner => (k as f64 / (n - 1) as f64) as f32,
+        }
+    }
+
+    /// The affine map of the filters from a clamped coordinate u to the fractional texel
+    /// position x = u scale - offset on an axis of `n` texels, as `(scale, offset)`:
+    /// (n, 0.5) for [`Placement::Centre`], (n - 1, 0) for [`Placement::Corner`].
+    #[inline(always)]
+    pub fn texel_map(self, n: u32) -> (f32, f32) {
+        match self {
+            Placement::Centre => (n as f32, 0.5),
+            Placement::Corner => (n.saturating_sub(1) as f32, 0.0),
+        }
+    }
 }
 
 /// The rendering methods. They share scene, solve, rasterization and composition; they differ
@@ -210,6 +277,25 @@ mod tests {
         assert!(e
             .to_string()
             .starts_with("--method texturebilinear: is not a method"));
+        for name in Placement::NAMES {
+            assert_eq!(Placement::parse_option("--p", name).unwrap().name(), *name);
+        }
+        let e = Placement::parse_option("--texel-placement", "edge").unwrap_err();
+        assert!(matches!(e, Error::InvalidOption { .. }));
+        assert!(e.to_string().starts_with("--texel-placement edge:"));
+        assert_eq!(Placement::default(), Placement::Centre);
+    }
+
+    #[test]
+    fn texel_positions() {
+        assert_eq!(Placement::Centre.texel_position(0, 4), 0.125);
+        assert_eq!(Placement::Centre.texel_position(3, 4), 0.875);
+        assert_eq!(Placement::Corner.texel_position(0, 4), 0.0);
+        assert_eq!(Placement::Corner.texel_position(3, 4), 1.0);
+        assert_eq!(Placement::Corner.texel_position(1, 3), 0.5);
+        assert_eq!(Placement::Corner.texel_position(0, 1), 0.5);
+        assert_eq!(Placement::Corner.texel_map(8), (7.0, 0.0));
+        assert_eq!(Placement::Centre.texel_map(8), (8.0, 0.5));
     }
 
     #[test]

@@ -15,7 +15,9 @@ use pixelflow_sim::quadtree::{Cell, Quadtree, SampledQuadtree};
 use pixelflow_sim::reconstruction::{mesh::MeshModel, Estimator, Reconstruction};
 use pixelflow_sim::scene::{load_scene, Scene};
 use pixelflow_sim::shading::Shader;
-use pixelflow_sim::texture::{Filter, RadiosityTexture, SizePolicy, TextureMemory, TextureSet};
+use pixelflow_sim::texture::{
+    Filter, Placement, RadiosityTexture, SizePolicy, TextureMemory, TextureSet,
+};
 
 fn two_spots() -> Scene {
     load_scene(&Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/two-spots.toml")).unwrap()
@@ -76,7 +78,13 @@ impl Backends {
 
     fn texture(&self, opts: &FrameOptions, side: u32, filter: Filter) -> Frame {
         let depths = TextureSet::depths(&self.trees);
-        let set = TextureSet::build(&self.recon, &depths, SizePolicy::Fixed(side)).unwrap();
+        let set = TextureSet::build(
+            &self.recon,
+            &depths,
+            SizePolicy::Fixed(side),
+            Placement::Centre,
+        )
+        .unwrap();
         let shader = Shader::Texture { set: &set, filter };
         let method = Method::Texture(filter);
         render(&self.scene, &self.scene.camera, &shader, method, opts).unwrap()
@@ -202,6 +210,7 @@ fn minified_textures_use_coarser_levels() {
     let set = TextureSet {
         textures: vec![RadiosityTexture::from_texels(256, 256, texels).unwrap()],
         memory: TextureMemory::of_sides(&[256]),
+        placement: Placement::Centre,
     };
     let scene = two_spots();
     let frame = render(

@@ -172,6 +172,25 @@ fn bad_texture_options_and_names_exit_2() {
             "--method phong: is not a method",
         ),
         (vec!["experiment", "fig7"], "fig5, fig6, table1 or all"),
+        (
+            vec![
+                "render",
+                &ts,
+                "--method",
+                "texture-bilinear",
+                "--texel-placement",
+                "edge",
+            ],
+            "--texel-placement edge: is not a texel placement",
+        ),
+        (
+            vec!["stats", &ts, "--texel-placement", "Corner"],
+            "--texel-placement Corner",
+        ),
+        (
+            vec!["bench", &ts, "--texel-placement", "middle"],
+            "--texel-placement middle",
+        ),
     ] {
         let o = run(&args);
         assert_eq!(o.status.code(), Some(2), "{args:?}: {}", text(&o.stderr));
@@ -206,4 +225,35 @@ fn texture_budget_shrinks_textures_until_they_fit() {
     // 64 x 64 one 24575 B, so a 10 KiB budget gives 32 x 32.
     assert_eq!(v["texture_memory"]["texels"], 32 * 32);
     assert!(v["texture_memory"]["bytes_with_chain"][1].as_u64().unwrap() <= 10 * 1024);
+}
+
+#[test]
+fn texel_placement_round_trips_through_the_cli() {
+    // Corner placement renders, differs from the default centre placement, and the default is
+    // the same as asking for centre explicitly (bit for bit).
+    let ts = scene("two-spots");
+    let exr = |name: &str, extra: &[&str]| {
+        let path = tmp(&format!("placement-{name}.exr"));
+        let png = tmp(&format!("placement-{name}.png"));
+        let mut args = vec![
+            "render",
+            &ts,
+            "--method",
+            "texture-bilinear",
+            "-o",
+            png.to_str().unwrap(),
+            "--exr",
+            path.to_str().unwrap(),
+            "--quiet",
+        ];
+        args.extend_from_slice(extra);
+        let o = run(&args);
+        assert!(o.status.success(), "{name}: {}", text(&o.stderr));
+        std::fs::read(&path).unwrap()
+    };
+    let default = exr("default", &[]);
+    let centre = exr("centre", &["--texel-placement", "centre"]);
+    let corner = exr("corner", &["--texel-placement", "corner"]);
+    assert_eq!(default, centre);
+    assert_ne!(default, corner);
 }

@@ -920,7 +920,7 @@ fn texture_shader_avx2_and_portable_builds_shade_the_same_bits() {
     use pixelflow_sim::shading::texture::{
         shade_region_texture_into, shade_region_texture_into_portable,
     };
-    use pixelflow_sim::texture::{Filter, RadiosityTexture, TextureMemory, TextureSet};
+    use pixelflow_sim::texture::{Filter, Placement, RadiosityTexture, TextureMemory, TextureSet};
     let bg = Vec3::new(0.25, -0.5, 3.0);
     for (name, scene) in lane_test_scenes() {
         // Textures of 4 to 256 texels a side (magnified and minified, trilinear blends), all
@@ -947,6 +947,7 @@ fn texture_shader_avx2_and_portable_builds_shade_the_same_bits() {
         let set = TextureSet {
             textures,
             memory: TextureMemory::of_sides(&sides),
+            placement: Placement::Centre,
         };
         let mut opts = FrameOptions::new(scene.width, scene.height);
         opts.region = 64;

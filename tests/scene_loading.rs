@@ -510,6 +510,25 @@ fn other_settings_are_checked() {
     );
     let text = format!("{BASE}\n[render]\naa = 0\n");
     assert_error(&text, "aa", &["render.aa", "is 0"]);
+    let text = format!("{BASE}\n[render]\ntexel_placement = \"edge\"\n");
+    assert_error(
+        &text,
+        "edge",
+        &[
+            "render.texel_placement",
+            "`edge` is not a texel placement",
+            "corner",
+        ],
+    );
+    let s = parse_scene(
+        &format!("{BASE}\n[render]\ntexel_placement = \"corner\"\n"),
+        Path::new("test.toml"),
+    )
+    .unwrap();
+    assert_eq!(
+        s.render.texel_placement,
+        pixelflow_sim::method::Placement::Corner
+    );
     // The renderer has sample patterns for 1, 4 and 16 samples only.
     let text = format!("{BASE}\n[render]\naa = 3\n");
     assert_error(&text, "aa", &["render.aa", "is 3", "1, 4 or 16"]);

@@ -5,7 +5,7 @@
 use crate::error::{Error, Location, Result};
 use crate::frame::{self, Frame, FrameOptions};
 use crate::image;
-use crate::method::Method;
+use crate::method::{Method, Placement};
 use crate::metric::{compare, Comparison, LinearImage};
 use crate::quadtree::{Quadtree, SampledQuadtree};
 use crate::radiosity::{self, Oracle, SolveOptions};
@@ -378,7 +378,9 @@ pub fn fig5(opts: &FigureOptions) -> Result<Figure> {
 }
 
 /// Fig. 6: the bicubic RRP of the coarse quadtree resampled to a small texture and drawn with
-/// bilinear and with bicubic (Mitchell–Netravali) on-screen filtering, and the direct method.
+/// bilinear and with bicubic (Mitchell–Netravali) on-screen filtering, and the direct method;
+/// then the same two filters on a texture of the same size resampled at corner-aligned texels
+/// ([`Placement::Corner`], panels `corner-bilinear` and `corner-bicubic`).
 pub fn fig6(opts: &FigureOptions) -> Result<Figure> {
     check(opts)?;
     let setup = Setup::new(&opts.scene, opts.first_spot_falloff)?;
@@ -391,21 +393,23 @@ pub fn fig6(opts: &FigureOptions) -> Result<Figure> {
     let recon = Reconstruction::build(std::slice::from_ref(&coarse), opts.estimator)?;
     let ts = opts.texture_size;
     TextureSet::sides(&[0], crate::texture::SizePolicy::Fixed(ts))?;
-    let tex = RadiosityTexture::from_rrp(&recon, 0, ts);
-    let set = TextureSet {
+    let set_of = |placement: Placement| TextureSet {
         memory: TextureMemory::of_sides(&[ts]),
-        textures: vec![tex],
+        textures: vec![RadiosityTexture::from_rrp(&recon, 0, ts, placement)],
+        placement,
     };
+    let (set, corner) = (set_of(Placement::Centre), set_of(Placement::Corner));
     let fopts = FrameOptions::new(n, n);
-    let draw = |filter: Filter| -> Result<LinearImage> {
+    let draw_set = |set: &TextureSet, filter: Filter| -> Result<LinearImage> {
         image_of_frame(frame::render(
             scene,
             &scene.camera,
-            &Shader::Texture { set: &set, filter },
+            &Shader::Texture { set, filter },
             Method::Texture(filter),
             &fopts,
         )?)
     };
+    let draw = |filter: Filter| draw_set(&set, filter);
     let direct = image_of_frame(frame::render_patches(scene, &scene.camera, &recon, &fopts)?)?;
     let panels = vec![
         panel(
@@ -453,6 +457,27 @@ pub fn fig6(opts: &FigureOptions) -> Result<Figure> {
             "direct",
             &format!("(e) direct: the RRPs evaluated per pixel at {n} x {n}"),
             direct,
+            Some(&reference),
+        )?,
+        panel(
+            opts,
+            scene,
+            "fig6",
+            "corner-bilinear",
+            &format!(
+                "(f) corner-aligned texels: the RRP at u = i / {}, {ts} x {ts}, bilinear",
+                ts.saturating_sub(1).max(1)
+            ),
+            draw_set(&corner, Filter::Bilinear)?,
+            Some(&reference),
+        )?,
+        panel(
+            opts,
+            scene,
+            "fig6",
+            "corner-bicubic",
+            &format!("(g) corner-aligned texels, {ts} x {ts}, Mitchell-Netravali (1/3, 1/3)"),
+            draw_set(&corner, Filter::MITCHELL)?,
             Some(&reference),
         )?,
     ];
@@ -545,6 +570,15 @@ pub fn figure_text(f: &Figure) -> String {
         format!("{pl:.2}"),
         "-"
     );
+    if let (Some(b), Some(l)) = (f.distance("corner-bicubic"), f.distance("corner-bilinear")) {
+        t += &format!(
+            "corner texels    {:>9} {:>10} {:>10} {:>10}\n",
+            "-",
+            format!("{b:.4}"),
+            format!("{l:.4}"),
+            "-"
+        );
+    }
     if let (Some(b), Some(l)) = (f.distance("bicubic"), f.distance("bilinear")) {
         if l > 0.0 {
             t += &format!(
@@ -554,11 +588,11 @@ pub fn figure_text(f: &Figure) -> String {
             );
         }
     }
-    t += "\npanel       perceptual      RMSE    max abs   rel. lum.  Mach band\n";
+    t += "\npanel            perceptual      RMSE    max abs   rel. lum.  Mach band\n";
     for p in &f.panels {
         if let Some(c) = &p.versus_reference {
             t += &format!(
-                "{:<10} {:>11.4} {:>9.5} {:>10.5} {:>11.5} {:>10.3e}\n",
+                "{:<15} {:>11.4} {:>9.5} {:>10.5} {:>11.5} {:>10.3e}\n",
                 p.key,
                 c.perceptual_distance,
                 c.rmse,
@@ -569,7 +603,7 @@ pub fn figure_text(f: &Figure) -> String {
         }
     }
     for p in &f.panels {
-        t += &format!("  {:<10} {}\n", p.key, p.label);
+        t += &format!("  {:<15} {}\n", p.key, p.label);
     }
     t
 }

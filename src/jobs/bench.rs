@@ -62,6 +62,7 @@ pub fn run_bench(req: &BenchRequest, observer: &dyn Observer) -> Result<BenchRep
         .map(|m| req.texture.method(Method::parse(m)?))
         .collect::<Result<Vec<_>>>()?;
     let policy = req.texture.policy(&input.scene)?;
+    let placement = req.texture.placement(&input.scene)?;
     for &s in &req.sizes {
         if s == 0 {
             return Err(Error::invalid_option("--sizes", "0", "must be at least 1"));
@@ -76,7 +77,7 @@ pub fn run_bench(req: &BenchRequest, observer: &dyn Observer) -> Result<BenchRep
         ..FrameOptions::new(input.scene.width, input.scene.height)
     };
     base.validate()?;
-    let p = prepare(input, policy, observer)?;
+    let p = prepare(input, policy, placement, observer)?;
     let mut rows = Vec::new();
     for &size in &req.sizes {
         for &m in &methods {

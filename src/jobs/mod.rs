@@ -30,7 +30,7 @@ use std::sync::OnceLock;
 use std::time::Instant;
 
 use crate::error::{Error, Result};
-use crate::method::{check_texture_side, Method};
+use crate::method::{check_texture_side, Method, Placement};
 use crate::progress::Observer;
 use crate::radiosity::{self, file as solution_file, Solution, SolveOptions};
 use crate::reconstruction::mesh::MeshModel;
@@ -83,7 +83,7 @@ pub fn is_solution_file(path: &Path) -> bool {
 
 /// Command-line choices of the texture methods (all optional; the scene's `[render]` gives the
 /// defaults).
-#[derive(Debug, Clone, Copy, Default, PartialEq)]
+#[derive(Debug, Clone, Default, PartialEq)]
 pub struct TextureOptions {
     /// One texture side for every polygon (`--texture-size`, a power of two).
     pub size: Option<u32>,
@@ -92,6 +92,9 @@ pub struct TextureOptions {
     pub budget: Option<u64>,
     /// The bicubic filter's (B, C) (`--bicubic B,C`; default Mitchell–Netravali 1/3, 1/3).
     pub bicubic: Option<(f32, f32)>,
+    /// Where the texels sit, by name (`--texel-placement centre|corner`), checked by
+    /// [`TextureOptions::placement`] in the plan.
+    pub placement: Option<String>,
 }
 
 impl TextureOptions {
@@ -118,6 +121,15 @@ impl TextureOptions {
         // shrink to 1 x 1), which the scene gives before any solve.
         TextureSet::sides(&vec![0; scene.polygons.len()], policy)?;
         Ok(policy)
+    }
+
+    /// The texel placement: `--texel-placement` if given (an unknown name is an
+    /// [`Error::InvalidOption`] naming it), else the scene's `[render] texel_placement`.
+    pub fn placement(&self, scene: &Scene) -> Result<Placement> {
+        match &self.placement {
+            Some(name) => Placement::parse_option("--texel-placement", name),
+            None => Ok(scene.render.texel_placement),
+        }
     }
 
     /// `method` with these options' bicubic parameters applied (checked).
@@ -153,6 +165,9 @@ pub struct Prepared {
     /// How the texture methods size their textures (default: [`scene_texture_policy`]). Set it
     /// before the first texture frame: the textures are built once, on first use.
     pub texture_policy: SizePolicy,
+    /// Where the texture methods place their texels (default: the scene's); like
+    /// [`Prepared::texture_policy`], read when the textures are built.
+    pub texture_placement: Placement,
     textures: OnceLock<(TextureSet, f64)>,
     mesh: OnceLock<(MeshModel, f64)>,
 }
@@ -164,7 +179,12 @@ impl Prepared {
         if self.textures.get().is_none() {
             let t = Instant::now();
             let depths = TextureSet::depths(&self.solution.polygons);
-            let set = TextureSet::build(&self.reconstruction, &depths, self.texture_policy)?;
+            let set = TextureSet::build(
+                &self.reconstruction,
+                &depths,
+                self.texture_policy,
+                self.texture_placement,
+            )?;
             let _ = self.textures.set((set, t.elapsed().as_secs_f64() * 1e3));
         }
         let (set, ms) = self
@@ -191,11 +211,12 @@ impl Prepared {
 }
 
 /// Solves the input's scene (or reads its solution file) and builds the reconstruction; the
-/// textures will be sized by `texture_policy`. This is where a job's work starts: plan and
-/// validate before calling it.
+/// textures will be sized by `texture_policy` and their texels placed by `texture_placement`.
+/// This is where a job's work starts: plan and validate before calling it.
 pub fn prepare(
     input: Input,
     texture_policy: SizePolicy,
+    texture_placement: Placement,
     observer: &dyn Observer,
 ) -> Result<Prepared> {
     let Input {
@@ -216,6 +237,7 @@ pub fn prepare(
     let reconstruction_ms = t.elapsed().as_secs_f64() * 1e3;
     Ok(Prepared {
         texture_policy,
+        texture_placement,
         scene,
         solution,
         reconstruction,
@@ -235,7 +257,8 @@ pub fn prepare_path(
 ) -> Result<Prepared> {
     let input = Input::load(path)?;
     let policy = texture.policy(&input.scene)?;
-    prepare(input, policy, observer)
+    let placement = texture.placement(&input.scene)?;
+    prepare(input, policy, placement, observer)
 }
 
 /// Renders one frame of a prepared scene with `method`.

@@ -19,7 +19,7 @@ use crate::method::Method;
 use crate::progress::{Observer, Stage};
 use crate::reconstruction::mesh::MeshStats;
 use crate::scene::{Camera, Scene};
-use crate::texture::{SizePolicy, TextureMemory};
+use crate::texture::{Placement, SizePolicy, TextureMemory};
 
 /// What `pixelflow-sim render` was asked to do.
 #[derive(Debug, Clone, Default)]
@@ -61,6 +61,8 @@ pub struct RenderPlan {
     pub frame: FrameOptions,
     /// How textures are sized (checked against the scene's polygon count).
     pub texture_policy: SizePolicy,
+    /// Where the texels sit (`--texel-placement` or the scene's).
+    pub texture_placement: Placement,
     /// Each frame's camera and PNG path: one, or the whole camera path.
     pub frames: Vec<(Camera, PathBuf)>,
     /// The EXR to write (single frames only).
@@ -73,7 +75,8 @@ pub struct RenderPlan {
 
 impl RenderPlan {
     /// Resolves `req` against `scene` and checks every option: method and bicubic parameters,
-    /// image size, antialiasing, renderers, region, texture size or budget, `--exr` with
+    /// image size, antialiasing, renderers, region, texture size or budget, texel placement,
+    /// `--exr` with
     /// `--walkthrough`, and that a walkthrough has a camera path.
     pub fn new(req: &RenderRequest, scene: &Scene) -> Result<RenderPlan> {
         let method = match &req.method {
@@ -91,6 +94,7 @@ impl RenderPlan {
         };
         frame.validate()?;
         let texture_policy = req.texture.policy(scene)?;
+        let texture_placement = req.texture.placement(scene)?;
         if req.walkthrough && req.exr.is_some() {
             return Err(Error::invalid_option(
                 "--exr",
@@ -128,6 +132,7 @@ impl RenderPlan {
             method,
             frame,
             texture_policy,
+            texture_placement,
             frames,
             exr: req.exr.clone(),
             stats: req.stats.clone(),
@@ -173,7 +178,7 @@ pub fn run_render(
     for w in &input.scene.warnings {
         on(RenderEvent::Warning(w));
     }
-    let p = prepare(input, plan.texture_policy, observer)?;
+    let p = prepare(input, plan.texture_policy, plan.texture_placement, observer)?;
     let exposure = p.scene.display.exposure;
     let n = plan.frames.len();
     // The walkthrough's own stage, after the solve's: it ends (also on an error) when dropped.

@@ -38,7 +38,8 @@ pub fn run_stats(req: &StatsRequest, observer: &dyn Observer) -> Result<ModelSta
     };
     req.frame.validate()?;
     let policy = req.texture.policy(&input.scene)?;
-    let p = prepare(input, policy, observer)?;
+    let placement = req.texture.placement(&input.scene)?;
+    let p = prepare(input, policy, placement, observer)?;
     model_stats(&p, req.frames, &req.frame, bicubic)
 }
 

@@ -61,6 +61,7 @@ use glam::Vec3;
 use rayon::prelude::*;
 
 use crate::error::{Error, Result};
+use crate::method::Placement;
 use crate::quadtree::{SampledQuadtree, LATTICE, MAX_DEPTH};
 use estimate::Samples;
 use hermite::PatchPoly;
@@ -498,11 +499,18 @@ impl Reconstruction {
     /// u = (i + 0.5) / n, v = (j + 0.5) / m (computed in f64, rounded to f32), row-major with
     /// j = row (v). Empty if n or m is 0.
     pub fn resample(&self, polygon: u32, n: u32, m: u32) -> Vec<Vec3> {
+        self.resample_placed(polygon, n, m, Placement::Centre)
+    }
+
+    /// [`Reconstruction::resample`] with the texels at the positions of `placement`
+    /// ([`Placement::texel_position`]): texel (i, j) is the value at
+    /// `(placement.texel_position(i, n), placement.texel_position(j, m))`.
+    pub fn resample_placed(&self, polygon: u32, n: u32, m: u32, placement: Placement) -> Vec<Vec3> {
         let mut uv = Vec::with_capacity(n as usize * m as usize);
         for j in 0..m {
-            let v = texel_centre(j, m);
+            let v = placement.texel_position(j, m);
             for i in 0..n {
-                uv.push([texel_centre(i, n), v]);
+                uv.push([placement.texel_position(i, n), v]);
             }
         }
         let mut out = vec![Vec3::ZERO; uv.len()];
@@ -519,7 +527,7 @@ impl Reconstruction {
 /// Texel centre coordinate (k + 0.5) / n, in f64 rounded to f32.
 #[inline]
 pub fn texel_centre(k: u32, n: u32) -> f32 {
-    ((k as f64 + 0.5) / n as f64) as f32
+    Placement::Centre.texel_position(k, n)
 }
 
 /// What the direct method needs from a reconstruction.

@@ -183,6 +183,8 @@ pub struct RenderSection {
     pub aa: Option<Spanned<i64>>,
     /// Texture size for the texture methods (0 = automatic).
     pub texture_size: Option<Spanned<i64>>,
+    /// Texel placement of the texture methods (`centre` or `corner`).
+    pub texel_placement: Option<Spanned<String>>,
 }
 
 /// `[display]`.

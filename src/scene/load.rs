@@ -24,7 +24,7 @@ use super::{
     RadiositySettings, RenderSettings, Scene, SpotLight, MAX_IMAGE_DIM, PLANARITY_TOLERANCE,
 };
 use crate::error::{Error, Location, Result};
-use crate::method::{Method, AA_SAMPLE_COUNTS, MAX_TEXTURE_SIZE};
+use crate::method::{Method, Placement, AA_SAMPLE_COUNTS, MAX_TEXTURE_SIZE};
 use glam::DVec3;
 use std::collections::BTreeMap;
 use std::ops::Range;
@@ -533,6 +533,16 @@ impl<'a> Cx<'a> {
                 ));
             }
             s.texture_size = x as u32;
+        }
+        if let Some(p) = &r.texel_placement {
+            s.texel_placement = Placement::parse_option("render.texel_placement", p.get_ref())
+                .map_err(|e| {
+                    let reason = match e {
+                        Error::InvalidOption { value, reason, .. } => format!("`{value}` {reason}"),
+                        e => e.to_string(),
+                    };
+                    self.err(p.span(), "render.texel_placement", reason)
+                })?;
         }
         Ok(s)
     }

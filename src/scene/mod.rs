@@ -17,7 +17,7 @@
 
 use glam::DVec3;
 
-use crate::method::Method;
+use crate::method::{Method, Placement};
 
 pub mod camera_path;
 pub mod format;
@@ -292,6 +292,8 @@ pub struct RenderSettings {
     pub aa_samples: u32,
     /// Texture size for the texture methods (0 = chosen per polygon from its quadtree depth).
     pub texture_size: u32,
+    /// Where the texture methods place their texels (`--texel-placement` overrides it).
+    pub texel_placement: Placement,
 }
 
 impl Default for RenderSettings {
@@ -300,6 +302,7 @@ impl Default for RenderSettings {
             method: Method::Direct,
             aa_samples: 1,
             texture_size: 0,
+            texel_placement: Placement::Centre,
         }
     }
 }

@@ -391,7 +391,7 @@ mod tests {
     /// [0, 1] and a NaN, and (u, v) maps whose scale grows across the region so that the level of
     /// detail runs from magnification over fractional levels to the last level.
     fn mixed_texture_region() -> (TextureSet, RegionGBuffer) {
-        use crate::texture::{RadiosityTexture, TextureMemory};
+        use crate::texture::{Placement, RadiosityTexture, TextureMemory};
         let sides = [4u32, 16, 64];
         let textures: Vec<RadiosityTexture> = sides
             .iter()
@@ -413,6 +413,7 @@ mod tests {
         let set = TextureSet {
             textures,
             memory: TextureMemory::of_sides(&sides),
+            placement: Placement::Centre,
         };
         let (w, h, spp) = (37u32, 13u32, 2u32);
         let mut gb = RegionGBuffer::new(0, 0, 0, w, h, spp);
@@ -451,7 +452,18 @@ mod tests {
 
     #[test]
     fn texture_lane_path_equals_the_scalar_path_bit_for_bit() {
-        let (set, gb) = mixed_texture_region();
+        use crate::texture::Placement;
+        for placement in [Placement::Centre, Placement::Corner] {
+            let (mut set, gb) = mixed_texture_region();
+            set.placement = placement;
+            for t in &mut set.textures {
+                t.placement = placement;
+            }
+            lane_path_equals_scalar_path(&set, &gb);
+        }
+    }
+
+    fn lane_path_equals_scalar_path(set: &TextureSet, gb: &RegionGBuffer) {
         let (w, h) = (gb.width as usize, gb.height as usize);
         // The region does exercise every level-of-detail case: magnified samples, fractional
         // levels (trilinear blends) and samples clamped to the last level.
@@ -464,7 +476,7 @@ mod tests {
                     let Some(tex) = set.textures.get(gb.polygon[i] as usize) else {
                         continue;
                     };
-                    let [ux, vx, uy, vy] = uv_derivatives(&gb, i, x, y);
+                    let [ux, vx, uy, vy] = uv_derivatives(gb, i, x, y);
                     let (tw, th) = (tex.width as f32, tex.height as f32);
                     let lx2 = (ux * tw) * (ux * tw) + (vx * th) * (vx * th);
                     let ly2 = (uy * tw) * (uy * tw) + (vy * th) * (vy * th);
@@ -489,14 +501,14 @@ mod tests {
         ] {
             let pitch = w + 3;
             let mut want = vec![Vec3::splat(-7.0); pitch * h];
-            let c_want = shade_region_texture_scalar(&set, filter, &gb, bg, &mut want, pitch);
+            let c_want = shade_region_texture_scalar(set, filter, gb, bg, &mut want, pitch);
             let mut got = vec![Vec3::splat(-7.0); pitch * h];
-            let c_got = shade_region_texture_into(&set, filter, &gb, bg, &mut got, pitch);
+            let c_got = shade_region_texture_into(set, filter, gb, bg, &mut got, pitch);
             // The portable build of the body too (the dispatcher above picks AVX2 if present).
             let mut port = vec![Vec3::splat(-7.0); pitch * h];
             // SAFETY: HW = false: portable code only.
             unsafe {
-                shade_texture_body::<false>(&set, &Sampler::new(filter), &gb, bg, &mut port, pitch)
+                shade_texture_body::<false>(set, &Sampler::new(filter), gb, bg, &mut port, pitch)
             };
             assert_eq!(c_got.samples_shaded, c_want.samples_shaded, "{filter:?}");
             assert!(

@@ -11,7 +11,8 @@
 //! without the trilinear second level.
 //!
 //! Invariant: every lane performs the same IEEE operations in the same order as the scalar
-//! [`Sampler::sample`] (clamp of (u, v), `x = u n - 0.5`, `floor`, the cubic weights by Horner,
+//! [`Sampler::sample`] (clamp of (u, v), `x = u n - 0.5` or `x = u (n - 1)` by the texture's
+//! [`Placement`], `floor`, the cubic weights by Horner,
 //! the row-then-column sums starting from 0, the level blend `a + (b - a) f`), so a lane's result
 //! has the same bits as the scalar call: the lane path is an implementation detail, not a new
 //! filter. Texel indices are clamped to the level (clamp-to-edge addressing), so every load is in
@@ -24,7 +25,7 @@
 use glam::Vec3;
 
 use super::MipLevel;
-use super::{clamp01, lod_from_squares, Cubic, Filter, RadiosityTexture, Sampler};
+use super::{clamp01, lod_from_squares, Cubic, Filter, Placement, RadiosityTexture, Sampler};
 use crate::lanes::{F32x8, LANES};
 
 /// Three channels of 8 lanes (r, g, b).
@@ -108,11 +109,13 @@ fn floor8(x: F32x8) -> F32x8 {
     F32x8(r)
 }
 
-/// Lane form of `split` in the float domain: x = u n - 0.5, returns (floor(x), x - floor(x)).
-/// With u in [0, 1], floor(x) is an integer in [-1, n - 1], exact in f32.
+/// Lane form of `split` in the float domain: x = u scale - offset ([`Placement::texel_map`]:
+/// u n - 0.5 for centres, u (n - 1) for corners), returns (floor(x), x - floor(x)). With u in
+/// [0, 1], floor(x) is an integer in [-1, n - 1], exact in f32.
 #[inline(always)]
-fn split8(u: F32x8, n: u32) -> (F32x8, F32x8) {
-    let x = u * F32x8::splat(n as f32) - F32x8::splat(0.5);
+fn split8(u: F32x8, n: u32, p: Placement) -> (F32x8, F32x8) {
+    let (scale, offset) = p.texel_map(n);
+    let x = u * F32x8::splat(scale) - F32x8::splat(offset);
     let f = floor8(x);
     (f, x - f)
 }
@@ -142,24 +145,33 @@ fn index(row: F32x8, w: f32, col: F32x8) -> [i32; LANES] {
     r
 }
 
-/// Lane form of `nearest`: floor(u n) clamped to the edge.
+/// Lane form of `nearest_index`: floor(u scale + (0.5 - offset)) (floor(u n) for centres),
+/// clamped to the edge.
 #[inline(always)]
-fn nearest8<const HW: bool>(lv: &MipLevel, u: F32x8, v: F32x8) -> Rgb8 {
+fn nearest_index8(u: F32x8, n: u32, p: Placement) -> F32x8 {
+    let (scale, offset) = p.texel_map(n);
+    let x = u * F32x8::splat(scale) + F32x8::splat(0.5 - offset);
+    clamp_index(floor8(x), 0.0, n as f32 - 1.0)
+}
+
+/// Lane form of `nearest`.
+#[inline(always)]
+fn nearest8<const HW: bool>(lv: &MipLevel, p: Placement, u: F32x8, v: F32x8) -> Rgb8 {
     check_level(lv);
-    let (w, h) = (lv.width as f32, lv.height as f32);
-    let i = clamp_index(floor8(u * F32x8::splat(w)), 0.0, w - 1.0);
-    let j = clamp_index(floor8(v * F32x8::splat(h)), 0.0, h - 1.0);
+    let w = lv.width as f32;
+    let i = nearest_index8(u, lv.width, p);
+    let j = nearest_index8(v, lv.height, p);
     // SAFETY: clamped row and column of a level checked by check_level.
     unsafe { gather::<HW>(&lv.texels, &index(j, w, i)) }
 }
 
 /// Lane form of `bilinear`.
 #[inline(always)]
-fn bilinear8<const HW: bool>(lv: &MipLevel, u: F32x8, v: F32x8) -> Rgb8 {
+fn bilinear8<const HW: bool>(lv: &MipLevel, p: Placement, u: F32x8, v: F32x8) -> Rgb8 {
     check_level(lv);
     let (w, h) = (lv.width as f32, lv.height as f32);
-    let (i, s) = split8(u, lv.width);
-    let (j, t) = split8(v, lv.height);
+    let (i, s) = split8(u, lv.width, p);
+    let (j, t) = split8(v, lv.height, p);
     let (c0, c1) = (clamp_index(i, 0.0, w - 1.0), clamp_index(i, 1.0, w - 1.0));
     let (r0, r1) = (clamp_index(j, 0.0, h - 1.0), clamp_index(j, 1.0, h - 1.0));
     // SAFETY: clamped rows and columns of a level checked by check_level.
@@ -194,11 +206,11 @@ fn weights8(k: &Cubic, t: F32x8) -> [F32x8; 4] {
 /// Lane form of `bicubic`: per row j - 1 .. j + 2 the 4 clamped columns are gathered and
 /// filtered with the u weights, then accumulated (from 0, as the scalar code) with the v weight.
 #[inline(always)]
-fn bicubic8<const HW: bool>(lv: &MipLevel, u: F32x8, v: F32x8, k: &Cubic) -> Rgb8 {
+fn bicubic8<const HW: bool>(lv: &MipLevel, p: Placement, u: F32x8, v: F32x8, k: &Cubic) -> Rgb8 {
     check_level(lv);
     let (w, h) = (lv.width as f32, lv.height as f32);
-    let (i, s) = split8(u, lv.width);
-    let (j, t) = split8(v, lv.height);
+    let (i, s) = split8(u, lv.width, p);
+    let (j, t) = split8(v, lv.height, p);
     let wu = weights8(k, s);
     let wv = weights8(k, t);
     let cols = [
@@ -230,11 +242,33 @@ fn bicubic8<const HW: bool>(lv: &MipLevel, u: F32x8, v: F32x8, k: &Cubic) -> Rgb
 impl Sampler {
     /// Filters one level for 8 lanes of already clamped coordinates.
     #[inline(always)]
-    fn level8<const HW: bool>(&self, lv: &MipLevel, u: F32x8, v: F32x8) -> Rgb8 {
+    fn level8<const HW: bool>(&self, lv: &MipLevel, p: Placement, u: F32x8, v: F32x8) -> Rgb8 {
+        // One instance per placement, so that the texel map is a constant in each and the
+        // centre instance is the code without placements (a run-time placement in the lane
+        // loops made the deferred pass about 1.5x slower).
+        match p {
+            Placement::Centre => self.level8_at::<HW, false>(lv, u, v),
+            Placement::Corner => self.level8_at::<HW, true>(lv, u, v),
+        }
+    }
+
+    /// [`Sampler::level8`] for the placement `CORNER` selects.
+    #[inline(always)]
+    fn level8_at<const HW: bool, const CORNER: bool>(
+        &self,
+        lv: &MipLevel,
+        u: F32x8,
+        v: F32x8,
+    ) -> Rgb8 {
+        let p = if CORNER {
+            Placement::Corner
+        } else {
+            Placement::Centre
+        };
         match self.filter {
-            Filter::Nearest => nearest8::<HW>(lv, u, v),
-            Filter::Bilinear => bilinear8::<HW>(lv, u, v),
-            Filter::Bicubic { .. } => bicubic8::<HW>(lv, u, v, &self.cubic),
+            Filter::Nearest => nearest8::<HW>(lv, p, u, v),
+            Filter::Bilinear => bilinear8::<HW>(lv, p, u, v),
+            Filter::Bicubic { .. } => bicubic8::<HW>(lv, p, u, v, &self.cubic),
         }
     }
 
@@ -312,7 +346,7 @@ impl Sampler {
             vc.0[l] = clamp01(v.0[l]);
         }
         if magnified {
-            return self.level8::<HW>(&tex.levels[0], uc, vc);
+            return self.level8::<HW>(&tex.levels[0], tex.placement, uc, vc);
         }
         let mut out = [F32x8::splat(0.0); 3];
         let mut done = [false; LANES];
@@ -328,9 +362,9 @@ impl Sampler {
                 done[l] |= m[l];
                 any_blend |= m[l] && blend[l];
             }
-            let mut a = self.level8::<HW>(&tex.levels[lv], uc, vc);
+            let mut a = self.level8::<HW>(&tex.levels[lv], tex.placement, uc, vc);
             if any_blend {
-                let b = self.level8::<HW>(&tex.levels[lv + 1], uc, vc);
+                let b = self.level8::<HW>(&tex.levels[lv + 1], tex.placement, uc, vc);
                 let f = F32x8(frac);
                 for ch in 0..3 {
                     a[ch] = F32x8::select(&blend, a[ch] + (b[ch] - a[ch]) * f, a[ch]);

@@ -3,14 +3,28 @@
 //! evaluating the RRPs per pixel.
 //!
 //! Pipeline role: after [`crate::reconstruction`] has built the RRPs, [`TextureSet::build`]
-//! resamples every polygon's RRP (not its raw samples) at texel centres `(i + 0.5) / N` into an
-//! N x N level 0 and box-filters a mip chain down to 1 x 1 ([`mip_chain`]).
+//! resamples every polygon's RRP (not its raw samples) into an N x N level 0 and a mip chain
+//! down to 1 x 1, with the texels placed by a [`Placement`]:
+//!
+//! - [`Placement::Centre`] (default): texel i at u = `(i + 0.5) / N`, the filters map u to
+//!   x = u N - 0.5; the chain is box-filtered ([`mip_chain`]). The samples stop half a texel
+//!   short of the polygon's edges, where the filters clamp.
+//! - [`Placement::Corner`] (the lightmap convention): texel i at u = `i / (N - 1)` (0.5 for
+//!   N = 1), the filters map u to x = u (N - 1); the first and last texels lie on the edges, so
+//!   bilinear filtering reproduces a linear function on all of [0, 1]. Each coarser level is
+//!   resampled from the RRP at its own corner positions ([`corner_chain`]): box filtering would
+//!   not keep the corner alignment. The level of detail is still log2 of N texels per unit
+//!   (not N - 1), the same choice of level for both placements.
+//!
+//! Both placements use clamp-to-edge addressing and the same filter code; the placement is
+//! recorded in each [`RadiosityTexture`] and in the [`TextureSet`].
 //! The deferred pass then calls [`RadiosityTexture::sample`] / [`RadiosityTexture::sample_lod`]
 //! with a [`Filter`] and a level of detail from [`lod`]; its hot loop uses the lane form
 //! [`Sampler::sample8`] (8 samples per call, module `lanes`), which returns the same bits.
 //!
 //! Invariants: every texture is square with a power-of-two side between 1 and
-//! [`MAX_TEXTURE_SIZE`]; its chain has `log2(side) + 1` levels, the last 1 x 1; all texels are
+//! [`MAX_TEXTURE_SIZE`]; its chain has `log2(side) + 1` levels, the last 1 x 1, all at one
+//! placement; all texels are
 //! finite (the RRPs are). Sampling never returns NaN or inf: coordinates are clamped to [0, 1]
 //! (NaN to 0) and texel indices clamped to the edge (clamp-to-edge addressing). Memory is
 //! accounted as the paper's hardware did ([`TextureMemory`]): power-of-two blocks of 3 channels.
@@ -35,6 +49,9 @@ pub use lanes::Rgb8;
 
 /// The on-screen filters are named with the methods, which the scene loader parses.
 pub use crate::method::Filter;
+/// Where the texels sit (texel centres or the lightmap's corner alignment), an option the scene
+/// loader parses as well.
+pub use crate::method::Placement;
 /// Largest texture side any policy produces (4096 x 4096 texels, 192 MiB at 32-bit floats).
 /// Deeper quadtrees are clamped to this side under [`SizePolicy::FromDepth`].
 pub use crate::method::MAX_TEXTURE_SIZE;
@@ -117,6 +134,8 @@ pub struct RadiosityTexture {
     pub height: u32,
     /// Levels, finest first; level l is `max(1, width >> l)` x `max(1, height >> l)`.
     pub levels: Vec<MipLevel>,
+    /// Where every level's texels sit in (u, v); the filters map coordinates accordingly.
+    pub placement: Placement,
 }
 
 /// Clamps a texture coordinate into [0, 1]; NaN goes to 0 (documented clamp: a point outside
@@ -130,31 +149,106 @@ fn clamp01(x: f32) -> f32 {
     }
 }
 
-/// Fractional texel position of coordinate `u` on an `n`-texel axis: x = u n - 0.5, i = floor(x),
-/// t = x - i. u must be clamped already.
+/// Fractional texel position of coordinate `u` on an `n`-texel axis under placement `p`:
+/// x = u scale - offset with ([`Placement::texel_map`]) x = u n - 0.5 for centres and
+/// x = u (n - 1) for corners; i = floor(x), t = x - i. u must be clamped already.
 #[inline(always)]
-fn split(u: f32, n: u32) -> (i32, f32) {
-    let x = u * n as f32 - 0.5;
+fn split(u: f32, n: u32, p: Placement) -> (i32, f32) {
+    let (scale, offset) = p.texel_map(n);
+    let x = u * scale - offset;
     let i = x.floor();
     (i as i32, x - i)
 }
 
+/// Index of the texel nearest to coordinate `u` on an `n`-texel axis under placement `p`:
+/// floor(x + 0.5) with x as in [`split`], i.e. floor(u n) for centres (u n + 0 has the bits of
+/// u n) and floor(u (n - 1) + 0.5) for corners. Not yet clamped to the edge.
+#[inline(always)]
+fn nearest_index(u: f32, n: u32, p: Placement) -> i32 {
+    let (scale, offset) = p.texel_map(n);
+    (u * scale + (0.5 - offset)).floor() as i32
+}
+
 impl RadiosityTexture {
-    /// Resamples polygon `polygon` of `recon` at `side` x `side` with a full mip chain.
-    /// `side` must be a power of two in `1..=MAX_TEXTURE_SIZE` (checked by the callers).
-    pub fn from_rrp(recon: &Reconstruction, polygon: u32, side: u32) -> RadiosityTexture {
-        RadiosityTexture {
-            width: side,
-            height: side,
-            levels: mip_chain(MipLevel {
+    /// Resamples polygon `polygon` of `recon` at `side` x `side` with a full mip chain, texels
+    /// placed by `placement`. `side` must be a power of two in `1..=MAX_TEXTURE_SIZE` (checked by
+    /// the callers).
+    ///
+    /// Centre: level 0 at the texel centres, the chain box-filtered ([`mip_chain`]); a coarse
+    /// texel's footprint is exactly the 2 x 2 fine texels it averages. Corner: every level is
+    /// resampled from the RRP at its own corner-aligned positions ([`corner_chain`]), because
+    /// the corner positions i / (n - 1) of a level are not those of the finer level (for n = 8
+    /// and 4: sevenths and thirds), so averaging fine texels would move the samples off the
+    /// edges and corners.
+    pub fn from_rrp(
+        recon: &Reconstruction,
+        polygon: u32,
+        side: u32,
+        placement: Placement,
+    ) -> RadiosityTexture {
+        let levels = match placement {
+            Placement::Centre => mip_chain(MipLevel {
                 width: side,
                 height: side,
                 texels: recon.resample(polygon, side, side),
             }),
+            Placement::Corner => corner_chain(side, |n| {
+                recon.resample_placed(polygon, n, n, Placement::Corner)
+            }),
+        };
+        RadiosityTexture {
+            width: side,
+            height: side,
+            levels,
+            placement,
         }
     }
 
-    /// A texture from a given level 0 (mip chain box-filtered down to 1 x 1). Errors if the size
+    /// A texture of `side` x `side` (a power of two in `1..=MAX_TEXTURE_SIZE`) sampling the
+    /// function `f(u, v)` at the texel positions of `placement` ([`Placement::texel_position`]),
+    /// with the chain [`RadiosityTexture::from_rrp`] builds: for Centre level 0 and the box
+    /// chain, for Corner every level sampled at its own positions. Errors for a bad side or a
+    /// non-finite value.
+    pub fn from_fn(
+        side: u32,
+        placement: Placement,
+        f: impl Fn(f32, f32) -> Vec3,
+    ) -> Result<RadiosityTexture> {
+        check_side(side)?;
+        let sample = |n: u32| -> Vec<Vec3> {
+            let mut t = Vec::with_capacity(n as usize * n as usize);
+            for j in 0..n {
+                let v = placement.texel_position(j, n);
+                for i in 0..n {
+                    t.push(f(placement.texel_position(i, n), v));
+                }
+            }
+            t
+        };
+        let levels = match placement {
+            Placement::Centre => mip_chain(MipLevel {
+                width: side,
+                height: side,
+                texels: sample(side),
+            }),
+            Placement::Corner => corner_chain(side, sample),
+        };
+        if levels
+            .iter()
+            .any(|l| l.texels.iter().any(|t| !t.is_finite()))
+        {
+            return Err(Error::Runtime("texture texel is not finite".into()));
+        }
+        Ok(RadiosityTexture {
+            width: side,
+            height: side,
+            levels,
+            placement,
+        })
+    }
+
+    /// A texture from a given level 0 at the texel centres ([`Placement::Centre`]; mip chain
+    /// box-filtered down to 1 x 1). Errors if the size
     /// is not a power of two in `1..=MAX_TEXTURE_SIZE` per axis, if `texels.len()` is not
     /// `width * height`, or if a texel is not finite.
     pub fn from_texels(width: u32, height: u32, texels: Vec<Vec3>) -> Result<RadiosityTexture> {
@@ -179,6 +273,7 @@ impl RadiosityTexture {
                 height,
                 texels,
             }),
+            placement: Placement::Centre,
         })
     }
 
@@ -200,10 +295,11 @@ impl RadiosityTexture {
     pub fn sample(&self, level: usize, u: f32, v: f32, filter: Filter) -> Vec3 {
         let l = &self.levels[level.min(self.last_level())];
         let (u, v) = (clamp01(u), clamp01(v));
+        let p = self.placement;
         match filter {
-            Filter::Nearest => nearest(l, u, v),
-            Filter::Bilinear => bilinear(l, u, v),
-            Filter::Bicubic { b, c } => bicubic(l, u, v, &Cubic::new(b, c)),
+            Filter::Nearest => nearest(l, p, u, v),
+            Filter::Bilinear => bilinear(l, p, u, v),
+            Filter::Bicubic { b, c } => bicubic(l, p, u, v, &Cubic::new(b, c)),
         }
     }
 
@@ -212,15 +308,18 @@ impl RadiosityTexture {
     /// loop (the form the deferred pass uses for a run of pixels).
     pub fn sample_many(&self, level: usize, uv: &[[f32; 2]], filter: Filter, out: &mut [Vec3]) {
         let l = &self.levels[level.min(self.last_level())];
+        let pl = self.placement;
         let pts = uv.iter().zip(out.iter_mut());
         match filter {
-            Filter::Nearest => pts.for_each(|(p, o)| *o = nearest(l, clamp01(p[0]), clamp01(p[1]))),
+            Filter::Nearest => {
+                pts.for_each(|(p, o)| *o = nearest(l, pl, clamp01(p[0]), clamp01(p[1])))
+            }
             Filter::Bilinear => {
-                pts.for_each(|(p, o)| *o = bilinear(l, clamp01(p[0]), clamp01(p[1])))
+                pts.for_each(|(p, o)| *o = bilinear(l, pl, clamp01(p[0]), clamp01(p[1])))
             }
             Filter::Bicubic { b, c } => {
                 let k = Cubic::new(b, c);
-                pts.for_each(|(p, o)| *o = bicubic(l, clamp01(p[0]), clamp01(p[1]), &k))
+                pts.for_each(|(p, o)| *o = bicubic(l, pl, clamp01(p[0]), clamp01(p[1]), &k))
             }
         }
     }
@@ -270,12 +369,12 @@ impl Sampler {
     }
 
     #[inline(always)]
-    fn level(&self, l: &MipLevel, u: f32, v: f32) -> Vec3 {
+    fn level(&self, l: &MipLevel, p: Placement, u: f32, v: f32) -> Vec3 {
         let (u, v) = (clamp01(u), clamp01(v));
         match self.filter {
-            Filter::Nearest => nearest(l, u, v),
-            Filter::Bilinear => bilinear(l, u, v),
-            Filter::Bicubic { .. } => bicubic(l, u, v, &self.cubic),
+            Filter::Nearest => nearest(l, p, u, v),
+            Filter::Bilinear => bilinear(l, p, u, v),
+            Filter::Bicubic { .. } => bicubic(l, p, u, v, &self.cubic),
         }
     }
 
@@ -291,15 +390,20 @@ impl Sampler {
             lod.clamp(0.0, last as f32)
         };
         if let Filter::Nearest = self.filter {
-            return self.level(&tex.levels[(d.round() as usize).min(last)], u, v);
+            return self.level(
+                &tex.levels[(d.round() as usize).min(last)],
+                tex.placement,
+                u,
+                v,
+            );
         }
         let l0 = (d.floor() as usize).min(last);
         let f = d - l0 as f32;
-        let a = self.level(&tex.levels[l0], u, v);
+        let a = self.level(&tex.levels[l0], tex.placement, u, v);
         if f <= 0.0 || l0 == last {
             return a;
         }
-        let b = self.level(&tex.levels[l0 + 1], u, v);
+        let b = self.level(&tex.levels[l0 + 1], tex.placement, u, v);
         a + (b - a) * f
     }
 }
@@ -341,16 +445,16 @@ fn fetch(l: &MipLevel, i: i32, j: i32) -> Vec3 {
     l.texels[y * l.width as usize + x]
 }
 
-fn nearest(l: &MipLevel, u: f32, v: f32) -> Vec3 {
-    // floor(u n), with u = 1 mapped onto the last texel by the edge clamp.
-    let i = (u * l.width as f32).floor() as i32;
-    let j = (v * l.height as f32).floor() as i32;
+fn nearest(l: &MipLevel, p: Placement, u: f32, v: f32) -> Vec3 {
+    // Centre: floor(u n), with u = 1 mapped onto the last texel by the edge clamp.
+    let i = nearest_index(u, l.width, p);
+    let j = nearest_index(v, l.height, p);
     fetch(l, i, j)
 }
 
-fn bilinear(l: &MipLevel, u: f32, v: f32) -> Vec3 {
-    let (i, s) = split(u, l.width);
-    let (j, t) = split(v, l.height);
+fn bilinear(l: &MipLevel, p: Placement, u: f32, v: f32) -> Vec3 {
+    let (i, s) = split(u, l.width, p);
+    let (j, t) = split(v, l.height, p);
     let a = fetch(l, i, j) * (1.0 - s) + fetch(l, i + 1, j) * s;
     let b = fetch(l, i, j + 1) * (1.0 - s) + fetch(l, i + 1, j + 1) * s;
     a * (1.0 - t) + b * t
@@ -359,9 +463,9 @@ fn bilinear(l: &MipLevel, u: f32, v: f32) -> Vec3 {
 /// Separable 4 x 4: each of the 4 rows j - 1 .. j + 2 is filtered horizontally with the u
 /// weights, then the 4 row results vertically with the v weights. The column indices are clamped
 /// once; the row loop is fixed-length so the compiler unrolls it.
-fn bicubic(l: &MipLevel, u: f32, v: f32, k: &Cubic) -> Vec3 {
-    let (i, s) = split(u, l.width);
-    let (j, t) = split(v, l.height);
+fn bicubic(l: &MipLevel, p: Placement, u: f32, v: f32, k: &Cubic) -> Vec3 {
+    let (i, s) = split(u, l.width, p);
+    let (j, t) = split(v, l.height, p);
     let wu = k.weights(s);
     let wv = k.weights(t);
     let wmax = l.width as i32 - 1;
@@ -454,6 +558,24 @@ pub fn mip_chain(level0: MipLevel) -> Vec<MipLevel> {
     levels
 }
 
+/// The chain of a corner-aligned square texture of side `side`: level l (side
+/// `max(1, side >> l)`) is `sample(n)`, the n x n values at the corner positions i / (n - 1)
+/// (0.5 for n = 1) of that level. Point samples, not averages: a coarse corner-aligned texel
+/// stands for the value at its position, and no average of the finer level sits there.
+pub fn corner_chain(side: u32, mut sample: impl FnMut(u32) -> Vec<Vec3>) -> Vec<MipLevel> {
+    let mut levels = Vec::new();
+    let mut n = side;
+    while n >= 1 {
+        levels.push(MipLevel {
+            width: n,
+            height: n,
+            texels: sample(n),
+        });
+        n /= 2;
+    }
+    levels
+}
+
 fn check_side(n: u32) -> Result<()> {
     crate::method::check_texture_side("--texture-size", n)
 }
@@ -525,6 +647,8 @@ pub struct TextureSet {
     pub textures: Vec<RadiosityTexture>,
     /// Their memory.
     pub memory: TextureMemory,
+    /// Where the texels of every texture sit (all textures of a set share it).
+    pub placement: Placement,
 }
 
 impl TextureSet {
@@ -566,9 +690,15 @@ impl TextureSet {
     }
 
     /// Builds every polygon's texture by resampling its RRP at the side `policy` chooses from
-    /// `depths` (one per polygon, see [`TextureSet::depths`]), with mip chains, in parallel. Errors if
+    /// `depths` (one per polygon, see [`TextureSet::depths`]) at the texel positions of
+    /// `placement`, with mip chains ([`RadiosityTexture::from_rrp`]), in parallel. Errors if
     /// `depths.len()` differs from the polygon count or as [`TextureSet::sides`].
-    pub fn build(recon: &Reconstruction, depths: &[u32], policy: SizePolicy) -> Result<TextureSet> {
+    pub fn build(
+        recon: &Reconstruction,
+        depths: &[u32],
+        policy: SizePolicy,
+        placement: Placement,
+    ) -> Result<TextureSet> {
         if depths.len() != recon.polygon_count() {
             return Err(Error::Runtime(format!(
                 "{} quadtree depths for {} polygons",
@@ -582,11 +712,12 @@ impl TextureSet {
         let textures = sides
             .par_iter()
             .enumerate()
-            .map(|(p, &n)| RadiosityTexture::from_rrp(recon, p as u32, n))
+            .map(|(p, &n)| RadiosityTexture::from_rrp(recon, p as u32, n, placement))
             .collect();
         Ok(TextureSet {
             textures,
             memory: TextureMemory::of_sides(&sides),
+            placement,
         })
     }
 }

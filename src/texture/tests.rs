@@ -238,7 +238,7 @@ fn texture_from_a_linear_rrp_reproduces_it_bilinearly() {
     let recon = Reconstruction::build(std::slice::from_ref(&sq), Estimator::default()).unwrap();
     let depths = TextureSet::depths(std::slice::from_ref(&sq));
     assert_eq!(depths, [2]);
-    let set = TextureSet::build(&recon, &depths, SizePolicy::FromDepth).unwrap();
+    let set = TextureSet::build(&recon, &depths, SizePolicy::FromDepth, Placement::Centre).unwrap();
     let t = &set.textures[0];
     assert_eq!((t.width, t.levels.len()), (8, 4));
     assert_eq!(set.memory.texels, 64);
@@ -256,7 +256,7 @@ fn texture_from_a_linear_rrp_reproduces_it_bilinearly() {
         }
     }
     // Wrong depth count is an error, not a panic.
-    assert!(TextureSet::build(&recon, &[], SizePolicy::FromDepth).is_err());
+    assert!(TextureSet::build(&recon, &[], SizePolicy::FromDepth, Placement::Centre).is_err());
 }
 
 #[test]
@@ -285,8 +285,13 @@ fn from_depth_memory_matches_the_reconstruction_stats() {
         }));
     }
     let recon = Reconstruction::build(&trees, Estimator::default()).unwrap();
-    let set =
-        TextureSet::build(&recon, &TextureSet::depths(&trees), SizePolicy::FromDepth).unwrap();
+    let set = TextureSet::build(
+        &recon,
+        &TextureSet::depths(&trees),
+        SizePolicy::FromDepth,
+        Placement::Centre,
+    )
+    .unwrap();
     let st = recon.stats();
     assert_eq!(set.memory.textures, 4);
     assert_eq!(set.memory.texels, st.texture_texels as u64);
@@ -380,6 +385,7 @@ proptest! {
         lx2 in prop::array::uniform8(prop_oneof![Just(0.0f32), 0.0f32..4.0, 0.0f32..1e5]),
         ly2 in prop::array::uniform8(0.0f32..1e3),
         mask in prop::array::uniform8(any::<bool>()),
+        corner in any::<bool>(),
     ) {
         use crate::lanes::F32x8;
         // The lane form promises the scalar sampler's bits in every masked lane, for every filter,
@@ -389,7 +395,9 @@ proptest! {
         let texels = (0..n * n)
             .map(|k| Vec3::new(seq(k), seq(k * 7 + 3) + 2.0, 0.5 * seq(k * 13 + 5) - 3.0))
             .collect();
-        let t = RadiosityTexture::from_texels(n, n, texels).unwrap();
+        let mut t = RadiosityTexture::from_texels(n, n, texels).unwrap();
+        // Both placements: the lanes map u to texels as the scalar code does for each.
+        t.placement = if corner { Placement::Corner } else { Placement::Centre };
         let filter = [Filter::Nearest, Filter::Bilinear, Filter::Bicubic { b, c }][filter_kind];
         let s = Sampler::new(filter);
         let u = F32x8(uv.map(|p| p.0));
@@ -449,4 +457,164 @@ fn mip_chain_halves_and_keeps_the_mean() {
     let c = mip_chain(level(4, 1));
     assert_eq!(c[1].texels[0], (c[0].texels[0] + c[0].texels[1]) * 0.5);
     assert!(mip_chain(level(0, 3)).is_empty());
+}
+
+/// Corner placement: texel i of n at u = i / (n - 1), so the samples lie on the edges.
+fn corner_pos(i: u32, n: u32) -> f32 {
+    Placement::Corner.texel_position(i, n)
+}
+
+#[test]
+fn corner_placement_preserves_a_constant_on_every_level() {
+    // Every level is sampled from the constant, the filter weights sum to 1 and clamp-to-edge
+    // fetches only the constant: the constant up to a few f32 roundings of values near 2.5.
+    for side in [1, 2, 8, 16] {
+        let t =
+            RadiosityTexture::from_fn(side, Placement::Corner, |_, _| Vec3::splat(2.5)).unwrap();
+        assert_eq!(t.levels.len(), side.ilog2() as usize + 1);
+        for filter in [
+            Filter::Nearest,
+            Filter::Bilinear,
+            Filter::MITCHELL,
+            Filter::CATMULL_ROM,
+        ] {
+            let s = Sampler::new(filter);
+            for a in 0..=40 {
+                for b in 0..=40 {
+                    let (u, v) = (a as f32 / 40.0, b as f32 / 40.0);
+                    for lod in [0.0, 0.5, 1.0, 2.3, 9.0] {
+                        let x = s.sample(&t, lod, u, v);
+                        assert!(
+                            (x - Vec3::splat(2.5)).abs().max_element() < 2.5e-5,
+                            "{u} {v} {x}"
+                        );
+                    }
+                }
+            }
+        }
+    }
+}
+
+#[test]
+fn corner_bilinear_reproduces_a_linear_function_everywhere() {
+    // f linear, texels = f at the corner positions; bilinear interpolation of a linear function
+    // between its samples is exact in real arithmetic, and with corner placement the samples
+    // span all of [0, 1]^2, so the whole square, edges and corners included, is reproduced, on
+    // every mip level; f32 rounding of values up to ~3: 1e-5.
+    let f = |u: f32, v: f32| 0.5 + 1.25 * u - 0.75 * v;
+    let g = |u: f32, v: f32| Vec3::new(f(u, v), 2.0 - u, 0.25 + v);
+    for n in [2u32, 8, 16] {
+        let t = RadiosityTexture::from_fn(n, Placement::Corner, g).unwrap();
+        // Every level of at least 2 x 2 texels, and blends of two such levels (the 1 x 1 last
+        // level holds only the centre value, a constant).
+        let fine = t.levels.iter().filter(|l| l.width >= 2).count();
+        let lods = (0..fine).map(|l| l as f32);
+        let blends = (1..fine).map(|l| l as f32 - 0.5);
+        for lod in lods.chain(blends) {
+            for a in 0..=37 {
+                for b in 0..=37 {
+                    let (u, v) = (a as f32 / 37.0, b as f32 / 37.0);
+                    let s = Sampler::new(Filter::Bilinear).sample(&t, lod, u, v);
+                    assert!(
+                        (s - g(u, v)).abs().max_element() < 1e-5,
+                        "n {n} lod {lod}: {u} {v}"
+                    );
+                }
+            }
+        }
+    }
+    // With centre placement the same data is exact only inside the half-texel margin (see
+    // bilinear_of_a_linear_function_is_exact_inside): at u = 0 it returns f at u = 0.5 / n,
+    // off by 1.25 * 0.5 / n.
+    let n = 16;
+    let centre = RadiosityTexture::from_fn(n, Placement::Centre, g).unwrap();
+    let err = centre.sample(0, 0.0, 0.5, Filter::Bilinear).x - f(0.0, 0.5);
+    assert!((err - 1.25 * 0.5 / n as f32).abs() < 1e-5, "{err}");
+}
+
+#[test]
+fn corner_texture_returns_the_rrp_edge_values() {
+    // A non-polynomial radiosity on a refined tree; the corner-placed texture's edge texels are
+    // the RRP at the edge, so sampling at u = 0 or 1 (or v = 0 or 1) at a texel position gives
+    // the RRP's edge value. At the four corners x = 0 or n - 1 exactly, the weights are 1 and
+    // 0, so the value is the texel's bits; along the edges v_j (n - 1) may round 1 ulp below j,
+    // blending the neighbour with weight ~1e-7: 1e-5 on values below ~3.
+    let mut tree = Quadtree::new();
+    let c = tree.split(0);
+    tree.split(c + 1);
+    let f = |u: f64, v: f64| {
+        Vec3::new(
+            (1.0 + (3.0 * u).sin() * v) as f32,
+            (0.5 + u * u * u) as f32,
+            (2.0 * v * v - u) as f32,
+        )
+    };
+    let sq = SampledQuadtree::from_fn(tree, f);
+    let recon = Reconstruction::build(std::slice::from_ref(&sq), Estimator::default()).unwrap();
+    let set = TextureSet::build(&recon, &[2], SizePolicy::Fixed(16), Placement::Corner).unwrap();
+    assert_eq!(set.placement, Placement::Corner);
+    let t = &set.textures[0];
+    assert_eq!(t.placement, Placement::Corner);
+    let n = t.width;
+    for filter in [Filter::Nearest, Filter::Bilinear] {
+        for (u, v) in [(0.0, 0.0), (1.0, 0.0), (0.0, 1.0), (1.0, 1.0)] {
+            assert_eq!(
+                t.sample(0, u, v, filter),
+                recon.eval(0, u, v),
+                "{filter:?} {u} {v}"
+            );
+        }
+        for j in 0..n {
+            let w = corner_pos(j, n);
+            for (u, v) in [(0.0, w), (1.0, w), (w, 0.0), (w, 1.0)] {
+                let (got, want) = (t.sample(0, u, v, filter), recon.eval(0, u, v));
+                assert!(
+                    (got - want).abs().max_element() < 1e-5,
+                    "{filter:?} {u} {v}: {got} {want}"
+                );
+            }
+        }
+    }
+    // Every coarser level is the RRP at that level's own corner positions (not an average).
+    for l in &t.levels {
+        let m = l.width;
+        for j in 0..m {
+            for i in 0..m {
+                let want = recon.eval(0, corner_pos(i, m), corner_pos(j, m));
+                assert_eq!(l.texels[(j * m + i) as usize], want, "{m}: {i} {j}");
+            }
+        }
+    }
+    // Centre placement does not reach the corner: it returns the first texel centre's value.
+    let centre = TextureSet::build(&recon, &[2], SizePolicy::Fixed(16), Placement::Centre).unwrap();
+    let c0 = centre.textures[0].sample(0, 0.0, 0.0, Filter::Bilinear);
+    assert_eq!(c0, recon.eval(0, 0.5 / 16.0, 0.5 / 16.0));
+    assert_ne!(c0, recon.eval(0, 0.0, 0.0));
+}
+
+#[test]
+fn corner_nearest_picks_the_nearest_corner_aligned_texel() {
+    // n = 4: texels at 0, 1/3, 2/3, 1; nearest rounds u (n - 1).
+    let t = RadiosityTexture::from_fn(4, Placement::Corner, |u, v| {
+        Vec3::splat((u * 3.0).round() + 10.0 * (v * 3.0).round())
+    })
+    .unwrap();
+    assert_eq!(t.sample(0, 0.0, 0.0, Filter::Nearest).x, 0.0);
+    assert_eq!(t.sample(0, 0.16, 0.17, Filter::Nearest).x, 10.0);
+    assert_eq!(t.sample(0, 0.5, 0.84, Filter::Nearest).x, 32.0);
+    assert_eq!(t.sample(0, 1.0, 1.0, Filter::Nearest).x, 33.0);
+    assert_eq!(t.sample(0, -5.0, f32::NAN, Filter::Nearest).x, 0.0);
+    // A 1 x 1 corner texture holds the centre value and returns it everywhere.
+    let one = RadiosityTexture::from_fn(1, Placement::Corner, |u, v| Vec3::new(u, v, 1.0)).unwrap();
+    for filter in [Filter::Nearest, Filter::Bilinear] {
+        assert_eq!(one.sample(0, 0.9, 0.1, filter), Vec3::new(0.5, 0.5, 1.0));
+    }
+    // The Mitchell weights sum to 1 up to a few ulps.
+    let m = one.sample(0, 0.9, 0.1, Filter::MITCHELL);
+    assert!(
+        (m - Vec3::new(0.5, 0.5, 1.0)).abs().max_element() < 1e-5,
+        "{m}"
+    );
+    assert!(RadiosityTexture::from_fn(3, Placement::Corner, |_, _| Vec3::ONE).is_err());
+    assert!(RadiosityTexture::from_fn(2, Placement::Corner, |_, _| Vec3::NAN).is_err());
 }
