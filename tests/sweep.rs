@@ -54,9 +54,9 @@ fn sweep(test: &str) -> (Vec<Value>, String) {
 #[test]
 fn a_small_sweep_has_every_key_falling_errors_and_consistent_fronts() {
     let (points, csv) = sweep("keys");
-    // 2 densities x (direct + mesh + 3 texture methods x 2 sizes) = 16 points.
-    assert_eq!(points.len(), 16);
-    assert_eq!(csv.lines().count(), 17);
+    // 2 densities x (direct + mesh + 3 texture methods x 2 sizes x 2 placements) = 28 points.
+    assert_eq!(points.len(), 28);
+    assert_eq!(csv.lines().count(), 29);
     for p in &points {
         for key in [
             "method",
@@ -81,6 +81,10 @@ fn a_small_sweep_has_every_key_falling_errors_and_consistent_fronts() {
         assert!(p["bytes"].as_u64().unwrap() > 0);
         let texture = p["method"].as_str().unwrap().starts_with("texture-");
         assert_eq!(p["texture"].is_null(), !texture, "{p}");
+        if texture {
+            let placement = p["texture"]["placement"].as_str().unwrap();
+            assert!(placement == "centre" || placement == "corner", "{p}");
+        }
     }
     // Errors fall as the density rises, for the methods whose accuracy follows the samples.
     let err = |m: &str, d: u64| {

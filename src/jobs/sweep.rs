@@ -28,7 +28,7 @@ use super::{prepare, render_frame, Input, Prepared};
 use crate::error::{Error, Result};
 use crate::frame::{self, Frame, FrameOptions};
 use crate::image::LinearImage;
-use crate::method::{Filter, Method};
+use crate::method::{Filter, Method, Placement};
 use crate::metric::{compare, Comparison, DEFAULT_PPD};
 use crate::progress::Observer;
 use crate::quadtree::MAX_DEPTH;
@@ -116,11 +116,13 @@ impl From<&Comparison> for Errors {
     }
 }
 
-/// A texture method's texture size at a point.
+/// A texture method's texture size and texel placement at a point.
 #[derive(Debug, Clone, Copy, Serialize, PartialEq)]
 pub struct TextureLevel {
     /// How many times the quadtree-depth sides were halved (0: as deep as the quadtree).
     pub halvings: u32,
+    /// Where the texels sit: `centre` (u = (i + 0.5) / N) or `corner` (u = i / (N - 1)).
+    pub placement: &'static str,
     /// Level-0 texels of all textures.
     pub texels: u64,
     /// Bytes at 12 bits per channel with mip chains.
@@ -300,7 +302,7 @@ fn solve_at(input: &Input, scene: Scene, observer: &dyn Observer) -> Result<Prep
         scene,
         solution_file: None,
     };
-    prepare(input, SizePolicy::FromDepth, observer)
+    prepare(input, SizePolicy::FromDepth, Placement::Centre, observer)
 }
 
 /// Runs a sweep: check every option, solve the converged reference and each density once, and
@@ -339,20 +341,24 @@ pub fn run_sweep(req: &SweepRequest, observer: &dyn Observer) -> Result<SweepRep
         let full = TextureSet::sides(&depths, SizePolicy::FromDepth)?;
         let mut sets = Vec::new();
         if methods.iter().any(|m| matches!(m, Method::Texture(_))) {
-            for k in 0..req.texture_levels {
-                let sides: Vec<u32> = full.iter().map(|&n| (n >> k).max(1)).collect();
-                let memory = TextureMemory::of_sides(&sides);
-                let set = TextureSet::build(
-                    &p.reconstruction,
-                    &depths,
-                    SizePolicy::Budget(memory.bytes_with_chain[1]),
-                )?;
-                let level = TextureLevel {
-                    halvings: k,
-                    texels: set.memory.texels,
-                    bytes: set.memory.bytes_with_chain[1],
-                };
-                sets.push((level, set));
+            for placement in [Placement::Centre, Placement::Corner] {
+                for k in 0..req.texture_levels {
+                    let sides: Vec<u32> = full.iter().map(|&n| (n >> k).max(1)).collect();
+                    let memory = TextureMemory::of_sides(&sides);
+                    let set = TextureSet::build(
+                        &p.reconstruction,
+                        &depths,
+                        SizePolicy::Budget(memory.bytes_with_chain[1]),
+                        placement,
+                    )?;
+                    let level = TextureLevel {
+                        halvings: k,
+                        placement: placement.name(),
+                        texels: set.memory.texels,
+                        bytes: set.memory.bytes_with_chain[1],
+                    };
+                    sets.push((level, set));
+                }
             }
         }
         let mut candidates: Vec<Candidate<'_>> = Vec::new();
@@ -471,23 +477,24 @@ pub fn run_sweep(req: &SweepRequest, observer: &dyn Observer) -> Result<SweepRep
 /// The points as CSV, one row per point, with a header.
 pub fn csv(report: &SweepReport) -> String {
     let mut s = String::from(
-        "method,density,tolerance,samples,texture_halvings,texture_texels,frame_ms,frame_ms_min,\
+        "method,density,tolerance,samples,texture_halvings,texture_placement,texture_texels,frame_ms,frame_ms_min,\
          frame_ms_max,bytes,error_reconstruction,error_total,rmse_reconstruction,rmse_total,\
          max_abs_reconstruction,max_abs_total,mach_band_reconstruction,mach_band_total,\
          pareto_time,pareto_memory\n",
     );
     for p in &report.points {
-        let (h, t) = match p.texture {
-            Some(l) => (l.halvings.to_string(), l.texels.to_string()),
-            None => (String::new(), String::new()),
+        let (h, pl, t) = match p.texture {
+            Some(l) => (l.halvings.to_string(), l.placement, l.texels.to_string()),
+            None => (String::new(), "", String::new()),
         };
         s += &format!(
-            "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}\n",
+            "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}\n",
             p.method,
             p.density,
             p.tolerance,
             p.samples,
             h,
+            pl,
             t,
             p.frame_ms,
             p.frame_ms_spread[0],
@@ -512,7 +519,7 @@ pub fn csv(report: &SweepReport) -> String {
 pub fn table(report: &SweepReport) -> String {
     let mut s = format!(
         "{}: {} x {}, {} threads; reference: tolerance {}, max depth {}, {} samples\n\
-         method            dens  samples  tex   frame_ms       bytes  err_recon  err_total  front\n",
+         method            dens  samples  texture   frame_ms       bytes  err_recon  err_total  front\n",
         report.scene,
         report.width,
         report.height,
@@ -524,7 +531,7 @@ pub fn table(report: &SweepReport) -> String {
     for p in &report.points {
         let tex = p
             .texture
-            .map(|l| format!("/{}", 1u64 << l.halvings))
+            .map(|l| format!("/{} {}", 1u64 << l.halvings, &l.placement[..3]))
             .unwrap_or_default();
         let front = match (p.pareto_time, p.pareto_memory) {
             (true, true) => "time+mem",
@@ -533,7 +540,7 @@ pub fn table(report: &SweepReport) -> String {
             (false, false) => "",
         };
         s += &format!(
-            "{:<17} {:>4} {:>8} {:>4} {:>10.3} {:>11} {:>10.4} {:>10.4}  {}\n",
+            "{:<17} {:>4} {:>8} {:>8} {:>10.3} {:>11} {:>10.4} {:>10.4}  {}\n",
             p.method,
             p.density,
             p.samples,
@@ -565,7 +572,8 @@ mod tests {
     #[test]
     fn bad_options_are_refused() {
         let base = SweepRequest::new(PathBuf::from("none.toml"));
-        let cases: [(&str, fn(&mut SweepRequest)); 7] = [
+        type Edit = fn(&mut SweepRequest);
+        let cases: [(&str, Edit); 7] = [
             ("--method", |r| r.methods = vec!["phong".into()]),
             ("--methods", |r| r.methods = vec!["reference".into()]),
             ("--methods", |r| r.methods.clear()),
