@@ -158,6 +158,8 @@ where
         .y_desc("perceptual distance to the converged solution (log)")
         .label_style(("sans-serif", 15))
         .axis_desc_style(("sans-serif", 17))
+        .x_labels(16)
+        .y_labels(16)
         .x_label_formatter(&|x| tick(*x))
         .y_label_formatter(&|y| tick(*y))
         .draw()
