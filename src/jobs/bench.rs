@@ -129,6 +129,14 @@ pub struct BenchRow {
     pub fps: f64,
 }
 
+/// The smallest and largest of `xs` (`[inf, 0]` for none; the values are times and rates, >= 0).
+pub fn min_max(xs: &[f64]) -> [f64; 2] {
+    [
+        xs.iter().copied().fold(f64::INFINITY, f64::min),
+        xs.iter().copied().fold(0.0, f64::max),
+    ]
+}
+
 /// The median of `xs` (the mean of the middle two for an even count; 0 for none).
 pub fn median(mut xs: Vec<f64>) -> f64 {
     xs.sort_by(f64::total_cmp);
@@ -167,11 +175,7 @@ pub fn bench(
         let med = |f: fn(&FrameStats) -> f64| median(stats.iter().map(f).collect());
         let shading_ms = med(|s| s.shading_ms);
         let frame_ms = med(|s| s.frame_ms);
-        let lo = stats
-            .iter()
-            .map(|s| s.frame_ms)
-            .fold(f64::INFINITY, f64::min);
-        let hi = stats.iter().map(|s| s.frame_ms).fold(0.0, f64::max);
+        let times: Vec<f64> = stats.iter().map(|s| s.frame_ms).collect();
         let samples = stats[0].pixels_shaded;
         rows.push(BenchRow {
             method: method.name().into(),
@@ -180,7 +184,7 @@ pub fn bench(
             aa: opts.aa,
             frames,
             frame_ms,
-            frame_ms_range: [lo, hi],
+            frame_ms_range: min_max(&times),
             stage_sum_ms: med(|s| s.stage_sum_ms),
             geometry_ms: med(|s| s.geometry_ms),
             raster_ms: med(|s| s.raster_ms),

@@ -19,16 +19,15 @@
 //! errors and bytes are deterministic (only the times vary between runs).
 
 use std::path::PathBuf;
-use std::time::Instant;
 
 use serde::Serialize;
 
-use super::bench::median;
+use super::bench::{median, min_max};
 use super::{prepare, render_frame, Input, Prepared};
 use crate::error::{Error, Result};
 use crate::frame::{self, Frame, FrameOptions};
 use crate::image::LinearImage;
-use crate::method::{Filter, Method, Placement};
+use crate::method::{Method, Placement};
 use crate::metric::{compare, Comparison, DEFAULT_PPD};
 use crate::progress::Observer;
 use crate::quadtree::MAX_DEPTH;
@@ -379,21 +378,15 @@ pub fn run_sweep(req: &SweepRequest, observer: &dyn Observer) -> Result<SweepRep
             }
         }
         let draw = |c: &Candidate<'_>| -> Result<Frame> {
-            match c.texture {
-                Some((_, set)) => {
-                    let filter = match c.method {
-                        Method::Texture(f) => f,
-                        _ => Filter::Bilinear,
-                    };
-                    frame::render(
-                        &p.scene,
-                        &p.scene.camera,
-                        &Shader::Texture { set, filter },
-                        c.method,
-                        &opts,
-                    )
-                }
-                None => render_frame(&p, c.method, &p.scene.camera, &opts),
+            match (c.method, c.texture) {
+                (Method::Texture(filter), Some((_, set))) => frame::render(
+                    &p.scene,
+                    &p.scene.camera,
+                    &Shader::Texture { set, filter },
+                    c.method,
+                    &opts,
+                ),
+                _ => render_frame(&p, c.method, &p.scene.camera, &opts),
             }
         };
         // Errors (deterministic) and one warm-up frame per candidate.
@@ -411,15 +404,7 @@ pub fn run_sweep(req: &SweepRequest, observer: &dyn Observer) -> Result<SweepRep
             for (i, c) in candidates.iter().enumerate() {
                 let mut ms = Vec::new();
                 for _ in 0..req.frames {
-                    let t = Instant::now();
-                    let f = draw(c)?;
-                    // The frame's own wall clock; the fallback covers a frame that reports 0.
-                    let own = f.stats.frame_ms;
-                    ms.push(if own > 0.0 {
-                        own
-                    } else {
-                        t.elapsed().as_secs_f64() * 1e3
-                    });
+                    ms.push(draw(c)?.stats.frame_ms);
                 }
                 per_repeat[i].push(median(ms));
             }
@@ -430,16 +415,14 @@ pub fn run_sweep(req: &SweepRequest, observer: &dyn Observer) -> Result<SweepRep
                 (Method::Mesh, _) => p.mesh()?.0.stats.bytes,
                 _ => p.reconstruction.stats().bytes as u64,
             };
-            let lo = reps.iter().copied().fold(f64::INFINITY, f64::min);
-            let hi = reps.iter().copied().fold(0.0, f64::max);
             points.push(SweepPoint {
                 method: c.method.name().to_string(),
                 density: level,
                 tolerance: p.scene.radiosity.tolerance,
                 samples,
                 texture: c.texture.map(|(l, _)| l),
+                frame_ms_spread: min_max(&reps),
                 frame_ms: median(reps),
-                frame_ms_spread: [lo, hi],
                 bytes,
                 error_reconstruction: rc.perceptual_distance,
                 error_total: tc.perceptual_distance,

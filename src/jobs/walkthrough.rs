@@ -8,7 +8,7 @@
 
 use serde::Serialize;
 
-use super::bench::median;
+use super::bench::{median, min_max};
 use super::render::fps;
 use crate::frame::FrameStats;
 
@@ -53,10 +53,11 @@ impl WalkthroughSummary {
         }
         let med = |f: fn(&FrameStats) -> f64| median(frames.iter().map(f).collect());
         let rates: Vec<f64> = frames.iter().map(|s| fps(s.frame_ms)).collect();
+        let [fps_min, fps_max] = min_max(&rates);
         WalkthroughSummary {
             frames: frames.len(),
-            fps_min: rates.iter().copied().fold(f64::INFINITY, f64::min),
-            fps_max: rates.iter().copied().fold(0.0, f64::max),
+            fps_min,
+            fps_max,
             fps_median: median(rates),
             total_ms: frames.iter().map(|s| s.frame_ms).sum(),
             median_frame_ms: med(|s| s.frame_ms),
