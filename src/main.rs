@@ -243,7 +243,9 @@ enum Command {
     ///
     /// Prints one row per point, flagging the Pareto fronts of total error against frame time and
     /// against memory; `--json` and `--csv` write every measure (perceptual distance, RMSE,
-    /// maximum error, Mach-band measure against both references).
+    /// maximum error, Mach-band measure against both references). Then, at the scene's own density,
+    /// the texture memory each texture method needs to reach the direct method's reconstruction
+    /// error (texture sides scaled by 1/8 to 16), beside the RRP bytes.
     Sweep {
         /// A scene file or a solution file (its scene is solved again at every density).
         input: PathBuf,
@@ -281,6 +283,9 @@ enum Command {
         /// directory.
         #[arg(long)]
         plots: Option<PathBuf>,
+        /// Skip the equal-error memory search.
+        #[arg(long)]
+        no_equal_error: bool,
         /// Worker threads (default: all cores).
         #[arg(long)]
         threads: Option<usize>,
@@ -605,6 +610,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             json,
             csv,
             plots,
+            no_equal_error,
             threads,
             quiet,
             trace,
@@ -621,6 +627,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 frames,
                 repeats,
                 ppd,
+                equal_error: !no_equal_error,
             };
             let report = sweep::run_sweep(&req, &Terminal::new(!quiet, trace))?;
             if let Some(path) = &json {

@@ -17,7 +17,7 @@ fn tmp(test: &str, name: &str) -> PathBuf {
     d.join(name)
 }
 
-fn sweep(test: &str) -> (Vec<Value>, String) {
+fn sweep(test: &str, extra: &[&str]) -> (Value, String) {
     let json = tmp(test, "two-spots.json");
     let csv = tmp(test, "two-spots.csv");
     let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/two-spots.toml");
@@ -43,21 +43,22 @@ fn sweep(test: &str) -> (Vec<Value>, String) {
             tmp(test, "plots").to_str().unwrap(),
             "--quiet",
         ])
+        .args(extra)
         .output()
         .unwrap();
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let v: Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
-    let points = v["points"].as_array().unwrap().clone();
-    (points, std::fs::read_to_string(&csv).unwrap())
+    (v, std::fs::read_to_string(&csv).unwrap())
 }
 
 #[test]
 fn a_small_sweep_has_every_key_falling_errors_and_consistent_fronts() {
-    let (points, csv) = sweep("keys");
+    let (report, csv) = sweep("keys", &[]);
+    let points = report["points"].as_array().unwrap();
     // 2 densities x (direct + mesh + 3 texture methods x 2 sizes x 2 placements) = 28 points.
     assert_eq!(points.len(), 28);
     assert_eq!(csv.lines().count(), 29);
-    for p in &points {
+    for p in points {
         for key in [
             "method",
             "density",
@@ -118,11 +119,60 @@ fn a_small_sweep_has_every_key_falling_errors_and_consistent_fronts() {
         }
         assert!(points.iter().any(|p| p[flag].as_bool().unwrap()));
     }
+    equal_error_is_consistent(&report);
+}
+
+/// The equal-error search's record agrees with its own definition: measured at the scene's own
+/// density (factor 1, level 1 here) against the same direct error and RRP bytes as the sweep's
+/// direct point there; every texture method at both placements; scales and bytes rising; each
+/// reported texture is the first tested one within its ratio of the direct error.
+fn equal_error_is_consistent(report: &Value) {
+    let e = &report["equal_error"];
+    assert_eq!(e["density"], 1, "{e}");
+    let direct = report["points"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|p| p["method"] == "direct" && p["density"] == 1)
+        .unwrap();
+    let direct_error = e["direct_error"].as_f64().unwrap();
+    // The same frame compared with the same reference: the same number.
+    assert_eq!(
+        direct_error,
+        direct["error_reconstruction"].as_f64().unwrap()
+    );
+    assert_eq!(e["rrp_bytes"], direct["bytes"]);
+    let ratios: Vec<f64> = e["ratios"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|r| r.as_f64().unwrap())
+        .collect();
+    assert_eq!(ratios, [1.0, 1.1]);
+    let rows = e["rows"].as_array().unwrap();
+    assert_eq!(rows.len(), 6, "3 texture methods x 2 placements");
+    for row in rows {
+        let tested = row["tested"].as_array().unwrap();
+        assert!(tested.len() >= 2, "{row}");
+        for w in tested.windows(2) {
+            assert!(w[0]["scale"].as_i64() < w[1]["scale"].as_i64(), "{row}");
+            assert!(w[0]["bytes"].as_u64() < w[1]["bytes"].as_u64(), "{row}");
+        }
+        for (reached, r) in row["reached"].as_array().unwrap().iter().zip(&ratios) {
+            let within = |p: &Value| p["error"].as_f64().unwrap() <= r * direct_error;
+            let first = tested.iter().find(|p| within(p));
+            match first {
+                Some(p) => assert_eq!(reached, p, "{row}"),
+                None => assert!(reached.is_null(), "{row}"),
+            }
+        }
+    }
 }
 
 #[test]
 fn the_plots_are_png_and_svg_of_the_documented_size() {
-    let _ = sweep("plots");
+    let (report, _) = sweep("plots", &["--no-equal-error"]);
+    assert!(report["equal_error"].is_null());
     for name in ["error-vs-time", "error-vs-memory"] {
         let png = tmp("plots", "plots").join(format!("{name}.png"));
         let img = image::open(&png)

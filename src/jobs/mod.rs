@@ -19,6 +19,7 @@
 //! caller through a [`crate::progress::Observer`]; the library prints nothing.
 
 pub mod bench;
+pub mod equal_error;
 pub mod render;
 pub mod solve;
 pub mod stats;

@@ -23,6 +23,7 @@ use std::path::PathBuf;
 use serde::Serialize;
 
 use super::bench::{median, min_max};
+use super::equal_error::{self, EqualError};
 use super::{prepare, render_frame, Input, Prepared};
 use crate::error::{Error, Result};
 use crate::frame::{self, Frame, FrameOptions};
@@ -70,6 +71,9 @@ pub struct SweepRequest {
     pub repeats: u32,
     /// Pixels per degree of the perceptual metric.
     pub ppd: f64,
+    /// Also search the texture memory each texture method needs to reach the direct method's
+    /// error ([`super::equal_error`]), at the density level whose factor is nearest 1.
+    pub equal_error: bool,
 }
 
 impl SweepRequest {
@@ -87,6 +91,7 @@ impl SweepRequest {
             frames: 5,
             repeats: 3,
             ppd: DEFAULT_PPD,
+            equal_error: true,
         }
     }
 }
@@ -199,6 +204,8 @@ pub struct SweepReport {
     pub reference: SolutionLevel,
     /// The points, density-major, then method, then texture size.
     pub points: Vec<SweepPoint>,
+    /// The equal-error memory comparison (with texture methods and the search asked for).
+    pub equal_error: Option<EqualError>,
 }
 
 /// The Pareto flags of points `(cost, error)`: a point is on the front when no other point is at
@@ -326,6 +333,14 @@ pub fn run_sweep(req: &SweepRequest, observer: &dyn Observer) -> Result<SweepRep
     let reference = SolutionLevel::of(&fine);
     drop(fine);
 
+    // The equal-error search runs at the scene's own density (the factor nearest 1).
+    let own = (0..req.densities.len())
+        .min_by(|&a, &b| {
+            let d = |i: usize| req.densities[i].ln().abs();
+            d(a).total_cmp(&d(b))
+        })
+        .unwrap_or(0);
+    let mut equal = None;
     let mut points = Vec::new();
     let mut densities = Vec::new();
     for (level, &factor) in req.densities.iter().enumerate() {
@@ -432,6 +447,11 @@ pub fn run_sweep(req: &SweepRequest, observer: &dyn Observer) -> Result<SweepRep
                 pareto_memory: false,
             });
         }
+        if req.equal_error && level == own {
+            equal = equal_error::equal_error(
+                &p, level, &methods, &recon_ref, &opts, req.ppd, observer,
+            )?;
+        }
     }
     let by_time: Vec<(f64, f64)> = points.iter().map(|p| (p.frame_ms, p.error_total)).collect();
     let by_bytes: Vec<(f64, f64)> = points
@@ -454,6 +474,7 @@ pub fn run_sweep(req: &SweepRequest, observer: &dyn Observer) -> Result<SweepRep
         densities,
         reference,
         points,
+        equal_error: equal,
     })
 }
 
@@ -534,6 +555,10 @@ pub fn table(report: &SweepReport) -> String {
             p.error_total,
             front
         );
+    }
+    if let Some(e) = &report.equal_error {
+        s += "\n";
+        s += &equal_error::table(e);
     }
     s
 }

@@ -71,6 +71,10 @@ pub enum SizePolicy {
     /// the given number of bytes. Power-of-two scales keep every side a power of two. An error if
     /// even all-1 x 1 textures do not fit.
     Budget(u64),
+    /// The [`SizePolicy::FromDepth`] sides scaled by `2^k`: doubled `k` times for `k > 0`
+    /// (clamped to [`MAX_TEXTURE_SIZE`]), halved `-k` times for `k < 0` (not below 1). Power-of-two
+    /// scales keep every side a power of two; the speed-against-error sweep searches over `k`.
+    Scaled(i32),
 }
 
 /// The Mitchell–Netravali kernel as polynomial coefficients (Mitchell and Netravali 1988), evaluated in f32.
@@ -589,6 +593,14 @@ pub fn side_from_depth(depth: u32) -> u32 {
     ((1u32 << depth) + 1).next_power_of_two()
 }
 
+/// `n` (a power of two) times `2^k`, within `1..=MAX_TEXTURE_SIZE`.
+fn scale_side(n: u32, k: i32) -> u32 {
+    let n = n.clamp(1, MAX_TEXTURE_SIZE) as u64;
+    let shift = k.unsigned_abs().min(32);
+    let s = if k >= 0 { n << shift } else { n >> shift };
+    s.clamp(1, MAX_TEXTURE_SIZE as u64) as u32
+}
+
 /// Texture memory as the paper's hardware accounted it: power-of-two blocks (the sides are
 /// already powers of two), 3 channels per texel, at 8, 12 and 32 bits per channel; bytes are
 /// rounded up to whole bytes per texture (matters only for 12 bits and odd texel counts, e.g.
@@ -686,6 +698,7 @@ impl TextureSet {
                     ),
                 ))
             }
+            SizePolicy::Scaled(k) => Ok(from_depth.iter().map(|&n| scale_side(n, k)).collect()),
         }
     }
 

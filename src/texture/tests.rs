@@ -203,6 +203,27 @@ fn size_policies() {
         [1, 1, 1]
     );
     assert!(TextureSet::sides(&d, SizePolicy::Budget(ones - 1)).is_err());
+    // Scaled: 2^k times the FromDepth sides, clamped to 1..=MAX_TEXTURE_SIZE.
+    assert_eq!(
+        TextureSet::sides(&d, SizePolicy::Scaled(0)).unwrap(),
+        [4, 16, 128]
+    );
+    assert_eq!(
+        TextureSet::sides(&d, SizePolicy::Scaled(3)).unwrap(),
+        [32, 128, 1024]
+    );
+    assert_eq!(
+        TextureSet::sides(&d, SizePolicy::Scaled(-3)).unwrap(),
+        [1, 2, 16]
+    );
+    assert_eq!(
+        TextureSet::sides(&[20], SizePolicy::Scaled(i32::MAX)).unwrap(),
+        [MAX_TEXTURE_SIZE]
+    );
+    assert_eq!(
+        TextureSet::sides(&[20], SizePolicy::Scaled(i32::MIN)).unwrap(),
+        [1]
+    );
 }
 
 #[test]
