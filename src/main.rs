@@ -296,6 +296,39 @@ enum Command {
         #[arg(long)]
         trace: bool,
     },
+    /// The results page: every shipped scene's sweep (with the equal-error memory search),
+    /// walkthrough frame rates of every method, and a gallery of small images by every method,
+    /// written as Markdown (default `docs/results.md`) with the data, plots and images in
+    /// `results/` beside it.
+    Results {
+        /// The Markdown page to write.
+        #[arg(long, default_value = "docs/results.md")]
+        doc: PathBuf,
+        /// Scene files, comma-separated (default: two-spots, cornell-box, gallery).
+        #[arg(long, value_delimiter = ',')]
+        scenes: Vec<PathBuf>,
+        /// Side of the sweeps' square images.
+        #[arg(long, default_value_t = 256)]
+        size: u32,
+        /// Width of the gallery's images.
+        #[arg(long, default_value_t = 192)]
+        gallery_width: u32,
+        /// Frames timed per sweep point and repeat.
+        #[arg(long, default_value_t = 5)]
+        frames: u32,
+        /// Sweep timing repeats.
+        #[arg(long, default_value_t = 3)]
+        repeats: u32,
+        /// Worker threads (default: all cores).
+        #[arg(long)]
+        threads: Option<usize>,
+        /// No progress bar.
+        #[arg(short, long)]
+        quiet: bool,
+        /// Print the solver's trace lines.
+        #[arg(long)]
+        trace: bool,
+    },
     /// Compare an image with a reference: the perceptual distance and error measures.
     ///
     /// Reads two images (OpenEXR, Radiance HDR, PFM, or PNG decoded from sRGB to linear) of the
@@ -650,6 +683,39 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 }
             }
             out(&sweep::table(&report))
+        })??,
+        Command::Results {
+            doc,
+            scenes,
+            size,
+            gallery_width,
+            frames,
+            repeats,
+            threads,
+            quiet,
+            trace,
+        } => in_pool(threads, || -> anyhow::Result<()> {
+            use pixelflow_sim::experiment::results;
+            let mut req = results::ResultsRequest::new(doc);
+            if !scenes.is_empty() {
+                req.scenes = scenes;
+            }
+            req.sweep_size = size;
+            req.gallery_width = gallery_width;
+            req.frames = frames;
+            req.repeats = repeats;
+            let report = results::run_results(&req, &Terminal::new(!quiet, trace), &mut |p| {
+                if !quiet {
+                    note(&format!("wrote {}", p.display()))
+                }
+            })?;
+            out(&format!(
+                "{} scenes in {:.0} s on {}; wrote {}\n",
+                report.scenes.len(),
+                report.seconds,
+                report.machine.line(),
+                req.doc.display()
+            ))
         })??,
         Command::Compare { a, b, ppd, json } => {
             let c = pixelflow_sim::metric::compare_files(&a, &b, ppd)?;

@@ -18,11 +18,13 @@
 //! values cannot be reproduced (its viewing geometry and scaling are unknown): compare orderings
 //! and ratios.
 //!
-//! Layout: `figures` (Fig. 5, Fig. 6, the spot sweep), `table1`, `markdown` (the report);
+//! Layout: `figures` (Fig. 5, Fig. 6, the spot sweep), `table1`, `markdown` (the report),
+//! `results` (`docs/results.md`: every method's speed, error and memory on every shipped scene);
 //! this file holds the job: what to run, running it, and the terminal text.
 
 mod figures;
 mod markdown;
+pub mod results;
 mod table1;
 
 pub use figures::{

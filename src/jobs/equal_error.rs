@@ -143,7 +143,7 @@ pub fn equal_error(
         .collect();
     let depths = TextureSet::depths(&p.solution.polygons);
     let mut previous: Option<Vec<u32>> = None;
-    let mut stopped = format!("tried every scale up to 2^{MAX_SCALE}");
+    let mut stopped = format!("every scale up to 2^{MAX_SCALE} was tried");
     for k in MIN_SCALE..=MAX_SCALE {
         let sides = TextureSet::sides(&depths, SizePolicy::Scaled(k))?;
         if previous.as_ref() == Some(&sides) {
@@ -153,9 +153,10 @@ pub fn equal_error(
         let memory = TextureMemory::of_sides(&sides);
         if held_bytes(&memory) > SEARCH_MEMORY_CAP {
             stopped = format!(
-                "the textures at 2^{k} would hold {} bytes in memory, above the search's cap of {}",
-                held_bytes(&memory),
-                SEARCH_MEMORY_CAP
+                "the textures at 2^{k} would hold {:.0} MB in memory, above the search's cap of \
+                 {:.0} MB",
+                held_bytes(&memory) as f64 / 1e6,
+                SEARCH_MEMORY_CAP as f64 / 1e6
             );
             break;
         }

@@ -229,7 +229,7 @@ pub fn prepare(
         Some(path) => (solution_file::read_solution(path, &scene)?, 0.0),
         None => {
             let t = Instant::now();
-            let solution = radiosity::solve(&scene, &SolveOptions { observer })?; // TODO observer
+            let solution = radiosity::solve(&scene, &SolveOptions { observer })?;
             (solution, t.elapsed().as_secs_f64() * 1e3)
         }
     };

@@ -228,6 +228,11 @@ struct Candidate<'a> {
     texture: Option<(TextureLevel, &'a TextureSet)>,
 }
 
+/// Checks every option of `req` (what [`run_sweep`] does before its first solve).
+pub fn check_request(req: &SweepRequest) -> Result<()> {
+    check(req).map(|_| ())
+}
+
 fn check(req: &SweepRequest) -> Result<Vec<Method>> {
     let methods = req
         .methods
