@@ -150,7 +150,23 @@ fn equal_error_is_consistent(report: &Value) {
         .collect();
     assert_eq!(ratios, [1.0, 1.1]);
     let rows = e["rows"].as_array().unwrap();
-    assert_eq!(rows.len(), 6, "3 texture methods x 2 placements");
+    assert_eq!(
+        rows.len(),
+        12,
+        "3 texture methods x 2 placements x mip-mapped or not"
+    );
+    // The same sets with and without their mip chains: the chainless set holds level 0 alone,
+    // 3/4 of the chained bytes for large square textures (1 + 1/4 + 1/16 + ... = 4/3).
+    let bytes_at = |mip: bool, scale: i64| {
+        rows.iter()
+            .filter(|r| r["mip_mapped"] == mip && r["method"] == "texture-bilinear")
+            .flat_map(|r| r["tested"].as_array().unwrap())
+            .find(|p| p["scale"] == scale)
+            .map(|p| p["bytes"].as_f64().unwrap())
+            .unwrap()
+    };
+    let ratio = bytes_at(false, 0) / bytes_at(true, 0);
+    assert!(ratio < 1.0 && ratio > 0.74, "{ratio}");
     for row in rows {
         let tested = row["tested"].as_array().unwrap();
         assert!(tested.len() >= 2, "{row}");

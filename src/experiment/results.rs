@@ -504,8 +504,8 @@ fn equal_error_markdown(e: &EqualError) -> String {
     let mut s = format!(
         "Direct method's reconstruction error {:.3} with {} of RRPs (density {}). Texture sides \
          tried: the quadtree-depth sides times 2^-3 to 2^4; the search stopped because {}.\n\n\
-         | method | placement | texture bytes at <= direct's error | at <= 1.1x | lowest error / direct's (bytes) |\n\
-         |---|---|---|---|---|\n",
+         | method | placement | mip-mapped | texture bytes at <= direct's error | at <= 1.1x | lowest error / direct's (bytes) |\n\
+         |---|---|---|---|---|---|\n",
         e.direct_error,
         mb(e.rrp_bytes),
         e.density,
@@ -520,43 +520,42 @@ fn equal_error_markdown(e: &EqualError) -> String {
             )
         });
         s += &format!(
-            "| {} | {} | {} | {} | {} |\n",
+            "| {} | {} | {} | {} | {} | {} |\n",
             r.method,
             r.placement,
+            if r.mip_mapped { "yes" } else { "no" },
             reached_cell(r.reached.first().copied().flatten(), e.rrp_bytes),
             reached_cell(r.reached.get(1).copied().flatten(), e.rrp_bytes),
             best
         );
     }
-    // The finding in one sentence.
-    let reached: Vec<&str> = e
-        .rows
-        .iter()
-        .filter(|r| r.reached.first().copied().flatten().is_some())
-        .map(|r| r.method.as_str())
-        .collect();
+    // The findings, one sentence each for the textures as drawn (mip-mapped) and without mips.
     s += "\n";
-    s += &if reached.is_empty() {
-        "No texture method reaches the direct method's reconstruction error at any size tried.\n"
-            .to_string()
-    } else {
+    for (mip, what) in [
+        (true, "as the texture methods draw them (mip-mapped)"),
+        (false, "without mip chains (level 0 at every pixel)"),
+    ] {
         let cheapest = e
             .rows
             .iter()
+            .filter(|r| r.mip_mapped == mip)
             .filter_map(|r| r.reached.first().copied().flatten().map(|p| (r, p)))
             .min_by_key(|(_, p)| p.bytes);
-        match cheapest {
+        s += &match cheapest {
             Some((r, p)) => format!(
-                "The cheapest texture at the direct method's error: {} ({} texels) with {} \
-                 filtering, {} of the RRPs' bytes.\n",
+                "Textures {what}: the cheapest at the direct method's error is {} ({} texels, {} \
+                 filtering), {} the RRPs' bytes. ",
                 mb(p.bytes),
                 r.placement,
                 r.method.trim_start_matches("texture-"),
                 ratio_words(p.bytes as f64 / e.rrp_bytes.max(1) as f64)
             ),
-            None => String::new(),
-        }
-    };
+            None => format!(
+                "Textures {what}: none reaches the direct method's error at any size tried. "
+            ),
+        };
+    }
+    s += "\n\n";
     s
 }
 
@@ -564,7 +563,7 @@ fn ratio_words(r: f64) -> String {
     if r >= 1.0 {
         format!("{r:.2} times")
     } else {
-        format!("1/{:.1}", 1.0 / r)
+        format!("1/{:.1} of", 1.0 / r)
     }
 }
 
@@ -652,13 +651,16 @@ pub fn markdown(r: &ResultsReport, req: &ResultsRequest) -> String {
     s += "How many bytes of texture each texture method needs to be as accurate as the direct \
           method, beside the bytes of the RRPs the direct method evaluates: the smallest texture \
           set tried (every polygon's quadtree-depth side scaled by the same power of two) whose \
-          reconstruction error is at most the direct method's, or within 10 % of it. The \
-          textures are resampled from the same RRPs, so as they grow they approach the direct \
-          method's image from above; once a texel is smaller than a pixel, mip-mapping averages \
-          over the pixel's footprint (isotropically, so more than the footprint at oblique \
-          angles) where the direct method and the reference sample the pixel centre, and the \
-          error stops falling. A texture can beat the direct method only where its filtering \
-          happens to smooth out some of the RRP's own error.\n\n";
+          reconstruction error is at most the direct method's, or within 10 % of it; each set \
+          drawn as the texture methods draw it (mip-mapped, 12-bit bytes with chains) and with \
+          its mip chain dropped (level 0 at every pixel, 12-bit bytes of level 0). The textures \
+          are resampled from the same RRPs, so as they grow they approach the direct method's \
+          image; but once a texel is smaller than a pixel, mip-mapping averages over the pixel's \
+          footprint (isotropically, so over more than the footprint where a surface is seen \
+          obliquely) where the direct method and the exact image sample the pixel centre, and \
+          that error does not fall with the texture's size. Without mip chains the error does \
+          converge to the direct method's, at the price of aliasing under minification, which a \
+          point-sampled error measure does not see.\n\n";
     for sc in &r.scenes {
         if let Some(e) = &sc.sweep.equal_error {
             s += &format!("**{}**. {}\n", sc.name, equal_error_markdown(e));

@@ -9,12 +9,17 @@
 //! pixel, the error of the method alone). For each ratio `r` of [`EQUAL_ERROR_RATIOS`] it reports
 //! the smallest tested texture whose error is at most `r` times the direct method's.
 //!
-//! Why the strict ratio may never be reached: the textures are resampled from the same RRPs the
-//! direct method evaluates, so as they grow their image approaches the direct method's from
-//! above, and once a texel is smaller than a pixel the mip chain's minification averages where
-//! the direct method samples at the pixel centre. A texture can only beat the direct method where
-//! its filtering happens to undo some of the RRP's own error. The looser ratio (within 10 %) is
-//! therefore reported too, and every tested scale's error, so a reader sees the whole curve.
+//! Each set is measured twice: as the texture methods draw it (mip-mapped, the level of detail
+//! from the pixel's footprint) and with its mip chain dropped (level 0 at every pixel). The
+//! textures are resampled from the same RRPs the direct method evaluates, so as they grow their
+//! image approaches the direct method's; but once a texel is smaller than a pixel, mip-mapping
+//! averages over the pixel's footprint (isotropically: over more than the footprint where a
+//! surface is seen obliquely), where the direct method and the exact image sample the pixel
+//! centre, and that error does not fall with the texture's size. Without the chain the error does
+//! converge to the direct method's (and can dip below it where bilinear smoothing happens to undo
+//! some of the RRP's own error), at the price of aliasing under minification that a point-sampled
+//! error measure does not see. The looser ratio (within 10 %) is reported too, and every tested
+//! scale's error, so a reader sees the whole curve.
 //!
 //! Invariants: deterministic (errors and bytes only, no timing); the scales tried stop early when
 //! every method reached the strict ratio, when every side is clamped at the largest texture side,
@@ -50,7 +55,8 @@ pub struct ScalePoint {
     pub scale: i32,
     /// Level-0 texels of all textures.
     pub texels: u64,
-    /// Bytes at 12 bits per channel with mip chains (as the sweep counts textures).
+    /// Bytes at 12 bits per channel, with mip chains when the row is mip-mapped (as the sweep
+    /// counts textures), of level 0 alone when not.
     pub bytes: u64,
     /// Reconstruction error (perceptual distance to the same solution's exact image).
     pub error: f64,
@@ -63,6 +69,8 @@ pub struct EqualErrorRow {
     pub method: String,
     /// Texel placement (`centre` or `corner`).
     pub placement: &'static str,
+    /// Drawn with mip-mapping (as the texture methods draw); `false`: level 0 at every pixel.
+    pub mip_mapped: bool,
     /// Every scale tried, smallest first.
     pub tested: Vec<ScalePoint>,
     /// For each of [`EQUAL_ERROR_RATIOS`]: the smallest tested texture whose error is at most that
@@ -130,17 +138,24 @@ pub fn equal_error(
     let direct = image(render_frame(p, Method::Direct, &p.scene.camera, opts)?)?;
     let direct_error = compare(&direct, exact, ppd)?.perceptual_distance;
     let placements = [Placement::Centre, Placement::Corner];
-    let mut rows: Vec<EqualErrorRow> = placements
-        .iter()
-        .flat_map(|pl| {
-            filters.iter().map(move |m| EqualErrorRow {
-                method: m.name().to_string(),
-                placement: pl.name(),
-                tested: Vec::new(),
-                reached: vec![None; EQUAL_ERROR_RATIOS.len()],
-            })
-        })
-        .collect();
+    // Row order: mip-mapped first, then placement, then method.
+    let mut rows: Vec<EqualErrorRow> = Vec::new();
+    for mip_mapped in [true, false] {
+        for pl in placements {
+            for m in &filters {
+                rows.push(EqualErrorRow {
+                    method: m.name().to_string(),
+                    placement: pl.name(),
+                    mip_mapped,
+                    tested: Vec::new(),
+                    reached: vec![None; EQUAL_ERROR_RATIOS.len()],
+                });
+            }
+        }
+    }
+    let row_index = |mip: bool, pi: usize, mi: usize| {
+        (usize::from(!mip) * placements.len() + pi) * filters.len() + mi
+    };
     let depths = TextureSet::depths(&p.solution.polygons);
     let mut previous: Option<Vec<u32>> = None;
     let mut stopped = format!("every scale up to 2^{MAX_SCALE} was tried");
@@ -163,30 +178,40 @@ pub fn equal_error(
         previous = Some(sides);
         stage.advance((k - MIN_SCALE) as f64 / (MAX_SCALE - MIN_SCALE + 1) as f64);
         for (pi, &placement) in placements.iter().enumerate() {
-            let set =
+            let mut set =
                 TextureSet::build(&p.reconstruction, &depths, SizePolicy::Scaled(k), placement)?;
-            for (mi, &m) in filters.iter().enumerate() {
-                let Method::Texture(filter) = m else {
-                    continue;
+            for mip in [true, false] {
+                if !mip {
+                    set.drop_mip_chains();
+                }
+                let bytes = if mip {
+                    set.memory.bytes_with_chain[1]
+                } else {
+                    set.memory.bytes[1]
                 };
-                let img = image(frame::render(
-                    &p.scene,
-                    &p.scene.camera,
-                    &Shader::Texture { set: &set, filter },
-                    m,
-                    opts,
-                )?)?;
-                let point = ScalePoint {
-                    scale: k,
-                    texels: set.memory.texels,
-                    bytes: set.memory.bytes_with_chain[1],
-                    error: compare(&img, exact, ppd)?.perceptual_distance,
-                };
-                let row = &mut rows[pi * filters.len() + mi];
-                row.tested.push(point);
-                for (slot, r) in row.reached.iter_mut().zip(EQUAL_ERROR_RATIOS) {
-                    if slot.is_none() && point.error <= r * direct_error {
-                        *slot = Some(point);
+                for (mi, &m) in filters.iter().enumerate() {
+                    let Method::Texture(filter) = m else {
+                        continue;
+                    };
+                    let img = image(frame::render(
+                        &p.scene,
+                        &p.scene.camera,
+                        &Shader::Texture { set: &set, filter },
+                        m,
+                        opts,
+                    )?)?;
+                    let point = ScalePoint {
+                        scale: k,
+                        texels: set.memory.texels,
+                        bytes,
+                        error: compare(&img, exact, ppd)?.perceptual_distance,
+                    };
+                    let row = &mut rows[row_index(mip, pi, mi)];
+                    row.tested.push(point);
+                    for (slot, r) in row.reached.iter_mut().zip(EQUAL_ERROR_RATIOS) {
+                        if slot.is_none() && point.error <= r * direct_error {
+                            *slot = Some(point);
+                        }
                     }
                 }
             }
@@ -210,7 +235,7 @@ pub fn equal_error(
 pub fn table(e: &EqualError) -> String {
     let mut s = format!(
         "equal-error memory (density {}): direct reconstruction error {:.4}, RRPs {} bytes; {}\n\
-         method            placement  bytes to <= direct  bytes to <= 1.1 x  best error / direct (bytes)\n",
+         method            placement  mip  bytes to <= direct  bytes to <= 1.1 x  best error / direct (bytes)\n",
         e.density, e.direct_error, e.rrp_bytes, e.stopped
     );
     let cell = |p: Option<ScalePoint>| p.map_or("not reached".to_string(), |p| p.bytes.to_string());
@@ -219,9 +244,10 @@ pub fn table(e: &EqualError) -> String {
             format!("{:.3} ({})", b.error / e.direct_error.max(1e-300), b.bytes)
         });
         s += &format!(
-            "{:<17} {:<9} {:>19} {:>18}  {}\n",
+            "{:<17} {:<9} {:<4} {:>19} {:>18}  {}\n",
             r.method,
             r.placement,
+            if r.mip_mapped { "yes" } else { "no" },
             cell(r.reached.first().copied().flatten()),
             cell(r.reached.get(1).copied().flatten()),
             best

@@ -664,6 +664,15 @@ pub struct TextureSet {
 }
 
 impl TextureSet {
+    /// Drops every texture's mip chain, keeping level 0: every lookup then reads level 0 whatever
+    /// the footprint (the level of detail clamps to the last level), as with mip-mapping off.
+    /// [`TextureSet::memory`] is unchanged; a chainless set holds `memory.bytes`.
+    pub fn drop_mip_chains(&mut self) {
+        for t in &mut self.textures {
+            t.levels.truncate(1);
+        }
+    }
+
     /// Quadtree depth of each polygon of a solution, the input of [`TextureSet::build`].
     pub fn depths(polygons: &[SampledQuadtree]) -> Vec<u32> {
         polygons.iter().map(|p| p.tree.depth()).collect()
