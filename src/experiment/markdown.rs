@@ -10,24 +10,36 @@ use std::path::{Path, PathBuf};
 /// The sweep as a Markdown table.
 pub fn sweep_markdown(rows: &[SweepRow]) -> String {
     let mut t = String::from(
-        "| spot falloff | 10% radius / sample spacing | fig5 bilinear | fig5 bicubic | fig5 direct | \
-         fig6 bilinear | fig6 bicubic | fig6 direct | paper's ordering (bicubic < bilinear) |\n\
-         |---|---|---|---|---|---|---|---|---|\n",
+        "| spot falloff | half angle | 10% radius / sample spacing | grid neighbours / peak | \
+         fig5 bilinear | fig5 bicubic | fig5 direct | fig5 bicubic / bilinear | \
+         fig6 centre bilinear | fig6 centre bicubic | fig6 centre bicubic / bilinear | \
+         fig6 corner bilinear | fig6 corner bicubic | fig6 corner bicubic / bilinear | fig6 direct | \
+         paper's ordering (bicubic < bilinear) |\n\
+         |---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n",
     );
     for r in rows {
-        let ok = |x: (f64, f64, f64)| if x.1 < x.0 { "holds" } else { "fails" };
+        let ok = |b: f64, l: f64| if b < l { "holds" } else { "fails" };
         t += &format!(
-            "| {} | {:.2} | {:.4} | {:.4} | {:.4} | {:.4} | {:.4} | {:.4} | fig5 {}, fig6 {} |\n",
+            "| {} | {:.1} | {:.2} | {:.0} % | {:.4} | {:.4} | {:.4} | {:.3} | {:.4} | {:.4} | {:.3} | \
+             {:.4} | {:.4} | {:.3} | {:.4} | fig5 {}, fig6 centre {}, corner {} |\n",
             r.falloff,
+            r.half_angle_deg,
             r.radius_in_spacings,
+            100.0 * r.neighbour_fraction,
             r.fig5.0,
             r.fig5.1,
             r.fig5.2,
+            r.fig5.1 / r.fig5.0,
             r.fig6.0,
             r.fig6.1,
+            r.fig6.1 / r.fig6.0,
+            r.fig6_corner.0,
+            r.fig6_corner.1,
+            r.fig6_corner.1 / r.fig6_corner.0,
             r.fig6.2,
-            ok(r.fig5),
-            ok(r.fig6)
+            ok(r.fig5.1, r.fig5.0),
+            ok(r.fig6.1, r.fig6.0),
+            ok(r.fig6_corner.1, r.fig6_corner.0),
         );
     }
     t
