@@ -5,8 +5,8 @@
 use std::path::{Path, PathBuf};
 
 use pixelflow_sim::experiment::{
-    fig5, fig6, spot_fraction_at, spot_radius_10, sweep_half_angle, Figure, FigureOptions,
-    CONE_EDGE_FRACTION, MAX_SWEEP_HALF_ANGLE_DEG,
+    fig5, fig6, spot_fraction_at, spot_radius_10, sweep_falloffs, sweep_half_angle, Figure,
+    FigureOptions, CONE_EDGE_FRACTION, MAX_SWEEP_HALF_ANGLE_DEG,
 };
 use pixelflow_sim::radiosity::{self, transfer::EDGE_INSET, Oracle, SolveOptions};
 use pixelflow_sim::scene::load_scene;
@@ -214,6 +214,16 @@ fn sweep_widens_the_cone_with_the_spot() {
     let cap = MAX_SWEEP_HALF_ANGLE_DEG.to_radians();
     assert_eq!(sweep_half_angle(1.0, scene_half), cap);
     assert_eq!(sweep_half_angle(0.0, scene_half), cap);
+}
+
+#[test]
+fn sweep_runs_from_the_narrow_spot_to_wide_ones_with_the_scenes_own() {
+    // Narrowest first, the narrow scene's 60 and the shipped scene's 5 among them, each once.
+    assert_eq!(
+        sweep_falloffs(Some(5.0)),
+        [60.0, 30.0, 15.0, 8.0, 5.0, 3.0, 1.0]
+    );
+    assert_eq!(sweep_falloffs(Some(60.0)).len(), 6);
 }
 
 #[test]
