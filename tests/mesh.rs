@@ -122,10 +122,12 @@ fn mesh_renders_through_the_shared_rasterizer() {
     let frame = render_frame(&mesh.scene, &scene.camera, &mesh, &opts).unwrap();
     assert!(frame.pixels.iter().all(|p| p.is_finite()));
     assert_eq!(frame.stats.pixels_shaded, 256 * 256);
-    // The small spot's peak, 3.2 at (u, v) = (0.25, 0.75) (scenes/two-spots.toml), is a sample
-    // of the depth-7 solution only up to its spacing; the Gouraud surface at the nearest pixel
-    // must lie within the range of the samples, [0, 3.2 (1 + 1 %)] by the solver tolerance.
+    // The small spot's peak, 3.2 at (u, v) = (0.25, 0.75) plus the dim spot's 0.081 there
+    // (scenes/two-spots.toml), is a sample of the depth-7 solution only up to its spacing; the
+    // Gouraud surface at the nearest pixel must lie within the range of the samples, at most
+    // 3.281 (1 + 1 %) by the solver tolerance. The spot is wide (B ~ cos^8(theta)): within a
+    // pixel and a depth-7 spacing of the peak it falls by under 0.2 %, so above 3.2 (2.5 %).
     let (x, y) = (64u32, 64u32);
     let peak = frame.pixels[(y * 256 + x) as usize];
-    assert!(peak.x > 2.5 && peak.x < 3.3, "peak {peak}");
+    assert!(peak.x > 3.2 && peak.x < 3.32, "peak {peak}");
 }

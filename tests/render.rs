@@ -53,9 +53,9 @@ fn direct_two_spots_equals_the_rrp_at_pixel_centres() {
         }
     }
     // The rasterizer's (u, v) comes from f32 plane coordinates: a few ulps of 1 (~1e-6). The
-    // steepest slope of the bright spot is about 3.2 * 0.6 / 0.08 = 24 per unit of u, so the
-    // value error is ~2.4e-5, plus f32 evaluation rounding (~1e-6 of 3.2): 1e-4 leaves a 4x margin
-    // and would still catch a half-pixel shift (24 / 512 = 0.05).
+    // steepest slope of the bright spot (3.2 cos^8(theta), h = 0.5) is about 10 per unit of u,
+    // 0.17 from the peak, so the value error is ~1e-5, plus f32 evaluation rounding (~1e-6 of
+    // 3.2): 1e-4 leaves a margin and would still catch a half-pixel shift (10 / 512 = 0.02).
     assert!(worst < 1e-4, "largest difference {worst}");
 }
 

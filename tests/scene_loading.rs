@@ -146,12 +146,40 @@ fn two_spots_scene_is_one_unit_square_filling_the_image() {
     // The bright spot points at the upper-left quarter, the dim one elsewhere.
     assert!(small.position.x < 0.5 && small.position.y > 0.5);
     assert!(!(large.position.x < 0.5 && large.position.y > 0.5));
-    assert!((small.half_angle - 40f64.to_radians()).abs() < 1e-15);
+    // The bright spot's cone covers the whole plane (its farthest corner is 64.8 deg off the
+    // axis), and the grid of Fig. 5 resolves it: falloff 5 (scenes/two-spots.toml).
+    assert!((small.half_angle - 87f64.to_radians()).abs() < 1e-15);
+    assert_eq!(small.falloff, 5.0);
     assert!((large.half_angle - 60f64.to_radians()).abs() < 1e-15);
     // On-axis radiosity B = rho I / h^2: 3.2 for the small spot, 0.5 for the large.
     let b = |l: &pixelflow_sim::scene::SpotLight| 0.8 * l.intensity.x / l.position.z.powi(2);
     assert!((b(small) - 3.2).abs() < 1e-12 && (b(large) - 0.5).abs() < 1e-12);
     assert_eq!(s.radiosity.max_depth, 7);
+}
+
+#[test]
+fn two_spots_narrow_differs_only_in_the_bright_spot() {
+    // The hard case: the shipped scene with the bright spot of falloff 60 in a 40 deg cone,
+    // whose edge cuts at cos^60(40 deg) = 1e-7 of the peak; everything else is the same.
+    let wide = load_scene(&scenes().join("two-spots.toml")).unwrap();
+    let s = load_scene(&scenes().join("two-spots-narrow.toml")).unwrap();
+    check_invariants(&s);
+    assert!(s.warnings.is_empty());
+    assert_eq!(s.spots.len(), 2);
+    let (n, w) = (&s.spots[0], &wide.spots[0]);
+    assert_eq!(n.falloff, 60.0);
+    assert!((n.half_angle - 40f64.to_radians()).abs() < 1e-15);
+    assert!(n.half_angle.cos().powf(n.falloff) < 1e-6);
+    assert_eq!(
+        (n.position, n.direction, n.intensity),
+        (w.position, w.direction, w.intensity)
+    );
+    assert_eq!(s.spots[1].falloff, wide.spots[1].falloff);
+    assert_eq!(s.spots[1].half_angle, wide.spots[1].half_angle);
+    assert_eq!(s.spots[1].position, wide.spots[1].position);
+    assert_eq!(s.polygons.len(), 1);
+    assert_eq!(s.polygons[0].vertices(), wide.polygons[0].vertices());
+    assert_eq!(s.camera, wide.camera);
 }
 
 #[test]

@@ -39,8 +39,8 @@ pub struct FigureOptions {
     pub ppd: f64,
     /// How the RRPs estimate vertex derivatives (the project default: monotone).
     pub estimator: Estimator,
-    /// Replaces the first spot light's falloff exponent (the spot sweep); `None` keeps the
-    /// scene's.
+    /// Replaces the first spot light's falloff exponent (the spot sweep), widening its cone to
+    /// [`sweep_half_angle`] so that only the spot's width changes; `None` keeps the scene's.
     pub first_spot_falloff: Option<f64>,
     /// Where images are written (`None`: nothing is written).
     pub out_dir: Option<PathBuf>,
@@ -108,6 +108,29 @@ impl Figure {
     }
 }
 
+/// Where a spot's cone may cut off once the light has fallen to this fraction of the axis
+/// intensity: the cut is then invisible.
+pub const CONE_EDGE_FRACTION: f64 = 1e-6;
+
+/// The widest half-angle the sweep gives a spot: just below 90 degrees (a cone of 90 degrees
+/// or more would light the plane's back side, and the scene format stops at 90).
+pub const MAX_SWEEP_HALF_ANGLE_DEG: f64 = 89.0;
+
+/// The half-angle (radians) the spot sweep gives a spot of falloff `falloff` whose scene half
+/// angle is `scene_half` (radians): the angle where cos^falloff falls to
+/// [`CONE_EDGE_FRACTION`], capped at [`MAX_SWEEP_HALF_ANGLE_DEG`], and never narrower than
+/// the scene's. Lowering the falloff without widening the cone would let the cone's edge cut
+/// the spot (cos^8 of 40 degrees is 12 % of the peak), changing its shape, not just its width.
+pub fn sweep_half_angle(falloff: f64, scene_half: f64) -> f64 {
+    let cap = MAX_SWEEP_HALF_ANGLE_DEG.to_radians();
+    let edge = if falloff > 0.0 {
+        CONE_EDGE_FRACTION.powf(1.0 / falloff).acos().min(cap)
+    } else {
+        cap
+    };
+    edge.max(scene_half)
+}
+
 /// The two-spots data both figures start from.
 struct Setup {
     scene: Scene,
@@ -130,6 +153,7 @@ impl Setup {
                 ));
             }
             spot.falloff = f;
+            spot.half_angle = sweep_half_angle(f, spot.half_angle);
         }
         if scene.polygons.len() != 1 {
             return Err(Error::input(
@@ -500,8 +524,15 @@ pub struct SweepRow {
     pub radius_in_spacings: f64,
     /// Fig. 5 distances: bilinear, bicubic, direct.
     pub fig5: (f64, f64, f64),
-    /// Fig. 6 distances: bilinear, bicubic, direct.
+    /// What the peak sample's four grid neighbours (one spacing away) hold, as a fraction of the
+    /// peak ([`spot_fraction_at`]; the first spot alone).
+    pub neighbour_fraction: f64,
+    /// The first spot's half-angle in the sweep, degrees ([`sweep_half_angle`]).
+    pub half_angle_deg: f64,
+    /// Fig. 6 distances with texels at their centres: bilinear, bicubic (Mitchell), direct.
     pub fig6: (f64, f64, f64),
+    /// Fig. 6 distances with corner-aligned texels: bilinear, bicubic (Mitchell).
+    pub fig6_corner: (f64, f64),
 }
 
 /// The 10 % radius of a spot of falloff `n` at height `h` over a plane facing it, with
@@ -509,6 +540,14 @@ pub struct SweepRow {
 pub fn spot_radius_10(n: f64, h: f64) -> f64 {
     let theta = 0.1f64.powf(1.0 / (n + 3.0)).acos();
     h * theta.tan()
+}
+
+/// The fraction of its peak that a spot of falloff `n` at height `h`, pointing straight down at
+/// a plane, leaves on the plane at distance `d` from the peak: B is proportional to
+/// cos^(n+3)(theta) with cos(theta) = h / sqrt(h^2 + d^2). With `d` the coarse grid's spacing it
+/// is what the peak's four grid neighbours hold (the criterion of `scenes/two-spots.toml`).
+pub fn spot_fraction_at(n: f64, h: f64, d: f64) -> f64 {
+    (h / (h * h + d * d).sqrt()).powf(n + 3.0)
 }
 
 /// Fig. 5 and Fig. 6 distances for each falloff of the first spot (images not written).
@@ -519,6 +558,7 @@ pub fn spot_sweep(opts: &FigureOptions, falloffs: &[f64]) -> Result<Vec<SweepRow
         .first()
         .ok_or_else(|| Error::input(Location::file(&opts.scene), "no spot light"))?;
     let h = spot.position.z.abs();
+    let scene_half = spot.half_angle;
     let spacing = 1.0 / (1u32 << opts.coarse_depth) as f64;
     falloffs
         .iter()
@@ -536,11 +576,18 @@ pub fn spot_sweep(opts: &FigureOptions, falloffs: &[f64]) -> Result<Vec<SweepRow
                     fig.distance("direct").unwrap_or(f64::NAN),
                 )
             };
+            let corner = (
+                b.distance("corner-bilinear").unwrap_or(f64::NAN),
+                b.distance("corner-bicubic").unwrap_or(f64::NAN),
+            );
             Ok(SweepRow {
                 falloff: f,
                 radius_in_spacings: spot_radius_10(f, h) / spacing,
+                neighbour_fraction: spot_fraction_at(f, h, spacing),
+                half_angle_deg: sweep_half_angle(f, scene_half).to_degrees(),
                 fig5: d(&a),
                 fig6: d(&b),
+                fig6_corner: corner,
             })
         })
         .collect()

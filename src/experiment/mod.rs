@@ -28,7 +28,8 @@ pub mod results;
 mod table1;
 
 pub use figures::{
-    fig5, fig6, figure_text, spot_radius_10, spot_sweep, Figure, FigureOptions, Panel, SweepRow,
+    fig5, fig6, figure_text, spot_fraction_at, spot_radius_10, spot_sweep, sweep_half_angle,
+    Figure, FigureOptions, Panel, SweepRow, CONE_EDGE_FRACTION, MAX_SWEEP_HALF_ANGLE_DEG,
     PAPER_FIG5, PAPER_FIG6,
 };
 pub use markdown::{markdown, sweep_markdown};
@@ -125,9 +126,19 @@ pub struct Results {
     pub sweep: Vec<SweepRow>,
 }
 
-/// Falloff exponents of the spot sweep after the scene's own: from a spot narrower than the
-/// coarse grid's spacing to one several spacings wide.
-pub const SWEEP_FALLOFFS: [f64; 3] = [30.0, 15.0, 8.0];
+/// Falloff exponents of the spot sweep, joined by the scene's own and run from narrow to wide:
+/// from the narrow spot of `scenes/two-spots-narrow.toml` (60, its 10 % radius half the coarse
+/// grid's spacing) to one whose grid neighbours keep most of the peak.
+pub const SWEEP_FALLOFFS: [f64; 6] = [60.0, 30.0, 15.0, 8.0, 3.0, 1.0];
+
+/// The sweep's falloffs: `own` (the scene's) with [`SWEEP_FALLOFFS`], narrowest spot first,
+/// each once.
+pub fn sweep_falloffs(own: Option<f64>) -> Vec<f64> {
+    let mut v: Vec<f64> = own.into_iter().chain(SWEEP_FALLOFFS).collect();
+    v.sort_by(|a, b| b.total_cmp(a));
+    v.dedup();
+    v
+}
 
 /// Runs `req`, calling `wrote` for every file written.
 pub fn run(req: &Request, wrote: &mut dyn FnMut(&Path)) -> Result<Results> {
@@ -148,8 +159,7 @@ pub fn run(req: &Request, wrote: &mut dyn FnMut(&Path)) -> Result<Results> {
     if any(Which::Fig5) {
         let scene = load_scene(&req.figures.scene)?;
         let own = scene.spots.first().map(|s| s.falloff);
-        let falloffs: Vec<f64> = own.into_iter().chain(SWEEP_FALLOFFS).collect();
-        r.sweep = spot_sweep(&req.figures, &falloffs)?;
+        r.sweep = spot_sweep(&req.figures, &sweep_falloffs(own))?;
     }
     if any(Which::Fig6) {
         let f = fig6(&req.figures)?;
@@ -176,7 +186,7 @@ pub fn results_text(r: &Results) -> String {
         t += "\n";
     }
     if !r.sweep.is_empty() {
-        t += "spot sweep (first spot's falloff varied; perceptual distances):\n";
+        t += "spot sweep (first spot's falloff varied, its cone widened; perceptual distances):\n";
         t += &sweep_markdown(&r.sweep);
         t += "\n";
     }
