@@ -52,7 +52,7 @@ fn the_results_page_links_every_image_and_quotes_its_data() {
         "## walk-spots",
         "## Equal-error memory",
         "## Walkthrough frame rates",
-        "## Gallery",
+        "## Image gallery",
         "## Commands",
     ] {
         assert!(page.contains(section), "missing {section}");

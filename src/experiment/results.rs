@@ -592,7 +592,7 @@ pub fn markdown(r: &ResultsReport, req: &ResultsRequest) -> String {
     for sc in &r.scenes {
         s += &format!("- [{0}](#{0})\n", sc.name);
     }
-    s += "- [Equal-error memory](#equal-error-memory)\n- [Walkthrough frame rates](#walkthrough-frame-rates)\n- [Gallery](#gallery)\n\n";
+    s += "- [Equal-error memory](#equal-error-memory)\n- [Walkthrough frame rates](#walkthrough-frame-rates)\n- [Image gallery](#image-gallery)\n\n";
 
     for sc in &r.scenes {
         let sw = &sc.sweep;
@@ -710,7 +710,7 @@ pub fn markdown(r: &ResultsReport, req: &ResultsRequest) -> String {
         }
     );
 
-    s += "## Gallery\n\n";
+    s += "## Image gallery\n\n";
     s += &format!(
         "Every scene by every method at {} pixels wide, with the scene's own settings (its \
          solution, texture sizes and placement); under each image its perceptual distance to \
