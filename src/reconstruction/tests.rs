@@ -825,10 +825,9 @@ fn check_compact_against_reconstruction(sq: &SampledQuadtree, e: Estimator, pts:
     let (jv, jd) = c1_excess(
         tree,
         |id| c.poly(ids[&id]),
-        |a, b, ws| {
+        |a, b, _ws| {
             let bv = |id: u32| c.error_bound(ids[&id]).into_iter().fold(0.0, f64::max);
             let bd = |id: u32| derivative_bound(&dq, tree.node(id).cell.width());
-            let _ = ws;
             (bv(a) + bv(b), bd(a) + bd(b))
         },
     );
