@@ -100,8 +100,8 @@ impl PatchSource for Grid {
         let j = ((v * 4.0) as u32).min(3);
         polygon * 16 + j * 4 + i
     }
-    fn patch(&self, id: u32) -> &PatchCoeffs {
-        &self.patches[id as usize]
+    fn patch(&self, id: u32) -> PatchCoeffs {
+        self.patches[id as usize]
     }
     // u * 4 is exact, so the quarter cells are exactly where `locate` answers.
     fn cell(&self, id: u32) -> Option<[f32; 4]> {

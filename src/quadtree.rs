@@ -221,6 +221,30 @@ impl Quadtree {
         reached.iter().all(|&r| r).then_some(Quadtree { nodes })
     }
 
+    /// Builds a tree top-down in the *canonical node order*: nodes are visited depth-first from
+    /// the root, the last child first (a stack), and a visited node that is split gets the next
+    /// four indices for its children. `split(id, cell, tag)` decides for node `id` (covering
+    /// `cell`, carrying the caller's `tag`) whether it is split, returning the children's tags in
+    /// child order; it must not split a cell at [`MAX_DEPTH`] (panics, a caller bug).
+    ///
+    /// The node order is a function of the tree's shape alone, so one bit per node in node order
+    /// ("is split") determines the whole tree: replaying `grow` with `split` reading bit `id`
+    /// rebuilds it with identical indices (bit `id` is always read after node `id` exists).
+    pub fn grow<T>(root: T, mut split: impl FnMut(u32, Cell, T) -> Option<[T; 4]>) -> Quadtree {
+        let mut out = Quadtree::new();
+        let mut work = vec![(root, 0u32)];
+        while let Some((tag, id)) = work.pop() {
+            let Some(children) = split(id, out.node(id).cell, tag) else {
+                continue;
+            };
+            let first = out.split(id);
+            for (q, c) in (0u32..).zip(children) {
+                work.push((c, first + q));
+            }
+        }
+        out
+    }
+
     /// All nodes; node 0 is the root.
     pub fn nodes(&self) -> &[Node] {
         &self.nodes

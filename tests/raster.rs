@@ -38,8 +38,8 @@ impl PatchSource for UvSource {
     fn locate(&self, _polygon: u32, _u: f32, _v: f32) -> u32 {
         0
     }
-    fn patch(&self, _id: u32) -> &PatchCoeffs {
-        &self.0
+    fn patch(&self, _id: u32) -> PatchCoeffs {
+        self.0
     }
 }
 
@@ -83,8 +83,8 @@ impl PatchSource for GridSource {
         let j = ((v * n as f32) as u32).min(n - 1);
         polygon * n * n + j * n + i
     }
-    fn patch(&self, id: u32) -> &PatchCoeffs {
-        &self.patches[id as usize]
+    fn patch(&self, id: u32) -> PatchCoeffs {
+        self.patches[id as usize]
     }
 }
 
@@ -397,8 +397,8 @@ fn sixteen_samples_resolve_a_pixel_centred_edge_to_half_coverage() {
         fn locate(&self, _: u32, _: f32, _: f32) -> u32 {
             0
         }
-        fn patch(&self, _: u32) -> &PatchCoeffs {
-            &self.0
+        fn patch(&self, _: u32) -> PatchCoeffs {
+            self.0
         }
     }
     let mut scene = scene_with(vec![quad], ortho_pixels(w, h), w, h);

@@ -182,7 +182,7 @@ impl RegionGBuffer {
                 }
                 let id = source.locate(p, u, v);
                 let slot = *index.entry(id).or_insert_with(|| {
-                    self.table.push(*source.patch(id));
+                    self.table.push(source.patch(id));
                     self.table_ids.push(id);
                     cells.push(SlotCell::new(p, source.cell(id)));
                     (self.table.len() - 1) as u32
@@ -278,8 +278,8 @@ mod tests {
             let j = ((v * n as f32) as u32).min(n - 1);
             polygon * n * n + j * n + i
         }
-        fn patch(&self, id: u32) -> &PatchCoeffs {
-            &self.patches[id as usize]
+        fn patch(&self, id: u32) -> PatchCoeffs {
+            self.patches[id as usize]
         }
         // With n a power of two, u * n is exact, so the cell is exactly where `locate` answers.
         fn cell(&self, id: u32) -> Option<[f32; 4]> {
@@ -334,7 +334,7 @@ mod tests {
             }
             let want = with.locate(p, a.u[i], a.v[i]);
             assert_eq!(a.table_ids[a.slot[i] as usize], want, "sample {i}");
-            assert_eq!(a.table[a.slot[i] as usize], *with.patch(want));
+            assert_eq!(a.table[a.slot[i] as usize], with.patch(want));
             checked += 1;
         }
         assert!(checked > 4000, "only {checked} samples checked");

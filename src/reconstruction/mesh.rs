@@ -360,8 +360,8 @@ impl PatchSource for MeshModel {
     }
 
     #[inline]
-    fn patch(&self, id: u32) -> &PatchCoeffs {
-        &self.patches[id as usize]
+    fn patch(&self, id: u32) -> PatchCoeffs {
+        self.patches[id as usize]
     }
 
     /// `locate` answers `id` on the whole closed domain [0, 1]^2 (and beyond); as a half-open

@@ -14,7 +14,8 @@
 //!
 //! What is stored: the power-basis patches and a 4-byte-per-node tree for [`Reconstruction::locate`];
 //! the per-vertex Hermite data are derived, used during construction and dropped
-//! ([`ReconstructionStats`] reports what storing them instead would cost).
+//! ([`ReconstructionStats`] reports what storing them instead would cost). [`compact`] holds the
+//! same patches as the trees plus 16-bit quantized vertex data and expands them on demand.
 //!
 //! Invariants: every original sample is reproduced at its vertex (to f32 rounding, or to the merge
 //! tolerance of 1e-7 of the polygon's largest value); linear functions are reproduced exactly on any
@@ -50,6 +51,7 @@
 //! Resampling ([`Reconstruction::resample`]) evaluates a polygon's RRP at texel centres; the
 //! texture stage builds its mip chains from that.
 
+pub mod compact;
 mod estimate;
 mod hermite;
 pub mod mesh;
@@ -323,6 +325,51 @@ pub(crate) fn build_polygon(
     })
 }
 
+/// Every polygon's f64 reconstruction, in parallel (each polygon's result depends on that polygon
+/// alone, so on no thread count), in polygon order. Shared by [`Reconstruction::build`] and
+/// [`compact::CompactReconstruction::build`].
+pub(crate) fn build_polygons(
+    polygons: &[SampledQuadtree],
+    estimator: Estimator,
+) -> Vec<Result<PolygonRrp>> {
+    polygons
+        .par_iter()
+        .enumerate()
+        .map(|(i, sq)| build_polygon(i, sq, estimator))
+        .collect()
+}
+
+/// The stored f32 patch of an f64 leaf polynomial at `level`; an error (naming polygon `index`)
+/// if a coefficient overflows f32.
+fn leaf_patch(index: usize, p: &PatchPoly, level: u32) -> Result<PatchCoeffs> {
+    let pc = PatchCoeffs::from_poly(p, level);
+    if pc.is_finite() {
+        Ok(pc)
+    } else {
+        Err(Error::Runtime(format!(
+            "reconstruction of polygon {index}: a patch coefficient overflows f32 (sample values \
+             too large)"
+        )))
+    }
+}
+
+/// Descends a locate tree (entries `LEAF | leaf id` or the absolute index of the first child)
+/// from `root` to the leaf holding lattice point (i, j).
+#[inline(always)]
+fn locate_in(nodes: &[u32], root: u32, i: u32, j: u32) -> u32 {
+    let mut n = root as usize;
+    let mut level = 0u32;
+    loop {
+        let e = nodes[n];
+        if e & LEAF != 0 {
+            return e & !LEAF;
+        }
+        let sh = MAX_DEPTH - 1 - level;
+        n = e as usize + ((i >> sh) & 1) as usize + 2 * ((j >> sh) & 1) as usize;
+        level += 1;
+    }
+}
+
 #[inline(always)]
 fn lattice_f32(x: f32) -> u32 {
     // x * 2^16 is exact; `as` saturates, and NaN fails the comparison and maps to 0.
@@ -351,11 +398,7 @@ impl Reconstruction {
     /// not the tree's vertices, non-finite samples, or values so large that a coefficient
     /// overflows f32.
     pub fn build(polygons: &[SampledQuadtree], estimator: Estimator) -> Result<Reconstruction> {
-        let built: Vec<Result<PolygonRrp>> = polygons
-            .par_iter()
-            .enumerate()
-            .map(|(i, sq)| build_polygon(i, sq, estimator))
-            .collect();
+        let built = build_polygons(polygons, estimator);
         let mut patches = Vec::new();
         let mut nodes: Vec<u32> = Vec::new();
         let mut roots = Vec::with_capacity(polygons.len());
@@ -370,13 +413,7 @@ impl Reconstruction {
             roots.push(base as u32);
             for (id, n) in tree.nodes().iter().enumerate() {
                 if n.is_leaf() {
-                    let pc = PatchCoeffs::from_poly(&p.poly(id as u32), n.cell.level);
-                    if !pc.is_finite() {
-                        return Err(Error::Runtime(format!(
-                            "reconstruction of polygon {index}: a patch coefficient overflows \
-                             f32 (sample values too large)"
-                        )));
-                    }
+                    let pc = leaf_patch(index, &p.poly(id as u32), n.cell.level)?;
                     nodes.push(LEAF | patches.len() as u32);
                     patches.push(pc);
                 } else {
@@ -421,17 +458,7 @@ impl Reconstruction {
 
     #[inline(always)]
     fn locate_lattice(&self, polygon: u32, i: u32, j: u32) -> u32 {
-        let mut n = self.roots[polygon as usize] as usize;
-        let mut level = 0u32;
-        loop {
-            let e = self.nodes[n];
-            if e & LEAF != 0 {
-                return e & !LEAF;
-            }
-            let sh = MAX_DEPTH - 1 - level;
-            n = e as usize + ((i >> sh) & 1) as usize + 2 * ((j >> sh) & 1) as usize;
-            level += 1;
-        }
+        locate_in(&self.nodes, self.roots[polygon as usize], i, j)
     }
 
     /// Global patch id of the patch covering (u, v) of `polygon` (u, v clamped to `[0, 1]`, NaN to
@@ -534,8 +561,9 @@ pub fn texel_centre(k: u32, n: u32) -> f32 {
 pub trait PatchSource: Sync {
     /// Global id of the patch covering (u, v) of scene polygon `polygon`; (u, v) in `[0, 1]^2`.
     fn locate(&self, polygon: u32, u: f32, v: f32) -> u32;
-    /// The coefficients of patch `id`.
-    fn patch(&self, id: u32) -> &PatchCoeffs;
+    /// The coefficients of patch `id`, by value: a source may hold patches expanded (a copy) or
+    /// derive them on demand from compact data ([`compact::CompactReconstruction`]).
+    fn patch(&self, id: u32) -> PatchCoeffs;
     /// The half-open parameter rectangle `[u_lo, u_hi) x [v_lo, v_hi)`, as
     /// `[u_lo, u_hi, v_lo, v_hi]`, on which `locate` returns `id` (for the polygon `id` was located
     /// on), if the source knows it exactly. The rasterizer then skips `locate` for samples inside
@@ -554,8 +582,8 @@ impl PatchSource for Reconstruction {
     }
 
     #[inline]
-    fn patch(&self, id: u32) -> &PatchCoeffs {
-        Reconstruction::patch(self, id)
+    fn patch(&self, id: u32) -> PatchCoeffs {
+        *Reconstruction::patch(self, id)
     }
 
     /// The patch's cell `[u0, u0 + w) x [v0, v0 + w)`: u0 is a multiple of 2^-16 and w = 1 / inv_w

@@ -166,19 +166,15 @@ pub(crate) fn refine(
         }
     }
 
-    // Compact: rebuild the tree without the merged-away subtrees.
-    let mut out = Quadtree::new();
-    let mut work = vec![(0u32, 0u32)];
-    while let Some((old, new)) = work.pop() {
+    // Compact: rebuild the tree without the merged-away subtrees, in the canonical node order of
+    // `Quadtree::grow` (which the compact encoding relies on to store 1 bit per node).
+    let out = Quadtree::grow(0u32, |_, _, old| {
         if leaf_now[old as usize] {
-            continue;
+            return None;
         }
         let of = t.node(old).first_child;
-        let nf = out.split(new);
-        for q in 0..4 {
-            work.push((of + q, nf + q));
-        }
-    }
+        Some([of, of + 1, of + 2, of + 3])
+    });
     let mut data_out = KeyMap::default();
     for n in out.nodes().iter().filter(|n| n.is_leaf()) {
         for k in n.cell.corners() {

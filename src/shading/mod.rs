@@ -303,7 +303,7 @@ mod tests {
             fn locate(&self, _: u32, _: f32, _: f32) -> u32 {
                 unreachable!("the pass reads the region's table")
             }
-            fn patch(&self, _: u32) -> &PatchCoeffs {
+            fn patch(&self, _: u32) -> PatchCoeffs {
                 unreachable!("the pass reads the region's table")
             }
         }
