@@ -42,16 +42,32 @@ fn direct_two_spots_equals_the_rrp_at_pixel_centres() {
     // the bottom row: pixel (x, y) sees (u, v) = ((x + 0.5) / 256, 1 - (y + 0.5) / 256).
     let p = prepared("two-spots");
     let f = render_with(p, &FrameOptions::new(256, 256), 2);
-    let mut worst = 0.0f32;
+    let c = &p.compact;
+    let expanded = p.expanded().unwrap().0;
+    // The quantization bound of the compact RRPs, largest over the polygon's leaves
+    // (reconstruction::compact's module docs).
+    let bound = (0..c.leaf_count() as u32)
+        .map(|id| c.error_bound(id).into_iter().fold(0.0f64, f64::max))
+        .fold(0.0f64, f64::max) as f32;
+    let (mut worst, mut worst_expanded) = (0.0f32, 0.0f32);
     for y in 0..256 {
         for x in 0..256 {
             let u = (x as f32 + 0.5) / 256.0;
             let v = 1.0 - (y as f32 + 0.5) / 256.0;
-            let want = p.reconstruction.eval(0, u, v);
+            let want = c.expand(c.locate(0, u, v)).eval(u, v);
             let got = f.pixels[y * 256 + x];
             worst = worst.max((got - want).abs().max_element());
+            let unquantized = expanded.eval(0, u, v);
+            worst_expanded = worst_expanded.max((got - unquantized).abs().max_element());
         }
     }
+    // The image of the compact RRPs against the unquantized, expanded ones: within the
+    // quantization bound plus the same rasterizer allowance as below.
+    assert!(bound > 0.0 && bound < 1e-3, "bound {bound}");
+    assert!(
+        worst_expanded < bound + 1e-4,
+        "largest difference {worst_expanded}, bound {bound}"
+    );
     // The rasterizer's (u, v) comes from f32 plane coordinates: a few ulps of 1 (~1e-6). The
     // steepest slope of the bright spot (3.2 cos^8(theta), h = 0.5) is about 10 per unit of u,
     // 0.17 from the peak, so the value error is ~1e-5, plus f32 evaluation rounding (~1e-6 of

@@ -628,7 +628,8 @@ fn discussion(table1: &[ModelStats], sweep: &[SweepRow]) -> String {
             .partition(|s| s.rrp_bytes < s.texture_memory.bytes[1]);
         let names = |v: &[&ModelStats]| v.iter().map(|s| name(s)).collect::<Vec<_>>().join(", ");
         t += "- **Compactness.** The paper claims (sec. 5) RRPs are more compact than textures. \
-              With 208-byte patches per quadtree leaf ";
+              Held as the direct method holds them (compact: 16-bit vertex Hermite data, each \
+              patch expanded when a region needs it) ";
         t += &match (smaller.is_empty(), larger.is_empty()) {
             (true, _) => "they are not, on our scenes".to_string(),
             (false, true) => "they are, on every scene here".to_string(),
@@ -638,8 +639,8 @@ fn discussion(table1: &[ModelStats], sweep: &[SweepRow]) -> String {
                 names(&smaller)
             ),
         };
-        t += " (RRP MB against texture memory above); storing Hermite vertex data would cut \
-              them about 3x (`docs/performance.md`).\n";
+        t += " (RRP MB against texture memory above, at equal sampling; at equal error see \
+              `docs/results.md`).\n";
     }
     t
 }

@@ -16,6 +16,38 @@ use crate::method::Method;
 use crate::progress::Observer;
 use crate::scene::MAX_IMAGE_DIM;
 
+/// What one bench row times: a method, or the direct method reading fully expanded patches
+/// instead of the compact RRPs (the baseline that shows what expanding on demand costs).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Timed {
+    /// A rendering method as `render` draws it.
+    Method(Method),
+    /// The direct method over [`crate::reconstruction::Reconstruction`]'s stored patches.
+    DirectExpanded,
+}
+
+/// The bench's name of [`Timed::DirectExpanded`].
+pub const DIRECT_EXPANDED: &str = "direct-expanded";
+
+impl Timed {
+    /// The row's method name.
+    pub fn name(&self) -> &'static str {
+        match self {
+            Timed::Method(m) => m.name(),
+            Timed::DirectExpanded => DIRECT_EXPANDED,
+        }
+    }
+
+    fn render(&self, p: &Prepared, opts: &FrameOptions) -> Result<crate::frame::Frame> {
+        match self {
+            Timed::Method(m) => render_frame(p, *m, &p.scene.camera, opts),
+            Timed::DirectExpanded => {
+                crate::frame::render_patches(&p.scene, &p.scene.camera, p.expanded()?.0, opts)
+            }
+        }
+    }
+}
+
 /// What `pixelflow-sim bench` was asked to do.
 #[derive(Debug, Clone)]
 pub struct BenchRequest {
@@ -59,7 +91,13 @@ pub fn run_bench(req: &BenchRequest, observer: &dyn Observer) -> Result<BenchRep
     let methods = req
         .methods
         .iter()
-        .map(|m| req.texture.method(Method::parse(m)?))
+        .map(|m| {
+            if m == DIRECT_EXPANDED {
+                Ok(Timed::DirectExpanded)
+            } else {
+                Ok(Timed::Method(req.texture.method(Method::parse(m)?)?))
+            }
+        })
         .collect::<Result<Vec<_>>>()?;
     let policy = req.texture.policy(&input.scene)?;
     let placement = req.texture.placement(&input.scene)?;
@@ -88,7 +126,7 @@ pub fn run_bench(req: &BenchRequest, observer: &dyn Observer) -> Result<BenchRep
         input: req.input.display().to_string(),
         polygons: p.scene.polygons.len(),
         samples: p.solution.stats.vertices,
-        patches: p.reconstruction.stats().patches,
+        patches: p.compact.leaf_count(),
         threads: rayon::current_num_threads(),
         rows,
     })
@@ -154,7 +192,7 @@ pub fn median(mut xs: Vec<f64>) -> f64 {
 /// the medians. Timing is wall-clock inside the frame's stages; the machine is whatever runs it.
 pub fn bench(
     p: &Prepared,
-    method: Method,
+    method: Timed,
     sizes: &[(u32, u32)],
     frames: u32,
     base: &FrameOptions,
@@ -167,10 +205,10 @@ pub fn bench(
             height: h,
             ..base.clone()
         };
-        render_frame(p, method, &p.scene.camera, &opts)?;
+        method.render(p, &opts)?;
         let mut stats = Vec::new();
         for _ in 0..frames {
-            stats.push(render_frame(p, method, &p.scene.camera, &opts)?.stats);
+            stats.push(method.render(p, &opts)?.stats);
         }
         let med = |f: fn(&FrameStats) -> f64| median(stats.iter().map(f).collect());
         let shading_ms = med(|s| s.shading_ms);

@@ -179,7 +179,7 @@ pub fn equal_error(
         stage.advance((k - MIN_SCALE) as f64 / (MAX_SCALE - MIN_SCALE + 1) as f64);
         for (pi, &placement) in placements.iter().enumerate() {
             let mut set =
-                TextureSet::build(&p.reconstruction, &depths, SizePolicy::Scaled(k), placement)?;
+                TextureSet::build(p.expanded()?.0, &depths, SizePolicy::Scaled(k), placement)?;
             for mip in [true, false] {
                 if !mip {
                     set.drop_mip_chains();
@@ -224,7 +224,7 @@ pub fn equal_error(
     Ok(Some(EqualError {
         density,
         direct_error,
-        rrp_bytes: p.reconstruction.stats().bytes as u64,
+        rrp_bytes: p.compact.stats().total_bytes as u64,
         ratios: EQUAL_ERROR_RATIOS.to_vec(),
         stopped,
         rows,

@@ -7,9 +7,11 @@
 //!    (method, antialiasing, image size, renderers, region, texture size or budget, camera path),
 //!    so a bad value is refused in milliseconds with an [`crate::Error::InvalidOption`], before
 //!    any solve.
-//! 3. **Prepare and run** ([`prepare`]): solve (or read the solution), build the RRPs, then render,
-//!    measure or tabulate. Textures and the mesh are built lazily on first use, so a job that
-//!    only draws `direct` never pays for them.
+//! 3. **Prepare and run** ([`prepare`]): solve (or read the solution), build the RRPs in compact
+//!    form (what the direct method evaluates: quantized vertex data, each patch expanded when a
+//!    screen region first needs it), then render, measure or tabulate. The expanded patches (which
+//!    the texture methods resample), the textures and the mesh are built lazily on first use, so a
+//!    job that only draws `direct` never pays for them.
 //!
 //! The jobs: [`solve`] (scene to solution file), [`render`] (one frame or a walkthrough to PNG,
 //! EXR and statistics), [`mod@bench`] (frame times, methods interleaved), [`stats`] (the paper's
@@ -34,6 +36,7 @@ use crate::error::{Error, Result};
 use crate::method::{check_texture_side, Method, Placement};
 use crate::progress::Observer;
 use crate::radiosity::{self, file as solution_file, Solution, SolveOptions};
+use crate::reconstruction::compact::CompactReconstruction;
 use crate::reconstruction::mesh::MeshModel;
 use crate::reconstruction::{Estimator, Reconstruction};
 use crate::scene::{load_scene, Scene};
@@ -157,11 +160,11 @@ pub struct Prepared {
     pub scene: Scene,
     /// Its radiosity solution (solved now, or read from a file).
     pub solution: Solution,
-    /// The RRPs of every polygon.
-    pub reconstruction: Reconstruction,
+    /// The RRPs of every polygon in compact form: what the direct method holds and evaluates.
+    pub compact: CompactReconstruction,
     /// Time spent solving in this run (0 when read from a file), ms.
     pub solve_ms: f64,
-    /// Time spent building the RRPs, ms.
+    /// Time spent building the compact RRPs, ms.
     pub reconstruction_ms: f64,
     /// How the texture methods size their textures (default: [`scene_texture_policy`]). Set it
     /// before the first texture frame: the textures are built once, on first use.
@@ -169,11 +172,28 @@ pub struct Prepared {
     /// Where the texture methods place their texels (default: the scene's); like
     /// [`Prepared::texture_policy`], read when the textures are built.
     pub texture_placement: Placement,
+    expanded: OnceLock<(Reconstruction, f64)>,
     textures: OnceLock<(TextureSet, f64)>,
     mesh: OnceLock<(MeshModel, f64)>,
 }
 
 impl Prepared {
+    /// The RRPs with every patch expanded to power basis (unquantized vertex data), built on
+    /// first use (the texture methods resample them; the direct method does not need them), with
+    /// their build time in ms.
+    pub fn expanded(&self) -> Result<(&Reconstruction, f64)> {
+        if self.expanded.get().is_none() {
+            let t = Instant::now();
+            let r = Reconstruction::build(&self.solution.polygons, Estimator::default())?;
+            let _ = self.expanded.set((r, t.elapsed().as_secs_f64() * 1e3));
+        }
+        let (r, ms) = self
+            .expanded
+            .get()
+            .ok_or_else(|| Error::Runtime("expanded RRPs missing after build".into()))?;
+        Ok((r, *ms))
+    }
+
     /// The radiosity textures under [`Prepared::texture_policy`], built on first use (a scene
     /// rendered only with the direct method never pays for them), with their build time in ms.
     pub fn textures(&self) -> Result<(&TextureSet, f64)> {
@@ -181,7 +201,7 @@ impl Prepared {
             let t = Instant::now();
             let depths = TextureSet::depths(&self.solution.polygons);
             let set = TextureSet::build(
-                &self.reconstruction,
+                self.expanded()?.0,
                 &depths,
                 self.texture_policy,
                 self.texture_placement,
@@ -234,16 +254,17 @@ pub fn prepare(
         }
     };
     let t = Instant::now();
-    let reconstruction = Reconstruction::build(&solution.polygons, Estimator::default())?;
+    let compact = CompactReconstruction::build(&solution.polygons, Estimator::default())?;
     let reconstruction_ms = t.elapsed().as_secs_f64() * 1e3;
     Ok(Prepared {
         texture_policy,
         texture_placement,
         scene,
         solution,
-        reconstruction,
+        compact,
         solve_ms,
         reconstruction_ms,
+        expanded: OnceLock::new(),
         textures: OnceLock::new(),
         mesh: OnceLock::new(),
     })
@@ -272,7 +293,7 @@ pub fn render_frame(
     use crate::frame;
     use crate::shading::Shader;
     match method {
-        Method::Direct => frame::render_patches(&p.scene, camera, &p.reconstruction, opts),
+        Method::Direct => frame::render_patches(&p.scene, camera, &p.compact, opts),
         Method::Texture(filter) => {
             let (set, _) = p.textures()?;
             frame::render(

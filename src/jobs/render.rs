@@ -275,7 +275,7 @@ impl RenderReport {
             frame: frame.stats.clone(),
             solve_ms: p.solve_ms,
             reconstruction_ms: p.reconstruction_ms,
-            patches: p.reconstruction.stats().patches as u64,
+            patches: p.compact.leaf_count() as u64,
             samples: p.solution.stats.vertices,
         }
     }

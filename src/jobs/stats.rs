@@ -6,7 +6,7 @@ use std::path::PathBuf;
 
 use serde::Serialize;
 
-use super::bench::{bench, BenchRow};
+use super::bench::{bench, BenchRow, Timed};
 use super::{prepare, Input, Prepared, TextureOptions};
 use crate::error::Result;
 use crate::frame::FrameOptions;
@@ -63,8 +63,13 @@ pub struct ModelStats {
     pub rat_bytes: u64,
     /// Texture memory and texture count under the job's size policy.
     pub texture_memory: TextureMemory,
-    /// RRP storage, bytes (patches + locate trees, [`crate::reconstruction::ReconstructionStats`]).
+    /// RRP memory as the direct method holds it, bytes: the compact form (locate trees, leaf
+    /// records, 16-bit vertex data; [`crate::reconstruction::compact::CompactStats`]).
     pub rrp_bytes: u64,
+    /// The compact RRPs as encoded for storage, bytes.
+    pub rrp_encoded_bytes: u64,
+    /// The RRPs with every patch expanded (208-byte power-basis patches + locate trees), bytes.
+    pub rrp_expanded_bytes: u64,
     /// RRP patches.
     pub rrp_patches: u64,
     /// Radiosity samples of the solution.
@@ -105,7 +110,8 @@ pub fn model_stats(
                 Shape::Triangle => (t + 1, v + 3),
                 Shape::Quad => (t + 2, v + 4),
             });
-    let rs = p.reconstruction.stats();
+    let cs = p.compact.stats();
+    let expanded = p.expanded()?.0.stats();
     let mut rows = Vec::new();
     if frames > 0 {
         for m in STATS_METHODS {
@@ -113,7 +119,13 @@ pub fn model_stats(
                 Method::Texture(Filter::Bicubic { .. }) => Method::Texture(bicubic),
                 m => m,
             };
-            rows.extend(bench(p, m, &[(opts.width, opts.height)], frames, opts)?);
+            rows.extend(bench(
+                p,
+                Timed::Method(m),
+                &[(opts.width, opts.height)],
+                frames,
+                opts,
+            )?);
         }
     }
     Ok(ModelStats {
@@ -124,8 +136,10 @@ pub fn model_stats(
         rat_vertices,
         rat_bytes: rat_vertices * RAT_BYTES_PER_VERTEX + rat_triangles * 12,
         texture_memory: textures.memory,
-        rrp_bytes: rs.bytes as u64,
-        rrp_patches: rs.patches as u64,
+        rrp_bytes: cs.total_bytes as u64,
+        rrp_encoded_bytes: cs.encoded_bytes as u64,
+        rrp_expanded_bytes: expanded.bytes as u64,
+        rrp_patches: p.compact.leaf_count() as u64,
         samples: p.solution.stats.vertices,
         frames: rows,
     })

@@ -365,7 +365,7 @@ pub fn run_sweep(req: &SweepRequest, observer: &dyn Observer) -> Result<SweepRep
                     let sides: Vec<u32> = full.iter().map(|&n| (n >> k).max(1)).collect();
                     let memory = TextureMemory::of_sides(&sides);
                     let set = TextureSet::build(
-                        &p.reconstruction,
+                        p.expanded()?.0,
                         &depths,
                         SizePolicy::Budget(memory.bytes_with_chain[1]),
                         placement,
@@ -433,7 +433,7 @@ pub fn run_sweep(req: &SweepRequest, observer: &dyn Observer) -> Result<SweepRep
             let bytes = match (c.method, c.texture) {
                 (_, Some((level, _))) => level.bytes,
                 (Method::Mesh, _) => p.mesh()?.0.stats.bytes,
-                _ => p.reconstruction.stats().bytes as u64,
+                _ => p.compact.stats().total_bytes as u64,
             };
             points.push(SweepPoint {
                 method: c.method.name().to_string(),

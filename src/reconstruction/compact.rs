@@ -69,6 +69,9 @@
 //! depth, exponent range, canonical zero quantities and padding, finite expansions) and returns
 //! an error, never panics, on malformed bytes.
 
+use std::cell::RefCell;
+use std::sync::atomic::{AtomicU64, Ordering};
+
 use rayon::prelude::*;
 
 use super::hermite::{HermiteData, PatchPoly};
@@ -322,6 +325,75 @@ pub struct CompactReconstruction {
     exponents: Vec<[i16; QUANTITIES]>,
     /// Per polygon: the 12 scales 2^e (0 for a zero quantity).
     scales: Vec<[f64; QUANTITIES]>,
+    /// Which instance the per-thread patch caches hold patches of.
+    cache_id: CacheId,
+}
+
+/// A process-unique number per constructed [`CompactReconstruction`] (clones share it: they hold
+/// the same data). It names the instance whose patches a thread's [`PatchCache`] holds; it is not
+/// part of the value, so it never makes two equal reconstructions compare unequal.
+#[derive(Debug, Clone, Copy)]
+struct CacheId(u64);
+
+impl CacheId {
+    fn fresh() -> CacheId {
+        static NEXT: AtomicU64 = AtomicU64::new(1);
+        CacheId(NEXT.fetch_add(1, Ordering::Relaxed))
+    }
+}
+
+impl PartialEq for CacheId {
+    fn eq(&self, _: &CacheId) -> bool {
+        true
+    }
+}
+
+/// Slots of each thread's patch cache (a power of two): 8192 x 212 bytes, 1.7 MB per thread.
+pub const CACHE_SLOTS: usize = 8192;
+
+/// A thread's direct-mapped cache of expanded patches: leaf `id` lives in slot
+/// `id % CACHE_SLOTS` (neighbouring leaves have neighbouring ids, so a region's patches rarely
+/// collide). Expansion is a pure function of the stored integers, so a hit returns exactly what
+/// [`CompactReconstruction::expand`] would: the cache changes times, never pixels.
+struct PatchCache {
+    owner: u64,
+    ids: Vec<u32>,
+    patches: Vec<PatchCoeffs>,
+}
+
+thread_local! {
+    static CACHE: RefCell<PatchCache> = const {
+        RefCell::new(PatchCache {
+            owner: 0,
+            ids: Vec::new(),
+            patches: Vec::new(),
+        })
+    };
+}
+
+impl CompactReconstruction {
+    /// The patch of leaf `id` through this thread's bounded cache ([`CACHE_SLOTS`]): what the
+    /// direct method's region tables are filled from. Equal to [`CompactReconstruction::expand`].
+    #[inline]
+    pub fn cached_patch(&self, id: u32) -> PatchCoeffs {
+        CACHE.with(|c| {
+            let mut c = c.borrow_mut();
+            if c.owner != self.cache_id.0 || c.ids.is_empty() {
+                c.owner = self.cache_id.0;
+                c.ids.clear();
+                c.ids.resize(CACHE_SLOTS, u32::MAX);
+                c.patches
+                    .resize(CACHE_SLOTS, PatchCoeffs::whole([[0.0; 16]; 3]));
+            }
+            let slot = id as usize % CACHE_SLOTS;
+            if c.ids[slot] != id {
+                let p = self.expand(id);
+                c.ids[slot] = id;
+                c.patches[slot] = p;
+            }
+            c.patches[slot]
+        })
+    }
 }
 
 fn limit_error() -> Error {
@@ -338,6 +410,7 @@ impl CompactReconstruction {
             first_vertex: Vec::new(),
             exponents: Vec::new(),
             scales: Vec::new(),
+            cache_id: CacheId::fresh(),
         }
     }
 
@@ -671,7 +744,8 @@ fn decode_part(r: &mut Reader) -> Result<Part> {
     Ok(Part::new(tree, exponents, mantissas))
 }
 
-/// The direct method's view: `patch` expands on every call (no cache).
+/// The direct method's view: `patch` comes through the thread's bounded cache of expanded
+/// patches ([`CompactReconstruction::cached_patch`]).
 impl PatchSource for CompactReconstruction {
     #[inline]
     fn locate(&self, polygon: u32, u: f32, v: f32) -> u32 {
@@ -680,7 +754,7 @@ impl PatchSource for CompactReconstruction {
 
     #[inline]
     fn patch(&self, id: u32) -> PatchCoeffs {
-        self.expand(id)
+        self.cached_patch(id)
     }
 
     /// Exactly [`Reconstruction`]'s cells (the same trees, the same f32 arithmetic).
