@@ -68,6 +68,9 @@ pub struct ModelStats {
     pub rrp_bytes: u64,
     /// The compact RRPs as encoded for storage, bytes.
     pub rrp_encoded_bytes: u64,
+    /// The direct method's bounded caches of expanded patches, one per worker thread, bytes
+    /// (working memory beside `rrp_bytes`, like frame buffers).
+    pub rrp_cache_bytes: u64,
     /// The RRPs with every patch expanded (208-byte power-basis patches + locate trees), bytes.
     pub rrp_expanded_bytes: u64,
     /// RRP patches.
@@ -138,6 +141,7 @@ pub fn model_stats(
         texture_memory: textures.memory,
         rrp_bytes: cs.total_bytes as u64,
         rrp_encoded_bytes: cs.encoded_bytes as u64,
+        rrp_cache_bytes: (p.compact.cache_bytes_per_thread() * rayon::current_num_threads()) as u64,
         rrp_expanded_bytes: expanded.bytes as u64,
         rrp_patches: p.compact.leaf_count() as u64,
         samples: p.solution.stats.vertices,

@@ -733,7 +733,7 @@ fn eval_grad_matches_finite_differences() {
 
 // ---- Compact reconstruction ----
 
-use super::compact::{CompactReconstruction, ZERO_EXPONENT};
+use super::compact::{CompactReconstruction, CACHE_SLOTS, ZERO_EXPONENT};
 
 fn compact1(sq: &SampledQuadtree, e: Estimator) -> CompactReconstruction {
     CompactReconstruction::build(std::slice::from_ref(sq), e).unwrap()
@@ -1095,4 +1095,32 @@ fn compact_same_bytes_for_any_thread_count_and_bad_input_errors() {
             .polygon_count(),
         0
     );
+}
+
+#[test]
+fn the_patch_cache_returns_exactly_the_expanded_patch() {
+    // Two reconstructions used alternately on one thread (the cache must not serve one's patches
+    // for the other's ids), every id visited twice (misses, then hits), and ids that share a slot.
+    let a = compact1(
+        &SampledQuadtree::from_fn(criterion_tree(&spot, 1, 7, 1e-3), grey(spot)),
+        Estimator::Monotone,
+    );
+    let b = compact1(
+        &SampledQuadtree::from_fn(criterion_tree(&step, 1, 7, 1e-3), grey(step)),
+        Estimator::Monotone,
+    );
+    assert!(a.leaf_count() > 64 && b.leaf_count() > 64);
+    for c in [&a, &b] {
+        let slots = c.cache_slots();
+        assert!(slots.is_power_of_two() && slots <= c.leaf_count().min(CACHE_SLOTS));
+        assert!(2 * slots > c.leaf_count().min(CACHE_SLOTS));
+    }
+    for _ in 0..2 {
+        for c in [&a, &b] {
+            for id in 0..c.leaf_count() as u32 {
+                assert_eq!(c.cached_patch(id), c.expand(id));
+                assert_eq!(PatchSource::patch(c, id), c.expand(id));
+            }
+        }
+    }
 }
