@@ -245,16 +245,41 @@ pub fn prepare(
         solution_file: file,
         ..
     } = input;
-    let (solution, solve_ms) = match &file {
-        Some(path) => (solution_file::read_solution(path, &scene)?, 0.0),
+    let (solution, stored, solve_ms) = match &file {
+        Some(path) => {
+            let (solution, rrps) = solution_file::read_solution(path, &scene)?;
+            (solution, Some((path, rrps)), 0.0)
+        }
         None => {
             let t = Instant::now();
             let solution = radiosity::solve(&scene, &SolveOptions { observer })?;
-            (solution, t.elapsed().as_secs_f64() * 1e3)
+            (solution, None, t.elapsed().as_secs_f64() * 1e3)
         }
     };
     let t = Instant::now();
-    let compact = CompactReconstruction::build(&solution.polygons, Estimator::default())?;
+    // A solution file stores the compact RRPs its solve built: decode them (checked) instead of
+    // building again; a file without them (or a fresh solve) builds them from the samples.
+    let compact = match stored {
+        Some((path, rrps)) if !rrps.is_empty() => {
+            let corrupt = |m: String| {
+                Error::solution(
+                    path,
+                    crate::error::SolutionProblem::Corrupt,
+                    format!("corrupt solution file: its RRPs: {m}"),
+                )
+            };
+            let c = CompactReconstruction::decode(&rrps).map_err(|e| corrupt(e.to_string()))?;
+            if c.polygon_count() != scene.polygons.len() {
+                return Err(corrupt(format!(
+                    "{} polygons, the scene has {}",
+                    c.polygon_count(),
+                    scene.polygons.len()
+                )));
+            }
+            c
+        }
+        _ => CompactReconstruction::build(&solution.polygons, Estimator::default())?,
+    };
     let reconstruction_ms = t.elapsed().as_secs_f64() * 1e3;
     Ok(Prepared {
         texture_policy,

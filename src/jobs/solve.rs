@@ -1,17 +1,21 @@
 //! The solve job: a scene file to a solution file, so later renders and walkthroughs never solve
-//! again. The file names its scene (absolute path) and is written atomically.
+//! again. The file names its scene (absolute path), stores the compact RRPs (so a render never
+//! rebuilds them either) and is written atomically.
 
 use std::path::Path;
 
 use crate::error::Result;
 use crate::progress::Observer;
 use crate::radiosity::{self, file as solution_file, Solution, SolveOptions};
+use crate::reconstruction::compact::CompactReconstruction;
+use crate::reconstruction::Estimator;
 use crate::scene::load_scene;
 
 /// Solves `scene_path` and writes the solution to `out`.
 pub fn solve_to_file(scene_path: &Path, out: &Path, observer: &dyn Observer) -> Result<Solution> {
     let scene = load_scene(scene_path)?;
-    let solution = radiosity::solve(&scene, &SolveOptions { observer })?; // TODO observer
-    solution_file::write_solution(out, &solution, Some(scene_path))?;
+    let solution = radiosity::solve(&scene, &SolveOptions { observer })?;
+    let rrps = CompactReconstruction::build(&solution.polygons, Estimator::default())?;
+    solution_file::write_solution(out, &solution, Some(scene_path), &rrps.encode())?;
     Ok(solution)
 }

@@ -8,7 +8,9 @@
 //! payload_len  u64      bytes of payload
 //! scene_hash   u64      radiosity::scene_hash of the scene solved
 //! scene_path   path_len UTF-8 absolute path of the scene file (so `render <solution>` works)
-//! payload      ...      trees, keys, values, shooters, stats (see `encode_payload`)
+//! payload      ...      trees, keys, values, shooters, stats, then the RRPs: a u64 length and
+//!                       that many bytes of the compact reconstruction's encoding (see
+//!                       `encode_payload`; empty when not stored)
 //! checksum     u64      FNV-1a 64 of every byte before it
 //! ```
 //!
@@ -31,19 +33,23 @@ use crate::scene::Scene;
 
 /// File magic.
 pub const MAGIC: &[u8; 8] = b"PFSOLN\r\n";
-/// Current format version.
-pub const FORMAT_VERSION: u32 = 1;
+/// Current format version. Version 2 added the compact RRPs after the statistics; version 1
+/// files are refused (solve again).
+pub const FORMAT_VERSION: u32 = 2;
 const HEADER: usize = 8 + 4 + 4 + 8 + 8;
 
-/// Serializes a solution to bytes (the exact file content), naming no scene file.
+/// Serializes a solution to bytes (the exact file content), naming no scene file and storing
+/// no RRPs.
 pub fn encode(sol: &Solution) -> Vec<u8> {
-    encode_with_scene(sol, None)
+    encode_with_scene(sol, None, &[])
 }
 
 /// Serializes a solution to bytes, naming the scene file it solves (so `render <solution>` can
-/// load it). The path is stored as UTF-8 between the header and the payload.
-pub fn encode_with_scene(sol: &Solution, scene_path: Option<&Path>) -> Vec<u8> {
-    let payload = encode_payload(sol);
+/// load it) and storing `rrps`, the compact reconstruction's encoding (opaque here: this module
+/// comes before the reconstruction stage, which encodes and decodes it). The path is stored as
+/// UTF-8 between the header and the payload.
+pub fn encode_with_scene(sol: &Solution, scene_path: Option<&Path>, rrps: &[u8]) -> Vec<u8> {
+    let payload = encode_payload(sol, rrps);
     let path = scene_path
         .map(|p| p.to_string_lossy().into_owned())
         .unwrap_or_default();
@@ -61,14 +67,20 @@ pub fn encode_with_scene(sol: &Solution, scene_path: Option<&Path>) -> Vec<u8> {
     out
 }
 
-/// Writes `sol` to `path` atomically. `scene_path`, if given, is made absolute and stored so
-/// that the solution file alone is enough to render.
-pub fn write_solution(path: &Path, sol: &Solution, scene_path: Option<&Path>) -> Result<()> {
+/// Writes `sol` and `rrps` (the compact reconstruction's encoding, or empty) to `path`
+/// atomically. `scene_path`, if given, is made absolute and stored so that the solution file
+/// alone is enough to render.
+pub fn write_solution(
+    path: &Path,
+    sol: &Solution,
+    scene_path: Option<&Path>,
+    rrps: &[u8],
+) -> Result<()> {
     let abs = match scene_path {
         Some(p) => Some(std::fs::canonicalize(p).map_err(|e| Error::io(p, e))?),
         None => None,
     };
-    crate::output::write_atomic(path, &encode_with_scene(sol, abs.as_deref()))
+    crate::output::write_atomic(path, &encode_with_scene(sol, abs.as_deref(), rrps))
 }
 
 /// The scene file a solution file names (checked: magic, version, length, checksum).
@@ -93,8 +105,8 @@ pub fn read_scene_path(path: &Path) -> Result<std::path::PathBuf> {
     Ok(std::path::PathBuf::from(name))
 }
 
-/// Reads a solution of `scene` from `path`.
-pub fn read_solution(path: &Path, scene: &Scene) -> Result<Solution> {
+/// Reads a solution of `scene` from `path`, with the stored RRP bytes (empty if none).
+pub fn read_solution(path: &Path, scene: &Scene) -> Result<(Solution, Vec<u8>)> {
     let bytes = read(path)?;
     decode(&bytes, scene).map_err(|b| b.at(path))
 }
@@ -218,7 +230,7 @@ impl W {
     }
 }
 
-fn encode_payload(sol: &Solution) -> Vec<u8> {
+fn encode_payload(sol: &Solution, rrps: &[u8]) -> Vec<u8> {
     let mut w = W(Vec::new());
     w.u32(sol.polygons.len() as u32);
     for p in &sol.polygons {
@@ -270,6 +282,8 @@ fn encode_payload(sol: &Solution) -> Vec<u8> {
     for &x in &st.unshot_history {
         w.f64(x);
     }
+    w.u64(rrps.len() as u64);
+    w.0.extend_from_slice(rrps);
     w.0
 }
 
@@ -316,9 +330,9 @@ impl R<'_> {
     }
 }
 
-/// Decodes file bytes for `scene`; the error says what kind of problem, with a message for the
-/// user.
-pub fn decode(bytes: &[u8], scene: &Scene) -> std::result::Result<Solution, Bad> {
+/// Decodes file bytes for `scene` into the solution and the stored RRP bytes; the error says
+/// what kind of problem, with a message for the user.
+pub fn decode(bytes: &[u8], scene: &Scene) -> std::result::Result<(Solution, Vec<u8>), Bad> {
     let Envelope { path_len, body } = envelope(bytes)?;
     let hash = u64::from_le_bytes(bytes[24..32].try_into().unwrap_or([0; 8]));
     if hash != scene_hash(scene) {
@@ -335,13 +349,13 @@ pub fn decode(bytes: &[u8], scene: &Scene) -> std::result::Result<Solution, Bad>
     )?)
 }
 
-/// Decodes the payload (trees, keys, values, shooters, stats) for `scene`; every failure is a
-/// corrupt file.
+/// Decodes the payload (trees, keys, values, shooters, stats, RRP bytes) for `scene`; every
+/// failure is a corrupt file.
 fn decode_payload(
     payload: &[u8],
     scene: &Scene,
     hash: u64,
-) -> std::result::Result<Solution, String> {
+) -> std::result::Result<(Solution, Vec<u8>), String> {
     let mut r = R { b: payload, at: 0 };
     let np = r.u32()? as usize;
     if np != scene.polygons.len() {
@@ -437,14 +451,22 @@ fn decode_payload(
     for _ in 0..nh {
         stats.unshot_history.push(r.f64()?);
     }
+    let nb = r.u64()?;
+    if nb > (r.b.len() - r.at) as u64 {
+        return Err("corrupt payload: the RRP length runs past the end of the data".to_string());
+    }
+    let rrps = r.take(nb as usize)?.to_vec();
     if r.at != r.b.len() {
         return Err("corrupt payload: trailing bytes".to_string());
     }
     fill_tree_stats(&mut stats, &polygons);
-    Ok(Solution {
-        polygons,
-        shooters,
-        stats,
-        scene_hash: hash,
-    })
+    Ok((
+        Solution {
+            polygons,
+            shooters,
+            stats,
+            scene_hash: hash,
+        },
+        rrps,
+    ))
 }

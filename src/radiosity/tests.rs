@@ -346,10 +346,13 @@ fn solution_file_round_trip_and_errors() {
     s.radiosity.max_depth = 4;
     let mut sol = solve_quiet(&s);
     let path = tmp("a.pfsol");
-    file::write_solution(&path, &sol, None).expect("write");
-    let back = file::read_solution(&path, &s).expect("read");
+    // The RRP bytes are opaque to this module: any bytes round-trip.
+    let rrps: Vec<u8> = (0..=255u8).collect();
+    file::write_solution(&path, &sol, None, &rrps).expect("write");
+    let (back, back_rrps) = file::read_solution(&path, &s).expect("read");
     sol.stats.solve_ms = 0.0;
     assert_eq!(back, sol);
+    assert_eq!(back_rrps, rrps);
     let bytes = std::fs::read(&path).expect("bytes");
 
     use crate::error::SolutionProblem as P;
@@ -376,6 +379,23 @@ fn solution_file_round_trip_and_errors() {
         }
     );
     assert!(m.contains("version 99"), "{m}");
+
+    // Version 1 (before the stored RRPs) is refused with the same clear message.
+    let mut v1 = bytes.clone();
+    v1[8..12].copy_from_slice(&1u32.to_le_bytes());
+    std::fs::write(&p, &v1).expect("w");
+    let (k, m) = solution_problem(file::read_solution(&p, &s).unwrap_err());
+    assert_eq!(
+        k,
+        P::Version {
+            found: 1,
+            supported: 2
+        }
+    );
+    assert!(
+        m.contains("version 1") && m.contains("solve the scene again"),
+        "{m}"
+    );
 
     let mut s2 = s.clone();
     s2.materials[0].reflectance.x = 0.4;
