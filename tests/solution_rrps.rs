@@ -74,3 +74,29 @@ fn damaged_rrps_behind_a_valid_checksum_are_refused() {
         }
     }
 }
+
+#[test]
+fn memory_accounting_agrees_with_what_is_built() {
+    use pixelflow_sim::jobs::memory::{expanded_rrp_bytes, texture_bytes, Memory};
+    use pixelflow_sim::method::Filter;
+    let p = prepare_path(&scene(), &TextureOptions::default(), &SILENT).unwrap();
+    let m = Memory::of(&p).unwrap();
+    // The expanded bytes, computed from the compact form's counts, are the built expansion's.
+    assert_eq!(
+        expanded_rrp_bytes(&p.compact),
+        p.expanded().unwrap().0.stats().bytes as u64
+    );
+    assert_eq!(m.rrp_expanded, expanded_rrp_bytes(&p.compact));
+    // Each method is charged its own representation, by the one rule.
+    assert_eq!(m.method_bytes(Method::Direct), m.rrp_compact);
+    assert_eq!(
+        m.method_bytes(Method::Texture(Filter::Bilinear)),
+        texture_bytes(&p.textures().unwrap().0.memory)
+    );
+    assert_eq!(
+        m.method_bytes(Method::Mesh),
+        p.mesh().unwrap().0.stats.bytes
+    );
+    // Compact is smaller than expanded, encoded smaller than held.
+    assert!(m.rrp_encoded < m.rrp_compact && m.rrp_compact < m.rrp_expanded);
+}

@@ -185,7 +185,7 @@ pub fn equal_error(
                     set.drop_mip_chains();
                 }
                 let bytes = if mip {
-                    set.memory.bytes_with_chain[1]
+                    super::memory::texture_bytes(&set.memory)
                 } else {
                     set.memory.bytes[1]
                 };
@@ -224,7 +224,7 @@ pub fn equal_error(
     Ok(Some(EqualError {
         density,
         direct_error,
-        rrp_bytes: p.compact.stats().total_bytes as u64,
+        rrp_bytes: super::memory::rrp_bytes(&p.compact),
         ratios: EQUAL_ERROR_RATIOS.to_vec(),
         stopped,
         rows,

@@ -22,6 +22,7 @@
 
 pub mod bench;
 pub mod equal_error;
+pub mod memory;
 pub mod render;
 pub mod solve;
 pub mod stats;

@@ -7,6 +7,7 @@ use std::path::PathBuf;
 use serde::Serialize;
 
 use super::bench::{bench, BenchRow, Timed};
+use super::memory::Memory;
 use super::{prepare, Input, Prepared, TextureOptions};
 use crate::error::Result;
 use crate::frame::FrameOptions;
@@ -103,7 +104,6 @@ pub fn model_stats(
     bicubic: Filter,
 ) -> Result<ModelStats> {
     let (mesh, _) = p.mesh()?;
-    let (textures, _) = p.textures()?;
     let original = MeshStats::original(&p.scene);
     let (rat_triangles, rat_vertices) =
         p.scene
@@ -113,8 +113,7 @@ pub fn model_stats(
                 Shape::Triangle => (t + 1, v + 3),
                 Shape::Quad => (t + 2, v + 4),
             });
-    let cs = p.compact.stats();
-    let expanded = p.expanded()?.0.stats();
+    let memory = Memory::of(p)?;
     let mut rows = Vec::new();
     if frames > 0 {
         for m in STATS_METHODS {
@@ -138,11 +137,11 @@ pub fn model_stats(
         rat_triangles,
         rat_vertices,
         rat_bytes: rat_vertices * RAT_BYTES_PER_VERTEX + rat_triangles * 12,
-        texture_memory: textures.memory,
-        rrp_bytes: cs.total_bytes as u64,
-        rrp_encoded_bytes: cs.encoded_bytes as u64,
-        rrp_cache_bytes: (p.compact.cache_bytes_per_thread() * rayon::current_num_threads()) as u64,
-        rrp_expanded_bytes: expanded.bytes as u64,
+        texture_memory: memory.textures,
+        rrp_bytes: memory.rrp_compact,
+        rrp_encoded_bytes: memory.rrp_encoded,
+        rrp_cache_bytes: memory.rrp_caches,
+        rrp_expanded_bytes: memory.rrp_expanded,
         rrp_patches: p.compact.leaf_count() as u64,
         samples: p.solution.stats.vertices,
         frames: rows,

@@ -24,6 +24,7 @@ use serde::Serialize;
 
 use super::bench::{median, min_max};
 use super::equal_error::{self, EqualError};
+use super::memory;
 use super::{prepare, render_frame, Input, Prepared};
 use crate::error::{Error, Result};
 use crate::frame::{self, Frame, FrameOptions};
@@ -363,18 +364,18 @@ pub fn run_sweep(req: &SweepRequest, observer: &dyn Observer) -> Result<SweepRep
             for placement in [Placement::Centre, Placement::Corner] {
                 for k in 0..req.texture_levels {
                     let sides: Vec<u32> = full.iter().map(|&n| (n >> k).max(1)).collect();
-                    let memory = TextureMemory::of_sides(&sides);
+                    let mem = TextureMemory::of_sides(&sides);
                     let set = TextureSet::build(
                         p.expanded()?.0,
                         &depths,
-                        SizePolicy::Budget(memory.bytes_with_chain[1]),
+                        SizePolicy::Budget(memory::texture_bytes(&mem)),
                         placement,
                     )?;
                     let level = TextureLevel {
                         halvings: k,
                         placement: placement.name(),
                         texels: set.memory.texels,
-                        bytes: set.memory.bytes_with_chain[1],
+                        bytes: memory::texture_bytes(&set.memory),
                     };
                     sets.push((level, set));
                 }
@@ -433,7 +434,7 @@ pub fn run_sweep(req: &SweepRequest, observer: &dyn Observer) -> Result<SweepRep
             let bytes = match (c.method, c.texture) {
                 (_, Some((level, _))) => level.bytes,
                 (Method::Mesh, _) => p.mesh()?.0.stats.bytes,
-                _ => p.compact.stats().total_bytes as u64,
+                _ => memory::rrp_bytes(&p.compact),
             };
             points.push(SweepPoint {
                 method: c.method.name().to_string(),
