@@ -100,3 +100,57 @@ fn memory_accounting_agrees_with_what_is_built() {
     // Compact is smaller than expanded, encoded smaller than held.
     assert!(m.rrp_encoded < m.rrp_compact && m.rrp_compact < m.rrp_expanded);
 }
+
+/// The samples-alone form (16-bit samples, derivatives re-estimated on load) is measured beside
+/// the Hermite form: its bytes are what `stats` reports, and rendering from it moves the direct
+/// method's distance to the exact image by far less than 0.5 %.
+#[test]
+fn samples_alone_at_16_bits_barely_move_the_direct_image() {
+    use pixelflow_sim::frame::render_patches;
+    use pixelflow_sim::image::LinearImage;
+    use pixelflow_sim::jobs::memory::Memory;
+    use pixelflow_sim::metric::{perceptual_distance, DEFAULT_PPD};
+    use pixelflow_sim::reconstruction::samples_form;
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    for name in ["two-spots", "cornell-box"] {
+        let p = prepare_path(
+            &root.join(format!("scenes/{name}.toml")),
+            &TextureOptions::default(),
+            &SILENT,
+        )
+        .unwrap();
+        let m = Memory::of(&p).unwrap();
+        assert_eq!(
+            m.rrp_samples as usize,
+            samples_form::encoded_len(&p.solution.polygons, 16)
+        );
+        // Three 16-bit samples per vertex against twelve 16-bit Hermite quantities.
+        assert!(m.rrp_samples * 3 < m.rrp_encoded, "{name}: {m:?}");
+
+        let q = samples_form::quantize(&p.solution.polygons, 16);
+        for (a, b) in p.solution.polygons.iter().zip(&q) {
+            let bound = samples_form::sample_bound(a, 16);
+            for (x, y) in a.values.iter().zip(&b.values) {
+                for c in 0..3 {
+                    assert!((x[c] as f64 - y[c] as f64).abs() <= bound[c]);
+                }
+            }
+        }
+        let from_samples = CompactReconstruction::build(&q, Estimator::default()).unwrap();
+        let opts = FrameOptions::new(128, 128);
+        let cam = &p.scene.camera;
+        let image =
+            |f: pixelflow_sim::frame::Frame| LinearImage::new(f.width, f.height, f.pixels).unwrap();
+        let exact = image(render_frame(&p, Method::Reference, cam, &opts).unwrap());
+        let held = image(render_frame(&p, Method::Direct, cam, &opts).unwrap());
+        let alone = image(render_patches(&p.scene, cam, &from_samples, &opts).unwrap());
+        let d_held = perceptual_distance(&held, &exact, DEFAULT_PPD).unwrap();
+        let d_alone = perceptual_distance(&alone, &exact, DEFAULT_PPD).unwrap();
+        let change = (d_alone - d_held).abs() / d_held;
+        eprintln!(
+            "{name}: distance to exact {d_held:.5} -> {d_alone:.5} ({:.4} %)",
+            100.0 * change
+        );
+        assert!(change < 0.005, "{name}: {d_held} -> {d_alone}");
+    }
+}

@@ -502,12 +502,15 @@ fn reached_cell(p: Option<ScalePoint>, rrp: u64) -> String {
 
 fn equal_error_markdown(e: &EqualError) -> String {
     let mut s = format!(
-        "Direct method's reconstruction error {:.3} with {} of RRPs (density {}). Texture sides \
+        "Direct method's reconstruction error {:.3} with {} of RRPs as held ({} in the \
+         samples-alone form: the solution's trees and 16-bit samples, derivatives estimated on \
+         load) (density {}). Texture sides \
          tried: the quadtree-depth sides times 2^-3 to 2^4; the search stopped because {}.\n\n\
          | method | placement | mip-mapped | texture bytes at <= direct's error | at <= 1.1x | lowest error / direct's (bytes) |\n\
          |---|---|---|---|---|---|\n",
         e.direct_error,
         mb(e.rrp_bytes),
+        mb(e.rrp_samples_bytes),
         e.density,
         e.stopped
     );
@@ -544,11 +547,12 @@ fn equal_error_markdown(e: &EqualError) -> String {
         s += &match cheapest {
             Some((r, p)) => format!(
                 "Textures {what}: the cheapest at the direct method's error is {} ({} texels, {} \
-                 filtering), {} the RRPs' bytes. ",
+                 filtering), {} the RRPs' bytes as held and {} their samples-alone form's. ",
                 mb(p.bytes),
                 r.placement,
                 r.method.trim_start_matches("texture-"),
-                ratio_words(p.bytes as f64 / e.rrp_bytes.max(1) as f64)
+                ratio_words(p.bytes as f64 / e.rrp_bytes.max(1) as f64),
+                ratio_words(p.bytes as f64 / e.rrp_samples_bytes.max(1) as f64)
             ),
             None => format!(
                 "Textures {what}: none reaches the direct method's error at any size tried. "

@@ -100,6 +100,9 @@ pub struct EqualError {
     pub direct_error: f64,
     /// Bytes of the RRPs the direct method holds (patches and locate trees).
     pub rrp_bytes: u64,
+    /// Bytes of the same RRPs in the samples-alone form (16-bit samples, derivatives estimated
+    /// on load; [`crate::reconstruction::samples_form`]), measured beside the held form.
+    pub rrp_samples_bytes: u64,
     /// The ratios of [`EqualErrorRow::reached`].
     pub ratios: Vec<f64>,
     /// Why the search stopped growing the textures.
@@ -225,6 +228,10 @@ pub fn equal_error(
         density,
         direct_error,
         rrp_bytes: super::memory::rrp_bytes(&p.compact),
+        rrp_samples_bytes: crate::reconstruction::samples_form::encoded_len(
+            &p.solution.polygons,
+            crate::reconstruction::samples_form::DEFAULT_BITS,
+        ) as u64,
         ratios: EQUAL_ERROR_RATIOS.to_vec(),
         stopped,
         rows,

@@ -3,7 +3,9 @@
 //!
 //! - **RRPs, compact** (what the direct method holds): [`CompactStats::total_bytes`], the locate
 //!   trees, leaf records and 16-bit vertex data; **encoded** (what a solution file stores):
-//!   [`CompactStats::encoded_bytes`]; **patch caches**: the direct method's per-thread caches of
+//!   [`CompactStats::encoded_bytes`]; **samples alone** (measured, not stored: the solution's
+//!   trees and 16-bit samples, derivatives re-estimated on load): [`samples_form::encoded_len`];
+//!   **patch caches**: the direct method's per-thread caches of
 //!   expanded patches ([`CompactReconstruction::cache_bytes_per_thread`] times the worker
 //!   threads), working memory reported beside the RRPs, not in them.
 //! - **RRPs, expanded** (what the texture methods resample): one [`PatchCoeffs`] per leaf plus
@@ -24,6 +26,7 @@ use super::Prepared;
 use crate::error::Result;
 use crate::method::Method;
 use crate::reconstruction::compact::{CompactReconstruction, CompactStats};
+use crate::reconstruction::samples_form;
 use crate::reconstruction::PatchCoeffs;
 use crate::texture::TextureMemory;
 
@@ -50,6 +53,9 @@ pub struct Memory {
     pub rrp_compact: u64,
     /// Compact RRPs as encoded in a solution file.
     pub rrp_encoded: u64,
+    /// The samples-alone form's bytes at 16 bits ([`samples_form::encoded_len`]): what the RRPs
+    /// would take stored as the solution's trees and quantized samples.
+    pub rrp_samples: u64,
     /// Expanded RRPs ([`expanded_rrp_bytes`]).
     pub rrp_expanded: u64,
     /// The direct method's patch caches, all worker threads together.
@@ -67,6 +73,8 @@ impl Memory {
         Ok(Memory {
             rrp_compact: rrp_bytes(&p.compact),
             rrp_encoded: cs.encoded_bytes as u64,
+            rrp_samples: samples_form::encoded_len(&p.solution.polygons, samples_form::DEFAULT_BITS)
+                as u64,
             rrp_expanded: expanded_rrp_bytes(&p.compact),
             rrp_caches: (p.compact.cache_bytes_per_thread() * rayon::current_num_threads()) as u64,
             textures: p.textures()?.0.memory,

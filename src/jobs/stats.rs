@@ -69,6 +69,10 @@ pub struct ModelStats {
     pub rrp_bytes: u64,
     /// The compact RRPs as encoded for storage, bytes.
     pub rrp_encoded_bytes: u64,
+    /// The RRPs' samples-alone form (solution quadtrees and 16-bit samples, derivatives
+    /// re-estimated on load; [`crate::reconstruction::samples_form`]), bytes: measured, not
+    /// stored.
+    pub rrp_samples_bytes: u64,
     /// The direct method's bounded caches of expanded patches, one per worker thread, bytes
     /// (working memory beside `rrp_bytes`, like frame buffers).
     pub rrp_cache_bytes: u64,
@@ -140,6 +144,7 @@ pub fn model_stats(
         texture_memory: memory.textures,
         rrp_bytes: memory.rrp_compact,
         rrp_encoded_bytes: memory.rrp_encoded,
+        rrp_samples_bytes: memory.rrp_samples,
         rrp_cache_bytes: memory.rrp_caches,
         rrp_expanded_bytes: memory.rrp_expanded,
         rrp_patches: p.compact.leaf_count() as u64,

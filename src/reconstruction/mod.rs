@@ -56,6 +56,7 @@ mod estimate;
 mod hermite;
 pub mod mesh;
 mod refine;
+pub mod samples_form;
 #[cfg(test)]
 mod tests;
 
