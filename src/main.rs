@@ -114,6 +114,10 @@ enum Command {
         walkthrough: bool,
         #[command(flatten)]
         texture: TextureArgs,
+        /// The RRPs' derivative estimator: `hyman` (default: Hyman-filtered central
+        /// differences), `monotone` (Fritsch-Butland) or `plain` (central differences).
+        #[arg(long)]
+        estimator: Option<String>,
         /// Print the statistics.
         #[arg(short, long)]
         verbose: bool,
@@ -183,9 +187,9 @@ enum Command {
         /// Pixels per degree of the perceptual metric.
         #[arg(long, default_value_t = pixelflow_sim::metric::DEFAULT_PPD)]
         ppd: f64,
-        /// fig5, fig6: the RRPs' derivative estimator, `monotone` (default) or `plain`
-        /// (central differences).
-        #[arg(long, default_value = "monotone")]
+        /// fig5, fig6: the RRPs' derivative estimator, `hyman` (default), `monotone` or
+        /// `plain` (central differences).
+        #[arg(long, default_value = "hyman")]
         estimator: String,
         /// table1: the scenes (default: the three shipped scenes).
         #[arg(long, value_delimiter = ',')]
@@ -490,6 +494,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             stats,
             walkthrough,
             texture,
+            estimator,
             verbose,
             quiet,
             trace,
@@ -507,6 +512,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 stats,
                 walkthrough,
                 texture: texture.options(),
+                estimator,
             };
             let observer = Terminal::new(!quiet, trace);
             let mut stdout_closed = false;

@@ -169,10 +169,12 @@ fn render_from_a_solution_file_equals_render_from_the_scene() {
         "--quiet",
     ]);
     assert!(o.status.success(), "{}", stderr(&o));
-    let render = |input: &Path, exr: &Path| {
+    let render = |input: &Path, exr: &Path, estimator: &str| {
         let o = run(&[
             "render",
             input.to_str().unwrap(),
+            "--estimator",
+            estimator,
             "--width",
             "96",
             "--height",
@@ -186,9 +188,18 @@ fn render_from_a_solution_file_equals_render_from_the_scene() {
         assert!(o.status.success(), "{}", stderr(&o));
         std::fs::read(exr).unwrap()
     };
-    let a = render(&scene("cornell-box"), &tmp("from-scene.exr"));
-    let b = render(&sol, &tmp("from-solution.exr"));
+    let a = render(&scene("cornell-box"), &tmp("from-scene.exr"), "hyman");
+    let b = render(&sol, &tmp("from-solution.exr"), "hyman");
     assert!(a == b, "EXR bytes differ between scene and solution input");
+    // Another estimator rebuilds the RRPs from the file's samples: again the scene's image, and
+    // not the default estimator's.
+    let c = render(&scene("cornell-box"), &tmp("plain-scene.exr"), "plain");
+    let d = render(&sol, &tmp("plain-solution.exr"), "plain");
+    assert!(c == d, "--estimator plain: scene and solution input differ");
+    assert!(
+        a != c,
+        "--estimator plain drew the default estimator's image"
+    );
 }
 
 /// `--trace` prints the solver's phase lines to stderr, with or without `--quiet`; without it a
@@ -230,8 +241,9 @@ fn trace_prints_the_solver_phases_and_changes_nothing() {
 fn bad_render_arguments_exit_2_with_a_message() {
     let ts = scene("two-spots");
     let ts = ts.to_str().unwrap();
-    let cases: [(&[&str], &str); 5] = [
+    let cases: [(&[&str], &str); 6] = [
         (&["render", ts, "--method", "phong"], "is not a method"),
+        (&["render", ts, "--estimator", "cubic"], "--estimator cubic"),
         (&["render", "no/such/scene.toml"], "no/such/scene.toml"),
         (&["render", ts, "--walkthrough"], "camera_path"),
         (&["render", ts, "--threads", "0"], "--threads 0"),

@@ -51,17 +51,9 @@ pub const SHIPPED_SCENES: [&str; 4] = [
     "scenes/gallery-fine.toml",
 ];
 
-/// Parses `monotone` or `plain`.
+/// Parses an estimator's name (`plain`, `monotone` or `hyman`), for `--estimator`.
 pub fn parse_estimator(s: &str) -> Result<Estimator> {
-    match s {
-        "monotone" => Ok(Estimator::Monotone),
-        "plain" => Ok(Estimator::Plain),
-        _ => Err(Error::invalid_option(
-            "--estimator",
-            s,
-            "expected monotone or plain",
-        )),
-    }
+    Estimator::parse_option("--estimator", s)
 }
 
 /// Which experiment to run.

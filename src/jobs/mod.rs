@@ -53,6 +53,10 @@ pub struct Input {
     pub scene: Scene,
     /// The solution file, when the input is one (its envelope is checked already).
     pub solution_file: Option<PathBuf>,
+    /// The RRPs' derivative estimator (`--estimator`; default [`Estimator::default`]). A
+    /// solution file's stored RRPs were built with the default; another estimator rebuilds
+    /// them from the samples.
+    pub estimator: Estimator,
 }
 
 impl Input {
@@ -65,12 +69,14 @@ impl Input {
                 path: path.to_path_buf(),
                 scene: load_scene(&scene_path)?,
                 solution_file: Some(path.to_path_buf()),
+                estimator: Estimator::default(),
             })
         } else {
             Ok(Input {
                 path: path.to_path_buf(),
                 scene: load_scene(path)?,
                 solution_file: None,
+                estimator: Estimator::default(),
             })
         }
     }
@@ -167,6 +173,8 @@ pub struct Prepared {
     pub solve_ms: f64,
     /// Time spent building the compact RRPs, ms.
     pub reconstruction_ms: f64,
+    /// The derivative estimator the RRPs (compact and expanded) are built with.
+    pub estimator: Estimator,
     /// How the texture methods size their textures (default: [`scene_texture_policy`]). Set it
     /// before the first texture frame: the textures are built once, on first use.
     pub texture_policy: SizePolicy,
@@ -185,7 +193,7 @@ impl Prepared {
     pub fn expanded(&self) -> Result<(&Reconstruction, f64)> {
         if self.expanded.get().is_none() {
             let t = Instant::now();
-            let r = Reconstruction::build(&self.solution.polygons, Estimator::default())?;
+            let r = Reconstruction::build(&self.solution.polygons, self.estimator)?;
             let _ = self.expanded.set((r, t.elapsed().as_secs_f64() * 1e3));
         }
         let (r, ms) = self
@@ -244,6 +252,7 @@ pub fn prepare(
     let Input {
         scene,
         solution_file: file,
+        estimator,
         ..
     } = input;
     let (solution, stored, solve_ms) = match &file {
@@ -258,10 +267,11 @@ pub fn prepare(
         }
     };
     let t = Instant::now();
-    // A solution file stores the compact RRPs its solve built: decode them (checked) instead of
-    // building again; a file without them (or a fresh solve) builds them from the samples.
+    // A solution file stores the compact RRPs its solve built with the default estimator:
+    // decode them (checked) instead of building again; a file without them, another estimator
+    // or a fresh solve builds them from the samples.
     let compact = match stored {
-        Some((path, rrps)) if !rrps.is_empty() => {
+        Some((path, rrps)) if !rrps.is_empty() && estimator == Estimator::default() => {
             let corrupt = |m: String| {
                 Error::solution(
                     path,
@@ -279,7 +289,7 @@ pub fn prepare(
             }
             c
         }
-        _ => CompactReconstruction::build(&solution.polygons, Estimator::default())?,
+        _ => CompactReconstruction::build(&solution.polygons, estimator)?,
     };
     let reconstruction_ms = t.elapsed().as_secs_f64() * 1e3;
     Ok(Prepared {
@@ -290,6 +300,7 @@ pub fn prepare(
         compact,
         solve_ms,
         reconstruction_ms,
+        estimator,
         expanded: OnceLock::new(),
         textures: OnceLock::new(),
         mesh: OnceLock::new(),

@@ -49,6 +49,8 @@ pub struct RenderRequest {
     pub walkthrough: bool,
     /// Texture sizes and the bicubic filter's parameters.
     pub texture: TextureOptions,
+    /// The RRPs' derivative estimator by name (`--estimator`; default: the default estimator).
+    pub estimator: Option<String>,
 }
 
 /// A render request resolved against its scene and checked: what will be drawn, how, and where
@@ -173,8 +175,11 @@ pub fn run_render(
     observer: &dyn Observer,
     on: &mut dyn FnMut(RenderEvent<'_>),
 ) -> Result<()> {
-    let input = Input::load(&req.input)?;
+    let mut input = Input::load(&req.input)?;
     let plan = RenderPlan::new(req, &input.scene)?;
+    if let Some(name) = &req.estimator {
+        input.estimator = crate::reconstruction::Estimator::parse_option("--estimator", name)?;
+    }
     for w in &input.scene.warnings {
         on(RenderEvent::Warning(w));
     }

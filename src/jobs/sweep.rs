@@ -313,6 +313,7 @@ fn solve_at(input: &Input, scene: Scene, observer: &dyn Observer) -> Result<Prep
         path: input.path.clone(),
         scene,
         solution_file: None,
+        estimator: input.estimator,
     };
     prepare(input, SizePolicy::FromDepth, Placement::Centre, observer)
 }

@@ -33,9 +33,10 @@ use crate::scene::Scene;
 
 /// File magic.
 pub const MAGIC: &[u8; 8] = b"PFSOLN\r\n";
-/// Current format version. Version 2 added the compact RRPs after the statistics; version 1
-/// files are refused (solve again).
-pub const FORMAT_VERSION: u32 = 2;
+/// Current format version. Version 2 added the compact RRPs after the statistics; version 3
+/// marks solutions of the local refinement criterion with per-channel convergence, their RRPs
+/// built with the Hyman estimator. Older files are refused (solve again).
+pub const FORMAT_VERSION: u32 = 3;
 const HEADER: usize = 8 + 4 + 4 + 8 + 8;
 
 /// Serializes a solution to bytes (the exact file content), naming no scene file and storing

@@ -94,9 +94,10 @@ pub struct SolveStats {
     pub refined_after: Vec<u64>,
     /// Emitted power, summed over channels (W).
     pub emitted_power: f64,
-    /// Unshot power over emitted power at the end.
+    /// Unshot power over emitted power at the end, in the channel where that ratio is largest
+    /// (convergence is judged per channel).
     pub unshot_fraction: f64,
-    /// Unshot fraction after every shot, in shot order.
+    /// Unshot fraction (largest channel) after every shot, in shot order.
     pub unshot_history: Vec<f64>,
     /// Wall-clock solve time in milliseconds. Not saved in solution files (it would make two
     /// solves of one scene differ); 0 for a solution read from a file.

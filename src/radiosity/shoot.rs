@@ -6,13 +6,15 @@
 //!    depth <= 2, so a shooter patch is always a union of leaves);
 //! 2. direct pass: spot lights shoot, each once, then emitters shoot their emission (largest power
 //!    first), to every vertex;
-//! 3. refine: a leaf splits when the true radiosity at its centre or an edge midpoint differs
-//!    from the bilinear prediction of its corners by more than `tolerance * scale` (luminance),
-//!    where `scale` is a robust brightness of the scene (see `brightness_scale`), while its depth
-//!    is below `max_depth` and its world-space size above [`min_element_size`]; new vertices
-//!    gather from the whole history; T-vertices stay, the tree is never balanced;
-//! 4. indirect pass: reflecting patches shoot their unshot radiosity (largest unshot power first,
-//!    ties by id) until the unshot power falls below `convergence` times the emitted power. These
+//! 3. refine: a leaf splits when the true reflected radiosity at its centre or an edge midpoint
+//!    differs from the bilinear prediction of its corners by more than `tolerance` times its own
+//!    level (floored at [`REFINE_FLOOR`] of the brightest sample), or when a shadow boundary of a
+//!    light crosses it (the light's visible fraction differs across its points), while its depth
+//!    is below `max_depth` and its world-space size above [`min_element_size`] (see `refine`);
+//!    new vertices gather from the whole history; T-vertices stay, the tree is never balanced;
+//! 4. indirect pass: reflecting patches shoot their unshot radiosity (largest unshot power
+//!    first, each channel relative to that channel's emitted power; ties by id) until, in every
+//!    channel, the unshot power falls below `convergence` times the emitted power. These
 //!    shots go to a fixed coarse set of receiver points per polygon (the vertices of its uniform
 //!    grid one level below its patch depth), not to every vertex: during shooting the receivers
 //!    only serve to estimate the patches' unshot power, which is smooth indirect light, and a
@@ -45,7 +47,9 @@ use std::time::Instant;
 use glam::DVec3;
 use rayon::prelude::*;
 
-use super::transfer::{build_shooters, spot_power, sub_area, PairClass, ShooterKind, Transfer};
+use super::transfer::{
+    build_shooters, spot_power, spot_power3, sub_area, PairClass, ShooterKind, Transfer,
+};
 use crate::progress::{Observer, Stage};
 use crate::quadtree::{Cell, Quadtree, VertexKey};
 use crate::scene::Scene;
@@ -182,24 +186,46 @@ pub(crate) fn run_with_cache(
             ShooterKind::Patch { .. } => {}
         }
     }
-    let power = |tr: &Transfer<'_>, s: usize, u: DVec3| -> f64 {
+    // Unshot power per channel (W): a spot's is its power in each channel until it has shot.
+    let power3 = |tr: &Transfer<'_>, s: usize, u: DVec3| -> DVec3 {
         match tr.shooters[s].kind {
             ShooterKind::Spot { spot } => {
                 if u == DVec3::ZERO {
-                    0.0
+                    DVec3::ZERO
                 } else {
-                    spot_power(&scene.spots[spot as usize])
+                    spot_power3(&scene.spots[spot as usize])
                 }
             }
-            _ => tr.shooters[s].area * (u.x + u.y + u.z),
+            _ => tr.shooters[s].area * u,
         }
     };
+    let power = |tr: &Transfer<'_>, s: usize, u: DVec3| -> f64 {
+        let p = power3(tr, s, u);
+        p.x + p.y + p.z
+    };
+    // Emitted power per channel; a channel nothing emits in needs no shooting.
+    let emitted3: DVec3 = (0..ns)
+        .filter(|&s| !matches!(tr.shooters[s].kind, ShooterKind::Patch { .. }))
+        .map(|s| power3(tr, s, unshot[s]))
+        .sum();
+    let inv_emitted = emitted3
+        .to_array()
+        .map(|e| if e > 0.0 { 1.0 / e } else { 0.0 });
+    // Unshot power of each channel as a fraction of that channel's emitted power.
+    let fractions = |p: DVec3| -> DVec3 {
+        DVec3::new(
+            p.x * inv_emitted[0],
+            p.y * inv_emitted[1],
+            p.z * inv_emitted[2],
+        )
+    };
+    // Convergence is judged per channel: the solve's unshot fraction is the largest channel's.
     let frac_of = |tr: &Transfer<'_>, unshot: &[DVec3]| -> f64 {
         if emitted <= 0.0 {
             return 0.0;
         }
-        let total: f64 = (0..unshot.len()).map(|s| power(tr, s, unshot[s])).sum();
-        total / emitted
+        let total: DVec3 = (0..unshot.len()).map(|s| power3(tr, s, unshot[s])).sum();
+        fractions(total).max_element()
     };
     let mut history = Vec::new();
     let mut shots = 0u64;
@@ -280,11 +306,13 @@ pub(crate) fn run_with_cache(
     while emitted > 0.0 && round < MAX_ROUNDS {
         round += 1;
         while frac >= SHOOT_MARGIN * conv && shots < max_shots {
-            // Largest unshot power, ties by the smaller id.
+            // Largest unshot power, each channel relative to its emitted power (so the channel
+            // furthest from convergence is served), ties by the smaller id.
             let mut best = None;
             let mut best_p = 0.0;
             for (s, u) in unshot.iter().enumerate() {
-                let p = power(tr, s, *u);
+                let f = fractions(power3(tr, s, *u));
+                let p = f.x + f.y + f.z;
                 if p > best_p {
                     best_p = p;
                     best = Some(s);
@@ -595,37 +623,35 @@ fn rebuild_leaves(scene: &Scene, i: usize, p: &mut Poly, base: &[u32], depth: &[
     p.leaves = leaves_of(scene, i, &p.tree, &p.keys, base, depth);
 }
 
-/// Brightness scale for the subdivision test: the larger of
-/// - the area-weighted mean luminance of the reflected radiosity rho * G over the reflecting
-///   polygons, measured at the vertices, and
-/// - the mean reflected radiosity the emitted luminous power would give if it fell evenly on the
-///   reflecting area (first bounce only): `emitted_lum * mean_rho_lum / area`.
-///
-/// The second term keeps the scale meaningful when the initial vertices all miss the light (a
-/// narrow spot falling between them): the measured mean is then 0 and would stop refinement.
-fn brightness_scale(polys: &[Poly], emitted_lum: f64) -> f64 {
-    let (mut num, mut den, mut rho_a) = (0.0, 0.0, 0.0);
-    for p in polys {
-        if lum(p.rho) <= 0.0 {
-            continue;
-        }
-        for l in &p.leaves {
-            let avg = 0.25 * l.corners.iter().map(|&c| p.g[c as usize]).sum::<DVec3>();
-            num += l.area * lum(p.rho * avg);
-            den += l.area;
-            rho_a += l.area * lum(p.rho);
-        }
-    }
-    if den > 0.0 && (num / den).is_finite() {
-        let even = emitted_lum * (rho_a / den) / den;
-        let even = if even.is_finite() { even } else { 0.0 };
-        (num / den).max(even)
-    } else {
-        0.0
-    }
+/// Floor of the refinement criterion, as a fraction of the brightest reflected radiosity
+/// (luminance) sampled so far: an element's variation is judged relative to its own level, but
+/// never to a level below this fraction of the peak, so that dark regions (where any noise is a
+/// large relative change) do not refine to the depth limit.
+pub const REFINE_FLOOR: f64 = 0.01;
+
+/// The brightest reflected radiosity rho * G (luminance) at any vertex of a reflecting polygon.
+fn peak_reflected(polys: &[Poly]) -> f64 {
+    polys
+        .iter()
+        .filter(|p| lum(p.rho) > 0.0)
+        .flat_map(|p| p.g.iter().map(|g| lum(p.rho * *g)))
+        .fold(0.0, f64::max)
 }
 
 /// Adaptive subdivision against the true radiosity; returns the number of splits.
+///
+/// A leaf splits (below `max_depth` and above [`min_element_size`]) when either
+/// - **variation**: at its centre or an edge midpoint the reflected radiosity rho * G differs
+///   from the bilinear prediction of its corners by more than `tolerance * level` (luminance of
+///   the per-channel difference), `level` being the larger of the leaf's own level (the mean
+///   luminance of rho * G over its corners and test points) and [`REFINE_FLOOR`] times the
+///   peak; nothing in this test depends on the polygon's area or shape, so thin and small
+///   polygons refine like large ones; or
+/// - **visibility**: for a light (spot or emitter) with occluders between it and the polygon,
+///   the visible fraction of the light differs across the leaf's corners and test points (a
+///   shadow boundary crosses it) and the light's unshadowed contribution times that difference
+///   exceeds the same `tolerance * level`: the leaf is split toward the boundary, down to the
+///   depth limit, even where the bilinear prediction happens to agree at the test points.
 fn refine(
     scene: &Scene,
     tr: &Transfer<'_>,
@@ -635,10 +661,22 @@ fn refine(
     depth: &[u32],
 ) -> usize {
     let st = &scene.radiosity;
-    let thresh = st.tolerance * brightness_scale(polys, emitted_lum(scene, tr));
-    if thresh <= 0.0 || !thresh.is_finite() {
+    let tol = st.tolerance;
+    if tol <= 0.0 || !tol.is_finite() {
         return 0;
     }
+    let mut peak = peak_reflected(polys);
+    // The lights that have shot: their shadows drive the visibility test.
+    let lights: Vec<usize> = (0..tr.shooters.len())
+        .filter(|&s| {
+            !matches!(tr.shooters[s].kind, ShooterKind::Patch { .. }) && totals[s] != DVec3::ZERO
+        })
+        .collect();
+    let occluded = |s: usize, r: usize| -> bool {
+        tr.pairs[s]
+            .as_ref()
+            .is_some_and(|p| p.class[r] == PairClass::Occluded)
+    };
     let min_size = min_element_size(scene);
     let mut pending: Vec<(u32, u32)> = Vec::new();
     for (r, p) in polys.iter().enumerate() {
@@ -656,20 +694,54 @@ fn refine(
     while !pending.is_empty() {
         // Probe keys not yet vertices, per polygon, deduplicated and sorted.
         let mut probes: Vec<(u32, VertexKey)> = Vec::new();
+        // Every point (corners and test points) of a pending leaf that some light's shadow
+        // may cross.
+        let mut shadow_keys: Vec<(u32, VertexKey)> = Vec::new();
         for &(r, id) in &pending {
             let p = &polys[r as usize];
-            for k in test_points(p.tree.node(id).cell) {
+            let cell = p.tree.node(id).cell;
+            for k in test_points(cell) {
                 if p.keys.binary_search(&k).is_err() {
                     probes.push((r, k));
                 }
             }
+            if lights.iter().any(|&s| occluded(s, r as usize)) {
+                shadow_keys.extend(
+                    cell.corners()
+                        .iter()
+                        .chain(&test_points(cell))
+                        .map(|&k| (r, k)),
+                );
+            }
         }
         probes.sort_unstable();
         probes.dedup();
+        shadow_keys.sort_unstable();
+        shadow_keys.dedup();
         let vals: Vec<DVec3> = probes
             .par_iter()
             .map(|&(r, k)| tr.gather(totals, r as usize, k.u(), k.v()))
             .collect();
+        // Per shadow key and light (in `lights` order; lights without occluders toward the
+        // polygon are skipped): the unshadowed reflected luminance and the visible fraction.
+        let shadows: Vec<Vec<(f64, f64)>> = shadow_keys
+            .par_iter()
+            .map(|&(r, k)| {
+                let rho = polys[r as usize].rho;
+                lights
+                    .iter()
+                    .filter(|&&s| occluded(s, r as usize))
+                    .map(|&s| {
+                        let (open, vis) = tr.shadowed(s, r as usize, k.u(), k.v());
+                        (lum(rho * totals[s] * open), vis)
+                    })
+                    .collect()
+            })
+            .collect();
+        for (&(r, _), g) in probes.iter().zip(&vals) {
+            peak = peak.max(lum(polys[r as usize].rho * *g));
+        }
+        let floor = REFINE_FLOOR * peak;
         let probe_g = |r: u32, k: VertexKey, polys: &[Poly]| -> DVec3 {
             let p = &polys[r as usize];
             match p.keys.binary_search(&k) {
@@ -688,6 +760,9 @@ fn refine(
             let cell = p.tree.node(id).cell;
             let c = cell.corners().map(|k| probe_g(r, k, polys));
             let tp = test_points(cell);
+            let t = tp.map(|k| probe_g(r, k, polys));
+            let level = c.iter().chain(&t).map(|g| lum(p.rho * *g)).sum::<f64>() / 9.0;
+            let thresh = tol * level.max(floor);
             let pred = [
                 0.25 * (c[0] + c[1] + c[2] + c[3]),
                 0.5 * (c[0] + c[1]),
@@ -695,11 +770,32 @@ fn refine(
                 0.5 * (c[2] + c[3]),
                 0.5 * (c[3] + c[0]),
             ];
-            let bad = tp.iter().zip(pred).any(|(&k, pr)| {
-                let d = p.rho * (probe_g(r, k, polys) - pr);
+            let varies = t.iter().zip(pred).any(|(g, pr)| {
+                let d = p.rho * (*g - pr);
                 lum(d.abs()) > thresh
             });
-            if bad {
+            let shadowed = !varies && lights.iter().any(|&s| occluded(s, r as usize)) && {
+                let at = |k: VertexKey| {
+                    let i = shadow_keys
+                        .binary_search(&(r, k))
+                        .expect("every point of a shadowed leaf was tested");
+                    &shadows[i]
+                };
+                let pts: Vec<&Vec<(f64, f64)>> =
+                    cell.corners().iter().chain(&tp).map(|&k| at(k)).collect();
+                let n = pts.first().map_or(0, |v| v.len());
+                (0..n).any(|j| {
+                    let (mut lo, mut hi, mut open) = (f64::INFINITY, f64::NEG_INFINITY, 0f64);
+                    for q in &pts {
+                        let (a, v) = q[j];
+                        lo = lo.min(v);
+                        hi = hi.max(v);
+                        open = open.max(a);
+                    }
+                    hi > lo && open * (hi - lo) > thresh
+                })
+            };
+            if varies || shadowed {
                 split_now.push((r, id));
             }
         }
@@ -749,27 +845,6 @@ fn can_split(scene: &Scene, r: usize, cell: Cell, min_size: f64) -> bool {
     let (du, dv) = scene.polygons[r].tangents(0.5 * (u0 + u1), 0.5 * (v0 + v1));
     let w = u1 - u0;
     (du.length() * w).max(dv.length() * w) > min_size
-}
-
-/// Emitted power in luminance (spots and emissive polygons).
-fn emitted_lum(scene: &Scene, tr: &Transfer<'_>) -> f64 {
-    let mut e = 0.0;
-    for sg in &tr.shooters {
-        match sg.kind {
-            ShooterKind::Spot { spot } => {
-                let s = &scene.spots[spot as usize];
-                let sum = s.intensity.x + s.intensity.y + s.intensity.z;
-                if sum > 0.0 {
-                    e += spot_power(s) * lum(s.intensity) / sum;
-                }
-            }
-            ShooterKind::Emitter { polygon } => {
-                e += sg.area * lum(scene.material_of(polygon as usize).emission);
-            }
-            ShooterKind::Patch { .. } => {}
-        }
-    }
-    e
 }
 
 /// Centre and the four edge midpoints (bottom, right, top, left) of a cell.

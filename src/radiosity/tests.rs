@@ -380,18 +380,26 @@ fn solution_file_round_trip_and_errors() {
     );
     assert!(m.contains("version 99"), "{m}");
 
-    // Version 1 (before the stored RRPs) is refused with the same clear message.
+    // Older versions (1: before the stored RRPs; 2: before the local refinement criterion,
+    // per-channel convergence and the Hyman estimator) are refused with the same clear message.
+    for old in [1u32, 2] {
+        let mut v = bytes.clone();
+        v[8..12].copy_from_slice(&old.to_le_bytes());
+        std::fs::write(&p, &v).expect("w");
+        let (k, m) = solution_problem(file::read_solution(&p, &s).unwrap_err());
+        assert_eq!(
+            k,
+            P::Version {
+                found: old,
+                supported: 3
+            }
+        );
+        assert!(m.contains("solve the scene again"), "{m}");
+    }
     let mut v1 = bytes.clone();
     v1[8..12].copy_from_slice(&1u32.to_le_bytes());
     std::fs::write(&p, &v1).expect("w");
-    let (k, m) = solution_problem(file::read_solution(&p, &s).unwrap_err());
-    assert_eq!(
-        k,
-        P::Version {
-            found: 1,
-            supported: 2
-        }
-    );
+    let (_, m) = solution_problem(file::read_solution(&p, &s).unwrap_err());
     assert!(
         m.contains("version 1") && m.contains("solve the scene again"),
         "{m}"

@@ -423,6 +423,25 @@ impl<'a> Transfer<'a> {
     /// Irradiance at the receiver point of polygon `r` at (u, v) per unit radiosity of shooter `s`
     /// (per unit intensity scale for a spot). Requires [`Transfer::ensure_pairs`] for `s`.
     pub fn transfer(&self, s: usize, r: usize, u: f64, v: f64) -> DVec3 {
+        let (open, vis) = self.shadowed(s, r, u, v);
+        match self.shooters[s].kind {
+            // A spot's visibility is 0 or 1: the unoccluded transfer or nothing.
+            ShooterKind::Spot { .. } => {
+                if vis > 0.0 {
+                    open
+                } else {
+                    DVec3::ZERO
+                }
+            }
+            _ => DVec3::splat(open.x * vis),
+        }
+    }
+
+    /// [`Transfer::transfer`] in two factors: the transfer without occluders, and the visible
+    /// fraction of the shooter (1 where no occluder can block; 0 or 1 for a spot, which casts
+    /// one ray). `transfer` is their product. Used by refinement to find elements that a shadow
+    /// boundary crosses. Requires [`Transfer::ensure_pairs`] for `s`.
+    pub fn shadowed(&self, s: usize, r: usize, u: f64, v: f64) -> (DVec3, f64) {
         let owned;
         let (class, cands): (PairClass, &[u32]) = match &self.pairs[s] {
             Some(p) => (p.class[r], p.cands(r)),
@@ -432,7 +451,7 @@ impl<'a> Transfer<'a> {
             }
         };
         if class == PairClass::Culled {
-            return DVec3::ZERO;
+            return (DVec3::ZERO, 1.0);
         }
         let x = self.receiver(r, u, v);
         let rp = &self.scene.polygons[r];
@@ -444,37 +463,38 @@ impl<'a> Transfer<'a> {
                 let d = spot.position - x;
                 let r2 = d.length_squared();
                 if r2 <= 0.0 {
-                    return DVec3::ZERO;
+                    return (DVec3::ZERO, 1.0);
                 }
                 let dist = r2.sqrt();
                 let cos = n.dot(d) / dist;
                 if cos <= 0.0 {
-                    return DVec3::ZERO;
+                    return (DVec3::ZERO, 1.0);
                 }
                 let i = spot.intensity_towards(-d / dist);
                 if i == DVec3::ZERO {
-                    return DVec3::ZERO;
+                    return (DVec3::ZERO, 1.0);
                 }
+                let mut vis = 1.0;
                 if class == PairClass::Occluded {
                     self.rays.fetch_add(1, Ordering::Relaxed);
                     let d = spot.position - x;
                     if cands.iter().any(|&q| self.bvh.hits(q as usize, x, d)) {
-                        return DVec3::ZERO;
+                        vis = 0.0;
                     }
                 }
-                i * (cos / r2)
+                (i * (cos / r2), vis)
             }
             _ => {
                 let f = point_to_polygon(x, n, &sg.outline, sg.normal);
                 if f <= 0.0 {
-                    return DVec3::ZERO;
+                    return (DVec3::ZERO, 1.0);
                 }
                 let vis = if class == PairClass::Occluded {
                     self.visibility(s, r, cands, x)
                 } else {
                     1.0
                 };
-                DVec3::splat(f * vis)
+                (DVec3::splat(f), vis)
             }
         }
     }
@@ -721,14 +741,21 @@ fn separated_by_plane(n: DVec3, p0: DVec3, pts: &[DVec3], eps: f64) -> bool {
 
 /// Power of a spot light summed over channels: 2 pi I (1 - cos^(f+1) alpha) / (f + 1).
 pub fn spot_power(s: &crate::scene::SpotLight) -> f64 {
+    let p = spot_power3(s);
+    p.x + p.y + p.z
+}
+
+/// A spot's power per channel (W): its intensity times the solid-angle integral of its
+/// `cos^falloff` profile over the cone; 0 if that is not finite.
+pub fn spot_power3(s: &crate::scene::SpotLight) -> DVec3 {
     let f = s.falloff;
     let ca = s.half_angle.cos().max(0.0);
     let p = 2.0 * std::f64::consts::PI * (1.0 - ca.powf(f + 1.0)) / (f + 1.0);
-    let sum = s.intensity.x + s.intensity.y + s.intensity.z;
-    if (p * sum).is_finite() {
-        p * sum
+    let out = p * s.intensity;
+    if out.is_finite() {
+        out
     } else {
-        0.0
+        DVec3::ZERO
     }
 }
 

@@ -112,6 +112,28 @@ pub(crate) fn limited(d0: f64, d1: f64) -> bool {
     fritsch_butland(d0, d1) == 0.0 || a > 2.0 * b || b > 2.0 * a
 }
 
+/// Hyman's filter of the central slope (Hyman 1983): the central difference `(d0 + d1) / 2`
+/// where the two secants have the same sign, clipped to `3 min(|d0|, |d1|)` (the radius of
+/// Fritsch and Carlson's monotone region), and 0 where they differ in sign or one is zero (the
+/// data turn there, and a zero slope cannot overshoot them). Returns the slope and whether the
+/// filter changed the central difference (then the twist is not trusted either). Written as
+/// `0.5 d0 + 0.5 d1` so nothing overflows for finite secants.
+pub(crate) fn hyman(d0: f64, d1: f64) -> (f64, bool) {
+    let c = 0.5 * d0 + 0.5 * d1;
+    if (d0 > 0.0 && d1 > 0.0) || (d0 < 0.0 && d1 < 0.0) {
+        let m = 3.0 * d0.abs().min(d1.abs());
+        if c.abs() > m {
+            (m.copysign(c), true)
+        } else {
+            (c, false)
+        }
+    } else if d0 == 0.0 && d1 == 0.0 {
+        (0.0, false)
+    } else {
+        (0.0, true)
+    }
+}
+
 /// Hermite data of every sample, in key order.
 pub(crate) fn estimate(s: &Samples<'_>, estimator: Estimator) -> Vec<HermiteData> {
     let h_of = s.min_leaf_sizes();
@@ -147,7 +169,7 @@ pub(crate) fn estimate(s: &Samples<'_>, estimator: Estimator) -> Vec<HermiteData
                         d.fv[ch] = (gj_p[ch] - gj_m[ch]) / dv;
                         d.fuv[ch] = twist;
                     }
-                    Estimator::Monotone => {
+                    Estimator::Monotone | Estimator::Hyman => {
                         let axis = |gm: f64, gp: f64, lo: bool, hi: bool, step: f64| {
                             if lo || hi {
                                 // One-sided secant at the border: never limited.
@@ -155,7 +177,11 @@ pub(crate) fn estimate(s: &Samples<'_>, estimator: Estimator) -> Vec<HermiteData
                             } else {
                                 let d0 = (fc[ch] - gm) / hh;
                                 let d1 = (gp - fc[ch]) / hh;
-                                (fritsch_butland(d0, d1), limited(d0, d1))
+                                if estimator == Estimator::Hyman {
+                                    (hyman(d0, d1).0, limited(d0, d1))
+                                } else {
+                                    (fritsch_butland(d0, d1), limited(d0, d1))
+                                }
                             }
                         };
                         let (fu, lu) = axis(gi_m[ch], gi_p[ch], im == k.i, ip == k.i, du);
@@ -188,5 +214,21 @@ mod tests {
         let huge = fritsch_butland(1e300, 1e300);
         assert!(huge.is_finite() && (huge / 1e300 - 1.0).abs() < 1e-15);
         assert!(limited(1.0, 2.5) && !limited(1.0, 1.9) && limited(0.0, 1.0));
+    }
+
+    #[test]
+    fn hyman_keeps_smooth_slopes_and_clips_steps() {
+        // Smooth: the central difference, untouched.
+        assert_eq!(hyman(1.0, 2.0), (1.5, false));
+        assert_eq!(hyman(-2.0, -1.0), (-1.5, false));
+        // A step next to flat data: clipped to 3x the smaller secant.
+        assert_eq!(hyman(0.1, 10.0), (0.30000000000000004, true));
+        // Turning or starting: 0.
+        assert_eq!(hyman(1.0, -1.0), (0.0, true));
+        assert_eq!(hyman(0.0, 1.0), (0.0, true));
+        assert_eq!(hyman(0.0, 0.0), (0.0, false));
+        // No overflow at the ends of the f64 range.
+        let (s, _) = hyman(1e308, 1.5e308);
+        assert!(s.is_finite() && s > 1e308);
     }
 }

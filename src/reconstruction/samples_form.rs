@@ -175,7 +175,10 @@ mod tests {
         let p = polygon(vec![[1.0, 2.0, 3.0]], &[0]);
         assert_eq!(p.tree.nodes().len(), 5);
         assert_eq!(p.values.len(), 9);
-        assert_eq!(encoded_len(&[p.clone()], 16), 12 + 4 + 1 + 6 + 54);
+        assert_eq!(
+            encoded_len(std::slice::from_ref(&p), 16),
+            12 + 4 + 1 + 6 + 54
+        );
         // 12 bits: 324 bits, 40.5 bytes, padded to 41.
         assert_eq!(encoded_len(&[p], 12), 12 + 4 + 1 + 6 + 41);
     }

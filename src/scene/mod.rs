@@ -255,14 +255,18 @@ pub struct CameraPath {
 /// Settings of the radiosity solve (stage 2).
 #[derive(Debug, Clone, PartialEq)]
 pub struct RadiositySettings {
-    /// Subdivision tolerance: a leaf splits when the true radiosity at a test point differs from
-    /// the bilinear prediction by more than `tolerance` times the scene's brightness scale.
+    /// Subdivision tolerance, a relative error: a leaf splits when the true reflected radiosity
+    /// at a test point differs from the bilinear prediction of its corners by more than
+    /// `tolerance` times the leaf's own level, a level never taken below 1 % of the brightest
+    /// reflected radiosity (`radiosity::shoot::REFINE_FLOOR`), or when a shadow boundary crosses
+    /// it (`docs/scene-format.md`).
     pub tolerance: f64,
     /// Every polygon's quadtree is subdivided at least to this depth.
     pub min_depth: u32,
     /// No leaf is deeper than this (at most [`crate::quadtree::MAX_DEPTH`]).
     pub max_depth: u32,
-    /// The solve stops when the unshot power falls below this fraction of the emitted power.
+    /// The solve stops when, in every channel, the unshot power falls below this fraction of
+    /// the power emitted in that channel.
     pub convergence: f64,
     /// Shadow rays per receiver point and source (stratified over the source).
     pub shadow_rays: u32,
@@ -273,7 +277,7 @@ pub struct RadiositySettings {
 impl Default for RadiositySettings {
     fn default() -> Self {
         RadiositySettings {
-            tolerance: 0.02,
+            tolerance: 0.01,
             min_depth: 1,
             max_depth: 7,
             convergence: 0.01,

@@ -6,7 +6,10 @@
 //! by the rasterizer, so shading cost depends on pixels, not on scene complexity.
 //!
 //! Invariants: a patch is a power-basis bicubic over local (s, t) in [0, 1]^2; a sample with
-//! [`NO_POLYGON`] takes the background colour; the result is a finite linear RGB value per pixel.
+//! [`NO_POLYGON`] takes the background colour; the result is a finite, non-negative linear RGB
+//! value per pixel. The only clamp of the image sits in the pixel resolve (`sanitize8`): after
+//! the box filter, a negative or non-finite channel becomes 0 (bicubic patches and the Mitchell
+//! filter can ring below zero next to a sharp shadow; every method passes through it).
 //!
 //! Why it is built this way: neighbouring samples nearly always share one patch, so each run of 8
 //! samples with the same slot is evaluated with the patch's 48 coefficients broadcast over 8 lanes
@@ -118,7 +121,7 @@ pub fn shade_region_with(
 /// Shades one region sample by sample with `f(index, x, y)` (index into the G-buffer's planes,
 /// region-local column and row; called only for samples that see a polygon), accumulating the
 /// samples of each pixel in plane order and resolving them exactly as the patch path does (box
-/// filter, then the non-finite clamp).
+/// filter, then the clamp of [`sanitize8`]).
 fn shade_region_per_sample(
     gb: &RegionGBuffer,
     background: Vec3,
@@ -148,7 +151,7 @@ fn shade_region_per_sample(
         let out = &mut dst[y * pitch..y * pitch + w];
         for (o, a) in out.iter_mut().zip(&acc) {
             let c = if gb.samples == 1 { *a } else { *a * inv };
-            *o = Vec3::from_array(c.to_array().map(|x| if x.is_finite() { x } else { 0.0 }));
+            *o = Vec3::from_array(c.to_array().map(sanitize1));
         }
     }
     counts
@@ -170,7 +173,7 @@ fn accumulate8(acc: &mut [Vec<f32>; 3], bx: usize, si: usize, out: &[F32x8; 3]) 
 }
 
 /// Resolves one row: the box filter (the mean of `samples` planes, `inv = 1 / samples`), the
-/// non-finite clamp, and the write of the row's `out.len()` pixels.
+/// clamp of [`sanitize8`], and the write of the row's `out.len()` pixels.
 #[inline(always)]
 fn resolve_row(acc: &mut [Vec<f32>; 3], samples: u32, inv: F32x8, out: &mut [Vec3]) {
     for a in acc.iter_mut() {
@@ -190,12 +193,24 @@ fn resolve_row(acc: &mut [Vec<f32>; 3], samples: u32, inv: F32x8, out: &mut [Vec
     }
 }
 
-/// Replaces non-finite lanes by 0 (documented clamp: a patch source with non-finite coefficients
-/// must not put NaN or inf into an image).
+/// Replaces non-finite and negative lanes (-0.0 included) by +0.0: the one clamp of every image, applied to each
+/// resolved pixel. Radiosity is never negative, but a bicubic (a patch next to a sharp shadow
+/// edge, or the Mitchell filter across one) can ring below zero, and a patch source with
+/// non-finite coefficients must not put NaN or inf into an image.
 #[inline(always)]
 fn sanitize8(c: F32x8) -> F32x8 {
-    let m: [bool; LANES] = std::array::from_fn(|l| c.0[l].is_finite());
+    let m: [bool; LANES] = std::array::from_fn(|l| c.0[l].is_finite() && c.0[l] > 0.0);
     F32x8::select(&m, c, F32x8::splat(0.0))
+}
+
+/// [`sanitize8`] for one value.
+#[inline(always)]
+fn sanitize1(x: f32) -> f32 {
+    if x.is_finite() && x > 0.0 {
+        x
+    } else {
+        0.0
+    }
 }
 
 /// The deferred pass over a frame: shades every region with `shader` into a `width` x `height` frame of
@@ -265,7 +280,7 @@ mod tests {
     use super::*;
 
     #[test]
-    fn sanitize_zeroes_exactly_the_non_finite_lanes() {
+    fn sanitize_zeroes_exactly_the_non_finite_and_negative_lanes() {
         let sub = f32::from_bits(1); // smallest subnormal: finite, must survive
         let x = F32x8([
             1.0,
@@ -278,9 +293,11 @@ mod tests {
             -3.5,
         ]);
         let got = sanitize8(x);
+        // -0.0 becomes +0.0: no image holds a negative zero either.
+        let want = [1.0, 0.0, 0.0, 0.0, 0.0, f32::MAX, sub, 0.0];
         for l in 0..LANES {
-            let want = if x.0[l].is_finite() { x.0[l] } else { 0.0 };
-            assert_eq!(got.0[l].to_bits(), want.to_bits(), "lane {l}");
+            assert_eq!(got.0[l].to_bits(), want[l].to_bits(), "lane {l}");
+            assert_eq!(sanitize1(x.0[l]).to_bits(), want[l].to_bits(), "lane {l}");
         }
     }
 
