@@ -655,6 +655,19 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             trace,
         } => in_pool(threads, || -> anyhow::Result<()> {
             use pixelflow_sim::jobs::sweep;
+            // Outputs checked before the sweep's minutes of work (the scene's includes are
+            // checked too, through the scene the plan loads).
+            let mut inputs = vec![input.clone()];
+            if let Ok(i) = pixelflow_sim::jobs::Input::load(&input) {
+                inputs.extend(i.scene.inputs);
+            }
+            let outputs: Vec<(&str, &std::path::Path)> = json
+                .as_deref()
+                .map(|p| ("--json", p))
+                .into_iter()
+                .chain(csv.as_deref().map(|p| ("--csv", p)))
+                .collect();
+            pixelflow_sim::output::check_outputs(&inputs, &outputs)?;
             let req = sweep::SweepRequest {
                 input,
                 methods,

@@ -1,19 +1,28 @@
 //! Output: every file the tool writes goes through here, written atomically (a temporary file in
 //! the target's directory, flushed, then renamed over the target), so a crash or a full disk never
 //! leaves a half-written image, solution or report where a user or a CI pipeline would read it.
+//!
+//! Before a job does any work, [`check_outputs`] refuses (exit 2) every output path that is, or
+//! resolves to, one of the job's input files (through `..`, symbolic links in its directories or
+//! a hard link), that another output of the same run also names, or that exists and is not a
+//! regular file (a directory, a symbolic link, a device node, a FIFO): replacing those would lose
+//! data the user did not ask to lose. A job with several outputs for one result (a render's PNG,
+//! EXR and statistics) writes them through a [`Batch`]: every file is written and flushed to its
+//! temporary first, then all are renamed, so an error while encoding or writing any of them
+//! leaves every target as it was; only a kill between two renames (microseconds) can leave some
+//! replaced and some not. Temporaries of a failed batch are removed.
 
 use std::io::Write;
 use std::path::{Path, PathBuf};
 
 use crate::error::{Error, Result};
 
-/// Writes `bytes` to `path` atomically. Creates missing parent directories.
-pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
+/// The directory and temporary path `path` is written through.
+fn temporary_of(path: &Path) -> Result<(PathBuf, PathBuf)> {
     let dir = match path.parent() {
         Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
         _ => PathBuf::from("."),
     };
-    std::fs::create_dir_all(&dir).map_err(|e| Error::io(&dir, e))?;
     let name = path.file_name().ok_or_else(|| {
         Error::invalid_option("output", path.display().to_string(), "is not a file name")
     })?;
@@ -21,15 +30,180 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
     tmp_name.push(name);
     tmp_name.push(format!(".{}.tmp", std::process::id()));
     let tmp = dir.join(tmp_name);
+    Ok((dir, tmp))
+}
+
+/// Writes `bytes` to the temporary `tmp` (created in `dir`, which is created if missing) and
+/// flushes it to disk; removes it on failure.
+fn write_temporary(dir: &Path, tmp: &Path, path: &Path, bytes: &[u8]) -> Result<()> {
+    std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
     let result = (|| {
-        let mut f = std::fs::File::create(&tmp)?;
+        let mut f = std::fs::File::create(tmp)?;
         f.write_all(bytes)?;
-        f.sync_all()?;
-        std::fs::rename(&tmp, path)
+        f.sync_all()
     })();
     if let Err(e) = result {
-        let _ = std::fs::remove_file(&tmp);
+        let _ = std::fs::remove_file(tmp);
         return Err(Error::io(path, e));
+    }
+    Ok(())
+}
+
+/// Writes `bytes` to `path` atomically. Creates missing parent directories.
+pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
+    let mut batch = Batch::default();
+    batch.stage(path, bytes)?;
+    batch.commit()
+}
+
+/// Several files written as one: [`Batch::stage`] writes each to its temporary, [`Batch::commit`]
+/// renames them all over their targets. Dropping an uncommitted batch removes its temporaries.
+#[derive(Debug, Default)]
+pub struct Batch {
+    staged: Vec<(PathBuf, PathBuf)>,
+}
+
+impl Batch {
+    /// Writes `bytes` to `path`'s temporary (flushed); `path` is replaced on commit.
+    pub fn stage(&mut self, path: &Path, bytes: &[u8]) -> Result<()> {
+        let (dir, tmp) = temporary_of(path)?;
+        write_temporary(&dir, &tmp, path, bytes)?;
+        self.staged.push((tmp, path.to_path_buf()));
+        Ok(())
+    }
+
+    /// Renames every staged temporary over its target, in staging order. On a failed rename the
+    /// remaining temporaries are removed and the error names the target.
+    pub fn commit(mut self) -> Result<()> {
+        let staged = std::mem::take(&mut self.staged);
+        for (k, (tmp, path)) in staged.iter().enumerate() {
+            if let Err(e) = std::fs::rename(tmp, path) {
+                for (t, _) in &staged[k..] {
+                    let _ = std::fs::remove_file(t);
+                }
+                return Err(Error::io(path, e));
+            }
+        }
+        Ok(())
+    }
+}
+
+impl Drop for Batch {
+    fn drop(&mut self) {
+        for (tmp, _) in &self.staged {
+            let _ = std::fs::remove_file(tmp);
+        }
+    }
+}
+
+/// What an existing path is, for the refusal message; `None` for a regular file.
+fn not_regular(meta: &std::fs::Metadata) -> Option<&'static str> {
+    let t = meta.file_type();
+    if t.is_file() {
+        None
+    } else if t.is_symlink() {
+        Some("is a symbolic link")
+    } else if t.is_dir() {
+        Some("is a directory")
+    } else {
+        Some("is not a regular file (a device, FIFO or socket)")
+    }
+}
+
+/// The path `p` will be written at, resolved: its longest existing ancestor made canonical
+/// (symbolic links and `..` resolved by the file system), the rest appended with `.` and `..`
+/// resolved lexically, as `create_dir_all` and the write will resolve them.
+fn resolved(p: &Path) -> PathBuf {
+    let abs = std::path::absolute(p).unwrap_or_else(|_| p.to_path_buf());
+    let mut rest = Vec::new();
+    let mut base = abs.as_path();
+    let canonical = loop {
+        if let Ok(c) = std::fs::canonicalize(base) {
+            break c;
+        }
+        match (base.parent(), base.file_name()) {
+            (Some(parent), _) => {
+                rest.push(base.components().next_back());
+                base = parent;
+            }
+            (None, _) => break PathBuf::new(),
+        }
+    };
+    let mut out = canonical;
+    for c in rest.into_iter().rev().flatten() {
+        match c {
+            std::path::Component::ParentDir => {
+                out.pop();
+            }
+            std::path::Component::CurDir => {}
+            c => out.push(c.as_os_str()),
+        }
+    }
+    out
+}
+
+/// Whether two existing files are the same file (same device and inode: hard links too).
+#[cfg(unix)]
+fn same_file(a: &std::fs::Metadata, b: &std::fs::Metadata) -> bool {
+    use std::os::unix::fs::MetadataExt;
+    a.dev() == b.dev() && a.ino() == b.ino()
+}
+
+#[cfg(not(unix))]
+fn same_file(_: &std::fs::Metadata, _: &std::fs::Metadata) -> bool {
+    false
+}
+
+/// Checks every output of a job before it starts (module docs): `outputs` are `(option, path)`
+/// pairs, `inputs` every file the job reads. Any refusal is an [`Error::InvalidOption`] (exit 2)
+/// naming the option and the path.
+pub fn check_outputs(inputs: &[PathBuf], outputs: &[(&str, &Path)]) -> Result<()> {
+    let refuse = |option: &str, path: &Path, why: String| {
+        Err(Error::invalid_option(
+            option,
+            path.display().to_string(),
+            why,
+        ))
+    };
+    let ins: Vec<(PathBuf, PathBuf, Option<std::fs::Metadata>)> = inputs
+        .iter()
+        .map(|p| (p.clone(), resolved(p), std::fs::metadata(p).ok()))
+        .collect();
+    let mut seen: Vec<(PathBuf, &str)> = Vec::new();
+    for &(option, path) in outputs {
+        let text = path.as_os_str().to_string_lossy();
+        if text.is_empty() {
+            return refuse(option, path, "is empty; give a file name".into());
+        }
+        if text.ends_with('/') || text.ends_with(std::path::MAIN_SEPARATOR) {
+            return refuse(option, path, "names a directory; give a file name".into());
+        }
+        let meta = std::fs::symlink_metadata(path).ok();
+        if let Some(why) = meta.as_ref().and_then(not_regular) {
+            return refuse(option, path, format!("{why}; refusing to replace it"));
+        }
+        let r = resolved(path);
+        for (input, ri, im) in &ins {
+            let same = *ri == r || matches!((&meta, im), (Some(a), Some(b)) if same_file(a, b));
+            if same {
+                return refuse(
+                    option,
+                    path,
+                    format!(
+                        "is the input file {}; refusing to overwrite an input",
+                        input.display()
+                    ),
+                );
+            }
+        }
+        if let Some((_, other)) = seen.iter().find(|(p, _)| *p == r) {
+            return refuse(
+                option,
+                path,
+                format!("is also the output of {other}; give each output its own file"),
+            );
+        }
+        seen.push((r, option));
     }
     Ok(())
 }
@@ -37,6 +211,81 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    fn fresh_dir(name: &str) -> PathBuf {
+        let dir = std::env::temp_dir().join(format!("pfs-check-{name}-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).unwrap();
+        dir
+    }
+
+    #[test]
+    fn outputs_that_are_inputs_or_not_regular_files_are_refused() {
+        let dir = fresh_dir("refuse");
+        let input = dir.join("scene.toml");
+        std::fs::write(&input, "x").unwrap();
+        let ins = vec![input.clone()];
+        let refused = |path: &Path| -> String {
+            match check_outputs(&ins, &[("-o", path)]) {
+                Err(e @ Error::InvalidOption { .. }) => {
+                    assert_eq!(e.exit_code(), 2);
+                    e.to_string()
+                }
+                other => panic!("{} not refused: {other:?}", path.display()),
+            }
+        };
+        // The input itself, by another spelling, through a symlinked directory, a hard link.
+        assert!(refused(&input).contains("input"));
+        assert!(refused(&dir.join("sub/../scene.toml")).contains("input"));
+        std::fs::create_dir_all(dir.join("sub")).unwrap();
+        assert!(refused(&dir.join("sub/../scene.toml")).contains("input"));
+        #[cfg(unix)]
+        {
+            std::os::unix::fs::symlink(&dir, dir.join("link")).unwrap();
+            assert!(refused(&dir.join("link/scene.toml")).contains("input"));
+            std::fs::hard_link(&input, dir.join("hard.toml")).unwrap();
+            assert!(refused(&dir.join("hard.toml")).contains("input"));
+            std::os::unix::fs::symlink(dir.join("elsewhere"), dir.join("dangling.png")).unwrap();
+            assert!(refused(&dir.join("dangling.png")).contains("symbolic link"));
+            assert!(refused(Path::new("/dev/null")).contains("not a regular file"));
+        }
+        assert!(refused(&dir.join("sub")).contains("directory"));
+        assert!(refused(Path::new("some/dir/")).contains("directory"));
+        // Two outputs naming one file.
+        let a = dir.join("a.png");
+        let e = check_outputs(&ins, &[("-o", &a), ("--exr", &dir.join("./a.png"))]).unwrap_err();
+        assert!(e.to_string().contains("also the output of -o"), "{e}");
+        // Fresh files, and a replaceable regular file, are fine.
+        std::fs::write(dir.join("old.png"), "old").unwrap();
+        check_outputs(&ins, &[("-o", &a), ("--exr", &dir.join("old.png"))]).unwrap();
+        check_outputs(&ins, &[("-o", &dir.join("new/dir/out.png"))]).unwrap();
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn a_failed_batch_leaves_every_target_as_it_was() {
+        let dir = fresh_dir("batch");
+        let (a, b) = (dir.join("a.png"), dir.join("b.exr"));
+        std::fs::write(&a, "old a").unwrap();
+        std::fs::write(&b, "old b").unwrap();
+        {
+            let mut batch = Batch::default();
+            batch.stage(&a, b"new a").unwrap();
+            batch.stage(&b, b"new b").unwrap();
+            // Dropped without commit (an error after staging): nothing replaced, no temporary.
+        }
+        assert_eq!(std::fs::read(&a).unwrap(), b"old a");
+        assert_eq!(std::fs::read(&b).unwrap(), b"old b");
+        assert_eq!(std::fs::read_dir(&dir).unwrap().count(), 2);
+        let mut batch = Batch::default();
+        batch.stage(&a, b"new a").unwrap();
+        batch.stage(&b, b"new b").unwrap();
+        batch.commit().unwrap();
+        assert_eq!(std::fs::read(&a).unwrap(), b"new a");
+        assert_eq!(std::fs::read(&b).unwrap(), b"new b");
+        assert_eq!(std::fs::read_dir(&dir).unwrap().count(), 2);
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
 
     #[test]
     fn writes_and_replaces_without_leaving_temporaries() {

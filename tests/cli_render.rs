@@ -458,3 +458,146 @@ fn an_unwritable_output_is_a_runtime_failure_reported_once() {
     assert!(msg.contains("not-a-dir"), "{msg}");
     assert_eq!(msg.matches("os error").count(), 1, "{msg}");
 }
+
+/// No output may replace an input (the scene, its OBJ or MTL, a solution file), another output
+/// of the same run, or anything that is not a regular file: exit 2, every file as it was.
+/// Regression test: `render v.toml -o v.toml` used to overwrite the scene and exit 0.
+#[test]
+fn outputs_never_replace_inputs_or_non_files() {
+    let dir = tmp("no-data-loss");
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(dir.join("cornell-box")).unwrap();
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes");
+    let v = dir.join("v.toml");
+    std::fs::copy(root.join("two-spots.toml"), &v).unwrap();
+    let cb = dir.join("cb.toml");
+    std::fs::copy(root.join("cornell-box.toml"), &cb).unwrap();
+    for f in std::fs::read_dir(root.join("cornell-box")).unwrap() {
+        let f = f.unwrap().path();
+        std::fs::copy(&f, dir.join("cornell-box").join(f.file_name().unwrap())).unwrap();
+    }
+    let obj = dir.join("cornell-box/CornellBox-Original.obj");
+    let mtl = dir.join("cornell-box/CornellBox-Original.mtl");
+    assert!(obj.is_file() && mtl.is_file());
+    let sol = dir.join("v.pfsol");
+    let o = run(&[
+        "solve",
+        v.to_str().unwrap(),
+        "-o",
+        sol.to_str().unwrap(),
+        "--quiet",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let snapshot = |paths: &[&Path]| -> Vec<Vec<u8>> {
+        paths.iter().map(|p| std::fs::read(p).unwrap()).collect()
+    };
+    let inputs: [&Path; 5] = [&v, &cb, &obj, &mtl, &sol];
+    let before = snapshot(&inputs);
+    let s = |p: &Path| p.to_str().unwrap().to_string();
+    let png = s(&dir.join("out.png"));
+    let dotted = s(&dir.join("cornell-box/../v.toml"));
+    #[cfg(unix)]
+    std::os::unix::fs::symlink(dir.join("elsewhere.png"), dir.join("link.png")).unwrap();
+    let cases: Vec<(Vec<String>, &str)> = vec![
+        (vec!["render".into(), s(&v), "-o".into(), s(&v)], "input"),
+        (
+            vec!["render".into(), s(&v), "-o".into(), dotted.clone()],
+            "input",
+        ),
+        (
+            vec![
+                "render".into(),
+                s(&v),
+                "-o".into(),
+                png.clone(),
+                "--exr".into(),
+                s(&v),
+            ],
+            "input",
+        ),
+        (
+            vec![
+                "render".into(),
+                s(&v),
+                "-o".into(),
+                png.clone(),
+                "--stats".into(),
+                s(&v),
+            ],
+            "input",
+        ),
+        (
+            vec!["render".into(), s(&sol), "-o".into(), s(&sol)],
+            "input",
+        ),
+        (vec!["render".into(), s(&sol), "-o".into(), s(&v)], "input"),
+        (vec!["render".into(), s(&cb), "-o".into(), s(&obj)], "input"),
+        (
+            vec![
+                "render".into(),
+                s(&cb),
+                "-o".into(),
+                png.clone(),
+                "--exr".into(),
+                s(&mtl),
+            ],
+            "input",
+        ),
+        (vec!["solve".into(), s(&v), "-o".into(), s(&v)], "input"),
+        (vec!["solve".into(), s(&cb), "-o".into(), s(&obj)], "input"),
+        (
+            vec![
+                "render".into(),
+                s(&v),
+                "-o".into(),
+                png.clone(),
+                "--exr".into(),
+                png.clone(),
+            ],
+            "also the output of -o",
+        ),
+        (
+            vec!["render".into(), s(&v), "-o".into(), s(&dir)],
+            "directory",
+        ),
+        (
+            vec![
+                "render".into(),
+                s(&v),
+                "-o".into(),
+                format!("{}/", s(&dir.join("newdir"))),
+            ],
+            "directory",
+        ),
+        #[cfg(unix)]
+        (
+            vec![
+                "render".into(),
+                s(&v),
+                "-o".into(),
+                s(&dir.join("link.png")),
+            ],
+            "symbolic link",
+        ),
+        #[cfg(unix)]
+        (
+            vec!["render".into(), s(&v), "-o".into(), "/dev/null".into()],
+            "not a regular file",
+        ),
+    ];
+    for (args, needle) in cases {
+        let args: Vec<&str> = args.iter().map(|a| a.as_str()).collect();
+        let o = run(&args);
+        assert_eq!(o.status.code(), Some(2), "{args:?}: {}", stderr(&o));
+        assert!(stderr(&o).contains(needle), "{args:?}: {}", stderr(&o));
+        assert!(snapshot(&inputs) == before, "{args:?} changed an input");
+    }
+    assert!(!Path::new(&png).exists(), "a refused run wrote an output");
+    // Nothing left behind: no temporaries, no new files besides the symlink.
+    let names: Vec<String> = std::fs::read_dir(&dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .filter(|n| n.starts_with('.'))
+        .collect();
+    assert!(names.is_empty(), "{names:?}");
+}

@@ -180,6 +180,17 @@ pub fn run_render(
     if let Some(name) = &req.estimator {
         input.estimator = crate::reconstruction::Estimator::parse_option("--estimator", name)?;
     }
+    // No output may replace an input, another output or anything but a regular file.
+    let mut inputs = input.scene.inputs.clone();
+    inputs.push(req.input.clone());
+    let mut outputs: Vec<(&str, &Path)> = plan
+        .frames
+        .iter()
+        .map(|(_, png)| ("-o", png.as_path()))
+        .collect();
+    outputs.extend(plan.exr.as_deref().map(|e| ("--exr", e)));
+    outputs.extend(plan.stats.as_deref().map(|s| ("--stats", s)));
+    crate::output::check_outputs(&inputs, &outputs)?;
     for w in &input.scene.warnings {
         on(RenderEvent::Warning(w));
     }
@@ -191,13 +202,22 @@ pub fn run_render(
         .walkthrough
         .then(|| Stage::start(observer, WALKTHROUGH_STAGE));
     let mut reports = Vec::new();
+    // A single frame's PNG, EXR and statistics are one batch: all replaced or none
+    // (crate::output). A walkthrough's frames are written as they are drawn.
+    let mut batch = crate::output::Batch::default();
+    let mut staged: Vec<&Path> = Vec::new();
     for (k, (camera, png)) in plan.frames.iter().enumerate() {
         let frame = render_frame(&p, plan.method, camera, &plan.frame)?;
-        image::write_png(png, frame.view(), exposure)?;
-        on(RenderEvent::Wrote(png));
+        if plan.walkthrough {
+            image::write_png(png, frame.view(), exposure)?;
+            on(RenderEvent::Wrote(png));
+        } else {
+            batch.stage(png, &image::encode_png(frame.view(), exposure)?)?;
+            staged.push(png);
+        }
         if let Some(exr) = &plan.exr {
-            image::write_exr(exr, frame.view())?;
-            on(RenderEvent::Wrote(exr));
+            batch.stage(exr, &image::encode_exr(frame.view())?)?;
+            staged.push(exr);
         }
         let report = RenderReport::new(&p, plan.method, &frame);
         on(RenderEvent::Frame(&report));
@@ -220,7 +240,11 @@ pub fn run_render(
             None => serde_json::to_string_pretty(&reports[0]),
         }
         .map_err(|e| Error::Runtime(format!("statistics to JSON: {e}")))?;
-        crate::output::write_atomic(path, json.as_bytes())?;
+        batch.stage(path, json.as_bytes())?;
+        staged.push(path);
+    }
+    batch.commit()?;
+    for path in staged {
         on(RenderEvent::Wrote(path));
     }
     if let Some(summary) = &summary {

@@ -14,6 +14,7 @@ use crate::scene::load_scene;
 /// Solves `scene_path` and writes the solution to `out`.
 pub fn solve_to_file(scene_path: &Path, out: &Path, observer: &dyn Observer) -> Result<Solution> {
     let scene = load_scene(scene_path)?;
+    crate::output::check_outputs(&scene.inputs, &[("-o", out)])?;
     let solution = radiosity::solve(&scene, &SolveOptions { observer })?;
     let rrps = CompactReconstruction::build(&solution.polygons, Estimator::default())?;
     solution_file::write_solution(out, &solution, Some(scene_path), &rrps.encode())?;

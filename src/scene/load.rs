@@ -68,6 +68,8 @@ pub fn parse_scene(text: &str, path: &Path) -> Result<Scene> {
         text,
         path,
         warnings: Vec::new(),
+        inputs: vec![path.to_path_buf()],
+        newlines: std::cell::OnceCell::new(),
     };
     cx.scene(file)
 }
@@ -87,6 +89,10 @@ pub(crate) struct Cx<'a> {
     pub(crate) text: &'a str,
     pub(crate) path: &'a Path,
     pub(crate) warnings: Vec<String>,
+    /// Files read so far (the scene file first), for [`Scene::inputs`].
+    pub(crate) inputs: Vec<std::path::PathBuf>,
+    /// Byte offsets of the text's newlines, computed on first use by [`Cx::loc`].
+    pub(crate) newlines: std::cell::OnceCell<Vec<usize>>,
 }
 
 /// The polygons one face became, and a warning if it was repaired.
@@ -97,8 +103,20 @@ pub(crate) struct BuiltFace {
 
 impl<'a> Cx<'a> {
     pub(crate) fn loc(&self, span: Range<usize>, key: impl Into<String>) -> Location {
+        // The offsets of the text's newlines, found once: a location costs a binary search,
+        // not a scan of the text (locations are made per polygon, so a scan made loading
+        // quadratic in the number of inline polygons).
+        let newlines = self.newlines.get_or_init(|| {
+            self.text
+                .bytes()
+                .enumerate()
+                .filter(|&(_, b)| b == b'\n')
+                .map(|(k, _)| k)
+                .collect()
+        });
+        let end = span.start.min(self.text.len());
         Location::file(self.path)
-            .at_line(line_of(self.text, span.start))
+            .at_line(newlines.partition_point(|&k| k < end) + 1)
             .with_key(key)
     }
 
@@ -343,6 +361,7 @@ impl<'a> Cx<'a> {
             display,
             camera_path,
             warnings: std::mem::take(&mut self.warnings),
+            inputs: std::mem::take(&mut self.inputs),
         })
     }
 

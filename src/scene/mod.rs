@@ -358,6 +358,10 @@ pub struct Scene {
     pub camera_path: Option<CameraPath>,
     /// Warnings the loader emitted (non-planar quads split, ...), for the user to read.
     pub warnings: Vec<String>,
+    /// Every file read to build the scene: the scene file, then its OBJ and MTL files in load
+    /// order (empty for scenes built in code). Outputs are checked against these, so that no
+    /// job overwrites its own input.
+    pub inputs: Vec<std::path::PathBuf>,
 }
 
 impl Scene {
@@ -385,6 +389,7 @@ impl Scene {
             display: DisplaySettings::default(),
             camera_path: None,
             warnings: Vec::new(),
+            inputs: Vec::new(),
         }
     }
 

@@ -57,6 +57,7 @@ pub(crate) fn include(
             format!("cannot read OBJ file {}: {e}", obj_path.display()),
         )
     })?;
+    cx.inputs.push(obj_path.clone());
 
     // The transform.
     let scale = match &o.scale {
@@ -100,6 +101,7 @@ pub(crate) fn include(
     // `check_mtl`), and an unreadable MTL is reported by name.
     let mtl_problem: RefCell<Option<Error>> = RefCell::new(None);
     let mtl_unreadable: RefCell<Option<String>> = RefCell::new(None);
+    let mtl_read: RefCell<Vec<std::path::PathBuf>> = RefCell::new(Vec::new());
     let obj_dir = obj_path
         .parent()
         .unwrap_or_else(|| Path::new(""))
@@ -107,7 +109,10 @@ pub(crate) fn include(
     let load_mtl = |name: &Path| -> tobj::MTLLoadResult {
         let mtl_path = obj_dir.join(name);
         let mtl_text = match std::fs::read_to_string(&mtl_path) {
-            Ok(t) => t,
+            Ok(t) => {
+                mtl_read.borrow_mut().push(mtl_path.clone());
+                t
+            }
             Err(e) => {
                 *mtl_unreadable.borrow_mut() =
                     Some(format!("cannot read MTL file {}: {e}", mtl_path.display()));
@@ -121,6 +126,7 @@ pub(crate) fn include(
         tobj::load_mtl_buf(&mut mtl_text.as_bytes())
     };
     let parsed = tobj::load_obj_buf(&mut text.as_bytes(), &opts, load_mtl);
+    cx.inputs.extend(mtl_read.into_inner());
     if let Some(e) = mtl_problem.into_inner() {
         return Err(e);
     }
