@@ -102,6 +102,11 @@ fn bad_inputs_exit_2_naming_the_file() {
         ),
         (vec![s(&missing), s(&a)], vec!["missing.exr"]),
         (vec![s(&a), s(&a), "--ppd", "0"], vec!["--ppd"]),
+        // Regression: a huge ppd printed a NaN distance and exited 0.
+        (
+            vec![s(&a), s(&a), "--ppd", "1e300"],
+            vec!["--ppd", "at most"],
+        ),
     ] {
         let mut full = vec!["compare"];
         full.extend(args);

@@ -275,6 +275,16 @@ fn a_corrupt_solution_file_is_bad_input() {
     let o = run(&["render", bad.to_str().unwrap(), "--quiet"]);
     assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
     assert!(stderr(&o).contains("checksum"), "{}", stderr(&o));
+    // Regression: an empty `.pfsol` was read as a scene and reported a TOML error.
+    let empty = tmp("empty.pfsol");
+    std::fs::write(&empty, b"").unwrap();
+    let o = run(&["render", empty.to_str().unwrap(), "--quiet"]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("not a pixelflow-sim solution file"),
+        "{}",
+        stderr(&o)
+    );
 }
 
 #[test]

@@ -736,13 +736,46 @@ fn obj_material_values_are_checked() {
     let obj = "mtllib m.mtl\nv 0 0 0\nv 1 0 0\nv 1 1 0\ng a\nusemtl lamp\nf 1 2 3\n";
     let scene = write_obj(&dir, obj, "newmtl lamp\nKd 1.0 0.5 0.5\nKe 1 1 1\n");
     let msg = load_scene(&scene).unwrap_err().to_string();
+    // A value's problem is the MTL file's, at its line (regression: it used to name the OBJ).
+    let mtl = dir.join("m.mtl").display().to_string();
     assert!(
-        msg.contains("material `lamp`") && msg.contains("Kd component 0 is 1"),
+        msg.starts_with(&format!("{mtl}:2: material `lamp` Kd"))
+            && msg.contains("component 0 is 1"),
         "{msg}"
     );
     let scene = write_obj(&dir, obj, "newmtl lamp\nKd 0.5 0.5 0.5\nKe 1 -1 1\n");
     let msg = load_scene(&scene).unwrap_err().to_string();
-    assert!(msg.contains("Ke component 1 is -1"), "{msg}");
+    assert!(
+        msg.starts_with(&format!("{mtl}:3: material `lamp` Ke"))
+            && msg.contains("component 1 is -1"),
+        "{msg}"
+    );
+    // Four values are not a colour (regression: the fourth was ignored).
+    let scene = write_obj(&dir, obj, "newmtl lamp\nKd 0.5 0.5 0.5 0.5\nKe 1 1 1\n");
+    let msg = load_scene(&scene).unwrap_err().to_string();
+    assert!(
+        msg.starts_with(&format!("{mtl}:2: Kd: has 4 values, needs exactly three")),
+        "{msg}"
+    );
+    // A `usemtl` no MTL defines is an error at its line (regression: the faces fell back to
+    // the default material silently).
+    let scene = write_obj(
+        &dir,
+        "mtllib m.mtl\nv 0 0 0\nv 1 0 0\nv 1 1 0\ng a\nusemtl lmap\nf 1 2 3\n",
+        MTL,
+    );
+    let text = OBJ_SCENE.replace(
+        "file = \"m.obj\"",
+        "file = \"m.obj\"\ndefault_material = \"grey\"",
+    );
+    std::fs::write(&scene, &text).unwrap();
+    let msg = load_scene(&scene).unwrap_err().to_string();
+    let obj_path = dir.join("m.obj").display().to_string();
+    assert!(
+        msg.starts_with(&format!("{obj_path}:6: usemtl `lmap`"))
+            && msg.contains("no MTL file of this OBJ defines it"),
+        "{msg}"
+    );
     // No usemtl and no default_material.
     let scene = write_obj(&dir, "v 0 0 0\nv 1 0 0\nv 1 1 0\nf 1 2 3\n", MTL);
     let msg = load_scene(&scene).unwrap_err().to_string();
@@ -931,7 +964,7 @@ fn short_mtl_colour_is_an_error_not_a_tobj_panic() {
     let scene = write_obj(&dir, obj, "newmtl lamp\nKd 0.5 0.5 0.5\nKe 2\n");
     let msg = load_scene(&scene).unwrap_err().to_string();
     let expect = format!(
-        "{}:3: Ke: has 1 values, needs three",
+        "{}:3: Ke: has 1 values, needs exactly three",
         dir.join("m.mtl").display()
     );
     assert!(msg.starts_with(&expect), "{msg}");

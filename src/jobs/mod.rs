@@ -61,9 +61,14 @@ pub struct Input {
 
 impl Input {
     /// Loads a scene file, or a solution file's scene (checking the solution file's magic,
-    /// version, length and checksum). Nothing is solved.
+    /// version, length and checksum). A file is a solution file by its magic bytes, or by its
+    /// `.pfsol` extension (so an empty or damaged one is reported as a bad solution file, not as
+    /// a scene that fails to parse). Nothing is solved.
     pub fn load(path: &Path) -> Result<Input> {
-        if is_solution_file(path) {
+        let named_solution = path
+            .extension()
+            .is_some_and(|e| e.eq_ignore_ascii_case(SOLUTION_EXTENSION));
+        if named_solution || is_solution_file(path) {
             let scene_path = solution_file::read_scene_path(path)?;
             Ok(Input {
                 path: path.to_path_buf(),
@@ -81,6 +86,9 @@ impl Input {
         }
     }
 }
+
+/// The extension of solution files (`solve -o x.pfsol`).
+pub const SOLUTION_EXTENSION: &str = "pfsol";
 
 /// Whether `path` is a solution file (by its magic bytes) rather than a scene.
 pub fn is_solution_file(path: &Path) -> bool {

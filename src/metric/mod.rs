@@ -121,14 +121,18 @@ fn which(i: usize) -> &'static str {
     }
 }
 
-/// Checks what every measure needs: a positive ppd, valid shapes, equal sizes, finite pixels and
+/// Largest pixels-per-degree accepted: far beyond any display or eye (about 60 resolves the
+/// fovea), and small enough that every frequency of the measure stays a finite number.
+pub const MAX_PPD: f64 = 1e6;
+
+/// Checks what every measure needs: a positive ppd (at most [`MAX_PPD`]), valid shapes, equal sizes, finite pixels and
 /// a positive mean luminance in each image. Messages name the image as `a` or `b`.
 fn validate(a: &LinearImage, b: &LinearImage, ppd: f64) -> Result<()> {
-    if !(ppd.is_finite() && ppd > 0.0) {
+    if !(ppd.is_finite() && ppd > 0.0 && ppd <= MAX_PPD) {
         return Err(Error::invalid_option(
             "--ppd",
             ppd.to_string(),
-            "pixels per degree must be a finite number > 0",
+            format!("pixels per degree must be a number > 0 and at most {MAX_PPD}"),
         ));
     }
     for (i, img) in [a, b].into_iter().enumerate() {
@@ -317,7 +321,8 @@ mod tests {
         nan.pixels[6] = Vec3::new(0.0, f32::NAN, 0.0);
         let e = compare(&nan, &a, 32.0).unwrap_err().to_string();
         assert!(e.contains("image a") && e.contains("(2, 1)"), "{e}");
-        for ppd in [0.0, -1.0, f64::NAN, f64::INFINITY] {
+        // Regression: 1e300 used to give a NaN distance and exit 0.
+        for ppd in [0.0, -1.0, f64::NAN, f64::INFINITY, 1e300, MAX_PPD * 2.0] {
             assert!(compare(&a, &a, ppd).is_err());
         }
         let short = LinearImage {

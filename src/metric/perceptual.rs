@@ -66,6 +66,10 @@ pub const DEFAULT_PPD: f64 = 32.0;
 /// The Mannos–Sakrison contrast sensitivity at `f` cycles per degree (`docs/metrics.md`, step 6):
 /// `A(f) = 2.6 (0.0192 + 0.114 f) exp(-(0.114 f)^1.1)`.
 pub fn csf(f: f64) -> f64 {
+    if !f.is_finite() {
+        // The limit: the exponential wins (an infinite f would give inf * 0 = NaN).
+        return 0.0;
+    }
     2.6 * (0.0192 + 0.114 * f) * (-(0.114 * f).powf(1.1)).exp()
 }
 

@@ -102,6 +102,7 @@ pub(crate) fn include(
     let mtl_problem: RefCell<Option<Error>> = RefCell::new(None);
     let mtl_unreadable: RefCell<Option<String>> = RefCell::new(None);
     let mtl_read: RefCell<Vec<std::path::PathBuf>> = RefCell::new(Vec::new());
+    let mtl_defined: RefCell<BTreeMap<String, MtlSource>> = RefCell::new(BTreeMap::new());
     let obj_dir = obj_path
         .parent()
         .unwrap_or_else(|| Path::new(""))
@@ -123,10 +124,12 @@ pub(crate) fn include(
             mtl_problem.borrow_mut().get_or_insert(e);
             return Err(tobj::LoadError::MaterialParseError);
         }
+        mtl_sources(&mtl_text, &mtl_path, &mut mtl_defined.borrow_mut());
         tobj::load_mtl_buf(&mut mtl_text.as_bytes())
     };
     let parsed = tobj::load_obj_buf(&mut text.as_bytes(), &opts, load_mtl);
     cx.inputs.extend(mtl_read.into_inner());
+    let mtl_defined = mtl_defined.into_inner();
     if let Some(e) = mtl_problem.into_inner() {
         return Err(e);
     }
@@ -184,6 +187,27 @@ pub(crate) fn include(
         .filter(|(_, l)| matches!(l.split_whitespace().next(), Some("f") | Some("l")))
         .map(|(i, _)| i + 1)
         .collect();
+    // Every `usemtl` must name a material an MTL file defined: tobj would leave the faces
+    // without a material (then the default material, or an error) without saying why.
+    for (i, line) in text.lines().enumerate() {
+        let t = line.trim();
+        if t.split_whitespace().next() != Some("usemtl") {
+            continue;
+        }
+        let name = t["usemtl".len()..].trim();
+        if !mtl_materials.iter().any(|m| m.name == name) {
+            let why = match &mtl_error {
+                Some(e) => format!("its MTL file could not be loaded: {e}"),
+                None => "no MTL file of this OBJ defines it".to_string(),
+            };
+            return Err(Error::input(
+                Location::file(&obj_path)
+                    .at_line(i + 1)
+                    .with_key(format!("usemtl `{name}`")),
+                format!("unknown material: {why}"),
+            ));
+        }
+    }
     let total_faces: usize = models.iter().map(|m| arities(&m.mesh).len()).sum();
     let lines_known = total_faces == face_lines.len();
 
@@ -223,9 +247,20 @@ pub(crate) fn include(
                 } else if let Some(&idx) = imported.get(&id) {
                     idx
                 } else {
-                    let mloc = Location::file(&obj_path).with_key(format!("material `{}`", m.name));
+                    // Problems of a material's values are the MTL file's, at their line.
+                    let src = mtl_defined.get(&m.name);
+                    let mloc = |line: Option<usize>, what: &str| match src {
+                        Some(src) => Location::file(&src.path)
+                            .at_line(line.unwrap_or(src.newmtl))
+                            .with_key(format!("material `{}` {what}", m.name)),
+                        None => Location::file(&obj_path)
+                            .with_key(format!("material `{}` {what}", m.name)),
+                    };
                     let Some(kd) = m.diffuse else {
-                        return Err(Error::input(mloc, "has no `Kd` (diffuse reflectance)"));
+                        return Err(Error::input(
+                            mloc(None, "Kd"),
+                            "is missing (diffuse reflectance)",
+                        ));
                     };
                     let reflectance = DVec3::new(
                         decimal(kd[0] as f64),
@@ -233,7 +268,7 @@ pub(crate) fn include(
                         decimal(kd[2] as f64),
                     );
                     check_reflectance(reflectance)
-                        .map_err(|msg| Error::input(mloc.clone(), format!("Kd {msg}")))?;
+                        .map_err(|msg| Error::input(mloc(src.and_then(|s| s.kd), "Kd"), msg))?;
                     // tobj 4 parses `Ke` into `emissive` (`check_mtl` made sure it has three
                     // values); absent means 0.
                     let emission = m.emissive.map_or(DVec3::ZERO, |ke| {
@@ -244,7 +279,7 @@ pub(crate) fn include(
                         )
                     });
                     check_emission(emission)
-                        .map_err(|msg| Error::input(mloc.clone(), format!("Ke {msg}")))?;
+                        .map_err(|msg| Error::input(mloc(src.and_then(|s| s.ke), "Ke"), msg))?;
                     let mut name = m.name.clone();
                     let mut k = 1;
                     while by_name.contains_key(&name) {
@@ -368,16 +403,68 @@ fn check_mtl(text: &str, path: &Path) -> Result<()> {
     for (i, line) in text.lines().enumerate() {
         let mut words = line.split_whitespace();
         if let Some(k @ ("Ka" | "Kd" | "Ks" | "Ke")) = words.next() {
-            let n = words.count();
-            if n < 3 {
+            let n = words.take_while(|w| !w.starts_with('#')).count();
+            if n != 3 {
                 return Err(Error::input(
                     Location::file(path).at_line(i + 1).with_key(k),
-                    format!("has {n} values, needs three (r g b)"),
+                    format!("has {n} values, needs exactly three (r g b)"),
                 ));
             }
         }
     }
     Ok(())
+}
+
+/// Where an MTL file defines a material: the file, the line of its `newmtl` and of its `Kd`
+/// and `Ke` statements (the last of each, as tobj keeps the last).
+#[derive(Debug, Clone)]
+struct MtlSource {
+    path: std::path::PathBuf,
+    newmtl: usize,
+    kd: Option<usize>,
+    ke: Option<usize>,
+}
+
+/// The materials `text` (the MTL file at `path`) defines, with their lines; the first
+/// definition of a name is kept in `out`.
+fn mtl_sources(text: &str, path: &Path, out: &mut BTreeMap<String, MtlSource>) {
+    let mut current: Option<(String, MtlSource)> = None;
+    let flush = |c: Option<(String, MtlSource)>, out: &mut BTreeMap<String, MtlSource>| {
+        if let Some((name, src)) = c {
+            out.entry(name).or_insert(src);
+        }
+    };
+    for (i, line) in text.lines().enumerate() {
+        let t = line.trim();
+        let mut words = t.split_whitespace();
+        match words.next() {
+            Some("newmtl") => {
+                flush(current.take(), out);
+                let name = t["newmtl".len()..].trim().to_string();
+                current = Some((
+                    name,
+                    MtlSource {
+                        path: path.to_path_buf(),
+                        newmtl: i + 1,
+                        kd: None,
+                        ke: None,
+                    },
+                ));
+            }
+            Some("Kd") => {
+                if let Some((_, src)) = &mut current {
+                    src.kd = Some(i + 1);
+                }
+            }
+            Some("Ke") => {
+                if let Some((_, src)) = &mut current {
+                    src.ke = Some(i + 1);
+                }
+            }
+            _ => {}
+        }
+    }
+    flush(current.take(), out);
 }
 
 /// The vertex count of every face of `mesh`. tobj leaves `face_arities` empty when every face
