@@ -491,7 +491,7 @@ fn bad_cameras_are_refused() {
     assert_error(&text, "up =", &["camera.up", "parallel"]);
     for fov in ["0.0", "180.0", "-5.0", "200.0"] {
         let text = edit("fov_y = 45.0", &format!("fov_y = {fov}"));
-        assert_error(&text, "fov_y", &["camera.fov_y", "(0, 180)"]);
+        assert_error(&text, "fov_y", &["camera.fov_y", "[0.01, 180)"]);
     }
     let text = edit(
         "fov_y = 45.0",

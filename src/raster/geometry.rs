@@ -34,8 +34,37 @@ use crate::scene::{Camera, Polygon, Projection, Shape};
 /// fixed-point coordinates to below 2^26 (8 subpixel bits) and edge functions to below 2^56.
 pub const GUARD_BAND: f64 = 65536.0;
 
-/// Near plane distance relative to the scene's extent (perspective cameras).
+/// Largest near plane distance relative to the scene's extent (perspective cameras).
 pub const NEAR_RELATIVE: f64 = 1e-4;
+
+/// Smallest near plane distance relative to the scene's extent: where the eye touches a
+/// polygon. Depth is interpolated as 1/w in floating point, whose relative precision is the
+/// same at every distance, so a small near plane costs no depth resolution.
+pub const MIN_NEAR_RELATIVE: f64 = 1e-9;
+
+/// The near plane of a perspective view: half the distance from the eye to the nearest
+/// geometry (`nearest`, a lower bound of the distance to every polygon), so it never clips
+/// anything, but at most [`NEAR_RELATIVE`] and at least [`MIN_NEAR_RELATIVE`] times `extent`.
+/// A fixed fraction of the extent alone let one huge polygon far away push the near plane past
+/// everything close to the camera (a black image).
+pub fn near_plane(extent: f64, nearest: f64) -> f64 {
+    let nearest = if nearest.is_nan() { 0.0 } else { nearest };
+    (0.5 * nearest).clamp(MIN_NEAR_RELATIVE * extent, NEAR_RELATIVE * extent)
+}
+
+/// A lower bound of the distance from `eye` to polygon `p`: the larger of the distance to its
+/// plane and the distance to its bounding sphere (about its centroid).
+pub fn distance_lower_bound(p: &Polygon, eye: DVec3) -> f64 {
+    let c = p.centroid();
+    let radius = p
+        .vertices()
+        .iter()
+        .map(|v| (*v - c).length())
+        .fold(0.0, f64::max);
+    let sphere = ((eye - c).length() - radius).max(0.0);
+    let plane = p.normal.dot(eye - p.corners[0]).abs();
+    sphere.max(plane)
+}
 
 /// A linear expression `a * px + b * py + c` over continuous pixel coordinates (pixel (i, j) has
 /// its centre at (i + 0.5, j + 0.5), row 0 at the top).
@@ -110,12 +139,19 @@ pub struct ScreenPolygon {
 
 impl View {
     /// Builds the view of `camera` for a `width` x `height` image; `extent` is the scene's size
-    /// (the near plane of a perspective camera sits at `NEAR_RELATIVE * extent`).
+    /// and `nearest` a lower bound of the distance from the eye to any polygon (the near plane
+    /// of a perspective camera is [`near_plane`]`(extent, nearest)`).
     ///
     /// Orthographic views map the camera's width x height rectangle onto the image exactly (pixels
     /// are not square when the two aspect ratios differ). Perspective views take the vertical field
     /// of view from the camera and the horizontal one from the image's aspect ratio.
-    pub fn new(camera: &Camera, width: u32, height: u32, extent: f64) -> Result<View> {
+    pub fn new(
+        camera: &Camera,
+        width: u32,
+        height: u32,
+        extent: f64,
+        nearest: f64,
+    ) -> Result<View> {
         if width == 0 || height == 0 {
             return Err(Error::invalid_option(
                 "image size",
@@ -163,7 +199,7 @@ impl View {
                     true,
                     w / (2.0 * tx),
                     -h / (2.0 * ty),
-                    NEAR_RELATIVE * extent,
+                    near_plane(extent, nearest),
                 )
             }
             Projection::Orthographic {
@@ -427,7 +463,7 @@ mod tests {
 
     #[test]
     fn perspective_maps_the_look_at_point_to_the_centre_and_the_fov_to_the_edges() {
-        let v = View::new(&persp(), 200, 100, 10.0).unwrap();
+        let v = View::new(&persp(), 200, 100, 10.0, f64::INFINITY).unwrap();
         let c = v.project(v.to_view(DVec3::ZERO));
         assert_eq!(c, [100.0, 50.0]);
         // fov 90: at distance 5 the top edge is at y = 5; the image is twice as wide.
@@ -439,7 +475,7 @@ mod tests {
 
     #[test]
     fn q_plane_is_the_reciprocal_depth_of_the_polygon() {
-        let v = View::new(&persp(), 64, 64, 10.0).unwrap();
+        let v = View::new(&persp(), 64, 64, 10.0, f64::INFINITY).unwrap();
         let p = Polygon::quad(
             [
                 DVec3::new(-1.0, -1.0, 0.0),
@@ -469,7 +505,7 @@ mod tests {
 
     #[test]
     fn near_clip_of_a_polygon_through_the_eye_plane_keeps_the_front_part() {
-        let v = View::new(&persp(), 64, 64, 10.0).unwrap();
+        let v = View::new(&persp(), 64, 64, 10.0, f64::INFINITY).unwrap();
         // A floor quad reaching from behind the camera to the far side.
         let p = Polygon::quad(
             [
@@ -499,12 +535,12 @@ mod tests {
     fn bad_cameras_are_usage_errors() {
         let mut c = persp();
         c.up = DVec3::Z;
-        assert!(View::new(&c, 8, 8, 1.0).is_err());
+        assert!(View::new(&c, 8, 8, 1.0, f64::INFINITY).is_err());
         let mut c = persp();
         c.look_at = c.eye;
-        assert!(View::new(&c, 8, 8, 1.0).is_err());
+        assert!(View::new(&c, 8, 8, 1.0, f64::INFINITY).is_err());
         let mut c = persp();
         c.projection = Projection::Perspective { fov_y_deg: 180.0 };
-        assert!(View::new(&c, 8, 8, 1.0).is_err());
+        assert!(View::new(&c, 8, 8, 1.0, f64::INFINITY).is_err());
     }
 }

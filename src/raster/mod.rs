@@ -89,7 +89,12 @@ pub fn build_primitives(
     let extent = (hi - lo)
         .length()
         .max(((lo + hi) * 0.5 - camera.eye).length());
-    let view = geometry::View::new(camera, width, height, extent)?;
+    let nearest = scene
+        .polygons
+        .iter()
+        .map(|p| geometry::distance_lower_bound(p, camera.eye))
+        .fold(f64::INFINITY, f64::min);
+    let view = geometry::View::new(camera, width, height, extent, nearest)?;
     let (w, h, cull) = (width, height, cull_back_faces);
     Ok(scene
         .polygons

@@ -42,6 +42,11 @@ pub const MAX_SHADOW_RAYS: u32 = 4096;
 /// coordinates stay finite, so no later computation can overflow into inf or NaN.
 pub const MAX_MAGNITUDE: f64 = 1.0e9;
 
+/// Smallest perspective field of view accepted, degrees: narrower than any lens (a 0.01 degree
+/// view of a 1 m object needs a camera 5.7 km away); a vanishing one would make every
+/// projected coordinate overflow the rasterizer's guard band and draw nothing.
+pub const MIN_FOV_Y: f64 = 0.01;
+
 /// Most frames accepted in `[camera_path] frames`.
 pub const MAX_FRAMES: u32 = 1_000_000;
 
@@ -406,11 +411,11 @@ impl<'a> Cx<'a> {
             match (&c.fov_y, &c.ortho_width, &c.ortho_height) {
                 (Some(f), None, None) => {
                     let fov = self.num(f, "camera.fov_y")?;
-                    if !(fov > 0.0 && fov < 180.0) {
+                    if !(MIN_FOV_Y..180.0).contains(&fov) {
                         return Err(self.err(
                             f.span(),
                             "camera.fov_y",
-                            format!("is {fov} degrees, must be in (0, 180)"),
+                            format!("is {fov} degrees, must be in [{MIN_FOV_Y}, 180)"),
                         ));
                     }
                     Projection::Perspective { fov_y_deg: fov }
