@@ -137,7 +137,7 @@ enum Command {
         /// A scene file or a solution file.
         input: PathBuf,
         /// Frames timed per method (after one warm-up); 0 = sizes only.
-        #[arg(long, default_value_t = 0)]
+        #[arg(long, default_value_t = 0, value_parser = clap::value_parser!(u32).range(0..=MAX_TIMED_FRAMES))]
         frames: u32,
         /// Frame width for the timings.
         #[arg(long, default_value_t = 1024)]
@@ -195,7 +195,7 @@ enum Command {
         #[arg(long, value_delimiter = ',')]
         scenes: Vec<PathBuf>,
         /// table1: frames timed per method at 1024 x 1024 (0 = sizes only).
-        #[arg(long, default_value_t = 10)]
+        #[arg(long, default_value_t = 10, value_parser = clap::value_parser!(u32).range(0..=MAX_TIMED_FRAMES))]
         frames: u32,
         /// Worker threads (default: all cores).
         #[arg(long)]
@@ -223,7 +223,7 @@ enum Command {
         #[arg(long, value_delimiter = ',', default_values_t = [512u32, 1024, 2048])]
         sizes: Vec<u32>,
         /// Frames timed per size (after one warm-up frame).
-        #[arg(long, default_value_t = 20)]
+        #[arg(long, default_value_t = 20, value_parser = clap::value_parser!(u32).range(0..=MAX_TIMED_FRAMES))]
         frames: u32,
         /// Samples per pixel: 1, 4 or 16.
         #[arg(long, default_value_t = 1)]
@@ -269,7 +269,7 @@ enum Command {
         #[arg(long, default_value_t = 4)]
         texture_levels: u32,
         /// Frames timed per point and repeat (after a warm-up).
-        #[arg(long, default_value_t = 5)]
+        #[arg(long, default_value_t = 5, value_parser = clap::value_parser!(u32).range(0..=MAX_TIMED_FRAMES))]
         frames: u32,
         /// Timing repeats (the spread is over repeats).
         #[arg(long, default_value_t = 3)]
@@ -318,7 +318,7 @@ enum Command {
         #[arg(long, default_value_t = 192)]
         gallery_width: u32,
         /// Frames timed per sweep point and repeat.
-        #[arg(long, default_value_t = 5)]
+        #[arg(long, default_value_t = 5, value_parser = clap::value_parser!(u32).range(0..=MAX_TIMED_FRAMES))]
         frames: u32,
         /// Sweep timing repeats.
         #[arg(long, default_value_t = 3)]
@@ -852,10 +852,24 @@ impl Observer for Terminal {
 }
 
 /// Runs `f` in a rayon pool of `threads` workers (all cores when `None`).
+/// Most worker threads `--threads` accepts: far above any machine this runs on, far below what
+/// would exhaust the process's thread and stack limits.
+const MAX_THREADS: usize = 1024;
+
+/// Most frames a timing option (`--frames` of stats, bench, sweep, results, experiment)
+/// accepts: hours of timing at the largest sizes, not days.
+const MAX_TIMED_FRAMES: i64 = 100_000;
+
 fn in_pool<T: Send>(threads: Option<usize>, f: impl FnOnce() -> T + Send) -> anyhow::Result<T> {
     match threads {
         None => Ok(f()),
         Some(0) => Err(Error::invalid_option("--threads", "0", "needs at least one thread").into()),
+        Some(n) if n > MAX_THREADS => Err(Error::invalid_option(
+            "--threads",
+            n.to_string(),
+            format!("at most {MAX_THREADS} worker threads"),
+        )
+        .into()),
         Some(n) => {
             let pool = rayon::ThreadPoolBuilder::new()
                 .num_threads(n)

@@ -11,11 +11,41 @@
 //! temporary first, then all are renamed, so an error while encoding or writing any of them
 //! leaves every target as it was; only a kill between two renames (microseconds) can leave some
 //! replaced and some not. Temporaries of a failed batch are removed.
+//!
+//! The other direction lives here too: every input file (scene, OBJ, MTL, solution, image) is
+//! read through [`read_limited`], so a path to an endless file (`/dev/zero`, a FIFO that never
+//! closes) ends in an error at [`MAX_INPUT_BYTES`] instead of growing memory until the allocator
+//! aborts.
 
-use std::io::Write;
+use std::io::{Read, Write};
 use std::path::{Path, PathBuf};
 
 use crate::error::{Error, Result};
+
+/// Largest input file read: 1 GiB, 300x the largest shipped file (gallery-fine's solution),
+/// and what this machine reads in about a second.
+pub const MAX_INPUT_BYTES: u64 = 1 << 30;
+
+/// Reads the whole file at `path`, failing with [`std::io::ErrorKind::FileTooLarge`] once it
+/// holds more than `max` bytes (nothing beyond `max + 1` bytes is read or kept).
+pub fn read_limited(path: &Path, max: u64) -> std::io::Result<Vec<u8>> {
+    let f = std::fs::File::open(path)?;
+    let mut out = Vec::new();
+    f.take(max.saturating_add(1)).read_to_end(&mut out)?;
+    if out.len() as u64 > max {
+        return Err(std::io::Error::new(
+            std::io::ErrorKind::FileTooLarge,
+            format!("larger than {max} bytes, the largest input read"),
+        ));
+    }
+    Ok(out)
+}
+
+/// [`read_limited`] at [`MAX_INPUT_BYTES`], as UTF-8 text.
+pub fn read_text(path: &Path) -> std::io::Result<String> {
+    String::from_utf8(read_limited(path, MAX_INPUT_BYTES)?)
+        .map_err(|_| std::io::Error::new(std::io::ErrorKind::InvalidData, "not UTF-8 text"))
+}
 
 /// The directory and temporary path `path` is written through.
 fn temporary_of(path: &Path) -> Result<(PathBuf, PathBuf)> {
@@ -259,6 +289,25 @@ mod tests {
         std::fs::write(dir.join("old.png"), "old").unwrap();
         check_outputs(&ins, &[("-o", &a), ("--exr", &dir.join("old.png"))]).unwrap();
         check_outputs(&ins, &[("-o", &dir.join("new/dir/out.png"))]).unwrap();
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn reads_stop_at_the_limit() {
+        let dir = fresh_dir("limit");
+        let p = dir.join("ten.bin");
+        std::fs::write(&p, [7u8; 10]).unwrap();
+        assert_eq!(read_limited(&p, 10).unwrap().len(), 10);
+        let e = read_limited(&p, 9).unwrap_err();
+        assert_eq!(e.kind(), std::io::ErrorKind::FileTooLarge);
+        // An endless file ends in the same error, after max + 1 bytes.
+        #[cfg(unix)]
+        assert_eq!(
+            read_limited(Path::new("/dev/zero"), 1 << 20)
+                .unwrap_err()
+                .kind(),
+            std::io::ErrorKind::FileTooLarge
+        );
         std::fs::remove_dir_all(&dir).unwrap();
     }
 

@@ -107,3 +107,45 @@ fn gallery_fine_is_the_gallery_with_a_finer_solve() {
     assert!(b.radiosity.tolerance < a.radiosity.tolerance);
     assert!(b.radiosity.max_depth > a.radiosity.max_depth);
 }
+
+/// Inputs are read with a size limit and requests with absurd counts are refused before any
+/// work. Regressions: an include pointing at an endless file grew memory until the allocator
+/// aborted; `--threads 100000` and `--frames 4294967295` ran until they aborted or for hours.
+#[cfg(unix)]
+#[test]
+fn endless_inputs_and_absurd_counts_are_refused_with_exit_2() {
+    let d = scratch("endless");
+    let scene = d.join("z.toml");
+    std::fs::write(
+        &scene,
+        "[camera]\neye = [0, 0, 5]\nlook_at = [0, 0, 0]\nfov_y = 40\n\n[[materials]]\nname = \"grey\"\n\
+         reflectance = [0.5, 0.5, 0.5]\n\n[[obj]]\nfile = \"/dev/zero\"\n",
+    )
+    .unwrap();
+    let out = run(&["check", scene.to_str().unwrap()]);
+    assert_eq!(out.status.code(), Some(2), "{}", text(&out.stderr));
+    let err = text(&out.stderr);
+    assert!(
+        err.contains("obj[0].file") && err.contains("larger than"),
+        "{err}"
+    );
+    // A scene file that never ends, and a compare input that never ends.
+    let out = run(&["check", "/dev/zero"]);
+    assert_eq!(out.status.code(), Some(2), "{}", text(&out.stderr));
+    assert!(text(&out.stderr).contains("larger than"));
+    let cases: [&[&str]; 4] = [
+        &["render", "scenes/two-spots.toml", "--threads", "100000"],
+        &["bench", "scenes/two-spots.toml", "--frames", "4294967295"],
+        &["stats", "scenes/two-spots.toml", "--frames", "4294967295"],
+        &["sweep", "scenes/two-spots.toml", "--frames", "4294967295"],
+    ];
+    for args in cases {
+        let out = run(args);
+        assert_eq!(
+            out.status.code(),
+            Some(2),
+            "{args:?}: {}",
+            text(&out.stderr)
+        );
+    }
+}

@@ -113,7 +113,7 @@ pub fn read_solution(path: &Path, scene: &Scene) -> Result<(Solution, Vec<u8>)> 
 }
 
 fn read(path: &Path) -> Result<Vec<u8>> {
-    std::fs::read(path).map_err(|e| {
+    crate::output::read_limited(path, crate::output::MAX_INPUT_BYTES).map_err(|e| {
         Error::solution(
             path,
             SolutionProblem::NotASolution,

@@ -54,7 +54,7 @@ pub const MAX_FRAMES: u32 = 1_000_000;
 ///
 /// A file that cannot be read is an [`Error::Input`] (exit code 2): it is the user's input.
 pub fn load_scene(path: &Path) -> Result<Scene> {
-    let text = std::fs::read_to_string(path)
+    let text = crate::output::read_text(path)
         .map_err(|e| Error::input(Location::file(path), format!("cannot read scene file: {e}")))?;
     parse_scene(&text, path)
 }
