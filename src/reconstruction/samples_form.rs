@@ -20,9 +20,9 @@
 //! itself ([`quantize`] is idempotent).
 //!
 //! **Bytes** ([`encoded_len`]): 8 (magic) + 4 (polygon count), then per polygon a 4-byte node
-//! count, one bit per node (the canonical node order of [`crate::quadtree::Quadtree::grow`] makes the bits the
-//! whole tree; vertex keys follow from it), three 2-byte exponents and `3 * bits` bits per vertex,
-//! each section padded to a byte.
+//! count, one bit per node (the canonical node order of [`crate::quadtree::Quadtree::grow`]
+//! makes the bits the whole tree; vertex keys follow from it), three 2-byte exponents and
+//! `3 * bits` bits per vertex, each section padded to a byte.
 
 use glam::Vec3;
 
