@@ -156,3 +156,24 @@ fn samples_alone_at_16_bits_barely_move_the_direct_image() {
         assert!(change < 0.02, "{name}: {d_held} -> {d_alone}");
     }
 }
+
+/// Samples behind a valid checksum that cannot be reconstructed (so large that the patches
+/// overflow f32) are a corrupt file, exit 2. Regression: this exited 1, as a program failure.
+#[test]
+fn unreconstructable_samples_behind_a_valid_checksum_are_bad_input() {
+    let out = tmp("huge.pfsol");
+    let mut sol = solve_to_file(&scene(), &out, &SILENT).unwrap();
+    let v = &mut sol.polygons[0].values;
+    let mid = v.len() / 2;
+    v[mid] = glam::Vec3::splat(3.0e38);
+    let bytes = file::encode_with_scene(&sol, Some(&std::fs::canonicalize(scene()).unwrap()), &[]);
+    std::fs::write(&out, bytes).unwrap();
+    match prepare_path(&out, &TextureOptions::default(), &SILENT) {
+        Err(e @ Error::Solution { .. }) => {
+            assert_eq!(e.exit_code(), 2);
+            assert!(e.to_string().contains("cannot be reconstructed"), "{e}");
+        }
+        Err(e) => panic!("expected a corrupt solution file, got {e:?}"),
+        Ok(_) => panic!("an unreconstructable solution was accepted"),
+    }
+}

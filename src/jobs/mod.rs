@@ -297,7 +297,19 @@ pub fn prepare(
             }
             c
         }
-        _ => CompactReconstruction::build(&solution.polygons, estimator)?,
+        // Samples read from a file that cannot be reconstructed (values so large the patches
+        // overflow f32) are a bad file, exit 2, like any other inconsistency behind a valid
+        // checksum; from a fresh solve they would be a failure of this program.
+        Some((path, _)) => {
+            CompactReconstruction::build(&solution.polygons, estimator).map_err(|e| {
+                Error::solution(
+                    path,
+                    crate::error::SolutionProblem::Corrupt,
+                    format!("corrupt solution file: its samples cannot be reconstructed: {e}"),
+                )
+            })?
+        }
+        None => CompactReconstruction::build(&solution.polygons, estimator)?,
     };
     let reconstruction_ms = t.elapsed().as_secs_f64() * 1e3;
     Ok(Prepared {
