@@ -85,6 +85,21 @@ fn lambert(x: DVec3, n: DVec3, v: &[DVec3]) -> f64 {
     (sum / (2.0 * std::f64::consts::PI)).abs()
 }
 
+/// A grey receiver (material 0, reflectance `rho`) and a black emitter (material 1, emission
+/// `e`): the light's is the only light the receiver gets, and nothing reflects back.
+fn lit_receiver(receiver: Polygon, rho: f64, light: Polygon, e: f64) -> Scene {
+    Scene::new(
+        camera(),
+        64,
+        64,
+        vec![
+            material("receiver", [rho; 3], [0.0; 3]),
+            material("light", [0.0; 3], [e; 3]),
+        ],
+        vec![receiver, light],
+    )
+}
+
 fn solved(scene: &Scene) -> Solution {
     solve(scene, &SolveOptions::default()).unwrap()
 }
@@ -136,16 +151,7 @@ fn emitter_square_over_a_floor_matches_lamberts_formula() {
     let floor = rect(-2.0, 2.0, -2.0, 2.0, 0.0, DVec3::Z, 0);
     let light = rect(-0.5, 0.5, -0.5, 0.5, 1.0, -DVec3::Z, 1);
     let corners = light.vertices().to_vec();
-    let scene = Scene::new(
-        camera(),
-        64,
-        64,
-        vec![
-            material("floor", [0.5; 3], [0.0; 3]),
-            material("light", [0.0; 3], [1.0; 3]),
-        ],
-        vec![floor, light],
-    );
+    let scene = lit_receiver(floor, 0.5, light, 1.0);
     let sol = solved(&scene);
     let (peak, abs, rel) = errors(&scene, &sol, 0, 200, |x| {
         0.5 * lambert(x, DVec3::Z, &corners)
@@ -161,16 +167,7 @@ fn a_thin_strip_refines_like_a_large_polygon() {
     let strip = rect(-2.0, 2.0, -0.02, 0.02, 0.0, DVec3::Z, 0);
     let light = rect(0.35, 0.85, -0.25, 0.25, 0.5, -DVec3::Z, 1);
     let corners = light.vertices().to_vec();
-    let scene = Scene::new(
-        camera(),
-        64,
-        64,
-        vec![
-            material("strip", [0.6; 3], [0.0; 3]),
-            material("light", [0.0; 3], [4.0; 3]),
-        ],
-        vec![strip, light],
-    );
+    let scene = lit_receiver(strip, 0.6, light, 4.0);
     let sol = solved(&scene);
     let strip_tree: &SampledQuadtree = &sol.polygons[0];
     let (peak, abs, rel) = errors(&scene, &sol, 0, 400, |x| {
