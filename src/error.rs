@@ -120,6 +120,22 @@ pub enum Error {
         /// The largest amount accepted.
         limit: u64,
     },
+    /// A job whose estimated memory is over the memory limit (`--memory-limit`), refused before
+    /// the allocation. Displayed with both amounts in binary units and what the estimate is made
+    /// of, so the user sees which setting to lower.
+    #[error("{what} needs an estimated {} ({detail}), over the memory limit of {}; {hint}", human_bytes(*.estimate), human_bytes(*.limit))]
+    Memory {
+        /// The job or stage (`solve of scenes/x.toml`, `textures`, `frame 4096 x 4096`).
+        what: String,
+        /// Estimated bytes.
+        estimate: u64,
+        /// The limit in bytes.
+        limit: u64,
+        /// What the estimate is made of (`quadtrees 1.2 GiB + pair tables 300 MiB`).
+        detail: String,
+        /// What to change (`lower radiosity.max_depth or raise --memory-limit`).
+        hint: String,
+    },
     /// A solution file that cannot be used: not a solution, truncated, corrupt, another format
     /// version, or solved for another scene.
     #[error("{}: {message}", path.display())]
@@ -209,9 +225,26 @@ impl Error {
             Error::Input { .. }
             | Error::InvalidOption { .. }
             | Error::ResourceLimit { .. }
+            | Error::Memory { .. }
             | Error::Solution { .. } => EXIT_BAD_INPUT,
             Error::Io { .. } | Error::Runtime(_) => EXIT_FAILURE,
         }
+    }
+}
+
+/// `1.5 MiB` style: bytes in binary units with one decimal (whole bytes below 1 KiB).
+pub fn human_bytes(b: u64) -> String {
+    const UNITS: [&str; 6] = ["B", "KiB", "MiB", "GiB", "TiB", "PiB"];
+    let mut x = b as f64;
+    let mut u = 0;
+    while x >= 1024.0 && u + 1 < UNITS.len() {
+        x /= 1024.0;
+        u += 1;
+    }
+    if u == 0 {
+        format!("{b} B")
+    } else {
+        format!("{x:.1} {}", UNITS[u])
     }
 }
 
@@ -256,6 +289,18 @@ mod tests {
             (
                 Error::limit("--width", 70000, 65536),
                 "--width: 70000 exceeds the limit of 65536",
+                EXIT_BAD_INPUT,
+            ),
+            (
+                Error::Memory {
+                    what: "solve of a.toml".into(),
+                    estimate: 3 << 30,
+                    limit: 1 << 30,
+                    detail: "quadtrees 3.0 GiB".into(),
+                    hint: "lower radiosity.min_depth".into(),
+                },
+                "solve of a.toml needs an estimated 3.0 GiB (quadtrees 3.0 GiB), over the memory \
+                 limit of 1.0 GiB; lower radiosity.min_depth",
                 EXIT_BAD_INPUT,
             ),
             (

@@ -30,6 +30,16 @@ use std::time::{Duration, Instant};
 struct Cli {
     #[command(subcommand)]
     command: Command,
+    /// Memory the job may use: bytes, or a number with K, M, G or T (binary units, `1.5G`), or
+    /// `none`. Default: three quarters of this machine's physical memory. A job whose estimate
+    /// is over it is refused before it allocates (exit 2, the estimate in the message); `check`
+    /// reports the estimate against it.
+    #[arg(long, global = true, value_name = "SIZE", value_parser = parse_memory_limit)]
+    memory_limit: Option<u64>,
+}
+
+fn parse_memory_limit(text: &str) -> Result<u64, String> {
+    pixelflow_sim::jobs::budget::parse_size(text)
 }
 
 #[derive(Subcommand, Debug)]
@@ -448,13 +458,28 @@ fn json<T: serde::Serialize>(value: &T) -> anyhow::Result<String> {
 }
 
 fn run(cli: Cli) -> anyhow::Result<()> {
+    use pixelflow_sim::jobs::budget;
+    let limit = cli.memory_limit.unwrap_or_else(budget::default_limit);
+    budget::set_limit(limit);
     match cli.command {
         Command::Check { scene } => {
             let s = pixelflow_sim::scene::load_scene(&scene)?;
             for w in &s.warnings {
                 note(&format!("warning: {w}"));
             }
-            out(&pixelflow_sim::report::summarize(&s).to_string())?;
+            let summary = pixelflow_sim::report::summarize(&s);
+            let budget = pixelflow_sim::report::budget_text(&s, limit)?;
+            out(&format!("{summary}{budget}"))?;
+            // Over the limit: the same refusal a solve or render of this scene would give.
+            budget::check_solve(&s, limit)?;
+            budget::check_frame(
+                s.width,
+                s.height,
+                s.render.aa_samples,
+                FrameOptions::new(s.width, s.height).renderers,
+                (true, false),
+                limit,
+            )?;
         }
         Command::Solve {
             scene,

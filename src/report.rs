@@ -4,10 +4,11 @@
 //! it is cheap, deterministic and prints the same table for the same file. Its memory estimate
 //! is a range, not a promise: the adaptive solve's memory depends on how deep each quadtree
 //! actually refines, which only the solve knows. The range brackets it between every quadtree
-//! stopping at `min_depth` and every quadtree refined uniformly to `max_depth` (see
-//! [`quadtree_bytes`]), which is what a user needs to see before a run that would not fit.
+//! at its starting depth and every quadtree refined uniformly to `max_depth`
+//! ([`crate::jobs::budget::solve_estimate`], the estimator the jobs check against the memory
+//! limit), which is what a user needs to see before a run that would not fit;
+//! [`budget_text`] adds the frame, textures and mesh against the limit.
 
-use crate::quadtree::{Node, VertexKey};
 use crate::scene::{Scene, Shape};
 use glam::DVec3;
 use std::fmt;
@@ -44,29 +45,13 @@ pub struct SceneSummary {
     pub emitted_power: f64,
     /// Radiosity quadtree depths (min, max).
     pub depths: (u32, u32),
-    /// Estimated solve memory in bytes with every quadtree at `min_depth`.
+    /// Estimated solve memory in bytes with every quadtree at its starting depth (`min_depth`,
+    /// or its shooter patches' depth if deeper): quadtrees, samples, pair tables, shooters.
     pub memory_min: u64,
-    /// Estimated solve memory in bytes with every quadtree uniformly at `max_depth`.
+    /// The same with every quadtree uniformly at `max_depth`.
     pub memory_max: u64,
     /// Warnings the loader emitted.
     pub warnings: usize,
-}
-
-/// Bytes one polygon's solution takes when its quadtree is refined uniformly to `depth`.
-///
-/// A uniform tree of depth d has (4^(d+1) - 1) / 3 nodes ([`Node`] each) and (2^d + 1)^2 vertices,
-/// each sampled once ([`VertexKey`] plus an RGB `f32` sample, as in
-/// [`crate::quadtree::SampledQuadtree`]). Saturates instead of overflowing.
-pub fn quadtree_bytes(depth: u32) -> u64 {
-    let d = depth.min(30);
-    let nodes = ((1u64 << (2 * d + 2)) - 1) / 3;
-    let side = (1u64 << d) + 1;
-    let vertices = side * side;
-    let node_bytes = std::mem::size_of::<Node>() as u64;
-    let vertex_bytes = (std::mem::size_of::<VertexKey>() + 3 * std::mem::size_of::<f32>()) as u64;
-    nodes
-        .saturating_mul(node_bytes)
-        .saturating_add(vertices.saturating_mul(vertex_bytes))
 }
 
 /// Summarises `scene`.
@@ -91,7 +76,7 @@ pub fn summarize(scene: &Scene) -> SceneSummary {
             format!("orthographic, {width} x {height}")
         }
     };
-    let n = scene.polygons.len() as u64;
+    let (start, worst) = crate::jobs::budget::solve_estimate(scene);
     SceneSummary {
         source: scene.source.display().to_string(),
         image: (scene.width, scene.height),
@@ -107,27 +92,13 @@ pub fn summarize(scene: &Scene) -> SceneSummary {
         total_area,
         emitted_power,
         depths: (scene.radiosity.min_depth, scene.radiosity.max_depth),
-        memory_min: n.saturating_mul(quadtree_bytes(scene.radiosity.min_depth)),
-        memory_max: n.saturating_mul(quadtree_bytes(scene.radiosity.max_depth)),
+        memory_min: start.total(),
+        memory_max: worst,
         warnings: scene.warnings.len(),
     }
 }
 
-/// `1.5 MiB` style.
-pub fn human_bytes(b: u64) -> String {
-    const UNITS: [&str; 5] = ["B", "KiB", "MiB", "GiB", "TiB"];
-    let mut x = b as f64;
-    let mut u = 0;
-    while x >= 1024.0 && u + 1 < UNITS.len() {
-        x /= 1024.0;
-        u += 1;
-    }
-    if u == 0 {
-        format!("{b} B")
-    } else {
-        format!("{x:.1} {}", UNITS[u])
-    }
-}
+pub use crate::error::human_bytes;
 
 fn v3(v: DVec3) -> String {
     format!("({:.4}, {:.4}, {:.4})", v.x, v.y, v.z)
@@ -161,7 +132,7 @@ impl fmt::Display for SceneSummary {
             (
                 "solve memory",
                 format!(
-                    "{} (all at min depth) .. {} (all at max depth)",
+                    "{} (at the starting depth) .. {} (all at max depth)",
                     human_bytes(self.memory_min),
                     human_bytes(self.memory_max)
                 ),
@@ -173,6 +144,61 @@ impl fmt::Display for SceneSummary {
         }
         Ok(())
     }
+}
+
+/// The memory estimate of a scene against `limit`, for `check`: the solve (at its starting
+/// depth, and the worst case), a frame at the scene's image size, the textures and the mesh at
+/// the worst case (every quadtree as deep as it can refine), each from
+/// [`crate::jobs::budget`].
+pub fn budget_text(scene: &Scene, limit: u64) -> crate::error::Result<String> {
+    use crate::jobs::budget;
+    let (start, worst) = budget::solve_estimate(scene);
+    let renderers = crate::frame::FrameOptions::new(scene.width, scene.height).renderers;
+    let aa = scene.render.aa_samples;
+    let frame = budget::frame_bytes(scene.width, scene.height, aa, renderers)
+        + budget::output_bytes(scene.width, scene.height, true, false);
+    let (textures, mesh) =
+        budget::worst_method_bytes(scene, crate::jobs::scene_texture_policy(scene))?;
+    let limit_text = if limit == u64::MAX {
+        "none".to_string()
+    } else {
+        human_bytes(limit)
+    };
+    let rows = [
+        ("memory limit", limit_text),
+        (
+            "solve at start",
+            format!("{} ({})", human_bytes(start.total()), start.detail()),
+        ),
+        ("solve, worst", human_bytes(worst)),
+        (
+            "frame",
+            format!(
+                "{} ({} x {}, aa {aa}, renderers {renderers}, PNG)",
+                human_bytes(frame),
+                scene.width,
+                scene.height
+            ),
+        ),
+        ("textures, worst", human_bytes(textures)),
+        ("mesh, worst", human_bytes(mesh)),
+        (
+            "verdict",
+            if start.total() > limit || frame > limit {
+                "over the limit: a solve or render would be refused".to_string()
+            } else if worst > limit {
+                "fits at the start; a solve refining far toward max_depth would be stopped"
+                    .to_string()
+            } else {
+                "fits".to_string()
+            },
+        ),
+    ];
+    let mut t = String::new();
+    for (k, v) in rows {
+        t += &format!("{k:<15} {v}\n");
+    }
+    Ok(t)
 }
 
 /// Decimal megabytes (10^6 bytes), as Table 1 prints sizes.
@@ -283,17 +309,6 @@ mod tests {
     use super::*;
 
     #[test]
-    fn uniform_tree_sizes() {
-        let node = std::mem::size_of::<Node>() as u64;
-        let vert = (std::mem::size_of::<VertexKey>() + 12) as u64;
-        // Depth 0: the root and its 4 corners.
-        assert_eq!(quadtree_bytes(0), node + 4 * vert);
-        // Depth 2: 1 + 4 + 16 nodes and a 5 x 5 vertex grid.
-        assert_eq!(quadtree_bytes(2), 21 * node + 25 * vert);
-        assert!(quadtree_bytes(30) > quadtree_bytes(16));
-    }
-
-    #[test]
     fn summary_of_a_small_scene() {
         // A 2 x 1 quad lit by a 1 x 1 emitting triangle (area 0.5) and a spot.
         let text = r#"
@@ -331,8 +346,33 @@ mod tests {
         assert!((s.total_area - 2.5).abs() < 1e-15);
         // Emission (1 + 2 + 3) over area 0.5.
         assert!((s.emitted_power - 3.0).abs() < 1e-15);
-        assert_eq!(s.memory_min, 2 * quadtree_bytes(1));
-        assert_eq!(s.memory_max, 2 * quadtree_bytes(3));
+        // Shooter patches: a patch holds at most 1/16 of the total area 2.5, so the quad (area
+        // 2) starts at depth 2 (16 patches of 0.125) and the triangle (0.5) at depth 1 (4 of
+        // 0.125), min_depth 1 being shallower: 21 + 5 nodes, 25 + 9 samples. Uniform trees of
+        // depth d: (4^(d+1) - 1) / 3 nodes, (2^d + 1)^2 samples. Shooters: the spot, the
+        // emitter, 16 + 4 patches = 22, each with a pair entry per polygon; sample points:
+        // the emitter's `shadow_rays` and a quarter of them per patch. RRP build: one patch
+        // per leaf (16 + 4 leaves at the start). Coarse points: the quad's depth-3 grid (81)
+        // and the triangle's depth-2 grid (25), 4 B per shooter and point.
+        use crate::radiosity::shoot::state_bytes;
+        use crate::radiosity::transfer::PAIR_BYTES;
+        let patch = std::mem::size_of::<crate::reconstruction::PatchCoeffs>() as u64;
+        let rays = u64::from(scene.radiosity.shadow_rays);
+        let pairs = 22 * 2 * PAIR_BYTES;
+        let points = (rays + 20 * rays.div_ceil(4)) * 24;
+        let cache = 4 * 22 * (81 + 25);
+        assert_eq!(
+            s.memory_min,
+            state_bytes(21 + 5, 25 + 9) + 20 * patch + cache + pairs + points
+        );
+        // Worst case: leaves stop splitting at the smallest element size, the bounds' diagonal
+        // sqrt(2^2 + 4^2 + 1^2) = 4.58 over 2^max_depth = 0.573; the quad's longest edge 2
+        // halves to 0.5 at depth 2, the triangle's sqrt(2) to 0.354 at depth 2: both depth 2,
+        // not max_depth 3.
+        assert_eq!(
+            s.memory_max,
+            state_bytes(2 * 21, 2 * 25) + 32 * patch + cache + pairs + points
+        );
         let table = s.to_string();
         assert!(
             table.contains("polygons        2 (1 quads, 1 triangles)\n"),

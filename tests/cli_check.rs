@@ -149,3 +149,125 @@ fn endless_inputs_and_absurd_counts_are_refused_with_exit_2() {
         );
     }
 }
+
+/// Memory over the limit is refused before the allocation, with exit 2 and the estimate in the
+/// message: `check` reports the estimate against the limit and fails over it; a solve whose
+/// starting trees cannot fit, a solve whose refinement would pass the limit, a frame too large,
+/// and textures too large are each refused within seconds.
+#[test]
+fn memory_requests_over_the_limit_are_refused_with_the_estimate() {
+    let out = run(&["check", "scenes/two-spots.toml"]);
+    assert_eq!(out.status.code(), Some(0), "{}", text(&out.stderr));
+    let stdout = text(&out.stdout);
+    assert!(stdout.contains("verdict         fits\n"), "{stdout}");
+    assert!(stdout.contains("solve at start  "), "{stdout}");
+
+    let out = run(&["check", "scenes/two-spots.toml", "--memory-limit", "1K"]);
+    assert_eq!(out.status.code(), Some(2), "{}", text(&out.stderr));
+    assert!(text(&out.stdout).contains("memory limit    1.0 KiB\n"));
+    let stderr = text(&out.stderr);
+    assert!(
+        stderr.contains("the solve of scenes/two-spots.toml needs an estimated")
+            && stderr.contains("over the memory limit of 1.0 KiB"),
+        "{stderr}"
+    );
+
+    // One quad forced to depth 16 from the start: 4^17 / 3 nodes, hundreds of GiB.
+    let dir = scratch("memory");
+    let deep = dir.join("deep.toml");
+    std::fs::write(
+        &deep,
+        "[camera]\neye = [0.5, 0.5, 2]\nlook_at = [0.5, 0.5, 0]\nfov_y = 40\n\
+         [[materials]]\nname = \"w\"\nreflectance = [0.5, 0.5, 0.5]\n\
+         [[polygons]]\nvertices = [[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]]\nmaterial = \"w\"\n\
+         [[spots]]\nposition = [0.5, 0.5, 1]\ndirection = [0, 0, -1]\nintensity = [1, 1, 1]\nhalf_angle = 60\n\
+         [radiosity]\nmin_depth = 16\nmax_depth = 16\n",
+    )
+    .unwrap();
+    let deep = deep.to_str().unwrap();
+    for cmd in [
+        vec!["check", deep, "--memory-limit", "16G"],
+        vec![
+            "solve",
+            deep,
+            "-o",
+            "/dev/null/x.pfsol",
+            "--memory-limit",
+            "16G",
+        ],
+    ] {
+        let out = run(&cmd);
+        assert_eq!(out.status.code(), Some(2), "{cmd:?}: {}", text(&out.stderr));
+        let stderr = text(&out.stderr);
+        assert!(
+            stderr.contains("needs an estimated") && stderr.contains("GiB (quadtrees and samples"),
+            "{cmd:?}: {stderr}"
+        );
+    }
+
+    // The solve's own guard: the Cornell box starts at 22 KiB but refines past 2 MiB.
+    let out = run(&[
+        "solve",
+        "scenes/cornell-box.toml",
+        "-o",
+        dir.join("c.pfsol").to_str().unwrap(),
+        "--memory-limit",
+        "2M",
+        "--quiet",
+    ]);
+    assert_eq!(out.status.code(), Some(2), "{}", text(&out.stderr));
+    let stderr = text(&out.stderr);
+    assert!(
+        stderr.contains("in this refinement pass") && stderr.contains("over the memory limit"),
+        "{stderr}"
+    );
+    assert!(!dir.join("c.pfsol").exists());
+
+    // The largest documented frame, with every output.
+    let png = dir.join("big.png");
+    let out = run(&[
+        "render",
+        "scenes/two-spots.toml",
+        "--width",
+        "16384",
+        "--height",
+        "16384",
+        "--aa",
+        "16",
+        "--exr",
+        dir.join("big.exr").to_str().unwrap(),
+        "-o",
+        png.to_str().unwrap(),
+        "--memory-limit",
+        "16G",
+    ]);
+    assert_eq!(out.status.code(), Some(2), "{}", text(&out.stderr));
+    assert!(
+        text(&out.stderr).contains("a 16384 x 16384 frame with 16 samples per pixel needs"),
+        "{}",
+        text(&out.stderr)
+    );
+
+    // 4096^2 textures: 4096^2 x 12 B x 4/3 = 256 MiB for the one polygon.
+    let out = run(&[
+        "render",
+        "scenes/two-spots.toml",
+        "--method",
+        "texture-bilinear",
+        "--texture-size",
+        "4096",
+        "-o",
+        png.to_str().unwrap(),
+        "--memory-limit",
+        "100M",
+        "--quiet",
+    ]);
+    assert_eq!(out.status.code(), Some(2), "{}", text(&out.stderr));
+    assert!(
+        text(&out.stderr).contains("the radiosity textures needs an estimated 256."),
+        "{}",
+        text(&out.stderr)
+    );
+    assert!(!png.exists());
+    let _ = std::fs::remove_dir_all(&dir);
+}

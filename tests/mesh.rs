@@ -13,7 +13,8 @@ use pixelflow_sim::raster::setup::{Prim, ONE};
 use pixelflow_sim::reconstruction::mesh::{MeshModel, MeshStats};
 use pixelflow_sim::scene::{load_scene, Scene};
 
-fn solved(name: &str) -> (Scene, MeshModel) {
+/// The scene, its mesh and the solution's leaf count.
+fn solved(name: &str) -> (Scene, MeshModel, u64) {
     let path = Path::new(env!("CARGO_MANIFEST_DIR"))
         .join("scenes")
         .join(format!("{name}.toml"));
@@ -27,7 +28,7 @@ fn solved(name: &str) -> (Scene, MeshModel) {
         t.elapsed().as_secs_f64() * 1e3,
         MeshStats::original(&scene)
     );
-    (scene, mesh)
+    (scene, mesh, sol.stats.elements)
 }
 
 fn coverage(scene: &Scene, size: u32) -> (Vec<Prim>, Vec<u32>) {
@@ -41,7 +42,7 @@ fn coverage(scene: &Scene, size: u32) -> (Vec<Prim>, Vec<u32>) {
 fn two_spots_mesh_covers_exactly_the_plane() {
     // Orthographic view of the unit square at 256 u pixels: every lattice point of a depth-7
     // tree lands on an exact fixed-point position, so the coverage must be identical.
-    let (scene, mesh) = solved("two-spots");
+    let (scene, mesh, _) = solved("two-spots");
     assert!(mesh.stats.t_vertices > 0, "the test needs T-vertices");
     for size in [256, 512] {
         let (_, want) = coverage(&scene, size);
@@ -84,8 +85,16 @@ fn perspective_meshes_cover_the_polygons_up_to_vertex_snapping() {
 }
 
 fn check_perspective_coverage(name: &str) {
-    let (scene, mesh) = solved(name);
+    let (scene, mesh, leaves) = solved(name);
     assert!(mesh.stats.t_vertices > 0, "the test needs T-vertices");
+    // The memory budget's triangle bound: a leaf with k T-vertices on its edges gives at most
+    // 2 + 2k triangles.
+    let bound_triangles = 2 * (leaves + mesh.stats.t_vertices);
+    assert!(
+        mesh.stats.triangles <= bound_triangles,
+        "{name}: {} triangles over the bound {bound_triangles}",
+        mesh.stats.triangles
+    );
     let bound = std::f64::consts::SQRT_2 + 1e-6;
     for size in [256u32, 512] {
         let (prims, want) = coverage(&scene, size);
@@ -117,7 +126,7 @@ fn check_perspective_coverage(name: &str) {
 
 #[test]
 fn mesh_renders_through_the_shared_rasterizer() {
-    let (scene, mesh) = solved("two-spots");
+    let (scene, mesh, _) = solved("two-spots");
     let opts = FrameOptions::new(256, 256);
     let frame = render_frame(&mesh.scene, &scene.camera, &mesh, &opts).unwrap();
     assert!(frame.pixels.iter().all(|p| p.is_finite()));

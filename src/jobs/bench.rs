@@ -115,6 +115,16 @@ pub fn run_bench(req: &BenchRequest, observer: &dyn Observer) -> Result<BenchRep
         ..FrameOptions::new(input.scene.width, input.scene.height)
     };
     base.validate()?;
+    for &size in &req.sizes {
+        super::budget::check_frame(
+            size,
+            size,
+            base.aa,
+            base.renderers,
+            (false, false),
+            super::budget::limit(),
+        )?;
+    }
     let p = prepare(input, policy, placement, observer)?;
     let mut rows = Vec::new();
     for &size in &req.sizes {

@@ -22,6 +22,7 @@
 
 pub mod bench;
 pub mod equal_error;
+pub mod budget;
 pub mod memory;
 pub mod render;
 pub mod solve;
@@ -195,6 +196,20 @@ pub struct Prepared {
 }
 
 impl Prepared {
+    /// Bytes held before any method's data: the solution's trees and samples and the compact
+    /// RRPs.
+    pub fn held_bytes(&self) -> u64 {
+        let st = &self.solution.stats;
+        let nodes: u64 = self
+            .solution
+            .polygons
+            .iter()
+            .map(|p| p.tree.nodes().len() as u64)
+            .sum();
+        crate::radiosity::shoot::state_bytes(nodes, st.vertices)
+            .saturating_add(self.compact.stats().total_bytes as u64)
+    }
+
     /// The RRPs with every patch expanded to power basis (unquantized vertex data), built on
     /// first use (the texture methods resample them; the direct method does not need them), with
     /// their build time in ms.
@@ -213,10 +228,29 @@ impl Prepared {
 
     /// The radiosity textures under [`Prepared::texture_policy`], built on first use (a scene
     /// rendered only with the direct method never pays for them), with their build time in ms.
+    ///
+    /// Refused with [`Error::Memory`] before anything is built when their estimate
+    /// ([`budget::texture_bytes`]) and what is held already pass [`budget::limit`].
     pub fn textures(&self) -> Result<(&TextureSet, f64)> {
         if self.textures.get().is_none() {
-            let t = Instant::now();
             let depths = TextureSet::depths(&self.solution.polygons);
+            let cs = self.compact.stats();
+            let mut e = budget::Estimate::new(
+                "the radiosity textures",
+                "lower --texture-size or [render] texture_size, give --texture-budget, or \
+                 raise --memory-limit",
+            );
+            e.add("held", self.held_bytes()).add(
+                "textures and expanded RRPs",
+                budget::texture_bytes(
+                    &depths,
+                    self.texture_policy,
+                    cs.leaves as u64,
+                    cs.nodes as u64,
+                )?,
+            );
+            e.check(budget::limit())?;
+            let t = Instant::now();
             let set = TextureSet::build(
                 self.expanded()?.0,
                 &depths,
@@ -234,8 +268,19 @@ impl Prepared {
 
     /// The Gouraud mesh of the solution (T-vertex fans), built on first use, with its build
     /// time in ms.
+    ///
+    /// Refused with [`Error::Memory`] before it is built when its estimate
+    /// ([`budget::mesh_bytes`]) and what is held already pass [`budget::limit`].
     pub fn mesh(&self) -> Result<(&MeshModel, f64)> {
         if self.mesh.get().is_none() {
+            let st = &self.solution.stats;
+            let mut e = budget::Estimate::new(
+                "the Gouraud mesh",
+                "raise radiosity.tolerance or lower radiosity.max_depth, or raise --memory-limit",
+            );
+            e.add("held", self.held_bytes())
+                .add("mesh", budget::mesh_bytes(st.elements, st.t_vertices));
+            e.check(budget::limit())?;
             let t = Instant::now();
             let mesh = MeshModel::build(&self.scene, &self.solution.polygons)?;
             let _ = self.mesh.set((mesh, t.elapsed().as_secs_f64() * 1e3));
@@ -269,8 +314,16 @@ pub fn prepare(
             (solution, Some((path, rrps)), 0.0)
         }
         None => {
+            let limit = budget::limit();
+            budget::check_solve(&scene, limit)?;
             let t = Instant::now();
-            let solution = radiosity::solve(&scene, &SolveOptions { observer })?;
+            let solution = radiosity::solve(
+                &scene,
+                &SolveOptions {
+                    observer,
+                    memory_limit: limit,
+                },
+            )?;
             (solution, None, t.elapsed().as_secs_f64() * 1e3)
         }
     };

@@ -95,6 +95,11 @@ impl RenderPlan {
             cull_back_faces: false,
         };
         frame.validate()?;
+        super::budget::check_frame_options(
+            &frame,
+            (true, req.exr.is_some()),
+            super::budget::limit(),
+        )?;
         let texture_policy = req.texture.policy(scene)?;
         let texture_placement = req.texture.placement(scene)?;
         if req.walkthrough && req.exr.is_some() {

@@ -11,11 +11,20 @@ use crate::reconstruction::compact::CompactReconstruction;
 use crate::reconstruction::Estimator;
 use crate::scene::load_scene;
 
-/// Solves `scene_path` and writes the solution to `out`.
+/// Solves `scene_path` and writes the solution to `out`. A solve over the memory limit
+/// ([`super::budget`]) is refused before it starts or stopped when it would pass it.
 pub fn solve_to_file(scene_path: &Path, out: &Path, observer: &dyn Observer) -> Result<Solution> {
     let scene = load_scene(scene_path)?;
     crate::output::check_outputs(&scene.inputs, &[("-o", out)])?;
-    let solution = radiosity::solve(&scene, &SolveOptions { observer })?;
+    let limit = super::budget::limit();
+    super::budget::check_solve(&scene, limit)?;
+    let solution = radiosity::solve(
+        &scene,
+        &SolveOptions {
+            observer,
+            memory_limit: limit,
+        },
+    )?;
     let rrps = CompactReconstruction::build(&solution.polygons, Estimator::default())?;
     solution_file::write_solution(out, &solution, Some(scene_path), &rrps.encode())?;
     Ok(solution)

@@ -38,6 +38,7 @@ pub fn run_stats(req: &StatsRequest, observer: &dyn Observer) -> Result<ModelSta
         _ => Filter::MITCHELL,
     };
     req.frame.validate()?;
+    super::budget::check_frame_options(&req.frame, (false, false), super::budget::limit())?;
     let policy = req.texture.policy(&input.scene)?;
     let placement = req.texture.placement(&input.scene)?;
     let p = prepare(input, policy, placement, observer)?;

@@ -325,6 +325,7 @@ pub fn run_sweep(req: &SweepRequest, observer: &dyn Observer) -> Result<SweepRep
     let input = Input::load(&req.input)?;
     let opts = FrameOptions::new(req.width, req.height);
     opts.validate()?;
+    super::budget::check_frame_options(&opts, (false, false), super::budget::limit())?;
 
     let fine = solve_at(
         &input,

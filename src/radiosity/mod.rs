@@ -46,12 +46,19 @@ pub const STAGE: &str = "solve";
 pub struct SolveOptions<'a> {
     /// Receives the progress of stage [`STAGE`] and, if it asks for them, trace lines.
     pub observer: &'a dyn Observer,
+    /// Bytes the solve's state may hold (quadtrees, samples, pair tables; see
+    /// [`shoot::state_bytes`]): a refinement pass that would pass it ends the solve with
+    /// [`Error::Memory`]. It never changes a solution that fits.
+    pub memory_limit: u64,
 }
 
 impl Default for SolveOptions<'_> {
-    /// Silent.
+    /// Silent, no memory limit.
     fn default() -> Self {
-        SolveOptions { observer: &SILENT }
+        SolveOptions {
+            observer: &SILENT,
+            memory_limit: u64::MAX,
+        }
     }
 }
 
@@ -59,6 +66,7 @@ impl std::fmt::Debug for SolveOptions<'_> {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("SolveOptions")
             .field("tracing", &self.observer.tracing())
+            .field("memory_limit", &self.memory_limit)
             .finish_non_exhaustive()
     }
 }
@@ -203,7 +211,7 @@ pub fn solve(scene: &Scene, opts: &SolveOptions<'_>) -> Result<Solution> {
     let start = Instant::now();
     let mut stage = Stage::start(opts.observer, STAGE);
     let mut tr = Transfer::new(scene);
-    let out = shoot::run(scene, &mut tr, &mut stage);
+    let out = shoot::run(scene, &mut tr, &mut stage, opts.memory_limit)?;
     drop(stage);
     // Every vertex's G was gathered from the final history by the oracle's own function, so
     // E + rho * G here is the oracle's answer at that vertex, bit for bit.

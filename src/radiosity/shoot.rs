@@ -50,6 +50,7 @@ use rayon::prelude::*;
 use super::transfer::{
     build_shooters, spot_power, spot_power3, sub_area, PairClass, ShooterKind, Transfer,
 };
+use crate::error::{Error, Result};
 use crate::progress::{Observer, Stage};
 use crate::quadtree::{Cell, Quadtree, VertexKey};
 use crate::scene::Scene;
@@ -128,8 +129,46 @@ fn uniform_tree(depth: u32) -> Quadtree {
 
 /// Runs the whole solve and returns trees and the shooting history. `tr` must be built on `scene`.
 /// Reports progress (and trace lines, if wanted) to `stage`; the caller ends the stage.
-pub fn run(scene: &Scene, tr: &mut Transfer<'_>, stage: &mut Stage<'_>) -> Outcome {
-    run_with_cache(scene, tr, stage, COARSE_CACHE_ENTRIES)
+///
+/// `memory_limit` bounds the bytes of the solve's state ([`state_bytes`] plus the pair tables
+/// built so far): a refinement pass that would pass it stops the solve with
+/// [`Error::Memory`] before it allocates.
+pub fn run(
+    scene: &Scene,
+    tr: &mut Transfer<'_>,
+    stage: &mut Stage<'_>,
+    memory_limit: u64,
+) -> Result<Outcome> {
+    run_with_cache(scene, tr, stage, COARSE_CACHE_ENTRIES, memory_limit)
+}
+
+/// Bytes the solve holds per quadtree node: the node and one leaf record (a leaf is counted
+/// with every node, an upper bound: a tree has about 3/4 as many leaves as nodes).
+pub const NODE_BYTES: u64 =
+    (std::mem::size_of::<crate::quadtree::Node>() + std::mem::size_of::<Leaf>()) as u64;
+
+/// Bytes the solve holds per sample (vertex): its key, its gathered G (f64 RGB) and the RGB
+/// `f32` radiosity of the solution it becomes.
+pub const VERTEX_BYTES: u64 =
+    (std::mem::size_of::<VertexKey>() + std::mem::size_of::<DVec3>() + 12) as u64;
+
+/// The solve stopped by its memory guard.
+fn memory_error(scene: &Scene, need: u64, limit: u64, detail: String) -> Error {
+    Error::Memory {
+        what: format!("the solve of {}", scene.source.display()),
+        estimate: need,
+        limit,
+        detail,
+        hint: "raise radiosity.tolerance, lower radiosity.max_depth, or raise --memory-limit"
+            .into(),
+    }
+}
+
+/// Bytes of the solve's state for `nodes` quadtree nodes and `vertices` samples, all polygons.
+pub fn state_bytes(nodes: u64, vertices: u64) -> u64 {
+    nodes
+        .saturating_mul(NODE_BYTES)
+        .saturating_add(vertices.saturating_mul(VERTEX_BYTES))
 }
 
 /// [`run`] with at most `cache_entries` cached coarse transfers (the result does not depend on
@@ -139,7 +178,8 @@ pub(crate) fn run_with_cache(
     tr: &mut Transfer<'_>,
     stage: &mut Stage<'_>,
     cache_entries: usize,
-) -> Outcome {
+    memory_limit: u64,
+) -> Result<Outcome> {
     let st = &scene.radiosity;
     let (_, patch_base, patch_depth) = build_shooters(scene);
     let ns = tr.shooters.len();
@@ -287,7 +327,14 @@ pub(crate) fn run_with_cache(
     let mut frac = 0.0;
     if emitted > 0.0 {
         refined_after.push(shots);
-        refine(scene, tr, &mut polys, &totals, &patch_base, &patch_depth);
+        refine(
+            scene,
+            tr,
+            &mut polys,
+            &totals,
+            (&patch_base, &patch_depth),
+            memory_limit,
+        )?;
         integrate(&polys, &patch_base, None, false, &mut base);
         set_unshot(tr, &polys, &totals, &base, &coarse, &mut unshot);
         frac = frac_of(tr, &unshot);
@@ -328,7 +375,25 @@ pub(crate) fn run_with_cache(
                 ));
             }
             let tp = Instant::now();
-            tr.ensure_pairs(s);
+            if tr.pairs[s].is_none() {
+                tr.ensure_pairs(s);
+                // A new pair table: the memory guard again (trees do not grow while shooting).
+                let nodes: u64 = polys.iter().map(|p| p.tree.nodes().len() as u64).sum();
+                let need =
+                    state_bytes(nodes, nverts(&polys) as u64).saturating_add(tr.pair_bytes());
+                if need > memory_limit {
+                    return Err(memory_error(
+                        scene,
+                        need,
+                        memory_limit,
+                        format!(
+                            "{nodes} quadtree nodes, {} samples, pair tables {} after {shots} shots",
+                            nverts(&polys),
+                            crate::error::human_bytes(tr.pair_bytes())
+                        ),
+                    ));
+                }
+            }
             t_pairs += tp.elapsed().as_secs_f64();
             let tp = Instant::now();
             let touched = shoot(tr, &mut polys, s, db, Some(&mut cache));
@@ -371,7 +436,14 @@ pub(crate) fn run_with_cache(
             observer.trace(&format!("  gather done {:.0} ms", elapsed_ms(t0)));
         }
         refined_after.push(shots);
-        let splits = refine(scene, tr, &mut polys, &totals, &patch_base, &patch_depth);
+        let splits = refine(
+            scene,
+            tr,
+            &mut polys,
+            &totals,
+            (&patch_base, &patch_depth),
+            memory_limit,
+        )?;
         integrate(&polys, &patch_base, None, false, &mut base);
         for p in polys.iter_mut() {
             p.cg.iter_mut().for_each(|g| *g = DVec3::ZERO);
@@ -395,7 +467,7 @@ pub(crate) fn run_with_cache(
         gather_all(tr, &mut polys, &totals);
     }
     report(1.0);
-    Outcome {
+    Ok(Outcome {
         trees: polys.into_iter().map(|p| (p.tree, p.keys, p.g)).collect(),
         totals,
         kinds: tr.shooters.iter().map(|s| s.kind).collect(),
@@ -404,7 +476,7 @@ pub(crate) fn run_with_cache(
         unshot: frac,
         emitted,
         refined_after,
-    }
+    })
 }
 
 /// Every vertex of every reflecting polygon gathers G from the history `totals`.
@@ -657,14 +729,19 @@ fn refine(
     tr: &Transfer<'_>,
     polys: &mut [Poly],
     totals: &[DVec3],
-    base: &[u32],
-    depth: &[u32],
-) -> usize {
+    (base, depth): (&[u32], &[u32]),
+    memory_limit: u64,
+) -> Result<usize> {
     let st = &scene.radiosity;
     let tol = st.tolerance;
     if tol <= 0.0 || !tol.is_finite() {
-        return 0;
+        return Ok(0);
     }
+    // The memory guard: nodes and samples held now, and the pair tables built so far (they do
+    // not grow while refining).
+    let mut nodes: u64 = polys.iter().map(|p| p.tree.nodes().len() as u64).sum();
+    let mut vertices: u64 = polys.iter().map(|p| p.keys.len() as u64).sum();
+    let pair_bytes = tr.pair_bytes();
     let mut peak = peak_reflected(polys);
     // The lights that have shot: their shadows drive the visibility test.
     let lights: Vec<usize> = (0..tr.shooters.len())
@@ -799,6 +876,23 @@ fn refine(
                 split_now.push((r, id));
             }
         }
+        // Each split adds 4 nodes and at most 5 samples (4 edge midpoints and the centre).
+        let k = split_now.len() as u64;
+        let (n_after, v_after) = (nodes + 4 * k, vertices + 5 * k);
+        let need = state_bytes(n_after, v_after).saturating_add(pair_bytes);
+        if need > memory_limit {
+            return Err(memory_error(
+                scene,
+                need,
+                memory_limit,
+                format!(
+                    "{n_after} quadtree nodes and up to {v_after} samples in this refinement \
+                     pass, pair tables {}",
+                    crate::error::human_bytes(pair_bytes)
+                ),
+            ));
+        }
+        (nodes, vertices) = (n_after, v_after);
         let mut next = Vec::new();
         let mut touched: Vec<u32> = Vec::new();
         for &(r, id) in &split_now {
@@ -823,7 +917,7 @@ fn refine(
         }
         pending = next;
     }
-    splits
+    Ok(splits)
 }
 
 /// Smallest element edge worth splitting: the scene's bounding diagonal / 2^max_depth. Depth
@@ -837,6 +931,10 @@ pub fn min_element_size(scene: &Scene) -> f64 {
 
 /// Whether a leaf may split: below max_depth, and its longer world-space edge (at the cell's
 /// centre) is longer than `min_size`.
+///
+/// Both tangents of a polygon are at most its longest edge long everywhere (for a quad a convex
+/// combination of two opposite edges, for a triangle at most an edge), which bounds the depth
+/// any of its leaves can reach: [`depth_bound`].
 fn can_split(scene: &Scene, r: usize, cell: Cell, min_size: f64) -> bool {
     if cell.level >= scene.radiosity.max_depth {
         return false;
@@ -845,6 +943,25 @@ fn can_split(scene: &Scene, r: usize, cell: Cell, min_size: f64) -> bool {
     let (du, dv) = scene.polygons[r].tangents(0.5 * (u0 + u1), 0.5 * (v0 + v1));
     let w = u1 - u0;
     (du.length() * w).max(dv.length() * w) > min_size
+}
+
+/// The deepest level polygon `r`'s leaves can reach by refinement: `max_depth`, or less where
+/// the polygon's longest edge `L` halved `d` times is already within the smallest element size
+/// (`can_split` refuses a cell whose edges are all at most that). The starting depth may
+/// exceed it (min_depth and shooter patches are imposed, not refined).
+pub fn depth_bound(scene: &Scene, r: usize, min_size: f64) -> u32 {
+    let vs = scene.polygons[r].vertices();
+    let longest = (0..vs.len())
+        .map(|i| (vs[(i + 1) % vs.len()] - vs[i]).length())
+        .fold(0.0f64, f64::max);
+    let max = scene.radiosity.max_depth;
+    let mut d = 0;
+    let mut edge = longest;
+    while d < max && edge > min_size {
+        edge *= 0.5;
+        d += 1;
+    }
+    d
 }
 
 /// Centre and the four edge midpoints (bottom, right, top, left) of a cell.

@@ -256,7 +256,14 @@ fn coarse_cache_changes_nothing() {
     s.radiosity.max_depth = 4;
     let run = |entries: usize| {
         let mut tr = transfer::Transfer::new(&s);
-        shoot::run_with_cache(&s, &mut tr, &mut Stage::start(&SILENT, STAGE), entries)
+        shoot::run_with_cache(
+            &s,
+            &mut tr,
+            &mut Stage::start(&SILENT, STAGE),
+            entries,
+            u64::MAX,
+        )
+        .expect("solve")
     };
     let a = run(0);
     let b = run(shoot::COARSE_CACHE_ENTRIES);
@@ -427,7 +434,14 @@ fn bad_settings_are_input_errors() {
     s.radiosity.max_depth = 3;
     // Rejected before the stage starts: the observer hears nothing.
     let r = Recorder::tracing();
-    assert!(solve(&s, &SolveOptions { observer: &r }).is_err());
+    assert!(solve(
+        &s,
+        &SolveOptions {
+            observer: &r,
+            ..SolveOptions::default()
+        }
+    )
+    .is_err());
     assert!(r.events().is_empty(), "{:?}", r.events());
 }
 
@@ -529,8 +543,22 @@ fn observer_sees_progress_and_only_requested_traces() {
     s.radiosity.shadow_rays = 8;
     let quiet = Recorder::default();
     let loud = Recorder::tracing();
-    let a = solve(&s, &SolveOptions { observer: &quiet }).expect("solve");
-    let b = solve(&s, &SolveOptions { observer: &loud }).expect("solve");
+    let a = solve(
+        &s,
+        &SolveOptions {
+            observer: &quiet,
+            ..SolveOptions::default()
+        },
+    )
+    .expect("solve");
+    let b = solve(
+        &s,
+        &SolveOptions {
+            observer: &loud,
+            ..SolveOptions::default()
+        },
+    )
+    .expect("solve");
     let c = solve_quiet(&s);
     let (fa, la) = observed(&quiet.events());
     let (fb, lb) = observed(&loud.events());
@@ -549,4 +577,54 @@ fn observer_sees_progress_and_only_requested_traces() {
         file::encode(&a) == file::encode(&c),
         "recording changed the solution"
     );
+}
+
+/// The memory guard stops a solve whose refinement would pass the limit, with an error that
+/// carries the estimate; a limit the solve fits in changes nothing; and no leaf ever goes deeper
+/// than the depth bound the budget's worst case assumes.
+#[test]
+fn memory_limit_stops_refinement_and_depth_bound_holds() {
+    let (s, sol) = cornell_solution();
+    let nodes: u64 = sol
+        .polygons
+        .iter()
+        .map(|p| p.tree.nodes().len() as u64)
+        .sum();
+    let held = shoot::state_bytes(nodes, sol.stats.vertices);
+    // Half of what the finished trees hold (pair tables come on top): the guard must trip.
+    let opts = SolveOptions {
+        memory_limit: held / 2,
+        ..SolveOptions::default()
+    };
+    match solve(s, &opts) {
+        Err(Error::Memory {
+            estimate, limit, ..
+        }) => {
+            assert_eq!(limit, held / 2);
+            assert!(estimate > limit);
+        }
+        other => panic!("expected a memory error, got {other:?}"),
+    }
+    // Room for everything: the same solution as without a limit.
+    let roomy = SolveOptions {
+        memory_limit: 1 << 40,
+        ..SolveOptions::default()
+    };
+    let again = solve(s, &roomy).expect("solve");
+    assert_eq!(again.polygons, sol.polygons);
+    let min_size = shoot::min_element_size(s);
+    for (r, p) in sol.polygons.iter().enumerate() {
+        let deepest = p
+            .tree
+            .nodes()
+            .iter()
+            .map(|n| n.cell.level)
+            .max()
+            .unwrap_or(0);
+        let start = s.radiosity.min_depth.max(2);
+        assert!(
+            deepest <= shoot::depth_bound(s, r, min_size).max(start),
+            "polygon {r}: depth {deepest} past the bound"
+        );
+    }
 }

@@ -72,6 +72,10 @@ pub enum PairClass {
     Occluded,
 }
 
+/// Bytes of one shooter-receiver entry of a pair table (class, candidate range), without its
+/// candidate list.
+pub const PAIR_BYTES: u64 = (std::mem::size_of::<PairClass>() + 8) as u64;
+
 /// Pair classes of one shooter against every receiver polygon, with the polygons that may
 /// occlude each `Occluded` pair.
 #[derive(Debug, Clone, Default)]
@@ -284,6 +288,8 @@ pub struct Transfer<'a> {
     /// Whether [`Transfer::classify`] drops candidates outside a face of the receiver/shooter
     /// hull (always on; off only in the test that checks it changes no transfer).
     use_hull_faces: bool,
+    /// Bytes of the pair tables built so far ([`Transfer::pair_bytes`]).
+    pair_bytes: u64,
 }
 
 impl<'a> Transfer<'a> {
@@ -300,7 +306,14 @@ impl<'a> Transfer<'a> {
             eps,
             rays: AtomicU64::new(0),
             use_hull_faces: true,
+            pair_bytes: 0,
         }
+    }
+
+    /// Bytes of the pair tables built so far: per shooter with a table, one class byte and one
+    /// candidate range (two `u32`) per receiver, plus its candidate lists.
+    pub fn pair_bytes(&self) -> u64 {
+        self.pair_bytes
     }
 
     /// Computes the pair classes of shooter `s` against every polygon, if not done yet.
@@ -322,6 +335,7 @@ impl<'a> Transfer<'a> {
                 .push((pairs.cands.len() as u32, cands.len() as u32));
             pairs.cands.extend(cands);
         }
+        self.pair_bytes += pairs.class.len() as u64 * PAIR_BYTES + 4 * pairs.cands.len() as u64;
         self.pairs[s] = Some(pairs);
     }
 
