@@ -905,8 +905,20 @@ fn in_pool<T: Send>(threads: Option<usize>, f: impl FnOnce() -> T + Send) -> any
     }
 }
 
+/// Exit code after SIGINT or SIGTERM (128 + SIGINT, the shell's convention for an interrupt).
+const EXIT_INTERRUPTED: i32 = 130;
+
 fn main() -> ExitCode {
     let cli = Cli::parse();
+    // SIGINT / SIGTERM: remove the temporaries of outputs being written (after any batch of
+    // renames in progress finishes) and exit, so an interrupted run leaves no hidden files and
+    // never half of a run's outputs replaced. If the handler cannot be installed the run goes
+    // on with the default signal behaviour.
+    let _ = ctrlc::set_handler(|| {
+        pixelflow_sim::output::remove_temporaries();
+        note("interrupted");
+        std::process::exit(EXIT_INTERRUPTED);
+    });
     match run(cli) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) if e.is::<StdoutClosed>() => ExitCode::SUCCESS,

@@ -12,6 +12,12 @@
 //! leaves every target as it was; only a kill between two renames (microseconds) can leave some
 //! replaced and some not. Temporaries of a failed batch are removed.
 //!
+//! Interruption: every temporary that exists is listed ([`remove_temporaries`] deletes them);
+//! the binary calls it from its SIGINT/SIGTERM handler before exiting, so an interrupted run
+//! leaves no hidden temporary behind. A batch's renames run under a lock the handler also takes,
+//! so a signal during a commit waits for the renames to finish: a run's outputs are replaced all
+//! together or not at all (only SIGKILL or a power cut, which no handler sees, can split them).
+//!
 //! The other direction lives here too: every input file (scene, OBJ, MTL, solution, image) is
 //! read through [`read_limited`], so a path to an endless file (`/dev/zero`, a FIFO that never
 //! closes) ends in an error at [`MAX_INPUT_BYTES`] instead of growing memory until the allocator
@@ -19,6 +25,7 @@
 
 use std::io::{Read, Write};
 use std::path::{Path, PathBuf};
+use std::sync::Mutex;
 
 use crate::error::{Error, Result};
 
@@ -63,10 +70,41 @@ fn temporary_of(path: &Path) -> Result<(PathBuf, PathBuf)> {
     Ok((dir, tmp))
 }
 
+/// Temporaries that may exist now (registered before they are created, removed from the list
+/// once renamed or deleted).
+static LIVE: Mutex<Vec<PathBuf>> = Mutex::new(Vec::new());
+
+/// Held while a batch renames its temporaries, and by [`remove_temporaries`].
+static COMMIT: Mutex<()> = Mutex::new(());
+
+fn live() -> std::sync::MutexGuard<'static, Vec<PathBuf>> {
+    LIVE.lock().unwrap_or_else(|e| e.into_inner())
+}
+
+fn forget(tmp: &Path) {
+    live().retain(|t| t != tmp);
+}
+
+/// Removes every temporary this process has created and not yet renamed or removed, after any
+/// batch commit in progress has finished its renames; returns how many were removed. For a
+/// signal handler: after it, the process should exit (a write still running would recreate
+/// nothing, but its rename would fail).
+pub fn remove_temporaries() -> usize {
+    let _commit = COMMIT.lock().unwrap_or_else(|e| e.into_inner());
+    let mut removed = 0;
+    for t in live().drain(..) {
+        if std::fs::remove_file(&t).is_ok() {
+            removed += 1;
+        }
+    }
+    removed
+}
+
 /// Writes `bytes` to the temporary `tmp` (created in `dir`, which is created if missing) and
 /// flushes it to disk; removes it on failure.
 fn write_temporary(dir: &Path, tmp: &Path, path: &Path, bytes: &[u8]) -> Result<()> {
     std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
+    live().push(tmp.to_path_buf());
     let result = (|| {
         let mut f = std::fs::File::create(tmp)?;
         f.write_all(bytes)?;
@@ -74,6 +112,7 @@ fn write_temporary(dir: &Path, tmp: &Path, path: &Path, bytes: &[u8]) -> Result<
     })();
     if let Err(e) = result {
         let _ = std::fs::remove_file(tmp);
+        forget(tmp);
         return Err(Error::io(path, e));
     }
     Ok(())
@@ -106,13 +145,16 @@ impl Batch {
     /// remaining temporaries are removed and the error names the target.
     pub fn commit(mut self) -> Result<()> {
         let staged = std::mem::take(&mut self.staged);
+        let _commit = COMMIT.lock().unwrap_or_else(|e| e.into_inner());
         for (k, (tmp, path)) in staged.iter().enumerate() {
             if let Err(e) = std::fs::rename(tmp, path) {
                 for (t, _) in &staged[k..] {
                     let _ = std::fs::remove_file(t);
+                    forget(t);
                 }
                 return Err(Error::io(path, e));
             }
+            forget(tmp);
         }
         Ok(())
     }
@@ -122,6 +164,7 @@ impl Drop for Batch {
     fn drop(&mut self) {
         for (tmp, _) in &self.staged {
             let _ = std::fs::remove_file(tmp);
+            forget(tmp);
         }
     }
 }
@@ -199,7 +242,8 @@ pub fn check_outputs(inputs: &[PathBuf], outputs: &[(&str, &Path)]) -> Result<()
         .iter()
         .map(|p| (p.clone(), resolved(p), std::fs::metadata(p).ok()))
         .collect();
-    let mut seen: Vec<(PathBuf, &str)> = Vec::new();
+    // Hashed, not searched: a walkthrough has up to a million outputs.
+    let mut seen: std::collections::HashMap<PathBuf, &str> = std::collections::HashMap::new();
     for &(option, path) in outputs {
         let text = path.as_os_str().to_string_lossy();
         if text.is_empty() {
@@ -226,14 +270,14 @@ pub fn check_outputs(inputs: &[PathBuf], outputs: &[(&str, &Path)]) -> Result<()
                 );
             }
         }
-        if let Some((_, other)) = seen.iter().find(|(p, _)| *p == r) {
+        if let Some(other) = seen.get(&r) {
             return refuse(
                 option,
                 path,
                 format!("is also the output of {other}; give each output its own file"),
             );
         }
-        seen.push((r, option));
+        seen.insert(r, option);
     }
     Ok(())
 }
