@@ -349,6 +349,11 @@ enum Command {
     /// same size and prints the perceptual distance of docs/metrics.md (Rushmeier et al. model 1
     /// with the Mannos-Sakrison CSF), RMSE, PSNR, maximum absolute error, relative luminance
     /// error and the Mach-band measure, all on luminance. `b` is the reference.
+    ///
+    /// As a regression check (a CI comparing renders with committed golden images):
+    /// `--tolerance default` compares pixel by pixel and lists the pixels that moved, `--diff`
+    /// writes a difference image, `--max-distance` bounds the perceptual distance; exit 1 when a
+    /// check fails, 0 when all pass.
     Compare {
         /// The image under test.
         a: PathBuf,
@@ -360,7 +365,32 @@ enum Command {
         /// Print JSON instead of the table.
         #[arg(long)]
         json: bool,
+        /// Regression check: compare pixel by pixel; a pixel differs when a channel moves by more
+        /// than this times max(|reference|, --floor) (`default` = 2^-19, 16 f32 rounding steps).
+        /// Lists the first differing pixels; exit 1 if any differ.
+        #[arg(long, value_name = "REL|default", value_parser = parse_tolerance)]
+        tolerance: Option<f32>,
+        /// With --tolerance: the reference level under which the tolerance is absolute.
+        #[arg(long, default_value_t = pixelflow_sim::metric::pixels::DEFAULT_FLOOR)]
+        floor: f32,
+        /// With --tolerance: write the difference image here (PNG scaled so the largest
+        /// difference is white, or EXR with the raw |a - b|).
+        #[arg(long, value_name = "PATH", requires = "tolerance")]
+        diff: Option<PathBuf>,
+        /// Fail (exit 1) when the perceptual distance is above this.
+        #[arg(long, value_name = "D")]
+        max_distance: Option<f64>,
     },
+}
+
+fn parse_tolerance(text: &str) -> Result<f32, String> {
+    if text == "default" {
+        return Ok(pixelflow_sim::metric::pixels::DEFAULT_TOLERANCE);
+    }
+    match text.parse::<f32>() {
+        Ok(t) if t.is_finite() && t >= 0.0 => Ok(t),
+        _ => Err("must be a finite number >= 0, or `default`".into()),
+    }
 }
 
 /// Options of the texture methods (ignored by the others).
@@ -761,12 +791,68 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 req.doc.display()
             ))
         })??,
-        Command::Compare { a, b, ppd, json } => {
-            let c = pixelflow_sim::metric::compare_files(&a, &b, ppd)?;
-            if json {
-                out(&self::json(&c)?)?;
-            } else {
-                out(&c.table())?;
+        Command::Compare {
+            a,
+            b,
+            ppd,
+            json,
+            tolerance,
+            floor,
+            diff,
+            max_distance,
+        } => {
+            use pixelflow_sim::image::{read_image, write_exr, write_png};
+            let mut failed = Vec::new();
+            if let Some(tol) = tolerance {
+                let (ia, ib) = (read_image(&a)?, read_image(&b)?);
+                let d = pixelflow_sim::metric::pixels::diff(&ia, &ib, tol, floor)?;
+                if let Some(path) = &diff {
+                    pixelflow_sim::output::check_outputs(
+                        &[a.clone(), b.clone()],
+                        &[("--diff", path)],
+                    )?;
+                    let exr = path
+                        .extension()
+                        .is_some_and(|e| e.eq_ignore_ascii_case("exr"));
+                    if exr {
+                        write_exr(path, d.image.view())?;
+                    } else {
+                        write_png(path, d.normalized_image().view(), 0.0)?;
+                    }
+                }
+                if json {
+                    out(&self::json(&d)?)?;
+                } else {
+                    out(&(d.summary() + "\n"))?;
+                }
+                if d.differing > 0 {
+                    failed.push(format!("{} pixels differ", d.differing));
+                }
+            }
+            if tolerance.is_none() || max_distance.is_some() {
+                let c = pixelflow_sim::metric::compare_files(&a, &b, ppd)?;
+                if json {
+                    out(&self::json(&c)?)?;
+                } else {
+                    out(&c.table())?;
+                }
+                if let Some(m) = max_distance {
+                    if c.perceptual_distance > m {
+                        failed.push(format!(
+                            "perceptual distance {:.6} above --max-distance {m}",
+                            c.perceptual_distance
+                        ));
+                    }
+                }
+            }
+            if !failed.is_empty() {
+                return Err(Error::Runtime(format!(
+                    "{} differs from {}: {}",
+                    a.display(),
+                    b.display(),
+                    failed.join("; ")
+                ))
+                .into());
             }
         }
     }

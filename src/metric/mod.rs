@@ -14,6 +14,8 @@
 //!   mean-normalised luminance difference. Derivative discontinuities at element and texel
 //!   boundaries (what C0 reconstructions leave and the paper's C1 bicubic ones remove) show up as
 //!   spikes of the second difference, which this sums.
+//! - [`pixels`]: the pixel-by-pixel check against a golden image (which pixels moved, a
+//!   difference image), for regression tests.
 //! - Here: the plain error measures and [`compare`], which computes all of them.
 //!
 //! In [`compare`]`(a, b, ppd)` the second image `b` is the **reference**: the peak of the PSNR and
@@ -30,6 +32,7 @@
 
 pub mod mach;
 pub mod perceptual;
+pub mod pixels;
 
 use std::fmt::Write as _;
 use std::path::Path;
