@@ -177,3 +177,32 @@ fn unreconstructable_samples_behind_a_valid_checksum_are_bad_input() {
         Ok(_) => panic!("an unreconstructable solution was accepted"),
     }
 }
+
+/// The same class later in the pipeline: a file whose stored RRPs are sound (so it loads and
+/// the direct method draws it) but whose samples are not. The texture methods expand the
+/// samples and fail there; that failure is the file's (exit 2), not the program's (exit 1).
+#[test]
+fn bad_samples_found_by_a_later_stage_are_still_bad_input() {
+    let out = tmp("huge-later.pfsol");
+    solve_to_file(&scene(), &out, &SILENT).unwrap();
+    let s = load_scene(&scene()).unwrap();
+    let (mut sol, rrps) = file::decode(&std::fs::read(&out).unwrap(), &s).unwrap();
+    assert!(!rrps.is_empty(), "the file stores its RRPs");
+    let v = &mut sol.polygons[0].values;
+    let mid = v.len() / 2;
+    v[mid] = glam::Vec3::splat(3.0e38);
+    let path = std::fs::canonicalize(scene()).unwrap();
+    std::fs::write(&out, file::encode_with_scene(&sol, Some(&path), &rrps)).unwrap();
+    let p = prepare_path(&out, &TextureOptions::default(), &SILENT).expect("RRPs decode");
+    let opts = FrameOptions::new(16, 16);
+    assert!(render_frame(&p, Method::Direct, &p.scene.camera, &opts).is_ok());
+    let method = Method::parse("texture-bilinear").unwrap();
+    match render_frame(&p, method, &p.scene.camera, &opts) {
+        Err(e @ Error::Solution { .. }) => {
+            assert_eq!(e.exit_code(), 2);
+            assert!(e.to_string().contains("corrupt solution file"), "{e}");
+        }
+        Err(e) => panic!("expected a corrupt solution file, got {e:?}"),
+        Ok(_) => panic!("unreconstructable samples were drawn"),
+    }
+}

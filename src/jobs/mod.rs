@@ -190,12 +190,29 @@ pub struct Prepared {
     /// Where the texture methods place their texels (default: the scene's); like
     /// [`Prepared::texture_policy`], read when the textures are built.
     pub texture_placement: Placement,
+    /// The solution file the solution was read from (`None`: solved in this run).
+    pub solution_file: Option<PathBuf>,
     expanded: OnceLock<(Reconstruction, f64)>,
     textures: OnceLock<(TextureSet, f64)>,
     mesh: OnceLock<(MeshModel, f64)>,
 }
 
 impl Prepared {
+    /// A failure of a later stage on data read from a solution file (a value no solve would
+    /// produce behind a valid checksum) is that file's fault: an [`Error::Solution`]
+    /// ([`crate::error::SolutionProblem::Corrupt`], exit 2), not a runtime failure. Errors of a
+    /// fresh solve's data pass through.
+    fn file_error(&self, e: Error) -> Error {
+        match (e, &self.solution_file) {
+            (Error::Runtime(m), Some(path)) => Error::solution(
+                path,
+                crate::error::SolutionProblem::Corrupt,
+                format!("corrupt solution file: {m}"),
+            ),
+            (e, _) => e,
+        }
+    }
+
     /// Bytes held before any method's data: the solution's trees and samples and the compact
     /// RRPs.
     pub fn held_bytes(&self) -> u64 {
@@ -216,7 +233,8 @@ impl Prepared {
     pub fn expanded(&self) -> Result<(&Reconstruction, f64)> {
         if self.expanded.get().is_none() {
             let t = Instant::now();
-            let r = Reconstruction::build(&self.solution.polygons, self.estimator)?;
+            let r = Reconstruction::build(&self.solution.polygons, self.estimator)
+                .map_err(|e| self.file_error(e))?;
             let _ = self.expanded.set((r, t.elapsed().as_secs_f64() * 1e3));
         }
         let (r, ms) = self
@@ -256,7 +274,8 @@ impl Prepared {
                 &depths,
                 self.texture_policy,
                 self.texture_placement,
-            )?;
+            )
+            .map_err(|e| self.file_error(e))?;
             let _ = self.textures.set((set, t.elapsed().as_secs_f64() * 1e3));
         }
         let (set, ms) = self
@@ -282,7 +301,8 @@ impl Prepared {
                 .add("mesh", budget::mesh_bytes(st.elements, st.t_vertices));
             e.check(budget::limit())?;
             let t = Instant::now();
-            let mesh = MeshModel::build(&self.scene, &self.solution.polygons)?;
+            let mesh = MeshModel::build(&self.scene, &self.solution.polygons)
+                .map_err(|e| self.file_error(e))?;
             let _ = self.mesh.set((mesh, t.elapsed().as_secs_f64() * 1e3));
         }
         let (mesh, ms) = self
@@ -366,6 +386,7 @@ pub fn prepare(
     };
     let reconstruction_ms = t.elapsed().as_secs_f64() * 1e3;
     Ok(Prepared {
+        solution_file: file,
         texture_policy,
         texture_placement,
         scene,
@@ -419,7 +440,8 @@ pub fn render_frame(
             frame::render(&mesh.scene, camera, &Shader::Patches(mesh), method, opts)
         }
         Method::Reference => {
-            let oracle = radiosity::Oracle::new(&p.solution, &p.scene)?;
+            let oracle =
+                radiosity::Oracle::new(&p.solution, &p.scene).map_err(|e| p.file_error(e))?;
             let f = |poly: u32, u: f32, v: f32| oracle.radiosity(poly as usize, u as f64, v as f64);
             frame::render(&p.scene, camera, &Shader::Reference(&f), method, opts)
         }
