@@ -554,6 +554,27 @@ fn patch_borders() {
 fn light_touching() {
     let p = prepared("light-touching");
     check_samples("light-touching", &p);
+    // The right wall (polygon 5; u along z, v along y) behind the centre of the wall panel
+    // (polygon 7, E = 3, 1e-9 in front of it, facing it). Its irradiance there is at least E F,
+    // with F = 1 - O(1e-9) the form factor of a 1 x 1 square from the point under its centre
+    // (Lambert's formula), so B >= rho E (1 - 1e-8) = 2.1. Above, no radiosity in the room
+    // exceeds the furnace bound E / (1 - rho_max) = 3 / 0.3 = 10 (every bounce keeps at most
+    // rho_max = 0.7 of the light), so the wall's irradiance is at most 10 and B <= 7.
+    let (rho, e) = (0.7, 3.0);
+    let furnace = e / (1.0 - rho);
+    let oracle = pixelflow_sim::radiosity::Oracle::new(&p.solution, &p.scene).unwrap();
+    let b = oracle.radiosity(5, 0.5, 0.5).x as f64;
+    assert!(
+        b >= rho * e * (1.0 - 1e-8) && b <= rho * furnace,
+        "right wall behind the panel: {b}, rho E = {}",
+        rho * e
+    );
+    // The spot 1e-9 from the left wall adds no spurious power: no sample anywhere exceeds the
+    // furnace bound.
+    for (i, q) in p.solution.polygons.iter().enumerate() {
+        let top = q.values.iter().map(|v| v.x).fold(0.0f32, f32::max);
+        assert!(top as f64 <= furnace, "polygon {i} up to {top}");
+    }
     for m in methods() {
         for aa in [1, 4] {
             let f = render_in(&p, m, &p.scene.camera, &opts(64, 64, aa), 2);
