@@ -12,10 +12,12 @@ use glam::{DVec3, Vec3};
 
 use pixelflow_sim::frame::{Frame, FrameOptions};
 use pixelflow_sim::jobs::render::{run_render, RenderEvent, RenderRequest};
-use pixelflow_sim::jobs::{prepare_path, render_frame, Prepared, TextureOptions};
-use pixelflow_sim::method::Method;
+use pixelflow_sim::jobs::{prepare, prepare_path, render_frame, Input, Prepared, TextureOptions};
+use pixelflow_sim::method::{Method, Placement};
 use pixelflow_sim::progress::Silent;
-use pixelflow_sim::scene::{load_scene, Camera, Projection};
+use pixelflow_sim::reconstruction::Estimator;
+use pixelflow_sim::scene::{load_scene, parse_scene, Camera, Projection};
+use pixelflow_sim::texture::SizePolicy;
 
 /// Every scene of `scenes/hard/` has a test here: this list is checked against the directory.
 const HARD_SCENES: [&str; 13] = [
@@ -303,8 +305,30 @@ fn scales() {
         let lit = check_image(&format!("scale-1 {}", m.name()), f, &|_, _| true);
         assert!(lit > 64 * 64 / 2, "scale-1 {}: {lit} lit pixels", m.name());
     }
-    for name in ["scale-1e6", "scale-1e-6"] {
-        let p = prepared(name);
+    // Beside the shipped 1e6 and 1e-6, the same room at 1e-12, built from scale-1e-6.toml's
+    // text (every length a further 1e-6, the spot's intensity a further 1e-12): the format
+    // bounds numbers only above (1e9), so nothing refuses a scene this small. (Its camera was
+    // refused as "look_at equals camera.eye": the loader's test had a floor of one unit.)
+    let tiny = std::fs::read_to_string(hard("scale-1e-6"))
+        .unwrap()
+        .replace("scale = 1e-6", "scale = 1e-12")
+        .replace("e-8", "e-14")
+        .replace("1e-15, 1e-15, 1e-15", "1e-27, 1e-27, 1e-27");
+    let tiny_path = hard("scale-1e-6").with_file_name("scale-1e-12.toml");
+    let tiny = parse_scene(&tiny, &tiny_path).unwrap_or_else(|e| panic!("scale 1e-12: {e}"));
+    assert_eq!(tiny.spots[0].intensity.x, 1e-27);
+    let tiny = Input {
+        path: tiny_path,
+        scene: tiny,
+        solution_file: None,
+        estimator: Estimator::default(),
+    };
+    let tiny = prepare(tiny, SizePolicy::FromDepth, Placement::Centre, &Silent).unwrap();
+    for (name, p) in [
+        ("scale-1e6", prepared("scale-1e6")),
+        ("scale-1e-6", prepared("scale-1e-6")),
+        ("scale-1e-12", tiny),
+    ] {
         check_samples(name, &p);
         assert_eq!(
             p.solution.stats.depth_histogram, base.solution.stats.depth_histogram,
