@@ -771,3 +771,58 @@ fn no_polygons() {
     }
     assert!(!png.exists());
 }
+
+// ---------------------------------------------------------------------------------------------
+// 5 (continued). Radiosity beyond the range of f32.
+
+/// A 1e-7 square under a spot of intensity 1e9 at `height` above its centre (built in code: a
+/// variant of `dynamic-range.toml` at a scale no shipped scene needs).
+fn tiny_square_under_a_spot(height: &str) -> String {
+    format!(
+        "[camera]\neye = [0.5e-7, 0.5e-7, 2e-7]\nlook_at = [0.5e-7, 0.5e-7, 0.0]\n\
+         ortho_width = 1e-7\northo_height = 1e-7\n\n\
+         [[materials]]\nname = \"grey\"\nreflectance = [0.5, 0.5, 0.5]\n\n\
+         [[polygons]]\nname = \"square\"\n\
+         vertices = [[0, 0, 0], [1e-7, 0, 0], [1e-7, 1e-7, 0], [0, 1e-7, 0]]\n\
+         material = \"grey\"\n\n\
+         [[spots]]\nposition = [0.5e-7, 0.5e-7, {height}]\ndirection = [0, 0, -1]\n\
+         intensity = [1e9, 1e9, 1e9]\nhalf_angle = 60.0\n\n\
+         [radiosity]\nmax_depth = 4\nshadow_rays = 1\n"
+    )
+}
+
+#[test]
+fn a_spot_beyond_the_f32_range_is_refused() {
+    let prep = |height: &str| {
+        let path = tmp("tiny-spot.toml");
+        let scene = parse_scene(&tiny_square_under_a_spot(height), &path).unwrap();
+        let input = Input {
+            path,
+            scene,
+            solution_file: None,
+            estimator: Estimator::default(),
+        };
+        prepare(input, SizePolicy::FromDepth, Placement::Centre, &Silent)
+    };
+    // 1e-7 above: B = rho I / h^2 = 0.5 * 1e9 / 1e-14 = 5e22 under the spot, within f32.
+    let p = prep("1e-7").unwrap();
+    let f = render_in(&p, Method::Direct, &p.scene.camera, &opts(16, 16, 1), 1);
+    let centre = at(&f, 8, 8).x as f64;
+    // The pixel centre is 1/32 of the side (3e-9) from the foot: B falls by (1 + (3e-9 /
+    // 1e-7)^2)^-2, 0.2 %; the reconstruction adds well under 1 %.
+    assert!((centre / 5e22 - 1.0).abs() < 0.01, "centre {centre}");
+    // 1e-15 above: 5e38, beyond f32 (3.4e38). The sample under the spot was zeroed and the
+    // image came out black with no error; it is an input error naming the spot.
+    for height in ["1e-15", "1e-11"] {
+        let e = match prep(height) {
+            Err(e) => e,
+            Ok(_) => panic!("a spot {height} above the square was accepted"),
+        };
+        assert_eq!(e.exit_code(), 2, "{e}");
+        let m = e.to_string();
+        assert!(
+            m.contains("tiny-spot.toml") && m.contains("spots[0].position"),
+            "{m}"
+        );
+    }
+}

@@ -290,8 +290,7 @@ impl<'a> Transfer<'a> {
     /// Builds the BVH and the shooters of `scene`.
     pub fn new(scene: &'a Scene) -> Self {
         let (shooters, _, _) = build_shooters(scene);
-        let (lo, hi) = scene.bounds();
-        let eps = 1e-9 * (hi - lo).length().max(1e-300);
+        let eps = plane_tolerance(scene);
         Transfer {
             scene,
             bvh: Bvh::build(&scene.polygons),
@@ -741,6 +740,14 @@ fn hull_faces(a: &[DVec3], b: &[DVec3], eps: f64) -> Vec<(DVec3, DVec3)> {
         }
     }
     faces
+}
+
+/// The solver's plane tolerance: 1e-9 of the scene's diagonal. Points closer than this to a
+/// plane count as on it (occluder pruning; a spot this close to a receiver's plane lights
+/// nothing on it).
+pub(crate) fn plane_tolerance(scene: &Scene) -> f64 {
+    let (lo, hi) = scene.bounds();
+    1e-9 * (hi - lo).length().max(1e-300)
 }
 
 /// The tolerance of the tests that decide whether an emitting polygon and a receiver face each
