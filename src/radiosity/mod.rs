@@ -198,7 +198,7 @@ fn check_spot_peaks(scene: &Scene) -> Result<()> {
             }
             let d = distance_to_polygon(spot.position, poly);
             let peak = rho * i_max * h / (d * d * d);
-            if !(peak <= MAX_SPOT_RADIOSITY) {
+            if peak.is_nan() || peak > MAX_SPOT_RADIOSITY {
                 let name = scene
                     .objects
                     .get(poly.object as usize)
