@@ -151,7 +151,8 @@ impl RenderPlan {
 /// What a render job reports as it goes.
 #[derive(Debug)]
 pub enum RenderEvent<'a> {
-    /// A scene warning (a non-planar quad split, ...).
+    /// A warning: the scene's (a non-planar quad split, ...), or a frame with no polygon in
+    /// view ([`empty_view_warning`]).
     Warning(&'a str),
     /// A file was written.
     Wrote(&'a Path),
@@ -213,6 +214,14 @@ pub fn run_render(
     let mut staged: Vec<&Path> = Vec::new();
     for (k, (camera, png)) in plan.frames.iter().enumerate() {
         let frame = render_frame(&p, plan.method, camera, &plan.frame)?;
+        // A valid scene can still put nothing in view (every polygon behind the camera or
+        // outside its frustum): the image is drawn, but never silently as the background alone.
+        if frame.stats.pixels_shaded == 0 {
+            on(RenderEvent::Warning(&empty_view_warning(
+                &req.input,
+                plan.walkthrough.then_some(k),
+            )));
+        }
         if plan.walkthrough {
             image::write_png(png, frame.view(), exposure)?;
             on(RenderEvent::Wrote(png));
@@ -256,6 +265,17 @@ pub fn run_render(
         on(RenderEvent::Walkthrough(summary));
     }
     Ok(())
+}
+
+/// The warning of a frame in which no polygon is in view, so every pixel is the background:
+/// names the input and, in a walkthrough, the frame.
+pub fn empty_view_warning(input: &Path, walkthrough_frame: Option<usize>) -> String {
+    let frame = walkthrough_frame.map_or(String::new(), |k| format!(" (frame {k})"));
+    format!(
+        "{}{frame}: no polygon is in view (all behind the camera or outside its field of view): \
+         the image is only the background",
+        input.display()
+    )
 }
 
 /// The statistics written by `--stats`: the frame's counters and stage times, plus the

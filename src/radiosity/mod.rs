@@ -162,6 +162,7 @@ fn check_settings(scene: &Scene) -> Result<()> {
             format!("is {}, must be in 1..={MAX_SHADOW_RAYS}", s.shadow_rays),
         ));
     }
+    check_spot_peaks(scene)?;
     for (i, p) in scene.polygons.iter().enumerate() {
         if p.material as usize >= scene.materials.len() {
             return Err(Error::input(
@@ -171,6 +172,77 @@ fn check_settings(scene: &Scene) -> Result<()> {
         }
     }
     Ok(())
+}
+
+/// The largest radiosity a spot may put on a surface: samples, patches and pixels are f32
+/// (largest 3.4e38), and the reconstruction's slopes, patch coefficients and a pixel's sum of
+/// supersamples multiply a value by at most a few tens, so 1e30 keeps every stage finite with
+/// eight orders of magnitude to spare.
+pub const MAX_SPOT_RADIOSITY: f64 = 1e30;
+
+/// Refuses a spot that would light a surface beyond [`MAX_SPOT_RADIOSITY`], with an input
+/// error naming the spot, the polygon and the distance. Emitters cannot get there (emission is
+/// at most 1e9 and reflectance below 1, so radiosity stays below 1e9 / (1 - rho) < 1e26); a
+/// spot gives rho I cos(theta_s) / r^2 = rho I h / r^3 at height h above a polygon's plane,
+/// at most rho I h / d^3 with d >= h its distance from the polygon (cone and falloff left
+/// out: the bound is conservative). A spot within the solver's plane tolerance of the plane
+/// lights nothing on it ([`transfer`]), so it is not refused. Without this check a sample
+/// beyond the f32 range was zeroed by [`sanitize`]: a spot 1e-15 above a 1e-7 square drew a
+/// black image with exit 0.
+fn check_spot_peaks(scene: &Scene) -> Result<()> {
+    let eps = transfer::plane_tolerance(scene);
+    for (k, spot) in scene.spots.iter().enumerate() {
+        let i_max = spot.intensity.max_element();
+        if i_max <= 0.0 {
+            continue;
+        }
+        for (pi, poly) in scene.polygons.iter().enumerate() {
+            let rho = scene.materials[poly.material as usize]
+                .reflectance
+                .max_element();
+            let h = poly.normal.dot(spot.position - poly.corners[0]);
+            if rho <= 0.0 || h <= eps {
+                continue;
+            }
+            let d = distance_to_polygon(spot.position, poly);
+            let peak = rho * i_max * h / (d * d * d);
+            if peak.is_nan() || peak > MAX_SPOT_RADIOSITY {
+                let name = scene
+                    .objects
+                    .get(poly.object as usize)
+                    .map_or(format!("polygons[{pi}]"), |n| format!("`{n}`"));
+                return Err(Error::input(
+                    Location::file(&scene.source).with_key(format!("spots[{k}].position")),
+                    format!(
+                        "is {d:e} from polygon {name}: its radiosity there could reach                          rho I h / d^3 = {peak:e}, beyond {MAX_SPOT_RADIOSITY:e}, the most a                          solution holds (f32 samples); move the spot away or lower its                          intensity"
+                    ),
+                ));
+            }
+        }
+    }
+    Ok(())
+}
+
+/// Distance from `x` to the (planar, convex) polygon `p`.
+fn distance_to_polygon(x: DVec3, p: &crate::scene::Polygon) -> f64 {
+    let vs = p.vertices();
+    let h = p.normal.dot(x - vs[0]);
+    let foot = x - h * p.normal;
+    let inside = (0..vs.len()).all(|i| {
+        let (a, b) = (vs[i], vs[(i + 1) % vs.len()]);
+        (b - a).cross(foot - a).dot(p.normal) >= 0.0
+    });
+    if inside {
+        return h.abs();
+    }
+    (0..vs.len())
+        .map(|i| {
+            let (a, b) = (vs[i], vs[(i + 1) % vs.len()]);
+            let ab = b - a;
+            let t = ((x - a).dot(ab) / ab.length_squared()).clamp(0.0, 1.0);
+            (x - (a + t * ab)).length()
+        })
+        .fold(f64::INFINITY, f64::min)
 }
 
 /// Maps a non-finite or negative channel to 0 (documented clamp; never expected to trigger).

@@ -378,11 +378,10 @@ impl<'a> Cx<'a> {
         span: Range<usize>,
         key: &str,
     ) -> Result<()> {
-        let d = look_at - eye;
-        let size = eye.length().max(look_at.length()).max(1.0);
-        if d.length() <= 1e-12 * size {
+        if !view_direction_is_distinct(eye, look_at) {
             return Err(self.err(span, format!("{key}.look_at"), "equals the eye position"));
         }
+        let d = look_at - eye;
         let c = d.normalize().cross(up).length();
         if up.length() == 0.0 || c <= 1e-9 * up.length() {
             return Err(self.err(
@@ -403,7 +402,7 @@ impl<'a> Cx<'a> {
             Some(u) => (self.vec3(u, "camera.up")?, u.span()),
             None => (DVec3::Y, span.clone()),
         };
-        if look_at == eye || (look_at - eye).length() <= 1e-12 * eye.length().max(1.0) {
+        if !view_direction_is_distinct(eye, look_at) {
             return Err(self.err(c.look_at.span(), "camera.look_at", "equals camera.eye"));
         }
         self.pose(eye, look_at, up, up_span, "camera")?;
@@ -819,6 +818,16 @@ pub(crate) fn build_face(
         polygons,
         warning: None,
     })
+}
+
+/// Whether `look_at` is far enough from `eye` to give a view direction: apart by more than
+/// 1e-12 of their size (rounding cannot tell closer points apart), and the difference
+/// normalizable. The size has no floor, so a scene at any scale has a valid camera (a floor of
+/// one scene unit refused every camera of a scene 1e-12 units across as "equals the eye").
+fn view_direction_is_distinct(eye: DVec3, look_at: DVec3) -> bool {
+    let d = look_at - eye;
+    let size = eye.length().max(look_at.length());
+    d.length() > 1e-12 * size && d.normalize_or_zero().is_normalized()
 }
 
 #[cfg(test)]
