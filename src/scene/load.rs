@@ -62,6 +62,18 @@ pub fn load_scene(path: &Path) -> Result<Scene> {
 /// Validates the scene text `text`; `path` names it in messages and is the base of relative
 /// `[[obj]] file` paths.
 pub fn parse_scene(text: &str, path: &Path) -> Result<Scene> {
+    parse_scene_with(text, path, &crate::output::read_text)
+}
+
+/// How [`parse_scene_with`] reads an included OBJ or MTL file: its path (the scene's directory
+/// joined with the include's name) in, its text out.
+pub type ReadText<'r> = &'r dyn Fn(&Path) -> std::io::Result<String>;
+
+/// [`parse_scene`], reading the `[[obj]]` includes and their MTL files through `read` instead of
+/// the file system: the entry point for parsing OBJ and MTL text held in memory (the fuzz
+/// targets under `fuzz/` use it). The paths `read` is given are the ones messages name; an `Err`
+/// from it is reported like an unreadable file.
+pub fn parse_scene_with(text: &str, path: &Path, read: ReadText<'_>) -> Result<Scene> {
     let file: SceneFile = toml::from_str(text).map_err(|e| {
         let mut loc = Location::file(path);
         if let Some(span) = e.span() {
@@ -75,6 +87,7 @@ pub fn parse_scene(text: &str, path: &Path) -> Result<Scene> {
         warnings: Vec::new(),
         inputs: vec![path.to_path_buf()],
         newlines: std::cell::OnceCell::new(),
+        read,
     };
     cx.scene(file)
 }
@@ -98,6 +111,8 @@ pub(crate) struct Cx<'a> {
     pub(crate) inputs: Vec<std::path::PathBuf>,
     /// Byte offsets of the text's newlines, computed on first use by [`Cx::loc`].
     pub(crate) newlines: std::cell::OnceCell<Vec<usize>>,
+    /// Reads the included OBJ and MTL files.
+    pub(crate) read: ReadText<'a>,
 }
 
 /// The polygons one face became, and a warning if it was repaired.

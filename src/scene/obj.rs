@@ -50,7 +50,8 @@ pub(crate) fn include(
     let file = o.file.get_ref();
     let base = cx.path.parent().unwrap_or_else(|| Path::new(""));
     let obj_path = base.join(file);
-    let text = crate::output::read_text(&obj_path).map_err(|e| {
+    let read = cx.read;
+    let text = read(&obj_path).map_err(|e| {
         cx.err(
             o.file.span(),
             format!("{key}.file"),
@@ -109,7 +110,7 @@ pub(crate) fn include(
         .to_path_buf();
     let load_mtl = |name: &Path| -> tobj::MTLLoadResult {
         let mtl_path = obj_dir.join(name);
-        let mtl_text = match crate::output::read_text(&mtl_path) {
+        let mtl_text = match read(&mtl_path) {
             Ok(t) => {
                 mtl_read.borrow_mut().push(mtl_path.clone());
                 t
