@@ -673,6 +673,45 @@ fn obj_faces_are_validated_with_their_line() {
     assert_eq!(e.exit_code(), EXIT_BAD_INPUT);
 }
 
+/// An OBJ with one convex planar face of `n` corners on the unit circle.
+fn polygon_obj(n: usize) -> String {
+    let mut obj = String::from("mtllib m.mtl\n");
+    for k in 0..n {
+        let a = std::f64::consts::TAU * k as f64 / n as f64;
+        obj += &format!("v {:.7} {:.7} 0\n", a.cos(), a.sin());
+    }
+    obj += "g a\nusemtl lamp\nf";
+    for k in 1..=n {
+        obj += &format!(" {k}");
+    }
+    obj + "\n"
+}
+
+/// Regression: checking a face compares every pair of its corners, so one OBJ face of 30 000
+/// corners (a 200 kB file) took seconds to load; faces have at most `MAX_FACE_CORNERS`.
+#[test]
+fn huge_obj_face_is_refused_quickly_not_checked_quadratically() {
+    use pixelflow_sim::scene::load::MAX_FACE_CORNERS;
+    let dir = scratch("obj-huge-face");
+    let scene = write_obj(&dir, &polygon_obj(MAX_FACE_CORNERS), MTL);
+    let s = load_scene(&scene).unwrap();
+    check_invariants(&s);
+    assert_eq!(s.polygons.len(), MAX_FACE_CORNERS - 2);
+
+    for n in [MAX_FACE_CORNERS + 1, 30_000] {
+        let scene = write_obj(&dir, &polygon_obj(n), MTL);
+        let t = std::time::Instant::now();
+        let msg = load_scene(&scene).unwrap_err().to_string();
+        assert!(t.elapsed().as_secs_f64() < 1.0, "{:?}", t.elapsed());
+        let expect = format!(
+            "{}:{}: face 1 (group `a`, face 1): has {n} corners; a face has at most {MAX_FACE_CORNERS}",
+            dir.join("m.obj").display(),
+            n + 4
+        );
+        assert!(msg.starts_with(&expect), "{msg}");
+    }
+}
+
 #[test]
 fn obj_materials_are_imported_and_prefixed_on_clash() {
     let dir = scratch("obj-mat");

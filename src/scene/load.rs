@@ -50,6 +50,11 @@ pub const MIN_FOV_Y: f64 = 0.01;
 /// Most frames accepted in `[camera_path] frames`.
 pub const MAX_FRAMES: u32 = 1_000_000;
 
+/// Most corners of one face (an OBJ `f` statement; inline polygons have 3 or 4). Checking a
+/// face compares every pair of its corners, so the limit bounds that work (a 30 000-corner
+/// face took seconds) and the fan triangles one face becomes.
+pub const MAX_FACE_CORNERS: usize = 256;
+
 /// Reads and validates the scene file at `path`.
 ///
 /// A file that cannot be read is an [`Error::Input`] (exit code 2): it is the user's input.
@@ -710,8 +715,9 @@ fn known_names(by_name: &BTreeMap<String, u32>) -> String {
 ///   the best-fit plane (Newell normal through the centroid) over the longest diagonal. Within
 ///   [`PLANARITY_TOLERANCE`] the corners are projected onto that plane; beyond it the quad is
 ///   split along the c0-c2 diagonal into two triangles, with a warning.
-/// - 5 or more (OBJ faces only): must be convex and planar within the same tolerance; then the
-///   corners are projected and fan-triangulated from the first corner.
+/// - 5 or more (OBJ faces only, at most [`MAX_FACE_CORNERS`]): must be convex and planar within
+///   the same tolerance; then the corners are projected and fan-triangulated from the first
+///   corner.
 pub(crate) fn build_face(
     corners: &[DVec3],
     material: u32,
@@ -720,6 +726,11 @@ pub(crate) fn build_face(
     let n = corners.len();
     if n < 3 {
         return Err(format!("has {n} corners; a face needs at least 3"));
+    }
+    if n > MAX_FACE_CORNERS {
+        return Err(format!(
+            "has {n} corners; a face has at most {MAX_FACE_CORNERS} (split it into smaller faces)"
+        ));
     }
     if let Some(c) = corners
         .iter()
