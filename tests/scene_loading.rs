@@ -736,6 +736,29 @@ fn many_usemtl_statements_are_checked_in_linear_time() {
     );
 }
 
+/// Regression: each include of an OBJ whose material name is taken searched `<stem>/<name>`,
+/// `#2`, `#3`, ... from the start, so 8000 includes of one OBJ (a 200 kB scene) took 10 s.
+#[test]
+fn many_includes_of_one_obj_are_named_in_linear_time() {
+    let n = 8000;
+    let dir = scratch("obj-many-includes");
+    let obj = "mtllib m.mtl\nv 0 0 0\nv 1 0 0\nv 1 1 0\nusemtl lamp\nf 1 2 3\n";
+    write_obj(&dir, obj, MTL);
+    let mut text = String::from(OBJ_SCENE);
+    for _ in 1..n {
+        text += "\n[[obj]]\nfile = \"m.obj\"\n";
+    }
+    let scene = dir.join("s.toml");
+    std::fs::write(&scene, text).unwrap();
+    let t = std::time::Instant::now();
+    let s = load_scene(&scene).unwrap();
+    assert!(t.elapsed().as_secs_f64() < 5.0, "{:?}", t.elapsed());
+    assert_eq!(s.polygons.len(), n);
+    let names: Vec<&str> = s.materials.iter().map(|m| m.name.as_str()).collect();
+    assert_eq!(names[..4], ["grey", "lamp", "m/lamp", "m/lamp#2"]);
+    assert_eq!(names.last(), Some(&format!("m/lamp#{}", n - 1).as_str()));
+}
+
 #[test]
 fn obj_materials_are_imported_and_prefixed_on_clash() {
     let dir = scratch("obj-mat");

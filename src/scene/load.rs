@@ -93,6 +93,7 @@ pub fn parse_scene_with(text: &str, path: &Path, read: ReadText<'_>) -> Result<S
         inputs: vec![path.to_path_buf()],
         newlines: std::cell::OnceCell::new(),
         read,
+        next_suffix: BTreeMap::new(),
     };
     cx.scene(file)
 }
@@ -118,6 +119,10 @@ pub(crate) struct Cx<'a> {
     pub(crate) newlines: std::cell::OnceCell<Vec<usize>>,
     /// Reads the included OBJ and MTL files.
     pub(crate) read: ReadText<'a>,
+    /// For each `<obj file stem>/<name>` an imported material was renamed to, the next `#k`
+    /// suffix to try: every smaller one is taken, so renaming is not quadratic in the number
+    /// of includes of one file.
+    pub(crate) next_suffix: BTreeMap<String, usize>,
 }
 
 /// The polygons one face became, and a warning if it was repaired.
