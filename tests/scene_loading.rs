@@ -759,6 +759,49 @@ fn many_includes_of_one_obj_are_named_in_linear_time() {
     assert_eq!(names.last(), Some(&format!("m/lamp#{}", n - 1).as_str()));
 }
 
+/// Regression: tobj calls the MTL loader for every `mtllib` statement, and each call read and
+/// parsed the file again (and duplicated its materials), so an OBJ repeating `mtllib` 2000 times
+/// with a 2000-material MTL (80 kB in all) took 15 s. Each MTL is now read once per OBJ, and an
+/// OBJ names at most `MAX_MTL_FILES` files.
+#[test]
+fn repeated_mtllib_reads_the_mtl_once() {
+    use pixelflow_sim::scene::load::MAX_MTL_FILES;
+    let dir = scratch("obj-repeated-mtllib");
+    let mut mtl = String::from(MTL);
+    for k in 0..2000 {
+        mtl += &format!("newmtl m{k}\nKd 0.5 0.5 0.5\n");
+    }
+    let mut obj = String::from("v 0 0 0\nv 1 0 0\nv 1 1 0\n");
+    for _ in 0..2000 {
+        obj += "mtllib m.mtl\nmtllib ./m.mtl\n";
+    }
+    obj += "usemtl lamp\nf 1 2 3\nmtllib m.mtl\nusemtl lamp\nf 1 3 2\n";
+    let scene = write_obj(&dir, &obj, &mtl);
+    let t = std::time::Instant::now();
+    let s = load_scene(&scene).unwrap();
+    assert!(t.elapsed().as_secs_f64() < 5.0, "{:?}", t.elapsed());
+    // Both faces share the one imported `lamp` (a second read made a second copy, `m/lamp`).
+    let names: Vec<&str> = s.materials.iter().map(|m| m.name.as_str()).collect();
+    assert_eq!(names, ["grey", "lamp"]);
+    assert_eq!(s.polygons.len(), 2);
+    assert_eq!(s.inputs.len(), 3, "{:?}", s.inputs);
+
+    // More distinct MTL files than the limit.
+    let mut obj = String::from("v 0 0 0\nv 1 0 0\nv 1 1 0\n");
+    for k in 0..=MAX_MTL_FILES {
+        std::fs::write(dir.join(format!("a{k}.mtl")), MTL).unwrap();
+        obj += &format!("mtllib a{k}.mtl\n");
+    }
+    obj += "usemtl lamp\nf 1 2 3\n";
+    let scene = write_obj(&dir, &obj, MTL);
+    let msg = load_scene(&scene).unwrap_err().to_string();
+    let expect = format!(
+        "{}: mtllib: names more than {MAX_MTL_FILES} MTL files",
+        dir.join("m.obj").display()
+    );
+    assert_eq!(msg, expect);
+}
+
 #[test]
 fn obj_materials_are_imported_and_prefixed_on_clash() {
     let dir = scratch("obj-mat");

@@ -55,6 +55,10 @@ pub const MAX_FRAMES: u32 = 1_000_000;
 /// face took seconds) and the fan triangles one face becomes.
 pub const MAX_FACE_CORNERS: usize = 256;
 
+/// Most MTL files one OBJ include may name (`mtllib`); each is read once, however often it is
+/// named, so this bounds the MTL text read for one OBJ.
+pub const MAX_MTL_FILES: usize = 64;
+
 /// Reads and validates the scene file at `path`.
 ///
 /// A file that cannot be read is an [`Error::Input`] (exit code 2): it is the user's input.

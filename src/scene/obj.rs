@@ -27,7 +27,7 @@
 //! most 7 significant digits therefore load as written.
 
 use super::format::{ObjSection, ScaleSpec};
-use super::load::{build_face, check_emission, check_reflectance, in_range, Cx};
+use super::load::{build_face, check_emission, check_reflectance, in_range, Cx, MAX_MTL_FILES};
 use super::{Material, Polygon};
 use crate::error::{Error, Location, Result};
 use glam::{DMat3, DVec3};
@@ -99,7 +99,13 @@ pub(crate) fn include(
         ..Default::default()
     };
     // tobj reads the MTL through this loader so that each MTL is checked first (see
-    // `check_mtl`), and an unreadable MTL is reported by name.
+    // `check_mtl`), and an unreadable MTL is reported by name. Each MTL file is read once:
+    // tobj calls the loader for every `mtllib` statement, and reading the file again for each
+    // made an OBJ repeating one `mtllib` line quadratic (2000 lines of a 2000-material MTL took
+    // 15 s, and each repeat duplicated every material). A file named again adds no materials
+    // (tobj already has them), and an OBJ names at most `MAX_MTL_FILES` files (the bound on
+    // reading one file under several spellings of its path).
+    let mtl_seen: RefCell<BTreeSet<std::path::PathBuf>> = RefCell::new(BTreeSet::new());
     let mtl_problem: RefCell<Option<Error>> = RefCell::new(None);
     let mtl_unreadable: RefCell<Option<String>> = RefCell::new(None);
     let mtl_read: RefCell<Vec<std::path::PathBuf>> = RefCell::new(Vec::new());
@@ -110,6 +116,19 @@ pub(crate) fn include(
         .to_path_buf();
     let load_mtl = |name: &Path| -> tobj::MTLLoadResult {
         let mtl_path = obj_dir.join(name);
+        {
+            let mut seen = mtl_seen.borrow_mut();
+            if !seen.insert(mtl_path.components().collect()) {
+                return Ok((Vec::new(), Default::default()));
+            }
+            if seen.len() > MAX_MTL_FILES {
+                mtl_problem.borrow_mut().get_or_insert(Error::input(
+                    Location::file(&obj_path).with_key("mtllib"),
+                    format!("names more than {MAX_MTL_FILES} MTL files"),
+                ));
+                return Err(tobj::LoadError::MaterialParseError);
+            }
+        }
         let mtl_text = match read(&mtl_path) {
             Ok(t) => {
                 mtl_read.borrow_mut().push(mtl_path.clone());
