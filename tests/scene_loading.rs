@@ -673,6 +673,14 @@ fn obj_faces_are_validated_with_their_line() {
     assert_eq!(e.exit_code(), EXIT_BAD_INPUT);
 }
 
+/// Asserts that loading a large input took `t` or less than the bound of the regression tests
+/// of quadratic loading: 2 s in release builds (those inputs loaded in 5 to 15 s before their
+/// fixes and in 0.3 s after), 30 s in debug builds.
+fn assert_linear_time(t: std::time::Instant) {
+    let bound = if cfg!(debug_assertions) { 30.0 } else { 2.0 };
+    assert!(t.elapsed().as_secs_f64() < bound, "{:?}", t.elapsed());
+}
+
 /// An OBJ with one convex planar face of `n` corners on the unit circle.
 fn polygon_obj(n: usize) -> String {
     let mut obj = String::from("mtllib m.mtl\n");
@@ -702,7 +710,7 @@ fn huge_obj_face_is_refused_quickly_not_checked_quadratically() {
         let scene = write_obj(&dir, &polygon_obj(n), MTL);
         let t = std::time::Instant::now();
         let msg = load_scene(&scene).unwrap_err().to_string();
-        assert!(t.elapsed().as_secs_f64() < 1.0, "{:?}", t.elapsed());
+        assert_linear_time(t);
         let expect = format!(
             "{}:{}: face 1 (group `a`, face 1): has {n} corners; a face has at most {MAX_FACE_CORNERS}",
             dir.join("m.obj").display(),
@@ -728,7 +736,7 @@ fn many_usemtl_statements_are_checked_in_linear_time() {
     let scene = write_obj(&dir, &obj, &mtl);
     let t = std::time::Instant::now();
     let s = load_scene(&scene).unwrap();
-    assert!(t.elapsed().as_secs_f64() < 5.0, "{:?}", t.elapsed());
+    assert_linear_time(t);
     assert_eq!(s.polygons.len(), 1);
     assert_eq!(
         s.materials[s.polygons[0].material as usize].name,
@@ -752,7 +760,7 @@ fn many_includes_of_one_obj_are_named_in_linear_time() {
     std::fs::write(&scene, text).unwrap();
     let t = std::time::Instant::now();
     let s = load_scene(&scene).unwrap();
-    assert!(t.elapsed().as_secs_f64() < 5.0, "{:?}", t.elapsed());
+    assert_linear_time(t);
     assert_eq!(s.polygons.len(), n);
     let names: Vec<&str> = s.materials.iter().map(|m| m.name.as_str()).collect();
     assert_eq!(names[..4], ["grey", "lamp", "m/lamp", "m/lamp#2"]);
@@ -779,7 +787,7 @@ fn repeated_mtllib_reads_the_mtl_once() {
     let scene = write_obj(&dir, &obj, &mtl);
     let t = std::time::Instant::now();
     let s = load_scene(&scene).unwrap();
-    assert!(t.elapsed().as_secs_f64() < 5.0, "{:?}", t.elapsed());
+    assert_linear_time(t);
     // Both faces share the one imported `lamp` (a second read made a second copy, `m/lamp`).
     let names: Vec<&str> = s.materials.iter().map(|m| m.name.as_str()).collect();
     assert_eq!(names, ["grey", "lamp"]);
