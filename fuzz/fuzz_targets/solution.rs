@@ -22,7 +22,7 @@ use pixelflow_sim::reconstruction::compact::CompactReconstruction;
 use pixelflow_sim::reconstruction::Estimator;
 use pixelflow_sim::scene::{load_scene, Scene};
 
-/// The scenes a solution file is read against (fuzz/seed.sh solves each of them).
+/// The scenes a solution file is read against (fuzz/seed.sh solves the first two).
 const SCENES: [&str; 4] = [
     "fuzz/tiny.toml",
     "scenes/two-spots.toml",
