@@ -673,6 +673,143 @@ fn obj_faces_are_validated_with_their_line() {
     assert_eq!(e.exit_code(), EXIT_BAD_INPUT);
 }
 
+/// Asserts that loading a large input took `t` or less than the bound of the regression tests
+/// of quadratic loading: 2 s in release builds (those inputs loaded in 5 to 15 s before their
+/// fixes and in 0.3 s after), 30 s in debug builds.
+fn assert_linear_time(t: std::time::Instant) {
+    let bound = if cfg!(debug_assertions) { 30.0 } else { 2.0 };
+    assert!(t.elapsed().as_secs_f64() < bound, "{:?}", t.elapsed());
+}
+
+/// An OBJ with one convex planar face of `n` corners on the unit circle.
+fn polygon_obj(n: usize) -> String {
+    let mut obj = String::from("mtllib m.mtl\n");
+    for k in 0..n {
+        let a = std::f64::consts::TAU * k as f64 / n as f64;
+        obj += &format!("v {:.7} {:.7} 0\n", a.cos(), a.sin());
+    }
+    obj += "g a\nusemtl lamp\nf";
+    for k in 1..=n {
+        obj += &format!(" {k}");
+    }
+    obj + "\n"
+}
+
+/// Regression: checking a face compares every pair of its corners, so one OBJ face of 30 000
+/// corners (a 200 kB file) took seconds to load; faces have at most `MAX_FACE_CORNERS`.
+#[test]
+fn huge_obj_face_is_refused_quickly_not_checked_quadratically() {
+    use pixelflow_sim::scene::load::MAX_FACE_CORNERS;
+    let dir = scratch("obj-huge-face");
+    let scene = write_obj(&dir, &polygon_obj(MAX_FACE_CORNERS), MTL);
+    let s = load_scene(&scene).unwrap();
+    check_invariants(&s);
+    assert_eq!(s.polygons.len(), MAX_FACE_CORNERS - 2);
+
+    for n in [MAX_FACE_CORNERS + 1, 30_000] {
+        let scene = write_obj(&dir, &polygon_obj(n), MTL);
+        let t = std::time::Instant::now();
+        let msg = load_scene(&scene).unwrap_err().to_string();
+        assert_linear_time(t);
+        let expect = format!(
+            "{}:{}: face 1 (group `a`, face 1): has {n} corners; a face has at most {MAX_FACE_CORNERS}",
+            dir.join("m.obj").display(),
+            n + 4
+        );
+        assert!(msg.starts_with(&expect), "{msg}");
+    }
+}
+
+/// Regression: every `usemtl` (and every `materials` override) was checked by scanning all the
+/// MTL's materials, so 50 000 of each (a 1.4 MB OBJ and MTL) took 13 s to load in release.
+#[test]
+fn many_usemtl_statements_are_checked_in_linear_time() {
+    let n = 50_000;
+    let dir = scratch("obj-many-usemtl");
+    let mut mtl = String::new();
+    let mut obj = String::from("mtllib m.mtl\nv 0 0 0\nv 1 0 0\nv 1 1 0\n");
+    for k in 0..n {
+        mtl += &format!("newmtl m{k}\nKd 0.5 0.5 0.5\nKe 1 1 1\n");
+        obj += &format!("usemtl m{k}\n");
+    }
+    obj += "f 1 2 3\n";
+    let scene = write_obj(&dir, &obj, &mtl);
+    let t = std::time::Instant::now();
+    let s = load_scene(&scene).unwrap();
+    assert_linear_time(t);
+    assert_eq!(s.polygons.len(), 1);
+    assert_eq!(
+        s.materials[s.polygons[0].material as usize].name,
+        format!("m{}", n - 1)
+    );
+}
+
+/// Regression: each include of an OBJ whose material name is taken searched `<stem>/<name>`,
+/// `#2`, `#3`, ... from the start, so 8000 includes of one OBJ (a 200 kB scene) took 10 s.
+#[test]
+fn many_includes_of_one_obj_are_named_in_linear_time() {
+    let n = 8000;
+    let dir = scratch("obj-many-includes");
+    let obj = "mtllib m.mtl\nv 0 0 0\nv 1 0 0\nv 1 1 0\nusemtl lamp\nf 1 2 3\n";
+    write_obj(&dir, obj, MTL);
+    let mut text = String::from(OBJ_SCENE);
+    for _ in 1..n {
+        text += "\n[[obj]]\nfile = \"m.obj\"\n";
+    }
+    let scene = dir.join("s.toml");
+    std::fs::write(&scene, text).unwrap();
+    let t = std::time::Instant::now();
+    let s = load_scene(&scene).unwrap();
+    assert_linear_time(t);
+    assert_eq!(s.polygons.len(), n);
+    let names: Vec<&str> = s.materials.iter().map(|m| m.name.as_str()).collect();
+    assert_eq!(names[..4], ["grey", "lamp", "m/lamp", "m/lamp#2"]);
+    assert_eq!(names.last(), Some(&format!("m/lamp#{}", n - 1).as_str()));
+}
+
+/// Regression: tobj calls the MTL loader for every `mtllib` statement, and each call read and
+/// parsed the file again (and duplicated its materials), so an OBJ repeating `mtllib` 2000 times
+/// with a 2000-material MTL (80 kB in all) took 15 s. Each MTL is now read once per OBJ, and an
+/// OBJ names at most `MAX_MTL_FILES` files.
+#[test]
+fn repeated_mtllib_reads_the_mtl_once() {
+    use pixelflow_sim::scene::load::MAX_MTL_FILES;
+    let dir = scratch("obj-repeated-mtllib");
+    let mut mtl = String::from(MTL);
+    for k in 0..2000 {
+        mtl += &format!("newmtl m{k}\nKd 0.5 0.5 0.5\n");
+    }
+    let mut obj = String::from("v 0 0 0\nv 1 0 0\nv 1 1 0\n");
+    for _ in 0..2000 {
+        obj += "mtllib m.mtl\nmtllib ./m.mtl\n";
+    }
+    obj += "usemtl lamp\nf 1 2 3\nmtllib m.mtl\nusemtl lamp\nf 1 3 2\n";
+    let scene = write_obj(&dir, &obj, &mtl);
+    let t = std::time::Instant::now();
+    let s = load_scene(&scene).unwrap();
+    assert_linear_time(t);
+    // Both faces share the one imported `lamp` (a second read made a second copy, `m/lamp`).
+    let names: Vec<&str> = s.materials.iter().map(|m| m.name.as_str()).collect();
+    assert_eq!(names, ["grey", "lamp"]);
+    assert_eq!(s.polygons.len(), 2);
+    assert_eq!(s.inputs.len(), 3, "{:?}", s.inputs);
+
+    // More distinct MTL files than the limit.
+    let mut obj = String::from("v 0 0 0\nv 1 0 0\nv 1 1 0\n");
+    for k in 0..=MAX_MTL_FILES {
+        std::fs::write(dir.join(format!("a{k}.mtl")), MTL).unwrap();
+        obj += &format!("mtllib a{k}.mtl\n");
+    }
+    obj += "usemtl lamp\nf 1 2 3\n";
+    let scene = write_obj(&dir, &obj, MTL);
+    let msg = load_scene(&scene).unwrap_err().to_string();
+    let expect = format!(
+        "{}: mtllib: names more than {MAX_MTL_FILES} MTL files",
+        dir.join("m.obj").display()
+    );
+    assert_eq!(msg, expect);
+}
+
 #[test]
 fn obj_materials_are_imported_and_prefixed_on_clash() {
     let dir = scratch("obj-mat");

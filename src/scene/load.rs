@@ -50,6 +50,15 @@ pub const MIN_FOV_Y: f64 = 0.01;
 /// Most frames accepted in `[camera_path] frames`.
 pub const MAX_FRAMES: u32 = 1_000_000;
 
+/// Most corners of one face (an OBJ `f` statement; inline polygons have 3 or 4). Checking a
+/// face compares every pair of its corners, so the limit bounds that work (a 30 000-corner
+/// face took seconds) and the fan triangles one face becomes.
+pub const MAX_FACE_CORNERS: usize = 256;
+
+/// Most MTL files one OBJ include may name (`mtllib`); each is read once, however often it is
+/// named, so this bounds the MTL text read for one OBJ.
+pub const MAX_MTL_FILES: usize = 64;
+
 /// Reads and validates the scene file at `path`.
 ///
 /// A file that cannot be read is an [`Error::Input`] (exit code 2): it is the user's input.
@@ -62,6 +71,18 @@ pub fn load_scene(path: &Path) -> Result<Scene> {
 /// Validates the scene text `text`; `path` names it in messages and is the base of relative
 /// `[[obj]] file` paths.
 pub fn parse_scene(text: &str, path: &Path) -> Result<Scene> {
+    parse_scene_with(text, path, &crate::output::read_text)
+}
+
+/// How [`parse_scene_with`] reads an included OBJ or MTL file: its path (the scene's directory
+/// joined with the include's name) in, its text out.
+pub type ReadText<'r> = &'r dyn Fn(&Path) -> std::io::Result<String>;
+
+/// [`parse_scene`], reading the `[[obj]]` includes and their MTL files through `read` instead of
+/// the file system: the entry point for parsing OBJ and MTL text held in memory (the fuzz
+/// targets under `fuzz/` use it). The paths `read` is given are the ones messages name; an `Err`
+/// from it is reported like an unreadable file.
+pub fn parse_scene_with(text: &str, path: &Path, read: ReadText<'_>) -> Result<Scene> {
     let file: SceneFile = toml::from_str(text).map_err(|e| {
         let mut loc = Location::file(path);
         if let Some(span) = e.span() {
@@ -75,6 +96,8 @@ pub fn parse_scene(text: &str, path: &Path) -> Result<Scene> {
         warnings: Vec::new(),
         inputs: vec![path.to_path_buf()],
         newlines: std::cell::OnceCell::new(),
+        read,
+        next_suffix: BTreeMap::new(),
     };
     cx.scene(file)
 }
@@ -98,6 +121,12 @@ pub(crate) struct Cx<'a> {
     pub(crate) inputs: Vec<std::path::PathBuf>,
     /// Byte offsets of the text's newlines, computed on first use by [`Cx::loc`].
     pub(crate) newlines: std::cell::OnceCell<Vec<usize>>,
+    /// Reads the included OBJ and MTL files.
+    pub(crate) read: ReadText<'a>,
+    /// For each `<obj file stem>/<name>` an imported material was renamed to, the next `#k`
+    /// suffix to try: every smaller one is taken, so renaming is not quadratic in the number
+    /// of includes of one file.
+    pub(crate) next_suffix: BTreeMap<String, usize>,
 }
 
 /// The polygons one face became, and a warning if it was repaired.
@@ -694,8 +723,9 @@ fn known_names(by_name: &BTreeMap<String, u32>) -> String {
 ///   the best-fit plane (Newell normal through the centroid) over the longest diagonal. Within
 ///   [`PLANARITY_TOLERANCE`] the corners are projected onto that plane; beyond it the quad is
 ///   split along the c0-c2 diagonal into two triangles, with a warning.
-/// - 5 or more (OBJ faces only): must be convex and planar within the same tolerance; then the
-///   corners are projected and fan-triangulated from the first corner.
+/// - 5 or more (OBJ faces only, at most [`MAX_FACE_CORNERS`]): must be convex and planar within
+///   the same tolerance; then the corners are projected and fan-triangulated from the first
+///   corner.
 pub(crate) fn build_face(
     corners: &[DVec3],
     material: u32,
@@ -704,6 +734,11 @@ pub(crate) fn build_face(
     let n = corners.len();
     if n < 3 {
         return Err(format!("has {n} corners; a face needs at least 3"));
+    }
+    if n > MAX_FACE_CORNERS {
+        return Err(format!(
+            "has {n} corners; a face has at most {MAX_FACE_CORNERS} (split it into smaller faces)"
+        ));
     }
     if let Some(c) = corners
         .iter()

@@ -24,7 +24,7 @@ pub mod format;
 pub mod load;
 mod obj;
 
-pub use load::{load_scene, parse_scene};
+pub use load::{load_scene, parse_scene, parse_scene_with};
 
 /// Largest image width or height accepted, in pixels.
 pub const MAX_IMAGE_DIM: u32 = 16384;

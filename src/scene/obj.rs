@@ -27,12 +27,12 @@
 //! most 7 significant digits therefore load as written.
 
 use super::format::{ObjSection, ScaleSpec};
-use super::load::{build_face, check_emission, check_reflectance, in_range, Cx};
+use super::load::{build_face, check_emission, check_reflectance, in_range, Cx, MAX_MTL_FILES};
 use super::{Material, Polygon};
 use crate::error::{Error, Location, Result};
 use glam::{DMat3, DVec3};
 use std::cell::RefCell;
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, BTreeSet};
 use std::path::Path;
 use toml::Spanned;
 
@@ -50,7 +50,8 @@ pub(crate) fn include(
     let file = o.file.get_ref();
     let base = cx.path.parent().unwrap_or_else(|| Path::new(""));
     let obj_path = base.join(file);
-    let text = crate::output::read_text(&obj_path).map_err(|e| {
+    let read = cx.read;
+    let text = read(&obj_path).map_err(|e| {
         cx.err(
             o.file.span(),
             format!("{key}.file"),
@@ -98,7 +99,13 @@ pub(crate) fn include(
         ..Default::default()
     };
     // tobj reads the MTL through this loader so that each MTL is checked first (see
-    // `check_mtl`), and an unreadable MTL is reported by name.
+    // `check_mtl`), and an unreadable MTL is reported by name. Each MTL file is read once:
+    // tobj calls the loader for every `mtllib` statement, and reading the file again for each
+    // made an OBJ repeating one `mtllib` line quadratic (2000 lines of a 2000-material MTL took
+    // 15 s, and each repeat duplicated every material). A file named again adds no materials
+    // (tobj already has them), and an OBJ names at most `MAX_MTL_FILES` files (the bound on
+    // reading one file under several spellings of its path).
+    let mtl_seen: RefCell<BTreeSet<std::path::PathBuf>> = RefCell::new(BTreeSet::new());
     let mtl_problem: RefCell<Option<Error>> = RefCell::new(None);
     let mtl_unreadable: RefCell<Option<String>> = RefCell::new(None);
     let mtl_read: RefCell<Vec<std::path::PathBuf>> = RefCell::new(Vec::new());
@@ -109,7 +116,20 @@ pub(crate) fn include(
         .to_path_buf();
     let load_mtl = |name: &Path| -> tobj::MTLLoadResult {
         let mtl_path = obj_dir.join(name);
-        let mtl_text = match crate::output::read_text(&mtl_path) {
+        {
+            let mut seen = mtl_seen.borrow_mut();
+            if !seen.insert(mtl_path.components().collect()) {
+                return Ok((Vec::new(), Default::default()));
+            }
+            if seen.len() > MAX_MTL_FILES {
+                mtl_problem.borrow_mut().get_or_insert(Error::input(
+                    Location::file(&obj_path).with_key("mtllib"),
+                    format!("names more than {MAX_MTL_FILES} MTL files"),
+                ));
+                return Err(tobj::LoadError::MaterialParseError);
+            }
+        }
+        let mtl_text = match read(&mtl_path) {
             Ok(t) => {
                 mtl_read.borrow_mut().push(mtl_path.clone());
                 t
@@ -148,12 +168,16 @@ pub(crate) fn include(
         Err(e) => (Vec::new(), Some(e)),
     };
 
+    // The MTL materials' names, looked up once per `usemtl` and per override (a scan of the
+    // materials for each made a file with many of both quadratic: 50 000 of each took 13 s).
+    let mtl_names: BTreeSet<&str> = mtl_materials.iter().map(|m| m.name.as_str()).collect();
+
     // Material overrides: every key must be an MTL material, every value a scene material.
     let mut overrides: BTreeMap<String, u32> = BTreeMap::new();
     if let Some(map) = &o.materials {
         for (from, to) in map.get_ref() {
             let mkey = format!("{key}.materials.{from}");
-            if !mtl_materials.iter().any(|m| &m.name == from) {
+            if !mtl_names.contains(from.as_str()) {
                 return Err(cx.err(
                     map.span(),
                     mkey,
@@ -195,7 +219,7 @@ pub(crate) fn include(
             continue;
         }
         let name = t["usemtl".len()..].trim();
-        if !mtl_materials.iter().any(|m| m.name == name) {
+        if !mtl_names.contains(name) {
             let why = match &mtl_error {
                 Some(e) => format!("its MTL file could not be loaded: {e}"),
                 None => "no MTL file of this OBJ defines it".to_string(),
@@ -281,14 +305,23 @@ pub(crate) fn include(
                     check_emission(emission)
                         .map_err(|msg| Error::input(mloc(src.and_then(|s| s.ke), "Ke"), msg))?;
                     let mut name = m.name.clone();
-                    let mut k = 1;
-                    while by_name.contains_key(&name) {
-                        name = if k == 1 {
-                            format!("{stem}/{}", m.name)
-                        } else {
-                            format!("{stem}/{}#{k}", m.name)
-                        };
-                        k += 1;
+                    if by_name.contains_key(&name) {
+                        // `<stem>/<name>`, then `#2`, `#3`, ...: the search resumes where the
+                        // last one for this base stopped (scanning from 1 again made 8000
+                        // includes of one OBJ take 10 s).
+                        let base = format!("{stem}/{}", m.name);
+                        let k = cx.next_suffix.entry(base.clone()).or_insert(1);
+                        loop {
+                            name = if *k == 1 {
+                                base.clone()
+                            } else {
+                                format!("{base}#{k}")
+                            };
+                            *k += 1;
+                            if !by_name.contains_key(&name) {
+                                break;
+                            }
+                        }
                     }
                     let idx = materials.len() as u32;
                     by_name.insert(name.clone(), idx);

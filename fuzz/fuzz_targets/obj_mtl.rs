@@ -1,0 +1,62 @@
+//! Fuzz target `obj_mtl`: the OBJ and MTL readers (tobj and the validation in
+//! `scene/obj.rs`).
+//!
+//! The input is `OBJ text` `0x00` `MTL text` (no `0x00`: no MTL file). A fixed scene includes
+//! the OBJ as `fuzz.obj`, with a default material for faces without `usemtl` and a spot light,
+//! so every valid OBJ loads; every MTL file the OBJ names (`mtllib`) reads as the MTL text.
+//! Nothing touches the file system ([`pixelflow_sim::scene::parse_scene_with`]).
+#![no_main]
+
+use std::path::Path;
+
+use libfuzzer_sys::fuzz_target;
+
+const SCENE: &str = r#"
+[camera]
+eye = [0.0, 1.0, 4.0]
+look_at = [0.0, 1.0, 0.0]
+fov_y = 40.0
+
+[[materials]]
+name = "fallback"
+reflectance = [0.5, 0.5, 0.5]
+
+[[obj]]
+file = "fuzz.obj"
+default_material = "fallback"
+
+[[spots]]
+position = [0.0, 3.0, 0.0]
+direction = [0.0, -1.0, 0.0]
+intensity = [1.0, 1.0, 1.0]
+half_angle = 60.0
+"#;
+
+fn utf8(b: &[u8]) -> std::io::Result<String> {
+    String::from_utf8(b.to_vec())
+        .map_err(|_| std::io::Error::new(std::io::ErrorKind::InvalidData, "not UTF-8 text"))
+}
+
+fuzz_target!(|data: &[u8]| {
+    let (obj, mtl) = match data.iter().position(|&b| b == 0) {
+        Some(k) => (&data[..k], Some(&data[k + 1..])),
+        None => (data, None),
+    };
+    let read = |p: &Path| -> std::io::Result<String> {
+        if p.file_name().is_some_and(|n| n == "fuzz.obj") {
+            utf8(obj)
+        } else {
+            match mtl {
+                Some(m) => utf8(m),
+                None => Err(std::io::ErrorKind::NotFound.into()),
+            }
+        }
+    };
+    let path = Path::new("fuzz-dir/fuzz.toml");
+    match pixelflow_sim::scene::parse_scene_with(SCENE, path, &read) {
+        Ok(scene) => {
+            let _ = pixelflow_sim::report::summarize(&scene).to_string();
+        }
+        Err(e) => assert!(!e.to_string().is_empty()),
+    }
+});

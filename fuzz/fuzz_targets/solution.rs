@@ -1,0 +1,107 @@
+//! Fuzz target `solution`: the solution-file reader and the reconstruction `render` builds
+//! from what it decodes.
+//!
+//! The first input byte chooses the scene the file is read against (its low bits index
+//! [`SCENES`]) and, with its high bit set, repairs the envelope of the rest (format version, the
+//! path and payload lengths, the scene hash, the checksum) so that mutations reach the payload
+//! decoder instead of stopping at the checksum. The rest is the solution file's bytes.
+//!
+//! When the file decodes, the target does what `render` does with it: decode the stored
+//! compact RRPs (checking their polygon count against the scene), or when there are none build
+//! them from the samples; and it builds the compact RRPs from the samples in any case (what
+//! `--estimator` other than the default does) and expands every patch. A file that decodes but
+//! is inconsistent must give an `Err`, never a panic.
+#![no_main]
+
+use std::path::Path;
+use std::sync::OnceLock;
+
+use libfuzzer_sys::fuzz_target;
+use pixelflow_sim::radiosity::{file, scene_hash, Fnv};
+use pixelflow_sim::reconstruction::compact::CompactReconstruction;
+use pixelflow_sim::reconstruction::Estimator;
+use pixelflow_sim::scene::{load_scene, Scene};
+
+/// The scenes a solution file is read against (fuzz/seed.sh solves the first two).
+const SCENES: [&str; 4] = [
+    "fuzz/tiny.toml",
+    "scenes/two-spots.toml",
+    "scenes/two-spots-narrow.toml",
+    "scenes/cornell-box.toml",
+];
+
+fn scenes() -> &'static Vec<Scene> {
+    static S: OnceLock<Vec<Scene>> = OnceLock::new();
+    S.get_or_init(|| {
+        let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
+        SCENES
+            .iter()
+            .map(|s| load_scene(&root.join(s)).expect("the shipped scenes load"))
+            .collect()
+    })
+}
+
+/// Header: magic 8, version 4, path_len 4, payload_len 8, scene_hash 8.
+const HEADER: usize = 32;
+
+/// Makes the envelope of `b` valid for `scene`: version, lengths, hash and checksum.
+fn repair(b: &mut [u8], scene: &Scene) {
+    if b.len() < HEADER + 8 {
+        return;
+    }
+    let avail = b.len() - HEADER - 8;
+    let path_len = (u32::from_le_bytes([b[12], b[13], b[14], b[15]]) as usize).min(avail);
+    b[..8].copy_from_slice(file::MAGIC);
+    b[8..12].copy_from_slice(&file::FORMAT_VERSION.to_le_bytes());
+    b[12..16].copy_from_slice(&(path_len as u32).to_le_bytes());
+    b[16..24].copy_from_slice(&((avail - path_len) as u64).to_le_bytes());
+    b[24..32].copy_from_slice(&scene_hash(scene).to_le_bytes());
+    let body = b.len() - 8;
+    let mut h = Fnv::default();
+    h.bytes(&b[..body]);
+    b[body..].copy_from_slice(&h.0.to_le_bytes());
+}
+
+fuzz_target!(|data: &[u8]| {
+    let Some((&selector, rest)) = data.split_first() else {
+        return;
+    };
+    let scenes = scenes();
+    let scene = &scenes[(selector & 0x7f) as usize % scenes.len()];
+    let mut bytes = rest.to_vec();
+    if selector & 0x80 != 0 {
+        repair(&mut bytes, scene);
+    }
+    let (solution, rrps) = match file::decode(&bytes, scene) {
+        Ok(d) => d,
+        Err(file::Bad(_, message)) => {
+            assert!(!message.is_empty());
+            return;
+        }
+    };
+    // What `jobs::prepare` does with a decoded file.
+    let stored = if rrps.is_empty() {
+        None
+    } else {
+        match CompactReconstruction::decode(&rrps) {
+            Ok(c) if c.polygon_count() == scene.polygons.len() => Some(c),
+            Ok(_) => None,
+            Err(e) => {
+                assert!(!e.to_string().is_empty());
+                None
+            }
+        }
+    };
+    let built = CompactReconstruction::build(&solution.polygons, Estimator::default());
+    if let Err(e) = &built {
+        assert!(!e.to_string().is_empty());
+    }
+    for c in stored.iter().chain(built.as_ref().ok()) {
+        for id in 0..c.leaf_count() as u32 {
+            let _ = c.expand(id);
+        }
+        for p in 0..c.polygon_count() as u32 {
+            let _ = c.locate(p, 0.5, 0.5);
+        }
+    }
+});
