@@ -601,7 +601,7 @@ fn mutated_solution_files_are_read_or_refused_as_bad_solutions() {
     let scene_path = dir.0.join("small.toml");
     std::fs::write(&scene_path, SOLVED_SCENE).unwrap();
     let scene = load_scene(&scene_path).unwrap();
-    let sol = radiosity::solve(&scene, &SolveOptions { observer: &SILENT }).unwrap();
+    let sol = radiosity::solve(&scene, &SolveOptions::default()).unwrap();
     let rrps = CompactReconstruction::build(&sol.polygons, Estimator::default())
         .unwrap()
         .encode();
