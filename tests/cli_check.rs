@@ -200,7 +200,7 @@ fn memory_requests_over_the_limit_are_refused_with_the_estimate() {
         assert_eq!(out.status.code(), Some(2), "{cmd:?}: {}", text(&out.stderr));
         let stderr = text(&out.stderr);
         assert!(
-            stderr.contains("needs an estimated") && stderr.contains("GiB (quadtrees and samples"),
+            stderr.contains("needs an estimated 1.2 TiB (quadtrees and samples"),
             "{cmd:?}: {stderr}"
         );
     }
