@@ -146,19 +146,11 @@ impl fmt::Display for SceneSummary {
     }
 }
 
-/// The memory estimate of a scene against `limit`, for `check`: the solve (at its starting
-/// depth, and the worst case), a frame at the scene's image size, the textures and the mesh at
-/// the worst case (every quadtree as deep as it can refine), each from
-/// [`crate::jobs::budget`].
-pub fn budget_text(scene: &Scene, limit: u64) -> crate::error::Result<String> {
-    use crate::jobs::budget;
-    let (start, worst) = budget::solve_estimate(scene);
-    let renderers = crate::frame::FrameOptions::new(scene.width, scene.height).renderers;
-    let aa = scene.render.aa_samples;
-    let frame = budget::frame_bytes(scene.width, scene.height, aa, renderers)
-        + budget::output_bytes(scene.width, scene.height, true, false);
-    let (textures, mesh) =
-        budget::worst_method_bytes(scene, crate::jobs::scene_texture_policy(scene))?;
+/// The memory estimate of a scene ([`crate::jobs::budget::scene_budget`]) against `limit`, for
+/// `check`: the solve (at its starting depth, and the worst case), a frame at the scene's image
+/// size, the textures and the mesh at the worst case (every quadtree as deep as it can refine).
+pub fn budget_text(scene: &Scene, budget: &crate::jobs::budget::SceneBudget, limit: u64) -> String {
+    let b = budget;
     let limit_text = if limit == u64::MAX {
         "none".to_string()
     } else {
@@ -168,25 +160,27 @@ pub fn budget_text(scene: &Scene, limit: u64) -> crate::error::Result<String> {
         ("memory limit", limit_text),
         (
             "solve at start",
-            format!("{} ({})", human_bytes(start.total()), start.detail()),
+            format!("{} ({})", human_bytes(b.solve.total()), b.solve.detail()),
         ),
-        ("solve, worst", human_bytes(worst)),
+        ("solve, worst", human_bytes(b.solve_worst)),
         (
             "frame",
             format!(
-                "{} ({} x {}, aa {aa}, renderers {renderers}, PNG)",
-                human_bytes(frame),
+                "{} ({} x {}, aa {}, renderers {}, PNG)",
+                human_bytes(b.frame.total()),
                 scene.width,
-                scene.height
+                scene.height,
+                scene.render.aa_samples,
+                b.renderers
             ),
         ),
-        ("textures, worst", human_bytes(textures)),
-        ("mesh, worst", human_bytes(mesh)),
+        ("textures, worst", human_bytes(b.textures_worst)),
+        ("mesh, worst", human_bytes(b.mesh_worst)),
         (
             "verdict",
-            if start.total() > limit || frame > limit {
+            if b.check(limit).is_err() {
                 "over the limit: a solve or render would be refused".to_string()
-            } else if worst > limit {
+            } else if b.solve_worst > limit {
                 "fits at the start; a solve refining far toward max_depth would be stopped"
                     .to_string()
             } else {
@@ -198,7 +192,7 @@ pub fn budget_text(scene: &Scene, limit: u64) -> crate::error::Result<String> {
     for (k, v) in rows {
         t += &format!("{k:<15} {v}\n");
     }
-    Ok(t)
+    t
 }
 
 /// Decimal megabytes (10^6 bytes), as Table 1 prints sizes.

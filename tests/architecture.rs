@@ -5,7 +5,8 @@
 //!
 //! Unit tests (`#[cfg(test)]` modules, inline or in their own files) are exempt: a stage's tests
 //! may run later stages to check the stage in context (the mesh's coverage through the
-//! rasterizer, for example). The binary (`src/main.rs`) sits on top and uses the library by name.
+//! rasterizer, for example). The binary (`src/bin/pixelflow-sim/`) sits on top and uses the library
+//! by name.
 
 use std::collections::BTreeSet;
 use std::path::{Path, PathBuf};
@@ -312,7 +313,9 @@ fn edges() -> Vec<(PathBuf, usize, String, String)> {
     let mut out = Vec::new();
     for (f, code) in stripped {
         let name = f.file_name().unwrap().to_str().unwrap();
-        if name == "main.rs" || name == "lib.rs" || test_only.contains(&f) {
+        // The binary (`src/bin/`) sits on top of the library and is not part of its graph.
+        let binary = f.starts_with(src().join("bin"));
+        if binary || name == "lib.rs" || test_only.contains(&f) {
             continue;
         }
         let Some(from) = module_of(&f) else { continue };

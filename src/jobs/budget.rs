@@ -379,15 +379,15 @@ pub fn check_frame_options(
     )
 }
 
-/// Refuses a frame (and its outputs) over `limit`.
-pub fn check_frame(
+/// The estimate of a frame of `width` x `height` pixels with `samples` samples per pixel and
+/// `renderers` renderers, and its outputs (`outputs`: PNG, EXR).
+pub fn frame_estimate(
     width: u32,
     height: u32,
     samples: u32,
     renderers: u32,
     outputs: (bool, bool),
-    limit: u64,
-) -> Result<()> {
+) -> Estimate {
     let mut e = Estimate::new(
         format!("a {width} x {height} frame with {samples} samples per pixel"),
         "lower --width/--height, --aa or --renderers, or raise --memory-limit",
@@ -397,7 +397,71 @@ pub fn check_frame(
         frame_bytes(width, height, samples, renderers),
     );
     e.add("outputs", output_bytes(width, height, outputs.0, outputs.1));
-    e.check(limit)
+    e
+}
+
+/// Refuses a frame (and its outputs) over `limit`.
+pub fn check_frame(
+    width: u32,
+    height: u32,
+    samples: u32,
+    renderers: u32,
+    outputs: (bool, bool),
+    limit: u64,
+) -> Result<()> {
+    frame_estimate(width, height, samples, renderers, outputs).check(limit)
+}
+
+/// What `check` reports for a scene: the solve (what it surely allocates, and the worst case),
+/// one frame at the scene's image size with a PNG, and the worst cases of the textures and the
+/// mesh.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct SceneBudget {
+    /// The solve at its starting depth (refused over the limit).
+    pub solve: Estimate,
+    /// The solve with every tree as deep as it can refine, bytes (reported only).
+    pub solve_worst: u64,
+    /// One frame at the scene's size, samples and the default renderer count, with a PNG
+    /// (refused over the limit).
+    pub frame: Estimate,
+    /// Renderers the frame estimate assumes.
+    pub renderers: u32,
+    /// Textures under the scene's size policy at the worst depths, bytes (reported only).
+    pub textures_worst: u64,
+    /// The mesh at the worst depths, bytes (reported only).
+    pub mesh_worst: u64,
+}
+
+impl SceneBudget {
+    /// Refuses what a solve or render of the scene would refuse: the solve's or the frame's
+    /// estimate over `limit`.
+    pub fn check(&self, limit: u64) -> Result<()> {
+        self.solve.check(limit)?;
+        self.frame.check(limit)
+    }
+}
+
+/// The [`SceneBudget`] of `scene`.
+pub fn scene_budget(scene: &Scene) -> Result<SceneBudget> {
+    let (solve, solve_worst) = solve_estimate(scene);
+    let renderers = crate::frame::FrameOptions::new(scene.width, scene.height).renderers;
+    let frame = frame_estimate(
+        scene.width,
+        scene.height,
+        scene.render.aa_samples,
+        renderers,
+        (true, false),
+    );
+    let (textures_worst, mesh_worst) =
+        worst_method_bytes(scene, super::scene_texture_policy(scene))?;
+    Ok(SceneBudget {
+        solve,
+        solve_worst,
+        frame,
+        renderers,
+        textures_worst,
+        mesh_worst,
+    })
 }
 
 #[cfg(test)]
