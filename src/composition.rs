@@ -3,8 +3,11 @@
 //! composition network merges, region by region, the G-buffers of every renderer that had
 //! primitives there into one, by depth, ties broken by the smaller polygon id, then hands the
 //! composited region on to the deferred shading stage. PixelFlow built this network in hardware
-//! (a pipelined z-compare over all renderers: Molnar, Eyles and Poulton, SIGGRAPH 1992); here it is a compositor thread
-//! between crossbeam channels: renderer tasks -> compositor -> shading.
+//! (a pipelined z-compare over all renderers: Molnar, Eyles and Poulton, SIGGRAPH 1992) running
+//! concurrently with rasterization; here the merge runs inside each region's task
+//! ([`crate::frame::FrameContext::render`]), on whichever worker rasterized the region, while
+//! the other workers rasterize other regions: the network is as parallel as the regions are, and
+//! its buffers are still in cache when it merges them ([`composite_in_place`]).
 //!
 //! Invariants: the merge is commutative and associative (depth, then polygon id, is a total order
 //! on distinct polygons), and after merging the patch table is renumbered in memory order of first
@@ -21,119 +24,133 @@
 // the compiler vectorizes and the reader checks lane by lane.
 #![allow(clippy::needless_range_loop)]
 
-use std::collections::HashMap;
-use std::time::{Duration, Instant};
-
-use crossbeam::channel::{Receiver, Sender};
+use crate::lanes::LANES;
 
 use crate::raster::gbuffer::{IdMap, RegionGBuffer, NO_POLYGON};
 use crate::reconstruction::PatchCoeffs;
 
 pub use crate::raster::gbuffer::PIXEL_RECORD_BYTES;
 
-/// One renderer's G-buffer of one region, as it travels to the compositor.
-#[derive(Debug)]
-pub struct RegionReport {
-    /// The renderer that produced it.
-    pub renderer: u32,
-    /// Covered samples the renderer rasterized (fragments, before its depth test).
-    pub fragments: u64,
-    /// The G-buffer.
-    pub gbuffer: RegionGBuffer,
+/// Working memory of [`composite_in_place`], kept across regions and frames by the frame stage.
+#[derive(Debug, Default)]
+pub struct MergeScratch {
+    /// Per sample: which part the composited sample came from.
+    src: Vec<u16>,
+    /// Per part, per old slot: the new slot (`u32::MAX` until first used).
+    remap: Vec<Vec<u32>>,
+    index: IdMap,
+    table: Vec<PatchCoeffs>,
+    ids: Vec<u32>,
 }
 
-/// What the compositor did.
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
-pub struct CompositorStats {
-    /// Bytes that crossed the network (reports in, composited regions out).
-    pub traffic_bytes: u64,
-    /// Time spent merging.
-    pub busy: Duration,
-    /// Regions composited.
-    pub regions: u32,
-    /// Fragments reported by the renderers.
-    pub fragments: u64,
-}
-
-/// Merges the reports of one region (in any order) into one G-buffer with a canonical table.
-pub fn composite(mut parts: Vec<RegionGBuffer>) -> RegionGBuffer {
-    if parts.len() == 1 {
-        return parts.pop().expect("one part");
+/// Merges the G-buffers of one region, one per renderer that had primitives there (in any
+/// order), into `parts[0]`, by depth then polygon id, and rebuilds its patch table in canonical
+/// order. `parts[1..]` are left as they were. With one part nothing changes: its renderer built
+/// the table in canonical order already.
+pub fn composite_in_place(parts: &mut [RegionGBuffer], scratch: &mut MergeScratch) {
+    if parts.len() <= 1 {
+        return;
     }
-    let mut out = parts[0].clone();
+    let (head, rest) = parts.split_at_mut(1);
+    let out = &mut head[0];
     let n = out.len();
-    let mut src = vec![0u16; n];
-    for (k, part) in parts.iter().enumerate().skip(1) {
-        for i in 0..n {
-            let (d, p) = (part.depth[i], part.polygon[i]);
-            let take = d < out.depth[i] || (d == out.depth[i] && p < out.polygon[i]);
-            if take {
-                out.depth[i] = d;
-                out.polygon[i] = p;
-                out.u[i] = part.u[i];
-                out.v[i] = part.v[i];
-                out.slot[i] = part.slot[i];
-                src[i] = k as u16;
+    let src = &mut scratch.src;
+    src.clear();
+    src.resize(n, 0);
+    for (k, part) in rest.iter().enumerate() {
+        let k = (k + 1) as u16;
+        assert_eq!(
+            part.len(),
+            n,
+            "composited parts of one region differ in size"
+        );
+        // Blocks of 8 with lane-wise selects: the take test is a total order on distinct
+        // polygons, so the result does not depend on the order of the parts.
+        for b0 in (0..n).step_by(LANES) {
+            let r = b0..b0 + LANES;
+            let d: &[f32; LANES] = part.depth[r.clone()].try_into().unwrap();
+            let p: &[u32; LANES] = part.polygon[r.clone()].try_into().unwrap();
+            let od: &mut [f32; LANES] = (&mut out.depth[r.clone()]).try_into().unwrap();
+            let op: &mut [u32; LANES] = (&mut out.polygon[r.clone()]).try_into().unwrap();
+            let mut take = [false; LANES];
+            let mut any = false;
+            for l in 0..LANES {
+                take[l] = (d[l] < od[l]) | ((d[l] == od[l]) & (p[l] < op[l]));
+                any |= take[l];
+            }
+            if !any {
+                continue;
+            }
+            for l in 0..LANES {
+                if take[l] {
+                    let i = b0 + l;
+                    od[l] = d[l];
+                    op[l] = p[l];
+                    out.u[i] = part.u[i];
+                    out.v[i] = part.v[i];
+                    out.slot[i] = part.slot[i];
+                    src[i] = k;
+                }
             }
         }
     }
     // Shaders without patches (textures, the reference) leave every table empty: nothing to
     // rebuild, and no slot means anything.
-    if parts.iter().all(|p| p.table_ids.is_empty()) {
+    if out.table_ids.is_empty() && rest.iter().all(|p| p.table_ids.is_empty()) {
         out.slot.fill(0);
-        return out;
+        return;
     }
-    // Canonical table: memory order of first use.
-    let mut index = IdMap::default();
-    let mut table: Vec<PatchCoeffs> = Vec::new();
-    let mut ids = Vec::new();
+    // Canonical table: memory order of first use. Each (part, old slot) pair asks the id map
+    // once; later samples of the same pair read the per-part remap.
+    let remap = &mut scratch.remap;
+    if remap.len() < rest.len() + 1 {
+        remap.resize_with(rest.len() + 1, Vec::new);
+    }
+    remap[0].clear();
+    remap[0].resize(out.table_ids.len(), u32::MAX);
+    for (k, part) in rest.iter().enumerate() {
+        remap[k + 1].clear();
+        remap[k + 1].resize(part.table_ids.len(), u32::MAX);
+    }
+    let (index, table, ids) = (&mut scratch.index, &mut scratch.table, &mut scratch.ids);
+    index.clear();
+    table.clear();
+    ids.clear();
     for i in 0..n {
         if out.polygon[i] == NO_POLYGON {
             out.slot[i] = 0;
             continue;
         }
-        let part = &parts[src[i] as usize];
+        let k = src[i] as usize;
         let old = out.slot[i] as usize;
-        let id = part.table_ids[old];
-        out.slot[i] = *index.entry(id).or_insert_with(|| {
-            table.push(part.table[old]);
+        let new = remap[k][old];
+        if new != u32::MAX {
+            out.slot[i] = new;
+            continue;
+        }
+        let (part_table, part_ids) = if k == 0 {
+            (&out.table, &out.table_ids)
+        } else {
+            (&rest[k - 1].table, &rest[k - 1].table_ids)
+        };
+        let id = part_ids[old];
+        let slot = *index.entry(id).or_insert_with(|| {
+            table.push(part_table[old]);
             ids.push(id);
             (table.len() - 1) as u32
         });
+        remap[k][old] = slot;
+        out.slot[i] = slot;
     }
-    out.table = table;
-    out.table_ids = ids;
-    out
+    std::mem::swap(&mut out.table, table);
+    std::mem::swap(&mut out.table_ids, ids);
 }
 
-/// The compositor stage: receives reports until each region has `expected[region]` of them,
-/// merges it and sends it on. Returns when every sender is gone.
-pub fn compositor(
-    rx: Receiver<RegionReport>,
-    tx: Sender<RegionGBuffer>,
-    expected: &[u32],
-) -> CompositorStats {
-    let mut stats = CompositorStats::default();
-    let mut pending: HashMap<u32, Vec<RegionGBuffer>> = HashMap::new();
-    for report in rx {
-        stats.fragments += report.fragments;
-        stats.traffic_bytes += report.gbuffer.bytes();
-        let region = report.gbuffer.region;
-        let parts = pending.entry(region).or_default();
-        parts.push(report.gbuffer);
-        if parts.len() as u32 >= expected[region as usize] {
-            let parts = pending.remove(&region).unwrap_or_default();
-            let t = Instant::now();
-            let out = composite(parts);
-            stats.busy += t.elapsed();
-            stats.traffic_bytes += out.bytes();
-            stats.regions += 1;
-            if tx.send(out).is_err() {
-                break;
-            }
-        }
-    }
-    stats
+/// Merges the reports of one region (in any order) into one G-buffer with a canonical table
+/// ([`composite_in_place`] on owned buffers).
+pub fn composite(mut parts: Vec<RegionGBuffer>) -> RegionGBuffer {
+    composite_in_place(&mut parts, &mut MergeScratch::default());
+    parts.swap_remove(0)
 }
 
 #[cfg(test)]

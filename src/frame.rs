@@ -1,13 +1,18 @@
 //! Frame: one frame through every stage after the scene and its radiosity reconstruction exist.
-//! [`render`] takes the scene (or, for the mesh method, the mesh's triangles), a camera, the
-//! method's deferred [`Shader`] and the [`FrameOptions`], and runs, in order:
-//! geometry and setup ([`raster::build_primitives`]) -> round-robin distribution over R virtual
-//! renderers and binning per region ([`raster::bin_round_robin`]) -> the renderers, in parallel,
-//! each rasterizing its regions ([`raster::rasterize_region`]) and sending them down a crossbeam
-//! channel -> the compositor thread ([`crate::composition`]), which merges each region by depth as
-//! soon as every renderer that touched it has reported -> the deferred pass over the composited
-//! regions ([`crate::shading`]) -> the supersampling resolve. It fills [`FrameStats`]: counters,
-//! per-stage times and the wall-clock frame time.
+//! [`FrameContext::render`] takes the scene (or, for the mesh method, the mesh's triangles), a
+//! camera, the method's deferred [`Shader`] and the [`FrameOptions`], and runs, in order:
+//! geometry and setup ([`raster::build_primitives_into`]) -> round-robin distribution over R
+//! virtual renderers and binning per region ([`raster::bin_round_robin_into`]) -> one parallel
+//! task per region: each renderer with primitives there rasterizes its share into a pooled
+//! G-buffer ([`raster::rasterize_region_into`]), the compositor merges them by depth
+//! ([`crate::composition::composite_in_place`]) and the deferred pass shades the result straight
+//! into the frame ([`crate::shading::shade_region_rows`]), resolving the samples of each pixel.
+//! It fills [`FrameStats`]: counters, per-stage times and the wall-clock frame time.
+//!
+//! Memory: a [`FrameContext`] owns every buffer a frame uses and keeps it across frames (a
+//! walkthrough, a benchmark), so a warm frame allocates nothing and touches no new page; a
+//! region's G-buffers return to the pool as soon as it is shaded, so the G-buffer memory is one
+//! region per renderer per worker, not one per region. [`render`] is the one-frame convenience.
 //!
 //! Invariants: the image depends only on the scene, the camera, the shader's data, the image size
 //! and the sample count: it is bit-identical for any number of threads and of renderers (stable
@@ -25,16 +30,19 @@ use glam::Vec3;
 use rayon::prelude::*;
 use serde::Serialize;
 
-use crate::composition::{self, RegionReport};
+use std::sync::Mutex;
+use std::time::Duration;
+
+use crate::composition::{self, MergeScratch};
 use crate::error::{Error, Result};
 use crate::image::ImageView;
 use crate::method::Method;
-use crate::raster::gbuffer::RegionGBuffer;
+use crate::raster::gbuffer::{PatchScratch, RegionGBuffer};
 use crate::raster::region::RegionGrid;
 use crate::raster::{self, sample_offsets, DEFAULT_REGION, MAX_RENDERERS};
 use crate::reconstruction::PatchSource;
 use crate::scene::{Camera, Scene, MAX_IMAGE_DIM};
-use crate::shading::{self, Shader};
+use crate::shading::{self, Rows, ShadeCounts, Shader};
 
 /// What a frame is rendered with.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -136,15 +144,17 @@ pub struct FrameStats {
     pub patch_table_entries: u64,
     /// Geometry and setup time, ms.
     pub geometry_ms: f64,
-    /// Rasterization time (renderers, including patch location), ms.
+    /// Rasterization time (renderers, including patch location), ms: the busy time summed over
+    /// the region tasks, divided by the worker threads (the stage's share of the wall clock when
+    /// every worker is busy). The three region stages are measured the same way.
     pub raster_ms: f64,
-    /// Time the compositor spent merging, ms (overlaps rasterization: the stages are pipelined).
+    /// Time spent merging renderers' regions, ms (per worker, as `raster_ms`).
     pub composition_ms: f64,
-    /// Deferred shading and resolve time, ms.
+    /// Deferred shading and resolve time, ms (per worker, as `raster_ms`).
     pub shading_ms: f64,
-    /// geometry + raster + composition + shading, ms. Composition overlaps rasterization (the
-    /// compositor merges regions while renderers still rasterize others), so this sum overstates
-    /// the frame; it says where the work went, [`FrameStats::frame_ms`] how long the frame took.
+    /// geometry + raster + composition + shading, ms: where the work went; it differs from
+    /// [`FrameStats::frame_ms`], how long the frame took, by the idle time of the workers (load
+    /// imbalance across regions) and the scheduling overhead.
     pub stage_sum_ms: f64,
     /// Wall-clock time of the whole frame, from the first geometry step to the last resolved
     /// pixel, ms. Frame rates (`fps`) are `1000 / frame_ms`.
@@ -187,7 +197,8 @@ impl Frame {
 
 /// Renders one frame of `scene` seen by `camera`, every visible sample shaded from `source`'s
 /// bicubic patches (the direct method; the mesh method passes its triangles and their patches).
-/// Runs in the current rayon pool.
+/// Runs in the current rayon pool, in a new [`FrameContext`] (a cold frame: use one context for
+/// many frames).
 pub fn render_patches(
     scene: &Scene,
     camera: &Camera,
@@ -203,10 +214,8 @@ pub fn render_patches(
     )
 }
 
-/// Renders one frame of `scene` seen by `camera` with any deferred [`Shader`]: the stages up to
-/// composition are the same for every method; only a patch shader makes the rasterizer fill the
-/// regions' patch tables. `method` only names the frame in its statistics. Runs in the current
-/// rayon pool.
+/// Renders one frame of `scene` seen by `camera` with any deferred [`Shader`] in a new
+/// [`FrameContext`] and returns it with its pixels (see [`FrameContext::render`]).
 pub fn render(
     scene: &Scene,
     camera: &Camera,
@@ -214,102 +223,313 @@ pub fn render(
     method: Method,
     opts: &FrameOptions,
 ) -> Result<Frame> {
-    let source = shader.patch_source();
-    opts.validate()?;
-    let t_frame = Instant::now();
-    let offsets = sample_offsets(opts.aa)?;
-    let background = scene.display.background.as_vec3();
-    let background = if background.is_finite() {
-        background
-    } else {
-        Vec3::ZERO
-    };
+    let mut ctx = FrameContext::new();
+    let stats = ctx.render(scene, camera, shader, method, opts)?;
+    Ok(ctx.into_frame(stats))
+}
 
-    let t_geom = t_frame;
-    let prims =
-        raster::build_primitives(scene, camera, opts.width, opts.height, opts.cull_back_faces)?;
-    let grid = RegionGrid::new(opts.width, opts.height, opts.region);
-    let bins = raster::bin_round_robin(&grid, &prims, opts.renderers);
-    let mut expected = vec![0u32; grid.count()];
-    let mut work: Vec<(u32, u32)> = Vec::new();
-    for (reg, e) in expected.iter_mut().enumerate() {
-        for (r, b) in bins.iter().enumerate() {
-            if !b[reg].is_empty() {
-                *e += 1;
-                work.push((r as u32, reg as u32));
+/// The working memory of a frame, kept across frames by its owner (a walkthrough, a benchmark):
+/// the primitives and their bins, one [`Workspace`] per worker in flight (its renderers' region
+/// G-buffers, the merge's and the patch location's scratch), the per-region counters and the
+/// frame itself. Every buffer keeps its capacity, so once a frame of a given size has been drawn,
+/// the next allocates nothing and touches no new page; [`FrameContext::reserve`] does that
+/// first-touch work ahead of the first frame.
+///
+/// Memory: one region G-buffer per renderer per worker thread (not per region: a region's
+/// buffers go back to the pool as soon as it is shaded), plus the frame's pixels.
+#[derive(Default)]
+pub struct FrameContext {
+    staged: Vec<Option<raster::setup::Prim>>,
+    prims: Vec<raster::setup::Prim>,
+    bins: Vec<Vec<Vec<u32>>>,
+    outcomes: Vec<RegionOutcome>,
+    pool: Mutex<Vec<Workspace>>,
+    pixels: Vec<Vec3>,
+    width: u32,
+    height: u32,
+}
+
+/// One worker's buffers for one region at a time.
+#[derive(Default)]
+struct Workspace {
+    /// One G-buffer per renderer that had primitives in the region; `parts[0]` is the composited one.
+    parts: Vec<RegionGBuffer>,
+    patches: PatchScratch,
+    merge: MergeScratch,
+}
+
+/// What happened in one region (summed in region order: deterministic).
+#[derive(Clone, Copy, Debug, Default)]
+struct RegionOutcome {
+    renderers: u32,
+    fragments: u64,
+    traffic: u64,
+    gbuffer_bytes: u64,
+    table_entries: u64,
+    shade: ShadeCounts,
+    raster: Duration,
+    composition: Duration,
+    shading: Duration,
+}
+
+/// A frame's pixels shared by the region tasks, each writing its own rectangle.
+struct FrameTarget {
+    ptr: *mut Vec3,
+    width: usize,
+    height: usize,
+}
+
+// SAFETY: the region tasks write disjoint rectangles (see `FrameTarget::rows`).
+unsafe impl Sync for FrameTarget {}
+
+impl FrameTarget {
+    /// The rows of the rectangle (x0, y0, w, h).
+    ///
+    /// # Safety
+    /// The rectangle lies inside the frame, and no other live `Rows` of this target overlaps it
+    /// (the region grid's rectangles are disjoint and each region is one task).
+    unsafe fn rows(&self, (x0, y0, w, h): (u32, u32, u32, u32)) -> Rows<'_> {
+        let (x0, y0, w, h) = (x0 as usize, y0 as usize, w as usize, h as usize);
+        assert!(x0 + w <= self.width && y0 + h <= self.height);
+        // SAFETY: in bounds (asserted); exclusivity as promised by the caller.
+        unsafe { Rows::from_raw(self.ptr.add(y0 * self.width + x0), self.width, w, h) }
+    }
+}
+
+impl FrameContext {
+    /// An empty context (allocates nothing until the first frame or [`FrameContext::reserve`]).
+    pub fn new() -> FrameContext {
+        FrameContext::default()
+    }
+
+    /// Allocates and touches, ahead of the first frame, the memory a frame with `opts` needs
+    /// whatever the scene: the frame's pixels and one region G-buffer per renderer for each worker
+    /// of the current rayon pool. The first frame then costs what a warm one does (the primitive
+    /// and bin arrays, which depend on the scene, are sized by that frame).
+    pub fn reserve(&mut self, opts: &FrameOptions) -> Result<()> {
+        opts.validate()?;
+        let n = opts.width as usize * opts.height as usize;
+        self.pixels.resize(n, Vec3::ZERO);
+        self.pixels.fill(Vec3::ZERO);
+        (self.width, self.height) = (opts.width, opts.height);
+        let side = opts.region.min(opts.width.max(opts.height));
+        let pool = self.pool.get_mut().unwrap_or_else(|e| e.into_inner());
+        let workers = rayon::current_num_threads();
+        pool.resize_with(pool.len().max(workers), Workspace::default);
+        for ws in pool.iter_mut() {
+            ws.parts
+                .resize_with(ws.parts.len().max(opts.renderers as usize), || {
+                    RegionGBuffer::new(0, 0, 0, 0, 0, 1)
+                });
+            for gb in ws.parts.iter_mut().take(opts.renderers as usize) {
+                gb.reset(0, 0, 0, side, side, opts.aa);
+                gb.u.fill(0.0);
+                gb.v.fill(0.0);
+                gb.slot.fill(0);
             }
         }
+        Ok(())
     }
-    let geometry_ms = ms(t_geom.elapsed());
 
-    let (tx_r, rx_r) = crossbeam::channel::unbounded::<RegionReport>();
-    let (tx_c, rx_c) = crossbeam::channel::unbounded::<RegionGBuffer>();
-    let mut raster_ms = 0.0;
-    let mut composited: Vec<RegionGBuffer> = Vec::new();
-    let comp_stats = std::thread::scope(|scope| {
-        let expected = &expected;
-        let compositor = scope.spawn(move || composition::compositor(rx_r, tx_c, expected));
-        let t_raster = Instant::now();
-        work.par_iter().for_each_with(tx_r, |tx, &(r, reg)| {
-            let ids = &bins[r as usize][reg as usize];
-            let (gb, fragments) =
-                raster::rasterize_region(&grid, reg, &prims, ids, offsets, source);
-            // A send fails only if the compositor is gone, which the join below reports.
-            let _ = tx.send(RegionReport {
-                renderer: r,
-                fragments,
-                gbuffer: gb,
+    /// The last frame as an owned [`Frame`] with `stats` (the context's buffers are dropped).
+    pub fn into_frame(self, stats: FrameStats) -> Frame {
+        Frame {
+            width: self.width,
+            height: self.height,
+            pixels: self.pixels,
+            stats,
+        }
+    }
+
+    /// The last frame's linear RGB pixels, row-major, row 0 at the top.
+    pub fn pixels(&self) -> &[Vec3] {
+        &self.pixels
+    }
+
+    /// The last frame, borrowed as an image.
+    pub fn view(&self) -> ImageView<'_> {
+        ImageView {
+            width: self.width,
+            height: self.height,
+            pixels: &self.pixels,
+        }
+    }
+
+    /// Renders one frame of `scene` seen by `camera` with any deferred [`Shader`] into this
+    /// context ([`FrameContext::pixels`]): the stages up to composition are the same for every
+    /// method; only a patch shader makes the rasterizer fill the regions' patch tables. `method`
+    /// only names the frame in its statistics. Runs in the current rayon pool.
+    ///
+    /// Each region is one task: its renderers rasterize their shares into G-buffers from the
+    /// pool, the compositor merges them, the deferred pass shades the result straight into the
+    /// frame, and the buffers go back to the pool, still in cache for the next region. Regions
+    /// run in parallel, so composition runs concurrently with other regions' rasterization (as
+    /// PixelFlow's composition network did) and with R renderers the frame costs the
+    /// rasterization of the same primitives plus the merges.
+    pub fn render(
+        &mut self,
+        scene: &Scene,
+        camera: &Camera,
+        shader: &Shader<'_>,
+        method: Method,
+        opts: &FrameOptions,
+    ) -> Result<FrameStats> {
+        let source = shader.patch_source();
+        opts.validate()?;
+        let t_frame = Instant::now();
+        let offsets = sample_offsets(opts.aa)?;
+        let background = scene.display.background.as_vec3();
+        let background = if background.is_finite() {
+            background
+        } else {
+            Vec3::ZERO
+        };
+
+        raster::build_primitives_into(
+            scene,
+            camera,
+            opts.width,
+            opts.height,
+            opts.cull_back_faces,
+            &mut self.staged,
+            &mut self.prims,
+        )?;
+        let grid = RegionGrid::new(opts.width, opts.height, opts.region);
+        raster::bin_round_robin_into(&grid, &self.prims, opts.renderers, &mut self.bins);
+        let geometry_ms = ms(t_frame.elapsed());
+
+        let n = opts.width as usize * opts.height as usize;
+        // Every pixel is written below (shaded, or the background where no primitive was
+        // binned), so a reused frame needs no clearing; a grown one is zero-filled once.
+        self.pixels.resize(n, Vec3::ZERO);
+        (self.width, self.height) = (opts.width, opts.height);
+        self.outcomes.clear();
+        self.outcomes.resize(grid.count(), RegionOutcome::default());
+        let target = FrameTarget {
+            ptr: self.pixels.as_mut_ptr(),
+            width: opts.width as usize,
+            height: opts.height as usize,
+        };
+        let (prims, bins, pool) = (&self.prims, &self.bins, &self.pool);
+        self.outcomes
+            .par_iter_mut()
+            .enumerate()
+            .for_each(|(reg, out)| {
+                let mut ws = pool
+                    .lock()
+                    .unwrap_or_else(|e| e.into_inner())
+                    .pop()
+                    .unwrap_or_default();
+                let reg = reg as u32;
+                let rect = grid.rect(reg);
+                // SAFETY: inside the frame (a grid rectangle) and disjoint from every other
+                // region's, and this task is the only one for region `reg`.
+                let mut rows = unsafe { target.rows(rect) };
+                *out = region_task(
+                    &grid, reg, prims, bins, offsets, source, shader, background, &mut ws,
+                    &mut rows,
+                );
+                pool.lock().unwrap_or_else(|e| e.into_inner()).push(ws);
             });
-        });
-        raster_ms = ms(t_raster.elapsed());
-        // The shading stage's input: every composited region, as the compositor finishes it.
-        composited = rx_c.into_iter().collect();
-        compositor.join()
-    })
-    .map_err(|_| Error::Runtime("the compositor thread failed".into()))?;
-    let t_shade = Instant::now();
-    let (pixels, counts) = shading::shade_regions(
-        shader,
-        &composited,
-        background,
-        opts.width,
-        opts.height,
-        opts.region,
-    );
-    let shading_ms = ms(t_shade.elapsed());
 
-    let mut stats = FrameStats {
-        width: opts.width,
-        height: opts.height,
-        method: method.name().into(),
-        threads: rayon::current_num_threads(),
-        renderers: opts.renderers,
-        aa: opts.aa,
-        region_size: opts.region,
-        regions_touched: expected.iter().filter(|&&e| e > 0).count() as u32,
-        primitives: prims.len() as u32,
-        pixels_rasterized: comp_stats.fragments,
-        pixels_shaded: counts.samples_shaded,
-        composition_traffic_bytes: comp_stats.traffic_bytes,
-        geometry_ms,
-        raster_ms,
-        composition_ms: ms(comp_stats.busy),
-        shading_ms,
-        uniform_blocks: counts.uniform_blocks,
-        mixed_blocks: counts.mixed_blocks,
-        ..FrameStats::default()
-    };
-    for gb in &composited {
-        stats.gbuffer_bytes += gb.bytes();
-        stats.patch_table_entries += gb.table.len() as u64;
+        let threads = rayon::current_num_threads();
+        let mut stats = FrameStats {
+            width: opts.width,
+            height: opts.height,
+            method: method.name().into(),
+            threads,
+            renderers: opts.renderers,
+            aa: opts.aa,
+            region_size: opts.region,
+            primitives: self.prims.len() as u32,
+            geometry_ms,
+            ..FrameStats::default()
+        };
+        let (mut raster, mut composition, mut shading) =
+            (Duration::ZERO, Duration::ZERO, Duration::ZERO);
+        for o in &self.outcomes {
+            stats.regions_touched += (o.renderers > 0) as u32;
+            stats.pixels_rasterized += o.fragments;
+            stats.pixels_shaded += o.shade.samples_shaded;
+            stats.uniform_blocks += o.shade.uniform_blocks;
+            stats.mixed_blocks += o.shade.mixed_blocks;
+            stats.composition_traffic_bytes += o.traffic;
+            stats.gbuffer_bytes += o.gbuffer_bytes;
+            stats.patch_table_entries += o.table_entries;
+            raster += o.raster;
+            composition += o.composition;
+            shading += o.shading;
+        }
+        // Busy time summed over the workers, per worker: the stages' shares of the wall clock.
+        let per_worker = |d: Duration| ms(d) / threads.max(1) as f64;
+        stats.raster_ms = per_worker(raster);
+        stats.composition_ms = per_worker(composition);
+        stats.shading_ms = per_worker(shading);
+        stats.stage_sum_ms =
+            stats.geometry_ms + stats.raster_ms + stats.composition_ms + stats.shading_ms;
+        stats.frame_ms = ms(t_frame.elapsed());
+        Ok(stats)
     }
-    stats.stage_sum_ms =
-        stats.geometry_ms + stats.raster_ms + stats.composition_ms + stats.shading_ms;
-    stats.frame_ms = ms(t_frame.elapsed());
-    Ok(Frame {
-        width: opts.width,
-        height: opts.height,
-        pixels,
-        stats,
-    })
+}
+
+/// One region, start to finish: each renderer with primitives here rasterizes its share into a
+/// G-buffer of the workspace (and locates its patches), the compositor merges them into the
+/// first, and the deferred pass shades it into `rows`; a region no renderer touched is filled
+/// with the background.
+#[allow(clippy::too_many_arguments)]
+fn region_task(
+    grid: &RegionGrid,
+    reg: u32,
+    prims: &[raster::setup::Prim],
+    bins: &[Vec<Vec<u32>>],
+    offsets: &[(f32, f32)],
+    source: Option<&dyn PatchSource>,
+    shader: &Shader<'_>,
+    background: Vec3,
+    ws: &mut Workspace,
+    rows: &mut Rows<'_>,
+) -> RegionOutcome {
+    let mut out = RegionOutcome::default();
+    let t0 = Instant::now();
+    let mut used = 0;
+    for bin in bins {
+        let ids = &bin[reg as usize];
+        if ids.is_empty() {
+            continue;
+        }
+        if ws.parts.len() <= used {
+            ws.parts.push(RegionGBuffer::new(0, 0, 0, 0, 0, 1));
+        }
+        let gb = &mut ws.parts[used];
+        out.fragments += raster::rasterize_region_into(
+            grid,
+            reg,
+            prims,
+            ids,
+            offsets,
+            source,
+            gb,
+            &mut ws.patches,
+        );
+        out.traffic += gb.bytes();
+        used += 1;
+    }
+    out.renderers = used as u32;
+    if used == 0 {
+        for y in 0..rows.height() {
+            rows.row(y).fill(background);
+        }
+        return out;
+    }
+    let t1 = Instant::now();
+    composition::composite_in_place(&mut ws.parts[..used], &mut ws.merge);
+    let gb = &ws.parts[0];
+    out.traffic += gb.bytes();
+    out.gbuffer_bytes = gb.bytes();
+    out.table_entries = gb.table.len() as u64;
+    let t2 = Instant::now();
+    out.shade = shading::shade_region_rows(shader, gb, background, rows);
+    let t3 = Instant::now();
+    (out.raster, out.composition, out.shading) = (t1 - t0, t2 - t1, t3 - t2);
+    out
 }

@@ -24,7 +24,7 @@ use crate::image;
 use crate::jobs::equal_error::{EqualError, ScalePoint};
 use crate::jobs::sweep::{self, SweepPoint, SweepReport, SweepRequest};
 use crate::jobs::walkthrough::WalkthroughSummary;
-use crate::jobs::{prepare, render_frame, scene_texture_policy, Input};
+use crate::jobs::{prepare, render_frame, render_frame_in, scene_texture_policy, Input};
 use crate::method::Method;
 use crate::metric::{compare, DEFAULT_PPD};
 use crate::output::write_atomic;
@@ -367,11 +367,13 @@ fn gallery_and_walkthrough(
             let cameras: Vec<_> = (0..path.frames)
                 .map(|k| path.camera(p.scene.camera.projection, k))
                 .collect();
-            // One warm-up frame (builds the textures or the mesh once, outside the timing).
-            render_frame(&p, method, &cameras[0], &opts)?;
+            // One warm-up frame (builds the textures or the mesh once, outside the timing),
+            // then every frame in the same frame context, as `render` draws a walkthrough.
+            let mut ctx = crate::frame::FrameContext::new();
+            render_frame_in(&mut ctx, &p, method, &cameras[0], &opts)?;
             let mut stats = Vec::new();
             for c in &cameras {
-                stats.push(render_frame(&p, method, c, &opts)?.stats);
+                stats.push(render_frame_in(&mut ctx, &p, method, c, &opts)?);
             }
             walkthrough.push(WalkthroughRow {
                 method: name.to_string(),

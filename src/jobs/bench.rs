@@ -9,9 +9,9 @@ use std::path::PathBuf;
 use serde::Serialize;
 
 use super::render::fps;
-use super::{prepare, render_frame, Input, Prepared, TextureOptions};
+use super::{prepare, render_frame_in, Input, Prepared, TextureOptions};
 use crate::error::{Error, Result};
-use crate::frame::{FrameOptions, FrameStats};
+use crate::frame::{FrameContext, FrameOptions, FrameStats};
 use crate::method::Method;
 use crate::progress::Observer;
 use crate::scene::MAX_IMAGE_DIM;
@@ -38,12 +38,21 @@ impl Timed {
         }
     }
 
-    fn render(&self, p: &Prepared, opts: &FrameOptions) -> Result<crate::frame::Frame> {
+    fn render(
+        &self,
+        ctx: &mut FrameContext,
+        p: &Prepared,
+        opts: &FrameOptions,
+    ) -> Result<FrameStats> {
         match self {
-            Timed::Method(m) => render_frame(p, *m, &p.scene.camera, opts),
-            Timed::DirectExpanded => {
-                crate::frame::render_patches(&p.scene, &p.scene.camera, p.expanded()?.0, opts)
-            }
+            Timed::Method(m) => render_frame_in(ctx, p, *m, &p.scene.camera, opts),
+            Timed::DirectExpanded => ctx.render(
+                &p.scene,
+                &p.scene.camera,
+                &crate::shading::Shader::Patches(p.expanded()?.0),
+                Method::Direct,
+                opts,
+            ),
         }
     }
 }
@@ -157,6 +166,9 @@ pub struct BenchRow {
     pub frames: u32,
     /// Median wall-clock frame time, ms (see [`FrameStats::frame_ms`]).
     pub frame_ms: f64,
+    /// Wall-clock time of the first frame in a new frame context (the warm-up frame, which
+    /// allocates and first touches the context's buffers), ms.
+    pub cold_frame_ms: f64,
     /// Smallest and largest wall-clock frame time of the measured frames, ms.
     pub frame_ms_range: [f64; 2],
     /// Median sum of the stage times (composition overlaps rasterization), ms.
@@ -215,10 +227,13 @@ pub fn bench(
             height: h,
             ..base.clone()
         };
-        method.render(p, &opts)?;
+        // The first frame in a new context (its buffers allocated and first touched by this
+        // frame), then the warm frames in the same context.
+        let mut ctx = FrameContext::new();
+        let cold_ms = method.render(&mut ctx, p, &opts)?.frame_ms;
         let mut stats = Vec::new();
         for _ in 0..frames {
-            stats.push(method.render(p, &opts)?.stats);
+            stats.push(method.render(&mut ctx, p, &opts)?);
         }
         let med = |f: fn(&FrameStats) -> f64| median(stats.iter().map(f).collect());
         let shading_ms = med(|s| s.shading_ms);
@@ -232,6 +247,7 @@ pub fn bench(
             aa: opts.aa,
             frames,
             frame_ms,
+            cold_frame_ms: cold_ms,
             frame_ms_range: min_max(&times),
             stage_sum_ms: med(|s| s.stage_sum_ms),
             geometry_ms: med(|s| s.geometry_ms),
@@ -253,16 +269,17 @@ pub fn bench(
 /// The bench rows as a fixed-width table.
 pub fn bench_table(rows: &[BenchRow]) -> String {
     let mut s = String::from(
-        "method            size        aa  frame_ms    fps  geometry  raster  compos.  shading  Msample/s\n",
+        "method            size        aa  frame_ms  cold_ms    fps  geometry  raster  compos.  shading  Msample/s\n",
     );
     for r in rows {
         s += &format!(
-            "{:<17} {:>4}x{:<5} {:>3} {:>9.2} {:>6.1} {:>9.2} {:>7.2} {:>8.2} {:>8.2} {:>10.0}\n",
+            "{:<17} {:>4}x{:<5} {:>3} {:>9.2} {:>8.2} {:>6.1} {:>9.2} {:>7.2} {:>8.2} {:>8.2} {:>10.0}\n",
             r.method,
             r.width,
             r.height,
             r.aa,
             r.frame_ms,
+            r.cold_frame_ms,
             r.fps,
             r.geometry_ms,
             r.raster_ms,

@@ -414,20 +414,34 @@ pub fn prepare_path(
     prepare(input, policy, placement, observer)
 }
 
-/// Renders one frame of a prepared scene with `method`.
+/// Renders one frame of a prepared scene with `method`, in a new frame context (a cold frame;
+/// [`render_frame_in`] reuses one).
 pub fn render_frame(
     p: &Prepared,
     method: Method,
     camera: &crate::scene::Camera,
     opts: &crate::frame::FrameOptions,
 ) -> Result<crate::frame::Frame> {
-    use crate::frame;
+    let mut ctx = crate::frame::FrameContext::new();
+    let stats = render_frame_in(&mut ctx, p, method, camera, opts)?;
+    Ok(ctx.into_frame(stats))
+}
+
+/// Renders one frame of a prepared scene with `method` into `ctx` (its pixels:
+/// [`crate::frame::FrameContext::view`]), reusing the context's buffers.
+pub fn render_frame_in(
+    ctx: &mut crate::frame::FrameContext,
+    p: &Prepared,
+    method: Method,
+    camera: &crate::scene::Camera,
+    opts: &crate::frame::FrameOptions,
+) -> Result<crate::frame::FrameStats> {
     use crate::shading::Shader;
     match method {
-        Method::Direct => frame::render_patches(&p.scene, camera, &p.compact, opts),
+        Method::Direct => ctx.render(&p.scene, camera, &Shader::Patches(&p.compact), method, opts),
         Method::Texture(filter) => {
             let (set, _) = p.textures()?;
-            frame::render(
+            ctx.render(
                 &p.scene,
                 camera,
                 &Shader::Texture { set, filter },
@@ -437,13 +451,13 @@ pub fn render_frame(
         }
         Method::Mesh => {
             let (mesh, _) = p.mesh()?;
-            frame::render(&mesh.scene, camera, &Shader::Patches(mesh), method, opts)
+            ctx.render(&mesh.scene, camera, &Shader::Patches(mesh), method, opts)
         }
         Method::Reference => {
             let oracle =
                 radiosity::Oracle::new(&p.solution, &p.scene).map_err(|e| p.file_error(e))?;
             let f = |poly: u32, u: f32, v: f32| oracle.radiosity(poly as usize, u as f64, v as f64);
-            frame::render(&p.scene, camera, &Shader::Reference(&f), method, opts)
+            ctx.render(&p.scene, camera, &Shader::Reference(&f), method, opts)
         }
     }
 }

@@ -11,9 +11,9 @@ use std::path::{Path, PathBuf};
 use serde::Serialize;
 
 use super::walkthrough::WalkthroughSummary;
-use super::{prepare, render_frame, Input, Prepared, TextureOptions};
+use super::{prepare, render_frame_in, Input, Prepared, TextureOptions};
 use crate::error::{Error, Result};
-use crate::frame::{Frame, FrameOptions, FrameStats};
+use crate::frame::{FrameContext, FrameOptions, FrameStats};
 use crate::image;
 use crate::method::Method;
 use crate::progress::{Observer, Stage};
@@ -212,28 +212,30 @@ pub fn run_render(
     // (crate::output). A walkthrough's frames are written as they are drawn.
     let mut batch = crate::output::Batch::default();
     let mut staged: Vec<&Path> = Vec::new();
+    // One frame context for every frame: a walkthrough's frames reuse its buffers.
+    let mut ctx = FrameContext::new();
     for (k, (camera, png)) in plan.frames.iter().enumerate() {
-        let frame = render_frame(&p, plan.method, camera, &plan.frame)?;
+        let stats = render_frame_in(&mut ctx, &p, plan.method, camera, &plan.frame)?;
         // A valid scene can still put nothing in view (every polygon behind the camera or
         // outside its frustum): the image is drawn, but never silently as the background alone.
-        if frame.stats.pixels_shaded == 0 {
+        if stats.pixels_shaded == 0 {
             on(RenderEvent::Warning(&empty_view_warning(
                 &req.input,
                 plan.walkthrough.then_some(k),
             )));
         }
         if plan.walkthrough {
-            image::write_png(png, frame.view(), exposure)?;
+            image::write_png(png, ctx.view(), exposure)?;
             on(RenderEvent::Wrote(png));
         } else {
-            batch.stage(png, &image::encode_png(frame.view(), exposure)?)?;
+            batch.stage(png, &image::encode_png(ctx.view(), exposure)?)?;
             staged.push(png);
         }
         if let Some(exr) = &plan.exr {
-            batch.stage(exr, &image::encode_exr(frame.view())?)?;
+            batch.stage(exr, &image::encode_exr(ctx.view())?)?;
             staged.push(exr);
         }
-        let report = RenderReport::new(&p, plan.method, &frame);
+        let report = RenderReport::new(&p, plan.method, stats);
         on(RenderEvent::Frame(&report));
         reports.push(report);
         if let Some(stage) = &mut stage {
@@ -310,8 +312,8 @@ pub struct RenderReport {
 }
 
 impl RenderReport {
-    /// The report of `frame` rendered from `p`.
-    pub fn new(p: &Prepared, method: Method, frame: &Frame) -> RenderReport {
+    /// The report of a frame rendered from `p`, with its statistics `frame`.
+    pub fn new(p: &Prepared, method: Method, frame: FrameStats) -> RenderReport {
         let tex = match method {
             Method::Texture(_) => p.textures().ok(),
             _ => None,
@@ -325,8 +327,8 @@ impl RenderReport {
             mesh_build_ms: mesh.map(|(_, ms)| ms),
             texture_memory: tex.map(|(set, _)| set.memory),
             texture_build_ms: tex.map(|(_, ms)| ms),
-            fps: fps(frame.stats.frame_ms),
-            frame: frame.stats.clone(),
+            fps: fps(frame.frame_ms),
+            frame,
             solve_ms: p.solve_ms,
             reconstruction_ms: p.reconstruction_ms,
             patches: p.compact.leaf_count() as u64,

@@ -25,9 +25,9 @@ use serde::Serialize;
 use super::bench::{median, min_max};
 use super::equal_error::{self, EqualError};
 use super::memory;
-use super::{prepare, render_frame, Input, Prepared};
+use super::{prepare, render_frame, render_frame_in, Input, Prepared};
 use crate::error::{Error, Result};
-use crate::frame::{self, Frame, FrameOptions};
+use crate::frame::{Frame, FrameContext, FrameOptions, FrameStats};
 use crate::image::LinearImage;
 use crate::method::{Method, Placement};
 use crate::metric::{compare, Comparison, DEFAULT_PPD};
@@ -400,17 +400,22 @@ pub fn run_sweep(req: &SweepRequest, observer: &dyn Observer) -> Result<SweepRep
                 }),
             }
         }
-        let draw = |c: &Candidate<'_>| -> Result<Frame> {
+        let draw_in = |ctx: &mut FrameContext, c: &Candidate<'_>| -> Result<FrameStats> {
             match (c.method, c.texture) {
-                (Method::Texture(filter), Some((_, set))) => frame::render(
+                (Method::Texture(filter), Some((_, set))) => ctx.render(
                     &p.scene,
                     &p.scene.camera,
                     &Shader::Texture { set, filter },
                     c.method,
                     &opts,
                 ),
-                _ => render_frame(&p, c.method, &p.scene.camera, &opts),
+                _ => render_frame_in(ctx, &p, c.method, &p.scene.camera, &opts),
             }
+        };
+        let draw = |c: &Candidate<'_>| -> Result<Frame> {
+            let mut ctx = FrameContext::new();
+            let stats = draw_in(&mut ctx, c)?;
+            Ok(ctx.into_frame(stats))
         };
         // Errors (deterministic) and one warm-up frame per candidate.
         let mut errors = Vec::new();
@@ -423,11 +428,12 @@ pub fn run_sweep(req: &SweepRequest, observer: &dyn Observer) -> Result<SweepRep
         }
         // Times: every candidate once per repeat, interleaved, `frames` frames each.
         let mut per_repeat = vec![Vec::new(); candidates.len()];
+        let mut ctx = FrameContext::new();
         for _ in 0..req.repeats {
             for (i, c) in candidates.iter().enumerate() {
                 let mut ms = Vec::new();
                 for _ in 0..req.frames {
-                    ms.push(draw(c)?.stats.frame_ms);
+                    ms.push(draw_in(&mut ctx, c)?.frame_ms);
                 }
                 per_repeat[i].push(median(ms));
             }

@@ -86,6 +86,27 @@ impl RegionGBuffer {
         }
     }
 
+    /// Makes this buffer the empty G-buffer of another region (or of the same one, next frame),
+    /// keeping its allocations: the planes are resized to the region, then only `depth` and
+    /// `polygon` are cleared (every reader looks at `u`, `v` and `slot` only where `polygon` is
+    /// not [`NO_POLYGON`], so their stale values are never read; they are finite values a
+    /// rasterizer wrote, or zeros). The patch table is emptied.
+    pub fn reset(&mut self, region: u32, x0: u32, y0: u32, width: u32, height: u32, samples: u32) {
+        let stride = width.div_ceil(8) * 8;
+        let n = (stride * height * samples) as usize;
+        (self.region, self.x0, self.y0) = (region, x0, y0);
+        (self.width, self.height, self.stride, self.samples) = (width, height, stride, samples);
+        self.depth.clear();
+        self.depth.resize(n, f32::INFINITY);
+        self.polygon.clear();
+        self.polygon.resize(n, NO_POLYGON);
+        self.u.resize(n, 0.0);
+        self.v.resize(n, 0.0);
+        self.slot.resize(n, 0);
+        self.table.clear();
+        self.table_ids.clear();
+    }
+
     /// Number of sample entries (including padding lanes).
     pub fn len(&self) -> usize {
         self.depth.len()
@@ -110,11 +131,17 @@ impl RegionGBuffer {
     /// block of 8 inside the previous cell is filled with one vector test. A cell is the set on
     /// which `locate` returns that patch, so the shortcut never changes a sample's patch.
     pub fn assign_patches(&mut self, source: &dyn PatchSource) {
+        self.assign_patches_with(source, &mut PatchScratch::default());
+    }
+
+    /// [`RegionGBuffer::assign_patches`] with its working memory kept in `scratch` across calls.
+    pub fn assign_patches_with(&mut self, source: &dyn PatchSource, scratch: &mut PatchScratch) {
         self.table.clear();
         self.table_ids.clear();
-        let mut index: IdMap = IdMap::default();
+        let PatchScratch { index, cells } = scratch;
+        index.clear();
         // cells[slot]: the polygon and cell on which `locate` returns table_ids[slot].
-        let mut cells: Vec<SlotCell> = Vec::new();
+        cells.clear();
         let stride = self.stride as usize;
         let plane = stride * self.height as usize;
         let mut last: Option<usize> = None;
@@ -192,6 +219,14 @@ impl RegionGBuffer {
             }
         }
     }
+}
+
+/// Working memory of [`RegionGBuffer::assign_patches_with`], kept by the frame stage across
+/// regions and frames so that locating patches allocates nothing once warm.
+#[derive(Debug, Default)]
+pub struct PatchScratch {
+    index: IdMap,
+    cells: Vec<SlotCell>,
 }
 
 /// The polygon and half-open (u, v) rectangle on which a table slot's patch is `locate`'s answer.

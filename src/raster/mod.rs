@@ -33,7 +33,7 @@ use crate::error::{Error, Result};
 use crate::reconstruction::PatchSource;
 use crate::scene::{Camera, Scene};
 
-use gbuffer::RegionGBuffer;
+use gbuffer::{PatchScratch, RegionGBuffer};
 use region::RegionGrid;
 use setup::Prim;
 
@@ -85,39 +85,93 @@ pub fn build_primitives(
     height: u32,
     cull_back_faces: bool,
 ) -> Result<Vec<Prim>> {
+    let mut prims = Vec::new();
+    build_primitives_into(
+        scene,
+        camera,
+        width,
+        height,
+        cull_back_faces,
+        &mut Vec::new(),
+        &mut prims,
+    )?;
+    Ok(prims)
+}
+
+/// [`build_primitives`] into `prims` (cleared first), with `staged` as the parallel stage's
+/// working memory: both keep their capacity across frames, so a warm frame allocates nothing.
+pub fn build_primitives_into(
+    scene: &Scene,
+    camera: &Camera,
+    width: u32,
+    height: u32,
+    cull_back_faces: bool,
+    staged: &mut Vec<Option<Prim>>,
+    prims: &mut Vec<Prim>,
+) -> Result<()> {
     let (lo, hi) = scene.bounds();
     let extent = (hi - lo)
         .length()
         .max(((lo + hi) * 0.5 - camera.eye).length());
     let nearest = scene
         .polygons
-        .iter()
+        .par_iter()
         .map(|p| geometry::distance_lower_bound(p, camera.eye))
-        .fold(f64::INFINITY, f64::min);
+        .reduce(|| f64::INFINITY, f64::min);
     let view = geometry::View::new(camera, width, height, extent, nearest)?;
     let (w, h, cull) = (width, height, cull_back_faces);
-    Ok(scene
+    scene
         .polygons
         .par_iter()
         .enumerate()
-        .filter_map(|(i, p)| {
+        .map(|(i, p)| {
             let sp = view.transform(p, i as u32)?;
             if cull && !sp.front_facing {
                 return None;
             }
             setup::setup(&sp, w, h)
         })
-        .collect())
+        .collect_into_vec(staged);
+    prims.clear();
+    prims.extend(staged.drain(..).flatten());
+    Ok(())
 }
 
 /// Round-robin distribution of `prims` over `renderers` virtual renderers (the k-th primitive to
 /// renderer k mod R), each renderer's share binned per region of `grid`:
 /// `bins[renderer][region]` lists primitive indices in increasing order.
 pub fn bin_round_robin(grid: &RegionGrid, prims: &[Prim], renderers: u32) -> Vec<Vec<Vec<u32>>> {
+    let mut bins = Vec::new();
+    bin_round_robin_into(grid, prims, renderers, &mut bins);
+    bins
+}
+
+/// [`bin_round_robin`] into `bins`, reusing its lists' capacity (a warm frame allocates nothing).
+pub fn bin_round_robin_into(
+    grid: &RegionGrid,
+    prims: &[Prim],
+    renderers: u32,
+    bins: &mut Vec<Vec<Vec<u32>>>,
+) {
     let r_count = renderers.max(1) as usize;
-    (0..r_count)
-        .map(|r| grid.bin(prims.iter().enumerate().filter(|(k, _)| k % r_count == r)))
-        .collect()
+    bins.resize_with(r_count, Vec::new);
+    bins.truncate(r_count);
+    for b in bins.iter_mut() {
+        b.resize_with(grid.count(), Vec::new);
+        b.truncate(grid.count());
+        for list in b.iter_mut() {
+            list.clear();
+        }
+    }
+    for (i, p) in prims.iter().enumerate() {
+        let bin = &mut bins[i % r_count];
+        let [x0, y0, x1, y1] = p.bbox;
+        for ry in y0 / grid.size..=y1 / grid.size {
+            for rx in x0 / grid.size..=x1 / grid.size {
+                bin[(ry * grid.cols + rx) as usize].push(i as u32);
+            }
+        }
+    }
 }
 
 /// One renderer's work on one region: rasterizes the primitives `ids` (indices into `prims`, in
@@ -133,14 +187,42 @@ pub fn rasterize_region(
     offsets: &[(f32, f32)],
     source: Option<&dyn PatchSource>,
 ) -> (RegionGBuffer, u64) {
+    let mut gb = RegionGBuffer::new(reg, 0, 0, 0, 0, 1);
+    let mut scratch = PatchScratch::default();
+    let fragments = rasterize_region_into(
+        grid,
+        reg,
+        prims,
+        ids,
+        offsets,
+        source,
+        &mut gb,
+        &mut scratch,
+    );
+    (gb, fragments)
+}
+
+/// [`rasterize_region`] into a reused G-buffer `gb` ([`RegionGBuffer::reset`] to the region
+/// first) with the patch location's working memory in `scratch`.
+#[allow(clippy::too_many_arguments)]
+pub fn rasterize_region_into(
+    grid: &RegionGrid,
+    reg: u32,
+    prims: &[Prim],
+    ids: &[u32],
+    offsets: &[(f32, f32)],
+    source: Option<&dyn PatchSource>,
+    gb: &mut RegionGBuffer,
+    scratch: &mut PatchScratch,
+) -> u64 {
     let (x0, y0, w, h) = grid.rect(reg);
-    let mut gb = RegionGBuffer::new(reg, x0, y0, w, h, offsets.len() as u32);
+    gb.reset(reg, x0, y0, w, h, offsets.len() as u32);
     let mut fragments = 0;
     for &k in ids {
-        fragments += region::rasterize(&prims[k as usize], &mut gb, offsets);
+        fragments += region::rasterize(&prims[k as usize], gb, offsets);
     }
     if let Some(source) = source {
-        gb.assign_patches(source);
+        gb.assign_patches_with(source, scratch);
     }
-    (gb, fragments)
+    fragments
 }

@@ -106,14 +106,30 @@ pub fn shade_region_with(
     dst: &mut [Vec3],
     pitch: usize,
 ) -> ShadeCounts {
+    let mut rows = Rows::new(dst, pitch, gb.width as usize, gb.height as usize);
+    shade_region_rows(shader, gb, background, &mut rows)
+}
+
+/// Shades one composited region with any [`Shader`] into `rows` (`gb.width` x `gb.height`
+/// pixels).
+pub fn shade_region_rows(
+    shader: &Shader<'_>,
+    gb: &RegionGBuffer,
+    background: Vec3,
+    rows: &mut Rows<'_>,
+) -> ShadeCounts {
+    assert!(
+        rows.width == gb.width as usize && rows.height == gb.height as usize,
+        "rows do not match the region"
+    );
     match *shader {
-        Shader::Patches(_) => shade_region_into(gb, background, dst, pitch),
+        Shader::Patches(_) => patches::shade_region_rows(gb, background, rows),
         Shader::Texture { set, filter } => {
-            shade_region_texture_into(set, filter, gb, background, dst, pitch)
+            texture::shade_region_texture_rows(set, filter, gb, background, rows)
         }
         Shader::Reference(func) => {
             let f = |i: usize, _: usize, _: usize| func(gb.polygon[i], gb.u[i], gb.v[i]);
-            shade_region_per_sample(gb, background, dst, pitch, f)
+            shade_region_per_sample(gb, background, rows, f)
         }
     }
 }
@@ -125,8 +141,7 @@ pub fn shade_region_with(
 fn shade_region_per_sample(
     gb: &RegionGBuffer,
     background: Vec3,
-    dst: &mut [Vec3],
-    pitch: usize,
+    dst: &mut Rows<'_>,
     mut f: impl FnMut(usize, usize, usize) -> Vec3,
 ) -> ShadeCounts {
     let (w, h, stride) = (gb.width as usize, gb.height as usize, gb.stride as usize);
@@ -148,13 +163,134 @@ fn shade_region_per_sample(
                 *a = if si == 0 { c } else { *a + c };
             }
         }
-        let out = &mut dst[y * pitch..y * pitch + w];
+        let out = dst.row(y);
         for (o, a) in out.iter_mut().zip(&acc) {
             let c = if gb.samples == 1 { *a } else { *a * inv };
             *o = Vec3::from_array(c.to_array().map(sanitize1));
         }
     }
     counts
+}
+
+/// Where a region's resolved pixels go: `height` rows of `width` pixels whose starts are `pitch`
+/// pixels apart. Built from a slice ([`Rows::new`], checked) or, by the frame stage, over one
+/// region of a frame that other threads are writing other regions of ([`Rows::from_raw`]): each
+/// row is handed out as its own slice, so two regions' rows never alias even though their
+/// spans of the frame interleave.
+pub struct Rows<'a> {
+    ptr: *mut Vec3,
+    pitch: usize,
+    width: usize,
+    height: usize,
+    _borrow: std::marker::PhantomData<&'a mut [Vec3]>,
+}
+
+// SAFETY: a `Rows` is an exclusive borrow of its rows (see `Rows::from_raw`), like `&mut [Vec3]`.
+unsafe impl Send for Rows<'_> {}
+
+impl<'a> Rows<'a> {
+    /// The rows of `dst`: row `y` is `dst[y * pitch..y * pitch + width]`. Panics if `dst` is too
+    /// small or the rows would overlap (`width > pitch` with more than one row).
+    pub fn new(dst: &'a mut [Vec3], pitch: usize, width: usize, height: usize) -> Rows<'a> {
+        assert!(
+            height == 0 || dst.len() >= (height - 1) * pitch + width,
+            "destination too small for the region"
+        );
+        assert!(height <= 1 || width <= pitch, "rows overlap");
+        Rows {
+            ptr: dst.as_mut_ptr(),
+            pitch,
+            width,
+            height,
+            _borrow: std::marker::PhantomData,
+        }
+    }
+
+    /// Rows over raw memory.
+    ///
+    /// # Safety
+    /// For the lifetime `'a`, the `height` spans `ptr + y * pitch .. + width` must be valid for
+    /// writes, `width <= pitch` (or one row), and no other reference may read or write them.
+    pub unsafe fn from_raw(ptr: *mut Vec3, pitch: usize, width: usize, height: usize) -> Self {
+        Rows {
+            ptr,
+            pitch,
+            width,
+            height,
+            _borrow: std::marker::PhantomData,
+        }
+    }
+
+    /// Number of rows.
+    pub fn height(&self) -> usize {
+        self.height
+    }
+
+    /// Row `y`, `width` pixels.
+    #[inline(always)]
+    pub fn row(&mut self, y: usize) -> &mut [Vec3] {
+        assert!(y < self.height, "row {y} of {}", self.height);
+        // SAFETY: in bounds by construction (checked in `new`, promised to `from_raw`), and the
+        // rows do not overlap, so this borrow of `self` is the only access to the span.
+        unsafe { std::slice::from_raw_parts_mut(self.ptr.add(y * self.pitch), self.width) }
+    }
+}
+
+/// A row's output: with one sample per pixel each block is resolved and written straight into
+/// the image row (the pass streams its output); with more, blocks are summed into row
+/// accumulators in plane order and the row is resolved once all planes are in.
+pub(crate) struct RowOut {
+    samples: u32,
+    inv: F32x8,
+    acc: [Vec<f32>; 3],
+}
+
+impl RowOut {
+    /// The output of rows `stride` entries wide with `samples` planes (accumulators are
+    /// allocated only when there is more than one plane).
+    pub(crate) fn new(samples: u32, stride: usize) -> RowOut {
+        let n = if samples > 1 { stride } else { 0 };
+        RowOut {
+            samples,
+            inv: F32x8::splat(1.0 / samples as f32),
+            acc: [vec![0.0; n], vec![0.0; n], vec![0.0; n]],
+        }
+    }
+
+    /// Takes one block's 8 lanes of RGB at column `bx` of plane `si`, for image row `out`.
+    #[inline(always)]
+    pub(crate) fn block(&mut self, out: &mut [Vec3], bx: usize, si: usize, c: &[F32x8; 3]) {
+        if self.samples == 1 {
+            store8(out, bx, c);
+        } else {
+            accumulate8(&mut self.acc, bx, si, c);
+        }
+    }
+
+    /// Ends a row: resolves the accumulated planes into `out` (nothing to do with one plane).
+    #[inline(always)]
+    pub(crate) fn finish_row(&mut self, out: &mut [Vec3]) {
+        if self.samples > 1 {
+            resolve_row(&mut self.acc, self.samples, self.inv, out);
+        }
+    }
+}
+
+/// Writes one block's 8 lanes, clamped by [`sanitize8`], as pixels `bx..bx + 8` of `out` (fewer at
+/// the row's end): the bits [`resolve_row`] gives for one sample per pixel.
+#[inline(always)]
+fn store8(out: &mut [Vec3], bx: usize, c: &[F32x8; 3]) {
+    let [r, g, b] = [sanitize8(c[0]).0, sanitize8(c[1]).0, sanitize8(c[2]).0];
+    if let Some(o) = out.get_mut(bx..bx + LANES) {
+        let o: &mut [Vec3; LANES] = o.try_into().unwrap();
+        for l in 0..LANES {
+            o[l] = Vec3::new(r[l], g[l], b[l]);
+        }
+    } else {
+        for (l, o) in out[bx..].iter_mut().enumerate() {
+            *o = Vec3::new(r[l], g[l], b[l]);
+        }
+    }
 }
 
 /// Adds one block's 8 lanes of RGB to the row accumulators at column `bx` (the first sample
@@ -199,7 +335,16 @@ fn resolve_row(acc: &mut [Vec<f32>; 3], samples: u32, inv: F32x8, out: &mut [Vec
 /// non-finite coefficients must not put NaN or inf into an image.
 #[inline(always)]
 fn sanitize8(c: F32x8) -> F32x8 {
-    let m: [bool; LANES] = std::array::from_fn(|l| c.0[l].is_finite() && c.0[l] > 0.0);
+    // "Finite and positive" as float compares that stay vector instructions: x - x is 0 exactly
+    // for finite x (NaN for inf and NaN), and x > 0 fails for NaN. (Written as `is_finite()`
+    // or `x < inf`, the test is folded into an integer range check that is not vectorized.)
+    let mut m = [false; LANES];
+    for l in 0..LANES {
+        let x = c.0[l];
+        #[allow(clippy::eq_op)] // x - x is the finiteness test, on purpose
+        let finite = x - x == 0.0;
+        m[l] = (x > 0.0) & finite;
+    }
     F32x8::select(&m, c, F32x8::splat(0.0))
 }
 

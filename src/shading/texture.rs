@@ -15,7 +15,7 @@ use glam::Vec3;
 
 #[cfg(test)]
 use super::shade_region_per_sample;
-use super::{accumulate8, resolve_row, ShadeCounts};
+use super::{RowOut, Rows, ShadeCounts};
 use crate::lanes::{F32x8, LANES};
 use crate::raster::gbuffer::{RegionGBuffer, NO_POLYGON};
 #[cfg(test)]
@@ -74,7 +74,8 @@ fn shade_region_texture_scalar(
         let lod = lod_from_squares(lx2, ly2, tex.last_level());
         sampler.sample(tex, lod, gb.u[i], gb.v[i])
     };
-    shade_region_per_sample(gb, background, dst, pitch, f)
+    let mut rows = Rows::new(dst, pitch, gb.width as usize, gb.height as usize);
+    shade_region_per_sample(gb, background, &mut rows, f)
 }
 
 /// The texture (RAT) deferred pass over one region into `dst` (see [`super::shade_region_into`]): every
@@ -96,19 +97,28 @@ pub fn shade_region_texture_into(
     dst: &mut [Vec3],
     pitch: usize,
 ) -> ShadeCounts {
-    assert!(
-        gb.height == 0 || dst.len() >= (gb.height as usize - 1) * pitch + gb.width as usize,
-        "destination too small for the region"
-    );
+    let mut rows = Rows::new(dst, pitch, gb.width as usize, gb.height as usize);
+    shade_region_texture_rows(set, filter, gb, background, &mut rows)
+}
+
+/// [`shade_region_texture_into`] writing into `rows` (`gb.width` x `gb.height` pixels).
+pub fn shade_region_texture_rows(
+    set: &TextureSet,
+    filter: Filter,
+    gb: &RegionGBuffer,
+    background: Vec3,
+    rows: &mut Rows<'_>,
+) -> ShadeCounts {
+    let sampler = Sampler::new(filter);
     #[cfg(target_arch = "x86_64")]
     {
         if crate::lanes::avx2_available() {
-            let sampler = Sampler::new(filter);
             // SAFETY: the CPU supports AVX2, checked just above.
-            return unsafe { shade_texture_avx2(set, &sampler, gb, background, dst, pitch) };
+            return unsafe { shade_texture_avx2(set, &sampler, gb, background, rows) };
         }
     }
-    shade_region_texture_into_portable(set, filter, gb, background, dst, pitch)
+    // SAFETY: HW = false: portable code only.
+    unsafe { shade_texture_body::<false>(set, &sampler, gb, background, rows) }
 }
 
 /// The portable build of [`shade_region_texture_into`] (portable texel loads too), whatever the
@@ -123,8 +133,9 @@ pub fn shade_region_texture_into_portable(
     pitch: usize,
 ) -> ShadeCounts {
     let sampler = Sampler::new(filter);
+    let mut rows = Rows::new(dst, pitch, gb.width as usize, gb.height as usize);
     // SAFETY: HW = false: portable code only.
-    unsafe { shade_texture_body::<false>(set, &sampler, gb, background, dst, pitch) }
+    unsafe { shade_texture_body::<false>(set, &sampler, gb, background, &mut rows) }
 }
 
 #[cfg(target_arch = "x86_64")]
@@ -134,11 +145,10 @@ fn shade_texture_avx2(
     sampler: &Sampler,
     gb: &RegionGBuffer,
     bg: Vec3,
-    dst: &mut [Vec3],
-    pitch: usize,
+    rows: &mut Rows<'_>,
 ) -> ShadeCounts {
     // SAFETY: this function is only called on CPUs with AVX2, which HW = true requires.
-    unsafe { shade_texture_body::<true>(set, sampler, gb, bg, dst, pitch) }
+    unsafe { shade_texture_body::<true>(set, sampler, gb, bg, rows) }
 }
 
 /// The squared level-of-detail footprints (`lx2`, `ly2` of [`crate::texture::lod_from_squares`],
@@ -285,16 +295,11 @@ unsafe fn shade_texture_body<const HW: bool>(
     sampler: &Sampler,
     gb: &RegionGBuffer,
     background: Vec3,
-    dst: &mut [Vec3],
-    pitch: usize,
+    dst: &mut Rows<'_>,
 ) -> ShadeCounts {
     let (w, h, stride) = (gb.width as usize, gb.height as usize, gb.stride as usize);
     let plane = stride * h;
-    let mut acc = [
-        vec![0.0f32; stride],
-        vec![0.0f32; stride],
-        vec![0.0f32; stride],
-    ];
+    let mut rows = RowOut::new(gb.samples, stride);
     let mut counts = ShadeCounts::default();
     let bg = background.to_array();
     let bg8 = [
@@ -302,8 +307,8 @@ unsafe fn shade_texture_body<const HW: bool>(
         F32x8::splat(bg[1]),
         F32x8::splat(bg[2]),
     ];
-    let inv = F32x8::splat(1.0 / gb.samples as f32);
     for y in 0..h {
+        let out_row = dst.row(y);
         for si in 0..gb.samples as usize {
             let row = si * plane + y * stride;
             for bx in (0..w).step_by(LANES) {
@@ -350,7 +355,7 @@ unsafe fn shade_texture_body<const HW: bool>(
                         let p = polys[first];
                         let mut m = [false; LANES];
                         for l in 0..LANES {
-                            m[l] = !done[l] && polys[l] == p;
+                            m[l] = !done[l] & (polys[l] == p);
                             done[l] |= m[l];
                         }
                         let c = match set.textures.get(p as usize) {
@@ -368,16 +373,11 @@ unsafe fn shade_texture_body<const HW: bool>(
                     counts.mixed_blocks += 1;
                     out
                 };
-                accumulate8(&mut acc, bx, si, &out);
+                rows.block(out_row, bx, si, &out);
             }
         }
         // Box filter and non-finite clamp, as in the patch path.
-        resolve_row(
-            &mut acc,
-            gb.samples,
-            inv,
-            &mut dst[y * pitch..y * pitch + w],
-        );
+        rows.finish_row(out_row);
     }
     counts
 }
@@ -507,9 +507,8 @@ mod tests {
             // The portable build of the body too (the dispatcher above picks AVX2 if present).
             let mut port = vec![Vec3::splat(-7.0); pitch * h];
             // SAFETY: HW = false: portable code only.
-            unsafe {
-                shade_texture_body::<false>(set, &Sampler::new(filter), gb, bg, &mut port, pitch)
-            };
+            let mut rows = Rows::new(&mut port, pitch, w, h);
+            unsafe { shade_texture_body::<false>(set, &Sampler::new(filter), gb, bg, &mut rows) };
             assert_eq!(c_got.samples_shaded, c_want.samples_shaded, "{filter:?}");
             assert!(
                 c_got.uniform_blocks > 0 && c_got.mixed_blocks > 0,
