@@ -391,8 +391,7 @@ impl Mesh {
     /// `cut` x `cut` quads (`cut` = 1 for furniture and lights).
     fn rect(
         &mut self,
-        group: u32,
-        material: u8,
+        (group, material): (u32, u8),
         facing: Facing,
         level: i64,
         breaks: [&[i64]; 3],
@@ -435,11 +434,11 @@ impl Mesh {
         let ys: &[i64] = &[lo[1], hi[1]];
         let zs: &[i64] = &[lo[2], hi[2]];
         let b = [xs, ys, zs];
-        self.rect(group, material, Facing::NegX, lo[0], b, None, 1);
-        self.rect(group, material, Facing::PosX, hi[0], b, None, 1);
-        self.rect(group, material, Facing::NegZ, lo[2], b, None, 1);
-        self.rect(group, material, Facing::PosZ, hi[2], b, None, 1);
-        self.rect(group, material, Facing::PosY, hi[1], b, None, 1);
+        self.rect((group, material), Facing::NegX, lo[0], b, None, 1);
+        self.rect((group, material), Facing::PosX, hi[0], b, None, 1);
+        self.rect((group, material), Facing::NegZ, lo[2], b, None, 1);
+        self.rect((group, material), Facing::PosZ, hi[2], b, None, 1);
+        self.rect((group, material), Facing::PosY, hi[1], b, None, 1);
     }
 }
 
@@ -477,11 +476,17 @@ fn build(o: &BuildingOptions) -> Mesh {
                 let door_z: &[i64] = &[z0, za, zb, z1];
 
                 let g = m.group(name("floor"));
-                m.rect(g, FLOOR, Facing::PosY, y0, [door_x, &[], door_z], None, cut);
+                m.rect(
+                    (g, FLOOR),
+                    Facing::PosY,
+                    y0,
+                    [door_x, &[], door_z],
+                    None,
+                    cut,
+                );
                 let g = m.group(name("ceiling"));
                 m.rect(
-                    g,
-                    CEILING,
+                    (g, CEILING),
                     Facing::NegY,
                     y1,
                     [full_x, &[], full_z],
@@ -509,7 +514,7 @@ fn build(o: &BuildingOptions) -> Mesh {
                             ([door_x, door_y, &[]], Some(([xa, y0, 0], [xb, y0 + dh, 0])))
                         }
                     };
-                    m.rect(g, WALL_MAT, facing, level, breaks, hole, cut);
+                    m.rect((g, WALL_MAT), facing, level, breaks, hole, cut);
                 }
                 // Doorway linings to the east and north neighbours (each doorway once).
                 if ix + 1 < o.rooms_x {
@@ -518,10 +523,10 @@ fn build(o: &BuildingOptions) -> Mesh {
                     let ys: &[i64] = &[y0, y0 + dh];
                     let zs: &[i64] = &[za, zb];
                     let b = [xs, ys, zs];
-                    m.rect(g, FLOOR, Facing::PosY, y0, b, None, cut);
-                    m.rect(g, WALL_MAT, Facing::NegY, y0 + dh, b, None, cut);
-                    m.rect(g, WALL_MAT, Facing::PosZ, za, b, None, cut);
-                    m.rect(g, WALL_MAT, Facing::NegZ, zb, b, None, cut);
+                    m.rect((g, FLOOR), Facing::PosY, y0, b, None, cut);
+                    m.rect((g, WALL_MAT), Facing::NegY, y0 + dh, b, None, cut);
+                    m.rect((g, WALL_MAT), Facing::PosZ, za, b, None, cut);
+                    m.rect((g, WALL_MAT), Facing::NegZ, zb, b, None, cut);
                 }
                 if iz + 1 < o.rooms_z {
                     let g = m.group(name("door_north"));
@@ -529,10 +534,10 @@ fn build(o: &BuildingOptions) -> Mesh {
                     let ys: &[i64] = &[y0, y0 + dh];
                     let zs: &[i64] = &[z1, z1 + t];
                     let b = [xs, ys, zs];
-                    m.rect(g, FLOOR, Facing::PosY, y0, b, None, cut);
-                    m.rect(g, WALL_MAT, Facing::NegY, y0 + dh, b, None, cut);
-                    m.rect(g, WALL_MAT, Facing::PosX, xa, b, None, cut);
-                    m.rect(g, WALL_MAT, Facing::NegX, xb, b, None, cut);
+                    m.rect((g, FLOOR), Facing::PosY, y0, b, None, cut);
+                    m.rect((g, WALL_MAT), Facing::NegY, y0 + dh, b, None, cut);
+                    m.rect((g, WALL_MAT), Facing::PosX, xa, b, None, cut);
+                    m.rect((g, WALL_MAT), Facing::NegX, xb, b, None, cut);
                 }
                 // Ceiling panels, 1 cm below the ceiling, facing down: one of 1.4 m square in
                 // the middle, or two of 1 m square at a quarter and three quarters of the width
@@ -548,7 +553,7 @@ fn build(o: &BuildingOptions) -> Mesh {
                     let g = m.group(name(&format!("light{k}")));
                     let xs: &[i64] = &[xc - half, xc + half];
                     let zs: &[i64] = &[zc - half, zc + half];
-                    m.rect(g, LIGHT, Facing::NegY, below, [xs, &[], zs], None, 1);
+                    m.rect((g, LIGHT), Facing::NegY, below, [xs, &[], zs], None, 1);
                 }
                 furnish(&mut m, o, (f, ix, iz), [x0, y0, z0], name);
             }
@@ -580,7 +585,7 @@ fn furnish(
     let (w, d) = (units(ROOM_WIDTH), units(ROOM_DEPTH));
     let (margin, corridor) = (units(0.3), units(1.0));
     for (k, &q) in quadrants.iter().take(o.furniture as usize).enumerate() {
-        let pillar = rng.next() % 3 == 0;
+        let pillar = rng.next().is_multiple_of(3);
         let (sx, sz, sy, material, what) = if pillar {
             let s = rng.pick(units(0.3), units(0.5), step);
             (
@@ -863,7 +868,7 @@ mod tests {
         };
         let xs: &[i64] = &[0, 10, 20];
         let zs: &[i64] = &[0, 7];
-        m.rect(0, FLOOR, Facing::PosY, 0, [xs, &[], zs], None, 3);
+        m.rect((0, FLOOR), Facing::PosY, 0, [xs, &[], zs], None, 3);
         assert_eq!(m.faces.len(), 2 * 9);
         let area: i64 = m
             .faces
