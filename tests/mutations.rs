@@ -403,12 +403,15 @@ fn read(p: &Path) -> Vec<u8> {
     std::fs::read(p).unwrap_or_else(|e| panic!("{}: {e}", p.display()))
 }
 
-/// The shipped scene files.
+/// The shipped scene files, but for the generated `building.toml`: its syntax is the gallery's,
+/// and loading its 13,072 polygons for every sixth mutant would add about 15 s (500 loads of
+/// about 30 ms).
 fn scene_files() -> Vec<PathBuf> {
     let mut v: Vec<PathBuf> = std::fs::read_dir(scenes())
         .unwrap()
         .map(|e| e.unwrap().path())
         .filter(|p| p.extension().is_some_and(|e| e == "toml"))
+        .filter(|p| !p.ends_with("building.toml"))
         .collect();
     v.sort();
     assert!(v.len() >= 4, "{v:?}");

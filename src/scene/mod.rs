@@ -21,6 +21,7 @@ use crate::method::{Method, Placement};
 
 pub mod camera_path;
 pub mod format;
+pub mod generate;
 pub mod load;
 mod obj;
 

@@ -22,7 +22,7 @@ use std::process::ExitCode;
 mod args;
 mod terminal;
 
-use args::{Cli, Command};
+use args::{Cli, Command, Generate};
 use terminal::Terminal;
 
 /// Standard output closed by the reader (`pixelflow-sim ... | head`): not a failure of the
@@ -356,6 +356,36 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 req.doc.display()
             ))
         })??,
+        Command::Generate {
+            scene:
+                Generate::Building {
+                    rooms_x,
+                    rooms_z,
+                    floors,
+                    cut,
+                    lights,
+                    furniture,
+                    seed,
+                    output,
+                },
+        } => {
+            use pixelflow_sim::scene::generate::{write_building, BuildingOptions};
+            let options = BuildingOptions {
+                rooms_x,
+                rooms_z,
+                floors,
+                cut,
+                lights,
+                furniture,
+                seed,
+            };
+            let written = write_building(&options, &output)?;
+            let p = &written.paths;
+            for path in [&p.scene, &p.obj, &p.mtl] {
+                note(&format!("wrote {}", path.display()));
+            }
+            out(&format!("{}\n", written.building.summary))?;
+        }
         Command::Compare {
             a,
             b,
