@@ -103,7 +103,7 @@ impl RegionGrid {
 /// beyond the primitive's own are the constant function 0 (dx = dy = 0, bias 0), which covers
 /// every sample and so leaves the mask unchanged.
 #[inline(always)]
-fn for_each_block<const N: usize>(
+fn for_each_block<const N: usize, T: EdgeLane, const HW: bool>(
     prim: &Prim,
     rect: (u32, u32, u32, u32),
     offset: (i64, i64),
@@ -121,38 +121,42 @@ fn for_each_block<const N: usize>(
     let ly1 = by1.min(ry + rh - 1) - ry;
     // Unused entries of `prim.edges` are `Edge::default()`: the constant 0 (see above).
     let edges: &[Edge; N] = prim.edges[..N].try_into().unwrap();
-    let mut lane_step = [[0i64; LANES]; N];
-    let mut block_step = [0i64; N];
-    let mut min_step = [0i64; N];
+    let mut lane_step = [[T::ZERO; LANES]; N];
+    let mut block_step = [T::ZERO; N];
+    let mut min_step = [T::ZERO; N];
+    let mut inv_d = [0.0f64; N];
     for (k, e) in edges.iter().enumerate() {
         for (l, s) in lane_step[k].iter_mut().enumerate() {
-            *s = -e.dy * ONE * l as i64;
+            *s = T::of(-e.dy * ONE * l as i64);
         }
-        block_step[k] = e.dy * ONE * LANES as i64;
-        min_step[k] = (-e.dy * ONE * (LANES as i64 - 1)).min(0);
+        block_step[k] = T::of(e.dy * ONE * LANES as i64);
+        min_step[k] = T::of((-e.dy * ONE * (LANES as i64 - 1)).min(0));
+        inv_d[k] = 1.0 / (e.dy * ONE) as f64;
     }
     let valid: [u32; LANES] = std::array::from_fn(|l| l as u32);
-    let mut row = [0i64; N];
+    let mut row = [T::ZERO; N];
     for ly in ly0..ly1 + 1 {
         let y = (ry + ly) as i64 * ONE + offset.1;
         let x = (rx + lx0) as i64 * ONE + offset.0;
+        let mut row64 = [0i64; N];
         for (k, e) in edges.iter().enumerate() {
-            row[k] = e.at(x, y);
+            row64[k] = e.at(x, y);
         }
         // The row's covered columns p satisfy, for every edge, row + (lx0 - p) * dy * ONE >= 0,
         // i.e. p >= q (dy < 0) or p <= q (dy > 0) with q = lx0 + row / (dy * ONE). The bounds
-        // are widened by a pixel against f64 rounding (|q| < 2^40, far below a pixel of error),
-        // so the span only skips blocks the exact integer test would reject anyway: it spares
-        // the edge lanes of the empty blocks around thin or slanted primitives.
+        // are widened by a pixel against f64 rounding (|q| < 2^40, far below a pixel of error,
+        // the reciprocal included), so the span only skips blocks the exact integer test would
+        // reject anyway: it spares the edge lanes of the empty blocks around thin or slanted
+        // primitives.
         let (mut lo, mut hi) = (lx0 as f64, lx1 as f64);
         for k in 0..N {
-            let d = (edges[k].dy * ONE) as f64;
-            let q = lx0 as f64 + row[k] as f64 / d;
-            if d < 0.0 {
+            let dy = edges[k].dy;
+            let q = lx0 as f64 + row64[k] as f64 * inv_d[k];
+            if dy < 0 {
                 lo = lo.max(q - 1.0);
-            } else if d > 0.0 {
+            } else if dy > 0 {
                 hi = hi.min(q + 1.0);
-            } else if row[k] < 0 {
+            } else if row64[k] < 0 {
                 hi = -1.0;
             }
         }
@@ -163,41 +167,35 @@ fn for_each_block<const N: usize>(
         let start = lo as u32 / LANES as u32 * LANES as u32;
         let end = hi as u32;
         for k in 0..N {
-            row[k] -= edges[k].dy * ONE * (start - lx0) as i64;
+            row[k] = T::of(row64[k] - edges[k].dy * ONE * (start - lx0) as i64);
         }
         let mut bx = start;
         while bx <= end {
             // Interior blocks first: an edge function is linear along the row, so its smallest
             // lane value is at lane 0 or lane 7 (`min_step`); when every edge's smallest value is
             // >= 0 all 8 lanes are covered and the per-lane test is skipped (N scalar adds).
-            let mut inner = 0i64;
+            let mut inner = T::ZERO;
             for k in 0..N {
-                inner |= row[k] + min_step[k];
+                inner = inner | (row[k] + min_step[k]);
             }
-            let mut mask = [false; LANES];
-            let mut count = 0u32;
-            if inner >= 0 {
-                for l in 0..LANES {
-                    mask[l] = bx + valid[l] < rw;
-                    count += mask[l] as u32;
-                }
+            // Lanes inside the region, as bits (lane l is bit l).
+            let in_region = if rw - bx >= LANES as u32 {
+                0xff
             } else {
-                let mut acc = [0i64; LANES];
-                for k in 0..N {
-                    let r = row[k];
-                    let st = &lane_step[k];
-                    for l in 0..LANES {
-                        acc[l] |= r + st[l];
-                    }
-                }
-                // Non-short-circuit `&`: lane-wise compares without branches.
-                for l in 0..LANES {
-                    mask[l] = (acc[l] >= 0) & (bx + valid[l] < rw);
-                    count += mask[l] as u32;
-                }
+                (1u32 << (rw - bx)) - 1
+            };
+            let bits = if inner >= T::ZERO {
+                in_region
+            } else {
+                T::covered_bits::<N, HW>(&row, &lane_step) & in_region
+            };
+            let mut mask = [false; LANES];
+            for l in 0..LANES {
+                mask[l] = (bits >> valid[l]) & 1 != 0;
             }
+            let count = bits.count_ones();
             for k in 0..N {
-                row[k] -= block_step[k];
+                row[k] = row[k] - block_step[k];
             }
             if count != 0 {
                 visit(ly, bx, &mask, count);
@@ -207,18 +205,123 @@ fn for_each_block<const N: usize>(
     }
 }
 
-/// Runs [`for_each_block`] with the smallest compiled edge count that holds the primitive's edges.
+/// The integer type of the edge-function lanes: `i64` always holds them (see
+/// [`super::setup`]); `i32` holds them for primitives whose box is small
+/// ([`Prim::i32_edges`]), and then 8 lanes are one AVX2 register instead of two.
+trait EdgeLane:
+    Copy
+    + PartialOrd
+    + std::ops::Add<Output = Self>
+    + std::ops::Sub<Output = Self>
+    + std::ops::BitOr<Output = Self>
+{
+    const ZERO: Self;
+    /// `x`, which the caller guarantees is in range.
+    fn of(x: i64) -> Self;
+
+    /// The covered lanes of a block as bits (lane l is bit l): lane l is covered when
+    /// `row[k] + step[k][l] >= 0` for every edge k, tested as the sign of the OR of the sums.
+    /// `HW` (the AVX2 build only) may use AVX2 instructions for it.
+    #[inline(always)]
+    fn covered_bits<const N: usize, const HW: bool>(
+        row: &[Self; N],
+        step: &[[Self; LANES]; N],
+    ) -> u32 {
+        let mut acc = [Self::ZERO; LANES];
+        for k in 0..N {
+            for l in 0..LANES {
+                acc[l] = acc[l] | (row[k] + step[k][l]);
+            }
+        }
+        let mut bits = 0u32;
+        for l in 0..LANES {
+            bits |= ((acc[l] >= Self::ZERO) as u32) << l;
+        }
+        bits
+    }
+}
+
+impl EdgeLane for i64 {
+    const ZERO: i64 = 0;
+    #[inline(always)]
+    fn of(x: i64) -> i64 {
+        x
+    }
+}
+
+impl EdgeLane for i32 {
+    const ZERO: i32 = 0;
+    #[inline(always)]
+    fn of(x: i64) -> i32 {
+        debug_assert!(i32::try_from(x).is_ok(), "{x} out of the i32 lane range");
+        x as i32
+    }
+
+    #[inline(always)]
+    fn covered_bits<const N: usize, const HW: bool>(
+        row: &[i32; N],
+        step: &[[i32; LANES]; N],
+    ) -> u32 {
+        #[cfg(target_arch = "x86_64")]
+        {
+            if HW {
+                // SAFETY: HW is true only in the AVX2 build, run after the CPU check.
+                return unsafe { covered_bits_avx2(row, step) };
+            }
+        }
+        let mut acc = [0i32; LANES];
+        for k in 0..N {
+            for l in 0..LANES {
+                acc[l] |= row[k] + step[k][l];
+            }
+        }
+        let mut bits = 0u32;
+        for l in 0..LANES {
+            bits |= ((acc[l] >= 0) as u32) << l;
+        }
+        bits
+    }
+}
+
+/// [`EdgeLane::covered_bits`] for `i32` lanes in one AVX2 register: N adds and ORs, then the
+/// sign bits in one move-mask (the portable loop's compares and bit packing were scalarized).
+///
+/// # Safety
+/// The CPU must support AVX2.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[inline]
+unsafe fn covered_bits_avx2<const N: usize>(row: &[i32; N], step: &[[i32; LANES]; N]) -> u32 {
+    use std::arch::x86_64::*;
+    // SAFETY: each `step[k]` is 8 i32 (an unaligned 32-byte load).
+    unsafe {
+        let mut acc = _mm256_setzero_si256();
+        for k in 0..N {
+            let st = _mm256_loadu_si256(step[k].as_ptr() as *const __m256i);
+            acc = _mm256_or_si256(acc, _mm256_add_epi32(_mm256_set1_epi32(row[k]), st));
+        }
+        // A lane is covered when the OR is >= 0: its sign bit is clear.
+        !(_mm256_movemask_ps(_mm256_castsi256_ps(acc)) as u32) & 0xff
+    }
+}
+
+/// Runs [`for_each_block`] with the smallest compiled edge count that holds the primitive's
+/// edges, and 32-bit edge lanes when they hold its values ([`Prim::i32_edges`]).
 #[inline(always)]
-fn dispatch_edges(
+fn dispatch_edges<const HW: bool>(
     prim: &Prim,
     rect: (u32, u32, u32, u32),
     offset: (i64, i64),
     visit: impl FnMut(u32, u32, &[bool; LANES], u32),
 ) {
     if prim.n_edges <= 4 {
-        for_each_block::<4>(prim, rect, offset, visit)
+        if prim.i32_edges {
+            for_each_block::<4, i32, HW>(prim, rect, offset, visit)
+        } else {
+            for_each_block::<4, i64, HW>(prim, rect, offset, visit)
+        }
     } else {
-        for_each_block::<MAX_EDGES>(prim, rect, offset, visit)
+        for_each_block::<MAX_EDGES, i64, HW>(prim, rect, offset, visit)
     }
 }
 
@@ -250,13 +353,13 @@ pub fn rasterize(prim: &Prim, gb: &mut RegionGBuffer, offsets: &[(f32, f32)]) ->
 /// with the AVX2 build.
 #[doc(hidden)]
 pub fn rasterize_portable(prim: &Prim, gb: &mut RegionGBuffer, offsets: &[(f32, f32)]) -> u64 {
-    rasterize_body(prim, gb, offsets)
+    rasterize_body::<false>(prim, gb, offsets)
 }
 
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
 fn rasterize_avx2(prim: &Prim, gb: &mut RegionGBuffer, offsets: &[(f32, f32)]) -> u64 {
-    rasterize_body(prim, gb, offsets)
+    rasterize_body::<true>(prim, gb, offsets)
 }
 
 const LINEAR: u8 = 0;
@@ -264,14 +367,18 @@ const TRIANGLE: u8 = 1;
 const GENERAL: u8 = 2;
 
 #[inline(always)]
-fn rasterize_body(prim: &Prim, gb: &mut RegionGBuffer, offsets: &[(f32, f32)]) -> u64 {
+fn rasterize_body<const HW: bool>(
+    prim: &Prim,
+    gb: &mut RegionGBuffer,
+    offsets: &[(f32, f32)],
+) -> u64 {
     match (prim.perspective, prim.kind) {
-        (true, InverseKind::Linear) => raster_kernel::<true, LINEAR>(prim, gb, offsets),
-        (true, InverseKind::Triangle) => raster_kernel::<true, TRIANGLE>(prim, gb, offsets),
-        (true, InverseKind::General) => raster_kernel::<true, GENERAL>(prim, gb, offsets),
-        (false, InverseKind::Linear) => raster_kernel::<false, LINEAR>(prim, gb, offsets),
-        (false, InverseKind::Triangle) => raster_kernel::<false, TRIANGLE>(prim, gb, offsets),
-        (false, InverseKind::General) => raster_kernel::<false, GENERAL>(prim, gb, offsets),
+        (true, InverseKind::Linear) => raster_kernel::<true, LINEAR, HW>(prim, gb, offsets),
+        (true, InverseKind::Triangle) => raster_kernel::<true, TRIANGLE, HW>(prim, gb, offsets),
+        (true, InverseKind::General) => raster_kernel::<true, GENERAL, HW>(prim, gb, offsets),
+        (false, InverseKind::Linear) => raster_kernel::<false, LINEAR, HW>(prim, gb, offsets),
+        (false, InverseKind::Triangle) => raster_kernel::<false, TRIANGLE, HW>(prim, gb, offsets),
+        (false, InverseKind::General) => raster_kernel::<false, GENERAL, HW>(prim, gb, offsets),
     }
 }
 
@@ -280,7 +387,7 @@ fn rasterize_body(prim: &Prim, gb: &mut RegionGBuffer, offsets: &[(f32, f32)]) -
 const MIN_Q: f32 = 1e-30;
 
 #[inline(always)]
-fn raster_kernel<const PERSP: bool, const KIND: u8>(
+fn raster_kernel<const PERSP: bool, const KIND: u8, const HW: bool>(
     prim: &Prim,
     gb: &mut RegionGBuffer,
     offsets: &[(f32, f32)],
@@ -312,7 +419,7 @@ fn raster_kernel<const PERSP: bool, const KIND: u8>(
         let off = offset_fixed(offsets, si);
         let (fx, fy) = (off.0 as f32 / ONE as f32, off.1 as f32 / ONE as f32);
         let base = si * plane_len;
-        dispatch_edges(
+        dispatch_edges::<HW>(
             prim,
             rect,
             off,
@@ -394,7 +501,7 @@ pub fn coverage_counts(prims: &[Prim], width: u32, height: u32, region: u32) -> 
     for r in 0..grid.count() as u32 {
         let rect = grid.rect(r);
         for p in prims {
-            dispatch_edges(
+            dispatch_edges::<false>(
                 p,
                 rect,
                 (ONE / 2, ONE / 2),
@@ -410,4 +517,94 @@ pub fn coverage_counts(prims: &[Prim], width: u32, height: u32, region: u32) -> 
         }
     }
     counts
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::raster::geometry::{Plane, ScreenPolygon};
+    use crate::raster::setup::{edges_fit_i32, setup};
+
+    fn prim(verts: Vec<[f64; 2]>, w: u32, h: u32) -> Option<Prim> {
+        let sp = ScreenPolygon {
+            id: 0,
+            verts,
+            planes: [Plane::default(); 5],
+            corners: [[0.0, 0.0], [1.0, 0.0], [0.0, 1.0], [0.0, 1.0]],
+            triangle: true,
+            perspective: false,
+            front_facing: true,
+        };
+        setup(&sp, w, h)
+    }
+
+    /// Every block's mask, from the 64-bit walk or the 32-bit one (portable and AVX2 builds).
+    fn masks<T: EdgeLane, const HW: bool>(p: &Prim, rect: (u32, u32, u32, u32)) -> Vec<u32> {
+        let mut out = Vec::new();
+        for_each_block::<4, T, HW>(p, rect, (ONE / 2, ONE / 2), |y, x, m, c| {
+            let bits = (0..LANES).fold(0u32, |b, l| b | (m[l] as u32) << l);
+            assert_eq!(bits.count_ones(), c);
+            out.push(y << 20 | x << 8 | bits);
+        });
+        out
+    }
+
+    #[test]
+    fn thirty_two_bit_edge_lanes_cover_exactly_what_sixty_four_bit_lanes_do() {
+        // Small random triangles, some far off screen with a small visible part (their edge
+        // values are large although the clamped box is small: they must stay on 64 bits).
+        let mut seed = 99u64;
+        let mut rnd = |scale: f64| {
+            seed = seed
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (seed >> 11) as f64 / (1u64 << 53) as f64 * scale
+        };
+        let (mut small, mut checked) = (0, 0);
+        for i in 0..3000 {
+            let far = i % 5 == 0;
+            let c = [rnd(120.0) - 4.0, rnd(120.0) - 4.0];
+            let size = if far { 60_000.0 } else { rnd(40.0) + 0.3 };
+            let v: Vec<[f64; 2]> = (0..3)
+                .map(|_| [c[0] + rnd(size) - size / 2.0, c[1] + rnd(size) - size / 2.0])
+                .collect();
+            let Some(p) = prim(v, 128, 128) else { continue };
+            let want = masks::<i64, false>(&p, (0, 0, 128, 128));
+            if p.i32_edges {
+                small += 1;
+                assert_eq!(
+                    masks::<i32, false>(&p, (0, 0, 128, 128)),
+                    want,
+                    "triangle {i}"
+                );
+                #[cfg(target_arch = "x86_64")]
+                if crate::lanes::avx2_available() {
+                    // The HW variant only calls AVX2 code on CPUs that have it.
+                    assert_eq!(
+                        masks::<i32, true>(&p, (0, 0, 128, 128)),
+                        want,
+                        "triangle {i}"
+                    );
+                }
+            }
+            checked += 1;
+        }
+        assert!(small > 1500 && checked > 2000, "{small} small of {checked}");
+    }
+
+    #[test]
+    fn a_small_clamped_box_with_far_vertices_keeps_sixty_four_bit_lanes() {
+        // A huge triangle whose on-screen box is a corner of a 16 x 16 image.
+        let p = prim(
+            vec![[-60000.0, -60000.0], [10.0, -60000.0], [-60000.0, 10.0]],
+            16,
+            16,
+        )
+        .unwrap();
+        assert!(p.bbox[2] < 16 && p.bbox[3] < 16);
+        assert!(!p.i32_edges);
+        // A 50-pixel triangle fits: its values stay below 2^31.
+        let q = prim(vec![[1.0, 1.0], [51.0, 1.0], [1.0, 51.0]], 128, 128).unwrap();
+        assert!(q.i32_edges && edges_fit_i32(&q.edges[..q.n_edges], q.bbox));
+    }
 }

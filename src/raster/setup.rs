@@ -97,6 +97,27 @@ pub struct Prim {
     pub kind: InverseKind,
     /// Whether Q is 1/w.
     pub perspective: bool,
+    /// Whether every edge-function value the region walk computes fits in `i32` (small
+    /// primitives: [`edges_fit_i32`]), so the rasterizer may use 32-bit edge lanes.
+    pub i32_edges: bool,
+}
+
+/// Whether every value of the first `n` edge functions at the sample positions the region walk
+/// visits for a primitive with pixel box `bbox` fits in `i32`. The walk visits
+/// X in [(x0 - 8) ONE, (x1 + 17) ONE] (blocks aligned to 8, lanes and the step past the last
+/// block included) and Y in [y0 ONE, (y1 + 1) ONE]; on that rectangle
+/// |E| <= |dx| max|Y - Y0| + |dy| max|X - X0| + 1, with (X0, Y0) the edge's start vertex
+/// (which may lie far outside the clamped box).
+pub fn edges_fit_i32(edges: &[Edge], bbox: [u32; 4]) -> bool {
+    let [x0, y0, x1, y1] = bbox.map(|c| c as i64);
+    let (xa, xb) = ((x0 - 8) * ONE, (x1 + 17) * ONE);
+    let (ya, yb) = (y0 * ONE, (y1 + 1) * ONE);
+    edges.iter().all(|e| {
+        let my = (ya - e.y0).abs().max((yb - e.y0).abs()) as i128;
+        let mx = (xa - e.x0).abs().max((xb - e.x0).abs()) as i128;
+        let bound = e.dx.abs() as i128 * my + e.dy.abs() as i128 * mx + 1;
+        bound < i32::MAX as i128
+    })
 }
 
 fn snap(x: f64) -> i64 {
@@ -220,11 +241,13 @@ pub fn setup(sp: &ScreenPolygon, width: u32, height: u32) -> Option<Prim> {
             return None;
         }
     }
+    let bbox = [px0 as u32, py0 as u32, px1 as u32, py1 as u32];
     Some(Prim {
         id: sp.id,
         edges,
         n_edges: n,
-        bbox: [px0 as u32, py0 as u32, px1 as u32, py1 as u32],
+        bbox,
+        i32_edges: edges_fit_i32(&edges[..n], bbox),
         planes,
         inverse,
         kind,
@@ -284,8 +307,11 @@ pub fn invert_bilinear(inv: &BilinearInverse, s: f32, t: f32) -> (f32, f32) {
 #[inline(always)]
 pub fn triangle_u(uu: f32, v: f32) -> f32 {
     let rest = 1.0 - v;
+    // The quotient is computed whatever `rest` is and then selected (a vector select in the
+    // rasterizer's lanes, not a branch); a division by a tiny `rest` is discarded.
+    let q = uu / rest;
     if rest > 1e-7 {
-        uu / rest
+        q
     } else {
         0.5
     }
