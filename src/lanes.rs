@@ -81,6 +81,61 @@ lane_op!(Add, add, +);
 lane_op!(Sub, sub, -);
 lane_op!(Mul, mul, *);
 
+/// Writes `new[l]` over `dst[l]` in the lanes where `mask[l]` holds, keeping the others: the
+/// old 8 lanes are loaded, blended with the new ones in a register, and the full 32 bytes
+/// stored back with one plain store. Written out in inline assembly because LLVM otherwise
+/// folds exactly this load-select-store into a masked store (`vmaskmovps` / `vpmaskmovd`),
+/// which in the rasterizer's inner loop was slow to retire and blocked store-to-load forwarding
+/// for the next primitive's depth test on the same block.
+///
+/// # Safety
+/// The CPU must support AVX2.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[inline]
+pub unsafe fn blend_store8_avx2(dst: &mut [u32; LANES], new: &[u32; LANES], mask: &[bool; LANES]) {
+    use std::arch::x86_64::*;
+    let mut m = [0u32; LANES];
+    for l in 0..LANES {
+        m[l] = (mask[l] as u32).wrapping_neg();
+    }
+    // SAFETY: `dst`, `new` and `m` are 8 u32 each (unaligned 32-byte loads and store); the
+    // assembly writes exactly the 32 bytes of `dst`, which this function borrows mutably.
+    unsafe {
+        let old = _mm256_loadu_si256(dst.as_ptr() as *const __m256i);
+        let nv = _mm256_loadu_si256(new.as_ptr() as *const __m256i);
+        let mv = _mm256_loadu_si256(m.as_ptr() as *const __m256i);
+        let r = _mm256_blendv_epi8(old, nv, mv);
+        std::arch::asm!(
+            "vmovdqu ymmword ptr [{p}], {r}",
+            p = in(reg) dst.as_mut_ptr(),
+            r = in(ymm_reg) r,
+            options(nostack, preserves_flags)
+        );
+    }
+}
+
+/// [`blend_store8_avx2`] for `f32` lanes (the same bits moved).
+///
+/// # Safety
+/// The CPU must support AVX2.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[inline]
+pub unsafe fn blend_store8_f32_avx2(
+    dst: &mut [f32; LANES],
+    new: &[f32; LANES],
+    mask: &[bool; LANES],
+) {
+    // SAFETY: [f32; 8] and [u32; 8] have the same size and alignment; every bit pattern is valid
+    // for both. The CPU requirement is passed on to the caller.
+    unsafe {
+        let d = &mut *(dst as *mut [f32; LANES] as *mut [u32; LANES]);
+        let n = &*(new as *const [f32; LANES] as *const [u32; LANES]);
+        blend_store8_avx2(d, n, mask)
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

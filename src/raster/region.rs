@@ -476,6 +476,20 @@ fn raster_kernel<const PERSP: bool, const KIND: u8, const HW: bool>(
                 }
                 let gu: &mut [f32; LANES] = (&mut gb.u[i0..i0 + LANES]).try_into().unwrap();
                 let gv: &mut [f32; LANES] = (&mut gb.v[i0..i0 + LANES]).try_into().unwrap();
+                #[cfg(target_arch = "x86_64")]
+                if HW {
+                    // Full-lane blends into region memory, no masked stores (see
+                    // `blend_store8_avx2`). SAFETY: HW is true only in the AVX2 build, run
+                    // after the CPU check.
+                    unsafe {
+                        use crate::lanes::{blend_store8_avx2, blend_store8_f32_avx2};
+                        blend_store8_f32_avx2(depth, &w, &m);
+                        blend_store8_f32_avx2(gu, &u, &m);
+                        blend_store8_f32_avx2(gv, &v, &m);
+                        blend_store8_avx2(poly, &[id; LANES], &m);
+                    }
+                    return;
+                }
                 *depth = F32x8::select(&m, F32x8(w), F32x8(*depth)).0;
                 *gu = F32x8::select(&m, F32x8(u), F32x8(*gu)).0;
                 *gv = F32x8::select(&m, F32x8(v), F32x8(*gv)).0;
