@@ -331,6 +331,21 @@ impl FrameContext {
         Ok(())
     }
 
+    /// [`FrameContext::reserve`], plus the primitive arrays for up to every polygon of `scene`
+    /// (allocated and first touched): the first frame of `scene` then allocates nothing but its
+    /// bins' lists.
+    pub fn reserve_scene(&mut self, opts: &FrameOptions, scene: &Scene) -> Result<()> {
+        self.reserve(opts)?;
+        let n = scene.polygons.len();
+        self.staged.clear();
+        self.staged.resize(n, None);
+        self.staged.clear();
+        self.prims.clear();
+        self.prims.resize(n, raster::setup::Prim::default());
+        self.prims.clear();
+        Ok(())
+    }
+
     /// The last frame as an owned [`Frame`] with `stats` (the context's buffers are dropped).
     pub fn into_frame(self, stats: FrameStats) -> Frame {
         Frame {

@@ -166,9 +166,12 @@ pub struct BenchRow {
     pub frames: u32,
     /// Median wall-clock frame time, ms (see [`FrameStats::frame_ms`]).
     pub frame_ms: f64,
-    /// Wall-clock time of the first frame in a new frame context (the warm-up frame, which
-    /// allocates and first touches the context's buffers), ms.
+    /// Wall-clock time of the first frame in a new frame context (the warm-up frame), after
+    /// [`FrameContext::reserve_scene`], ms.
     pub cold_frame_ms: f64,
+    /// Time of [`FrameContext::reserve_scene`] in the new context (allocating and first touching
+    /// the frame, the G-buffer pool and the primitive arrays), ms.
+    pub reserve_ms: f64,
     /// Smallest and largest wall-clock frame time of the measured frames, ms.
     pub frame_ms_range: [f64; 2],
     /// Median sum of the stage times (composition overlaps rasterization), ms.
@@ -227,9 +230,16 @@ pub fn bench(
             height: h,
             ..base.clone()
         };
-        // The first frame in a new context (its buffers allocated and first touched by this
-        // frame), then the warm frames in the same context.
+        // A new context, its frame and G-buffers reserved (timed apart), then its first frame
+        // (the scene-dependent arrays allocated and first touched by it), then the warm frames
+        // in the same context.
         let mut ctx = FrameContext::new();
+        let t = std::time::Instant::now();
+        match method {
+            Timed::Method(m) => super::reserve_frames(&mut ctx, p, m, &opts)?,
+            Timed::DirectExpanded => ctx.reserve_scene(&opts, &p.scene)?,
+        }
+        let reserve_ms = t.elapsed().as_secs_f64() * 1e3;
         let cold_ms = method.render(&mut ctx, p, &opts)?.frame_ms;
         let mut stats = Vec::new();
         for _ in 0..frames {
@@ -248,6 +258,7 @@ pub fn bench(
             frames,
             frame_ms,
             cold_frame_ms: cold_ms,
+            reserve_ms,
             frame_ms_range: min_max(&times),
             stage_sum_ms: med(|s| s.stage_sum_ms),
             geometry_ms: med(|s| s.geometry_ms),
@@ -269,17 +280,18 @@ pub fn bench(
 /// The bench rows as a fixed-width table.
 pub fn bench_table(rows: &[BenchRow]) -> String {
     let mut s = String::from(
-        "method            size        aa  frame_ms  cold_ms    fps  geometry  raster  compos.  shading  Msample/s\n",
+        "method            size        aa  frame_ms  cold_ms reserve    fps  geometry  raster  compos.  shading  Msample/s\n",
     );
     for r in rows {
         s += &format!(
-            "{:<17} {:>4}x{:<5} {:>3} {:>9.2} {:>8.2} {:>6.1} {:>9.2} {:>7.2} {:>8.2} {:>8.2} {:>10.0}\n",
+            "{:<17} {:>4}x{:<5} {:>3} {:>9.2} {:>8.2} {:>7.2} {:>6.1} {:>9.2} {:>7.2} {:>8.2} {:>8.2} {:>10.0}\n",
             r.method,
             r.width,
             r.height,
             r.aa,
             r.frame_ms,
             r.cold_frame_ms,
+            r.reserve_ms,
             r.fps,
             r.geometry_ms,
             r.raster_ms,

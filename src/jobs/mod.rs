@@ -427,6 +427,20 @@ pub fn render_frame(
     Ok(ctx.into_frame(stats))
 }
 
+/// Reserves in `ctx` what frames of `method` at `opts` need ([`crate::frame::FrameContext::reserve_scene`]
+/// with the scene `method` draws: the mesh's triangles for the mesh method).
+pub fn reserve_frames(
+    ctx: &mut crate::frame::FrameContext,
+    p: &Prepared,
+    method: Method,
+    opts: &crate::frame::FrameOptions,
+) -> Result<()> {
+    match method {
+        Method::Mesh => ctx.reserve_scene(opts, &p.mesh()?.0.scene),
+        _ => ctx.reserve_scene(opts, &p.scene),
+    }
+}
+
 /// Renders one frame of a prepared scene with `method` into `ctx` (its pixels:
 /// [`crate::frame::FrameContext::view`]), reusing the context's buffers.
 pub fn render_frame_in(

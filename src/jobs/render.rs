@@ -212,8 +212,13 @@ pub fn run_render(
     // (crate::output). A walkthrough's frames are written as they are drawn.
     let mut batch = crate::output::Batch::default();
     let mut staged: Vec<&Path> = Vec::new();
-    // One frame context for every frame: a walkthrough's frames reuse its buffers.
+    // One frame context for every frame: a walkthrough's frames reuse its buffers, and the
+    // frame and G-buffers are reserved before the first frame (timed apart), as a display
+    // system allocates its framebuffers before it draws.
     let mut ctx = FrameContext::new();
+    let t = std::time::Instant::now();
+    super::reserve_frames(&mut ctx, &p, plan.method, &plan.frame)?;
+    let reserve_ms = t.elapsed().as_secs_f64() * 1e3;
     for (k, (camera, png)) in plan.frames.iter().enumerate() {
         let stats = render_frame_in(&mut ctx, &p, plan.method, camera, &plan.frame)?;
         // A valid scene can still put nothing in view (every polygon behind the camera or
@@ -235,7 +240,8 @@ pub fn run_render(
             batch.stage(exr, &image::encode_exr(ctx.view())?)?;
             staged.push(exr);
         }
-        let report = RenderReport::new(&p, plan.method, stats);
+        let mut report = RenderReport::new(&p, plan.method, stats);
+        report.reserve_ms = reserve_ms;
         on(RenderEvent::Frame(&report));
         reports.push(report);
         if let Some(stage) = &mut stage {
@@ -293,6 +299,9 @@ pub struct RenderReport {
     pub solve_ms: f64,
     /// RRP construction time, ms.
     pub reconstruction_ms: f64,
+    /// Time to allocate and first touch the frame context's frame and G-buffers, once per job
+    /// before the first frame (`FrameContext::reserve`), ms.
+    pub reserve_ms: f64,
     /// RRP patches stored.
     pub patches: u64,
     /// Radiosity samples in the solution.
@@ -331,6 +340,7 @@ impl RenderReport {
             frame,
             solve_ms: p.solve_ms,
             reconstruction_ms: p.reconstruction_ms,
+            reserve_ms: 0.0,
             patches: p.compact.leaf_count() as u64,
             samples: p.solution.stats.vertices,
         }

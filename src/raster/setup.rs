@@ -51,7 +51,7 @@ impl Edge {
 }
 
 /// How the polygon's (u, v) is recovered from its 2-D plane coordinates (s, t).
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct BilinearInverse {
     /// c1 - c0 in the plane frame.
     pub b: [f32; 2],
@@ -66,8 +66,9 @@ pub struct BilinearInverse {
 }
 
 /// Which closed form the rasterizer uses for (u, v).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum InverseKind {
+    #[default]
     /// Parallelogram (|d| below 1e-7 of the sides): (u, v) is affine in the plane coordinates,
     /// so the setup folds it into the per-pixel expressions: u = Ua + w Ub, v = Va + w Vb.
     Linear,
@@ -78,7 +79,7 @@ pub enum InverseKind {
 }
 
 /// A primitive ready for the region rasterizer.
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, Default)]
 pub struct Prim {
     /// Scene polygon id (the stable tie-break of every depth comparison).
     pub id: u32,
