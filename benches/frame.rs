@@ -5,16 +5,25 @@
 //!
 //! Run briefly: `cargo bench --bench frame -- --warm-up-time 1 --measurement-time 3`.
 
-use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
+use criterion::{criterion_group, criterion_main, BatchSize, BenchmarkId, Criterion, Throughput};
 use glam::{DVec3, Vec3};
-use pixelflow_sim::frame::{render_patches as render_frame, FrameOptions, FrameStats};
-use pixelflow_sim::raster::gbuffer::RegionGBuffer;
+use pixelflow_sim::composition::{composite_in_place, MergeScratch};
+use pixelflow_sim::frame::{
+    render_patches as render_frame, FrameContext, FrameOptions, FrameStats,
+};
+use pixelflow_sim::method::Method;
+use pixelflow_sim::raster::gbuffer::{PatchScratch, RegionGBuffer};
 use pixelflow_sim::raster::region::{rasterize, RegionGrid};
-use pixelflow_sim::raster::{build_primitives, sample_offsets};
+use pixelflow_sim::raster::{
+    bin_round_robin_into, build_primitives, build_primitives_into, rasterize_region_into,
+    sample_offsets,
+};
 use pixelflow_sim::reconstruction::{PatchCoeffs, PatchSource};
 use pixelflow_sim::scene::{Camera, Material, Polygon, Projection, Scene};
+use pixelflow_sim::shading::Rows;
 use pixelflow_sim::shading::{shade_regions, Shader};
 use pixelflow_sim::texture::{Filter, Placement, RadiosityTexture, TextureMemory, TextureSet};
+use rayon::prelude::*;
 
 /// A 10 x 4 x 10 room, each wall cut into `n` x `n` quads, with two boxes inside.
 fn room(n: usize) -> Scene {
@@ -121,9 +130,37 @@ fn frame(c: &mut Criterion) {
         eprintln!("frame {size}: {}", serde_json_like(&f.stats));
         g.throughput(Throughput::Elements((size * size) as u64));
         let name = format!("room-{}", scene.polygons.len());
-        g.bench_with_input(BenchmarkId::new(name, size), &opts, |b, o| {
-            b.iter(|| render_frame(&scene, &scene.camera, &source, o).unwrap())
+        // Warm: one frame context for every frame, as a walkthrough renders.
+        let mut ctx = FrameContext::new();
+        let shader = Shader::Patches(&source);
+        g.bench_with_input(BenchmarkId::new(&name, size), &opts, |b, o| {
+            b.iter(|| {
+                ctx.render(&scene, &scene.camera, &shader, Method::Direct, o)
+                    .unwrap()
+            })
         });
+        // Cold: a new context per frame (allocation and first touch of every buffer).
+        g.bench_with_input(
+            BenchmarkId::new(format!("{name}-cold"), size),
+            &opts,
+            |b, o| b.iter(|| render_frame(&scene, &scene.camera, &source, o).unwrap()),
+        );
+        for r in [2u32, 3] {
+            let o = FrameOptions {
+                renderers: r,
+                ..opts.clone()
+            };
+            g.bench_with_input(
+                BenchmarkId::new(format!("{name}-r{r}"), size),
+                &o,
+                |b, o| {
+                    b.iter(|| {
+                        ctx.render(&scene, &scene.camera, &shader, Method::Direct, o)
+                            .unwrap()
+                    })
+                },
+            );
+        }
     }
     for n in [4usize, 16] {
         let scene = room(n);
@@ -133,9 +170,105 @@ fn frame(c: &mut Criterion) {
         g.bench_with_input(
             BenchmarkId::new(format!("room-{}", scene.polygons.len()), 1024),
             &opts,
-            |b, o| b.iter(|| render_frame(&scene, &scene.camera, &source, o).unwrap()),
+            |b, o| {
+                let mut ctx = FrameContext::new();
+                let shader = Shader::Patches(&source);
+                b.iter(|| {
+                    ctx.render(&scene, &scene.camera, &shader, Method::Direct, o)
+                        .unwrap()
+                })
+            },
         );
     }
+    g.finish();
+}
+
+/// Each stage of a 1024 x 1024 direct frame alone, on reused buffers: geometry and setup,
+/// binning, rasterization with patch location (every region), composition of two renderers'
+/// G-buffers (every region), and the deferred pass (in `deferred`).
+fn stages(c: &mut Criterion) {
+    let scene = room(8);
+    let source = Grid::new(scene.polygons.len());
+    let (w, h) = (1024, 1024);
+    let opts = FrameOptions::new(w, h);
+    let grid = RegionGrid::new(w, h, opts.region);
+    let offsets = sample_offsets(1).unwrap();
+    let mut g = c.benchmark_group("stages");
+    g.sample_size(20);
+    g.throughput(Throughput::Elements((w * h) as u64));
+    let (mut staged, mut prims) = (Vec::new(), Vec::new());
+    g.bench_function("geometry-1024", |b| {
+        b.iter(|| {
+            build_primitives_into(&scene, &scene.camera, w, h, false, &mut staged, &mut prims)
+                .unwrap()
+        })
+    });
+    let mut bins = Vec::new();
+    g.bench_function("binning-1024", |b| {
+        b.iter(|| bin_round_robin_into(&grid, &prims, 1, &mut bins))
+    });
+    // One G-buffer and scratch per region, reused by every iteration.
+    let mut work: Vec<(RegionGBuffer, PatchScratch)> = (0..grid.count())
+        .map(|_| {
+            (
+                RegionGBuffer::new(0, 0, 0, 0, 0, 1),
+                PatchScratch::default(),
+            )
+        })
+        .collect();
+    g.bench_function("raster-1024", |b| {
+        b.iter(|| {
+            work.par_iter_mut()
+                .enumerate()
+                .for_each(|(r, (gb, scratch))| {
+                    let ids = &bins[0][r];
+                    rasterize_region_into(
+                        &grid,
+                        r as u32,
+                        &prims,
+                        ids,
+                        offsets,
+                        Some(&source),
+                        gb,
+                        scratch,
+                    );
+                })
+        })
+    });
+    // Two renderers: each region's two G-buffers, merged in place.
+    bin_round_robin_into(&grid, &prims, 2, &mut bins);
+    let parts: Vec<Vec<RegionGBuffer>> = (0..grid.count())
+        .map(|r| {
+            (0..2)
+                .map(|k| {
+                    let mut gb = RegionGBuffer::new(0, 0, 0, 0, 0, 1);
+                    let ids = &bins[k][r];
+                    rasterize_region_into(
+                        &grid,
+                        r as u32,
+                        &prims,
+                        ids,
+                        offsets,
+                        Some(&source),
+                        &mut gb,
+                        &mut PatchScratch::default(),
+                    );
+                    gb
+                })
+                .collect()
+        })
+        .collect();
+    g.bench_function("composition-2-renderers-1024", |b| {
+        b.iter_batched_ref(
+            || parts.clone(),
+            |parts| {
+                parts
+                    .par_iter_mut()
+                    .for_each_init(MergeScratch::default, |m, p| composite_in_place(p, m))
+            },
+            BatchSize::LargeInput,
+        )
+    });
     g.finish();
 }
 
@@ -179,17 +312,20 @@ fn deferred(c: &mut Criterion) {
     let mut g = c.benchmark_group("deferred");
     g.sample_size(20);
     g.throughput(Throughput::Elements((w * h) as u64));
-    g.bench_function("rrp-1024", |b| {
-        b.iter(|| {
-            shade_regions(
-                &Shader::Patches(&source),
-                &regions,
-                Vec3::ZERO,
-                w,
-                h,
-                opts.region,
-            )
+    // Every region shaded into its own tile, the tiles kept across iterations (no allocation
+    // or first touch inside the measurement).
+    let mut tiles: Vec<Vec<Vec3>> = regions
+        .iter()
+        .map(|r| vec![Vec3::ZERO; (r.width * r.height) as usize])
+        .collect();
+    let pass = |shader: &Shader<'_>, tiles: &mut Vec<Vec<Vec3>>| {
+        tiles.par_iter_mut().zip(&regions).for_each(|(t, r)| {
+            let mut rows = Rows::new(t, r.width as usize, r.width as usize, r.height as usize);
+            pixelflow_sim::shading::shade_region_rows(shader, r, Vec3::ZERO, &mut rows);
         })
+    };
+    g.bench_function("rrp-1024", |b| {
+        b.iter(|| pass(&Shader::Patches(&source), &mut tiles))
     });
     // The same regions through the texture pass: one 16 x 16 texture per polygon (the 4 x 4
     // patches of each polygon hold 5 x 5 samples; 16 texels per side is the next power of two
@@ -213,12 +349,10 @@ fn deferred(c: &mut Criterion) {
         ("texture-bicubic-1024", Filter::MITCHELL),
     ] {
         let shader = Shader::Texture { set: &set, filter };
-        g.bench_function(name, |b| {
-            b.iter(|| shade_regions(&shader, &regions, Vec3::ZERO, w, h, opts.region))
-        });
+        g.bench_function(name, |b| b.iter(|| pass(&shader, &mut tiles)));
     }
     g.finish();
 }
 
-criterion_group!(benches, frame, deferred);
+criterion_group!(benches, frame, stages, deferred);
 criterion_main!(benches);

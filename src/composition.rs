@@ -35,7 +35,7 @@ pub use crate::raster::gbuffer::PIXEL_RECORD_BYTES;
 #[derive(Debug, Default)]
 pub struct MergeScratch {
     /// Per sample: which part the composited sample came from.
-    src: Vec<u16>,
+    src: Vec<u32>,
     /// Per part, per old slot: the new slot (`u32::MAX` until first used).
     remap: Vec<Vec<u32>>,
     index: IdMap,
@@ -58,41 +58,13 @@ pub fn composite_in_place(parts: &mut [RegionGBuffer], scratch: &mut MergeScratc
     src.clear();
     src.resize(n, 0);
     for (k, part) in rest.iter().enumerate() {
-        let k = (k + 1) as u16;
+        let k = (k + 1) as u32;
         assert_eq!(
             part.len(),
             n,
             "composited parts of one region differ in size"
         );
-        // Blocks of 8 with lane-wise selects: the take test is a total order on distinct
-        // polygons, so the result does not depend on the order of the parts.
-        for b0 in (0..n).step_by(LANES) {
-            let r = b0..b0 + LANES;
-            let d: &[f32; LANES] = part.depth[r.clone()].try_into().unwrap();
-            let p: &[u32; LANES] = part.polygon[r.clone()].try_into().unwrap();
-            let od: &mut [f32; LANES] = (&mut out.depth[r.clone()]).try_into().unwrap();
-            let op: &mut [u32; LANES] = (&mut out.polygon[r.clone()]).try_into().unwrap();
-            let mut take = [false; LANES];
-            let mut any = false;
-            for l in 0..LANES {
-                take[l] = (d[l] < od[l]) | ((d[l] == od[l]) & (p[l] < op[l]));
-                any |= take[l];
-            }
-            if !any {
-                continue;
-            }
-            for l in 0..LANES {
-                if take[l] {
-                    let i = b0 + l;
-                    od[l] = d[l];
-                    op[l] = p[l];
-                    out.u[i] = part.u[i];
-                    out.v[i] = part.v[i];
-                    out.slot[i] = part.slot[i];
-                    src[i] = k;
-                }
-            }
-        }
+        merge_part(part, out, src, k);
     }
     // Shaders without patches (textures, the reference) leave every table empty: nothing to
     // rebuild, and no slot means anything.
@@ -116,34 +88,169 @@ pub fn composite_in_place(parts: &mut [RegionGBuffer], scratch: &mut MergeScratc
     index.clear();
     table.clear();
     ids.clear();
-    for i in 0..n {
-        if out.polygon[i] == NO_POLYGON {
-            out.slot[i] = 0;
-            continue;
+    let RegionGBuffer {
+        polygon,
+        slot,
+        table: head_table,
+        table_ids: head_ids,
+        ..
+    } = out;
+    let blocks = polygon
+        .chunks_exact(LANES)
+        .zip(slot.chunks_exact_mut(LANES))
+        .zip(src.chunks_exact(LANES));
+    for ((polys, slots), srcs) in blocks {
+        let polys: &[u32; LANES] = polys.try_into().unwrap();
+        let slots: &mut [u32; LANES] = slots.try_into().unwrap();
+        let srcs: &[u32; LANES] = srcs.try_into().unwrap();
+        // A whole block from one part and one old slot (the common case inside a polygon's
+        // patch), already numbered: one remap for all 8 samples.
+        let (k0, s0) = (srcs[0], slots[0]);
+        let mut same = true;
+        for l in 0..LANES {
+            same &= (srcs[l] == k0) & (slots[l] == s0) & (polys[l] != NO_POLYGON);
         }
-        let k = src[i] as usize;
-        let old = out.slot[i] as usize;
-        let new = remap[k][old];
-        if new != u32::MAX {
-            out.slot[i] = new;
-            continue;
+        if same {
+            let new = remap[k0 as usize][s0 as usize];
+            if new != u32::MAX {
+                *slots = [new; LANES];
+                continue;
+            }
         }
-        let (part_table, part_ids) = if k == 0 {
-            (&out.table, &out.table_ids)
-        } else {
-            (&rest[k - 1].table, &rest[k - 1].table_ids)
-        };
-        let id = part_ids[old];
-        let slot = *index.entry(id).or_insert_with(|| {
-            table.push(part_table[old]);
-            ids.push(id);
-            (table.len() - 1) as u32
-        });
-        remap[k][old] = slot;
-        out.slot[i] = slot;
+        for l in 0..LANES {
+            if polys[l] == NO_POLYGON {
+                slots[l] = 0;
+                continue;
+            }
+            let k = srcs[l] as usize;
+            let old = slots[l] as usize;
+            let new = remap[k][old];
+            if new != u32::MAX {
+                slots[l] = new;
+                continue;
+            }
+            let (part_table, part_ids) = if k == 0 {
+                (&*head_table, &*head_ids)
+            } else {
+                (&rest[k - 1].table, &rest[k - 1].table_ids)
+            };
+            let id = part_ids[old];
+            let new = *index.entry(id).or_insert_with(|| {
+                table.push(part_table[old]);
+                ids.push(id);
+                (table.len() - 1) as u32
+            });
+            remap[k][old] = new;
+            slots[l] = new;
+        }
     }
     std::mem::swap(&mut out.table, table);
     std::mem::swap(&mut out.table_ids, ids);
+}
+
+/// Merges `part` (the `k`-th) into `out` sample by sample: a sample of `part` replaces `out`'s when
+/// it is nearer, or as near with a smaller polygon id (a total order on distinct polygons, so
+/// the result does not depend on the order of the parts); `src` records where each sample came
+/// from. Compiled a second time for AVX2 and chosen at run time like the rasterizer, the same
+/// operations either way.
+fn merge_part(part: &RegionGBuffer, out: &mut RegionGBuffer, src: &mut [u32], k: u32) {
+    #[cfg(target_arch = "x86_64")]
+    {
+        if crate::lanes::avx2_available() {
+            // SAFETY: the CPU supports AVX2, checked just above.
+            return unsafe { merge_part_avx2(part, out, src, k) };
+        }
+    }
+    merge_part_body::<false>(part, out, src, k)
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+fn merge_part_avx2(part: &RegionGBuffer, out: &mut RegionGBuffer, src: &mut [u32], k: u32) {
+    merge_part_body::<true>(part, out, src, k)
+}
+
+#[inline(always)]
+fn merge_part_body<const HW: bool>(
+    part: &RegionGBuffer,
+    out: &mut RegionGBuffer,
+    src: &mut [u32],
+    k: u32,
+) {
+    let RegionGBuffer {
+        depth,
+        polygon,
+        u,
+        v,
+        slot,
+        ..
+    } = out;
+    let outs = depth
+        .chunks_exact_mut(LANES)
+        .zip(polygon.chunks_exact_mut(LANES))
+        .zip(u.chunks_exact_mut(LANES))
+        .zip(v.chunks_exact_mut(LANES))
+        .zip(slot.chunks_exact_mut(LANES))
+        .zip(src.chunks_exact_mut(LANES));
+    let ins = part
+        .depth
+        .chunks_exact(LANES)
+        .zip(part.polygon.chunks_exact(LANES))
+        .zip(part.u.chunks_exact(LANES))
+        .zip(part.v.chunks_exact(LANES))
+        .zip(part.slot.chunks_exact(LANES));
+    for ((((((od, op), ou), ov), os), sr), ((((d, p), pu), pv), ps)) in outs.zip(ins) {
+        let od: &mut [f32; LANES] = od.try_into().unwrap();
+        let op: &mut [u32; LANES] = op.try_into().unwrap();
+        let (d, p): (&[f32; LANES], &[u32; LANES]) = (d.try_into().unwrap(), p.try_into().unwrap());
+        let mut take = [false; LANES];
+        let mut any = false;
+        for l in 0..LANES {
+            take[l] = (d[l] < od[l]) | ((d[l] == od[l]) & (p[l] < op[l]));
+            any |= take[l];
+        }
+        if !any {
+            continue;
+        }
+        let ou: &mut [f32; LANES] = ou.try_into().unwrap();
+        let ov: &mut [f32; LANES] = ov.try_into().unwrap();
+        let os: &mut [u32; LANES] = os.try_into().unwrap();
+        let sr: &mut [u32; LANES] = sr.try_into().unwrap();
+        let (pu, pv, ps): (&[f32; LANES], &[f32; LANES], &[u32; LANES]) = (
+            pu.try_into().unwrap(),
+            pv.try_into().unwrap(),
+            ps.try_into().unwrap(),
+        );
+        #[cfg(target_arch = "x86_64")]
+        if HW {
+            use crate::lanes::{blend_store8_avx2, blend_store8_f32_avx2};
+            // SAFETY: HW is true only in the AVX2 build, run after the CPU check.
+            unsafe {
+                blend_store8_f32_avx2(od, d, &take);
+                blend_store8_avx2(op, p, &take);
+                blend_store8_f32_avx2(ou, pu, &take);
+                blend_store8_f32_avx2(ov, pv, &take);
+                blend_store8_avx2(os, ps, &take);
+                blend_store8_avx2(sr, &[k; LANES], &take);
+            }
+            continue;
+        }
+        // Full-lane selects (no per-lane branches or stores).
+        select8(&take, d, od);
+        select8(&take, p, op);
+        select8(&take, pu, ou);
+        select8(&take, pv, ov);
+        select8(&take, ps, os);
+        select8(&take, &[k; LANES], sr);
+    }
+}
+
+/// `dst[l] = src[l]` where `take[l]`, lane-wise over one block of 8.
+#[inline(always)]
+fn select8<T: Copy>(take: &[bool; LANES], src: &[T; LANES], dst: &mut [T; LANES]) {
+    for l in 0..LANES {
+        dst[l] = if take[l] { src[l] } else { dst[l] };
+    }
 }
 
 /// Merges the reports of one region (in any order) into one G-buffer with a canonical table

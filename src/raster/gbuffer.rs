@@ -147,6 +147,13 @@ impl RegionGBuffer {
         let mut last: Option<usize> = None;
         for b0 in (0..self.polygon.len()).step_by(8) {
             let polys: &[u32; 8] = self.polygon[b0..b0 + 8].try_into().unwrap();
+            // A block that sees nothing (common in a renderer's share of a region): its slots
+            // are never read (see `reset`); the block-level tests below need a valid slot above
+            // only for samples that see a polygon, so 0 is written for them.
+            if polys.iter().fold(true, |a, &p| a & (p == NO_POLYGON)) {
+                self.slot[b0..b0 + 8].fill(0);
+                continue;
+            }
             let us: &[f32; 8] = self.u[b0..b0 + 8].try_into().unwrap();
             let vs: &[f32; 8] = self.v[b0..b0 + 8].try_into().unwrap();
             if let Some(ls) = last {
