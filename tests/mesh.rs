@@ -63,7 +63,8 @@ fn distance_to_edges(prims: &[Prim], x: u32, y: u32) -> f64 {
             continue;
         }
         for e in &p.edges[..p.n_edges] {
-            let d = (e.at(px, py) - e.bias) as f64 / ((e.dx * e.dx + e.dy * e.dy) as f64).sqrt();
+            let (dx, dy) = (e.dx as f64, e.dy as f64);
+            let d = (e.at(px, py) - e.bias as i64) as f64 / (dx * dx + dy * dy).sqrt();
             best = best.min(d.abs());
         }
     }

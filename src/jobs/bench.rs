@@ -234,6 +234,9 @@ pub fn bench(
         // (the scene-dependent arrays allocated and first touched by it), then the warm frames
         // in the same context.
         let mut ctx = FrameContext::new();
+        if let Timed::Method(m) = method {
+            super::build_method_data(p, m)?;
+        }
         let t = std::time::Instant::now();
         match method {
             Timed::Method(m) => super::reserve_frames(&mut ctx, p, m, &opts)?,

@@ -427,6 +427,16 @@ pub fn render_frame(
     Ok(ctx.into_frame(stats))
 }
 
+/// Builds, once per job, what `method` draws from (the textures, the mesh), so that neither a
+/// reservation nor a frame timed after it pays for that.
+pub fn build_method_data(p: &Prepared, method: Method) -> Result<()> {
+    match method {
+        Method::Texture(_) => p.textures().map(|_| ()),
+        Method::Mesh => p.mesh().map(|_| ()),
+        Method::Direct | Method::Reference => Ok(()),
+    }
+}
+
 /// Reserves in `ctx` what frames of `method` at `opts` need ([`crate::frame::FrameContext::reserve_scene`]
 /// with the scene `method` draws: the mesh's triangles for the mesh method).
 pub fn reserve_frames(

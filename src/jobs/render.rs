@@ -216,6 +216,7 @@ pub fn run_render(
     // frame and G-buffers are reserved before the first frame (timed apart), as a display
     // system allocates its framebuffers before it draws.
     let mut ctx = FrameContext::new();
+    super::build_method_data(&p, plan.method)?;
     let t = std::time::Instant::now();
     super::reserve_frames(&mut ctx, &p, plan.method, &plan.frame)?;
     let reserve_ms = t.elapsed().as_secs_f64() * 1e3;

@@ -127,11 +127,11 @@ fn for_each_block<const N: usize, T: EdgeLane, const HW: bool>(
     let mut inv_d = [0.0f64; N];
     for (k, e) in edges.iter().enumerate() {
         for (l, s) in lane_step[k].iter_mut().enumerate() {
-            *s = T::of(-e.dy * ONE * l as i64);
+            *s = T::of(-(e.dy as i64) * ONE * l as i64);
         }
-        block_step[k] = T::of(e.dy * ONE * LANES as i64);
-        min_step[k] = T::of((-e.dy * ONE * (LANES as i64 - 1)).min(0));
-        inv_d[k] = 1.0 / (e.dy * ONE) as f64;
+        block_step[k] = T::of(e.dy as i64 * ONE * LANES as i64);
+        min_step[k] = T::of((-(e.dy as i64) * ONE * (LANES as i64 - 1)).min(0));
+        inv_d[k] = 1.0 / (e.dy as i64 * ONE) as f64;
     }
     let valid: [u32; LANES] = std::array::from_fn(|l| l as u32);
     let mut row = [T::ZERO; N];
@@ -167,7 +167,7 @@ fn for_each_block<const N: usize, T: EdgeLane, const HW: bool>(
         let start = lo as u32 / LANES as u32 * LANES as u32;
         let end = hi as u32;
         for k in 0..N {
-            row[k] = T::of(row64[k] - edges[k].dy * ONE * (start - lx0) as i64);
+            row[k] = T::of(row64[k] - edges[k].dy as i64 * ONE * (start - lx0) as i64);
         }
         let mut bx = start;
         while bx <= end {
