@@ -229,7 +229,7 @@ pub fn render(
 }
 
 /// The working memory of a frame, kept across frames by its owner (a walkthrough, a benchmark):
-/// the primitives and their bins, one [`Workspace`] per worker in flight (its renderers' region
+/// the primitives and their bins, one workspace per worker in flight (its renderers' region
 /// G-buffers, the merge's and the patch location's scratch), the per-region counters and the
 /// frame itself. Every buffer keeps its capacity, so once a frame of a given size has been drawn,
 /// the next allocates nothing and touches no new page; [`FrameContext::reserve`] does that
