@@ -22,7 +22,7 @@ fn prepared(rel: &str) -> Prepared {
 }
 
 fn moved(cam: &Camera, k: usize) -> Camera {
-    let mut c = cam.clone();
+    let mut c = *cam;
     let d = (c.look_at - c.eye).length() * 0.05 * k as f64;
     c.eye += DVec3::new(d, 0.5 * d, -0.3 * d);
     c
