@@ -26,6 +26,7 @@
 //! on to save raster work in such scenes.
 
 use glam::DVec3;
+use smallvec::SmallVec;
 
 use crate::error::{Error, Result};
 use crate::scene::{Camera, Polygon, Projection, Shape};
@@ -117,14 +118,21 @@ pub mod plane {
     pub const TB: usize = 4;
 }
 
+/// Inline capacity of a clipped polygon's vertex list: 4 corners, +1 at the near plane, +1 per
+/// guard-band side, with room to spare.
+pub const CLIP_CAPACITY: usize = 12;
+
+/// A clipped polygon's screen vertices, held inline.
+pub type Verts = SmallVec<[[f64; 2]; CLIP_CAPACITY]>;
+
 /// A polygon after the geometry stage: a clipped convex screen polygon and its per-pixel
 /// expressions.
 #[derive(Clone, Debug)]
 pub struct ScreenPolygon {
     /// Index of the polygon in the scene: the stable primitive id of every later tie-break.
     pub id: u32,
-    /// Screen vertices (pixels), 3 to 9 of them, in polygon order.
-    pub verts: Vec<[f64; 2]>,
+    /// Screen vertices (pixels), 3 to 9 of them, in polygon order (held inline: no allocation).
+    pub verts: Verts,
     /// Q, Sa, Sb, Ta, Tb (see [`plane`]).
     pub planes: [Plane; 5],
     /// Corners c0..c3 in the polygon's 2-D frame (c0 at the origin).
@@ -375,7 +383,7 @@ impl View {
         if clipped.len() < 3 {
             return None;
         }
-        let mut verts: Vec<[f64; 2]> = clipped.iter().map(|&p| self.project(p)).collect();
+        let mut verts: Verts = clipped.iter().map(|&p| self.project(p)).collect();
         // Trivial rejection: entirely beyond one side of the image, where no sample lies (sample
         // positions are strictly inside (0, width) x (0, height)); setup would reject it later.
         let (w, h) = (self.width as f64, self.height as f64);
@@ -424,8 +432,8 @@ fn clip<T: Copy>(
     dist: impl Fn(&T) -> f64,
     lerp: impl Fn(T, T, f64) -> T,
     key: impl Fn(&T) -> [f64; 3],
-) -> Vec<T> {
-    let mut out = Vec::with_capacity(poly.len() + 1);
+) -> SmallVec<[T; CLIP_CAPACITY]> {
+    let mut out = SmallVec::new();
     if poly.is_empty() {
         return out;
     }

@@ -542,7 +542,7 @@ mod tests {
     fn prim(verts: Vec<[f64; 2]>, w: u32, h: u32) -> Option<Prim> {
         let sp = ScreenPolygon {
             id: 0,
-            verts,
+            verts: verts.into_iter().collect(),
             planes: [Plane::default(); 5],
             corners: [[0.0, 0.0], [1.0, 0.0], [0.0, 1.0], [0.0, 1.0]],
             triangle: true,

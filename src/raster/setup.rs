@@ -136,7 +136,8 @@ pub fn setup(sp: &ScreenPolygon, width: u32, height: u32) -> Option<Prim> {
         .verts
         .iter()
         .all(|p| p[0].abs() <= GUARD_BAND + 2.0e4 + width as f64));
-    let mut pts: Vec<[i64; 2]> = Vec::with_capacity(sp.verts.len());
+    let mut pts: smallvec::SmallVec<[[i64; 2]; super::geometry::CLIP_CAPACITY]> =
+        smallvec::SmallVec::new();
     for p in &sp.verts {
         let q = [snap(p[0]), snap(p[1])];
         if pts.last() != Some(&q) {
@@ -339,7 +340,7 @@ mod tests {
     fn screen(verts: Vec<[f64; 2]>, corners: [[f64; 2]; 4], triangle: bool) -> ScreenPolygon {
         ScreenPolygon {
             id: 0,
-            verts,
+            verts: verts.into_iter().collect(),
             planes: [Plane::default(); 5],
             corners,
             triangle,
