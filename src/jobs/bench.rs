@@ -180,7 +180,7 @@ pub struct BenchRow {
     pub geometry_ms: f64,
     /// Median raster time (binning, rasterization, patch-table fill), ms.
     pub raster_ms: f64,
-    /// Median compositor busy time, ms.
+    /// Median composition time (merge busy time per worker), ms.
     pub composition_ms: f64,
     /// Median deferred-shading time, ms.
     pub shading_ms: f64,

@@ -31,7 +31,7 @@ pub struct WalkthroughSummary {
     pub median_geometry_ms: f64,
     /// Median raster time, ms.
     pub median_raster_ms: f64,
-    /// Median compositor time, ms.
+    /// Median composition time (merge busy time per worker), ms.
     pub median_composition_ms: f64,
     /// Median deferred-shading time, ms.
     pub median_shading_ms: f64,
