@@ -209,12 +209,7 @@ fn stages(c: &mut Criterion) {
     });
     // One G-buffer and scratch per region, reused by every iteration.
     let mut work: Vec<(RegionGBuffer, PatchScratch)> = (0..grid.count())
-        .map(|_| {
-            (
-                RegionGBuffer::new(0, 0, 0, 0, 0, 1),
-                PatchScratch::default(),
-            )
-        })
+        .map(|_| (RegionGBuffer::default(), PatchScratch::default()))
         .collect();
     g.bench_function("raster-1024", |b| {
         b.iter(|| {
@@ -241,7 +236,7 @@ fn stages(c: &mut Criterion) {
         .map(|r| {
             (0..2)
                 .map(|k| {
-                    let mut gb = RegionGBuffer::new(0, 0, 0, 0, 0, 1);
+                    let mut gb = RegionGBuffer::default();
                     let ids = &bins[k][r];
                     rasterize_region_into(
                         &grid,

@@ -317,10 +317,10 @@ impl FrameContext {
         let workers = rayon::current_num_threads();
         pool.resize_with(pool.len().max(workers), Workspace::default);
         for ws in pool.iter_mut() {
-            ws.parts
-                .resize_with(ws.parts.len().max(opts.renderers as usize), || {
-                    RegionGBuffer::new(0, 0, 0, 0, 0, 1)
-                });
+            ws.parts.resize_with(
+                ws.parts.len().max(opts.renderers as usize),
+                Default::default,
+            );
             for gb in ws.parts.iter_mut().take(opts.renderers as usize) {
                 gb.reset(0, 0, 0, side, side, opts.aa);
                 gb.u.fill(0.0);
@@ -513,7 +513,7 @@ fn region_task(
             continue;
         }
         if ws.parts.len() <= used {
-            ws.parts.push(RegionGBuffer::new(0, 0, 0, 0, 0, 1));
+            ws.parts.push(RegionGBuffer::default());
         }
         let gb = &mut ws.parts[used];
         out.fragments += raster::rasterize_region_into(

@@ -30,8 +30,9 @@ pub const PIXEL_RECORD_BYTES: u64 = 20;
 /// Bytes of one patch-table entry.
 pub const TABLE_ENTRY_BYTES: u64 = std::mem::size_of::<PatchCoeffs>() as u64;
 
-/// The G-buffer of one region.
-#[derive(Clone, Debug, PartialEq)]
+/// The G-buffer of one region. `Default` is an empty buffer of no region, to be
+/// [`RegionGBuffer::reset`] before use.
+#[derive(Clone, Debug, Default, PartialEq)]
 pub struct RegionGBuffer {
     /// Index of the region in the frame's region grid.
     pub region: u32,

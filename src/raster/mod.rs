@@ -1,9 +1,9 @@
 //! Rasterization: the PixelFlow emulator's renderers. Given a scene, a camera and an image size,
 //! [`build_primitives`] runs [`geometry`] (view, projection, near-plane and guard-band clipping,
 //! back-face policy) and [`setup`] (fixed-point edge functions, top-left rule);
-//! [`bin_round_robin`] deals the primitives to R virtual renderers and bins each renderer's share
-//! per screen region ([`region::RegionGrid`]); [`rasterize_region`] is one renderer's work on one
-//! region: 8-lane block rasterization into a [`gbuffer::RegionGBuffer`], with each visible
+//! [`bin_round_robin_into`] deals the primitives to R virtual renderers and bins each renderer's
+//! share per screen region ([`region::RegionGrid`]); [`rasterize_region_into`] is one renderer's
+//! work on one region: 8-lane block rasterization into a [`gbuffer::RegionGBuffer`], with each visible
 //! sample's radiosity patch located and copied into a region-local table. Running these for a
 //! frame, merging the renderers' regions and shading them is the `frame` stage's job.
 //!
@@ -138,15 +138,9 @@ pub fn build_primitives_into(
 }
 
 /// Round-robin distribution of `prims` over `renderers` virtual renderers (the k-th primitive to
-/// renderer k mod R), each renderer's share binned per region of `grid`:
-/// `bins[renderer][region]` lists primitive indices in increasing order.
-pub fn bin_round_robin(grid: &RegionGrid, prims: &[Prim], renderers: u32) -> Vec<Vec<Vec<u32>>> {
-    let mut bins = Vec::new();
-    bin_round_robin_into(grid, prims, renderers, &mut bins);
-    bins
-}
-
-/// [`bin_round_robin`] into `bins`, reusing its lists' capacity (a warm frame allocates nothing).
+/// renderer k mod R), each renderer's share binned per region of `grid` into
+/// `bins[renderer][region]` (primitive indices in increasing order), reusing the lists' capacity
+/// (a warm frame allocates nothing).
 pub fn bin_round_robin_into(
     grid: &RegionGrid,
     prims: &[Prim],
@@ -164,46 +158,16 @@ pub fn bin_round_robin_into(
         }
     }
     for (i, p) in prims.iter().enumerate() {
-        let bin = &mut bins[i % r_count];
-        let [x0, y0, x1, y1] = p.bbox;
-        for ry in y0 / grid.size..=y1 / grid.size {
-            for rx in x0 / grid.size..=x1 / grid.size {
-                bin[(ry * grid.cols + rx) as usize].push(i as u32);
-            }
-        }
+        grid.bin_one(i as u32, p, &mut bins[i % r_count]);
     }
 }
 
-/// One renderer's work on one region: rasterizes the primitives `ids` (indices into `prims`, in
-/// increasing order) at every sample offset into a new G-buffer of region `reg` of `grid`, then,
-/// if the method has patches, locates each visible sample's patch in `source` and fills the
-/// region's patch table. Returns the G-buffer and the fragments rasterized (covered samples
+/// One renderer's work on one region: resets `gb` to region `reg` of `grid`
+/// ([`RegionGBuffer::reset`]), rasterizes the primitives `ids` (indices into `prims`, in
+/// increasing order) at every sample offset into it, then, if the method has patches, locates
+/// each visible sample's patch in `source` and fills the region's patch table, with the patch
+/// location's working memory in `scratch`. Returns the fragments rasterized (covered samples
 /// before the depth test).
-pub fn rasterize_region(
-    grid: &RegionGrid,
-    reg: u32,
-    prims: &[Prim],
-    ids: &[u32],
-    offsets: &[(f32, f32)],
-    source: Option<&dyn PatchSource>,
-) -> (RegionGBuffer, u64) {
-    let mut gb = RegionGBuffer::new(reg, 0, 0, 0, 0, 1);
-    let mut scratch = PatchScratch::default();
-    let fragments = rasterize_region_into(
-        grid,
-        reg,
-        prims,
-        ids,
-        offsets,
-        source,
-        &mut gb,
-        &mut scratch,
-    );
-    (gb, fragments)
-}
-
-/// [`rasterize_region`] into a reused G-buffer `gb` ([`RegionGBuffer::reset`] to the region
-/// first) with the patch location's working memory in `scratch`.
 #[allow(clippy::too_many_arguments)]
 pub fn rasterize_region_into(
     grid: &RegionGrid,

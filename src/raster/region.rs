@@ -82,14 +82,20 @@ impl RegionGrid {
     pub fn bin<'a>(&self, prims: impl Iterator<Item = (usize, &'a Prim)>) -> Vec<Vec<u32>> {
         let mut bins = vec![Vec::new(); self.count()];
         for (i, p) in prims {
-            let [x0, y0, x1, y1] = p.bbox;
-            for ry in y0 / self.size..=y1 / self.size {
-                for rx in x0 / self.size..=x1 / self.size {
-                    bins[(ry * self.cols + rx) as usize].push(i as u32);
-                }
-            }
+            self.bin_one(i as u32, p, &mut bins);
         }
         bins
+    }
+
+    /// Appends primitive `i` to the list of every region its bounding box meets.
+    #[inline]
+    pub fn bin_one(&self, i: u32, p: &Prim, bins: &mut [Vec<u32>]) {
+        let [x0, y0, x1, y1] = p.bbox;
+        for ry in y0 / self.size..=y1 / self.size {
+            for rx in x0 / self.size..=x1 / self.size {
+                bins[(ry * self.cols + rx) as usize].push(i);
+            }
+        }
     }
 }
 
@@ -227,18 +233,24 @@ trait EdgeLane:
         row: &[Self; N],
         step: &[[Self; LANES]; N],
     ) -> u32 {
-        let mut acc = [Self::ZERO; LANES];
-        for k in 0..N {
-            for l in 0..LANES {
-                acc[l] = acc[l] | (row[k] + step[k][l]);
-            }
-        }
-        let mut bits = 0u32;
-        for l in 0..LANES {
-            bits |= ((acc[l] >= Self::ZERO) as u32) << l;
-        }
-        bits
+        covered_bits_portable(row, step)
     }
+}
+
+/// The portable form of [`EdgeLane::covered_bits`], for either lane width.
+#[inline(always)]
+fn covered_bits_portable<T: EdgeLane, const N: usize>(row: &[T; N], step: &[[T; LANES]; N]) -> u32 {
+    let mut acc = [T::ZERO; LANES];
+    for k in 0..N {
+        for l in 0..LANES {
+            acc[l] = acc[l] | (row[k] + step[k][l]);
+        }
+    }
+    let mut bits = 0u32;
+    for l in 0..LANES {
+        bits |= ((acc[l] >= T::ZERO) as u32) << l;
+    }
+    bits
 }
 
 impl EdgeLane for i64 {
@@ -269,17 +281,7 @@ impl EdgeLane for i32 {
                 return unsafe { covered_bits_avx2(row, step) };
             }
         }
-        let mut acc = [0i32; LANES];
-        for k in 0..N {
-            for l in 0..LANES {
-                acc[l] |= row[k] + step[k][l];
-            }
-        }
-        let mut bits = 0u32;
-        for l in 0..LANES {
-            bits |= ((acc[l] >= 0) as u32) << l;
-        }
-        bits
+        covered_bits_portable(row, step)
     }
 }
 
