@@ -30,6 +30,12 @@ pub trait Observer: Sync {
     /// The stage `stage` ended (completed, or stopped early on an error).
     fn finished(&self, _stage: &str) {}
 
+    /// The stage `stage` is in phase `phase` (for example `"gather"`) and estimates that
+    /// `seconds` remain until the stage ends. An estimate, made from the rates the stage has
+    /// measured so far (each stage documents what its estimate covers); reported now and then,
+    /// never more than a few times a second.
+    fn remaining(&self, _stage: &str, _phase: &str, _seconds: f64) {}
+
     /// Whether trace lines are wanted. When false the library does not even format them.
     fn tracing(&self) -> bool {
         false
@@ -80,6 +86,14 @@ impl<'a> Stage<'a> {
         }
     }
 
+    /// Reports the phase and the estimated seconds left ([`Observer::remaining`]); a NaN or
+    /// negative estimate is dropped.
+    pub fn remaining(&self, phase: &str, seconds: f64) {
+        if seconds >= 0.0 && seconds.is_finite() {
+            self.observer.remaining(self.name, phase, seconds);
+        }
+    }
+
     /// The observer this stage reports to (for trace lines).
     pub fn observer(&self) -> &'a dyn Observer {
         self.observer
@@ -108,6 +122,7 @@ pub(crate) enum Event {
     Progress(String, f64),
     Finished(String),
     Trace(String),
+    Remaining(String, f64),
 }
 
 #[cfg(test)]
@@ -143,6 +158,9 @@ impl Observer for Recorder {
     }
     fn trace(&self, line: &str) {
         self.push(Event::Trace(line.into()));
+    }
+    fn remaining(&self, _stage: &str, phase: &str, seconds: f64) {
+        self.push(Event::Remaining(phase.into(), seconds));
     }
 }
 

@@ -352,7 +352,8 @@ mod tests {
         use crate::radiosity::transfer::PAIR_BYTES;
         let patch = std::mem::size_of::<crate::reconstruction::PatchCoeffs>() as u64;
         let rays = u64::from(scene.radiosity.shadow_rays);
-        let pairs = 22 * 2 * PAIR_BYTES;
+        // Exact visibility (44 pairs): an entry and an index slot per pair.
+        let pairs = 22 * 2 * (PAIR_BYTES + 8);
         let points = (rays + 20 * rays.div_ceil(4)) * 24;
         let cache = 4 * 22 * (81 + 25);
         assert_eq!(

@@ -526,6 +526,43 @@ fn bad_radiosity_depths_are_refused() {
     assert_error(&text, "convergence", &["radiosity.convergence", "(0, 1)"]);
     let text = format!("{BASE}\n[radiosity]\nseed = -1\n");
     assert_error(&text, "seed", &["radiosity.seed", "is -1"]);
+    let text = format!("{BASE}\n[radiosity]\nvisibility = \"approximate\"\n");
+    assert_error(
+        &text,
+        "visibility",
+        &[
+            "radiosity.visibility",
+            "`approximate`",
+            "`auto`, `exact` or `sampled`",
+        ],
+    );
+}
+
+/// `radiosity.visibility` reads its three values; `auto` (the default) is not part of the
+/// scene's hash, the other two are (they change the solution).
+#[test]
+fn visibility_setting_is_read_and_hashed() {
+    use pixelflow_sim::radiosity::scene_hash;
+    use pixelflow_sim::scene::Visibility;
+    let load = |v: &str| {
+        let text = format!("{BASE}\n[radiosity]\n{v}\n");
+        pixelflow_sim::scene::parse_scene_with(&text, Path::new("/virtual/s.toml"), &|_: &Path| {
+            Err(std::io::Error::new(std::io::ErrorKind::NotFound, "none"))
+        })
+        .unwrap()
+    };
+    let (none, auto, exact, sampled) = (
+        load(""),
+        load("visibility = \"auto\""),
+        load("visibility = \"exact\""),
+        load("visibility = \"sampled\""),
+    );
+    assert_eq!(none.radiosity.visibility, Visibility::Auto);
+    assert_eq!(exact.radiosity.visibility, Visibility::Exact);
+    assert_eq!(sampled.radiosity.visibility, Visibility::Sampled);
+    assert_eq!(scene_hash(&none), scene_hash(&auto));
+    assert_ne!(scene_hash(&none), scene_hash(&exact));
+    assert_ne!(scene_hash(&exact), scene_hash(&sampled));
 }
 
 #[test]

@@ -12,8 +12,9 @@
 //!
 //! **What is estimated**, from the sizes each stage itself exports (never from a measurement):
 //! - **solve**: the quadtrees and samples ([`shoot::state_bytes`]), the RRPs built from them,
-//!   the cache of coarse transfers, the pair tables of every shooter against every polygon
-//!   ([`transfer::PAIR_BYTES`]) and the shooters' sample points, with every tree at its starting
+//!   the cache of coarse transfers, the pair tables (every shooter against every polygon with
+//!   exact visibility, against at most its probe rays' hits with sampled visibility:
+//!   [`transfer::pair_table_bound`]) and the shooters' sample points, with every tree at its starting
 //!   depth (`min_depth`, or its shooter-patch depth if deeper: what the solve surely allocates,
 //!   checked before it starts) and, as the worst case, every tree as deep as its smallest
 //!   element size lets it refine ([`shoot::depth_bound`]). The worst case is reported, not
@@ -46,7 +47,7 @@ use std::sync::atomic::{AtomicU64, Ordering};
 
 use crate::error::{human_bytes, Error, Result};
 use crate::radiosity::shoot;
-use crate::radiosity::transfer::{self, PAIR_BYTES};
+use crate::radiosity::transfer;
 use crate::raster::gbuffer::PIXEL_RECORD_BYTES;
 use crate::reconstruction::PatchCoeffs;
 use crate::scene::Scene;
@@ -231,6 +232,7 @@ pub fn solve_parts(scene: &Scene, depth: Depth) -> Vec<(String, u64)> {
     let (mut nodes, mut vertices, mut leaves) = (0u64, 0u64, 0u64);
     let (mut shooters, mut shooter_points, mut coarse) = (0u64, 0u64, 0u64);
     shooters += scene.spots.len() as u64;
+    let mut lights = shooters;
     for (i, d) in polygon_depths(scene, depth).into_iter().enumerate() {
         let (n, v) = uniform_tree(d);
         nodes = nodes.saturating_add(n);
@@ -239,6 +241,7 @@ pub fn solve_parts(scene: &Scene, depth: Depth) -> Vec<(String, u64)> {
         let m = scene.material_of(i);
         if m.is_emitter() {
             shooters += 1;
+            lights += 1;
             shooter_points += nrays;
         }
         if m.reflectance.max_element() > 0.0 {
@@ -249,7 +252,6 @@ pub fn solve_parts(scene: &Scene, depth: Depth) -> Vec<(String, u64)> {
             coarse += uniform_tree(pd + 1).1;
         }
     }
-    let n = scene.polygons.len() as u64;
     vec![
         (
             "quadtrees and samples".to_string(),
@@ -269,7 +271,7 @@ pub fn solve_parts(scene: &Scene, depth: Depth) -> Vec<(String, u64)> {
         ),
         (
             "pair tables".to_string(),
-            shooters.saturating_mul(n).saturating_mul(PAIR_BYTES),
+            transfer::pair_table_bound(scene, shooters, lights),
         ),
         ("shooters".to_string(), shooter_points.saturating_mul(3 * 8)),
     ]

@@ -39,6 +39,11 @@
 //! [`tracing`](Observer::tracing), one trace line per phase with its time, shots, vertices and
 //! unshot fraction (used to measure the solver). Neither changes what is computed.
 //!
+//! Scale: after a shot only the polygons it reached have new integrals and only their patches a
+//! new unshot power; the unshot powers live in a tournament tree (`UnshotQueue`) that gives
+//! the next shooter and the total in O(log shooters), so a shot costs what the shooter
+//! reaches. The total is summed in the tree's fixed shape.
+//!
 //! Parallelism: rayon over receiver points (`par_iter` + `collect` in order); every float sum is
 //! done serially in a fixed order, so the result is the same for any number of threads.
 
@@ -260,12 +265,28 @@ pub(crate) fn run_with_cache(
         )
     };
     // Convergence is judged per channel: the solve's unshot fraction is the largest channel's.
-    let frac_of = |tr: &Transfer<'_>, unshot: &[DVec3]| -> f64 {
+    // The queue keeps every shooter's unshot power, their sum and the largest, updated per
+    // shooter in O(log shooters), so a shot costs what it reaches, not the scene's size.
+    let mut queue = UnshotQueue::new(ns);
+    let set_q = |q: &mut UnshotQueue, tr: &Transfer<'_>, s: usize, u: DVec3| {
+        let p = power3(tr, s, u);
+        let f = fractions(p);
+        q.set(s, p, f.x + f.y + f.z);
+    };
+    let frac_of = |q: &UnshotQueue| -> f64 {
         if emitted <= 0.0 {
             return 0.0;
         }
-        let total: DVec3 = (0..unshot.len()).map(|s| power3(tr, s, unshot[s])).sum();
-        fractions(total).max_element()
+        fractions(q.total()).max_element()
+    };
+    // Patch shooter ids of every polygon (empty for one that does not reflect).
+    let patches_of = |r: usize| -> std::ops::Range<usize> {
+        if patch_base[r] == u32::MAX {
+            0..0
+        } else {
+            let b = patch_base[r] as usize;
+            b..b + (1usize << (2 * patch_depth[r]))
+        }
     };
     let mut history = Vec::new();
     let mut shots = 0u64;
@@ -275,7 +296,7 @@ pub(crate) fn run_with_cache(
     // The unshot fraction may rise after a refinement pass; the stage keeps the reported
     // fraction non-decreasing.
     let observer: &dyn Observer = stage.observer();
-    let mut report = |frac: f64| {
+    let report = |stage: &mut Stage<'_>, frac: f64| {
         let done = if frac <= 0.0 {
             1.0
         } else {
@@ -308,25 +329,35 @@ pub(crate) fn run_with_cache(
             })
             .then(a.cmp(&b))
     });
+    for (s, u) in unshot.iter().enumerate() {
+        set_q(&mut queue, tr, s, *u);
+    }
     for s in direct {
         if power(tr, s, unshot[s]) <= 0.0 {
             continue;
         }
         let db = unshot[s];
-        shoot(tr, &mut polys, s, db, None);
+        let (touched, _) = shoot(tr, &mut polys, s, db, None);
         totals[s] += db;
         unshot[s] = DVec3::ZERO;
+        set_q(&mut queue, tr, s, unshot[s]);
         shots += 1;
-        integrate(&polys, &patch_base, None, false, &mut base);
-        set_unshot(tr, &polys, &totals, &base, &coarse, &mut unshot);
-        let frac = frac_of(tr, &unshot);
+        integrate(&polys, &patch_base, Some(&touched), false, &mut base);
+        for &r in &touched {
+            for p in patches_of(r as usize) {
+                unshot[p] = patch_unshot(tr, &polys, &totals, &base, &coarse, p);
+                set_q(&mut queue, tr, p, unshot[p]);
+            }
+        }
+        let frac = frac_of(&queue);
         history.push(frac);
-        report(frac);
+        report(stage, frac);
     }
     let mut refined_after = Vec::new();
     let mut frac = 0.0;
     if emitted > 0.0 {
         refined_after.push(shots);
+        tr.index_receivers();
         refine(
             scene,
             tr,
@@ -337,7 +368,10 @@ pub(crate) fn run_with_cache(
         )?;
         integrate(&polys, &patch_base, None, false, &mut base);
         set_unshot(tr, &polys, &totals, &base, &coarse, &mut unshot);
-        frac = frac_of(tr, &unshot);
+        for (s, u) in unshot.iter().enumerate() {
+            set_q(&mut queue, tr, s, *u);
+        }
+        frac = frac_of(&queue);
         if trace {
             observer.trace(&format!(
                 "direct + refine {:.0} ms, shots {shots}, vertices {}, unshot {frac:.4}",
@@ -348,6 +382,7 @@ pub(crate) fn run_with_cache(
     }
 
     let (mut t_pairs, mut t_shoot) = (0.0, 0.0);
+    let mut eta = Eta::new();
     let mut cache = CoarseCache::new(ns, cache_entries);
     let mut round = 0;
     while emitted > 0.0 && round < MAX_ROUNDS {
@@ -355,17 +390,7 @@ pub(crate) fn run_with_cache(
         while frac >= SHOOT_MARGIN * conv && shots < max_shots {
             // Largest unshot power, each channel relative to its emitted power (so the channel
             // furthest from convergence is served), ties by the smaller id.
-            let mut best = None;
-            let mut best_p = 0.0;
-            for (s, u) in unshot.iter().enumerate() {
-                let f = fractions(power3(tr, s, *u));
-                let p = f.x + f.y + f.z;
-                if p > best_p {
-                    best_p = p;
-                    best = Some(s);
-                }
-            }
-            let Some(s) = best else { break };
+            let Some(s) = queue.best() else { break };
             let db = unshot[s];
             if trace && shots.is_multiple_of(100) {
                 observer.trace(&format!(
@@ -396,22 +421,31 @@ pub(crate) fn run_with_cache(
             }
             t_pairs += tp.elapsed().as_secs_f64();
             let tp = Instant::now();
-            let touched = shoot(tr, &mut polys, s, db, Some(&mut cache));
-            t_shoot += tp.elapsed().as_secs_f64();
+            let (touched, points) = shoot(tr, &mut polys, s, db, Some(&mut cache));
+            let dt = tp.elapsed().as_secs_f64();
+            t_shoot += dt;
+            eta.transfers(points, dt);
             totals[s] += db;
             unshot[s] = DVec3::ZERO;
+            set_q(&mut queue, tr, s, unshot[s]);
             shots += 1;
             integrate(&polys, &patch_base, Some(&touched), true, &mut coarse);
-            set_unshot(tr, &polys, &totals, &base, &coarse, &mut unshot);
-            frac = frac_of(tr, &unshot);
+            for &r in &touched {
+                for p in patches_of(r as usize) {
+                    unshot[p] = patch_unshot(tr, &polys, &totals, &base, &coarse, p);
+                    set_q(&mut queue, tr, p, unshot[p]);
+                }
+            }
+            frac = frac_of(&queue);
             history.push(frac);
-            report(frac);
+            report(stage, frac);
+            eta.shot(stage, tr, &polys, frac, SHOOT_MARGIN * conv, round);
         }
         // Full gather from the whole history at every vertex, then refine against it.
         if trace {
             let (mut open, mut occ, mut cands) = (0usize, 0usize, 0usize);
             for p in tr.pairs.iter().flatten() {
-                for (r, c) in p.class.iter().enumerate() {
+                for (r, c) in p.receivers() {
                     match c {
                         PairClass::Open => open += 1,
                         PairClass::Occluded => {
@@ -431,7 +465,9 @@ pub(crate) fn run_with_cache(
                 totals.iter().filter(|t| **t != DVec3::ZERO).count()
             ));
         }
-        gather_all(tr, &mut polys, &totals);
+        tr.index_receivers();
+        gather_all(tr, &mut polys, &totals, stage, round);
+        eta.phase_start();
         if trace {
             observer.trace(&format!("  gather done {:.0} ms", elapsed_ms(t0)));
         }
@@ -450,7 +486,10 @@ pub(crate) fn run_with_cache(
         }
         coarse.iter_mut().for_each(|c| *c = DVec3::ZERO);
         set_unshot(tr, &polys, &totals, &base, &coarse, &mut unshot);
-        frac = frac_of(tr, &unshot);
+        for (s, u) in unshot.iter().enumerate() {
+            set_q(&mut queue, tr, s, *u);
+        }
+        frac = frac_of(&queue);
         if trace {
             observer.trace(&format!(
                 "round {round}: {:.0} ms, shots {shots}, splits {splits}, vertices {}, unshot {frac:.4}, rays {}",
@@ -464,9 +503,10 @@ pub(crate) fn run_with_cache(
         }
     }
     if emitted > 0.0 && round == 0 {
-        gather_all(tr, &mut polys, &totals);
+        tr.index_receivers();
+        gather_all(tr, &mut polys, &totals, stage, 0);
     }
-    report(1.0);
+    report(stage, 1.0);
     Ok(Outcome {
         trees: polys.into_iter().map(|p| (p.tree, p.keys, p.g)).collect(),
         totals,
@@ -479,8 +519,16 @@ pub(crate) fn run_with_cache(
     })
 }
 
-/// Every vertex of every reflecting polygon gathers G from the history `totals`.
-fn gather_all(tr: &Transfer<'_>, polys: &mut [Poly], totals: &[DVec3]) {
+/// Every vertex of every reflecting polygon gathers G from the history `totals`, in
+/// [`GATHER_CHUNKS`] chunks (each in parallel), reporting the time left after each from the
+/// rate so far. Chunking changes no value: each vertex's gather is the same computation.
+fn gather_all(
+    tr: &Transfer<'_>,
+    polys: &mut [Poly],
+    totals: &[DVec3],
+    stage: &Stage<'_>,
+    round: u32,
+) {
     let work: Vec<(u32, u32)> = polys
         .iter()
         .enumerate()
@@ -488,15 +536,105 @@ fn gather_all(tr: &Transfer<'_>, polys: &mut [Poly], totals: &[DVec3]) {
         .flat_map(|(r, p)| (0..p.keys.len() as u32).map(move |k| (r as u32, k)))
         .collect();
     let polys_ro = &*polys;
-    let g: Vec<DVec3> = work
-        .par_iter()
-        .map(|&(r, k)| {
+    let start = Instant::now();
+    let chunk = work.len().div_ceil(GATHER_CHUNKS).max(1);
+    let mut g: Vec<DVec3> = Vec::with_capacity(work.len());
+    let phase = format!("round {round} gather");
+    for part in work.chunks(chunk) {
+        g.par_extend(part.par_iter().map(|&(r, k)| {
             let key = polys_ro[r as usize].keys[k as usize];
             tr.gather(totals, r as usize, key.u(), key.v())
-        })
-        .collect();
+        }));
+        let done = g.len() as f64 / work.len() as f64;
+        let t = start.elapsed().as_secs_f64();
+        stage.remaining(&phase, t / done - t);
+    }
     for (&(r, k), g) in work.iter().zip(g) {
         polys[r as usize].g[k as usize] = g;
+    }
+}
+
+/// The final gather runs in this many chunks, so that its remaining time can be reported.
+const GATHER_CHUNKS: usize = 64;
+
+/// The solve's remaining-time estimate while it shoots: the shots left to the round's
+/// target, extrapolated from the rate at which the unshot fraction has fallen so far in the
+/// round (it falls about geometrically), plus the round's gather: its transfers (every vertex
+/// times the shooters that reach it) at the time per transfer the shots have measured. It
+/// covers the current round; refinement and a further round, which the solve cannot know it
+/// will need, are not in it (the gather reports its own remaining time when it runs).
+struct Eta {
+    started: Instant,
+    last: Option<Instant>,
+    first_frac: f64,
+    transfer_secs: f64,
+    transfers: u64,
+}
+
+/// Seconds between two remaining-time reports.
+const ETA_INTERVAL: f64 = 0.5;
+
+impl Eta {
+    fn new() -> Eta {
+        Eta {
+            started: Instant::now(),
+            last: None,
+            first_frac: f64::NAN,
+            transfer_secs: 0.0,
+            transfers: 0,
+        }
+    }
+
+    /// A new shooting phase starts (after a gather).
+    fn phase_start(&mut self) {
+        self.started = Instant::now();
+        self.first_frac = f64::NAN;
+    }
+
+    fn transfers(&mut self, n: usize, secs: f64) {
+        self.transfers += n as u64;
+        self.transfer_secs += secs;
+    }
+
+    fn shot(
+        &mut self,
+        stage: &Stage<'_>,
+        tr: &Transfer<'_>,
+        polys: &[Poly],
+        frac: f64,
+        target: f64,
+        round: u32,
+    ) {
+        if self.first_frac.is_nan() {
+            self.first_frac = frac;
+            self.started = Instant::now();
+            return;
+        }
+        if self
+            .last
+            .is_some_and(|l| l.elapsed().as_secs_f64() < ETA_INTERVAL)
+        {
+            return;
+        }
+        self.last = Some(Instant::now());
+        let t = self.started.elapsed().as_secs_f64();
+        let fallen = (self.first_frac / frac).ln();
+        if fallen.is_nan() || fallen <= 0.0 || self.transfers == 0 {
+            return;
+        }
+        let shooting = if frac > target {
+            t / fallen * (frac / target).ln()
+        } else {
+            0.0
+        };
+        let gather: f64 = polys
+            .iter()
+            .enumerate()
+            .filter(|(_, p)| p.rho.max_element() > 0.0)
+            .map(|(r, p)| (p.keys.len() * tr.shooters_of(r).len()) as f64)
+            .sum();
+        let per = self.transfer_secs / self.transfers as f64;
+        stage.remaining(&format!("round {round} shooting"), shooting + gather * per);
     }
 }
 
@@ -511,8 +649,11 @@ pub struct CoarseCache {
     budget: usize,
 }
 
-/// Most cached coarse transfers (4 bytes each: 128 MiB at most).
-pub const COARSE_CACHE_ENTRIES: usize = 32 << 20;
+/// Most cached coarse transfers (4 bytes each: 512 MiB at most). Entries grow with the pairs
+/// (about 9 per pair of a small polygon): 25 M for 10,000 polygons of rooms, 116 M for 40,000,
+/// where a smaller cache made every later shot of a patch recompute its transfers (the 40,000
+/// polygon solve spent 79 s shooting with 32 M entries).
+pub const COARSE_CACHE_ENTRIES: usize = 128 << 20;
 
 impl CoarseCache {
     fn new(shooters: usize, budget: usize) -> Self {
@@ -525,8 +666,8 @@ impl CoarseCache {
 }
 
 /// Shooter `s` shoots radiosity `db` (per unit intensity scale for a spot) to every vertex, or
-/// to the coarse receiver points if `cache` is given. Returns which polygons received or own the
-/// shooter.
+/// to the coarse receiver points if `cache` is given. Returns the polygons that received or own
+/// the shooter, ascending, and the number of receiver points.
 ///
 /// Coarse shots go to a fixed set of points (the coarse receivers never change during a solve),
 /// and a patch shoots about four times on average in an enclosed scene (the gallery: 4167 shots
@@ -540,29 +681,32 @@ fn shoot(
     s: usize,
     db: DVec3,
     cache: Option<&mut CoarseCache>,
-) -> Vec<bool> {
+) -> (Vec<u32>, usize) {
     tr.ensure_pairs(s);
     let tr = &*tr;
     let coarse = cache.is_some();
-    let classes = &tr.pairs[s].as_ref().expect("pairs computed above").class;
+    let pairs = tr.pairs[s].as_ref().expect("pairs computed above");
     let keys = |p: &Poly| if coarse { p.ckeys.len() } else { p.keys.len() };
-    let work: Vec<(u32, u32)> = polys
-        .iter()
+    // (receiver, key) per point, and the pair's entry in the shooter's table.
+    let (work, entry): (Vec<(u32, u32)>, Vec<u32>) = pairs
+        .receivers()
         .enumerate()
-        .filter(|(r, p)| classes[*r] != PairClass::Culled && p.rho.max_element() > 0.0)
-        .flat_map(|(r, p)| (0..keys(p) as u32).map(move |k| (r as u32, k)))
-        .collect();
+        .map(|(i, (r, _))| (i, r, &polys[r]))
+        .filter(|(_, _, p)| p.rho.max_element() > 0.0)
+        .flat_map(|(i, r, p)| (0..keys(p) as u32).map(move |k| ((r as u32, k), i as u32)))
+        .unzip();
     let polys_ro = &*polys;
     let compute = || -> Vec<DVec3> {
         work.par_iter()
-            .map(|&(r, k)| {
+            .zip(&entry)
+            .map(|(&(r, k), &i)| {
                 let p = &polys_ro[r as usize];
                 let key = if coarse {
                     p.ckeys[k as usize]
                 } else {
                     p.keys[k as usize]
                 };
-                tr.transfer(s, r as usize, key.u(), key.v())
+                tr.transfer_at(s, r as usize, i as usize, key.u(), key.v())
             })
             .collect()
     };
@@ -597,11 +741,14 @@ fn shoot(
             }
         }
     }
-    let mut touched: Vec<bool> = classes.iter().map(|c| *c != PairClass::Culled).collect();
-    if let Some(t) = touched.get_mut(tr.shooters[s].polygon as usize) {
-        *t = true;
+    let mut touched: Vec<u32> = pairs.receivers().map(|(r, _)| r as u32).collect();
+    let own = tr.shooters[s].polygon;
+    if (own as usize) < polys.len() {
+        if let Err(i) = touched.binary_search(&own) {
+            touched.insert(i, own);
+        }
     }
-    touched
+    (touched, work.len())
 }
 
 fn add_coarse(polys: &mut [Poly], work: &[(u32, u32)], t: &[f32], db: DVec3) {
@@ -611,10 +758,19 @@ fn add_coarse(polys: &mut [Poly], work: &[(u32, u32)], t: &[f32], db: DVec3) {
 }
 
 /// Recomputes the patch integrals of G (fine leaves, or coarse cells if `coarse`) of the
-/// polygons marked in `only` (all if `None`) into `out`, indexed by shooter id.
-fn integrate(polys: &[Poly], base: &[u32], only: Option<&[bool]>, coarse: bool, out: &mut [DVec3]) {
-    for (r, p) in polys.iter().enumerate() {
-        if base[r] == u32::MAX || only.is_some_and(|o| !o[r]) {
+/// polygons listed in `only` (all if `None`) into `out`, indexed by shooter id.
+fn integrate(polys: &[Poly], base: &[u32], only: Option<&[u32]>, coarse: bool, out: &mut [DVec3]) {
+    let all: Vec<u32>;
+    let list = match only {
+        Some(l) => l,
+        None => {
+            all = (0..polys.len() as u32).collect();
+            &all
+        }
+    };
+    for &r in list {
+        let (r, p) = (r as usize, &polys[r as usize]);
+        if base[r] == u32::MAX {
             continue;
         }
         let (leaves, g) = if coarse {
@@ -633,6 +789,76 @@ fn integrate(polys: &[Poly], base: &[u32], only: Option<&[bool]>, coarse: bool, 
             let avg = 0.25 * l.corners.iter().map(|&c| g[c as usize]).sum::<DVec3>();
             out[l.patch as usize] += l.area * avg;
         }
+    }
+}
+
+/// Unshot radiosity of reflecting patch `s`: rho * (fine + coarse integral) / area - total,
+/// clamped at zero per channel (see the module doc). [`set_unshot`] for one patch.
+fn patch_unshot(
+    tr: &Transfer<'_>,
+    polys: &[Poly],
+    totals: &[DVec3],
+    base: &[DVec3],
+    coarse: &[DVec3],
+    s: usize,
+) -> DVec3 {
+    let sg = &tr.shooters[s];
+    let ShooterKind::Patch { polygon, .. } = sg.kind else {
+        return DVec3::ZERO;
+    };
+    let rho = polys[polygon as usize].rho;
+    let b = if sg.area > 0.0 {
+        rho * (base[s] + coarse[s]) / sg.area
+    } else {
+        DVec3::ZERO
+    };
+    (b - totals[s]).max(DVec3::ZERO)
+}
+
+/// The shooters' unshot power (per channel, W) and the selection key (the sum over channels of
+/// unshot power relative to each channel's emitted power) in a tournament tree: the largest key
+/// (ties to the smaller id, as a scan in id order would pick) and the total power, each
+/// updated in O(log n) when one shooter changes. The total is summed in the tree's fixed
+/// shape, so it does not depend on the order of updates.
+struct UnshotQueue {
+    /// Leaves start at `size`; node k has children 2k and 2k + 1.
+    power: Vec<DVec3>,
+    best: Vec<(f64, u32)>,
+    size: usize,
+}
+
+impl UnshotQueue {
+    fn new(n: usize) -> Self {
+        let size = n.next_power_of_two().max(1);
+        UnshotQueue {
+            power: vec![DVec3::ZERO; 2 * size],
+            best: vec![(0.0, u32::MAX); 2 * size],
+            size,
+        }
+    }
+
+    fn set(&mut self, s: usize, power: DVec3, key: f64) {
+        let mut k = self.size + s;
+        self.power[k] = power;
+        // Only a positive key can be selected (a NaN never is).
+        self.best[k] = (if key > 0.0 { key } else { 0.0 }, s as u32);
+        while k > 1 {
+            k /= 2;
+            let (l, r) = (self.best[2 * k], self.best[2 * k + 1]);
+            self.best[k] = if r.0 > l.0 { r } else { l };
+            self.power[k] = self.power[2 * k] + self.power[2 * k + 1];
+        }
+    }
+
+    /// The shooter with the largest positive key, ties to the smaller id.
+    fn best(&self) -> Option<usize> {
+        let (k, s) = self.best[1];
+        (k > 0.0).then_some(s as usize)
+    }
+
+    /// Unshot power of every shooter, per channel.
+    fn total(&self) -> DVec3 {
+        self.power[1]
     }
 }
 
@@ -743,17 +969,28 @@ fn refine(
     let mut vertices: u64 = polys.iter().map(|p| p.keys.len() as u64).sum();
     let pair_bytes = tr.pair_bytes();
     let mut peak = peak_reflected(polys);
-    // The lights that have shot: their shadows drive the visibility test.
-    let lights: Vec<usize> = (0..tr.shooters.len())
-        .filter(|&s| {
+    // The lights that have shot (their shadows drive the visibility test) and, per polygon,
+    // those whose pairs with it may be occluded, ascending (from the per-receiver index, so
+    // this costs the pairs, not lights x polygons).
+    let is_light: Vec<bool> = (0..tr.shooters.len())
+        .map(|s| {
             !matches!(tr.shooters[s].kind, ShooterKind::Patch { .. }) && totals[s] != DVec3::ZERO
         })
         .collect();
-    let occluded = |s: usize, r: usize| -> bool {
-        tr.pairs[s]
-            .as_ref()
-            .is_some_and(|p| p.class[r] == PairClass::Occluded)
-    };
+    let shadow_lights: Vec<Vec<usize>> = (0..polys.len())
+        .map(|r| {
+            tr.shooters_of(r)
+                .iter()
+                .map(|&(s, _)| s as usize)
+                .filter(|&s| {
+                    is_light[s]
+                        && tr.pairs[s]
+                            .as_ref()
+                            .is_some_and(|p| p.class(r) == PairClass::Occluded)
+                })
+                .collect()
+        })
+        .collect();
     let min_size = min_element_size(scene);
     let mut pending: Vec<(u32, u32)> = Vec::new();
     for (r, p) in polys.iter().enumerate() {
@@ -782,7 +1019,7 @@ fn refine(
                     probes.push((r, k));
                 }
             }
-            if lights.iter().any(|&s| occluded(s, r as usize)) {
+            if !shadow_lights[r as usize].is_empty() {
                 shadow_keys.extend(
                     cell.corners()
                         .iter()
@@ -805,9 +1042,8 @@ fn refine(
             .par_iter()
             .map(|&(r, k)| {
                 let rho = polys[r as usize].rho;
-                lights
+                shadow_lights[r as usize]
                     .iter()
-                    .filter(|&&s| occluded(s, r as usize))
                     .map(|&s| {
                         let (open, vis) = tr.shadowed(s, r as usize, k.u(), k.v());
                         (lum(rho * totals[s] * open), vis)
@@ -851,7 +1087,7 @@ fn refine(
                 let d = p.rho * (*g - pr);
                 lum(d.abs()) > thresh
             });
-            let shadowed = !varies && lights.iter().any(|&s| occluded(s, r as usize)) && {
+            let shadowed = !varies && !shadow_lights[r as usize].is_empty() && {
                 let at = |k: VertexKey| {
                     let i = shadow_keys
                         .binary_search(&(r, k))
@@ -981,4 +1217,47 @@ fn test_points(cell: Cell) -> [VertexKey; 5] {
 /// Wall-clock helper kept here so the solver's timing has one definition.
 pub fn elapsed_ms(t: Instant) -> f64 {
     t.elapsed().as_secs_f64() * 1e3
+}
+
+#[cfg(test)]
+mod queue_tests {
+    use super::*;
+    use crate::radiosity::rng::Rng;
+
+    /// The queue picks what a scan in id order picks (the largest positive key, ties to the
+    /// smaller id, none when every key is 0) through random updates, with repeated keys so
+    /// ties happen, and its total is the channel sums to rounding.
+    #[test]
+    fn queue_agrees_with_a_scan() {
+        let n = 37;
+        let mut q = UnshotQueue::new(n);
+        let mut keys = vec![0.0f64; n];
+        let mut pw = vec![DVec3::ZERO; n];
+        let mut rng = Rng::new(3);
+        for step in 0..2000 {
+            let s = rng.below(n as u32) as usize;
+            let k = if rng.below(4) == 0 {
+                0.0
+            } else {
+                f64::from(rng.below(6))
+            };
+            let p = DVec3::new(k, 2.0 * k, rng.next_f64());
+            keys[s] = k;
+            pw[s] = p;
+            q.set(s, p, k);
+            let mut best = None;
+            let mut best_k = 0.0;
+            for (i, &x) in keys.iter().enumerate() {
+                if x > best_k {
+                    best_k = x;
+                    best = Some(i);
+                }
+            }
+            assert_eq!(q.best(), best, "step {step}");
+            let sum: DVec3 = pw.iter().copied().sum();
+            assert!(
+                (q.total() - sum).abs().max_element() <= 1e-12 * (1.0 + sum.abs().max_element())
+            );
+        }
+    }
 }

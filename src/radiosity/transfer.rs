@@ -18,13 +18,21 @@
 //! - receiver points are the polygon's parametric points pulled inside the domain by
 //!   [`EDGE_INSET`], so a point on an edge shared with a perpendicular wall sees that wall as the
 //!   limit from inside the polygon does (the exact edge point would see it edge-on, F = 0);
-//! - each (shooter, receiver polygon) pair is classified once: culled (no transfer possible),
-//!   open (no polygon can intersect the convex hull of the two, so V = 1 without rays), or
-//!   occluded (cast rays, testing only the pair's candidates). A candidate must overlap the
-//!   hull's bounding box, cross both polygons' planes, not be separated from the hull by its own
-//!   plane, and not lie outside a side face of the hull (planes through an edge of one polygon
-//!   and a vertex of the other); the BVH query itself skips subtrees outside those faces. The
-//!   classification is conservative and deterministic.
+//! - each shooter's receivers are found once ([`Transfer::ensure_pairs`]): every polygon with
+//!   exact visibility, or the polygons its probe rays hit and their corner neighbours with
+//!   sampled visibility ([`Transfer::probe`], chosen by `radiosity.visibility`). A polygon not
+//!   found receives nothing from that shooter;
+//! - each (shooter, receiver) pair found is classified once: culled (no transfer possible,
+//!   dropped), open (no polygon can intersect the convex hull of the two, so V = 1 without
+//!   rays), or occluded (cast rays, testing only the pair's candidates). A candidate must
+//!   overlap the hull's bounding box, cross both polygons' planes, not be separated from the
+//!   hull by its own plane, and not lie outside a side face of the hull (planes through an edge
+//!   of one polygon and a vertex of the other); the BVH query itself skips subtrees outside
+//!   those faces. The classification is conservative and deterministic;
+//! - pair tables are sparse (only pairs that are not culled) with an index per receiver
+//!   ([`Transfer::shooters_of`]), so a shot, a gather and the tables themselves cost what a
+//!   shooter or a point reaches, never the number of polygons in the scene; a gather visits
+//!   the receiver's shooters in id order, the order the sums were always taken in.
 
 use std::sync::atomic::{AtomicU64, Ordering};
 
@@ -34,7 +42,7 @@ use super::bvh::{Aabb, Bvh};
 use super::formfactor::{point_to_polygon, SmallPoly};
 use super::rng::{seed_of, Rng};
 use crate::quadtree::Cell;
-use crate::scene::{Polygon, Scene, Shape};
+use crate::scene::{Polygon, Scene, Shape, Visibility};
 
 /// Receiver points are evaluated at (u, v) clamped into [EDGE_INSET, 1 - EDGE_INSET]^2.
 pub const EDGE_INSET: f64 = 1e-6;
@@ -72,32 +80,111 @@ pub enum PairClass {
     Occluded,
 }
 
-/// Bytes of one shooter-receiver entry of a pair table (class, candidate range), without its
-/// candidate list.
-pub const PAIR_BYTES: u64 = (std::mem::size_of::<PairClass>() + 8) as u64;
+/// Bytes of one shooter-receiver entry of a pair table (receiver id, candidate range), without
+/// its candidate list. Culled pairs have no entry.
+pub const PAIR_BYTES: u64 = 12;
 
-/// Pair classes of one shooter against every receiver polygon, with the polygons that may
-/// occlude each `Occluded` pair.
+/// The receivers of one shooter: every polygon it may light (culled pairs are left out), each
+/// with its class and the polygons that may occlude it. Sparse, so that its size grows with
+/// what the shooter reaches, not with the scene.
 #[derive(Debug, Clone, Default)]
 pub struct Pairs {
-    /// Class per receiver polygon.
-    pub class: Vec<PairClass>,
-    /// Per receiver polygon, the range of its candidates in `cands`.
+    /// Receiver polygons, ascending.
+    recv: Vec<u32>,
+    /// Per entry of `recv`, the range of its candidates in `cands` (none: the pair is open).
     range: Vec<(u32, u32)>,
     /// Occluder candidates, concatenated.
     cands: Vec<u32>,
 }
 
 impl Pairs {
+    fn find(&self, r: usize) -> Option<usize> {
+        self.recv.binary_search(&(r as u32)).ok()
+    }
+    /// Class of receiver polygon `r`.
+    pub fn class(&self, r: usize) -> PairClass {
+        match self.find(r) {
+            None => PairClass::Culled,
+            Some(i) if self.range[i].1 == 0 => PairClass::Open,
+            Some(_) => PairClass::Occluded,
+        }
+    }
     /// Number of occluder candidates of receiver polygon `r`.
     pub fn cands_len(&self, r: usize) -> usize {
-        self.range[r].1 as usize
+        self.find(r).map_or(0, |i| self.range[i].1 as usize)
     }
-    fn cands(&self, r: usize) -> &[u32] {
-        let (a, n) = self.range[r];
-        &self.cands[a as usize..(a + n) as usize]
+    /// Every receiver that is not culled, ascending, with its class.
+    pub fn receivers(&self) -> impl Iterator<Item = (usize, PairClass)> + '_ {
+        self.recv.iter().zip(&self.range).map(|(&r, &(_, n))| {
+            let c = if n == 0 {
+                PairClass::Open
+            } else {
+                PairClass::Occluded
+            };
+            (r as usize, c)
+        })
+    }
+    fn at(&self, i: usize) -> (PairClass, &[u32]) {
+        let (a, n) = self.range[i];
+        let c = if n == 0 {
+            PairClass::Open
+        } else {
+            PairClass::Occluded
+        };
+        (c, &self.cands[a as usize..(a + n) as usize])
+    }
+    fn bytes(&self) -> u64 {
+        self.recv.len() as u64 * PAIR_BYTES + 4 * self.cands.len() as u64
     }
 }
+
+/// Scenes with at most this many (shooter, polygon) pairs classify every pair
+/// ([`Visibility::Auto`] picks `exact`); larger ones find each shooter's receivers with probe
+/// rays. 1 M pairs is about 1,000 polygons: the gallery (912,000 pairs) and the Cornell box
+/// stay exact; a building of 3 x 3 rooms (1,233 polygons, 1.5 M pairs) solves in 14.5 s exact
+/// and about 6 s sampled.
+pub const EXACT_PAIRS_LIMIT: u64 = 1 << 20;
+
+/// Whether a scene with `shooters` shooters finds receivers by probe rays: its
+/// `radiosity.visibility`, and for `auto` whether shooters x polygons passes
+/// [`EXACT_PAIRS_LIMIT`].
+pub fn sampled_visibility(scene: &Scene, shooters: u64) -> bool {
+    match scene.radiosity.visibility {
+        Visibility::Exact => false,
+        Visibility::Sampled => true,
+        Visibility::Auto => {
+            shooters.saturating_mul(scene.polygons.len() as u64) > EXACT_PAIRS_LIMIT
+        }
+    }
+}
+
+/// Bytes of the pair tables' entries before any is built, an upper bound: every pair with
+/// exact visibility, and with sampled visibility as many receivers per shooter as it casts
+/// probe rays (the distinct polygons they hit; the neighbours added to them and the occluder
+/// candidates are not known in advance, and the solve's own guard counts them). `lights` of
+/// the `shooters` are spots and emitters.
+pub fn pair_table_bound(scene: &Scene, shooters: u64, lights: u64) -> u64 {
+    let n = scene.polygons.len() as u64;
+    let entry = PAIR_BYTES + 8;
+    if !sampled_visibility(scene, shooters) {
+        return shooters.saturating_mul(n).saturating_mul(entry);
+    }
+    let patch = n.min(PROBE_RAYS as u64);
+    let light = n.min((PROBE_RAYS * LIGHT_PROBE_FACTOR) as u64);
+    let patches = shooters.saturating_sub(lights);
+    patches
+        .saturating_mul(patch)
+        .saturating_add(lights.saturating_mul(light))
+        .saturating_mul(entry)
+}
+
+/// Probe rays per reflecting patch in sampled visibility (spots and emitters cast
+/// [`LIGHT_PROBE_FACTOR`] times as many). See [`Transfer::probe`].
+pub const PROBE_RAYS: usize = 2048;
+
+/// Spots and emitters light the scene directly and are few: they cast this many times
+/// [`PROBE_RAYS`].
+pub const LIGHT_PROBE_FACTOR: usize = 4;
 
 /// The fixed geometry of one shooter.
 #[derive(Debug, Clone)]
@@ -278,7 +365,7 @@ pub struct Transfer<'a> {
     pub bvh: Bvh,
     /// Shooters in id order.
     pub shooters: Vec<ShooterGeom>,
-    /// Per shooter, the class and occluder candidates of every receiver polygon (computed when
+    /// Per shooter, its receivers with their classes and occluder candidates (computed when
     /// first needed).
     pub pairs: Vec<Option<Pairs>>,
     /// Plane-test tolerance, relative to the scene size.
@@ -290,6 +377,19 @@ pub struct Transfer<'a> {
     use_hull_faces: bool,
     /// Bytes of the pair tables built so far ([`Transfer::pair_bytes`]).
     pair_bytes: u64,
+    /// Whether receivers are found by probe rays ([`Visibility::Sampled`], or `Auto` on a
+    /// scene past [`EXACT_PAIRS_LIMIT`]).
+    sampled: bool,
+    /// Sampled visibility only: per polygon, the polygons that share a corner with it.
+    neighbours: Vec<Vec<u32>>,
+    /// Per receiver polygon, the shooters whose pairs reach it with the pair's entry in the
+    /// shooter's table; ascending once [`Transfer::index_receivers`] has run after the last
+    /// new pair table.
+    by_receiver: Vec<Vec<(u32, u32)>>,
+    /// Whether `by_receiver` has entries appended since it was last sorted.
+    unsorted: bool,
+    /// Length of a probe ray: four times the scene's diagonal.
+    reach: f64,
 }
 
 impl<'a> Transfer<'a> {
@@ -297,6 +397,7 @@ impl<'a> Transfer<'a> {
     pub fn new(scene: &'a Scene) -> Self {
         let (shooters, _, _) = build_shooters(scene);
         let eps = plane_tolerance(scene);
+        let sampled = sampled_visibility(scene, shooters.len() as u64);
         Transfer {
             scene,
             bvh: Bvh::build(&scene.polygons),
@@ -306,36 +407,182 @@ impl<'a> Transfer<'a> {
             rays: AtomicU64::new(0),
             use_hull_faces: true,
             pair_bytes: 0,
+            sampled,
+            neighbours: if sampled {
+                corner_neighbours(scene)
+            } else {
+                Vec::new()
+            },
+            by_receiver: vec![Vec::new(); scene.polygons.len()],
+            unsorted: false,
+            reach: {
+                let (lo, hi) = scene.bounds();
+                4.0 * (hi - lo).length().max(1e-300)
+            },
         }
     }
 
-    /// Bytes of the pair tables built so far: per shooter with a table, one class byte and one
-    /// candidate range (two `u32`) per receiver, plus its candidate lists.
+    /// Whether receivers are found by probe rays (see [`Visibility`]).
+    pub fn sampled(&self) -> bool {
+        self.sampled
+    }
+
+    /// Bytes of the pair tables built so far: per shooter with a table, a receiver id and a
+    /// candidate range (two `u32`) per receiver it reaches, plus its candidate lists, and the
+    /// per-receiver index (two `u32` per pair).
     pub fn pair_bytes(&self) -> u64 {
         self.pair_bytes
     }
 
-    /// Computes the pair classes of shooter `s` against every polygon, if not done yet.
+    /// Computes the receivers of shooter `s` and their classes, if not done yet: every polygon
+    /// (exact visibility) or the polygons its probe rays hit and their neighbours (sampled),
+    /// classified in parallel; culled pairs are dropped.
     pub fn ensure_pairs(&mut self, s: usize) {
         if self.pairs[s].is_some() {
             return;
         }
         use rayon::prelude::*;
         let this = &*self;
-        let per: Vec<(PairClass, Vec<u32>)> = (0..self.scene.polygons.len())
-            .into_par_iter()
-            .map(|r| this.classify(s, r))
+        let candidates: Vec<u32> = if self.sampled {
+            self.probe(s)
+        } else {
+            (0..self.scene.polygons.len() as u32).collect()
+        };
+        let per: Vec<(PairClass, Vec<u32>)> = candidates
+            .par_iter()
+            .map(|&r| this.classify(s, r as usize))
             .collect();
         let mut pairs = Pairs::default();
-        for (c, cands) in per {
-            pairs.class.push(c);
+        for (&r, (c, cands)) in candidates.iter().zip(per) {
+            if c == PairClass::Culled {
+                continue;
+            }
+            pairs.recv.push(r);
             pairs
                 .range
                 .push((pairs.cands.len() as u32, cands.len() as u32));
             pairs.cands.extend(cands);
         }
-        self.pair_bytes += pairs.class.len() as u64 * PAIR_BYTES + 4 * pairs.cands.len() as u64;
+        for (i, &r) in pairs.recv.iter().enumerate() {
+            let list = &mut self.by_receiver[r as usize];
+            if list.last().is_some_and(|&(l, _)| l as usize > s) {
+                self.unsorted = true;
+            }
+            list.push((s as u32, i as u32));
+        }
+        self.pair_bytes += pairs.bytes() + 8 * pairs.recv.len() as u64;
         self.pairs[s] = Some(pairs);
+    }
+
+    /// Sorts the per-receiver index after pair tables were added out of shooter order; the
+    /// gathers need it ascending (they sum in shooter id order).
+    pub fn index_receivers(&mut self) {
+        if self.unsorted {
+            use rayon::prelude::*;
+            self.by_receiver
+                .par_iter_mut()
+                .for_each(|l| l.sort_unstable());
+            self.unsorted = false;
+        }
+    }
+
+    /// The polygons shooter `s`'s probe rays hit first, with every polygon sharing a corner
+    /// with one of them or with the shooter's own polygon, ascending.
+    ///
+    /// Rays: from stratified points of the shooter (its cell's domain split into a grid,
+    /// one jittered point per stratum) in cosine-distributed directions about its normal,
+    /// stratified too and paired through a permutation (Latin hypercube); a spot casts from
+    /// its position, uniformly over its cone. All from a stream seeded by (scene seed, shooter
+    /// id), so the set depends only on the scene.
+    ///
+    /// Why this is enough: a polygon that receives a fraction f of the shooter's light (its
+    /// cosine-weighted solid angle) is hit on average by f times the rays, so whatever the
+    /// probes miss receives little; and since light a missed polygon would receive is shared
+    /// with its neighbours' (a wall cut into pieces), adding the neighbours of every hit
+    /// recovers most small pieces among visible ones. What is still missed is lost light,
+    /// measured in `docs/performance.md` against exact visibility.
+    pub fn probe(&self, s: usize) -> Vec<u32> {
+        use rayon::prelude::*;
+        let sg = &self.shooters[s];
+        let is_light = !matches!(sg.kind, ShooterKind::Patch { .. });
+        let n = if is_light {
+            PROBE_RAYS * LIGHT_PROBE_FACTOR
+        } else {
+            PROBE_RAYS
+        };
+        let reach = self.reach;
+        let seed = seed_of(&[self.scene.radiosity.seed, s as u64, 0x7072_6f62_6573]);
+        let grid = (n as f64).sqrt().ceil() as usize;
+        // One permutation pairs origin strata with direction strata.
+        let mut rng = Rng::new(seed);
+        let mut perm: Vec<u32> = (0..n as u32).collect();
+        for i in (1..n).rev() {
+            let j = rng.below(i as u32 + 1) as usize;
+            perm.swap(i, j);
+        }
+        const CHUNK: usize = 64;
+        let mut hits: Vec<u32> = (0..n.div_ceil(CHUNK))
+            .into_par_iter()
+            .flat_map_iter(|c| {
+                let mut rng = Rng::new(seed_of(&[seed, c as u64]));
+                let perm = &perm;
+                (c * CHUNK..((c + 1) * CHUNK).min(n)).filter_map(move |i| {
+                    let (o, d) = self.probe_ray(sg, i, perm[i] as usize, grid, &mut rng);
+                    self.bvh.first_hit(o, d * reach, sg.polygon).map(|h| h.0)
+                })
+            })
+            .collect();
+        hits.sort_unstable();
+        hits.dedup();
+        let mut out = hits.clone();
+        for &h in &hits {
+            out.extend_from_slice(&self.neighbours[h as usize]);
+        }
+        if let Some(own) = self.neighbours.get(sg.polygon as usize) {
+            out.extend_from_slice(own);
+        }
+        out.sort_unstable();
+        out.dedup();
+        out.retain(|&r| r != sg.polygon);
+        out
+    }
+
+    /// Origin and unit direction of probe ray `i` (origin stratum `i`, direction stratum `j`).
+    fn probe_ray(
+        &self,
+        sg: &ShooterGeom,
+        i: usize,
+        j: usize,
+        grid: usize,
+        rng: &mut Rng,
+    ) -> (DVec3, DVec3) {
+        let g = grid as f64;
+        let a = ((j % grid) as f64 + rng.next_f64()) / g;
+        let b = ((j / grid) as f64 + rng.next_f64()) / g;
+        let phi = 2.0 * std::f64::consts::PI * b;
+        match sg.kind {
+            ShooterKind::Spot { spot } => {
+                let sp = &self.scene.spots[spot as usize];
+                let ca = sp.half_angle.cos().clamp(-1.0, 1.0);
+                let cos = 1.0 - a * (1.0 - ca);
+                let sin = (1.0 - cos * cos).max(0.0).sqrt();
+                let (t1, t2) = sp.direction.normalize_or_zero().any_orthonormal_pair();
+                let d = sp.direction.normalize_or_zero() * cos
+                    + (t1 * phi.cos() + t2 * phi.sin()) * sin;
+                (sp.position, d)
+            }
+            _ => {
+                let p = &self.scene.polygons[sg.polygon as usize];
+                let (u0, v0, u1, v1) = sg.bounds;
+                let su = ((i % grid) as f64 + rng.next_f64()) / g;
+                let sv = ((i / grid) as f64 + rng.next_f64()) / g;
+                let o = p.point(u0 + (u1 - u0) * su, v0 + (v1 - v0) * sv.min(1.0));
+                let (t1, t2) = sg.normal.any_orthonormal_pair();
+                let r = a.sqrt();
+                let d = (t1 * phi.cos() + t2 * phi.sin()) * r + sg.normal * (1.0 - a).sqrt();
+                (o, d)
+            }
+        }
     }
 
     /// Class of the pair (shooter `s`, receiver polygon `r`), see [`PairClass`], and for an
@@ -447,7 +694,44 @@ impl<'a> Transfer<'a> {
     /// Irradiance at the receiver point of polygon `r` at (u, v) per unit radiosity of shooter `s`
     /// (per unit intensity scale for a spot). Requires [`Transfer::ensure_pairs`] for `s`.
     pub fn transfer(&self, s: usize, r: usize, u: f64, v: f64) -> DVec3 {
-        let (open, vis) = self.shadowed(s, r, u, v);
+        self.transfer_with(s, r, self.pair_of(s, r), u, v)
+    }
+
+    /// The class and occluder candidates of pair (s, r): from the table if built, classified
+    /// now otherwise.
+    fn pair_of(&self, s: usize, r: usize) -> (PairClass, Candidates<'_>) {
+        match &self.pairs[s] {
+            Some(p) => match p.find(r) {
+                Some(i) => {
+                    let (c, l) = p.at(i);
+                    (c, Candidates::Table(l))
+                }
+                None => (PairClass::Culled, Candidates::Table(&[])),
+            },
+            None => {
+                let (c, l) = self.classify(s, r);
+                (c, Candidates::Owned(l))
+            }
+        }
+    }
+
+    /// [`Transfer::transfer`] given the pair's entry `i` in shooter `s`'s table (as the
+    /// per-receiver index and the shots hold it), without looking it up.
+    pub fn transfer_at(&self, s: usize, r: usize, i: usize, u: f64, v: f64) -> DVec3 {
+        let p = self.pairs[s].as_ref().expect("the pair's table exists");
+        let (c, l) = p.at(i);
+        self.transfer_with(s, r, (c, Candidates::Table(l)), u, v)
+    }
+
+    fn transfer_with(
+        &self,
+        s: usize,
+        r: usize,
+        pair: (PairClass, Candidates<'_>),
+        u: f64,
+        v: f64,
+    ) -> DVec3 {
+        let (open, vis) = self.shadowed_with(s, r, pair, u, v);
         match self.shooters[s].kind {
             // A spot's visibility is 0 or 1: the unoccluded transfer or nothing.
             ShooterKind::Spot { .. } => {
@@ -466,13 +750,20 @@ impl<'a> Transfer<'a> {
     /// one ray). `transfer` is their product. Used by refinement to find elements that a shadow
     /// boundary crosses. Requires [`Transfer::ensure_pairs`] for `s`.
     pub fn shadowed(&self, s: usize, r: usize, u: f64, v: f64) -> (DVec3, f64) {
-        let owned;
-        let (class, cands): (PairClass, &[u32]) = match &self.pairs[s] {
-            Some(p) => (p.class[r], p.cands(r)),
-            None => {
-                owned = self.classify(s, r);
-                (owned.0, &owned.1)
-            }
+        self.shadowed_with(s, r, self.pair_of(s, r), u, v)
+    }
+
+    fn shadowed_with(
+        &self,
+        s: usize,
+        r: usize,
+        (class, cands): (PairClass, Candidates<'_>),
+        u: f64,
+        v: f64,
+    ) -> (DVec3, f64) {
+        let cands: &[u32] = match &cands {
+            Candidates::Table(l) => l,
+            Candidates::Owned(v) => v,
         };
         if class == PairClass::Culled {
             return (DVec3::ZERO, 1.0);
@@ -654,15 +945,77 @@ impl<'a> Transfer<'a> {
 
     /// Total irradiance G at polygon `r`, (u, v) from every shooter with a non-zero total, in
     /// shooter id order: G = sum_s total_s * transfer(s). Radiosity is E + rho * G.
+    ///
+    /// Only the shooters whose pairs reach `r` are visited (a culled pair adds exactly zero),
+    /// so a gather costs what the point can see. Every shooter with a non-zero total must have
+    /// its pairs ([`Transfer::ensure_pairs`]) and the index must be sorted
+    /// ([`Transfer::index_receivers`]).
     pub fn gather(&self, totals: &[DVec3], r: usize, u: f64, v: f64) -> DVec3 {
+        debug_assert!(!self.unsorted, "index_receivers after new pairs");
         let mut g = DVec3::ZERO;
-        for (s, t) in totals.iter().enumerate() {
-            if *t != DVec3::ZERO {
-                g += *t * self.transfer(s, r, u, v);
+        for &(s, i) in &self.by_receiver[r] {
+            let t = totals[s as usize];
+            if t != DVec3::ZERO {
+                g += t * self.transfer_at(s as usize, r, i as usize, u, v);
             }
         }
         g
     }
+
+    /// Shooters whose pairs reach receiver `r`, ascending, each with its entry in the
+    /// shooter's table (see [`Transfer::index_receivers`]).
+    pub fn shooters_of(&self, r: usize) -> &[(u32, u32)] {
+        &self.by_receiver[r]
+    }
+}
+
+/// Most polygons sharing one corner for which [`corner_neighbours`] records them.
+const MAX_SHARING: usize = 32;
+
+/// Per polygon, the other polygons that share a corner with it (exact coordinates), ascending.
+fn corner_neighbours(scene: &Scene) -> Vec<Vec<u32>> {
+    let key = |p: &DVec3| [p.x.to_bits(), p.y.to_bits(), p.z.to_bits()];
+    let mut at: Vec<([u64; 3], u32)> = scene
+        .polygons
+        .iter()
+        .enumerate()
+        .flat_map(|(i, p)| p.vertices().iter().map(move |c| (key(c), i as u32)))
+        .collect();
+    at.sort_unstable();
+    at.dedup();
+    let mut out = vec![Vec::new(); scene.polygons.len()];
+    let mut i = 0;
+    while i < at.len() {
+        let mut j = i;
+        while j < at.len() && at[j].0 == at[i].0 {
+            j += 1;
+        }
+        // A corner shared by more than MAX_SHARING polygons (the centre of a large fan) adds no
+        // neighbours: the pass would cost its square, and such fans are rare in models.
+        if j - i > MAX_SHARING {
+            i = j;
+            continue;
+        }
+        for a in &at[i..j] {
+            for b in &at[i..j] {
+                if a.1 != b.1 {
+                    out[a.1 as usize].push(b.1);
+                }
+            }
+        }
+        i = j;
+    }
+    for l in &mut out {
+        l.sort_unstable();
+        l.dedup();
+    }
+    out
+}
+
+/// A pair's occluder candidates: borrowed from its table, or classified for this call.
+enum Candidates<'t> {
+    Table(&'t [u32]),
+    Owned(Vec<u32>),
 }
 
 /// Shooters with at most this many sample points skip the per-point candidate filter (see
@@ -883,7 +1236,7 @@ mod tests {
             for r in 0..scene.polygons.len() {
                 // Culled pairs (shooter and receiver facing away within the classifier's
                 // tolerance) transfer nothing by design; this test is about visibility.
-                if tr.pairs[s].as_ref().unwrap().class[r] == PairClass::Culled {
+                if tr.pairs[s].as_ref().unwrap().class(r) == PairClass::Culled {
                     continue;
                 }
                 let n = scene.polygons[r].normal;

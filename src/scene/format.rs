@@ -171,6 +171,8 @@ pub struct RadiositySection {
     pub shadow_rays: Option<Spanned<i64>>,
     /// Seed.
     pub seed: Option<Spanned<i64>>,
+    /// Receiver search: "auto", "exact" or "sampled".
+    pub visibility: Option<Spanned<String>>,
 }
 
 /// `[render]`.

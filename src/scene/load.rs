@@ -547,6 +547,20 @@ impl<'a> Cx<'a> {
         if let Some(v) = &r.seed {
             s.seed = self.int(v, "radiosity.seed", 0, i64::MAX, "")? as u64;
         }
+        if let Some(v) = &r.visibility {
+            s.visibility = match v.get_ref().as_str() {
+                "auto" => crate::scene::Visibility::Auto,
+                "exact" => crate::scene::Visibility::Exact,
+                "sampled" => crate::scene::Visibility::Sampled,
+                other => {
+                    return Err(self.err(
+                        v.span(),
+                        "radiosity.visibility",
+                        format!("is `{other}`, must be `auto`, `exact` or `sampled`"),
+                    ))
+                }
+            };
+        }
         Ok(s)
     }
 

@@ -273,6 +273,22 @@ pub struct RadiositySettings {
     pub shadow_rays: u32,
     /// Seed of every pseudo-random choice of the solve.
     pub seed: u64,
+    /// How the solver finds which polygons each shooter can reach (`docs/scene-format.md`).
+    pub visibility: Visibility,
+}
+
+/// How the solver finds the receivers a shooter can reach (`radiosity.visibility`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Visibility {
+    /// `exact` for scenes whose shooter-polygon pairs are few enough to test them all
+    /// (`radiosity::transfer::EXACT_PAIRS_LIMIT`), `sampled` beyond.
+    #[default]
+    Auto,
+    /// Every (shooter, polygon) pair is classified: cost and memory grow with their product.
+    Exact,
+    /// The polygons a shooter's probe rays hit, and their neighbours, are its receivers: cost
+    /// grows with what each shooter sees (`radiosity::transfer::PROBE_RAYS`).
+    Sampled,
 }
 
 impl Default for RadiositySettings {
@@ -284,6 +300,7 @@ impl Default for RadiositySettings {
             convergence: 0.01,
             shadow_rays: 16,
             seed: 1,
+            visibility: Visibility::Auto,
         }
     }
 }

@@ -87,13 +87,25 @@ impl Observer for Terminal {
                 .with_prefix(stage.to_string())
                 .with_elapsed(elapsed);
             if let Ok(style) = indicatif::ProgressStyle::with_template(
-                "{prefix} [{elapsed_precise}] {wide_bar} {percent}%",
+                "{prefix} [{elapsed_precise}] {wide_bar} {percent}% {msg}",
             ) {
                 b.set_style(style);
             }
             b
         });
         bar.set_position((fraction.clamp(0.0, 1.0) * 1000.0) as u64);
+    }
+
+    fn remaining(&self, stage: &str, phase: &str, seconds: f64) {
+        let Ok(st) = self.state.lock() else {
+            return;
+        };
+        if st.stage != stage {
+            return;
+        }
+        if let Some(bar) = &st.bar {
+            bar.set_message(format!("{phase}, about {} left", human_seconds(seconds)));
+        }
     }
 
     fn finished(&self, stage: &str) {
@@ -110,6 +122,16 @@ impl Observer for Terminal {
 
     fn trace(&self, line: &str) {
         self.note(line);
+    }
+}
+
+/// `42 s`, `3 min 5 s`, `2 h 10 min`: whole units, the two largest.
+fn human_seconds(s: f64) -> String {
+    let s = s.round().max(0.0) as u64;
+    match s {
+        0..=59 => format!("{s} s"),
+        60..=3599 => format!("{} min {} s", s / 60, s % 60),
+        _ => format!("{} h {} min", s / 3600, s % 3600 / 60),
     }
 }
 
@@ -130,6 +152,20 @@ mod tests {
     fn shown(t: &Terminal) -> Option<(String, u64)> {
         let st = t.state.lock().unwrap();
         st.bar.as_ref().map(|b| (b.prefix(), b.position()))
+    }
+
+    /// The remaining-time estimate shows on the running stage's bar, not on another's.
+    #[test]
+    fn remaining_time_shows_on_the_stage_bar() {
+        let t = terminal();
+        t.progress("solve", 0.2);
+        t.remaining("solve", "gather", 125.4);
+        let msg = |t: &Terminal| t.state.lock().unwrap().bar.as_ref().unwrap().message();
+        assert_eq!(msg(&t), "gather, about 2 min 5 s left");
+        t.remaining("walkthrough", "frames", 3.0);
+        assert_eq!(msg(&t), "gather, about 2 min 5 s left");
+        assert_eq!(human_seconds(7322.0), "2 h 2 min");
+        assert_eq!(human_seconds(0.4), "0 s");
     }
 
     #[test]
