@@ -410,7 +410,7 @@ fn the_shipped_building_is_the_generator_output() {
     let toml = std::fs::read_to_string(&scene_path).unwrap();
     // Its first line is the command that made it; run that command's options here.
     let first = toml.lines().next().unwrap();
-    let o = options(4, 4, 1, 5);
+    let o = options(8, 8, 1, 2);
     let paths = BuildingPaths::for_output(Path::new("scenes/building.toml")).unwrap();
     assert_eq!(
         first,
