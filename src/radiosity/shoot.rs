@@ -400,7 +400,9 @@ pub(crate) fn run_with_cache(
                 ));
             }
             let tp = Instant::now();
-            if tr.pairs[s].is_none() {
+            let shot_start = tp;
+            let first_shot = tr.pairs[s].is_none();
+            if first_shot {
                 tr.ensure_pairs(s);
                 // A new pair table: the memory guard again (trees do not grow while shooting).
                 let nodes: u64 = polys.iter().map(|p| p.tree.nodes().len() as u64).sum();
@@ -421,10 +423,15 @@ pub(crate) fn run_with_cache(
             }
             t_pairs += tp.elapsed().as_secs_f64();
             let tp = Instant::now();
+            // Whether this shot computes its transfers (a cached one only adds them): only
+            // computed ones tell what a gather's transfer costs.
+            let computes = cache.per[s].is_none();
             let (touched, points) = shoot(tr, &mut polys, s, db, Some(&mut cache));
             let dt = tp.elapsed().as_secs_f64();
             t_shoot += dt;
-            eta.transfers(points, dt);
+            if computes {
+                eta.transfers(points, dt);
+            }
             totals[s] += db;
             unshot[s] = DVec3::ZERO;
             set_q(&mut queue, tr, s, unshot[s]);
@@ -439,7 +446,8 @@ pub(crate) fn run_with_cache(
             frac = frac_of(&queue);
             history.push(frac);
             report(stage, frac);
-            eta.shot(stage, tr, &polys, frac, SHOOT_MARGIN * conv, round);
+            eta.shot_took(first_shot, shot_start.elapsed().as_secs_f64());
+            eta.shot(stage, tr, &polys, &unshot, frac, SHOOT_MARGIN * conv, round);
         }
         // Full gather from the whole history at every vertex, then refine against it.
         if trace {
@@ -557,19 +565,31 @@ fn gather_all(
 /// The final gather runs in this many chunks, so that its remaining time can be reported.
 const GATHER_CHUNKS: usize = 64;
 
-/// The solve's remaining-time estimate while it shoots: the shots left to the round's
-/// target, extrapolated from the rate at which the unshot fraction has fallen so far in the
-/// round (it falls about geometrically), plus the round's gather: its transfers (every vertex
-/// times the shooters that reach it) at the time per transfer the shots have measured. It
-/// covers the current round; refinement and a further round, which the solve cannot know it
-/// will need, are not in it (the gather reports its own remaining time when it runs).
+/// The solve's remaining-time estimate while it shoots. The shots left to the round's target
+/// are extrapolated from the number of shots per unit of ln(unshot fraction) over the last
+/// [`ETA_WINDOW`] reports (the fraction falls about geometrically in shots); of those, as many
+/// as there are patches with unshot light that have not shot yet are priced at the measured
+/// cost of a first shot (which finds the shooter's receivers and computes its transfers), the
+/// rest at the measured cost of a repeated one (cached transfers): pricing all shots alike
+/// overestimated by 2-3 times, the first shots being the slow ones. Then the round's gather:
+/// its transfers (every vertex times the shooters that reach it) at the time per transfer
+/// that the shots which computed theirs measured. It covers the current round; refinement and
+/// a further round, which the solve cannot know it will need, are not in it (the gather
+/// reports its own remaining time when it runs).
 struct Eta {
-    started: Instant,
+    /// (shots this round, ln unshot fraction) at recent reports.
+    recent: std::collections::VecDeque<(u64, f64)>,
     last: Option<Instant>,
-    first_frac: f64,
+    /// Shots this round, and the time and count of first and of repeated shots (all rounds).
+    shots: u64,
+    first: (f64, u64),
+    repeat: (f64, u64),
     transfer_secs: f64,
     transfers: u64,
 }
+
+/// Reports whose rate the shooting estimate extrapolates (5 s at [`ETA_INTERVAL`]).
+const ETA_WINDOW: usize = 10;
 
 /// Seconds between two remaining-time reports.
 const ETA_INTERVAL: f64 = 0.5;
@@ -577,9 +597,11 @@ const ETA_INTERVAL: f64 = 0.5;
 impl Eta {
     fn new() -> Eta {
         Eta {
-            started: Instant::now(),
+            recent: std::collections::VecDeque::new(),
             last: None,
-            first_frac: f64::NAN,
+            shots: 0,
+            first: (0.0, 0),
+            repeat: (0.0, 0),
             transfer_secs: 0.0,
             transfers: 0,
         }
@@ -587,8 +609,9 @@ impl Eta {
 
     /// A new shooting phase starts (after a gather).
     fn phase_start(&mut self) {
-        self.started = Instant::now();
-        self.first_frac = f64::NAN;
+        self.recent.clear();
+        self.last = None;
+        self.shots = 0;
     }
 
     fn transfers(&mut self, n: usize, secs: f64) {
@@ -596,20 +619,28 @@ impl Eta {
         self.transfer_secs += secs;
     }
 
+    fn shot_took(&mut self, first: bool, secs: f64) {
+        self.shots += 1;
+        let c = if first {
+            &mut self.first
+        } else {
+            &mut self.repeat
+        };
+        c.0 += secs;
+        c.1 += 1;
+    }
+
+    #[allow(clippy::too_many_arguments)]
     fn shot(
         &mut self,
         stage: &Stage<'_>,
         tr: &Transfer<'_>,
         polys: &[Poly],
+        unshot: &[DVec3],
         frac: f64,
         target: f64,
         round: u32,
     ) {
-        if self.first_frac.is_nan() {
-            self.first_frac = frac;
-            self.started = Instant::now();
-            return;
-        }
         if self
             .last
             .is_some_and(|l| l.elapsed().as_secs_f64() < ETA_INTERVAL)
@@ -617,16 +648,34 @@ impl Eta {
             return;
         }
         self.last = Some(Instant::now());
-        let t = self.started.elapsed().as_secs_f64();
-        let fallen = (self.first_frac / frac).ln();
+        let now = (self.shots, frac.ln());
+        if self.recent.len() == ETA_WINDOW {
+            self.recent.pop_front();
+        }
+        self.recent.push_back(now);
+        let Some(&(s0, l0)) = self.recent.front() else {
+            return;
+        };
+        let fallen = l0 - now.1;
         if fallen.is_nan() || fallen <= 0.0 || self.transfers == 0 {
             return;
         }
-        let shooting = if frac > target {
-            t / fallen * (frac / target).ln()
+        let left = if frac > target {
+            (now.0 - s0) as f64 / fallen * (frac / target).ln()
         } else {
             0.0
         };
+        let mean = |(t, n): (f64, u64)| if n > 0 { t / n as f64 } else { 0.0 };
+        let unpaired = (0..tr.shooters.len())
+            .filter(|&s| tr.pairs[s].is_none() && unshot[s] != DVec3::ZERO)
+            .count() as f64;
+        let firsts = left.min(unpaired);
+        let repeat = if self.repeat.1 > 0 {
+            mean(self.repeat)
+        } else {
+            mean(self.first)
+        };
+        let shooting = firsts * mean(self.first) + (left - firsts) * repeat;
         let gather: f64 = polys
             .iter()
             .enumerate()

@@ -19,6 +19,8 @@ pub struct Terminal {
     trace: bool,
     /// How long a stage runs before its bar appears.
     delay: Duration,
+    /// When the terminal was made (the command's start): the clock of `--trace` estimates.
+    created: Instant,
     state: Mutex<BarState>,
 }
 
@@ -47,6 +49,7 @@ impl Terminal {
             bar: bar && std::io::stderr().is_terminal(),
             trace,
             delay: Duration::from_secs(1),
+            created: Instant::now(),
             state: Mutex::default(),
         }
     }
@@ -97,6 +100,13 @@ impl Observer for Terminal {
     }
 
     fn remaining(&self, stage: &str, phase: &str, seconds: f64) {
+        let text = format!("{phase}, about {} left", human_seconds(seconds));
+        if self.trace {
+            // With --trace every estimate is also a line, stamped with the stage's clock, so
+            // an estimate can be checked against when the phase really ended.
+            let at = self.created.elapsed().as_secs_f64();
+            self.note(&format!("  {stage} at {at:.1} s: {text} ({seconds:.1} s)"));
+        }
         let Ok(st) = self.state.lock() else {
             return;
         };
@@ -104,7 +114,7 @@ impl Observer for Terminal {
             return;
         }
         if let Some(bar) = &st.bar {
-            bar.set_message(format!("{phase}, about {} left", human_seconds(seconds)));
+            bar.set_message(text);
         }
     }
 
@@ -145,6 +155,7 @@ mod tests {
             bar: true,
             trace: false,
             delay: Duration::ZERO,
+            created: Instant::now(),
             state: Mutex::default(),
         }
     }
