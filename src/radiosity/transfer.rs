@@ -182,6 +182,17 @@ pub fn pair_table_bound(scene: &Scene, shooters: u64, lights: u64) -> u64 {
 /// [`LIGHT_PROBE_FACTOR`] times as many). See [`Transfer::probe`].
 pub const PROBE_RAYS: usize = 2048;
 
+/// A shooter keeps casting rounds of probe rays until it has cast at least this many per
+/// distinct polygon hit. A polygon receiving a fraction f of the shooter's light is missed by
+/// N rays with probability about exp(-f N), so the light missed in expectation is at most
+/// m / (e N) for m receivers; 4 rays per receiver bounds it by about 9 % in the worst case
+/// (every receiver equally lit) and, measured, keeps a gallery room cut into 1,200 quads within
+/// the solver's own noise.
+pub const PROBES_PER_HIT: usize = 4;
+
+/// Most probe rays per shooter, over all rounds.
+pub const MAX_PROBE_RAYS: usize = 32 * PROBE_RAYS;
+
 /// Spots and emitters light the scene directly and are few: they cast this many times
 /// [`PROBE_RAYS`].
 pub const LIGHT_PROBE_FACTOR: usize = 4;
@@ -487,22 +498,26 @@ impl<'a> Transfer<'a> {
     }
 
     /// The polygons shooter `s`'s probe rays hit first, with every polygon sharing a corner
-    /// with one of them or with the shooter's own polygon, ascending.
+    /// with one of them or with the shooter's own polygon, and every polygon near the shooter
+    /// (see below), ascending.
     ///
-    /// Rays: from stratified points of the shooter (its cell's domain split into a grid,
-    /// one jittered point per stratum) in cosine-distributed directions about its normal,
+    /// Rays: rounds of [`PROBE_RAYS`] ([`LIGHT_PROBE_FACTOR`] times as many for a light),
+    /// each from stratified points of the shooter (its cell's domain split into a grid, one
+    /// jittered point per stratum) in cosine-distributed directions about its normal,
     /// stratified too and paired through a permutation (Latin hypercube); a spot casts from
-    /// its position, uniformly over its cone. All from a stream seeded by (scene seed, shooter
-    /// id), so the set depends only on the scene.
+    /// its position, uniformly over its cone. Rounds go on while fewer than
+    /// [`PROBES_PER_HIT`] rays per distinct polygon hit have been cast (at most
+    /// [`MAX_PROBE_RAYS`]). All from streams seeded by (scene seed, shooter id, round), so the
+    /// set depends only on the scene.
     ///
     /// Why this is enough: a polygon that receives a fraction f of the shooter's light (its
     /// cosine-weighted solid angle) is hit on average by f times the rays, so whatever the
-    /// probes miss receives little; and since light a missed polygon would receive is shared
-    /// with its neighbours' (a wall cut into pieces), adding the neighbours of every hit
-    /// recovers most small pieces among visible ones. What is still missed is lost light,
-    /// measured in `docs/performance.md` against exact visibility.
+    /// probes miss receives little, the more so as rays grow with the receivers; and since
+    /// light a missed polygon would receive is shared with its neighbours' (a wall cut into
+    /// pieces), adding the neighbours of every hit recovers most small pieces among visible
+    /// ones. What is still missed is lost light, measured in `docs/performance.md` against
+    /// exact visibility.
     pub fn probe(&self, s: usize) -> Vec<u32> {
-        use rayon::prelude::*;
         let sg = &self.shooters[s];
         let is_light = !matches!(sg.kind, ShooterKind::Patch { .. });
         let n = if is_light {
@@ -510,8 +525,57 @@ impl<'a> Transfer<'a> {
         } else {
             PROBE_RAYS
         };
+        // Rounds of `n` rays, each its own stratified set, until the rays cast are at least
+        // PROBES_PER_HIT times the distinct polygons hit (or MAX_PROBE_RAYS): a shooter that
+        // sees many polygons gets more rays (see below).
+        let mut hits: Vec<u32> = Vec::new();
+        let mut cast = 0usize;
+        let mut round = 0u64;
+        while cast == 0 || (cast < PROBES_PER_HIT * hits.len() && cast + n <= MAX_PROBE_RAYS) {
+            hits.extend(self.probe_round(s, n, round));
+            hits.sort_unstable();
+            hits.dedup();
+            cast += n;
+            round += 1;
+        }
+        let mut out = hits.clone();
+        for &h in &hits {
+            out.extend_from_slice(&self.neighbours[h as usize]);
+        }
+        // Polygons at the shooter: a probe ray ignores hits closer than the BVH's end
+        // tolerance (`T_EPS` of its length), so an emitter a hair in front of a wall would never
+        // find the wall it lights most (`scenes/hard/light-touching.toml` lost half its light).
+        // Every polygon whose box comes within a tenth of the shooter's size (and at least
+        // 1e-6 of the scene's) of the shooter's box is a receiver too.
+        let pts: &[DVec3] = match sg.kind {
+            ShooterKind::Spot { spot } => {
+                std::slice::from_ref(&self.scene.spots[spot as usize].position)
+            }
+            _ => sg.outline.verts(),
+        };
+        let b = Aabb::of(pts);
+        let grow = 0.1 * (b.hi - b.lo).max_element() + 1e-6 * self.reach / 4.0;
+        let near = Aabb {
+            lo: b.lo - DVec3::splat(grow),
+            hi: b.hi + DVec3::splat(grow),
+        };
+        self.bvh.for_each_overlapping(&near, |q| out.push(q));
+        if let Some(own) = self.neighbours.get(sg.polygon as usize) {
+            out.extend_from_slice(own);
+        }
+        out.sort_unstable();
+        out.dedup();
+        out.retain(|&r| r != sg.polygon);
+        out
+    }
+
+    /// The first polygons hit by round `round` of `n` probe rays of shooter `s` (with
+    /// repeats, in ray order).
+    fn probe_round(&self, s: usize, n: usize, round: u64) -> Vec<u32> {
+        use rayon::prelude::*;
+        let sg = &self.shooters[s];
         let reach = self.reach;
-        let seed = seed_of(&[self.scene.radiosity.seed, s as u64, 0x7072_6f62_6573]);
+        let seed = seed_of(&[self.scene.radiosity.seed, s as u64, 0x7072_6f62_6573, round]);
         let grid = (n as f64).sqrt().ceil() as usize;
         // One permutation pairs origin strata with direction strata.
         let mut rng = Rng::new(seed);
@@ -521,7 +585,7 @@ impl<'a> Transfer<'a> {
             perm.swap(i, j);
         }
         const CHUNK: usize = 64;
-        let mut hits: Vec<u32> = (0..n.div_ceil(CHUNK))
+        (0..n.div_ceil(CHUNK))
             .into_par_iter()
             .flat_map_iter(|c| {
                 let mut rng = Rng::new(seed_of(&[seed, c as u64]));
@@ -531,20 +595,7 @@ impl<'a> Transfer<'a> {
                     self.bvh.first_hit(o, d * reach, sg.polygon).map(|h| h.0)
                 })
             })
-            .collect();
-        hits.sort_unstable();
-        hits.dedup();
-        let mut out = hits.clone();
-        for &h in &hits {
-            out.extend_from_slice(&self.neighbours[h as usize]);
-        }
-        if let Some(own) = self.neighbours.get(sg.polygon as usize) {
-            out.extend_from_slice(own);
-        }
-        out.sort_unstable();
-        out.dedup();
-        out.retain(|&r| r != sg.polygon);
-        out
+            .collect()
     }
 
     /// Origin and unit direction of probe ray `i` (origin stratum `i`, direction stratum `j`).
