@@ -19,9 +19,9 @@
 //!   [`EDGE_INSET`], so a point on an edge shared with a perpendicular wall sees that wall as the
 //!   limit from inside the polygon does (the exact edge point would see it edge-on, F = 0);
 //! - each shooter's receivers are found once ([`Transfer::ensure_pairs`]): every polygon with
-//!   exact visibility, or the polygons its probe rays hit and their corner neighbours with
-//!   sampled visibility ([`Transfer::probe`], chosen by `radiosity.visibility`). A polygon not
-//!   found receives nothing from that shooter;
+//!   exact visibility, or the polygons its probe rays hit, their corner neighbours and the
+//!   polygons near it with sampled visibility ([`Transfer::probe`], chosen by
+//!   `radiosity.visibility`). A polygon not found receives nothing from that shooter;
 //! - each (shooter, receiver) pair found is classified once: culled (no transfer possible,
 //!   dropped), open (no polygon can intersect the convex hull of the two, so V = 1 without
 //!   rays), or occluded (cast rays, testing only the pair's candidates). A candidate must
