@@ -404,7 +404,7 @@ fn read(p: &Path) -> Vec<u8> {
 }
 
 /// The shipped scene files, but for the generated `building.toml`: its syntax is the gallery's,
-/// and loading its 13,072 polygons for every sixth mutant would add about 15 s (500 loads of
+/// and loading its 10,048 polygons for every sixth mutant would add over 10 s (500 loads of
 /// about 30 ms).
 fn scene_files() -> Vec<PathBuf> {
     let mut v: Vec<PathBuf> = std::fs::read_dir(scenes())
