@@ -207,6 +207,20 @@ fn stages(c: &mut Criterion) {
     g.bench_function("binning-1024", |b| {
         b.iter(|| bin_round_robin_into(&grid, &prims, 1, &mut bins))
     });
+    // Region `r`'s share `ids` of the primitives into `gb`.
+    let raster = |ids: &[u32], r: usize, gb: &mut RegionGBuffer, scratch: &mut PatchScratch| {
+        rasterize_region_into(
+            &grid,
+            r as u32,
+            &prims,
+            ids,
+            offsets,
+            Some(&source),
+            gb,
+            scratch,
+        );
+    };
+
     // One G-buffer and scratch per region, reused by every iteration.
     let mut work: Vec<(RegionGBuffer, PatchScratch)> = (0..grid.count())
         .map(|_| (RegionGBuffer::default(), PatchScratch::default()))
@@ -215,19 +229,7 @@ fn stages(c: &mut Criterion) {
         b.iter(|| {
             work.par_iter_mut()
                 .enumerate()
-                .for_each(|(r, (gb, scratch))| {
-                    let ids = &bins[0][r];
-                    rasterize_region_into(
-                        &grid,
-                        r as u32,
-                        &prims,
-                        ids,
-                        offsets,
-                        Some(&source),
-                        gb,
-                        scratch,
-                    );
-                })
+                .for_each(|(r, (gb, scratch))| raster(&bins[0][r], r, gb, scratch))
         })
     });
     // Two renderers: each region's two G-buffers, merged in place.
@@ -237,17 +239,7 @@ fn stages(c: &mut Criterion) {
             (0..2)
                 .map(|k| {
                     let mut gb = RegionGBuffer::default();
-                    let ids = &bins[k][r];
-                    rasterize_region_into(
-                        &grid,
-                        r as u32,
-                        &prims,
-                        ids,
-                        offsets,
-                        Some(&source),
-                        &mut gb,
-                        &mut PatchScratch::default(),
-                    );
+                    raster(&bins[k][r], r, &mut gb, &mut PatchScratch::default());
                     gb
                 })
                 .collect()

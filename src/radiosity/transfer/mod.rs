@@ -34,6 +34,8 @@
 //!   shooter or a point reaches, never the number of polygons in the scene; a gather visits
 //!   the receiver's shooters in id order, the order the sums were always taken in.
 
+mod receivers;
+
 use std::sync::atomic::{AtomicU64, Ordering};
 
 use glam::DVec3;
@@ -42,7 +44,12 @@ use super::bvh::{Aabb, Bvh};
 use super::formfactor::{point_to_polygon, SmallPoly};
 use super::rng::{seed_of, Rng};
 use crate::quadtree::Cell;
-use crate::scene::{Polygon, Scene, Shape, Visibility};
+use crate::scene::{Polygon, Scene, Shape};
+use receivers::corner_neighbours;
+pub use receivers::{
+    pair_table_bound, sampled_visibility, Pairs, EXACT_PAIRS_LIMIT, LIGHT_PROBE_FACTOR,
+    MAX_PROBE_RAYS, PAIR_BYTES, PROBES_PER_HIT, PROBE_RAYS,
+};
 
 /// Receiver points are evaluated at (u, v) clamped into [EDGE_INSET, 1 - EDGE_INSET]^2.
 pub const EDGE_INSET: f64 = 1e-6;
@@ -79,123 +86,6 @@ pub enum PairClass {
     /// Shadow rays decide.
     Occluded,
 }
-
-/// Bytes of one shooter-receiver entry of a pair table (receiver id, candidate range), without
-/// its candidate list. Culled pairs have no entry.
-pub const PAIR_BYTES: u64 = 12;
-
-/// The receivers of one shooter: every polygon it may light (culled pairs are left out), each
-/// with its class and the polygons that may occlude it. Sparse, so that its size grows with
-/// what the shooter reaches, not with the scene.
-#[derive(Debug, Clone, Default)]
-pub struct Pairs {
-    /// Receiver polygons, ascending.
-    recv: Vec<u32>,
-    /// Per entry of `recv`, the range of its candidates in `cands` (none: the pair is open).
-    range: Vec<(u32, u32)>,
-    /// Occluder candidates, concatenated.
-    cands: Vec<u32>,
-}
-
-impl Pairs {
-    fn find(&self, r: usize) -> Option<usize> {
-        self.recv.binary_search(&(r as u32)).ok()
-    }
-    /// Class of receiver polygon `r`.
-    pub fn class(&self, r: usize) -> PairClass {
-        match self.find(r) {
-            None => PairClass::Culled,
-            Some(i) if self.range[i].1 == 0 => PairClass::Open,
-            Some(_) => PairClass::Occluded,
-        }
-    }
-    /// Number of occluder candidates of receiver polygon `r`.
-    pub fn cands_len(&self, r: usize) -> usize {
-        self.find(r).map_or(0, |i| self.range[i].1 as usize)
-    }
-    /// Every receiver that is not culled, ascending, with its class.
-    pub fn receivers(&self) -> impl Iterator<Item = (usize, PairClass)> + '_ {
-        self.recv.iter().zip(&self.range).map(|(&r, &(_, n))| {
-            let c = if n == 0 {
-                PairClass::Open
-            } else {
-                PairClass::Occluded
-            };
-            (r as usize, c)
-        })
-    }
-    fn at(&self, i: usize) -> (PairClass, &[u32]) {
-        let (a, n) = self.range[i];
-        let c = if n == 0 {
-            PairClass::Open
-        } else {
-            PairClass::Occluded
-        };
-        (c, &self.cands[a as usize..(a + n) as usize])
-    }
-    fn bytes(&self) -> u64 {
-        self.recv.len() as u64 * PAIR_BYTES + 4 * self.cands.len() as u64
-    }
-}
-
-/// Scenes with at most this many (shooter, polygon) pairs classify every pair
-/// ([`Visibility::Auto`] picks `exact`); larger ones find each shooter's receivers with probe
-/// rays. 1 M pairs is about 1,000 polygons: the gallery (912,000 pairs) and the Cornell box
-/// stay exact; a building of 3 x 3 rooms (1,233 polygons, 1.5 M pairs) solves in 14.5 s exact
-/// and about 6 s sampled.
-pub const EXACT_PAIRS_LIMIT: u64 = 1 << 20;
-
-/// Whether a scene with `shooters` shooters finds receivers by probe rays: its
-/// `radiosity.visibility`, and for `auto` whether shooters x polygons passes
-/// [`EXACT_PAIRS_LIMIT`].
-pub fn sampled_visibility(scene: &Scene, shooters: u64) -> bool {
-    match scene.radiosity.visibility {
-        Visibility::Exact => false,
-        Visibility::Sampled => true,
-        Visibility::Auto => {
-            shooters.saturating_mul(scene.polygons.len() as u64) > EXACT_PAIRS_LIMIT
-        }
-    }
-}
-
-/// Bytes of the pair tables' entries before any is built, an upper bound: every pair with
-/// exact visibility, and with sampled visibility as many receivers per shooter as it casts
-/// probe rays (the distinct polygons they hit; the neighbours added to them and the occluder
-/// candidates are not known in advance, and the solve's own guard counts them). `lights` of
-/// the `shooters` are spots and emitters.
-pub fn pair_table_bound(scene: &Scene, shooters: u64, lights: u64) -> u64 {
-    let n = scene.polygons.len() as u64;
-    let entry = PAIR_BYTES + 8;
-    if !sampled_visibility(scene, shooters) {
-        return shooters.saturating_mul(n).saturating_mul(entry);
-    }
-    let patch = n.min(PROBE_RAYS as u64);
-    let light = n.min((PROBE_RAYS * LIGHT_PROBE_FACTOR) as u64);
-    let patches = shooters.saturating_sub(lights);
-    patches
-        .saturating_mul(patch)
-        .saturating_add(lights.saturating_mul(light))
-        .saturating_mul(entry)
-}
-
-/// Probe rays per reflecting patch in sampled visibility (spots and emitters cast
-/// [`LIGHT_PROBE_FACTOR`] times as many). See [`Transfer::probe`].
-pub const PROBE_RAYS: usize = 2048;
-
-/// A shooter keeps casting rounds of probe rays until it has cast at least this many per
-/// distinct polygon hit. A polygon receiving a fraction f of the shooter's light is missed by
-/// N rays with probability about exp(-f N), so the light missed in expectation is at most
-/// m / (e N) for m receivers; 4 rays per receiver bounds it by about 9 % in the worst case
-/// (every receiver equally lit) and, measured, keeps a gallery room cut into 1,200 quads within
-/// the solver's own noise.
-pub const PROBES_PER_HIT: usize = 4;
-
-/// Most probe rays per shooter, over all rounds.
-pub const MAX_PROBE_RAYS: usize = 32 * PROBE_RAYS;
-
-/// Spots and emitters light the scene directly and are few: they cast this many times
-/// [`PROBE_RAYS`].
-pub const LIGHT_PROBE_FACTOR: usize = 4;
 
 /// The fixed geometry of one shooter.
 #[derive(Debug, Clone)]
@@ -388,7 +278,7 @@ pub struct Transfer<'a> {
     use_hull_faces: bool,
     /// Bytes of the pair tables built so far ([`Transfer::pair_bytes`]).
     pair_bytes: u64,
-    /// Whether receivers are found by probe rays ([`Visibility::Sampled`], or `Auto` on a
+    /// Whether receivers are found by probe rays ([`Visibility::Sampled`](crate::scene::Visibility::Sampled), or `Auto` on a
     /// scene past [`EXACT_PAIRS_LIMIT`]).
     sampled: bool,
     /// Sampled visibility only: per polygon, the polygons that share a corner with it.
@@ -433,7 +323,7 @@ impl<'a> Transfer<'a> {
         }
     }
 
-    /// Whether receivers are found by probe rays (see [`Visibility`]).
+    /// Whether receivers are found by probe rays (see [`Visibility`](crate::scene::Visibility)).
     pub fn sampled(&self) -> bool {
         self.sampled
     }
@@ -494,145 +384,6 @@ impl<'a> Transfer<'a> {
                 .par_iter_mut()
                 .for_each(|l| l.sort_unstable());
             self.unsorted = false;
-        }
-    }
-
-    /// The polygons shooter `s`'s probe rays hit first, with every polygon sharing a corner
-    /// with one of them or with the shooter's own polygon, and every polygon near the shooter
-    /// (see below), ascending.
-    ///
-    /// Rays: rounds of [`PROBE_RAYS`] ([`LIGHT_PROBE_FACTOR`] times as many for a light),
-    /// each from stratified points of the shooter (its cell's domain split into a grid, one
-    /// jittered point per stratum) in cosine-distributed directions about its normal,
-    /// stratified too and paired through a permutation (Latin hypercube); a spot casts from
-    /// its position, uniformly over its cone. Rounds go on while fewer than
-    /// [`PROBES_PER_HIT`] rays per distinct polygon hit have been cast (at most
-    /// [`MAX_PROBE_RAYS`]). All from streams seeded by (scene seed, shooter id, round), so the
-    /// set depends only on the scene.
-    ///
-    /// Why this is enough: a polygon that receives a fraction f of the shooter's light (its
-    /// cosine-weighted solid angle) is hit on average by f times the rays, so whatever the
-    /// probes miss receives little, the more so as rays grow with the receivers; and since
-    /// light a missed polygon would receive is shared with its neighbours' (a wall cut into
-    /// pieces), adding the neighbours of every hit recovers most small pieces among visible
-    /// ones. What is still missed is lost light, measured in `docs/performance.md` against
-    /// exact visibility.
-    pub fn probe(&self, s: usize) -> Vec<u32> {
-        let sg = &self.shooters[s];
-        let is_light = !matches!(sg.kind, ShooterKind::Patch { .. });
-        let n = if is_light {
-            PROBE_RAYS * LIGHT_PROBE_FACTOR
-        } else {
-            PROBE_RAYS
-        };
-        // Rounds of `n` rays, each its own stratified set, until the rays cast are at least
-        // PROBES_PER_HIT times the distinct polygons hit (or MAX_PROBE_RAYS): a shooter that
-        // sees many polygons gets more rays (see below).
-        let mut hits: Vec<u32> = Vec::new();
-        let mut cast = 0usize;
-        let mut round = 0u64;
-        while cast == 0 || (cast < PROBES_PER_HIT * hits.len() && cast + n <= MAX_PROBE_RAYS) {
-            hits.extend(self.probe_round(s, n, round));
-            hits.sort_unstable();
-            hits.dedup();
-            cast += n;
-            round += 1;
-        }
-        let mut out = hits.clone();
-        for &h in &hits {
-            out.extend_from_slice(&self.neighbours[h as usize]);
-        }
-        // Polygons at the shooter: a probe ray ignores hits closer than the BVH's end
-        // tolerance (`T_EPS` of its length), so an emitter a hair in front of a wall would never
-        // find the wall it lights most (`scenes/hard/light-touching.toml` lost half its light).
-        // Every polygon whose box comes within a tenth of the shooter's size (and at least
-        // 1e-6 of the scene's) of the shooter's box is a receiver too.
-        let pts: &[DVec3] = match sg.kind {
-            ShooterKind::Spot { spot } => {
-                std::slice::from_ref(&self.scene.spots[spot as usize].position)
-            }
-            _ => sg.outline.verts(),
-        };
-        let b = Aabb::of(pts);
-        let grow = 0.1 * (b.hi - b.lo).max_element() + 1e-6 * self.reach / 4.0;
-        let near = Aabb {
-            lo: b.lo - DVec3::splat(grow),
-            hi: b.hi + DVec3::splat(grow),
-        };
-        self.bvh.for_each_overlapping(&near, |q| out.push(q));
-        if let Some(own) = self.neighbours.get(sg.polygon as usize) {
-            out.extend_from_slice(own);
-        }
-        out.sort_unstable();
-        out.dedup();
-        out.retain(|&r| r != sg.polygon);
-        out
-    }
-
-    /// The first polygons hit by round `round` of `n` probe rays of shooter `s` (with
-    /// repeats, in ray order).
-    fn probe_round(&self, s: usize, n: usize, round: u64) -> Vec<u32> {
-        use rayon::prelude::*;
-        let sg = &self.shooters[s];
-        let reach = self.reach;
-        let seed = seed_of(&[self.scene.radiosity.seed, s as u64, 0x7072_6f62_6573, round]);
-        let grid = (n as f64).sqrt().ceil() as usize;
-        // One permutation pairs origin strata with direction strata.
-        let mut rng = Rng::new(seed);
-        let mut perm: Vec<u32> = (0..n as u32).collect();
-        for i in (1..n).rev() {
-            let j = rng.below(i as u32 + 1) as usize;
-            perm.swap(i, j);
-        }
-        const CHUNK: usize = 64;
-        (0..n.div_ceil(CHUNK))
-            .into_par_iter()
-            .flat_map_iter(|c| {
-                let mut rng = Rng::new(seed_of(&[seed, c as u64]));
-                let perm = &perm;
-                (c * CHUNK..((c + 1) * CHUNK).min(n)).filter_map(move |i| {
-                    let (o, d) = self.probe_ray(sg, i, perm[i] as usize, grid, &mut rng);
-                    self.bvh.first_hit(o, d * reach, sg.polygon).map(|h| h.0)
-                })
-            })
-            .collect()
-    }
-
-    /// Origin and unit direction of probe ray `i` (origin stratum `i`, direction stratum `j`).
-    fn probe_ray(
-        &self,
-        sg: &ShooterGeom,
-        i: usize,
-        j: usize,
-        grid: usize,
-        rng: &mut Rng,
-    ) -> (DVec3, DVec3) {
-        let g = grid as f64;
-        let a = ((j % grid) as f64 + rng.next_f64()) / g;
-        let b = ((j / grid) as f64 + rng.next_f64()) / g;
-        let phi = 2.0 * std::f64::consts::PI * b;
-        match sg.kind {
-            ShooterKind::Spot { spot } => {
-                let sp = &self.scene.spots[spot as usize];
-                let ca = sp.half_angle.cos().clamp(-1.0, 1.0);
-                let cos = 1.0 - a * (1.0 - ca);
-                let sin = (1.0 - cos * cos).max(0.0).sqrt();
-                let (t1, t2) = sp.direction.normalize_or_zero().any_orthonormal_pair();
-                let d = sp.direction.normalize_or_zero() * cos
-                    + (t1 * phi.cos() + t2 * phi.sin()) * sin;
-                (sp.position, d)
-            }
-            _ => {
-                let p = &self.scene.polygons[sg.polygon as usize];
-                let (u0, v0, u1, v1) = sg.bounds;
-                let su = ((i % grid) as f64 + rng.next_f64()) / g;
-                let sv = ((i / grid) as f64 + rng.next_f64()) / g;
-                let o = p.point(u0 + (u1 - u0) * su, v0 + (v1 - v0) * sv.min(1.0));
-                let (t1, t2) = sg.normal.any_orthonormal_pair();
-                let r = a.sqrt();
-                let d = (t1 * phi.cos() + t2 * phi.sin()) * r + sg.normal * (1.0 - a).sqrt();
-                (o, d)
-            }
         }
     }
 
@@ -1020,49 +771,6 @@ impl<'a> Transfer<'a> {
     }
 }
 
-/// Most polygons sharing one corner for which [`corner_neighbours`] records them.
-const MAX_SHARING: usize = 32;
-
-/// Per polygon, the other polygons that share a corner with it (exact coordinates), ascending.
-fn corner_neighbours(scene: &Scene) -> Vec<Vec<u32>> {
-    let key = |p: &DVec3| [p.x.to_bits(), p.y.to_bits(), p.z.to_bits()];
-    let mut at: Vec<([u64; 3], u32)> = scene
-        .polygons
-        .iter()
-        .enumerate()
-        .flat_map(|(i, p)| p.vertices().iter().map(move |c| (key(c), i as u32)))
-        .collect();
-    at.sort_unstable();
-    at.dedup();
-    let mut out = vec![Vec::new(); scene.polygons.len()];
-    let mut i = 0;
-    while i < at.len() {
-        let mut j = i;
-        while j < at.len() && at[j].0 == at[i].0 {
-            j += 1;
-        }
-        // A corner shared by more than MAX_SHARING polygons (the centre of a large fan) adds no
-        // neighbours: the pass would cost its square, and such fans are rare in models.
-        if j - i > MAX_SHARING {
-            i = j;
-            continue;
-        }
-        for a in &at[i..j] {
-            for b in &at[i..j] {
-                if a.1 != b.1 {
-                    out[a.1 as usize].push(b.1);
-                }
-            }
-        }
-        i = j;
-    }
-    for l in &mut out {
-        l.sort_unstable();
-        l.dedup();
-    }
-    out
-}
-
 /// A pair's occluder candidates: borrowed from its table, or classified for this call.
 enum Candidates<'t> {
     Table(&'t [u32]),
@@ -1227,155 +935,4 @@ fn any_in_front(n: &DVec3, x: DVec3, samples: &[(DVec3, f64)]) -> bool {
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::radiosity::test_scenes::cornell;
-
-    /// The hull-face test only drops polygons that cannot block: on the Cornell box (two blocks
-    /// between most wall pairs) every transfer from every shooter to a 5 x 5 grid of points on
-    /// every polygon is the same, bit for bit, with and without it (both sum the same sample
-    /// weights in the same order; a dropped real occluder would make a shadowed point brighter),
-    /// and the test does make pairs open that were occluded and shortens candidate lists.
-    #[test]
-    fn hull_faces_change_no_transfer() {
-        let scene = cornell();
-        let mut tight = Transfer::new(&scene);
-        let mut loose = Transfer::new(&scene);
-        loose.use_hull_faces = false;
-        let (mut cands_tight, mut cands_loose) = (0, 0);
-        for s in 0..tight.shooters.len() {
-            tight.ensure_pairs(s);
-            loose.ensure_pairs(s);
-            for r in 0..scene.polygons.len() {
-                cands_tight += tight.pairs[s].as_ref().unwrap().cands_len(r);
-                cands_loose += loose.pairs[s].as_ref().unwrap().cands_len(r);
-                for i in 0..5 {
-                    for j in 0..5 {
-                        let (u, v) = (0.1 + 0.2 * i as f64, 0.1 + 0.2 * j as f64);
-                        assert_eq!(
-                            tight.transfer(s, r, u, v),
-                            loose.transfer(s, r, u, v),
-                            "shooter {s} receiver {r} ({u}, {v})"
-                        );
-                    }
-                }
-            }
-        }
-        assert!(
-            cands_tight < cands_loose,
-            "candidates {cands_tight} vs {cands_loose}"
-        );
-    }
-
-    /// Regression (found while speeding up the gallery): a shooter straddling a receiver's
-    /// plane had sample points behind the receiver; the pair's candidates exclude polygons wholly
-    /// behind the receiver, yet rays to those points cross them, so the candidate path and the
-    /// full-BVH path disagreed (Cornell light -> short-box face). Visibility now counts only the
-    /// points in front, like the clipped form factor: every transfer equals the brute-force one
-    /// (all polygons tested, front points only), bit for bit.
-    #[test]
-    fn visibility_counts_only_shooter_points_in_front_of_the_receiver() {
-        let scene = cornell();
-        let mut tr = Transfer::new(&scene);
-        let mut straddling = 0;
-        for s in 0..tr.shooters.len() {
-            tr.ensure_pairs(s);
-            let sg = &tr.shooters[s];
-            if matches!(sg.kind, ShooterKind::Spot { .. }) {
-                continue;
-            }
-            for r in 0..scene.polygons.len() {
-                // Culled pairs (shooter and receiver facing away within the classifier's
-                // tolerance) transfer nothing by design; this test is about visibility.
-                if tr.pairs[s].as_ref().unwrap().class(r) == PairClass::Culled {
-                    continue;
-                }
-                let n = scene.polygons[r].normal;
-                for i in 0..5 {
-                    for j in 0..5 {
-                        let (u, v) = (0.1 + 0.2 * i as f64, 0.1 + 0.2 * j as f64);
-                        let x = tr.receiver(r, u, v);
-                        let f = point_to_polygon(x, n, &sg.outline, sg.normal);
-                        // Grazing configurations (form factor below 1e-9) are decided by the
-                        // classifier's geometric tolerance, not by visibility; skip them.
-                        if f <= 1e-9 {
-                            continue;
-                        }
-                        let behind = sg.samples.iter().any(|&(y, _)| n.dot(y - x) <= 0.0);
-                        let front = sg.samples.iter().any(|&(y, _)| n.dot(y - x) > 0.0);
-                        straddling += usize::from(behind && front);
-                        let (mut seen, mut total) = (0.0, 0.0);
-                        for &(y, w) in &sg.samples {
-                            if n.dot(y - x) <= 0.0 {
-                                continue;
-                            }
-                            total += w;
-                            if !tr.bvh.occluded(x, y, r as u32, sg.polygon) {
-                                seen += w;
-                            }
-                        }
-                        let vis = if front { seen / total } else { 1.0 };
-                        assert_eq!(
-                            tr.transfer(s, r, u, v),
-                            DVec3::splat(f * vis),
-                            "shooter {s} receiver {r} ({u}, {v})"
-                        );
-                    }
-                }
-            }
-        }
-        assert!(straddling > 0, "the case this guards never occurred");
-    }
-
-    /// Hull faces of two parallel unit squares one apart: 4 side faces (each found 4 times, from
-    /// both squares' edges and either vertex of the other, and kept once), every point of both squares on the inner side, and a point beside
-    /// the hull outside at least one of them while the hull's centre is outside none.
-    #[test]
-    fn hull_faces_bound_the_hull() {
-        let sq = |z: f64| {
-            [
-                DVec3::new(0.0, 0.0, z),
-                DVec3::new(1.0, 0.0, z),
-                DVec3::new(1.0, 1.0, z),
-                DVec3::new(0.0, 1.0, z),
-            ]
-        };
-        let (a, b) = (sq(0.0), sq(1.0));
-        let faces = hull_faces(&a, &b, 1e-12);
-        assert_eq!(faces.len(), 4);
-        for (n, p0) in &faces {
-            for p in a.iter().chain(&b) {
-                assert!(n.dot(*p - *p0) >= -1e-12, "{p} outside");
-            }
-        }
-        let outside = |p: DVec3| faces.iter().any(|(n, p0)| n.dot(p - *p0) < -1e-9);
-        assert!(outside(DVec3::new(1.5, 0.5, 0.5)));
-        assert!(!outside(DVec3::new(0.5, 0.5, 0.5)));
-    }
-
-    /// Emitters keep `shadow_rays` targets, reflecting patches get `shadow_rays / 4` (at least 1).
-    #[test]
-    fn patches_cast_fewer_rays_than_emitters() {
-        assert_eq!(patch_rays(8), 2);
-        assert_eq!(patch_rays(3), 1);
-        assert_eq!(patch_rays(1), 1);
-        let scene = cornell();
-        let tr = Transfer::new(&scene);
-        let n = scene.radiosity.shadow_rays as usize;
-        let mut kinds = (0, 0);
-        for sg in &tr.shooters {
-            match sg.kind {
-                ShooterKind::Emitter { .. } => {
-                    assert_eq!(sg.samples.len(), n);
-                    kinds.0 += 1;
-                }
-                ShooterKind::Patch { .. } => {
-                    assert_eq!(sg.samples.len(), patch_rays(n));
-                    kinds.1 += 1;
-                }
-                ShooterKind::Spot { .. } => assert!(sg.samples.is_empty()),
-            }
-        }
-        assert!(kinds.0 > 0 && kinds.1 > 0);
-    }
-}
+mod tests;

@@ -47,6 +47,10 @@
 //! Parallelism: rayon over receiver points (`par_iter` + `collect` in order); every float sum is
 //! done serially in a fixed order, so the result is the same for any number of threads.
 
+mod eta;
+mod queue;
+mod refine;
+
 use std::time::Instant;
 
 use glam::DVec3;
@@ -57,8 +61,12 @@ use super::transfer::{
 };
 use crate::error::{Error, Result};
 use crate::progress::{Observer, Stage};
-use crate::quadtree::{Cell, Quadtree, VertexKey};
+use crate::quadtree::{Quadtree, VertexKey};
 use crate::scene::Scene;
+use eta::Eta;
+use queue::UnshotQueue;
+use refine::refine;
+pub use refine::{depth_bound, min_element_size, REFINE_FLOOR};
 
 /// Most indirect-shooting rounds (each ends with a full gather and a refinement pass).
 pub const MAX_ROUNDS: u32 = 4;
@@ -288,6 +296,34 @@ pub(crate) fn run_with_cache(
             b..b + (1usize << (2 * patch_depth[r]))
         }
     };
+    // After a shot: the unshot power of the patches of the polygons it reached (their
+    // integrals already updated), in `unshot` and in the queue.
+    let refresh = |q: &mut UnshotQueue,
+                   unshot: &mut [DVec3],
+                   tr: &Transfer<'_>,
+                   polys: &[Poly],
+                   (totals, base, coarse): (&[DVec3], &[DVec3], &[DVec3]),
+                   touched: &[u32]| {
+        for &r in touched {
+            for p in patches_of(r as usize) {
+                unshot[p] = patch_unshot(tr, polys, totals, base, coarse, p);
+                set_q(q, tr, p, unshot[p]);
+            }
+        }
+    };
+    // After a refinement pass: every patch's unshot power, the queue, and the unshot fraction.
+    let refresh_all =
+        |q: &mut UnshotQueue,
+         unshot: &mut [DVec3],
+         tr: &Transfer<'_>,
+         polys: &[Poly],
+         (totals, base, coarse): (&[DVec3], &[DVec3], &[DVec3])| {
+            set_unshot(tr, polys, totals, base, coarse, unshot);
+            for (s, u) in unshot.iter().enumerate() {
+                set_q(q, tr, s, *u);
+            }
+            frac_of(q)
+        };
     let mut history = Vec::new();
     let mut shots = 0u64;
     let max_shots = 100 * ns as u64 + 100;
@@ -343,12 +379,8 @@ pub(crate) fn run_with_cache(
         set_q(&mut queue, tr, s, unshot[s]);
         shots += 1;
         integrate(&polys, &patch_base, Some(&touched), false, &mut base);
-        for &r in &touched {
-            for p in patches_of(r as usize) {
-                unshot[p] = patch_unshot(tr, &polys, &totals, &base, &coarse, p);
-                set_q(&mut queue, tr, p, unshot[p]);
-            }
-        }
+        let sums = (&totals[..], &base[..], &coarse[..]);
+        refresh(&mut queue, &mut unshot, tr, &polys, sums, &touched);
         let frac = frac_of(&queue);
         history.push(frac);
         report(stage, frac);
@@ -367,11 +399,8 @@ pub(crate) fn run_with_cache(
             memory_limit,
         )?;
         integrate(&polys, &patch_base, None, false, &mut base);
-        set_unshot(tr, &polys, &totals, &base, &coarse, &mut unshot);
-        for (s, u) in unshot.iter().enumerate() {
-            set_q(&mut queue, tr, s, *u);
-        }
-        frac = frac_of(&queue);
+        let sums = (&totals[..], &base[..], &coarse[..]);
+        frac = refresh_all(&mut queue, &mut unshot, tr, &polys, sums);
         if trace {
             observer.trace(&format!(
                 "direct + refine {:.0} ms, shots {shots}, vertices {}, unshot {frac:.4}",
@@ -437,12 +466,8 @@ pub(crate) fn run_with_cache(
             set_q(&mut queue, tr, s, unshot[s]);
             shots += 1;
             integrate(&polys, &patch_base, Some(&touched), true, &mut coarse);
-            for &r in &touched {
-                for p in patches_of(r as usize) {
-                    unshot[p] = patch_unshot(tr, &polys, &totals, &base, &coarse, p);
-                    set_q(&mut queue, tr, p, unshot[p]);
-                }
-            }
+            let sums = (&totals[..], &base[..], &coarse[..]);
+            refresh(&mut queue, &mut unshot, tr, &polys, sums, &touched);
             frac = frac_of(&queue);
             history.push(frac);
             report(stage, frac);
@@ -493,11 +518,8 @@ pub(crate) fn run_with_cache(
             p.cg.iter_mut().for_each(|g| *g = DVec3::ZERO);
         }
         coarse.iter_mut().for_each(|c| *c = DVec3::ZERO);
-        set_unshot(tr, &polys, &totals, &base, &coarse, &mut unshot);
-        for (s, u) in unshot.iter().enumerate() {
-            set_q(&mut queue, tr, s, *u);
-        }
-        frac = frac_of(&queue);
+        let sums = (&totals[..], &base[..], &coarse[..]);
+        frac = refresh_all(&mut queue, &mut unshot, tr, &polys, sums);
         if trace {
             observer.trace(&format!(
                 "round {round}: {:.0} ms, shots {shots}, splits {splits}, vertices {}, unshot {frac:.4}, rays {}",
@@ -564,128 +586,6 @@ fn gather_all(
 
 /// The final gather runs in this many chunks, so that its remaining time can be reported.
 const GATHER_CHUNKS: usize = 64;
-
-/// The solve's remaining-time estimate while it shoots. The shots left to the round's target
-/// are extrapolated from the number of shots per unit of ln(unshot fraction) over the last
-/// [`ETA_WINDOW`] reports (the fraction falls about geometrically in shots); of those, as many
-/// as there are patches with unshot light that have not shot yet are priced at the measured
-/// cost of a first shot (which finds the shooter's receivers and computes its transfers), the
-/// rest at the measured cost of a repeated one (cached transfers): pricing all shots alike
-/// overestimated by 2-3 times, the first shots being the slow ones. Then the round's gather:
-/// its transfers (every vertex times the shooters that reach it) at the time per transfer
-/// that the shots which computed theirs measured. It covers the current round; refinement and
-/// a further round, which the solve cannot know it will need, are not in it (the gather
-/// reports its own remaining time when it runs).
-struct Eta {
-    /// (shots this round, ln unshot fraction) at recent reports.
-    recent: std::collections::VecDeque<(u64, f64)>,
-    last: Option<Instant>,
-    /// Shots this round, and the time and count of first and of repeated shots (all rounds).
-    shots: u64,
-    first: (f64, u64),
-    repeat: (f64, u64),
-    transfer_secs: f64,
-    transfers: u64,
-}
-
-/// Reports whose rate the shooting estimate extrapolates (5 s at [`ETA_INTERVAL`]).
-const ETA_WINDOW: usize = 10;
-
-/// Seconds between two remaining-time reports.
-const ETA_INTERVAL: f64 = 0.5;
-
-impl Eta {
-    fn new() -> Eta {
-        Eta {
-            recent: std::collections::VecDeque::new(),
-            last: None,
-            shots: 0,
-            first: (0.0, 0),
-            repeat: (0.0, 0),
-            transfer_secs: 0.0,
-            transfers: 0,
-        }
-    }
-
-    /// A new shooting phase starts (after a gather).
-    fn phase_start(&mut self) {
-        self.recent.clear();
-        self.last = None;
-        self.shots = 0;
-    }
-
-    fn transfers(&mut self, n: usize, secs: f64) {
-        self.transfers += n as u64;
-        self.transfer_secs += secs;
-    }
-
-    fn shot_took(&mut self, first: bool, secs: f64) {
-        self.shots += 1;
-        let c = if first {
-            &mut self.first
-        } else {
-            &mut self.repeat
-        };
-        c.0 += secs;
-        c.1 += 1;
-    }
-
-    #[allow(clippy::too_many_arguments)]
-    fn shot(
-        &mut self,
-        stage: &Stage<'_>,
-        tr: &Transfer<'_>,
-        polys: &[Poly],
-        unshot: &[DVec3],
-        frac: f64,
-        target: f64,
-        round: u32,
-    ) {
-        if self
-            .last
-            .is_some_and(|l| l.elapsed().as_secs_f64() < ETA_INTERVAL)
-        {
-            return;
-        }
-        self.last = Some(Instant::now());
-        let now = (self.shots, frac.ln());
-        if self.recent.len() == ETA_WINDOW {
-            self.recent.pop_front();
-        }
-        self.recent.push_back(now);
-        let Some(&(s0, l0)) = self.recent.front() else {
-            return;
-        };
-        let fallen = l0 - now.1;
-        if fallen.is_nan() || fallen <= 0.0 || self.transfers == 0 {
-            return;
-        }
-        let left = if frac > target {
-            (now.0 - s0) as f64 / fallen * (frac / target).ln()
-        } else {
-            0.0
-        };
-        let mean = |(t, n): (f64, u64)| if n > 0 { t / n as f64 } else { 0.0 };
-        let unpaired = (0..tr.shooters.len())
-            .filter(|&s| tr.pairs[s].is_none() && unshot[s] != DVec3::ZERO)
-            .count() as f64;
-        let firsts = left.min(unpaired);
-        let repeat = if self.repeat.1 > 0 {
-            mean(self.repeat)
-        } else {
-            mean(self.first)
-        };
-        let shooting = firsts * mean(self.first) + (left - firsts) * repeat;
-        let gather: f64 = polys
-            .iter()
-            .enumerate()
-            .filter(|(_, p)| p.rho.max_element() > 0.0)
-            .map(|(r, p)| (p.keys.len() * tr.shooters_of(r).len()) as f64)
-            .sum();
-        let per = self.transfer_secs / self.transfers as f64;
-        stage.remaining(&format!("round {round} shooting"), shooting + gather * per);
-    }
-}
 
 /// Transfers of indirect shots to the coarse receiver points, kept per shooter (see
 /// [`CoarseCache`]).
@@ -864,53 +764,6 @@ fn patch_unshot(
     (b - totals[s]).max(DVec3::ZERO)
 }
 
-/// The shooters' unshot power (per channel, W) and the selection key (the sum over channels of
-/// unshot power relative to each channel's emitted power) in a tournament tree: the largest key
-/// (ties to the smaller id, as a scan in id order would pick) and the total power, each
-/// updated in O(log n) when one shooter changes. The total is summed in the tree's fixed
-/// shape, so it does not depend on the order of updates.
-struct UnshotQueue {
-    /// Leaves start at `size`; node k has children 2k and 2k + 1.
-    power: Vec<DVec3>,
-    best: Vec<(f64, u32)>,
-    size: usize,
-}
-
-impl UnshotQueue {
-    fn new(n: usize) -> Self {
-        let size = n.next_power_of_two().max(1);
-        UnshotQueue {
-            power: vec![DVec3::ZERO; 2 * size],
-            best: vec![(0.0, u32::MAX); 2 * size],
-            size,
-        }
-    }
-
-    fn set(&mut self, s: usize, power: DVec3, key: f64) {
-        let mut k = self.size + s;
-        self.power[k] = power;
-        // Only a positive key can be selected (a NaN never is).
-        self.best[k] = (if key > 0.0 { key } else { 0.0 }, s as u32);
-        while k > 1 {
-            k /= 2;
-            let (l, r) = (self.best[2 * k], self.best[2 * k + 1]);
-            self.best[k] = if r.0 > l.0 { r } else { l };
-            self.power[k] = self.power[2 * k] + self.power[2 * k + 1];
-        }
-    }
-
-    /// The shooter with the largest positive key, ties to the smaller id.
-    fn best(&self) -> Option<usize> {
-        let (k, s) = self.best[1];
-        (k > 0.0).then_some(s as usize)
-    }
-
-    /// Unshot power of every shooter, per channel.
-    fn total(&self) -> DVec3 {
-        self.power[1]
-    }
-}
-
 /// Unshot radiosity of every reflecting patch: rho * (fine + coarse integral) / area - total,
 /// clamped at zero per channel (see the module doc).
 fn set_unshot(
@@ -970,343 +823,7 @@ fn rebuild_leaves(scene: &Scene, i: usize, p: &mut Poly, base: &[u32], depth: &[
     p.leaves = leaves_of(scene, i, &p.tree, &p.keys, base, depth);
 }
 
-/// Floor of the refinement criterion, as a fraction of the brightest reflected radiosity
-/// (luminance) sampled so far: an element's variation is judged relative to its own level, but
-/// never to a level below this fraction of the peak, so that dark regions (where any noise is a
-/// large relative change) do not refine to the depth limit.
-pub const REFINE_FLOOR: f64 = 0.01;
-
-/// The brightest reflected radiosity rho * G (luminance) at any vertex of a reflecting polygon.
-fn peak_reflected(polys: &[Poly]) -> f64 {
-    polys
-        .iter()
-        .filter(|p| lum(p.rho) > 0.0)
-        .flat_map(|p| p.g.iter().map(|g| lum(p.rho * *g)))
-        .fold(0.0, f64::max)
-}
-
-/// Adaptive subdivision against the true radiosity; returns the number of splits.
-///
-/// A leaf splits (below `max_depth` and above [`min_element_size`]) when either
-/// - **variation**: at its centre or an edge midpoint the reflected radiosity rho * G differs
-///   from the bilinear prediction of its corners by more than `tolerance * level` (luminance of
-///   the per-channel difference), `level` being the larger of the leaf's own level (the mean
-///   luminance of rho * G over its corners and test points) and [`REFINE_FLOOR`] times the
-///   peak; nothing in this test depends on the polygon's area or shape, so thin and small
-///   polygons refine like large ones; or
-/// - **visibility**: for a light (spot or emitter) with occluders between it and the polygon,
-///   the visible fraction of the light differs across the leaf's corners and test points (a
-///   shadow boundary crosses it) and the light's unshadowed contribution times that difference
-///   exceeds the same `tolerance * level`: the leaf is split toward the boundary, down to the
-///   depth limit, even where the bilinear prediction happens to agree at the test points.
-fn refine(
-    scene: &Scene,
-    tr: &Transfer<'_>,
-    polys: &mut [Poly],
-    totals: &[DVec3],
-    (base, depth): (&[u32], &[u32]),
-    memory_limit: u64,
-) -> Result<usize> {
-    let st = &scene.radiosity;
-    let tol = st.tolerance;
-    if tol <= 0.0 || !tol.is_finite() {
-        return Ok(0);
-    }
-    // The memory guard: nodes and samples held now, and the pair tables built so far (they do
-    // not grow while refining).
-    let mut nodes: u64 = polys.iter().map(|p| p.tree.nodes().len() as u64).sum();
-    let mut vertices: u64 = polys.iter().map(|p| p.keys.len() as u64).sum();
-    let pair_bytes = tr.pair_bytes();
-    let mut peak = peak_reflected(polys);
-    // The lights that have shot (their shadows drive the visibility test) and, per polygon,
-    // those whose pairs with it may be occluded, ascending (from the per-receiver index, so
-    // this costs the pairs, not lights x polygons).
-    let is_light: Vec<bool> = (0..tr.shooters.len())
-        .map(|s| {
-            !matches!(tr.shooters[s].kind, ShooterKind::Patch { .. }) && totals[s] != DVec3::ZERO
-        })
-        .collect();
-    let shadow_lights: Vec<Vec<usize>> = (0..polys.len())
-        .map(|r| {
-            tr.shooters_of(r)
-                .iter()
-                .map(|&(s, _)| s as usize)
-                .filter(|&s| {
-                    is_light[s]
-                        && tr.pairs[s]
-                            .as_ref()
-                            .is_some_and(|p| p.class(r) == PairClass::Occluded)
-                })
-                .collect()
-        })
-        .collect();
-    let min_size = min_element_size(scene);
-    let mut pending: Vec<(u32, u32)> = Vec::new();
-    for (r, p) in polys.iter().enumerate() {
-        if p.rho.max_element() <= 0.0 {
-            // A non-reflecting polygon's radiosity is its constant emission.
-            continue;
-        }
-        for id in p.tree.leaves() {
-            if can_split(scene, r, p.tree.node(id).cell, min_size) {
-                pending.push((r as u32, id));
-            }
-        }
-    }
-    let mut splits = 0;
-    while !pending.is_empty() {
-        // Probe keys not yet vertices, per polygon, deduplicated and sorted.
-        let mut probes: Vec<(u32, VertexKey)> = Vec::new();
-        // Every point (corners and test points) of a pending leaf that some light's shadow
-        // may cross.
-        let mut shadow_keys: Vec<(u32, VertexKey)> = Vec::new();
-        for &(r, id) in &pending {
-            let p = &polys[r as usize];
-            let cell = p.tree.node(id).cell;
-            for k in test_points(cell) {
-                if p.keys.binary_search(&k).is_err() {
-                    probes.push((r, k));
-                }
-            }
-            if !shadow_lights[r as usize].is_empty() {
-                shadow_keys.extend(
-                    cell.corners()
-                        .iter()
-                        .chain(&test_points(cell))
-                        .map(|&k| (r, k)),
-                );
-            }
-        }
-        probes.sort_unstable();
-        probes.dedup();
-        shadow_keys.sort_unstable();
-        shadow_keys.dedup();
-        let vals: Vec<DVec3> = probes
-            .par_iter()
-            .map(|&(r, k)| tr.gather(totals, r as usize, k.u(), k.v()))
-            .collect();
-        // Per shadow key and light (in `lights` order; lights without occluders toward the
-        // polygon are skipped): the unshadowed reflected luminance and the visible fraction.
-        let shadows: Vec<Vec<(f64, f64)>> = shadow_keys
-            .par_iter()
-            .map(|&(r, k)| {
-                let rho = polys[r as usize].rho;
-                shadow_lights[r as usize]
-                    .iter()
-                    .map(|&s| {
-                        let (open, vis) = tr.shadowed(s, r as usize, k.u(), k.v());
-                        (lum(rho * totals[s] * open), vis)
-                    })
-                    .collect()
-            })
-            .collect();
-        for (&(r, _), g) in probes.iter().zip(&vals) {
-            peak = peak.max(lum(polys[r as usize].rho * *g));
-        }
-        let floor = REFINE_FLOOR * peak;
-        let probe_g = |r: u32, k: VertexKey, polys: &[Poly]| -> DVec3 {
-            let p = &polys[r as usize];
-            match p.keys.binary_search(&k) {
-                Ok(i) => p.g[i],
-                Err(_) => {
-                    let i = probes
-                        .binary_search(&(r, k))
-                        .expect("every test point was probed");
-                    vals[i]
-                }
-            }
-        };
-        let mut split_now: Vec<(u32, u32)> = Vec::new();
-        for &(r, id) in &pending {
-            let p = &polys[r as usize];
-            let cell = p.tree.node(id).cell;
-            let c = cell.corners().map(|k| probe_g(r, k, polys));
-            let tp = test_points(cell);
-            let t = tp.map(|k| probe_g(r, k, polys));
-            let level = c.iter().chain(&t).map(|g| lum(p.rho * *g)).sum::<f64>() / 9.0;
-            let thresh = tol * level.max(floor);
-            let pred = [
-                0.25 * (c[0] + c[1] + c[2] + c[3]),
-                0.5 * (c[0] + c[1]),
-                0.5 * (c[1] + c[2]),
-                0.5 * (c[2] + c[3]),
-                0.5 * (c[3] + c[0]),
-            ];
-            let varies = t.iter().zip(pred).any(|(g, pr)| {
-                let d = p.rho * (*g - pr);
-                lum(d.abs()) > thresh
-            });
-            let shadowed = !varies && !shadow_lights[r as usize].is_empty() && {
-                let at = |k: VertexKey| {
-                    let i = shadow_keys
-                        .binary_search(&(r, k))
-                        .expect("every point of a shadowed leaf was tested");
-                    &shadows[i]
-                };
-                let pts: Vec<&Vec<(f64, f64)>> =
-                    cell.corners().iter().chain(&tp).map(|&k| at(k)).collect();
-                let n = pts.first().map_or(0, |v| v.len());
-                (0..n).any(|j| {
-                    let (mut lo, mut hi, mut open) = (f64::INFINITY, f64::NEG_INFINITY, 0f64);
-                    for q in &pts {
-                        let (a, v) = q[j];
-                        lo = lo.min(v);
-                        hi = hi.max(v);
-                        open = open.max(a);
-                    }
-                    hi > lo && open * (hi - lo) > thresh
-                })
-            };
-            if varies || shadowed {
-                split_now.push((r, id));
-            }
-        }
-        // Each split adds 4 nodes and at most 5 samples (4 edge midpoints and the centre).
-        let k = split_now.len() as u64;
-        let (n_after, v_after) = (nodes + 4 * k, vertices + 5 * k);
-        let need = state_bytes(n_after, v_after).saturating_add(pair_bytes);
-        if need > memory_limit {
-            return Err(memory_error(
-                scene,
-                need,
-                memory_limit,
-                format!(
-                    "{n_after} quadtree nodes and up to {v_after} samples in this refinement \
-                     pass, pair tables {}",
-                    crate::error::human_bytes(pair_bytes)
-                ),
-            ));
-        }
-        (nodes, vertices) = (n_after, v_after);
-        let mut next = Vec::new();
-        let mut touched: Vec<u32> = Vec::new();
-        for &(r, id) in &split_now {
-            let p = &mut polys[r as usize];
-            let f = p.tree.split(id);
-            splits += 1;
-            for c in f..f + 4 {
-                if can_split(scene, r as usize, p.tree.node(c).cell, min_size) {
-                    next.push((r, c));
-                }
-            }
-            touched.push(r);
-        }
-        touched.dedup();
-        for &r in &touched {
-            let keys = polys[r as usize].tree.vertex_keys();
-            let g: Vec<DVec3> = keys.iter().map(|&k| probe_g(r, k, polys)).collect();
-            let p = &mut polys[r as usize];
-            p.keys = keys;
-            p.g = g;
-            rebuild_leaves(scene, r as usize, p, base, depth);
-        }
-        pending = next;
-    }
-    Ok(splits)
-}
-
-/// Smallest element edge worth splitting: the scene's bounding diagonal / 2^max_depth. Depth
-/// limits are per polygon, so without this a small polygon (a 1 m floor tile in a 15 m hall)
-/// would be refined to elements far smaller than a large one's at the same depth; with it,
-/// `max_depth` means "the scene resolved to 1 / 2^max_depth of its size" everywhere.
-pub fn min_element_size(scene: &Scene) -> f64 {
-    let (lo, hi) = scene.bounds();
-    (hi - lo).length() / (1u64 << scene.radiosity.max_depth.min(63)) as f64
-}
-
-/// Whether a leaf may split: below max_depth, and its longer world-space edge (at the cell's
-/// centre) is longer than `min_size`.
-///
-/// Both tangents of a polygon are at most its longest edge long everywhere (for a quad a convex
-/// combination of two opposite edges, for a triangle at most an edge), which bounds the depth
-/// any of its leaves can reach: [`depth_bound`].
-fn can_split(scene: &Scene, r: usize, cell: Cell, min_size: f64) -> bool {
-    if cell.level >= scene.radiosity.max_depth {
-        return false;
-    }
-    let (u0, v0, u1, v1) = cell.bounds();
-    let (du, dv) = scene.polygons[r].tangents(0.5 * (u0 + u1), 0.5 * (v0 + v1));
-    let w = u1 - u0;
-    (du.length() * w).max(dv.length() * w) > min_size
-}
-
-/// The deepest level polygon `r`'s leaves can reach by refinement: `max_depth`, or less where
-/// the polygon's longest edge `L` halved `d` times is already within the smallest element size
-/// (`can_split` refuses a cell whose edges are all at most that). The starting depth may
-/// exceed it (min_depth and shooter patches are imposed, not refined).
-pub fn depth_bound(scene: &Scene, r: usize, min_size: f64) -> u32 {
-    let vs = scene.polygons[r].vertices();
-    let longest = (0..vs.len())
-        .map(|i| (vs[(i + 1) % vs.len()] - vs[i]).length())
-        .fold(0.0f64, f64::max);
-    let max = scene.radiosity.max_depth;
-    let mut d = 0;
-    let mut edge = longest;
-    while d < max && edge > min_size {
-        edge *= 0.5;
-        d += 1;
-    }
-    d
-}
-
-/// Centre and the four edge midpoints (bottom, right, top, left) of a cell.
-fn test_points(cell: Cell) -> [VertexKey; 5] {
-    let o = cell.origin();
-    let s = cell.size();
-    let h = s / 2;
-    [
-        VertexKey::new(o.i + h, o.j + h),
-        VertexKey::new(o.i + h, o.j),
-        VertexKey::new(o.i + s, o.j + h),
-        VertexKey::new(o.i + h, o.j + s),
-        VertexKey::new(o.i, o.j + h),
-    ]
-}
-
 /// Wall-clock helper kept here so the solver's timing has one definition.
 pub fn elapsed_ms(t: Instant) -> f64 {
     t.elapsed().as_secs_f64() * 1e3
-}
-
-#[cfg(test)]
-mod queue_tests {
-    use super::*;
-    use crate::radiosity::rng::Rng;
-
-    /// The queue picks what a scan in id order picks (the largest positive key, ties to the
-    /// smaller id, none when every key is 0) through random updates, with repeated keys so
-    /// ties happen, and its total is the channel sums to rounding.
-    #[test]
-    fn queue_agrees_with_a_scan() {
-        let n = 37;
-        let mut q = UnshotQueue::new(n);
-        let mut keys = vec![0.0f64; n];
-        let mut pw = vec![DVec3::ZERO; n];
-        let mut rng = Rng::new(3);
-        for step in 0..2000 {
-            let s = rng.below(n as u32) as usize;
-            let k = if rng.below(4) == 0 {
-                0.0
-            } else {
-                f64::from(rng.below(6))
-            };
-            let p = DVec3::new(k, 2.0 * k, rng.next_f64());
-            keys[s] = k;
-            pw[s] = p;
-            q.set(s, p, k);
-            let mut best = None;
-            let mut best_k = 0.0;
-            for (i, &x) in keys.iter().enumerate() {
-                if x > best_k {
-                    best_k = x;
-                    best = Some(i);
-                }
-            }
-            assert_eq!(q.best(), best, "step {step}");
-            let sum: DVec3 = pw.iter().copied().sum();
-            assert!(
-                (q.total() - sum).abs().max_element() <= 1e-12 * (1.0 + sum.abs().max_element())
-            );
-        }
-    }
 }
