@@ -95,7 +95,7 @@ impl Grid {
                     u0: (k % 4) as f32 / 4.0,
                     v0: (k / 4) as f32 / 4.0,
                     inv_w: 4.0,
-                    _pad: 0.0,
+                    bilinear: false,
                 });
             }
         }
@@ -196,12 +196,9 @@ fn stages(c: &mut Criterion) {
     let mut g = c.benchmark_group("stages");
     g.sample_size(20);
     g.throughput(Throughput::Elements((w * h) as u64));
-    let (mut staged, mut prims) = (Vec::new(), Vec::new());
+    let mut prims = Vec::new();
     g.bench_function("geometry-1024", |b| {
-        b.iter(|| {
-            build_primitives_into(&scene, &scene.camera, w, h, false, &mut staged, &mut prims)
-                .unwrap()
-        })
+        b.iter(|| build_primitives_into(&scene, &scene.camera, w, h, false, &mut prims).unwrap())
     });
     let mut bins = Vec::new();
     g.bench_function("binning-1024", |b| {

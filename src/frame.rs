@@ -239,7 +239,6 @@ pub fn render(
 /// buffers go back to the pool as soon as it is shaded), plus the frame's pixels.
 #[derive(Default)]
 pub struct FrameContext {
-    staged: Vec<Option<raster::setup::Prim>>,
     prims: Vec<raster::setup::Prim>,
     bins: Vec<Vec<Vec<u32>>>,
     outcomes: Vec<RegionOutcome>,
@@ -336,13 +335,9 @@ impl FrameContext {
     /// bins' lists.
     pub fn reserve_scene(&mut self, opts: &FrameOptions, scene: &Scene) -> Result<()> {
         self.reserve(opts)?;
-        let n = scene.polygons.len();
-        self.staged.clear();
-        self.staged.resize(n, None);
-        self.staged.clear();
         self.prims.clear();
-        self.prims.resize(n, raster::setup::Prim::default());
-        self.prims.clear();
+        self.prims
+            .resize(scene.polygons.len(), raster::setup::Prim::default());
         Ok(())
     }
 
@@ -406,11 +401,11 @@ impl FrameContext {
             opts.width,
             opts.height,
             opts.cull_back_faces,
-            &mut self.staged,
             &mut self.prims,
         )?;
         let grid = RegionGrid::new(opts.width, opts.height, opts.region);
-        raster::bin_round_robin_into(&grid, &self.prims, opts.renderers, &mut self.bins);
+        let primitives =
+            raster::bin_round_robin_into(&grid, &self.prims, opts.renderers, &mut self.bins);
         let geometry_ms = ms(t_frame.elapsed());
 
         let n = opts.width as usize * opts.height as usize;
@@ -456,7 +451,7 @@ impl FrameContext {
             renderers: opts.renderers,
             aa: opts.aa,
             region_size: opts.region,
-            primitives: self.prims.len() as u32,
+            primitives,
             geometry_ms,
             ..FrameStats::default()
         };

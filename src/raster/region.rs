@@ -78,10 +78,10 @@ impl RegionGrid {
     }
 
     /// Bins primitives: for each region, the indices (into `prims`, ascending) of those whose
-    /// bounding box meets it.
+    /// bounding box meets it (empty records, [`Prim::is_empty`], are skipped).
     pub fn bin<'a>(&self, prims: impl Iterator<Item = (usize, &'a Prim)>) -> Vec<Vec<u32>> {
         let mut bins = vec![Vec::new(); self.count()];
-        for (i, p) in prims {
+        for (i, p) in prims.filter(|(_, p)| !p.is_empty()) {
             self.bin_one(i as u32, p, &mut bins);
         }
         bins

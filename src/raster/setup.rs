@@ -106,6 +106,15 @@ pub struct Prim {
     pub i32_edges: bool,
 }
 
+impl Prim {
+    /// Whether this is the empty record of a polygon that reaches no sample (no edges): see
+    /// [`super::build_primitives_into`]. Empty records are never binned or rasterized.
+    #[inline]
+    pub fn is_empty(&self) -> bool {
+        self.n_edges == 0
+    }
+}
+
 /// Whether every value of the first `n` edge functions at the sample positions the region walk
 /// visits for a primitive with pixel box `bbox` fits in `i32`. The walk visits
 /// X in [(x0 - 8) ONE, (x1 + 17) ONE] (blocks aligned to 8, lanes and the step past the last

@@ -426,6 +426,13 @@ impl Scene {
                 hi = hi.max(*c);
             }
         }
+        self.bounds_with(lo, hi)
+    }
+
+    /// [`Scene::bounds`] from the bounds (`lo`, `hi`) of the polygon corners, computed by the
+    /// caller (the renderer's geometry stage does it in parallel): the spot lights added, and
+    /// (0, 0) for a scene with no finite bound.
+    pub fn bounds_with(&self, mut lo: DVec3, mut hi: DVec3) -> (DVec3, DVec3) {
         for s in &self.spots {
             lo = lo.min(s.position);
             hi = hi.max(s.position);
