@@ -67,7 +67,7 @@ impl GridSource {
                         u0: i as f32 / n as f32,
                         v0: j as f32 / n as f32,
                         inv_w: n as f32,
-                        _pad: 0.0,
+                        bilinear: false,
                     });
                 }
             }

@@ -706,6 +706,18 @@ mod tests {
             check_vertex_colours(&mesh, std::slice::from_ref(&sq));
         }
 
+        /// The shader takes its degree-(1, 1) form for Gouraud patches (bit-identical, see
+        /// `PatchCoeffs::bilinear_exact`): every patch of vertex colours that are not -0 is
+        /// flagged for it.
+        #[test]
+        fn gouraud_patches_take_the_bilinear_evaluation(
+            c in prop::array::uniform9(0.0f32..10.0),
+        ) {
+            let v = |i: usize| Vec3::new(c[3 * i], c[3 * i + 1], c[3 * i + 2]);
+            let p = gouraud_patch([v(0), v(1), v(2)]);
+            prop_assert!(p.bilinear);
+        }
+
         /// Gouraud reproduces a linear function on a parallelogram (where world-linear equals
         /// (u, v)-linear), at any point of any triangle, fan centres included. Error budget with
         /// M = max |f| and u = 2^-24: samples rounded to f32 (u M); coefficients k1, k4, k5

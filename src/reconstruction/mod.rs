@@ -143,8 +143,21 @@ pub struct PatchCoeffs {
     pub v0: f32,
     /// Inverse cell width, a power of two (exact).
     pub inv_w: f32,
-    /// Padding to 16-byte alignment.
-    pub _pad: f32,
+    /// Whether the shader may evaluate this patch as the degree-(1, 1) polynomial
+    /// `(k5 s + k4) t + (k1 s + k0)` per channel, bit-identical to the bicubic Horner scheme
+    /// ([`PatchCoeffs::bilinear_exact`]). The constructors set it; `false` is always correct.
+    pub bilinear: bool,
+}
+
+/// See [`PatchCoeffs::bilinear_exact`].
+fn bilinear_exact(c: &[[f32; 16]; 3]) -> bool {
+    const NEG_ZERO: u32 = 0x8000_0000;
+    c.iter().all(|k| {
+        let zero = [2, 3, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15]
+            .iter()
+            .all(|&i| k[i].to_bits() == 0);
+        zero && [1, 4, 5].iter().all(|&i| k[i].to_bits() != NEG_ZERO)
+    })
 }
 
 /// Clamps into [0, 1], NaN to 0 (NaN fails the comparison; `f32::clamp` would keep it).
@@ -165,8 +178,21 @@ impl PatchCoeffs {
             u0: 0.0,
             v0: 0.0,
             inv_w: 1.0,
-            _pad: 0.0,
+            bilinear: bilinear_exact(&c),
         }
+    }
+
+    /// Whether coefficients `c` let the degree-(1, 1) evaluation stand in for the bicubic one
+    /// with the same bits (the Gouraud mesh's patches, constant patches). Horner's scheme
+    /// evaluates row j as `((k[4j+3] s + k[4j+2]) s + k[4j+1]) s + k[4j]` and the rows as
+    /// `((r3 t + r2) t + r1) t + r0`. When every coefficient of s^2, s^3, t^2 and t^3 is +0
+    /// (bit pattern 0), for finite s and t every product with one of them is +-0 and
+    /// `+-0 + +0 = +0` (round to nearest), so r3 = r2 = +0 and the terms they feed add a
+    /// signed zero: `+-0 + x = x` for every x except x = -0. Excluding -0 for k1, k5 (each
+    /// added to such a zero) and k4 (which keeps r1 = k5 s + k4 from being -0) leaves exactly
+    /// `r1 = k5 s + k4`, `r0 = k1 s + k0`, `f = r1 t + r0`, with the same roundings.
+    pub fn bilinear_exact(&self) -> bool {
+        bilinear_exact(&self.c)
     }
 
     /// The local coordinates (s, t) of (u, v), unclamped.
@@ -243,7 +269,7 @@ impl PatchCoeffs {
             u0: p.u0 as f32,
             v0: p.v0 as f32,
             inv_w: (1u32 << level) as f32,
-            _pad: 0.0,
+            bilinear: bilinear_exact(&c),
         }
     }
 
