@@ -203,15 +203,6 @@ fn merge_part_body<const HW: bool>(
         let od: &mut [f32; LANES] = od.try_into().unwrap();
         let op: &mut [u32; LANES] = op.try_into().unwrap();
         let (d, p): (&[f32; LANES], &[u32; LANES]) = (d.try_into().unwrap(), p.try_into().unwrap());
-        let mut take = [false; LANES];
-        let mut any = false;
-        for l in 0..LANES {
-            take[l] = (d[l] < od[l]) | ((d[l] == od[l]) & (p[l] < op[l]));
-            any |= take[l];
-        }
-        if !any {
-            continue;
-        }
         let ou: &mut [f32; LANES] = ou.try_into().unwrap();
         let ov: &mut [f32; LANES] = ov.try_into().unwrap();
         let os: &mut [u32; LANES] = os.try_into().unwrap();
@@ -223,16 +214,28 @@ fn merge_part_body<const HW: bool>(
         );
         #[cfg(target_arch = "x86_64")]
         if HW {
-            use crate::lanes::{blend_store8_avx2, blend_store8_f32_avx2};
+            use crate::lanes::{blend_store8_avx2, blend_store8_f32_avx2, depth_test_avx2};
             // SAFETY: HW is true only in the AVX2 build, run after the CPU check.
             unsafe {
-                blend_store8_f32_avx2(od, d, &take);
-                blend_store8_avx2(op, p, &take);
-                blend_store8_f32_avx2(ou, pu, &take);
-                blend_store8_f32_avx2(ov, pv, &take);
-                blend_store8_avx2(os, ps, &take);
-                blend_store8_avx2(sr, &[k; LANES], &take);
+                let Some(take) = depth_test_avx2(0xff, d, od, p, op) else {
+                    continue;
+                };
+                blend_store8_f32_avx2(od, d, take);
+                blend_store8_avx2(op, p, take);
+                blend_store8_f32_avx2(ou, pu, take);
+                blend_store8_f32_avx2(ov, pv, take);
+                blend_store8_avx2(os, ps, take);
+                blend_store8_avx2(sr, &[k; LANES], take);
             }
+            continue;
+        }
+        let mut take = [false; LANES];
+        let mut any = false;
+        for l in 0..LANES {
+            take[l] = (d[l] < od[l]) | ((d[l] == od[l]) & (p[l] < op[l]));
+            any |= take[l];
+        }
+        if !any {
             continue;
         }
         // Full-lane selects (no per-lane branches or stores).

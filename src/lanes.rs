@@ -81,7 +81,7 @@ lane_op!(Add, add, +);
 lane_op!(Sub, sub, -);
 lane_op!(Mul, mul, *);
 
-/// Writes `new[l]` over `dst[l]` in the lanes where `mask[l]` holds, keeping the others: the
+/// Writes `new[l]` over `dst[l]` in the lanes where `mask` is all ones, keeping the others: the
 /// old 8 lanes are loaded, blended with the new ones in a register, and the full 32 bytes
 /// stored back with one plain store. Written out in inline assembly because LLVM otherwise
 /// folds exactly this load-select-store into a masked store (`vmaskmovps` / `vpmaskmovd`),
@@ -93,19 +93,18 @@ lane_op!(Mul, mul, *);
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
 #[inline]
-pub unsafe fn blend_store8_avx2(dst: &mut [u32; LANES], new: &[u32; LANES], mask: &[bool; LANES]) {
+pub unsafe fn blend_store8_avx2(
+    dst: &mut [u32; LANES],
+    new: &[u32; LANES],
+    mask: std::arch::x86_64::__m256i,
+) {
     use std::arch::x86_64::*;
-    let mut m = [0u32; LANES];
-    for l in 0..LANES {
-        m[l] = (mask[l] as u32).wrapping_neg();
-    }
-    // SAFETY: `dst`, `new` and `m` are 8 u32 each (unaligned 32-byte loads and store); the
-    // assembly writes exactly the 32 bytes of `dst`, which this function borrows mutably.
+    // SAFETY: `dst` and `new` are 8 u32 each (unaligned 32-byte loads and store); the assembly
+    // writes exactly the 32 bytes of `dst`, which this function borrows mutably.
     unsafe {
         let old = _mm256_loadu_si256(dst.as_ptr() as *const __m256i);
         let nv = _mm256_loadu_si256(new.as_ptr() as *const __m256i);
-        let mv = _mm256_loadu_si256(m.as_ptr() as *const __m256i);
-        let r = _mm256_blendv_epi8(old, nv, mv);
+        let r = _mm256_blendv_epi8(old, nv, mask);
         std::arch::asm!(
             "vmovdqu ymmword ptr [{p}], {r}",
             p = in(reg) dst.as_mut_ptr(),
@@ -125,7 +124,7 @@ pub unsafe fn blend_store8_avx2(dst: &mut [u32; LANES], new: &[u32; LANES], mask
 pub unsafe fn blend_store8_f32_avx2(
     dst: &mut [f32; LANES],
     new: &[f32; LANES],
-    mask: &[bool; LANES],
+    mask: std::arch::x86_64::__m256i,
 ) {
     // SAFETY: [f32; 8] and [u32; 8] have the same size and alignment; every bit pattern is valid
     // for both. The CPU requirement is passed on to the caller.
@@ -133,6 +132,52 @@ pub unsafe fn blend_store8_f32_avx2(
         let d = &mut *(dst as *mut [f32; LANES] as *mut [u32; LANES]);
         let n = &*(new as *const [f32; LANES] as *const [u32; LANES]);
         blend_store8_avx2(d, n, mask)
+    }
+}
+
+/// The depth test of the rasterizer and the compositor for one block in one AVX2 register: lane l
+/// passes when bit l of `bits` is set (covered) and `w[l] < depth[l]`, or `w[l] == depth[l]` and
+/// `ids[l] < poly[l]` (unsigned). Returns the all-ones / all-zeros lane mask, or `None` when no lane passes. The
+/// same IEEE comparisons as the scalar form (ordered: false on NaN).
+///
+/// # Safety
+/// The CPU must support AVX2.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[inline]
+pub unsafe fn depth_test_avx2(
+    bits: u32,
+    w: &[f32; LANES],
+    depth: &[f32; LANES],
+    ids: &[u32; LANES],
+    poly: &[u32; LANES],
+) -> Option<std::arch::x86_64::__m256i> {
+    use std::arch::x86_64::*;
+    // SAFETY: every pointer is to 8 lanes of 4 bytes (unaligned 32-byte loads).
+    unsafe {
+        let lane_bit = _mm256_setr_epi32(1, 2, 4, 8, 16, 32, 64, 128);
+        let covered = _mm256_cmpeq_epi32(
+            _mm256_and_si256(_mm256_set1_epi32(bits as i32), lane_bit),
+            lane_bit,
+        );
+        let wv = _mm256_loadu_ps(w.as_ptr());
+        let dv = _mm256_loadu_ps(depth.as_ptr());
+        let nearer = _mm256_castps_si256(_mm256_cmp_ps::<_CMP_LT_OQ>(wv, dv));
+        let tie = _mm256_castps_si256(_mm256_cmp_ps::<_CMP_EQ_OQ>(wv, dv));
+        // Unsigned id < poly[l] as a signed comparison of both with the sign bit flipped.
+        let flip = _mm256_set1_epi32(i32::MIN);
+        let pv = _mm256_xor_si256(_mm256_loadu_si256(poly.as_ptr() as *const __m256i), flip);
+        let iv = _mm256_loadu_si256(ids.as_ptr() as *const __m256i);
+        let smaller = _mm256_cmpgt_epi32(pv, _mm256_xor_si256(iv, flip));
+        let m = _mm256_and_si256(
+            covered,
+            _mm256_or_si256(nearer, _mm256_and_si256(tie, smaller)),
+        );
+        if _mm256_testz_si256(m, m) != 0 {
+            None
+        } else {
+            Some(m)
+        }
     }
 }
 

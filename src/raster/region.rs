@@ -99,10 +99,9 @@ impl RegionGrid {
     }
 }
 
-/// Calls `visit(local_y, block_x, edge_mask, covered)` for every block of 8 samples of one sample
-/// position (`offset`, fixed point within the pixel) of region `rect` that the primitive covers at
-/// least partly. `mask[l]` is whether lane l is covered (and inside the region); `covered` is the
-/// number of such lanes.
+/// Calls `visit(local_y, block_x, bits)` for every block of 8 samples of one sample position
+/// (`offset`, fixed point within the pixel) of region `rect` that the primitive covers at least
+/// partly. Bit l of `bits` (never 0) is whether lane l is covered (and inside the region).
 ///
 /// `N` is the number of edge functions evaluated per block, a compile-time constant (4 for
 /// triangles and quads, [`MAX_EDGES`] for clipped polygons) so the edge loop is unrolled; edges
@@ -113,7 +112,7 @@ fn for_each_block<const N: usize, T: EdgeLane, const HW: bool>(
     prim: &Prim,
     rect: (u32, u32, u32, u32),
     offset: (i64, i64),
-    mut visit: impl FnMut(u32, u32, &[bool; LANES], u32),
+    mut visit: impl FnMut(u32, u32, u32),
 ) {
     debug_assert!(prim.n_edges <= N);
     let (rx, ry, rw, rh) = rect;
@@ -139,7 +138,6 @@ fn for_each_block<const N: usize, T: EdgeLane, const HW: bool>(
         min_step[k] = T::of((-(e.dy as i64) * ONE * (LANES as i64 - 1)).min(0));
         inv_d[k] = 1.0 / (e.dy as i64 * ONE) as f64;
     }
-    let valid: [u32; LANES] = std::array::from_fn(|l| l as u32);
     let mut row = [T::ZERO; N];
     for ly in ly0..ly1 + 1 {
         let y = (ry + ly) as i64 * ONE + offset.1;
@@ -195,16 +193,11 @@ fn for_each_block<const N: usize, T: EdgeLane, const HW: bool>(
             } else {
                 T::covered_bits::<N, HW>(&row, &lane_step) & in_region
             };
-            let mut mask = [false; LANES];
-            for l in 0..LANES {
-                mask[l] = (bits >> valid[l]) & 1 != 0;
-            }
-            let count = bits.count_ones();
             for k in 0..N {
                 row[k] = row[k] - block_step[k];
             }
-            if count != 0 {
-                visit(ly, bx, &mask, count);
+            if bits != 0 {
+                visit(ly, bx, bits);
             }
             bx += LANES as u32;
         }
@@ -314,9 +307,12 @@ fn dispatch_edges<const HW: bool>(
     prim: &Prim,
     rect: (u32, u32, u32, u32),
     offset: (i64, i64),
-    visit: impl FnMut(u32, u32, &[bool; LANES], u32),
+    visit: impl FnMut(u32, u32, u32),
 ) {
-    if prim.n_edges <= 4 {
+    if prim.n_edges <= 3 && prim.i32_edges {
+        // Small triangles (the mesh method's): one edge function fewer per row and block.
+        for_each_block::<3, i32, HW>(prim, rect, offset, visit)
+    } else if prim.n_edges <= 4 {
         if prim.i32_edges {
             for_each_block::<4, i32, HW>(prim, rect, offset, visit)
         } else {
@@ -426,7 +422,7 @@ fn raster_kernel<const PERSP: bool, const KIND: u8, const HW: bool>(
             rect,
             off,
             #[inline(always)]
-            |ly: u32, bx: u32, mask: &[bool; LANES], covered: u32| {
+            |ly: u32, bx: u32, bits: u32| {
                 let yf = ly as f32 + fy;
                 let (qr, sar, sbr, tar, tbr) = (
                     q.1 * yf + q.2,
@@ -444,18 +440,36 @@ fn raster_kernel<const PERSP: bool, const KIND: u8, const HW: bool>(
                     let qv = q.0 * xs[l] + qr;
                     w[l] = if PERSP { 1.0 / qv.max(MIN_Q) } else { qv };
                 }
-                fragments += covered as u64;
+                fragments += bits.count_ones() as u64;
                 let i0 = base + ly as usize * stride + bx as usize;
                 let depth: &mut [f32; LANES] = (&mut gb.depth[i0..i0 + LANES]).try_into().unwrap();
                 let poly: &mut [u32; LANES] = (&mut gb.polygon[i0..i0 + LANES]).try_into().unwrap();
+                // The depth test: covered, and nearer, or as near with a smaller polygon id.
+                #[cfg(target_arch = "x86_64")]
+                let mut hw_mask = None;
                 let mut m = [false; LANES];
-                let mut pass = false;
-                for l in 0..LANES {
-                    m[l] = mask[l] & ((w[l] < depth[l]) | ((w[l] == depth[l]) & (id < poly[l])));
-                    pass |= m[l];
+                #[cfg(target_arch = "x86_64")]
+                if HW {
+                    // SAFETY: HW is true only in the AVX2 build, run after the CPU check.
+                    let mv = unsafe {
+                        crate::lanes::depth_test_avx2(bits, &w, depth, &[id; LANES], poly)
+                    };
+                    if mv.is_none() {
+                        return;
+                    }
+                    hw_mask = mv;
                 }
-                if !pass {
-                    return;
+                if !HW {
+                    let mut pass = false;
+                    for l in 0..LANES {
+                        let covered = (bits >> l) & 1 != 0;
+                        m[l] =
+                            covered & ((w[l] < depth[l]) | ((w[l] == depth[l]) & (id < poly[l])));
+                        pass |= m[l];
+                    }
+                    if !pass {
+                        return;
+                    }
                 }
                 let mut s = [0.0f32; LANES];
                 let mut t = [0.0f32; LANES];
@@ -479,16 +493,16 @@ fn raster_kernel<const PERSP: bool, const KIND: u8, const HW: bool>(
                 let gu: &mut [f32; LANES] = (&mut gb.u[i0..i0 + LANES]).try_into().unwrap();
                 let gv: &mut [f32; LANES] = (&mut gb.v[i0..i0 + LANES]).try_into().unwrap();
                 #[cfg(target_arch = "x86_64")]
-                if HW {
+                if let Some(mv) = hw_mask {
                     // Full-lane blends into region memory, no masked stores (see
-                    // `blend_store8_avx2`). SAFETY: HW is true only in the AVX2 build, run
+                    // `blend_store8_avx2`). SAFETY: a mask exists only in the AVX2 build, run
                     // after the CPU check.
                     unsafe {
                         use crate::lanes::{blend_store8_avx2, blend_store8_f32_avx2};
-                        blend_store8_f32_avx2(depth, &w, &m);
-                        blend_store8_f32_avx2(gu, &u, &m);
-                        blend_store8_f32_avx2(gv, &v, &m);
-                        blend_store8_avx2(poly, &[id; LANES], &m);
+                        blend_store8_f32_avx2(depth, &w, mv);
+                        blend_store8_f32_avx2(gu, &u, mv);
+                        blend_store8_f32_avx2(gv, &v, mv);
+                        blend_store8_avx2(poly, &[id; LANES], mv);
                     }
                     return;
                 }
@@ -517,19 +531,14 @@ pub fn coverage_counts(prims: &[Prim], width: u32, height: u32, region: u32) -> 
     for r in 0..grid.count() as u32 {
         let rect = grid.rect(r);
         for p in prims {
-            dispatch_edges::<false>(
-                p,
-                rect,
-                (ONE / 2, ONE / 2),
-                |ly, bx, mask: &[bool; LANES], _| {
-                    for l in 0..LANES {
-                        let (x, y) = (rect.0 + bx + l as u32, rect.1 + ly);
-                        if mask[l] {
-                            counts[(y * width + x) as usize] += 1;
-                        }
+            dispatch_edges::<false>(p, rect, (ONE / 2, ONE / 2), |ly, bx, bits| {
+                for l in 0..LANES {
+                    let (x, y) = (rect.0 + bx + l as u32, rect.1 + ly);
+                    if (bits >> l) & 1 != 0 {
+                        counts[(y * width + x) as usize] += 1;
                     }
-                },
-            );
+                }
+            });
         }
     }
     counts
@@ -557,9 +566,8 @@ mod tests {
     /// Every block's mask, from the 64-bit walk or the 32-bit one (portable and AVX2 builds).
     fn masks<T: EdgeLane, const HW: bool>(p: &Prim, rect: (u32, u32, u32, u32)) -> Vec<u32> {
         let mut out = Vec::new();
-        for_each_block::<4, T, HW>(p, rect, (ONE / 2, ONE / 2), |y, x, m, c| {
-            let bits = (0..LANES).fold(0u32, |b, l| b | (m[l] as u32) << l);
-            assert_eq!(bits.count_ones(), c);
+        for_each_block::<4, T, HW>(p, rect, (ONE / 2, ONE / 2), |y, x, bits| {
+            assert!(bits != 0 && bits < 256);
             out.push(y << 20 | x << 8 | bits);
         });
         out
