@@ -371,13 +371,68 @@ fn rasterize_body<const HW: bool>(
     offsets: &[(f32, f32)],
 ) -> u64 {
     match (prim.perspective, prim.kind) {
-        (true, InverseKind::Linear) => raster_kernel::<true, LINEAR, HW>(prim, gb, offsets),
-        (true, InverseKind::Triangle) => raster_kernel::<true, TRIANGLE, HW>(prim, gb, offsets),
-        (true, InverseKind::General) => raster_kernel::<true, GENERAL, HW>(prim, gb, offsets),
-        (false, InverseKind::Linear) => raster_kernel::<false, LINEAR, HW>(prim, gb, offsets),
-        (false, InverseKind::Triangle) => raster_kernel::<false, TRIANGLE, HW>(prim, gb, offsets),
-        (false, InverseKind::General) => raster_kernel::<false, GENERAL, HW>(prim, gb, offsets),
+        (true, InverseKind::Linear) => by_edges::<true, LINEAR, HW>(prim, gb, offsets),
+        (true, InverseKind::Triangle) => by_edges::<true, TRIANGLE, HW>(prim, gb, offsets),
+        (true, InverseKind::General) => by_edges::<true, GENERAL, HW>(prim, gb, offsets),
+        (false, InverseKind::Linear) => by_edges::<false, LINEAR, HW>(prim, gb, offsets),
+        (false, InverseKind::Triangle) => by_edges::<false, TRIANGLE, HW>(prim, gb, offsets),
+        (false, InverseKind::General) => by_edges::<false, GENERAL, HW>(prim, gb, offsets),
     }
+}
+
+/// Picks the kernel compiled for the primitive's edge count and edge-lane width (as
+/// [`dispatch_edges`] does), each kernel a function of its own: inlined into one body, the
+/// variants shared one 8 KB stack frame and a prologue that prepared every variant's per-edge
+/// values for each primitive, which cost small triangles more than their blocks did.
+#[inline(always)]
+fn by_edges<const PERSP: bool, const KIND: u8, const HW: bool>(
+    prim: &Prim,
+    gb: &mut RegionGBuffer,
+    offsets: &[(f32, f32)],
+) -> u64 {
+    macro_rules! kernel {
+        ($n:expr, $t:ty) => {{
+            #[cfg(target_arch = "x86_64")]
+            if HW {
+                // SAFETY: HW is true only in the AVX2 build, run after the CPU check.
+                return unsafe { kernel_avx2::<PERSP, KIND, $n, $t>(prim, gb, offsets) };
+            }
+            kernel_portable::<PERSP, KIND, $n, $t>(prim, gb, offsets)
+        }};
+    }
+    if prim.n_edges <= 3 && prim.i32_edges {
+        kernel!(3, i32)
+    } else if prim.n_edges <= 4 {
+        if prim.i32_edges {
+            kernel!(4, i32)
+        } else {
+            kernel!(4, i64)
+        }
+    } else {
+        kernel!(MAX_EDGES, i64)
+    }
+}
+
+#[inline(never)]
+fn kernel_portable<const PERSP: bool, const KIND: u8, const N: usize, T: EdgeLane>(
+    prim: &Prim,
+    gb: &mut RegionGBuffer,
+    offsets: &[(f32, f32)],
+) -> u64 {
+    raster_kernel::<PERSP, KIND, false, N, T>(prim, gb, offsets)
+}
+
+/// # Safety
+/// The CPU must support AVX2.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[inline(never)]
+unsafe fn kernel_avx2<const PERSP: bool, const KIND: u8, const N: usize, T: EdgeLane>(
+    prim: &Prim,
+    gb: &mut RegionGBuffer,
+    offsets: &[(f32, f32)],
+) -> u64 {
+    raster_kernel::<PERSP, KIND, true, N, T>(prim, gb, offsets)
 }
 
 /// Smallest Q = 1/w accepted (documented clamp: a covered sample has w >= near > 0, so Q is
@@ -385,7 +440,7 @@ fn rasterize_body<const HW: bool>(
 const MIN_Q: f32 = 1e-30;
 
 #[inline(always)]
-fn raster_kernel<const PERSP: bool, const KIND: u8, const HW: bool>(
+fn raster_kernel<const PERSP: bool, const KIND: u8, const HW: bool, const N: usize, T: EdgeLane>(
     prim: &Prim,
     gb: &mut RegionGBuffer,
     offsets: &[(f32, f32)],
@@ -417,7 +472,7 @@ fn raster_kernel<const PERSP: bool, const KIND: u8, const HW: bool>(
         let off = offset_fixed(offsets, si);
         let (fx, fy) = (off.0 as f32 / ONE as f32, off.1 as f32 / ONE as f32);
         let base = si * plane_len;
-        dispatch_edges::<HW>(
+        for_each_block::<N, T, HW>(
             prim,
             rect,
             off,
