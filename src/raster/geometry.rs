@@ -273,11 +273,14 @@ impl View {
         let n = self.dir_to_view(poly.normal);
         let c0 = cv[0];
         let d = n.dot(c0);
+        // The largest corner distance, as one square root of the largest square (the same
+        // value: the correctly rounded square root is monotonic).
         let size = poly
             .vertices()
             .iter()
-            .map(|c| (*c - poly.corners[0]).length())
-            .fold(0.0, f64::max);
+            .map(|c| (*c - poly.corners[0]).length_squared())
+            .fold(0.0, f64::max)
+            .sqrt();
         let front_facing = if self.perspective { d < 0.0 } else { n.z < 0.0 };
 
         // Orthonormal frame of the polygon's plane (view coordinates), origin c0.
@@ -368,22 +371,27 @@ impl View {
             return None;
         }
 
-        // Near plane clip in view space (w >= near), then project.
+        // Near plane clip in view space (w >= near), then project. With every corner in front
+        // of the plane the clip returns its input, so it is skipped (the common case).
         let near = self.near;
-        let clipped = clip(
-            &cv[..k],
-            |p| p.z - near,
-            |a, b, t| {
-                let mut p = a + t * (b - a);
-                p.z = p.z.max(near);
-                p
-            },
-            |p| [p.x, p.y, p.z],
-        );
-        if clipped.len() < 3 {
-            return None;
-        }
-        let mut verts: Verts = clipped.iter().map(|&p| self.project(p)).collect();
+        let mut verts: Verts = if cv[..k].iter().all(|p| p.z - near >= 0.0) {
+            cv[..k].iter().map(|&p| self.project(p)).collect()
+        } else {
+            let clipped = clip(
+                &cv[..k],
+                |p| p.z - near,
+                |a, b, t| {
+                    let mut p = a + t * (b - a);
+                    p.z = p.z.max(near);
+                    p
+                },
+                |p| [p.x, p.y, p.z],
+            );
+            if clipped.len() < 3 {
+                return None;
+            }
+            clipped.iter().map(|&p| self.project(p)).collect()
+        };
         // Trivial rejection: entirely beyond one side of the image, where no sample lies (sample
         // positions are strictly inside (0, width) x (0, height)); setup would reject it later.
         let (w, h) = (self.width as f64, self.height as f64);

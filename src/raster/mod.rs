@@ -142,11 +142,14 @@ pub fn build_primitives_into(
         .enumerate()
         .with_min_len(64)
         .for_each(|(i, (out, p))| {
-            *out = view
-                .transform(p, i as u32)
-                .filter(|sp| !cull || sp.front_facing)
-                .and_then(|sp| setup::setup(&sp, w, h))
-                .unwrap_or_default();
+            let set = match view.transform(p, i as u32) {
+                Some(sp) if !cull || sp.front_facing => setup::setup_into(&sp, w, h, out),
+                _ => false,
+            };
+            if !set {
+                // Marks the record empty; its other fields are never read.
+                out.n_edges = 0;
+            }
         });
     Ok(())
 }

@@ -141,6 +141,14 @@ fn snap(x: f64) -> i64 {
 /// Snaps and sets up a screen polygon for a `width` x `height` image; `None` if it covers no
 /// sample (zero area after snapping, or entirely off screen).
 pub fn setup(sp: &ScreenPolygon, width: u32, height: u32) -> Option<Prim> {
+    let mut prim = Prim::default();
+    setup_into(sp, width, height, &mut prim).then_some(prim)
+}
+
+/// [`setup`] written into `out` (the frame's record for the polygon, set up in place); returns
+/// whether the polygon covers a sample. When it does not, `out` is left partly written and the
+/// caller marks it empty.
+pub fn setup_into(sp: &ScreenPolygon, width: u32, height: u32, out: &mut Prim) -> bool {
     debug_assert!(sp
         .verts
         .iter()
@@ -157,7 +165,7 @@ pub fn setup(sp: &ScreenPolygon, width: u32, height: u32) -> Option<Prim> {
         pts.pop();
     }
     if pts.len() < 3 || pts.len() > MAX_EDGES {
-        return None;
+        return false;
     }
     let n = pts.len();
     let area2: i128 = (0..n)
@@ -167,7 +175,7 @@ pub fn setup(sp: &ScreenPolygon, width: u32, height: u32) -> Option<Prim> {
         })
         .sum();
     if area2 == 0 {
-        return None;
+        return false;
     }
     if area2 < 0 {
         pts.reverse();
@@ -200,7 +208,7 @@ pub fn setup(sp: &ScreenPolygon, width: u32, height: u32) -> Option<Prim> {
     let px1 = hi_x.div_euclid(ONE).min(width as i64 - 1);
     let py1 = hi_y.div_euclid(ONE).min(height as i64 - 1);
     if px0 > px1 || py0 > py1 {
-        return None;
+        return false;
     }
     let [p0, p1, p2, p3] = sp.corners;
     let sub = |a: [f64; 2], b: [f64; 2]| [a[0] - b[0], a[1] - b[1]];
@@ -255,11 +263,11 @@ pub fn setup(sp: &ScreenPolygon, width: u32, height: u32) -> Option<Prim> {
             .iter()
             .all(|p| p.a.is_finite() && p.b.is_finite() && p.c.is_finite())
         {
-            return None;
+            return false;
         }
     }
     let bbox = [px0 as u32, py0 as u32, px1 as u32, py1 as u32];
-    Some(Prim {
+    *out = Prim {
         id: sp.id,
         edges,
         n_edges: n,
@@ -269,7 +277,8 @@ pub fn setup(sp: &ScreenPolygon, width: u32, height: u32) -> Option<Prim> {
         inverse,
         kind,
         perspective: sp.perspective,
-    })
+    };
+    true
 }
 
 /// (u, v) of the point with plane coordinates (s, t), clamped into [0, 1]^2.
