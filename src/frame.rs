@@ -341,6 +341,13 @@ impl FrameContext {
         Ok(())
     }
 
+    /// Prepares every worker of the current rayon pool for frames shaded from `source`
+    /// ([`PatchSource::warm_thread`]: the compact RRPs' per-thread patch cache allocated and
+    /// first touched), so the first frame does not pay for it.
+    pub fn reserve_source(&self, source: &dyn PatchSource) {
+        rayon::broadcast(|_| source.warm_thread());
+    }
+
     /// The last frame as an owned [`Frame`] with `stats` (the context's buffers are dropped).
     pub fn into_frame(self, stats: FrameStats) -> Frame {
         Frame {

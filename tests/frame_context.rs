@@ -3,14 +3,17 @@
 //! (only depth and polygon are cleared per region; the frame is not cleared at all), so any read
 //! of a stale value would show here. Frames of every method are drawn in one context in a mixed
 //! order of sizes (growing and shrinking), sample counts, renderer counts and cameras, and each is
-//! compared bit for bit with the same frame drawn in a fresh context.
+//! compared bit for bit with the same frame drawn in a fresh context. Each method's frames start
+//! from a reservation, as `render`'s and `bench`'s do.
 
 use std::path::Path;
 
 use glam::DVec3;
 
 use pixelflow_sim::frame::{FrameContext, FrameOptions};
-use pixelflow_sim::jobs::{prepare_path, render_frame, render_frame_in, Prepared, TextureOptions};
+use pixelflow_sim::jobs::{
+    prepare_path, render_frame, render_frame_in, reserve_frames, Prepared, TextureOptions,
+};
 use pixelflow_sim::method::Method;
 use pixelflow_sim::progress::Silent;
 use pixelflow_sim::scene::Camera;
@@ -44,6 +47,9 @@ fn check_scene(rel: &str) {
     let mut compared = 0;
     for name in Method::NAMES {
         let m = Method::parse(name).unwrap();
+        // Reserved as `render` and `bench` reserve (for the direct method, every worker's patch
+        // cache claimed ahead of the frame): it must change no pixel either.
+        reserve_frames(&mut ctx, &p, m, &FrameOptions::new(96, 64)).unwrap();
         for &(w, h, aa, r, k) in &frames {
             let mut o = FrameOptions::new(w, h);
             o.aa = aa;

@@ -438,7 +438,8 @@ pub fn build_method_data(p: &Prepared, method: Method) -> Result<()> {
 }
 
 /// Reserves in `ctx` what frames of `method` at `opts` need ([`crate::frame::FrameContext::reserve_scene`]
-/// with the scene `method` draws: the mesh's triangles for the mesh method).
+/// with the scene `method` draws: the mesh's triangles for the mesh method; for the direct method
+/// also every worker's patch cache, [`crate::frame::FrameContext::reserve_source`]).
 pub fn reserve_frames(
     ctx: &mut crate::frame::FrameContext,
     p: &Prepared,
@@ -447,6 +448,10 @@ pub fn reserve_frames(
 ) -> Result<()> {
     match method {
         Method::Mesh => ctx.reserve_scene(opts, &p.mesh()?.0.scene),
+        Method::Direct => {
+            ctx.reserve_source(&p.compact);
+            ctx.reserve_scene(opts, &p.scene)
+        }
         _ => ctx.reserve_scene(opts, &p.scene),
     }
 }

@@ -399,13 +399,7 @@ impl CompactReconstruction {
     pub fn cached_patch(&self, id: u32) -> PatchCoeffs {
         CACHE.with(|c| {
             let mut c = c.borrow_mut();
-            if c.owner != self.cache_id.0 || c.ids.is_empty() {
-                c.owner = self.cache_id.0;
-                c.ids.clear();
-                c.ids.resize(CACHE_SLOTS, u32::MAX);
-                c.patches
-                    .resize(CACHE_SLOTS, PatchCoeffs::whole([[0.0; 16]; 3]));
-            }
+            self.claim(&mut c);
             let slot = id as usize % CACHE_SLOTS;
             if c.ids[slot] != id {
                 let p = self.expand(id);
@@ -414,6 +408,28 @@ impl CompactReconstruction {
             }
             c.patches[slot]
         })
+    }
+}
+
+impl CompactReconstruction {
+    /// Makes `c` this reconstruction's cache: emptied, and allocated (first touched) on first use.
+    #[inline]
+    fn claim(&self, c: &mut PatchCache) {
+        if c.owner != self.cache_id.0 || c.ids.is_empty() {
+            c.owner = self.cache_id.0;
+            c.ids.clear();
+            c.ids.resize(CACHE_SLOTS, u32::MAX);
+            c.patches
+                .resize(CACHE_SLOTS, PatchCoeffs::whole([[0.0; 16]; 3]));
+        }
+    }
+
+    /// Claims the calling thread's patch cache for this reconstruction ahead of the first frame:
+    /// its 3.5 MB allocated and first touched, so that frame does not pay the page faults. The
+    /// frame stage calls it on every worker ([`crate::frame::FrameContext::reserve_source`]); it
+    /// changes times, never pixels.
+    pub fn warm_thread_cache(&self) {
+        CACHE.with(|c| self.claim(&mut c.borrow_mut()));
     }
 }
 
@@ -776,6 +792,10 @@ impl PatchSource for CompactReconstruction {
     #[inline]
     fn patch(&self, id: u32) -> PatchCoeffs {
         self.cached_patch(id)
+    }
+
+    fn warm_thread(&self) {
+        self.warm_thread_cache();
     }
 
     /// Exactly [`Reconstruction`]'s cells (the same trees, the same f32 arithmetic).

@@ -644,6 +644,10 @@ pub trait PatchSource: Sync {
     fn cell(&self, _id: u32) -> Option<[f32; 4]> {
         None
     }
+    /// Prepares the calling thread's working memory for this source ahead of a first frame (a
+    /// cache of expanded patches, say); called once on every worker thread by
+    /// [`crate::frame::FrameContext::reserve_source`]. The default has nothing to prepare.
+    fn warm_thread(&self) {}
 }
 
 /// The direct method's view of a reconstruction: the rasterizer locates each pixel's patch and
