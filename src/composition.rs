@@ -15,10 +15,20 @@
 //! order. With one report for a region the report is passed through unchanged: the renderer built
 //! its table in the same canonical order.
 //!
+//! Two merges: [`composite_in_place`] merges reports that carry patch tables and rebuilds the
+//! table; [`merge_records_in_place`] merges pixel records only, for the frame stage, which
+//! locates the patches once in the merged region. Both give the same composited region (tested),
+//! and the second does not locate the samples every renderer drew but another one hid: with R
+//! renderers the frame costs the rasterization plus a records merge, not R patch locations and a
+//! table rebuild.
+//!
 //! Traffic model: every report that crosses the network costs its pixel records
 //! ([`PIXEL_RECORD_BYTES`] per sample) plus its patch table; the composited region sent on to the
-//! shaders costs the same again. Renderers with no primitive binned in a region send nothing (a
-//! renderer skips its empty regions), and regions no renderer touches cost nothing at all.
+//! shaders costs the same again. In the frame stage the region's one table is counted once on
+//! the way in (the reports' tables hold the same patches, each sent once) and once on the way
+//! out, which for one renderer is exactly the two counts above. Renderers with no primitive
+//! binned in a region send nothing (a renderer skips its empty regions), and regions no renderer
+//! touches cost nothing at all.
 
 // Lane loops index several fixed-width arrays with one lane index on purpose: that is the form
 // the compiler vectorizes and the reader checks lane by lane.
@@ -64,7 +74,7 @@ pub fn composite_in_place(parts: &mut [RegionGBuffer], scratch: &mut MergeScratc
             n,
             "composited parts of one region differ in size"
         );
-        merge_part(part, out, src, k);
+        merge_part::<true>(part, out, src, k);
     }
     // Shaders without patches (textures, the reference) leave every table empty: nothing to
     // rebuild, and no slot means anything.
@@ -150,82 +160,72 @@ pub fn composite_in_place(parts: &mut [RegionGBuffer], scratch: &mut MergeScratc
 
 /// Merges `part` (the `k`-th) into `out` sample by sample: a sample of `part` replaces `out`'s when
 /// it is nearer, or as near with a smaller polygon id (a total order on distinct polygons, so
-/// the result does not depend on the order of the parts); `src` records where each sample came
-/// from. Compiled a second time for AVX2 and chosen at run time like the rasterizer, the same
-/// operations either way.
-fn merge_part(part: &RegionGBuffer, out: &mut RegionGBuffer, src: &mut [u32], k: u32) {
-    #[cfg(target_arch = "x86_64")]
-    {
-        if crate::lanes::avx2_available() {
-            // SAFETY: the CPU supports AVX2, checked just above.
-            return unsafe { merge_part_avx2(part, out, src, k) };
-        }
-    }
-    merge_part_body::<false>(part, out, src, k)
-}
-
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
-fn merge_part_avx2(part: &RegionGBuffer, out: &mut RegionGBuffer, src: &mut [u32], k: u32) {
-    merge_part_body::<true>(part, out, src, k)
-}
-
-#[inline(always)]
-fn merge_part_body<const HW: bool>(
+/// the result does not depend on the order of the parts). With `TABLES` the slot moves too and
+/// `src` records where each sample came from (for the table rebuild); without, only the pixel
+/// records (depth, polygon, u, v) move. Compiled a second time for AVX2 and chosen at run time
+/// like the rasterizer, the same operations either way.
+fn merge_part<const TABLES: bool>(
     part: &RegionGBuffer,
     out: &mut RegionGBuffer,
     src: &mut [u32],
     k: u32,
 ) {
-    let RegionGBuffer {
-        depth,
-        polygon,
-        u,
-        v,
-        slot,
-        ..
-    } = out;
-    let outs = depth
-        .chunks_exact_mut(LANES)
-        .zip(polygon.chunks_exact_mut(LANES))
-        .zip(u.chunks_exact_mut(LANES))
-        .zip(v.chunks_exact_mut(LANES))
-        .zip(slot.chunks_exact_mut(LANES))
-        .zip(src.chunks_exact_mut(LANES));
-    let ins = part
-        .depth
-        .chunks_exact(LANES)
-        .zip(part.polygon.chunks_exact(LANES))
-        .zip(part.u.chunks_exact(LANES))
-        .zip(part.v.chunks_exact(LANES))
-        .zip(part.slot.chunks_exact(LANES));
-    for ((((((od, op), ou), ov), os), sr), ((((d, p), pu), pv), ps)) in outs.zip(ins) {
-        let od: &mut [f32; LANES] = od.try_into().unwrap();
-        let op: &mut [u32; LANES] = op.try_into().unwrap();
-        let (d, p): (&[f32; LANES], &[u32; LANES]) = (d.try_into().unwrap(), p.try_into().unwrap());
-        let ou: &mut [f32; LANES] = ou.try_into().unwrap();
-        let ov: &mut [f32; LANES] = ov.try_into().unwrap();
-        let os: &mut [u32; LANES] = os.try_into().unwrap();
-        let sr: &mut [u32; LANES] = sr.try_into().unwrap();
-        let (pu, pv, ps): (&[f32; LANES], &[f32; LANES], &[u32; LANES]) = (
-            pu.try_into().unwrap(),
-            pv.try_into().unwrap(),
-            ps.try_into().unwrap(),
-        );
+    #[cfg(target_arch = "x86_64")]
+    {
+        if crate::lanes::avx2_available() {
+            // SAFETY: the CPU supports AVX2, checked just above.
+            return unsafe { merge_part_avx2::<TABLES>(part, out, src, k) };
+        }
+    }
+    merge_part_body::<false, TABLES>(part, out, src, k)
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+fn merge_part_avx2<const TABLES: bool>(
+    part: &RegionGBuffer,
+    out: &mut RegionGBuffer,
+    src: &mut [u32],
+    k: u32,
+) {
+    merge_part_body::<true, TABLES>(part, out, src, k)
+}
+
+#[inline(always)]
+fn merge_part_body<const HW: bool, const TABLES: bool>(
+    part: &RegionGBuffer,
+    out: &mut RegionGBuffer,
+    src: &mut [u32],
+    k: u32,
+) {
+    let n = out.depth.len();
+    assert!(part.depth.len() == n && (!TABLES || src.len() == n));
+    let block = |v: &[f32], i: usize| -> [f32; LANES] { v[i..i + LANES].try_into().unwrap() };
+    let block_u = |v: &[u32], i: usize| -> [u32; LANES] { v[i..i + LANES].try_into().unwrap() };
+    for i in (0..n).step_by(LANES) {
+        let (d, p) = (block(&part.depth, i), block_u(&part.polygon, i));
+        let od: &mut [f32; LANES] = (&mut out.depth[i..i + LANES]).try_into().unwrap();
+        let op: &mut [u32; LANES] = (&mut out.polygon[i..i + LANES]).try_into().unwrap();
         #[cfg(target_arch = "x86_64")]
         if HW {
             use crate::lanes::{blend_store8_avx2, blend_store8_f32_avx2, depth_test_avx2};
             // SAFETY: HW is true only in the AVX2 build, run after the CPU check.
             unsafe {
-                let Some(take) = depth_test_avx2(0xff, d, od, p, op) else {
+                let Some(take) = depth_test_avx2(0xff, &d, od, &p, op) else {
                     continue;
                 };
-                blend_store8_f32_avx2(od, d, take);
-                blend_store8_avx2(op, p, take);
-                blend_store8_f32_avx2(ou, pu, take);
-                blend_store8_f32_avx2(ov, pv, take);
-                blend_store8_avx2(os, ps, take);
-                blend_store8_avx2(sr, &[k; LANES], take);
+                blend_store8_f32_avx2(od, &d, take);
+                blend_store8_avx2(op, &p, take);
+                let ou: &mut [f32; LANES] = (&mut out.u[i..i + LANES]).try_into().unwrap();
+                blend_store8_f32_avx2(ou, &block(&part.u, i), take);
+                let ov: &mut [f32; LANES] = (&mut out.v[i..i + LANES]).try_into().unwrap();
+                blend_store8_f32_avx2(ov, &block(&part.v, i), take);
+                if TABLES {
+                    let os: &mut [u32; LANES] = (&mut out.slot[i..i + LANES]).try_into().unwrap();
+                    blend_store8_avx2(os, &block_u(&part.slot, i), take);
+                    let sr: &mut [u32; LANES] = (&mut src[i..i + LANES]).try_into().unwrap();
+                    blend_store8_avx2(sr, &[k; LANES], take);
+                }
             }
             continue;
         }
@@ -239,12 +239,18 @@ fn merge_part_body<const HW: bool>(
             continue;
         }
         // Full-lane selects (no per-lane branches or stores).
-        select8(&take, d, od);
-        select8(&take, p, op);
-        select8(&take, pu, ou);
-        select8(&take, pv, ov);
-        select8(&take, ps, os);
-        select8(&take, &[k; LANES], sr);
+        select8(&take, &d, od);
+        select8(&take, &p, op);
+        let ou: &mut [f32; LANES] = (&mut out.u[i..i + LANES]).try_into().unwrap();
+        select8(&take, &block(&part.u, i), ou);
+        let ov: &mut [f32; LANES] = (&mut out.v[i..i + LANES]).try_into().unwrap();
+        select8(&take, &block(&part.v, i), ov);
+        if TABLES {
+            let os: &mut [u32; LANES] = (&mut out.slot[i..i + LANES]).try_into().unwrap();
+            select8(&take, &block_u(&part.slot, i), os);
+            let sr: &mut [u32; LANES] = (&mut src[i..i + LANES]).try_into().unwrap();
+            select8(&take, &[k; LANES], sr);
+        }
     }
 }
 
@@ -253,6 +259,23 @@ fn merge_part_body<const HW: bool>(
 fn select8<T: Copy>(take: &[bool; LANES], src: &[T; LANES], dst: &mut [T; LANES]) {
     for l in 0..LANES {
         dst[l] = if take[l] { src[l] } else { dst[l] };
+    }
+}
+
+/// Merges the pixel records (depth, polygon, u, v) of one region's reports, one per renderer
+/// that had primitives there, into `parts[0]` by depth then polygon id, as [`composite_in_place`]
+/// does, for reports that carry no patch table: the frame stage locates the patches once, in the
+/// merged region ([`RegionGBuffer::assign_patches_with`]), which gives the table and slots
+/// [`composite_in_place`] would have rebuilt (memory order of first use, and each sample's patch
+/// is a function of its polygon and (u, v)) without locating the hidden samples of every report.
+/// `parts[1..]` are left as they were; slots are not merged.
+pub fn merge_records_in_place(parts: &mut [RegionGBuffer]) {
+    if parts.len() <= 1 {
+        return;
+    }
+    let (head, rest) = parts.split_at_mut(1);
+    for part in rest.iter() {
+        merge_part::<false>(part, &mut head[0], &mut [], 0);
     }
 }
 
@@ -346,5 +369,67 @@ mod tests {
         let m = composite(vec![a, b]);
         assert_eq!(m.polygon[..4], [4, 7, 7, N]);
         assert!(m.table.is_empty() && m.slot.iter().all(|&s| s == 0));
+    }
+
+    /// Patches keyed by polygon and the half of the domain u falls in.
+    struct Halves;
+
+    impl crate::reconstruction::PatchSource for Halves {
+        fn locate(&self, polygon: u32, u: f32, _v: f32) -> u32 {
+            2 * polygon + (u >= 0.5) as u32
+        }
+        fn patch(&self, id: u32) -> PatchCoeffs {
+            let mut c = PatchCoeffs::whole([[0.0; 16]; 3]);
+            c.c[1][3] = id as f32;
+            c
+        }
+    }
+
+    #[test]
+    fn merging_records_then_locating_patches_equals_merging_tables() {
+        // Three renderers' reports of a 16 x 3 region with ties, hidden samples and empty ones.
+        let mut seed = 5u64;
+        let mut rnd = |n: u64| {
+            seed = seed
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (seed >> 33) % n
+        };
+        for _ in 0..50 {
+            let parts: Vec<RegionGBuffer> = (0..3)
+                .map(|_| {
+                    let mut g = RegionGBuffer::new(0, 0, 0, 16, 3, 1);
+                    for i in 0..g.len() {
+                        if rnd(4) == 0 {
+                            continue;
+                        }
+                        g.depth[i] = 1.0 + rnd(3) as f32;
+                        g.polygon[i] = rnd(5) as u32;
+                        g.u[i] = rnd(4) as f32 * 0.25;
+                        g.v[i] = rnd(4) as f32 * 0.25;
+                    }
+                    g
+                })
+                .collect();
+            let mut with_tables = parts.clone();
+            for g in with_tables.iter_mut() {
+                g.assign_patches(&Halves);
+            }
+            let want = composite(with_tables);
+            let mut got = parts;
+            merge_records_in_place(&mut got);
+            let got = &mut got[0];
+            got.assign_patches(&Halves);
+            assert_eq!(got.polygon, want.polygon);
+            assert_eq!(got.depth, want.depth);
+            assert_eq!(got.table_ids, want.table_ids);
+            assert_eq!(got.table, want.table);
+            for i in 0..got.len() {
+                if got.polygon[i] != NO_POLYGON {
+                    assert_eq!((got.u[i], got.v[i]), (want.u[i], want.v[i]));
+                    assert_eq!(got.slot[i], want.slot[i], "sample {i}");
+                }
+            }
+        }
     }
 }

@@ -4,9 +4,11 @@
 //! geometry and setup ([`raster::build_primitives_into`]) -> round-robin distribution over R
 //! virtual renderers and binning per region ([`raster::bin_round_robin_into`]) -> one parallel
 //! task per region: each renderer with primitives there rasterizes its share into a pooled
-//! G-buffer ([`raster::rasterize_region_into`]), the compositor merges them by depth
-//! ([`crate::composition::composite_in_place`]) and the deferred pass shades the result straight
-//! into the frame ([`crate::shading::shade_region_rows`]), resolving the samples of each pixel.
+//! G-buffer ([`raster::rasterize_region_into`]), the compositor merges their pixel records by
+//! depth ([`crate::composition::merge_records_in_place`]), the merged region's patches are
+//! located once ([`crate::raster::gbuffer::RegionGBuffer::assign_patches_with`]) and the deferred
+//! pass shades the result straight into the frame ([`crate::shading::shade_region_rows`]),
+//! resolving the samples of each pixel.
 //! It fills [`FrameStats`]: counters, per-stage times and the wall-clock frame time.
 //!
 //! Memory: a [`FrameContext`] owns every buffer a frame uses and keeps it across frames (a
@@ -33,7 +35,7 @@ use serde::Serialize;
 use std::sync::Mutex;
 use std::time::Duration;
 
-use crate::composition::{self, MergeScratch};
+use crate::composition;
 use crate::error::{Error, Result};
 use crate::image::ImageView;
 use crate::method::Method;
@@ -254,7 +256,6 @@ struct Workspace {
     /// One G-buffer per renderer that had primitives in the region; `parts[0]` is the composited one.
     parts: Vec<RegionGBuffer>,
     patches: PatchScratch,
-    merge: MergeScratch,
 }
 
 /// What happened in one region (summed in region order: deterministic).
@@ -374,15 +375,16 @@ impl FrameContext {
 
     /// Renders one frame of `scene` seen by `camera` with any deferred [`Shader`] into this
     /// context ([`FrameContext::pixels`]): the stages up to composition are the same for every
-    /// method; only a patch shader makes the rasterizer fill the regions' patch tables. `method`
+    /// method; only a patch shader makes the frame fill the regions' patch tables. `method`
     /// only names the frame in its statistics. Runs in the current rayon pool.
     ///
     /// Each region is one task: its renderers rasterize their shares into G-buffers from the
-    /// pool, the compositor merges them, the deferred pass shades the result straight into the
-    /// frame, and the buffers go back to the pool, still in cache for the next region. Regions
-    /// run in parallel, so composition runs concurrently with other regions' rasterization (as
-    /// PixelFlow's composition network did) and with R renderers the frame costs the
-    /// rasterization of the same primitives plus the merges.
+    /// pool, the compositor merges them, the merged region's patches are located, the deferred
+    /// pass shades the result straight into the frame, and the buffers go back to the pool,
+    /// still in cache for the next region. Regions run in parallel, so composition runs
+    /// concurrently with other regions' rasterization (as PixelFlow's composition network did)
+    /// and with R renderers the frame costs the rasterization of the same primitives plus the
+    /// records merges.
     pub fn render(
         &mut self,
         scene: &Scene,
@@ -490,9 +492,16 @@ impl FrameContext {
 }
 
 /// One region, start to finish: each renderer with primitives here rasterizes its share into a
-/// G-buffer of the workspace (and locates its patches), the compositor merges them into the
-/// first, and the deferred pass shades it into `rows`; a region no renderer touched is filled
-/// with the background.
+/// G-buffer of the workspace, the compositor merges their pixel records into the first, the
+/// patches of the merged region are located (methods with patches) and the deferred pass shades
+/// it into `rows`; a region no renderer touched is filled with the background.
+///
+/// Patches are located once, after the merge, rather than by every renderer in its own share:
+/// the table and slots are those the per-renderer tables merged in canonical order would give
+/// (see [`composition::merge_records_in_place`]), so the image is the same, and with R renderers
+/// the samples each renderer drew but another one hid are not located at all. Traffic is counted
+/// as the composition module's model has it, with the region's table crossing the network once
+/// on the way in (with the reports) and once on the way out.
 #[allow(clippy::too_many_arguments)]
 fn region_task(
     grid: &RegionGrid,
@@ -524,7 +533,7 @@ fn region_task(
             prims,
             ids,
             offsets,
-            source,
+            None,
             gb,
             &mut ws.patches,
         );
@@ -539,14 +548,23 @@ fn region_task(
         return out;
     }
     let t1 = Instant::now();
-    composition::composite_in_place(&mut ws.parts[..used], &mut ws.merge);
-    let gb = &ws.parts[0];
+    composition::merge_records_in_place(&mut ws.parts[..used]);
+    let t2 = Instant::now();
+    let gb = &mut ws.parts[0];
+    if let Some(source) = source {
+        gb.assign_patches_with(source, &mut ws.patches);
+        out.traffic += gb.table.len() as u64 * raster::gbuffer::TABLE_ENTRY_BYTES;
+    } else {
+        // Shaders without patches never read a slot; the table is empty.
+        debug_assert!(gb.table.is_empty());
+    }
+    let t3 = Instant::now();
     out.traffic += gb.bytes();
     out.gbuffer_bytes = gb.bytes();
     out.table_entries = gb.table.len() as u64;
-    let t2 = Instant::now();
     out.shade = shading::shade_region_rows(shader, gb, background, rows);
-    let t3 = Instant::now();
-    (out.raster, out.composition, out.shading) = (t1 - t0, t2 - t1, t3 - t2);
+    let t4 = Instant::now();
+    // Patch location counts as rasterization (the renderers' work in the stage model).
+    (out.raster, out.composition, out.shading) = ((t1 - t0) + (t3 - t2), t2 - t1, t4 - t3);
     out
 }
