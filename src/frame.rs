@@ -343,8 +343,8 @@ impl FrameContext {
     }
 
     /// Prepares every worker of the current rayon pool for frames shaded from `source`
-    /// ([`PatchSource::warm_thread`]: the compact RRPs' per-thread patch cache allocated and
-    /// first touched), so the first frame does not pay for it.
+    /// ([`PatchSource::warm_thread`]: the compact RRPs' per-thread patch cache allocated, first
+    /// touched and filled), so the first frame does not pay for it.
     pub fn reserve_source(&self, source: &dyn PatchSource) {
         rayon::broadcast(|_| source.warm_thread());
     }

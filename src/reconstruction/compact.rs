@@ -424,12 +424,25 @@ impl CompactReconstruction {
         }
     }
 
-    /// Claims the calling thread's patch cache for this reconstruction ahead of the first frame:
-    /// its 3.5 MB allocated and first touched, so that frame does not pay the page faults. The
-    /// frame stage calls it on every worker ([`crate::frame::FrameContext::reserve_source`]); it
-    /// changes times, never pixels.
+    /// Fills the calling thread's patch cache for this reconstruction ahead of the first frame:
+    /// its memory allocated and first touched, and every leaf expanded into its slot in id order
+    /// (with more leaves than slots, the later ids keep the shared slots), so that frame neither
+    /// pays the page faults nor expands each visible patch on first use, as PixelFlow's renderers
+    /// had every patch in memory before the first frame. The frame stage calls it on every worker
+    /// ([`crate::frame::FrameContext::reserve_source`]); it changes times, never pixels (an
+    /// expansion is a pure function of the stored integers).
     pub fn warm_thread_cache(&self) {
-        CACHE.with(|c| self.claim(&mut c.borrow_mut()));
+        CACHE.with(|c| {
+            let mut c = c.borrow_mut();
+            self.claim(&mut c);
+            for id in 0..self.leaves.len() as u32 {
+                let slot = id as usize % CACHE_SLOTS;
+                if c.ids[slot] != id {
+                    c.patches[slot] = self.expand(id);
+                    c.ids[slot] = id;
+                }
+            }
+        });
     }
 }
 
