@@ -161,6 +161,77 @@ unsafe fn eval_patch8_avx2(p: &PatchCoeffs, u: F32x8, v: F32x8) -> [F32x8; 3] {
     out
 }
 
+/// Which lanes of a block are empty (bit l: `polys[l]` is [`NO_POLYGON`]) and whether all 8
+/// slots are equal.
+#[inline(always)]
+fn classify8<const HW: bool>(polys: &[u32; LANES], slots: &[u32; LANES]) -> (u32, bool) {
+    #[cfg(target_arch = "x86_64")]
+    if HW {
+        use std::arch::x86_64::*;
+        // SAFETY: HW is true only in the AVX2 build, run after the CPU check; the loads read
+        // the 8 lanes of each array.
+        return unsafe {
+            let p = _mm256_loadu_si256(polys.as_ptr() as *const __m256i);
+            let e = _mm256_cmpeq_epi32(p, _mm256_set1_epi32(NO_POLYGON as i32));
+            (
+                _mm256_movemask_ps(_mm256_castsi256_ps(e)) as u32,
+                same_slot8::<HW>(slots, slots[0]) == 0xff,
+            )
+        };
+    }
+    let mut empty = 0;
+    let mut same = true;
+    for l in 0..LANES {
+        empty |= ((polys[l] == NO_POLYGON) as u32) << l;
+        same &= slots[l] == slots[0];
+    }
+    (empty, same)
+}
+
+/// The lanes whose slot is `slot`, as bits.
+#[inline(always)]
+fn same_slot8<const HW: bool>(slots: &[u32; LANES], slot: u32) -> u32 {
+    #[cfg(target_arch = "x86_64")]
+    if HW {
+        use std::arch::x86_64::*;
+        // SAFETY: as in `classify8`.
+        return unsafe {
+            let v = _mm256_loadu_si256(slots.as_ptr() as *const __m256i);
+            let e = _mm256_cmpeq_epi32(v, _mm256_set1_epi32(slot as i32));
+            _mm256_movemask_ps(_mm256_castsi256_ps(e)) as u32
+        };
+    }
+    (0..LANES).fold(0, |b, l| b | ((slots[l] == slot) as u32) << l)
+}
+
+/// `out[ch][l] = c[ch][l]` in the lanes whose bit is set in `m`.
+#[inline(always)]
+fn select8<const HW: bool>(m: u32, c: &[F32x8; 3], out: &mut [F32x8; 3]) {
+    #[cfg(target_arch = "x86_64")]
+    if HW {
+        use std::arch::x86_64::*;
+        // SAFETY: as in `classify8`; F32x8 is 8 aligned f32.
+        unsafe {
+            let bit = _mm256_setr_epi32(1, 2, 4, 8, 16, 32, 64, 128);
+            let mv = _mm256_cmpeq_epi32(_mm256_and_si256(_mm256_set1_epi32(m as i32), bit), bit);
+            let mv = _mm256_castsi256_ps(mv);
+            for ch in 0..3 {
+                let r = _mm256_blendv_ps(
+                    _mm256_load_ps(out[ch].0.as_ptr()),
+                    _mm256_load_ps(c[ch].0.as_ptr()),
+                    mv,
+                );
+                _mm256_store_ps(out[ch].0.as_mut_ptr(), r);
+            }
+        }
+        return;
+    }
+    let mask: [bool; LANES] = std::array::from_fn(|l| (m >> l) & 1 != 0);
+    for ch in 0..3 {
+        out[ch] = F32x8::select(&mask, c[ch], out[ch]);
+    }
+}
+
 /// Shades one composited region: returns its `width * height` resolved linear pixels (row-major,
 /// row 0 at the region's top) and the counters.
 pub fn shade_region(gb: &RegionGBuffer, background: Vec3) -> (Vec<Vec3>, ShadeCounts) {
@@ -243,38 +314,28 @@ fn shade_region_body<const HW: bool>(
                 let slots: &[u32; LANES] = gb.slot[i0..i0 + LANES].try_into().unwrap();
                 let u8x = F32x8(gb.u[i0..i0 + LANES].try_into().unwrap());
                 let v8x = F32x8(gb.v[i0..i0 + LANES].try_into().unwrap());
-                let mut empty = [false; LANES];
-                let mut same = true;
-                let mut n_empty = 0;
-                for l in 0..LANES {
-                    empty[l] = polys[l] == NO_POLYGON;
-                    n_empty += empty[l] as usize;
-                    same &= slots[l] == slots[0];
-                }
-                let out = if n_empty == 0 && same {
+                let (empty, same) = classify8::<HW>(polys, slots);
+                let out = if empty == 0 && same {
                     // The common case: one patch, its coefficients broadcast over the 8 lanes.
                     counts.uniform_blocks += 1;
                     counts.samples_shaded += LANES as u64;
                     eval_patch8::<HW>(&gb.table[slots[0] as usize], u8x, v8x)
-                } else if n_empty == LANES {
+                } else if empty == 0xff {
                     bg8
                 } else {
-                    // Mixed: one broadcast evaluation per distinct patch, committed through masks.
+                    // Mixed: one broadcast evaluation per distinct patch, committed through masks
+                    // (the lanes still pending are bits; the patch of the first is evaluated and
+                    // written to every pending lane with the same slot).
                     counts.mixed_blocks += 1;
-                    counts.samples_shaded += (LANES - n_empty) as u64;
+                    counts.samples_shaded += (LANES as u32 - empty.count_ones()) as u64;
                     let mut out = bg8;
-                    let mut done = empty;
-                    while let Some(first) = done.iter().position(|&d| !d) {
-                        let slot = slots[first];
-                        let mut m = [false; LANES];
-                        for l in 0..LANES {
-                            m[l] = !done[l] & (slots[l] == slot);
-                            done[l] |= m[l];
-                        }
+                    let mut pending = !empty & 0xff;
+                    while pending != 0 {
+                        let slot = slots[pending.trailing_zeros() as usize];
+                        let m = same_slot8::<HW>(slots, slot) & pending;
+                        pending &= !m;
                         let c = eval_patch8::<HW>(&gb.table[slot as usize], u8x, v8x);
-                        for ch in 0..3 {
-                            out[ch] = F32x8::select(&m, c[ch], out[ch]);
-                        }
+                        select8::<HW>(m, &c, &mut out);
                     }
                     out
                 };
