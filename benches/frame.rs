@@ -7,7 +7,7 @@
 
 use criterion::{criterion_group, criterion_main, BatchSize, BenchmarkId, Criterion, Throughput};
 use glam::{DVec3, Vec3};
-use pixelflow_sim::composition::{composite_in_place, MergeScratch};
+use pixelflow_sim::composition::{composite_in_place, merge_records_in_place, MergeScratch};
 use pixelflow_sim::frame::{
     render_patches as render_frame, FrameContext, FrameOptions, FrameStats,
 };
@@ -249,6 +249,43 @@ fn stages(c: &mut Criterion) {
                 parts
                     .par_iter_mut()
                     .for_each_init(MergeScratch::default, |m, p| composite_in_place(p, m))
+            },
+            BatchSize::LargeInput,
+        )
+    });
+    // What the frame does: reports of pixel records only, merged, then the merged region's
+    // patches located once.
+    let records: Vec<Vec<RegionGBuffer>> = (0..grid.count())
+        .map(|r| {
+            (0..2)
+                .map(|k| {
+                    let mut gb = RegionGBuffer::default();
+                    let ids = &bins[k][r];
+                    rasterize_region_into(
+                        &grid,
+                        r as u32,
+                        &prims,
+                        ids,
+                        offsets,
+                        None,
+                        &mut gb,
+                        &mut PatchScratch::default(),
+                    );
+                    gb
+                })
+                .collect()
+        })
+        .collect();
+    g.bench_function("merge-and-locate-2-renderers-1024", |b| {
+        b.iter_batched_ref(
+            || records.clone(),
+            |parts| {
+                parts
+                    .par_iter_mut()
+                    .for_each_init(PatchScratch::default, |scratch, p| {
+                        merge_records_in_place(p);
+                        p[0].assign_patches_with(&source, scratch);
+                    })
             },
             BatchSize::LargeInput,
         )
