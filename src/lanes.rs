@@ -137,8 +137,8 @@ pub unsafe fn blend_store8_f32_avx2(
 
 /// The depth test of the rasterizer and the compositor for one block in one AVX2 register: lane l
 /// passes when bit l of `bits` is set (covered) and `w[l] < depth[l]`, or `w[l] == depth[l]` and
-/// `ids[l] < poly[l]` (unsigned). Returns the all-ones / all-zeros lane mask, or `None` when no lane passes. The
-/// same IEEE comparisons as the scalar form (ordered: false on NaN).
+/// `ids[l] < poly[l]` (unsigned). Returns the all-ones / all-zeros lane mask, or `None` when no
+/// lane passes. The same IEEE comparisons as the scalar form (ordered: false on NaN).
 ///
 /// # Safety
 /// The CPU must support AVX2.
@@ -205,6 +205,46 @@ mod tests {
             let want = (a.0[l] * b.0[l] + 0.1) - a.0[l];
             assert_eq!(r.0[l].to_bits(), want.to_bits());
             assert_eq!(s.0[l], if l % 3 == 0 { want } else { b.0[l] });
+        }
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[test]
+    fn the_avx2_depth_test_is_the_scalar_one() {
+        if !std::arch::is_x86_feature_detected!("avx2") {
+            return;
+        }
+        // Depths with ties, infinities, NaN and signed zeros; ids across the sign bit of i32.
+        const D: [f32; 7] = [1.0, 2.0, f32::INFINITY, f32::NAN, 0.0, -0.0, 1.5];
+        const P: [u32; 5] = [0, 7, 0x8000_0000, 0xffff_fffe, u32::MAX];
+        let mut x = 17u64;
+        let mut next = |n: usize| {
+            x = x
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (x >> 33) as usize % n
+        };
+        for _ in 0..5000 {
+            let bits = next(256) as u32;
+            let w: [f32; LANES] = std::array::from_fn(|_| D[next(D.len())]);
+            let depth: [f32; LANES] = std::array::from_fn(|_| D[next(D.len())]);
+            let ids: [u32; LANES] = std::array::from_fn(|_| P[next(P.len())]);
+            let poly: [u32; LANES] = std::array::from_fn(|_| P[next(P.len())]);
+            let want: u32 = (0..LANES)
+                .map(|l| {
+                    let covered = (bits >> l) & 1 != 0;
+                    let pass = (w[l] < depth[l]) | ((w[l] == depth[l]) & (ids[l] < poly[l]));
+                    ((covered & pass) as u32) << l
+                })
+                .sum();
+            // SAFETY: the CPU has AVX2 (checked above).
+            let got = unsafe { depth_test_avx2(bits, &w, &depth, &ids, &poly) }.map(|m| {
+                use std::arch::x86_64::*;
+                // SAFETY: as above.
+                unsafe { _mm256_movemask_ps(_mm256_castsi256_ps(m)) as u32 }
+            });
+            assert_eq!(got.unwrap_or(0), want);
+            assert_eq!(got.is_none(), want == 0);
         }
     }
 }

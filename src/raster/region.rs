@@ -11,9 +11,10 @@
 //! the edges' slopes, so thin and slanted primitives do not walk their empty bounding box), per
 //! block (interior blocks skip the per-lane edge test; blocks with no covered sample are skipped;
 //! blocks whose every covered sample fails the depth test skip the (u, v) work and the stores) and
-//! per primitive (perspective or orthographic, quad or triangle, up to 4 or up to 9 edges),
-//! monomorphized out of the loop. None of them changes a result: the exact integer edge test and
-//! the depth test still decide every sample.
+//! per primitive (perspective or orthographic, the form of the (u, v) inverse, up to 3, 4 or 9
+//! edges, 32- or 64-bit edge lanes), monomorphized out of the loop, each combination a kernel
+//! function of its own (so a small triangle pays only its own kernel's setup). None of them
+//! changes a result: the exact integer edge test and the depth test still decide every sample.
 //!
 //! The per-pixel linear expressions are re-based at each region's origin in f64 and only then
 //! rounded to f32, so their f32 evaluation works with small local coordinates and keeps its
@@ -620,8 +621,16 @@ mod tests {
 
     /// Every block's mask, from the 64-bit walk or the 32-bit one (portable and AVX2 builds).
     fn masks<T: EdgeLane, const HW: bool>(p: &Prim, rect: (u32, u32, u32, u32)) -> Vec<u32> {
+        masks_n::<4, T, HW>(p, rect)
+    }
+
+    /// [`masks`] from the walk over `N` edge functions.
+    fn masks_n<const N: usize, T: EdgeLane, const HW: bool>(
+        p: &Prim,
+        rect: (u32, u32, u32, u32),
+    ) -> Vec<u32> {
         let mut out = Vec::new();
-        for_each_block::<4, T, HW>(p, rect, (ONE / 2, ONE / 2), |y, x, bits| {
+        for_each_block::<N, T, HW>(p, rect, (ONE / 2, ONE / 2), |y, x, bits| {
             assert!(bits != 0 && bits < 256);
             out.push(y << 20 | x << 8 | bits);
         });
@@ -639,7 +648,7 @@ mod tests {
                 .wrapping_add(1442695040888963407);
             (seed >> 11) as f64 / (1u64 << 53) as f64 * scale
         };
-        let (mut small, mut checked) = (0, 0);
+        let (mut small, mut checked, mut three) = (0, 0, 0);
         for i in 0..3000 {
             let far = i % 5 == 0;
             let c = [rnd(120.0) - 4.0, rnd(120.0) - 4.0];
@@ -656,6 +665,23 @@ mod tests {
                     want,
                     "triangle {i}"
                 );
+                // The 3-edge walk small triangles take.
+                if p.n_edges == 3 {
+                    assert_eq!(
+                        masks_n::<3, i32, false>(&p, (0, 0, 128, 128)),
+                        want,
+                        "triangle {i}"
+                    );
+                    #[cfg(target_arch = "x86_64")]
+                    if crate::lanes::avx2_available() {
+                        assert_eq!(
+                            masks_n::<3, i32, true>(&p, (0, 0, 128, 128)),
+                            want,
+                            "triangle {i}"
+                        );
+                    }
+                    three += 1;
+                }
                 #[cfg(target_arch = "x86_64")]
                 if crate::lanes::avx2_available() {
                     // The HW variant only calls AVX2 code on CPUs that have it.
@@ -669,6 +695,7 @@ mod tests {
             checked += 1;
         }
         assert!(small > 1500 && checked > 2000, "{small} small of {checked}");
+        assert!(three > 1000, "{three} three-edge triangles");
     }
 
     #[test]
