@@ -231,17 +231,30 @@ fn stages(c: &mut Criterion) {
     });
     // Two renderers: each region's two G-buffers, merged in place.
     bin_round_robin_into(&grid, &prims, 2, &mut bins);
-    let parts: Vec<Vec<RegionGBuffer>> = (0..grid.count())
-        .map(|r| {
-            (0..2)
-                .map(|k| {
-                    let mut gb = RegionGBuffer::default();
-                    raster(&bins[k][r], r, &mut gb, &mut PatchScratch::default());
-                    gb
-                })
-                .collect()
-        })
-        .collect();
+    // Each region's two renderers' reports, with patch tables or with pixel records only.
+    let reports = |source: Option<&dyn PatchSource>| -> Vec<Vec<RegionGBuffer>> {
+        (0..grid.count())
+            .map(|r| {
+                (0..2)
+                    .map(|k| {
+                        let mut gb = RegionGBuffer::default();
+                        rasterize_region_into(
+                            &grid,
+                            r as u32,
+                            &prims,
+                            &bins[k][r],
+                            offsets,
+                            source,
+                            &mut gb,
+                            &mut PatchScratch::default(),
+                        );
+                        gb
+                    })
+                    .collect()
+            })
+            .collect()
+    };
+    let parts = reports(Some(&source));
     g.bench_function("composition-2-renderers-1024", |b| {
         b.iter_batched_ref(
             || parts.clone(),
@@ -255,27 +268,7 @@ fn stages(c: &mut Criterion) {
     });
     // What the frame does: reports of pixel records only, merged, then the merged region's
     // patches located once.
-    let records: Vec<Vec<RegionGBuffer>> = (0..grid.count())
-        .map(|r| {
-            (0..2)
-                .map(|k| {
-                    let mut gb = RegionGBuffer::default();
-                    let ids = &bins[k][r];
-                    rasterize_region_into(
-                        &grid,
-                        r as u32,
-                        &prims,
-                        ids,
-                        offsets,
-                        None,
-                        &mut gb,
-                        &mut PatchScratch::default(),
-                    );
-                    gb
-                })
-                .collect()
-        })
-        .collect();
+    let records = reports(None);
     g.bench_function("merge-and-locate-2-renderers-1024", |b| {
         b.iter_batched_ref(
             || records.clone(),

@@ -135,6 +135,22 @@ pub unsafe fn blend_store8_f32_avx2(
     }
 }
 
+/// The all-ones / all-zeros lane mask of the bits of `bits` (lane l from bit l).
+///
+/// # Safety
+/// The CPU must support AVX2.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[inline]
+pub unsafe fn lane_mask_avx2(bits: u32) -> std::arch::x86_64::__m256i {
+    use std::arch::x86_64::*;
+    let lane_bit = _mm256_setr_epi32(1, 2, 4, 8, 16, 32, 64, 128);
+    _mm256_cmpeq_epi32(
+        _mm256_and_si256(_mm256_set1_epi32(bits as i32), lane_bit),
+        lane_bit,
+    )
+}
+
 /// The depth test of the rasterizer and the compositor for one block in one AVX2 register: lane l
 /// passes when bit l of `bits` is set (covered) and `w[l] < depth[l]`, or `w[l] == depth[l]` and
 /// `ids[l] < poly[l]` (unsigned). Returns the all-ones / all-zeros lane mask, or `None` when no
@@ -155,11 +171,7 @@ pub unsafe fn depth_test_avx2(
     use std::arch::x86_64::*;
     // SAFETY: every pointer is to 8 lanes of 4 bytes (unaligned 32-byte loads).
     unsafe {
-        let lane_bit = _mm256_setr_epi32(1, 2, 4, 8, 16, 32, 64, 128);
-        let covered = _mm256_cmpeq_epi32(
-            _mm256_and_si256(_mm256_set1_epi32(bits as i32), lane_bit),
-            lane_bit,
-        );
+        let covered = lane_mask_avx2(bits);
         let wv = _mm256_loadu_ps(w.as_ptr());
         let dv = _mm256_loadu_ps(depth.as_ptr());
         let nearer = _mm256_castps_si256(_mm256_cmp_ps::<_CMP_LT_OQ>(wv, dv));

@@ -83,6 +83,32 @@ fn eval_bilinear_channel8(k: &[f32; 16], s: F32x8, t: F32x8) -> F32x8 {
     r1 * t + r0
 }
 
+/// The patch's local (s, t) = ((u - u0) inv_w, (v - v0) inv_w) of 8 lanes in AVX registers.
+///
+/// # Safety
+/// The CPU must support AVX2.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[inline]
+unsafe fn local_st_avx2(
+    p: &PatchCoeffs,
+    u: F32x8,
+    v: F32x8,
+) -> (std::arch::x86_64::__m256, std::arch::x86_64::__m256) {
+    use std::arch::x86_64::*;
+    // SAFETY: F32x8 is 8 f32, 32-byte aligned: the loads stay inside it.
+    unsafe {
+        let w = _mm256_set1_ps(p.inv_w);
+        let local = |x: &F32x8, o: f32| {
+            _mm256_mul_ps(
+                _mm256_sub_ps(_mm256_load_ps(x.0.as_ptr()), _mm256_set1_ps(o)),
+                w,
+            )
+        };
+        (local(&u, p.u0), local(&v, p.v0))
+    }
+}
+
 /// [`eval_bilinear_channel8`] for the three channels in AVX registers (no FMA; same operations,
 /// same order).
 ///
@@ -96,15 +122,7 @@ unsafe fn eval_bilinear8_avx2(p: &PatchCoeffs, u: F32x8, v: F32x8) -> [F32x8; 3]
     let mut out = [F32x8::splat(0.0); 3];
     // SAFETY: F32x8 is 8 f32, 32-byte aligned: the loads and stores stay inside it.
     unsafe {
-        let w = _mm256_set1_ps(p.inv_w);
-        let s = _mm256_mul_ps(
-            _mm256_sub_ps(_mm256_load_ps(u.0.as_ptr()), _mm256_set1_ps(p.u0)),
-            w,
-        );
-        let t = _mm256_mul_ps(
-            _mm256_sub_ps(_mm256_load_ps(v.0.as_ptr()), _mm256_set1_ps(p.v0)),
-            w,
-        );
+        let (s, t) = local_st_avx2(p, u, v);
         for (ch, o) in out.iter_mut().enumerate() {
             let k = &p.c[ch];
             let r1 = _mm256_add_ps(_mm256_mul_ps(_mm256_set1_ps(k[5]), s), _mm256_set1_ps(k[4]));
@@ -129,15 +147,7 @@ unsafe fn eval_patch8_avx2(p: &PatchCoeffs, u: F32x8, v: F32x8) -> [F32x8; 3] {
     let mut out = [F32x8::splat(0.0); 3];
     // SAFETY: F32x8 is 8 f32, 32-byte aligned: the loads and stores stay inside it.
     unsafe {
-        let w = _mm256_set1_ps(p.inv_w);
-        let s = _mm256_mul_ps(
-            _mm256_sub_ps(_mm256_load_ps(u.0.as_ptr()), _mm256_set1_ps(p.u0)),
-            w,
-        );
-        let t = _mm256_mul_ps(
-            _mm256_sub_ps(_mm256_load_ps(v.0.as_ptr()), _mm256_set1_ps(p.v0)),
-            w,
-        );
+        let (s, t) = local_st_avx2(p, u, v);
         macro_rules! horner {
             ($x:expr, $a:expr, $b:expr, $c:expr, $d:expr) => {{
                 // ((a x + b) x + c) x + d
@@ -212,9 +222,7 @@ fn select8<const HW: bool>(m: u32, c: &[F32x8; 3], out: &mut [F32x8; 3]) {
         use std::arch::x86_64::*;
         // SAFETY: as in `classify8`; F32x8 is 8 aligned f32.
         unsafe {
-            let bit = _mm256_setr_epi32(1, 2, 4, 8, 16, 32, 64, 128);
-            let mv = _mm256_cmpeq_epi32(_mm256_and_si256(_mm256_set1_epi32(m as i32), bit), bit);
-            let mv = _mm256_castsi256_ps(mv);
+            let mv = _mm256_castsi256_ps(crate::lanes::lane_mask_avx2(m));
             for ch in 0..3 {
                 let r = _mm256_blendv_ps(
                     _mm256_load_ps(out[ch].0.as_ptr()),
