@@ -341,6 +341,16 @@ fn deferred(c: &mut Criterion) {
     g.bench_function("rrp-1024", |b| {
         b.iter(|| pass(&Shader::Patches(&source), &mut tiles))
     });
+    // The same pass capped at the AVX2 build (on an AVX-512 CPU: the 8-lane build the 16-lane
+    // one replaces), for the ratio in one run.
+    if pixelflow_sim::lanes::avx512_available() {
+        use pixelflow_sim::lanes::{cap_build, Build};
+        cap_build(Build::Avx2);
+        g.bench_function("rrp-1024-avx2", |b| {
+            b.iter(|| pass(&Shader::Patches(&source), &mut tiles))
+        });
+        cap_build(Build::Avx512);
+    }
     // The same regions through the texture pass: one 16 x 16 texture per polygon (the 4 x 4
     // patches of each polygon hold 5 x 5 samples; 16 texels per side is the next power of two
     // above 2 x 5, generous sampling), magnified as the walls are at 1024^2.

@@ -13,29 +13,105 @@
 //! build only when [`avx2_available`] says so. Built with the cargo feature `portable`
 //! (`cargo test --release --features portable`), [`avx2_available`] is always `false`, so every
 //! hot loop runs its portable body even on a CPU with AVX2: that is how the portable bodies get
-//! tested on such machines (the default build's tests compare the two builds bit for bit). The
-//! image does not depend on the build.
+//! tested on such machines (the default build's tests compare the builds bit for bit). The patch
+//! shader has a third build for CPUs with AVX-512 ([`avx512_available`]). [`cap_build`] caps
+//! the build at run time (the binary's `PIXELFLOW_SIM_LANES`), to measure the builds against
+//! each other in one binary. The image does not depend on the build.
 
 use std::ops::{Add, Mul, Sub};
 
 /// Number of lanes.
 pub const LANES: usize = 8;
 
-/// Whether the dispatch sites may run their AVX2 builds: the CPU supports AVX2 (detected at run
-/// time; std caches the answer) and the crate was built without the `portable` feature. Always
-/// `false` off x86-64 and with `portable`. The library calls a `#[target_feature(enable =
-/// "avx2")]` function only after this returned `true` (the tests that compare the two builds
-/// check the CPU themselves).
+/// The builds of the hot loops, narrowest first. Every build computes the same bits.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
+pub enum Build {
+    /// The portable bodies (fixed-width arrays the compiler vectorizes for the baseline ISA).
+    Portable,
+    /// The `#[target_feature(enable = "avx2")]` builds.
+    Avx2,
+    /// The patch shader's AVX-512 build: 16-lane evaluation of two blocks at once, the AVX2
+    /// intrinsics EVEX-encoded with coefficient broadcasts folded into the arithmetic.
+    Avx512,
+}
+
+/// Parses a build's name, as the binary's `PIXELFLOW_SIM_LANES` gives it: `portable`, `avx2`,
+/// `avx512`, or `auto` (`Ok(None)`: no cap).
+pub fn parse_build(value: &str) -> Result<Option<Build>, String> {
+    match value {
+        "portable" => Ok(Some(Build::Portable)),
+        "avx2" => Ok(Some(Build::Avx2)),
+        "avx512" => Ok(Some(Build::Avx512)),
+        "auto" | "" => Ok(None),
+        _ => Err("expected portable, avx2, avx512 or auto".to_string()),
+    }
+}
+
+/// The build cache: `u8::MAX` until first asked, then the [`Build`] as `u8`.
+static BUILD: std::sync::atomic::AtomicU8 = std::sync::atomic::AtomicU8::new(u8::MAX);
+
+/// The build the dispatch sites take: the widest the CPU supports, `Portable` under the
+/// `portable` cargo feature, and never wider than a [`cap_build`]. Detected once and cached.
 #[inline(always)]
-pub fn avx2_available() -> bool {
+pub fn build() -> Build {
+    match BUILD.load(std::sync::atomic::Ordering::Relaxed) {
+        0 => Build::Portable,
+        1 => Build::Avx2,
+        2 => Build::Avx512,
+        _ => {
+            let b = cpu_build();
+            BUILD.store(b as u8, std::sync::atomic::Ordering::Relaxed);
+            b
+        }
+    }
+}
+
+/// Caps the build at `cap` from now on (what the CPU lacks stays off): for timing the builds
+/// against each other in one binary. The images do not change.
+pub fn cap_build(cap: Build) {
+    BUILD.store(
+        cpu_build().min(cap) as u8,
+        std::sync::atomic::Ordering::Relaxed,
+    );
+}
+
+/// The widest build this CPU and the cargo features allow.
+fn cpu_build() -> Build {
     #[cfg(target_arch = "x86_64")]
     {
-        !cfg!(feature = "portable") && std::arch::is_x86_feature_detected!("avx2")
+        use std::arch::is_x86_feature_detected as has;
+        if cfg!(feature = "portable") || !has!("avx2") {
+            Build::Portable
+        } else if has!("avx512f") && has!("avx512vl") && has!("popcnt") {
+            Build::Avx512
+        } else {
+            Build::Avx2
+        }
     }
     #[cfg(not(target_arch = "x86_64"))]
     {
-        false
+        Build::Portable
     }
+}
+
+/// Whether the dispatch sites may run their AVX2 builds: [`build`] is at least
+/// [`Build::Avx2`] (the CPU supports AVX2, the crate was built without the `portable` feature,
+/// and no [`cap_build`] said `Portable`). Always `false` off x86-64 and with `portable`.
+/// The library calls a `#[target_feature(enable = "avx2")]` function only after this returned
+/// `true` (the tests that compare the builds check the CPU themselves).
+#[inline(always)]
+pub fn avx2_available() -> bool {
+    build() >= Build::Avx2
+}
+
+/// Whether the AVX-512 builds may run: [`build`] is [`Build::Avx512`] (the CPU also has
+/// AVX-512F, AVX-512VL and POPCNT). Those builds keep the 8-lane AVX2 intrinsics where they
+/// have no 16-lane form, and compiled with these features LLVM encodes them as EVEX
+/// instructions, folds each coefficient broadcast into the multiply or add that uses it
+/// (embedded broadcast) and has 32 vector registers instead of 16.
+#[inline(always)]
+pub fn avx512_available() -> bool {
+    build() >= Build::Avx512
 }
 
 /// 8 `f32` lanes.

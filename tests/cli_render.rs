@@ -611,3 +611,59 @@ fn outputs_never_replace_inputs_or_non_files() {
         .collect();
     assert!(names.is_empty(), "{names:?}");
 }
+
+#[test]
+fn every_lane_build_renders_the_same_bytes() {
+    // The cornell box, direct and mesh (the two patch-shader methods), at AA 1 and 4, under
+    // each cap of the lane build: the same PNG and EXR bytes (on a CPU without AVX2 or AVX-512
+    // the caps fall back to what it has, and the comparison still holds).
+    for (method, aa) in [("direct", "1"), ("mesh", "1"), ("direct", "4")] {
+        let mut first: Option<(Vec<u8>, Vec<u8>)> = None;
+        for build in ["portable", "avx2", "avx512", "auto"] {
+            let png = tmp(&format!("lanes-{method}-{aa}-{build}.png"));
+            let exr = tmp(&format!("lanes-{method}-{aa}-{build}.exr"));
+            let o = bin()
+                .env("PIXELFLOW_SIM_LANES", build)
+                .args([
+                    "render",
+                    scene("cornell-box").to_str().unwrap(),
+                    "--method",
+                    method,
+                    "--aa",
+                    aa,
+                    "--width",
+                    "200",
+                    "--height",
+                    "152",
+                    "-o",
+                    png.to_str().unwrap(),
+                    "--exr",
+                    exr.to_str().unwrap(),
+                    "--quiet",
+                ])
+                .output()
+                .unwrap();
+            assert!(o.status.success(), "{build}: {}", stderr(&o));
+            let got = (std::fs::read(&png).unwrap(), std::fs::read(&exr).unwrap());
+            match &first {
+                None => first = Some(got),
+                Some(want) => assert!(got == *want, "{method} aa {aa}: {build} differs"),
+            }
+        }
+    }
+}
+
+#[test]
+fn an_unknown_lane_build_is_bad_input() {
+    let o = bin()
+        .env("PIXELFLOW_SIM_LANES", "avx1024")
+        .args(["check", scene("cornell-box").to_str().unwrap()])
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    let e = stderr(&o);
+    assert!(
+        e.contains("PIXELFLOW_SIM_LANES") && e.contains("avx1024"),
+        "{e}"
+    );
+}

@@ -822,8 +822,8 @@ fn lane_test_scenes() -> Vec<(&'static str, Scene)> {
 }
 
 #[test]
-fn rasterizer_avx2_and_portable_builds_write_the_same_gbuffers() {
-    use pixelflow_sim::raster::region::{rasterize, rasterize_portable};
+fn rasterizer_builds_write_the_same_gbuffers() {
+    use pixelflow_sim::raster::region::{rasterize, rasterize_avx2_build, rasterize_portable};
     use pixelflow_sim::raster::setup::InverseKind;
     if !pixelflow_sim::lanes::avx2_available() {
         eprintln!("AVX2 build not in use: comparing the portable build with itself");
@@ -847,15 +847,27 @@ fn rasterizer_avx2_and_portable_builds_write_the_same_gbuffers() {
         for aa in [1, 4, 16] {
             opts.aa = aa;
             let (want, f_want) = regions_rasterized_with(&scene, &opts, rasterize_portable);
-            let (got, f_got) = regions_rasterized_with(&scene, &opts, rasterize);
-            assert_eq!(f_got, f_want, "{name} aa {aa}: fragments");
-            assert!(f_want > 0 && want.len() == got.len());
-            for (g, p) in got.iter().zip(&want) {
-                let at = format!("{name} aa {aa} region {}", p.region);
-                assert_eq!(bits(&g.depth), bits(&p.depth), "{at}: depth");
-                assert_eq!(g.polygon, p.polygon, "{at}: polygon");
-                assert_eq!(bits(&g.u), bits(&p.u), "{at}: u");
-                assert_eq!(bits(&g.v), bits(&p.v), "{at}: v");
+            // The build this CPU takes (AVX-512 where it has it), and the AVX2 build.
+            fn avx2(
+                p: &pixelflow_sim::raster::setup::Prim,
+                gb: &mut pixelflow_sim::raster::gbuffer::RegionGBuffer,
+                o: &[(f32, f32)],
+            ) -> u64 {
+                rasterize_avx2_build(p, gb, o).unwrap_or_else(|| rasterize_portable(p, gb, o))
+            }
+            for (build, (got, f_got)) in [
+                ("taken", regions_rasterized_with(&scene, &opts, rasterize)),
+                ("AVX2", regions_rasterized_with(&scene, &opts, avx2)),
+            ] {
+                assert_eq!(f_got, f_want, "{name} aa {aa} {build}: fragments");
+                assert!(f_want > 0 && want.len() == got.len());
+                for (g, p) in got.iter().zip(&want) {
+                    let at = format!("{name} aa {aa} {build} region {}", p.region);
+                    assert_eq!(bits(&g.depth), bits(&p.depth), "{at}: depth");
+                    assert_eq!(g.polygon, p.polygon, "{at}: polygon");
+                    assert_eq!(bits(&g.u), bits(&p.u), "{at}: u");
+                    assert_eq!(bits(&g.v), bits(&p.v), "{at}: v");
+                }
             }
         }
     }
@@ -879,16 +891,51 @@ fn rasterizer_avx2_and_portable_builds_write_the_same_gbuffers() {
     );
 }
 
+impl GridSource {
+    /// The same grid with awkward patches mixed in: every 5th polygon's patches are degree
+    /// (1, 1) (flagged `bilinear`, the Gouraud mesh's form), and one patch in 7 has an
+    /// infinite, a NaN or a huge coefficient (the shaders' clamp must give 0 for what is not
+    /// finite and positive, alike in every build).
+    fn with_awkward_patches(mut self) -> Self {
+        let n2 = (self.n * self.n) as usize;
+        for (k, p) in self.patches.iter_mut().enumerate() {
+            if (k / n2) % 5 == 1 {
+                let mut c = p.c;
+                for row in c.iter_mut() {
+                    for (i, x) in row.iter_mut().enumerate() {
+                        if ![0, 1, 4, 5].contains(&i) {
+                            *x = 0.0;
+                        }
+                    }
+                }
+                let (u0, v0, inv_w) = (p.u0, p.v0, p.inv_w);
+                *p = PatchCoeffs::whole(c);
+                (p.u0, p.v0, p.inv_w) = (u0, v0, inv_w);
+                assert!(p.bilinear);
+            }
+            match k % 7 {
+                2 => p.c[0][3] = f32::INFINITY,
+                4 => p.c[1][0] = f32::NAN,
+                6 => p.c[2][5] = -3e38,
+                _ => {}
+            }
+        }
+        self
+    }
+}
+
 #[test]
-fn patch_shader_avx2_and_portable_builds_shade_the_same_bits() {
+fn patch_shader_builds_shade_the_same_bits() {
     use pixelflow_sim::raster::region::rasterize;
-    use pixelflow_sim::shading::patches::{shade_region_into, shade_region_into_portable};
+    use pixelflow_sim::shading::patches::{
+        shade_region_into, shade_region_into_avx2, shade_region_into_portable,
+    };
     let bg = Vec3::new(0.25, -0.5, 3.0);
     let mut blocks = (0, 0);
     for (name, scene) in lane_test_scenes() {
         // Discontinuous 3 x 3 patches per polygon: blocks with one patch and blocks mixing
-        // patches, polygons and empty samples.
-        let source = GridSource::new(scene.polygons.len() as u32, 3);
+        // patches, polygons and empty samples; bilinear and non-finite patches among them.
+        let source = GridSource::new(scene.polygons.len() as u32, 3).with_awkward_patches();
         let mut opts = FrameOptions::new(scene.width, scene.height);
         opts.region = 64;
         for aa in [1, 4] {
@@ -902,10 +949,21 @@ fn patch_shader_avx2_and_portable_builds_shade_the_same_bits() {
                 let mut want = vec![Vec3::splat(-7.0); n];
                 let mut got = vec![Vec3::splat(-7.0); n];
                 let c_want = shade_region_into_portable(gb, bg, &mut want, pitch);
+                // The build this CPU takes (AVX-512 where it has it, else AVX2 or portable).
                 let c_got = shade_region_into(gb, bg, &mut got, pitch);
                 let at = format!("{name} aa {aa} region {}", gb.region);
                 assert_eq!(c_got, c_want, "{at}");
                 assert_eq!(pixel_bits(&got), pixel_bits(&want), "{at}");
+                let w = gb.width as usize;
+                for row in want.chunks(pitch) {
+                    let row = &row[..w];
+                    assert!(row.iter().all(|p| p.is_finite() && p.min_element() >= 0.0));
+                }
+                let mut avx2 = vec![Vec3::splat(-7.0); n];
+                if let Some(c) = shade_region_into_avx2(gb, bg, &mut avx2, pitch) {
+                    assert_eq!(c, c_want, "{at} (AVX2)");
+                    assert_eq!(pixel_bits(&avx2), pixel_bits(&want), "{at} (AVX2)");
+                }
                 blocks.0 += c_want.uniform_blocks;
                 blocks.1 += c_want.mixed_blocks;
             }

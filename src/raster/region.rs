@@ -340,6 +340,10 @@ fn offset_fixed(offsets: &[(f32, f32)], si: usize) -> (i64, i64) {
 pub fn rasterize(prim: &Prim, gb: &mut RegionGBuffer, offsets: &[(f32, f32)]) -> u64 {
     #[cfg(target_arch = "x86_64")]
     {
+        if crate::lanes::avx512_available() {
+            // SAFETY: the CPU supports AVX2, AVX-512F and AVX-512VL, checked just above.
+            return unsafe { rasterize_avx512(prim, gb, offsets) };
+        }
         if crate::lanes::avx2_available() {
             // SAFETY: the CPU supports AVX2, checked just above.
             return unsafe { rasterize_avx2(prim, gb, offsets) };
@@ -348,17 +352,41 @@ pub fn rasterize(prim: &Prim, gb: &mut RegionGBuffer, offsets: &[(f32, f32)]) ->
     rasterize_portable(prim, gb, offsets)
 }
 
+/// The AVX2 build of [`rasterize`] even on CPUs with AVX-512, `None` without AVX2 (or with the
+/// `portable` feature): public for the tests that compare the three builds.
+#[doc(hidden)]
+pub fn rasterize_avx2_build(
+    prim: &Prim,
+    gb: &mut RegionGBuffer,
+    offsets: &[(f32, f32)],
+) -> Option<u64> {
+    #[cfg(target_arch = "x86_64")]
+    if crate::lanes::avx2_available() {
+        // SAFETY: the CPU supports AVX2, checked just above.
+        return Some(unsafe { rasterize_avx2(prim, gb, offsets) });
+    }
+    let _ = (prim, gb, offsets);
+    None
+}
+
 /// The portable build of [`rasterize`], whatever the CPU: public for the tests that compare it
 /// with the AVX2 build.
 #[doc(hidden)]
 pub fn rasterize_portable(prim: &Prim, gb: &mut RegionGBuffer, offsets: &[(f32, f32)]) -> u64 {
-    rasterize_body::<false>(prim, gb, offsets)
+    rasterize_body::<false, false>(prim, gb, offsets)
 }
 
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
 fn rasterize_avx2(prim: &Prim, gb: &mut RegionGBuffer, offsets: &[(f32, f32)]) -> u64 {
-    rasterize_body::<true>(prim, gb, offsets)
+    rasterize_body::<true, false>(prim, gb, offsets)
+}
+
+/// The rasterizer whose kernels are the AVX2 ones compiled for AVX-512 CPUs ([`kernel_avx512`]).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+fn rasterize_avx512(prim: &Prim, gb: &mut RegionGBuffer, offsets: &[(f32, f32)]) -> u64 {
+    rasterize_body::<true, true>(prim, gb, offsets)
 }
 
 const LINEAR: u8 = 0;
@@ -366,18 +394,18 @@ const TRIANGLE: u8 = 1;
 const GENERAL: u8 = 2;
 
 #[inline(always)]
-fn rasterize_body<const HW: bool>(
+fn rasterize_body<const HW: bool, const X512: bool>(
     prim: &Prim,
     gb: &mut RegionGBuffer,
     offsets: &[(f32, f32)],
 ) -> u64 {
     match (prim.perspective, prim.kind) {
-        (true, InverseKind::Linear) => by_edges::<true, LINEAR, HW>(prim, gb, offsets),
-        (true, InverseKind::Triangle) => by_edges::<true, TRIANGLE, HW>(prim, gb, offsets),
-        (true, InverseKind::General) => by_edges::<true, GENERAL, HW>(prim, gb, offsets),
-        (false, InverseKind::Linear) => by_edges::<false, LINEAR, HW>(prim, gb, offsets),
-        (false, InverseKind::Triangle) => by_edges::<false, TRIANGLE, HW>(prim, gb, offsets),
-        (false, InverseKind::General) => by_edges::<false, GENERAL, HW>(prim, gb, offsets),
+        (true, InverseKind::Linear) => by_edges::<true, LINEAR, HW, X512>(prim, gb, offsets),
+        (true, InverseKind::Triangle) => by_edges::<true, TRIANGLE, HW, X512>(prim, gb, offsets),
+        (true, InverseKind::General) => by_edges::<true, GENERAL, HW, X512>(prim, gb, offsets),
+        (false, InverseKind::Linear) => by_edges::<false, LINEAR, HW, X512>(prim, gb, offsets),
+        (false, InverseKind::Triangle) => by_edges::<false, TRIANGLE, HW, X512>(prim, gb, offsets),
+        (false, InverseKind::General) => by_edges::<false, GENERAL, HW, X512>(prim, gb, offsets),
     }
 }
 
@@ -386,7 +414,7 @@ fn rasterize_body<const HW: bool>(
 /// variants shared one 8 KB stack frame and a prologue that prepared every variant's per-edge
 /// values for each primitive, which cost small triangles more than their blocks did.
 #[inline(always)]
-fn by_edges<const PERSP: bool, const KIND: u8, const HW: bool>(
+fn by_edges<const PERSP: bool, const KIND: u8, const HW: bool, const X512: bool>(
     prim: &Prim,
     gb: &mut RegionGBuffer,
     offsets: &[(f32, f32)],
@@ -394,6 +422,10 @@ fn by_edges<const PERSP: bool, const KIND: u8, const HW: bool>(
     macro_rules! kernel {
         ($n:expr, $t:ty) => {{
             #[cfg(target_arch = "x86_64")]
+            if X512 {
+                // SAFETY: X512 is true only in the AVX-512 build, run after the CPU check.
+                return unsafe { kernel_avx512::<PERSP, KIND, $n, $t>(prim, gb, offsets) };
+            }
             if HW {
                 // SAFETY: HW is true only in the AVX2 build, run after the CPU check.
                 return unsafe { kernel_avx2::<PERSP, KIND, $n, $t>(prim, gb, offsets) };
@@ -429,6 +461,22 @@ fn kernel_portable<const PERSP: bool, const KIND: u8, const N: usize, T: EdgeLan
 #[target_feature(enable = "avx2")]
 #[inline(never)]
 unsafe fn kernel_avx2<const PERSP: bool, const KIND: u8, const N: usize, T: EdgeLane>(
+    prim: &Prim,
+    gb: &mut RegionGBuffer,
+    offsets: &[(f32, f32)],
+) -> u64 {
+    raster_kernel::<PERSP, KIND, true, N, T>(prim, gb, offsets)
+}
+
+/// [`kernel_avx2`] compiled for AVX-512 CPUs: the same intrinsics, EVEX-encoded (32 vector
+/// registers, compares into mask registers); the same bits.
+///
+/// # Safety
+/// The CPU must support AVX2, AVX-512F and AVX-512VL.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,avx512f,avx512vl")]
+#[inline(never)]
+unsafe fn kernel_avx512<const PERSP: bool, const KIND: u8, const N: usize, T: EdgeLane>(
     prim: &Prim,
     gb: &mut RegionGBuffer,
     offsets: &[(f32, f32)],

@@ -257,21 +257,64 @@ impl RowOut {
         }
     }
 
-    /// Takes one block's 8 lanes of RGB at column `bx` of plane `si`, for image row `out`.
+    /// Takes one block's 8 lanes of RGB at column `bx` of plane `si`, for image row `out`. `HW`
+    /// (only in the AVX2 builds, after the CPU check) writes pixels with AVX2 shuffles.
     #[inline(always)]
-    pub(crate) fn block(&mut self, out: &mut [Vec3], bx: usize, si: usize, c: &[F32x8; 3]) {
+    pub(crate) fn block<const HW: bool>(
+        &mut self,
+        out: &mut [Vec3],
+        bx: usize,
+        si: usize,
+        c: &[F32x8; 3],
+    ) {
         if self.samples == 1 {
-            store8(out, bx, c);
+            store8::<HW>(out, bx, c);
         } else {
             accumulate8(&mut self.acc, bx, si, c);
         }
     }
 
+    /// [`RowOut::block`] for 16 lanes in AVX-512 registers (two neighbouring blocks): the same
+    /// operations on each lane, so the same bits.
+    ///
+    /// # Safety
+    /// The CPU must support AVX-512F; `bx + 16` must not exceed the row's stride.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx512f")]
+    #[inline]
+    pub(crate) unsafe fn block16_avx512(
+        &mut self,
+        out: &mut [Vec3],
+        bx: usize,
+        si: usize,
+        c: &[std::arch::x86_64::__m512; 3],
+    ) {
+        use std::arch::x86_64::*;
+        // SAFETY: the accumulator rows hold `stride >= bx + 16` entries; the image row is
+        // checked to hold pixels `bx..bx + 16`, 48 f32 (`Vec3` is three f32, `repr(C)`).
+        unsafe {
+            if self.samples == 1 {
+                let o = &mut out[bx..bx + 2 * LANES];
+                store16_avx512(o.as_mut_ptr() as *mut f32, c);
+            } else {
+                for ch in 0..3 {
+                    let a = self.acc[ch][bx..bx + 2 * LANES].as_mut_ptr();
+                    let x = if si == 0 {
+                        c[ch]
+                    } else {
+                        _mm512_add_ps(_mm512_loadu_ps(a), c[ch])
+                    };
+                    _mm512_storeu_ps(a, x);
+                }
+            }
+        }
+    }
+
     /// Ends a row: resolves the accumulated planes into `out` (nothing to do with one plane).
     #[inline(always)]
-    pub(crate) fn finish_row(&mut self, out: &mut [Vec3]) {
+    pub(crate) fn finish_row<const HW: bool>(&mut self, out: &mut [Vec3]) {
         if self.samples > 1 {
-            resolve_row(&mut self.acc, self.samples, self.inv, out);
+            resolve_row::<HW>(&mut self.acc, self.inv, out);
         }
     }
 }
@@ -279,16 +322,129 @@ impl RowOut {
 /// Writes one block's 8 lanes, clamped by [`sanitize8`], as pixels `bx..bx + 8` of `out` (fewer at
 /// the row's end): the bits [`resolve_row`] gives for one sample per pixel.
 #[inline(always)]
-fn store8(out: &mut [Vec3], bx: usize, c: &[F32x8; 3]) {
-    let [r, g, b] = [sanitize8(c[0]).0, sanitize8(c[1]).0, sanitize8(c[2]).0];
+fn store8<const HW: bool>(out: &mut [Vec3], bx: usize, c: &[F32x8; 3]) {
     if let Some(o) = out.get_mut(bx..bx + LANES) {
         let o: &mut [Vec3; LANES] = o.try_into().unwrap();
+        #[cfg(target_arch = "x86_64")]
+        if HW {
+            // SAFETY: HW is true only in the AVX2 builds, run after the CPU check; `o` is 8
+            // pixels, 24 f32.
+            unsafe { store8_avx2(o.as_mut_ptr() as *mut f32, c) };
+            return;
+        }
+        let [r, g, b] = [sanitize8(c[0]).0, sanitize8(c[1]).0, sanitize8(c[2]).0];
         for l in 0..LANES {
             o[l] = Vec3::new(r[l], g[l], b[l]);
         }
     } else {
+        let [r, g, b] = [sanitize8(c[0]).0, sanitize8(c[1]).0, sanitize8(c[2]).0];
         for (l, o) in out[bx..].iter_mut().enumerate() {
             *o = Vec3::new(r[l], g[l], b[l]);
+        }
+    }
+}
+
+const _: () = assert!(std::mem::size_of::<Vec3>() == 12 && std::mem::align_of::<Vec3>() == 4);
+
+/// [`sanitize8`] in AVX registers, three instructions: `max(x, +0)` is `x` for x > 0 and the
+/// second operand, +0, for x <= 0 (-0 included) and for NaN (x86's MAXPS returns its second
+/// operand when either is NaN); the ordered `x < inf` then clears inf and NaN.
+///
+/// # Safety
+/// The CPU must support AVX2.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[inline]
+unsafe fn sanitize8_avx2(x: std::arch::x86_64::__m256) -> std::arch::x86_64::__m256 {
+    use std::arch::x86_64::*;
+    let kept = _mm256_max_ps(x, _mm256_setzero_ps());
+    let finite = _mm256_cmp_ps::<_CMP_LT_OQ>(x, _mm256_set1_ps(f32::INFINITY));
+    _mm256_and_ps(kept, finite)
+}
+
+/// Writes 8 lanes of r, g, b, each clamped by [`sanitize8_avx2`], as 8 pixels at `dst` (24
+/// floats, 3 registers). Output float k is channel k % 3 of pixel k / 3, so every channel's
+/// lanes land at distinct positions modulo 3 in the three registers: one permutation per
+/// channel puts each lane at its position within its register, and two blends per register
+/// pick the channels.
+///
+/// # Safety
+/// The CPU must support AVX2; `dst` must be valid for 24 f32 writes.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[inline]
+unsafe fn store8_avx2(dst: *mut f32, c: &[F32x8; 3]) {
+    use std::arch::x86_64::*;
+    // SAFETY: F32x8 is 8 aligned f32; `dst` is valid (the caller's promise).
+    unsafe {
+        let ld = |x: &F32x8| sanitize8_avx2(_mm256_load_ps(x.0.as_ptr()));
+        let (r, g, b) = (ld(&c[0]), ld(&c[1]), ld(&c[2]));
+        // r_i goes to float 3i, g_i to 3i + 1, b_i to 3i + 2 (register k / 8, position k % 8).
+        let r = _mm256_permutevar8x32_ps(r, _mm256_setr_epi32(0, 3, 6, 1, 4, 7, 2, 5));
+        let g = _mm256_permutevar8x32_ps(g, _mm256_setr_epi32(5, 0, 3, 6, 1, 4, 7, 2));
+        let b = _mm256_permutevar8x32_ps(b, _mm256_setr_epi32(2, 5, 0, 3, 6, 1, 4, 7));
+        // Register 0: r at 0, 3, 6; g at 1, 4, 7; b at 2, 5. Registers 1 and 2 rotate the roles.
+        let o0 = _mm256_blend_ps::<0b0010_0100>(_mm256_blend_ps::<0b1001_0010>(r, g), b);
+        let o1 = _mm256_blend_ps::<0b0010_0100>(_mm256_blend_ps::<0b1001_0010>(b, r), g);
+        let o2 = _mm256_blend_ps::<0b0010_0100>(_mm256_blend_ps::<0b1001_0010>(g, b), r);
+        _mm256_storeu_ps(dst, o0);
+        _mm256_storeu_ps(dst.add(8), o1);
+        _mm256_storeu_ps(dst.add(16), o2);
+    }
+}
+
+/// For interleaving 16 lanes of r, g, b into 16 pixels (48 floats, 3 registers): output
+/// register j, lane q holds float k = 16 j + q, channel k % 3 of pixel k / 3. The first
+/// two-source permutation picks r or g (index i or 16 + i), the second keeps that (index q) or
+/// picks b (16 + i).
+#[cfg(target_arch = "x86_64")]
+const INTERLEAVE16: [[[i32; 16]; 2]; 3] = {
+    let mut t = [[[0i32; 16]; 2]; 3];
+    let mut j = 0;
+    while j < 3 {
+        let mut q = 0;
+        while q < 16 {
+            let k = 16 * j + q;
+            let (i, c) = ((k / 3) as i32, k % 3);
+            t[j][0][q] = match c {
+                0 => i,
+                1 => 16 + i,
+                _ => 0,
+            };
+            t[j][1][q] = if c == 2 { 16 + i } else { q as i32 };
+            q += 1;
+        }
+        j += 1;
+    }
+    t
+};
+
+/// Writes 16 lanes of r, g, b, each clamped as [`sanitize8`] does (kept where 0 < x < inf, else
+/// +0), as 16 pixels at `dst` (48 floats).
+///
+/// # Safety
+/// The CPU must support AVX-512F; `dst` must be valid for 48 f32 writes.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f")]
+#[inline]
+unsafe fn store16_avx512(dst: *mut f32, c: &[std::arch::x86_64::__m512; 3]) {
+    use std::arch::x86_64::*;
+    // SAFETY: the index loads read the constant table; `dst` is valid (the caller's promise).
+    unsafe {
+        let zero = _mm512_setzero_ps();
+        let inf = _mm512_set1_ps(f32::INFINITY);
+        let mut k = [zero; 3];
+        for ch in 0..3 {
+            let m = _mm512_cmp_ps_mask::<_CMP_GT_OQ>(c[ch], zero);
+            let m = _mm512_mask_cmp_ps_mask::<_CMP_LT_OQ>(m, c[ch], inf);
+            k[ch] = _mm512_maskz_mov_ps(m, c[ch]);
+        }
+        let [r, g, b] = k;
+        for (j, idx) in INTERLEAVE16.iter().enumerate() {
+            let rg = _mm512_loadu_si512(idx[0].as_ptr() as *const _);
+            let tb = _mm512_loadu_si512(idx[1].as_ptr() as *const _);
+            let x = _mm512_permutex2var_ps(_mm512_permutex2var_ps(r, rg, g), tb, b);
+            _mm512_storeu_ps(dst.add(16 * j), x);
         }
     }
 }
@@ -308,24 +464,17 @@ fn accumulate8(acc: &mut [Vec<f32>; 3], bx: usize, si: usize, out: &[F32x8; 3]) 
     }
 }
 
-/// Resolves one row: the box filter (the mean of `samples` planes, `inv = 1 / samples`), the
-/// clamp of [`sanitize8`], and the write of the row's `out.len()` pixels.
+/// Resolves one row: the box filter (the mean of the planes, `inv = 1 / samples`, for more than
+/// one sample per pixel), the clamp of [`sanitize8`], and the write of the row's `out.len()`
+/// pixels.
 #[inline(always)]
-fn resolve_row(acc: &mut [Vec<f32>; 3], samples: u32, inv: F32x8, out: &mut [Vec3]) {
-    for a in acc.iter_mut() {
-        for chunk in a.chunks_exact_mut(LANES) {
-            let c: &mut [f32; LANES] = chunk.try_into().unwrap();
-            let v = if samples == 1 {
-                F32x8(*c)
-            } else {
-                F32x8(*c) * inv
-            };
-            *c = sanitize8(v).0;
-        }
-    }
+fn resolve_row<const HW: bool>(acc: &mut [Vec<f32>; 3], inv: F32x8, out: &mut [Vec3]) {
     let [r, g, b] = &*acc;
-    for (o, ((r, g), b)) in out.iter_mut().zip(r.iter().zip(g).zip(b)) {
-        *o = Vec3::new(*r, *g, *b);
+    for (x, o) in out.chunks_mut(LANES).enumerate() {
+        let i = x * LANES;
+        let ld = |a: &[f32]| F32x8(a[i..i + LANES].try_into().unwrap()) * inv;
+        let c = [ld(r), ld(g), ld(b)];
+        store8::<HW>(o, 0, &c);
     }
 }
 
@@ -443,6 +592,74 @@ mod tests {
         for l in 0..LANES {
             assert_eq!(got.0[l].to_bits(), want[l].to_bits(), "lane {l}");
             assert_eq!(sanitize1(x.0[l]).to_bits(), want[l].to_bits(), "lane {l}");
+        }
+    }
+
+    /// Awkward channel values for the store tests: every class the clamp separates.
+    fn awkward(seed: usize) -> [F32x8; 3] {
+        const V: [f32; 12] = [
+            1.0,
+            -0.0,
+            0.0,
+            f32::INFINITY,
+            f32::NEG_INFINITY,
+            f32::NAN,
+            f32::MAX,
+            1e-45,
+            -1e-45,
+            -3.5,
+            0.7,
+            f32::MIN_POSITIVE,
+        ];
+        std::array::from_fn(|ch| F32x8(std::array::from_fn(|l| V[(seed + 5 * ch + 7 * l) % 12])))
+    }
+
+    #[test]
+    fn the_lane_stores_write_the_portable_bits() {
+        for seed in 0..12 {
+            let c = awkward(seed);
+            let mut want = [Vec3::splat(9.0); LANES];
+            store8::<false>(&mut want, 0, &c);
+            for (l, p) in want.iter().enumerate() {
+                let scalar = [c[0].0[l], c[1].0[l], c[2].0[l]].map(sanitize1);
+                assert_eq!(p.to_array().map(f32::to_bits), scalar.map(f32::to_bits));
+            }
+            #[cfg(target_arch = "x86_64")]
+            if crate::lanes::avx2_available() {
+                let mut got = [Vec3::splat(9.0); LANES];
+                store8::<true>(&mut got, 0, &c);
+                let bits = |p: &[Vec3]| {
+                    p.iter()
+                        .map(|v| v.to_array().map(f32::to_bits))
+                        .collect::<Vec<_>>()
+                };
+                assert_eq!(bits(&got), bits(&want), "seed {seed}");
+            }
+            #[cfg(target_arch = "x86_64")]
+            if crate::lanes::avx512_available() {
+                use std::arch::x86_64::*;
+                // Two blocks: this seed's and the next one's.
+                let d = awkward(seed + 1);
+                let mut want16 = [Vec3::splat(9.0); 2 * LANES];
+                store8::<false>(&mut want16, 0, &c);
+                store8::<false>(&mut want16, LANES, &d);
+                let mut got16 = [Vec3::splat(9.0); 2 * LANES];
+                // SAFETY: the CPU has AVX-512F (checked); the loads read 16 lanes of `both`.
+                unsafe {
+                    let both: [[f32; 16]; 3] = std::array::from_fn(|ch| {
+                        std::array::from_fn(|l| if l < 8 { c[ch].0[l] } else { d[ch].0[l - 8] })
+                    });
+                    let v = both.map(|x| _mm512_loadu_ps(x.as_ptr()));
+                    let mut rows = RowOut::new(1, 2 * LANES);
+                    rows.block16_avx512(&mut got16, 0, 0, &v);
+                }
+                for (g, w) in got16.iter().zip(&want16) {
+                    assert_eq!(
+                        g.to_array().map(f32::to_bits),
+                        w.to_array().map(f32::to_bits)
+                    );
+                }
+            }
         }
     }
 

@@ -7,6 +7,12 @@
 //! evaluate one broadcast per distinct patch and merge through masks. Both perform the scalar
 //! operations in the scalar order (Rust never contracts `a * b + c` into an FMA), so which path a
 //! sample takes never changes its bits.
+//!
+//! Three builds of the pass: portable, AVX2 (8 lanes in AVX registers), and on CPUs with
+//! AVX-512 (F, VL) one that shades two neighbouring blocks at once, 16 lanes per instruction,
+//! one 16-lane evaluation per distinct patch of the pair merged through mask registers, with
+//! every coefficient broadcast folded into the multiply or add that uses it. The tests compare
+//! the three bit for bit.
 
 #![allow(clippy::needless_range_loop)]
 
@@ -171,6 +177,128 @@ unsafe fn eval_patch8_avx2(p: &PatchCoeffs, u: F32x8, v: F32x8) -> [F32x8; 3] {
     out
 }
 
+/// [`eval_patch8_avx2`] (and [`eval_bilinear8_avx2`]) over 16 lanes in AVX-512 registers: the
+/// same IEEE operations in the same order, on twice the lanes per instruction.
+///
+/// # Safety
+/// The CPU must support AVX-512F.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f")]
+#[inline]
+unsafe fn eval_patch16_avx512(
+    p: &PatchCoeffs,
+    u: &[f32; 2 * LANES],
+    v: &[f32; 2 * LANES],
+) -> [std::arch::x86_64::__m512; 3] {
+    use std::arch::x86_64::*;
+    // SAFETY: the loads read the 16 lanes of `u` and `v`.
+    unsafe {
+        let w = _mm512_set1_ps(p.inv_w);
+        let s = _mm512_mul_ps(
+            _mm512_sub_ps(_mm512_loadu_ps(u.as_ptr()), _mm512_set1_ps(p.u0)),
+            w,
+        );
+        let t = _mm512_mul_ps(
+            _mm512_sub_ps(_mm512_loadu_ps(v.as_ptr()), _mm512_set1_ps(p.v0)),
+            w,
+        );
+        // a b + d: the separate IEEE multiply and add (no FMA), as in every other build.
+        macro_rules! ma {
+            ($a:expr, $b:expr, $d:expr) => {
+                _mm512_add_ps(_mm512_mul_ps($a, $b), $d)
+            };
+        }
+        macro_rules! c {
+            ($x:expr) => {
+                _mm512_set1_ps($x)
+            };
+        }
+        let mut out = [_mm512_setzero_ps(); 3];
+        // Written out (no closures: a closure would not inherit the target features and is
+        // called out of line).
+        for (ch, o) in out.iter_mut().enumerate() {
+            let k = &p.c[ch];
+            *o = if p.bilinear {
+                ma!(ma!(c!(k[5]), s, c!(k[4])), t, ma!(c!(k[1]), s, c!(k[0])))
+            } else {
+                // ((a x + b) x + c) x + d for each row, then the rows in t.
+                let r3 = ma!(
+                    ma!(ma!(c!(k[15]), s, c!(k[14])), s, c!(k[13])),
+                    s,
+                    c!(k[12])
+                );
+                let r2 = ma!(ma!(ma!(c!(k[11]), s, c!(k[10])), s, c!(k[9])), s, c!(k[8]));
+                let r1 = ma!(ma!(ma!(c!(k[7]), s, c!(k[6])), s, c!(k[5])), s, c!(k[4]));
+                let r0 = ma!(ma!(ma!(c!(k[3]), s, c!(k[2])), s, c!(k[1])), s, c!(k[0]));
+                ma!(ma!(ma!(r3, t, r2), t, r1), t, r0)
+            };
+        }
+        out
+    }
+}
+
+/// 16 neighbouring samples of one G-buffer row (two blocks).
+#[cfg(target_arch = "x86_64")]
+struct Group16<'a> {
+    polys: &'a [u32; 2 * LANES],
+    slots: &'a [u32; 2 * LANES],
+    u: &'a [f32; 2 * LANES],
+    v: &'a [f32; 2 * LANES],
+}
+
+/// Shades 16 samples (two blocks) in AVX-512 registers: the background where no polygon is seen,
+/// and one 16-lane [`eval_patch16_avx512`] per distinct patch, merged through lane masks. Counts
+/// each of the two 8-lane blocks exactly as the 8-lane path does (uniform: 8 samples of one
+/// patch; mixed: any other block that sees a polygon), so the counters do not depend on the CPU.
+///
+/// # Safety
+/// The CPU must support AVX-512F.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f")]
+#[inline]
+unsafe fn shade16_avx512(
+    table: &[PatchCoeffs],
+    g: &Group16<'_>,
+    bg: &[f32; 3],
+    counts: &mut ShadeCounts,
+) -> [std::arch::x86_64::__m512; 3] {
+    use std::arch::x86_64::*;
+    // SAFETY: the loads read the 16 lanes of each array.
+    unsafe {
+        let p = _mm512_loadu_si512(g.polys.as_ptr() as *const _);
+        let slots = _mm512_loadu_si512(g.slots.as_ptr() as *const _);
+        let empty = _mm512_cmpeq_epi32_mask(p, _mm512_set1_epi32(NO_POLYGON as i32));
+        let mut pending = !empty;
+        counts.samples_shaded += pending.count_ones() as u64;
+        let mut out = [
+            _mm512_set1_ps(bg[0]),
+            _mm512_set1_ps(bg[1]),
+            _mm512_set1_ps(bg[2]),
+        ];
+        // Halves (8-lane blocks) that see a polygon, and those one patch covers.
+        let seen = (((pending & 0xff) != 0) as u32) + (((pending >> 8) != 0) as u32);
+        let mut whole = 0u16;
+        while pending != 0 {
+            let slot = g.slots[pending.trailing_zeros() as usize];
+            let m = _mm512_cmpeq_epi32_mask(slots, _mm512_set1_epi32(slot as i32)) & pending;
+            pending &= !m;
+            whole |= (m & 0xff == 0xff) as u16 | (((m >> 8) == 0xff) as u16) << 1;
+            let c = eval_patch16_avx512(&table[slot as usize], g.u, g.v);
+            if m == 0xffff {
+                out = c;
+            } else {
+                for ch in 0..3 {
+                    out[ch] = _mm512_mask_mov_ps(out[ch], m, c[ch]);
+                }
+            }
+        }
+        let uniform = whole.count_ones();
+        counts.uniform_blocks += uniform as u64;
+        counts.mixed_blocks += (seen - uniform) as u64;
+        out
+    }
+}
+
 /// Which lanes of a block are empty (bit l: `polys[l]` is [`NO_POLYGON`]) and whether all 8
 /// slots are equal.
 #[inline(always)]
@@ -269,12 +397,16 @@ pub fn shade_region_into(
 pub fn shade_region_rows(gb: &RegionGBuffer, background: Vec3, rows: &mut Rows<'_>) -> ShadeCounts {
     #[cfg(target_arch = "x86_64")]
     {
+        if crate::lanes::avx512_available() {
+            // SAFETY: the CPU supports AVX2, AVX-512F and AVX-512VL, checked just above.
+            return unsafe { shade_region_avx512(gb, background, rows) };
+        }
         if crate::lanes::avx2_available() {
             // SAFETY: the CPU supports AVX2, checked just above.
             return unsafe { shade_region_avx2(gb, background, rows) };
         }
     }
-    shade_region_body::<false>(gb, background, rows)
+    shade_region_body::<false, false>(gb, background, rows)
 }
 
 /// The portable build of [`shade_region_into`], whatever the CPU: public for the tests that
@@ -287,17 +419,44 @@ pub fn shade_region_into_portable(
     pitch: usize,
 ) -> ShadeCounts {
     let mut rows = Rows::new(dst, pitch, gb.width as usize, gb.height as usize);
-    shade_region_body::<false>(gb, background, &mut rows)
+    shade_region_body::<false, false>(gb, background, &mut rows)
+}
+
+/// The AVX2 build of [`shade_region_into`] even on CPUs with AVX-512, `None` without AVX2 (or
+/// with the `portable` feature): public for the tests that compare the three builds.
+#[doc(hidden)]
+pub fn shade_region_into_avx2(
+    gb: &RegionGBuffer,
+    background: Vec3,
+    dst: &mut [Vec3],
+    pitch: usize,
+) -> Option<ShadeCounts> {
+    let mut rows = Rows::new(dst, pitch, gb.width as usize, gb.height as usize);
+    #[cfg(target_arch = "x86_64")]
+    if crate::lanes::avx2_available() {
+        // SAFETY: the CPU supports AVX2, checked just above.
+        return Some(unsafe { shade_region_avx2(gb, background, &mut rows) });
+    }
+    let _ = (gb, background, &mut rows);
+    None
 }
 
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
 fn shade_region_avx2(gb: &RegionGBuffer, bg: Vec3, rows: &mut Rows<'_>) -> ShadeCounts {
-    shade_region_body::<true>(gb, bg, rows)
+    shade_region_body::<true, false>(gb, bg, rows)
+}
+
+/// The AVX2 body compiled for AVX-512VL CPUs: the same intrinsics, EVEX-encoded, with every
+/// coefficient broadcast folded into the arithmetic (see [`crate::lanes::avx512_available`]).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,avx512f,avx512vl,popcnt")]
+fn shade_region_avx512(gb: &RegionGBuffer, bg: Vec3, rows: &mut Rows<'_>) -> ShadeCounts {
+    shade_region_body::<true, true>(gb, bg, rows)
 }
 
 #[inline(always)]
-fn shade_region_body<const HW: bool>(
+fn shade_region_body<const HW: bool, const WIDE: bool>(
     gb: &RegionGBuffer,
     background: Vec3,
     dst: &mut Rows<'_>,
@@ -316,8 +475,27 @@ fn shade_region_body<const HW: bool>(
         let out_row = dst.row(y);
         for si in 0..gb.samples as usize {
             let row = si * plane + y * stride;
-            for bx in (0..w).step_by(LANES) {
+            let mut bx = 0;
+            while bx < w {
                 let i0 = row + bx;
+                #[cfg(target_arch = "x86_64")]
+                if WIDE && bx + 2 * LANES <= w {
+                    // Two neighbouring blocks at once: one 16-lane evaluation per distinct patch.
+                    let lanes = i0..i0 + 2 * LANES;
+                    let group = Group16 {
+                        polys: gb.polygon[lanes.clone()].try_into().unwrap(),
+                        slots: gb.slot[lanes.clone()].try_into().unwrap(),
+                        u: gb.u[lanes.clone()].try_into().unwrap(),
+                        v: gb.v[lanes].try_into().unwrap(),
+                    };
+                    // SAFETY: WIDE is true only in the AVX-512 build, run after the CPU check.
+                    unsafe {
+                        let c = shade16_avx512(&gb.table, &group, &bg, &mut counts);
+                        rows.block16_avx512(out_row, bx, si, &c);
+                    }
+                    bx += 2 * LANES;
+                    continue;
+                }
                 let polys: &[u32; LANES] = gb.polygon[i0..i0 + LANES].try_into().unwrap();
                 let slots: &[u32; LANES] = gb.slot[i0..i0 + LANES].try_into().unwrap();
                 let u8x = F32x8(gb.u[i0..i0 + LANES].try_into().unwrap());
@@ -347,12 +525,13 @@ fn shade_region_body<const HW: bool>(
                     }
                     out
                 };
-                rows.block(out_row, bx, si, &out);
+                rows.block::<HW>(out_row, bx, si, &out);
+                bx += LANES;
             }
         }
         // Box filter: equal weights over the pixel's samples, then the non-finite clamp. Padding
         // lanes beyond the region's width hold NO_POLYGON and are never written out.
-        rows.finish_row(out_row);
+        rows.finish_row::<HW>(out_row);
     }
     counts
 }
@@ -457,6 +636,25 @@ mod tests {
                 let hw = eval_patch8::<true>(&p, u, v);
                 for ch in 0..3 {
                     assert_eq!(hw[ch].0.map(f32::to_bits), want[ch].0.map(f32::to_bits));
+                }
+            }
+            #[cfg(target_arch = "x86_64")]
+            if crate::lanes::avx512_available() {
+                // 16 lanes: the 8 twice, both halves must give the 8-lane bits.
+                let u16: [f32; 16] = std::array::from_fn(|l| u.0[l % 8]);
+                let v16: [f32; 16] = std::array::from_fn(|l| v.0[l % 8]);
+                let mut got = [[0.0f32; 16]; 3];
+                // SAFETY: the CPU has AVX-512F, checked just above.
+                unsafe {
+                    let c = eval_patch16_avx512(&p, &u16, &v16);
+                    for ch in 0..3 {
+                        std::arch::x86_64::_mm512_storeu_ps(got[ch].as_mut_ptr(), c[ch]);
+                    }
+                }
+                for ch in 0..3 {
+                    for l in 0..16 {
+                        assert_eq!(got[ch][l].to_bits(), want[ch].0[l % 8].to_bits());
+                    }
                 }
             }
         }

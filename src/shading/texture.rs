@@ -373,11 +373,11 @@ unsafe fn shade_texture_body<const HW: bool>(
                     counts.mixed_blocks += 1;
                     out
                 };
-                rows.block(out_row, bx, si, &out);
+                rows.block::<HW>(out_row, bx, si, &out);
             }
         }
         // Box filter and non-finite clamp, as in the patch path.
-        rows.finish_row(out_row);
+        rows.finish_row::<HW>(out_row);
     }
     counts
 }

@@ -15,7 +15,12 @@ pub const MAX_TIMED_FRAMES: i64 = 100_000;
 
 /// Renders radiosity solutions with C1 bicubic Hermite reconstruction (Bastos, Goslin, Zhang).
 #[derive(Parser, Debug)]
-#[command(name = "pixelflow-sim", version, about)]
+#[command(
+    name = "pixelflow-sim",
+    version,
+    about,
+    after_help = "Environment: PIXELFLOW_SIM_LANES=portable|avx2|avx512|auto caps the SIMD build of the hot loops (default auto: the widest the CPU has); the images are the same."
+)]
 pub struct Cli {
     #[command(subcommand)]
     pub command: Command,

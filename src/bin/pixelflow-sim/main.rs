@@ -61,8 +61,22 @@ fn json<T: serde::Serialize>(value: &T) -> anyhow::Result<String> {
 
 fn run(cli: Cli) -> anyhow::Result<()> {
     use pixelflow_sim::jobs::budget;
+    use pixelflow_sim::lanes::parse_build;
     let limit = cli.memory_limit.unwrap_or_else(budget::default_limit);
     budget::set_limit(limit);
+    // PIXELFLOW_SIM_LANES caps the lane build (portable, avx2, avx512, auto), to time the
+    // builds against each other; the images are the same.
+    if let Some(v) = std::env::var_os(LANES_ENV) {
+        let v = v.to_string_lossy();
+        let cap = parse_build(&v).map_err(|reason| pixelflow_sim::Error::InvalidOption {
+            option: LANES_ENV.to_string(),
+            value: v.to_string(),
+            reason,
+        })?;
+        if let Some(cap) = cap {
+            pixelflow_sim::lanes::cap_build(cap);
+        }
+    }
     match cli.command {
         Command::Check { scene } => {
             let s = pixelflow_sim::scene::load_scene(&scene)?;
@@ -481,6 +495,9 @@ fn in_pool<T: Send>(threads: Option<usize>, f: impl FnOnce() -> T + Send) -> any
 
 /// Exit code after SIGINT or SIGTERM (128 + SIGINT, the shell's convention for an interrupt).
 const EXIT_INTERRUPTED: i32 = 130;
+
+/// The environment variable that caps the lane build.
+const LANES_ENV: &str = "PIXELFLOW_SIM_LANES";
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
