@@ -447,8 +447,9 @@ fn shade_region_avx2(gb: &RegionGBuffer, bg: Vec3, rows: &mut Rows<'_>) -> Shade
     shade_region_body::<true, false>(gb, bg, rows)
 }
 
-/// The AVX2 body compiled for AVX-512VL CPUs: the same intrinsics, EVEX-encoded, with every
-/// coefficient broadcast folded into the arithmetic (see [`crate::lanes::avx512_available`]).
+/// The AVX-512 build: pairs of blocks in 16 lanes ([`shade16_avx512`]); the 8-lane AVX2 code
+/// it keeps for a row's last block is EVEX-encoded, with every coefficient broadcast folded into
+/// the arithmetic (see [`crate::lanes::avx512_available`]).
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,avx512f,avx512vl,popcnt")]
 fn shade_region_avx512(gb: &RegionGBuffer, bg: Vec3, rows: &mut Rows<'_>) -> ShadeCounts {
