@@ -314,30 +314,32 @@ impl RowOut {
     #[inline(always)]
     pub(crate) fn finish_row<const HW: bool>(&mut self, out: &mut [Vec3]) {
         if self.samples > 1 {
-            resolve_row::<HW>(&mut self.acc, self.inv, out);
+            resolve_row::<HW>(&self.acc, self.inv, out);
         }
     }
 }
 
 /// Writes one block's 8 lanes, clamped by [`sanitize8`], as pixels `bx..bx + 8` of `out` (fewer at
-/// the row's end): the bits [`resolve_row`] gives for one sample per pixel.
+/// the row's end): every resolved pixel goes through it (with one sample per pixel straight from
+/// the block, with more from [`resolve_row`]). `HW` writes whole blocks with [`store8_avx2`].
 #[inline(always)]
 fn store8<const HW: bool>(out: &mut [Vec3], bx: usize, c: &[F32x8; 3]) {
-    if let Some(o) = out.get_mut(bx..bx + LANES) {
-        let o: &mut [Vec3; LANES] = o.try_into().unwrap();
-        #[cfg(target_arch = "x86_64")]
-        if HW {
+    #[cfg(target_arch = "x86_64")]
+    if HW {
+        if let Some(o) = out.get_mut(bx..bx + LANES) {
             // SAFETY: HW is true only in the AVX2 builds, run after the CPU check; `o` is 8
             // pixels, 24 f32.
             unsafe { store8_avx2(o.as_mut_ptr() as *mut f32, c) };
             return;
         }
-        let [r, g, b] = [sanitize8(c[0]).0, sanitize8(c[1]).0, sanitize8(c[2]).0];
+    }
+    let [r, g, b] = [sanitize8(c[0]).0, sanitize8(c[1]).0, sanitize8(c[2]).0];
+    if let Some(o) = out.get_mut(bx..bx + LANES) {
+        let o: &mut [Vec3; LANES] = o.try_into().unwrap();
         for l in 0..LANES {
             o[l] = Vec3::new(r[l], g[l], b[l]);
         }
     } else {
-        let [r, g, b] = [sanitize8(c[0]).0, sanitize8(c[1]).0, sanitize8(c[2]).0];
         for (l, o) in out[bx..].iter_mut().enumerate() {
             *o = Vec3::new(r[l], g[l], b[l]);
         }
@@ -468,8 +470,8 @@ fn accumulate8(acc: &mut [Vec<f32>; 3], bx: usize, si: usize, out: &[F32x8; 3]) 
 /// one sample per pixel), the clamp of [`sanitize8`], and the write of the row's `out.len()`
 /// pixels.
 #[inline(always)]
-fn resolve_row<const HW: bool>(acc: &mut [Vec<f32>; 3], inv: F32x8, out: &mut [Vec3]) {
-    let [r, g, b] = &*acc;
+fn resolve_row<const HW: bool>(acc: &[Vec<f32>; 3], inv: F32x8, out: &mut [Vec3]) {
+    let [r, g, b] = acc;
     for (x, o) in out.chunks_mut(LANES).enumerate() {
         let i = x * LANES;
         let ld = |a: &[f32]| F32x8(a[i..i + LANES].try_into().unwrap()) * inv;
