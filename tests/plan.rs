@@ -107,6 +107,7 @@ fn bad_bench_and_stats_options_are_refused_before_the_solve() {
             frames: 1,
             aa: 1,
             renderers: 1,
+            region: 128,
         };
         edit(&mut req);
         let rec = Recorder::default();
@@ -119,6 +120,7 @@ fn bad_bench_and_stats_options_are_refused_before_the_solve() {
     assert_eq!(bench(|r| r.sizes = vec![1 << 20]), "--sizes");
     assert_eq!(bench(|r| r.aa = 2), "--aa");
     assert_eq!(bench(|r| r.renderers = 0), "--renderers");
+    assert_eq!(bench(|r| r.region = 12), "--region");
     assert_eq!(bench(|r| r.texture.size = Some(5)), "--texture-size");
 
     let stats = |edit: fn(&mut StatsRequest)| {

@@ -74,6 +74,8 @@ pub struct BenchRequest {
     pub aa: u32,
     /// Virtual renderers.
     pub renderers: u32,
+    /// Side of the screen regions in pixels (a multiple of 8).
+    pub region: u32,
 }
 
 /// The result of a bench job: what was measured, and the rows.
@@ -121,6 +123,7 @@ pub fn run_bench(req: &BenchRequest, observer: &dyn Observer) -> Result<BenchRep
     let base = FrameOptions {
         aa: req.aa,
         renderers: req.renderers,
+        region: req.region,
         ..FrameOptions::new(input.scene.width, input.scene.height)
     };
     base.validate()?;

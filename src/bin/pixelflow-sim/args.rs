@@ -235,6 +235,9 @@ pub enum Command {
         /// Virtual PixelFlow renderers.
         #[arg(long, default_value_t = 1)]
         renderers: u32,
+        /// Side of the screen regions in pixels (a multiple of 8).
+        #[arg(long, default_value_t = 128)]
+        region: u32,
         /// Worker threads (default: all cores).
         #[arg(long)]
         threads: Option<usize>,

@@ -242,6 +242,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             frames,
             aa,
             renderers,
+            region,
             threads,
             json,
             trace,
@@ -254,6 +255,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 frames,
                 aa,
                 renderers,
+                region,
             };
             let report = run_bench(&req, &Terminal::new(false, trace))?;
             if json {
