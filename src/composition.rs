@@ -275,8 +275,17 @@ pub fn merge_records_in_place(parts: &mut [RegionGBuffer]) {
     }
     let (head, rest) = parts.split_at_mut(1);
     for part in rest.iter() {
-        merge_part::<false>(part, &mut head[0], &mut [], 0);
+        merge_records_into(&mut head[0], part);
     }
+}
+
+/// Merges one report's pixel records into the running composite `out` (as
+/// [`merge_records_in_place`] does for each of `parts[1..]`): a streaming merge, one report at a
+/// time as each renderer finishes, so the frame stage needs two G-buffers per region whatever
+/// the number of renderers. The merge being commutative and associative, the composite is the
+/// same for any order of the reports.
+pub fn merge_records_into(out: &mut RegionGBuffer, part: &RegionGBuffer) {
+    merge_part::<false>(part, out, &mut [], 0);
 }
 
 /// Merges the reports of one region (in any order) into one G-buffer with a canonical table

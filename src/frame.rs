@@ -4,8 +4,9 @@
 //! geometry and setup ([`raster::build_primitives_into`]) -> round-robin distribution over R
 //! virtual renderers and binning per region ([`raster::bin_round_robin_into`]) -> one parallel
 //! task per region: each renderer with primitives there rasterizes its share into a pooled
-//! G-buffer ([`raster::rasterize_region_into`]), the compositor merges their pixel records by
-//! depth ([`crate::composition::merge_records_in_place`]), the merged region's patches are
+//! G-buffer ([`raster::rasterize_region_into`]), the compositor merges each one's pixel records
+//! by depth into the region's composite as soon as it is drawn
+//! ([`crate::composition::merge_records_into`]), the merged region's patches are
 //! located once ([`crate::raster::gbuffer::RegionGBuffer::assign_patches_with`]) and the deferred
 //! pass shades the result straight into the frame ([`crate::shading::shade_region_rows`]),
 //! resolving the samples of each pixel.
@@ -13,8 +14,9 @@
 //!
 //! Memory: a [`FrameContext`] owns every buffer a frame uses and keeps it across frames (a
 //! walkthrough, a benchmark), so a warm frame allocates nothing and touches no new page; a
-//! region's G-buffers return to the pool as soon as it is shaded, so the G-buffer memory is one
-//! region per renderer per worker, not one per region. [`render`] is the one-frame convenience.
+//! region's G-buffers return to the pool as soon as it is shaded, and each renderer's report is
+//! merged as soon as it is drawn, so the G-buffer memory is two regions per worker, whatever the
+//! number of renderers or regions. [`render`] is the one-frame convenience.
 //!
 //! Invariants: the image depends only on the scene, the camera, the shader's data, the image size
 //! and the sample count: it is bit-identical for any number of threads and of renderers (stable
@@ -237,8 +239,9 @@ pub fn render(
 /// the next allocates nothing and touches no new page; [`FrameContext::reserve`] does that
 /// first-touch work ahead of the first frame.
 ///
-/// Memory: one region G-buffer per renderer per worker thread (not per region: a region's
-/// buffers go back to the pool as soon as it is shaded), plus the frame's pixels.
+/// Memory: two region G-buffers per worker thread (not per region: a region's buffers go back to
+/// the pool as soon as it is shaded; not per renderer: each report is merged as soon as it is
+/// drawn), plus the frame's pixels.
 #[derive(Default)]
 pub struct FrameContext {
     prims: Vec<raster::setup::Prim>,
@@ -253,7 +256,8 @@ pub struct FrameContext {
 /// One worker's buffers for one region at a time.
 #[derive(Default)]
 struct Workspace {
-    /// One G-buffer per renderer that had primitives in the region; `parts[0]` is the composited one.
+    /// `parts[0]`: the first renderer's report, then the composite; `parts[1]`: each later
+    /// renderer's report in turn, merged into `parts[0]` as soon as it is drawn.
     parts: Vec<RegionGBuffer>,
     patches: PatchScratch,
 }
@@ -303,31 +307,35 @@ impl FrameContext {
     }
 
     /// Allocates and touches, ahead of the first frame, the memory a frame with `opts` needs
-    /// whatever the scene: the frame's pixels and one region G-buffer per renderer for each worker
-    /// of the current rayon pool. The first frame then costs what a warm one does (the primitive
+    /// whatever the scene: the frame's pixels and the region G-buffers (one, or two with several
+    /// renderers) of each worker of the current rayon pool. The first frame then costs what a warm one does (the primitive
     /// and bin arrays, which depend on the scene, are sized by that frame).
+    ///
+    /// The pages are first touched in parallel over the pool, as the frame's own stages touch
+    /// them: a reservation made just before the first frame also leaves every worker running
+    /// rather than parked, as it is during a walkthrough. (A parked pool woken by the first frame
+    /// measured 1.1-2.4x a warm frame on a 2-vCPU virtual machine; a busy one, 1.0-1.1x.)
     pub fn reserve(&mut self, opts: &FrameOptions) -> Result<()> {
         opts.validate()?;
         let n = opts.width as usize * opts.height as usize;
-        self.pixels.resize(n, Vec3::ZERO);
-        self.pixels.fill(Vec3::ZERO);
+        first_touch(&mut self.pixels, n, Vec3::ZERO);
         (self.width, self.height) = (opts.width, opts.height);
         let side = opts.region.min(opts.width.max(opts.height));
         let pool = self.pool.get_mut().unwrap_or_else(|e| e.into_inner());
         let workers = rayon::current_num_threads();
         pool.resize_with(pool.len().max(workers), Workspace::default);
-        for ws in pool.iter_mut() {
+        pool.par_iter_mut().with_max_len(1).for_each(|ws| {
             ws.parts.resize_with(
-                ws.parts.len().max(opts.renderers as usize),
+                ws.parts.len().max(opts.renderers.min(2) as usize),
                 Default::default,
             );
-            for gb in ws.parts.iter_mut().take(opts.renderers as usize) {
+            for gb in ws.parts.iter_mut().take(opts.renderers.min(2) as usize) {
                 gb.reset(0, 0, 0, side, side, opts.aa);
                 gb.u.fill(0.0);
                 gb.v.fill(0.0);
                 gb.slot.fill(0);
             }
-        }
+        });
         Ok(())
     }
 
@@ -336,9 +344,11 @@ impl FrameContext {
     /// bins' lists.
     pub fn reserve_scene(&mut self, opts: &FrameOptions, scene: &Scene) -> Result<()> {
         self.reserve(opts)?;
-        self.prims.clear();
-        self.prims
-            .resize(scene.polygons.len(), raster::setup::Prim::default());
+        first_touch(
+            &mut self.prims,
+            scene.polygons.len(),
+            raster::setup::Prim::default(),
+        );
         Ok(())
     }
 
@@ -379,7 +389,7 @@ impl FrameContext {
     /// only names the frame in its statistics. Runs in the current rayon pool.
     ///
     /// Each region is one task: its renderers rasterize their shares into G-buffers from the
-    /// pool, the compositor merges them, the merged region's patches are located, the deferred
+    /// pool, the compositor merges each one as soon as it is drawn, the merged region's patches are located, the deferred
     /// pass shades the result straight into the frame, and the buffers go back to the pool,
     /// still in cache for the next region. Regions run in parallel, so composition runs
     /// concurrently with other regions' rasterization (as PixelFlow's composition network did)
@@ -491,6 +501,14 @@ impl FrameContext {
     }
 }
 
+/// Makes `v` hold `n` copies of `value`, writing them in parallel over the current rayon pool:
+/// a new allocation's pages are first touched by every worker at once (and a reused one is
+/// rewritten in place).
+fn first_touch<T: Clone + Send + Sync>(v: &mut Vec<T>, n: usize, value: T) {
+    v.clear();
+    v.par_extend(rayon::iter::repeat_n(value, n));
+}
+
 /// One region, start to finish: each renderer with primitives here rasterizes its share into a
 /// G-buffer of the workspace, the compositor merges their pixel records into the first, the
 /// patches of the merged region are located (methods with patches) and the deferred pass shades
@@ -516,17 +534,23 @@ fn region_task(
     rows: &mut Rows<'_>,
 ) -> RegionOutcome {
     let mut out = RegionOutcome::default();
-    let t0 = Instant::now();
+    // The composition network merges each report as its renderer finishes (a streaming merge,
+    // as PixelFlow's pipelined z-compare did): renderer 0 draws into `parts[0]`, every later one
+    // into `parts[1]`, which is merged into `parts[0]` at once and reused by the next. Two
+    // G-buffers per region whatever R, so a region's working set stays in the core's cache.
+    let (mut raster, mut composition) = (Duration::ZERO, Duration::ZERO);
     let mut used = 0;
     for bin in bins {
         let ids = &bin[reg as usize];
         if ids.is_empty() {
             continue;
         }
-        if ws.parts.len() <= used {
-            ws.parts.push(RegionGBuffer::default());
+        let t0 = Instant::now();
+        let k = used.min(1);
+        if ws.parts.len() <= k {
+            ws.parts.resize_with(k + 1, RegionGBuffer::default);
         }
-        let gb = &mut ws.parts[used];
+        let gb = &mut ws.parts[k];
         out.fragments += raster::rasterize_region_into(
             grid,
             reg,
@@ -539,6 +563,13 @@ fn region_task(
         );
         out.traffic += gb.bytes();
         used += 1;
+        let t1 = Instant::now();
+        raster += t1 - t0;
+        if k == 1 {
+            let (head, rest) = ws.parts.split_at_mut(1);
+            composition::merge_records_into(&mut head[0], &rest[0]);
+            composition += t1.elapsed();
+        }
     }
     out.renderers = used as u32;
     if used == 0 {
@@ -547,8 +578,6 @@ fn region_task(
         }
         return out;
     }
-    let t1 = Instant::now();
-    composition::merge_records_in_place(&mut ws.parts[..used]);
     let t2 = Instant::now();
     let gb = &mut ws.parts[0];
     if let Some(source) = source {
@@ -565,6 +594,6 @@ fn region_task(
     out.shade = shading::shade_region_rows(shader, gb, background, rows);
     let t4 = Instant::now();
     // Patch location counts as rasterization (the renderers' work in the stage model).
-    (out.raster, out.composition, out.shading) = ((t1 - t0) + (t3 - t2), t2 - t1, t4 - t3);
+    (out.raster, out.composition, out.shading) = (raster + (t3 - t2), composition, t4 - t3);
     out
 }

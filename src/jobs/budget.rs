@@ -309,8 +309,8 @@ pub fn worst_method_bytes(scene: &Scene, policy: SizePolicy) -> Result<(u64, u64
 
 /// Bytes of a frame of `width` x `height` pixels with `samples` samples per pixel and
 /// `renderers` renderers, as an upper bound: `renderers + 1` G-buffer records per sample, a
-/// shaded RGB `f32` per sample, and the RGB `f32` image. The frame engine holds far less (one
-/// region G-buffer per renderer per worker thread, reused region after region, plus the image);
+/// shaded RGB `f32` per sample, and the RGB `f32` image. The frame engine holds far less (two
+/// region G-buffers per worker thread, reused region after region, plus the image);
 /// the bound is kept whole-frame so that it holds for any thread count and region size.
 pub fn frame_bytes(width: u32, height: u32, samples: u32, renderers: u32) -> u64 {
     let pixels = u64::from(width) * u64::from(height);
