@@ -311,10 +311,8 @@ impl FrameContext {
     /// renderers) of each worker of the current rayon pool. The first frame then costs what a warm one does (the primitive
     /// and bin arrays, which depend on the scene, are sized by that frame).
     ///
-    /// The pages are first touched in parallel over the pool, as the frame's own stages touch
-    /// them: a reservation made just before the first frame also leaves every worker running
-    /// rather than parked, as it is during a walkthrough. (A parked pool woken by the first frame
-    /// measured 1.1-2.4x a warm frame on a 2-vCPU virtual machine; a busy one, 1.0-1.1x.)
+    /// The pages are first touched in parallel over the pool (each worker takes its share of
+    /// the page faults), as the frame's own stages later write them.
     pub fn reserve(&mut self, opts: &FrameOptions) -> Result<()> {
         opts.validate()?;
         let n = opts.width as usize * opts.height as usize;
