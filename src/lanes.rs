@@ -14,7 +14,8 @@
 //! (`cargo test --release --features portable`), [`avx2_available`] is always `false`, so every
 //! hot loop runs its portable body even on a CPU with AVX2: that is how the portable bodies get
 //! tested on such machines (the default build's tests compare the builds bit for bit). The patch
-//! shader has a third build for CPUs with AVX-512 ([`avx512_available`]). [`cap_build`] caps
+//! shader, the raster kernels and the compositor's records merge have a third build for CPUs with
+//! AVX-512 ([`avx512_available`]). [`cap_build`] caps
 //! the build at run time (the binary's `PIXELFLOW_SIM_LANES`), to measure the builds against
 //! each other in one binary. The image does not depend on the build.
 
@@ -30,8 +31,9 @@ pub enum Build {
     Portable,
     /// The `#[target_feature(enable = "avx2")]` builds.
     Avx2,
-    /// The patch shader's AVX-512 build: 16-lane evaluation of two blocks at once, the AVX2
-    /// intrinsics EVEX-encoded with coefficient broadcasts folded into the arithmetic.
+    /// The AVX-512 builds: the patch shader's 16-lane evaluation of two blocks at once, the
+    /// compositor's 16-lane records merge, and the AVX2 intrinsics of the raster kernels
+    /// EVEX-encoded (coefficient broadcasts folded into the arithmetic).
     Avx512,
 }
 
