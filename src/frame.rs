@@ -308,8 +308,9 @@ impl FrameContext {
 
     /// Allocates and touches, ahead of the first frame, the memory a frame with `opts` needs
     /// whatever the scene: the frame's pixels and the region G-buffers (one, or two with several
-    /// renderers) of each worker of the current rayon pool. The first frame then costs what a warm one does (the primitive
-    /// and bin arrays, which depend on the scene, are sized by that frame).
+    /// renderers) of each worker of the current rayon pool. The first frame then costs what a
+    /// warm one does (the primitive and bin arrays, which depend on the scene, are sized by that
+    /// frame).
     ///
     /// The pages are first touched in parallel over the pool (each worker takes its share of
     /// the page faults), as the frame's own stages later write them.
@@ -387,9 +388,9 @@ impl FrameContext {
     /// only names the frame in its statistics. Runs in the current rayon pool.
     ///
     /// Each region is one task: its renderers rasterize their shares into G-buffers from the
-    /// pool, the compositor merges each one as soon as it is drawn, the merged region's patches are located, the deferred
-    /// pass shades the result straight into the frame, and the buffers go back to the pool,
-    /// still in cache for the next region. Regions run in parallel, so composition runs
+    /// pool, the compositor merges each one as soon as it is drawn, the merged region's patches
+    /// are located, the deferred pass shades the result straight into the frame, and the
+    /// buffers go back to the pool, still in cache for the next region. Regions run in parallel, so composition runs
     /// concurrently with other regions' rasterization (as PixelFlow's composition network did)
     /// and with R renderers the frame costs the rasterization of the same primitives plus the
     /// records merges.
@@ -534,8 +535,8 @@ fn region_task(
     let mut out = RegionOutcome::default();
     // The composition network merges each report as its renderer finishes (a streaming merge,
     // as PixelFlow's pipelined z-compare did): renderer 0 draws into `parts[0]`, every later one
-    // into `parts[1]`, which is merged into `parts[0]` at once and reused by the next. Two
-    // G-buffers per region whatever R, so a region's working set stays in the core's cache.
+    // into `parts[1]`, which is merged into `parts[0]` at once and reused by the next: two
+    // G-buffers per worker, whatever R.
     let (mut raster, mut composition) = (Duration::ZERO, Duration::ZERO);
     let mut used = 0;
     for bin in bins {
