@@ -510,6 +510,7 @@ mod tests {
             }
         }
     }
+
     #[test]
     fn the_records_merge_follows_the_scalar_rule_in_every_build_and_tail() {
         // Widths 8, 16 and 24: no 16-lane step, whole steps, and steps plus an 8-lane tail.
