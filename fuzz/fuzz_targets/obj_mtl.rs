@@ -4,7 +4,7 @@
 //! The input is `OBJ text` `0x00` `MTL text` (no `0x00`: no MTL file). A fixed scene includes
 //! the OBJ as `fuzz.obj`, with a default material for faces without `usemtl` and a spot light,
 //! so every valid OBJ loads; every MTL file the OBJ names (`mtllib`) reads as the MTL text.
-//! Nothing touches the file system ([`pixelflow_sim::scene::parse_scene_with`]).
+//! Nothing touches the file system ([`scene::parse_scene_with`]).
 #![no_main]
 
 use std::path::Path;
@@ -53,9 +53,9 @@ fuzz_target!(|data: &[u8]| {
         }
     };
     let path = Path::new("fuzz-dir/fuzz.toml");
-    match pixelflow_sim::scene::parse_scene_with(SCENE, path, &read) {
+    match scene::parse_scene_with(SCENE, path, &read) {
         Ok(scene) => {
-            let _ = pixelflow_sim::report::summarize(&scene).to_string();
+            let _ = lab::report::summarize(&scene).to_string();
         }
         Err(e) => assert!(!e.to_string().is_empty()),
     }

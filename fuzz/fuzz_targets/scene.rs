@@ -52,9 +52,9 @@ fuzz_target!(|data: &[u8]| {
         return;
     };
     let path = scenes_dir().join("fuzz.toml");
-    match pixelflow_sim::scene::parse_scene_with(text, &path, &read) {
+    match scene::parse_scene_with(text, &path, &read) {
         Ok(scene) => {
-            let _ = pixelflow_sim::report::summarize(&scene).to_string();
+            let _ = lab::report::summarize(&scene).to_string();
         }
         Err(e) => assert!(!e.to_string().is_empty()),
     }

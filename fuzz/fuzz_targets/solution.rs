@@ -17,10 +17,10 @@ use std::path::Path;
 use std::sync::OnceLock;
 
 use libfuzzer_sys::fuzz_target;
-use pixelflow_sim::radiosity::{file, scene_hash, Fnv};
-use pixelflow_sim::reconstruction::compact::CompactReconstruction;
-use pixelflow_sim::reconstruction::Estimator;
-use pixelflow_sim::scene::{load_scene, Scene};
+use radiosity::{file, scene_hash, Fnv};
+use reconstruction::compact::CompactReconstruction;
+use reconstruction::Estimator;
+use scene::{load_scene, Scene};
 
 /// The scenes a solution file is read against (fuzz/seed.sh solves the first two).
 const SCENES: [&str; 4] = [

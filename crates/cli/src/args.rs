@@ -1,0 +1,497 @@
+//! The command line's arguments: every subcommand and option, with its help text, parsed and
+//! range-checked by clap before the library sees it (an out-of-range value exits 2 with clap's
+//! usage message). `main.rs` turns them into the library's requests.
+
+use std::path::PathBuf;
+
+use base::Error;
+use clap::{Parser, Subcommand};
+use lab::generate;
+use lab::jobs::TextureOptions;
+
+/// Most frames a timing option (`--frames` of stats, bench, sweep, results, experiment)
+/// accepts: hours of timing at the largest sizes, not days.
+pub const MAX_TIMED_FRAMES: i64 = 100_000;
+
+/// Renders radiosity solutions with C1 bicubic Hermite reconstruction (Bastos, Goslin, Zhang).
+#[derive(Parser, Debug)]
+#[command(
+    name = "pixelflow-sim",
+    version,
+    about,
+    after_help = "Environment: PIXELFLOW_SIM_LANES=portable|avx2|avx512|auto caps the SIMD build of the hot loops (default auto: the widest the CPU has); the images are the same."
+)]
+pub struct Cli {
+    #[command(subcommand)]
+    pub command: Command,
+    /// Memory the job may use: bytes, or a number with K, M, G or T (binary units, `1.5G`), or
+    /// `none`. Default: three quarters of this machine's physical memory. A job whose estimate
+    /// is over it is refused before it allocates (exit 2, the estimate in the message); `check`
+    /// reports the estimate against it.
+    #[arg(long, global = true, value_name = "SIZE", value_parser = parse_memory_limit)]
+    pub memory_limit: Option<u64>,
+}
+
+fn parse_memory_limit(text: &str) -> Result<u64, String> {
+    lab::jobs::budget::parse_size(text)
+}
+
+#[derive(Subcommand, Debug)]
+pub enum Command {
+    /// Load and validate a scene file, print its warnings and a summary.
+    ///
+    /// Reads the TOML scene (and its OBJ/MTL includes), checks every value, and prints a table
+    /// of polygons, materials, emitters, spot lights, bounds and the estimated memory of the
+    /// radiosity solve. Warnings (such as non-planar quads that were split) go to stderr.
+    /// Exit code 0 if the scene is valid, 2 if it is not (the message names file, line and key).
+    Check {
+        /// The scene file (`scenes/cornell-box.toml`).
+        scene: PathBuf,
+    },
+    /// Compute a scene's radiosity solution and save it.
+    ///
+    /// Progressive-refinement shooting with adaptive, unrestricted quadtrees (the `[radiosity]`
+    /// settings of the scene). The solution file is versioned and checksummed and names the
+    /// scene file, so `render <file>` can draw it without solving again.
+    Solve {
+        /// The scene file.
+        scene: PathBuf,
+        /// Where to write the solution (written atomically).
+        #[arg(short, long)]
+        output: PathBuf,
+        /// Worker threads (default: all cores). The solution is identical for any count.
+        #[arg(long)]
+        threads: Option<usize>,
+        /// No progress bar.
+        #[arg(short, long)]
+        quiet: bool,
+        /// Print the solver's trace lines (phase times, shots, vertices, unshot) to stderr.
+        #[arg(long)]
+        trace: bool,
+    },
+    /// Render a scene (solving it first) or a solution file.
+    ///
+    /// Reconstructs every polygon's radiosity as C1 bicubic patches and renders them the
+    /// PixelFlow way: a region-by-region rasterizer writes each pixel's patch and (u, v) into a
+    /// G-buffer, R virtual renderers are merged by depth, and a deferred pass evaluates every
+    /// pixel's radiosity from its patch. Writes a PNG (exposure and sRGB from the scene's
+    /// `[display]`), optionally the linear radiosity as OpenEXR and the statistics as JSON.
+    /// With `--walkthrough`, renders every frame of the scene's camera path.
+    Render {
+        /// A scene file (`.toml`) or a solution file written by `solve`.
+        input: PathBuf,
+        /// PNG to write (default: `out/<scene>-<method>.png`).
+        #[arg(short, long)]
+        output: Option<PathBuf>,
+        /// Also write the linear radiosity of every pixel as OpenEXR.
+        #[arg(long)]
+        exr: Option<PathBuf>,
+        /// Rendering method (default: the scene's `[render] method`).
+        #[arg(long)]
+        method: Option<String>,
+        /// Image width (default: the scene's).
+        #[arg(long)]
+        width: Option<u32>,
+        /// Image height (default: the scene's).
+        #[arg(long)]
+        height: Option<u32>,
+        /// Samples per pixel: 1, 4 or 16 (default: the scene's `[render] aa`).
+        #[arg(long)]
+        aa: Option<u32>,
+        /// Worker threads (default: all cores). The image is identical for any count.
+        #[arg(long)]
+        threads: Option<usize>,
+        /// Virtual PixelFlow renderers merged by image composition. The image is identical for
+        /// any count.
+        #[arg(long, default_value_t = 1)]
+        renderers: u32,
+        /// Side of the screen regions in pixels (a multiple of 8).
+        #[arg(long, default_value_t = 128)]
+        region: u32,
+        /// Write the frame statistics as JSON to this file (for a walkthrough: the summary and
+        /// every frame).
+        #[arg(long)]
+        stats: Option<PathBuf>,
+        /// Render every frame of the scene's `[camera_path]` (files `<output stem>-NNNN.png`) and
+        /// print a frame-rate summary (fps min / median / max, median stage times).
+        #[arg(long)]
+        walkthrough: bool,
+        #[command(flatten)]
+        texture: TextureArgs,
+        /// The RRPs' derivative estimator: `hyman` (default: Hyman-filtered central
+        /// differences), `monotone` (Fritsch-Butland) or `plain` (central differences).
+        #[arg(long)]
+        estimator: Option<String>,
+        /// Print the statistics.
+        #[arg(short, long)]
+        verbose: bool,
+        /// No progress bar, no "wrote" lines, no walkthrough summary.
+        #[arg(short, long)]
+        quiet: bool,
+        /// Print the solver's trace lines (phase times, shots, vertices, unshot) to stderr.
+        #[arg(long)]
+        trace: bool,
+    },
+    /// The paper's Table 1 for a scene: triangles and vertices of the original, mesh and RAT
+    /// models, model sizes, texture memory and count, RRP memory; with `--frames`, the frame
+    /// times of mesh, texture-bilinear, texture-bicubic and direct measured in one run.
+    ///
+    /// Sizes are decimal MB; the byte accounting of each model is in `docs/performance.md`.
+    Stats {
+        /// A scene file or a solution file.
+        input: PathBuf,
+        /// Frames timed per method (after one warm-up); 0 = sizes only.
+        #[arg(long, default_value_t = 0, value_parser = clap::value_parser!(u32).range(0..=MAX_TIMED_FRAMES))]
+        frames: u32,
+        /// Frame width for the timings.
+        #[arg(long, default_value_t = 1024)]
+        width: u32,
+        /// Frame height for the timings.
+        #[arg(long, default_value_t = 1024)]
+        height: u32,
+        /// Samples per pixel: 1, 4 or 16.
+        #[arg(long, default_value_t = 1)]
+        aa: u32,
+        #[command(flatten)]
+        texture: TextureArgs,
+        /// Worker threads (default: all cores).
+        #[arg(long)]
+        threads: Option<usize>,
+        /// Print JSON instead of the table.
+        #[arg(long)]
+        json: bool,
+        /// When solving a scene, print the solver's trace lines (phase times, shots, vertices, unshot) to stderr.
+        #[arg(long)]
+        trace: bool,
+    },
+    /// Rerun the paper's experiments: `fig5`, `fig6`, `table1`, or `all` (which also writes
+    /// `docs/experiments.md` when given `--doc`).
+    ///
+    /// fig5: the two-spots plane in texture space, the oracle reference, the paper's depth-9
+    /// reference, a depth-2 (5 x 5) quadtree, its bilinear and bicubic (RRP) resampling to 256 x 256
+    /// and the direct method; fig6: the RRP resampled to an 8 x 8 texture (texels at centres, then
+    /// at corners) drawn with bilinear and Mitchell-Netravali filters, and direct; each with the perceptual distance to the reference
+    /// beside the paper's numbers. table1: `stats` of the shipped scenes beside the paper's Table 1.
+    Experiment {
+        /// `fig5`, `fig6`, `table1` or `all`.
+        which: String,
+        /// Directory for the images (default: `out/experiments`).
+        #[arg(long, default_value = "out/experiments")]
+        out_dir: PathBuf,
+        /// With `all`: write the Markdown report to this file (`docs/experiments.md`); image
+        /// links are relative to its directory.
+        #[arg(long)]
+        doc: Option<PathBuf>,
+        /// The texture-space scene of fig5 and fig6.
+        #[arg(long, default_value = "scenes/two-spots.toml")]
+        scene: PathBuf,
+        /// Image side of fig5 and fig6.
+        #[arg(long, default_value_t = 256)]
+        size: u32,
+        /// Pixels per degree of the perceptual metric.
+        #[arg(long, default_value_t = metric::DEFAULT_PPD)]
+        ppd: f64,
+        /// fig5, fig6: the RRPs' derivative estimator, `hyman` (default), `monotone` or
+        /// `plain` (central differences).
+        #[arg(long, default_value = "hyman")]
+        estimator: String,
+        /// table1: the scenes (default: the three shipped scenes).
+        #[arg(long, value_delimiter = ',')]
+        scenes: Vec<PathBuf>,
+        /// table1: frames timed per method at 1024 x 1024 (0 = sizes only).
+        #[arg(long, default_value_t = 10, value_parser = clap::value_parser!(u32).range(0..=MAX_TIMED_FRAMES))]
+        frames: u32,
+        /// Worker threads (default: all cores).
+        #[arg(long)]
+        threads: Option<usize>,
+        /// Print JSON instead of tables.
+        #[arg(long)]
+        json: bool,
+    },
+    /// Measure frame time: render the scene camera's view repeatedly at several sizes and print
+    /// the medians of every stage and the deferred pass's throughput.
+    ///
+    /// Solving and reconstruction happen once, before timing. Give a solution file to skip the
+    /// solve. Timings are wall-clock on this machine; compare methods and sizes measured in the
+    /// same run.
+    Bench {
+        /// A scene file or a solution file.
+        input: PathBuf,
+        /// Methods to measure, comma-separated (`direct`, `texture-bilinear`, ...), each at
+        /// every size, interleaved per size so they see the same machine state.
+        #[arg(long, value_delimiter = ',', default_values_t = [String::from("direct")])]
+        methods: Vec<String>,
+        #[command(flatten)]
+        texture: TextureArgs,
+        /// Square image sizes to measure, comma-separated.
+        #[arg(long, value_delimiter = ',', default_values_t = [512u32, 1024, 2048])]
+        sizes: Vec<u32>,
+        /// Frames timed per size (after one warm-up frame).
+        #[arg(long, default_value_t = 20, value_parser = clap::value_parser!(u32).range(0..=MAX_TIMED_FRAMES))]
+        frames: u32,
+        /// Samples per pixel: 1, 4 or 16.
+        #[arg(long, default_value_t = 1)]
+        aa: u32,
+        /// Virtual PixelFlow renderers.
+        #[arg(long, default_value_t = 1)]
+        renderers: u32,
+        /// Side of the screen regions in pixels (a multiple of 8).
+        #[arg(long, default_value_t = 128)]
+        region: u32,
+        /// Worker threads (default: all cores).
+        #[arg(long)]
+        threads: Option<usize>,
+        /// Print JSON instead of the table.
+        #[arg(long)]
+        json: bool,
+        /// When solving a scene, print the solver's trace lines (phase times, shots, vertices, unshot) to stderr.
+        #[arg(long)]
+        trace: bool,
+    },
+    /// Speed against error: solve the scene at several sampling densities and measure, for every
+    /// method (and texture size), the warm frame time, the bytes it holds and its error against
+    /// the same solution's exact image and against a converged finer solution's.
+    ///
+    /// Prints one row per point, flagging the Pareto fronts of total error against frame time and
+    /// against memory; `--json` and `--csv` write every measure (perceptual distance, RMSE,
+    /// maximum error, Mach-band measure against both references). Then, at the scene's own density,
+    /// the texture memory each texture method needs to reach the direct method's reconstruction
+    /// error (texture sides scaled by 1/8 to 16), beside the RRP bytes.
+    Sweep {
+        /// A scene file or a solution file (its scene is solved again at every density).
+        input: PathBuf,
+        /// Methods, comma-separated (default: direct and every texture method, and mesh).
+        #[arg(long, value_delimiter = ',', default_values_t = lab::jobs::sweep::DEFAULT_METHODS.map(String::from))]
+        methods: Vec<String>,
+        /// Image size, `WxH`.
+        #[arg(long, default_value = "256x256", value_parser = parse_size)]
+        size: (u32, u32),
+        /// Density levels as factors of the scene's solver tolerance, coarse to fine.
+        #[arg(long, value_delimiter = ',', default_values_t = lab::jobs::sweep::DEFAULT_DENSITIES)]
+        densities: Vec<f64>,
+        /// Tolerance factor of the converged reference solution (solved one level deeper).
+        #[arg(long, default_value_t = 0.25)]
+        reference_density: f64,
+        /// Texture sizes per density: the quadtree-depth sizes halved 0 .. N-1 times.
+        #[arg(long, default_value_t = 4)]
+        texture_levels: u32,
+        /// Frames timed per point and repeat (after a warm-up).
+        #[arg(long, default_value_t = 5, value_parser = clap::value_parser!(u32).range(0..=MAX_TIMED_FRAMES))]
+        frames: u32,
+        /// Timing repeats (the spread is over repeats).
+        #[arg(long, default_value_t = 3)]
+        repeats: u32,
+        /// Pixels per degree of the perceptual metric.
+        #[arg(long, default_value_t = metric::DEFAULT_PPD)]
+        ppd: f64,
+        /// Write every point as JSON to this file.
+        #[arg(long)]
+        json: Option<PathBuf>,
+        /// Write every point as CSV to this file.
+        #[arg(long)]
+        csv: Option<PathBuf>,
+        /// Write the plots (error against frame time and against memory, PNG and SVG) into this
+        /// directory.
+        #[arg(long)]
+        plots: Option<PathBuf>,
+        /// Skip the equal-error memory search.
+        #[arg(long)]
+        no_equal_error: bool,
+        /// Worker threads (default: all cores).
+        #[arg(long)]
+        threads: Option<usize>,
+        /// No progress bar.
+        #[arg(short, long)]
+        quiet: bool,
+        /// Print the solver's trace lines.
+        #[arg(long)]
+        trace: bool,
+    },
+    /// The results page: every shipped scene's sweep (with the equal-error memory search),
+    /// walkthrough frame rates of every method, and a gallery of small images by every method,
+    /// written as Markdown (default `docs/results.md`) with the data, plots and images in
+    /// `results/` beside it.
+    Results {
+        /// The Markdown page to write.
+        #[arg(long, default_value = "docs/results.md")]
+        doc: PathBuf,
+        /// Scene files, comma-separated (default: two-spots, cornell-box, gallery).
+        #[arg(long, value_delimiter = ',')]
+        scenes: Vec<PathBuf>,
+        /// Side of the sweeps' square images.
+        #[arg(long, default_value_t = 256)]
+        size: u32,
+        /// Width of the gallery's images.
+        #[arg(long, default_value_t = 192)]
+        gallery_width: u32,
+        /// Frames timed per sweep point and repeat.
+        #[arg(long, default_value_t = 5, value_parser = clap::value_parser!(u32).range(0..=MAX_TIMED_FRAMES))]
+        frames: u32,
+        /// Sweep timing repeats.
+        #[arg(long, default_value_t = 3)]
+        repeats: u32,
+        /// Worker threads (default: all cores).
+        #[arg(long)]
+        threads: Option<usize>,
+        /// No progress bar.
+        #[arg(short, long)]
+        quiet: bool,
+        /// Print the solver's trace lines.
+        #[arg(long)]
+        trace: bool,
+    },
+    /// Generate a test scene (`generate building`): OBJ, MTL and a scene file that includes
+    /// them, of any size, for measuring the solver and the renderers.
+    Generate {
+        #[command(subcommand)]
+        scene: Generate,
+    },
+    /// Compare an image with a reference: the perceptual distance and error measures.
+    ///
+    /// Reads two images (OpenEXR, Radiance HDR, PFM, or PNG decoded from sRGB to linear) of the
+    /// same size and prints the perceptual distance of docs/metrics.md (Rushmeier et al. model 1
+    /// with the Mannos-Sakrison CSF), RMSE, PSNR, maximum absolute error, relative luminance
+    /// error and the Mach-band measure, all on luminance. `b` is the reference.
+    ///
+    /// As a regression check (a CI comparing renders with committed golden images):
+    /// `--tolerance default` compares pixel by pixel and lists the pixels that moved, `--diff`
+    /// writes a difference image, `--max-distance` bounds the perceptual distance; exit 1 when a
+    /// check fails, 0 when all pass.
+    Compare {
+        /// The image under test.
+        a: PathBuf,
+        /// The reference image.
+        b: PathBuf,
+        /// Pixels per degree of visual angle (viewing distance) for the contrast sensitivity.
+        #[arg(long, default_value_t = metric::DEFAULT_PPD)]
+        ppd: f64,
+        /// Print JSON instead of the table.
+        #[arg(long)]
+        json: bool,
+        /// Regression check: compare pixel by pixel; a pixel differs when a channel moves by more
+        /// than this times max(|reference|, --floor) (`default` = 2^-19, 16 f32 rounding steps).
+        /// Lists the first differing pixels; exit 1 if any differ.
+        #[arg(long, value_name = "REL|default", value_parser = parse_tolerance)]
+        tolerance: Option<f32>,
+        /// With --tolerance: the reference level under which the tolerance is absolute.
+        #[arg(long, default_value_t = metric::pixels::DEFAULT_FLOOR)]
+        floor: f32,
+        /// With --tolerance: write the difference image here (PNG scaled so the largest
+        /// difference is white, or EXR with the raw |a - b|).
+        #[arg(long, value_name = "PATH", requires = "tolerance")]
+        diff: Option<PathBuf>,
+        /// Fail (exit 1) when the perceptual distance is above this.
+        #[arg(long, value_name = "D")]
+        max_distance: Option<f64>,
+    },
+}
+
+/// The scenes `generate` makes.
+#[derive(Subcommand, Debug)]
+pub enum Generate {
+    /// A building: a grid of closed rooms on one or more storeys, doorways between all
+    /// neighbours on a storey, one or two emissive ceiling panels and up to four boxes or
+    /// pillars per room.
+    ///
+    /// Writes `<name>.toml` and `<name>/<name>.obj` and `.mtl` beside it (atomically, all three
+    /// together) and prints the polygon count: cut^2 (14 rooms + 12 doorways) + rooms (lights +
+    /// 5 furniture). The same options give the same bytes. Exit code 2 for a bad option or over
+    /// 1,000,000 polygons.
+    Building {
+        /// Rooms along x on each storey.
+        #[arg(long, value_name = "N")]
+        rooms_x: u32,
+        /// Rooms along z on each storey.
+        #[arg(long, value_name = "M")]
+        rooms_z: u32,
+        /// Storeys (not connected to each other).
+        #[arg(long, value_name = "F", default_value_t = generate::DEFAULT_FLOORS)]
+        floors: u32,
+        /// Cut every wall, floor, ceiling and doorway cell into K x K quads.
+        #[arg(long, value_name = "K", default_value_t = generate::DEFAULT_CUT)]
+        cut: u32,
+        /// Emissive ceiling panels per room, 1 or 2.
+        #[arg(long, default_value_t = generate::DEFAULT_LIGHTS)]
+        lights: u32,
+        /// Boxes or pillars per room, 0 to 4.
+        #[arg(long, default_value_t = generate::DEFAULT_FURNITURE)]
+        furniture: u32,
+        /// Seed of the furniture's sizes and places.
+        #[arg(long, default_value_t = generate::DEFAULT_SEED)]
+        seed: u64,
+        /// The scene file to write (`scenes/building.toml`), or a directory (the scene is then
+        /// `<dir>/building.toml`).
+        #[arg(short, long)]
+        output: PathBuf,
+    },
+}
+
+fn parse_tolerance(text: &str) -> Result<f32, String> {
+    if text == "default" {
+        return Ok(metric::pixels::DEFAULT_TOLERANCE);
+    }
+    match text.parse::<f32>() {
+        Ok(t) if t.is_finite() && t >= 0.0 => Ok(t),
+        _ => Err("must be a finite number >= 0, or `default`".into()),
+    }
+}
+
+/// Options of the texture methods (ignored by the others).
+#[derive(clap::Args, Debug, Clone)]
+pub struct TextureArgs {
+    /// Texture methods: one texture side for every polygon, a power of two (default: the
+    /// scene's `[render] texture_size`; 0 there = per polygon from its quadtree depth).
+    #[arg(long)]
+    texture_size: Option<u32>,
+    /// Texture methods: a texture memory budget (12 bits per channel, mip chains included),
+    /// bytes with an optional K, M or G suffix; sides are halved uniformly until it fits.
+    #[arg(long, value_parser = parse_bytes)]
+    texture_budget: Option<u64>,
+    /// `texture-bicubic`: the Mitchell–Netravali (B, C), default 0.333,0.333 (Catmull-Rom:
+    /// 0,0.5).
+    #[arg(long, value_name = "B,C", value_parser = parse_bicubic)]
+    bicubic: Option<(f32, f32)>,
+    /// Texture methods: where the texels sit, `centre` (texel i at u = (i + 0.5) / N) or
+    /// `corner` (u = i / (N - 1): samples on the polygon's edges and corners) (default: the
+    /// scene's `[render] texel_placement`, else centre).
+    #[arg(long, value_name = "centre|corner")]
+    texel_placement: Option<String>,
+}
+
+impl TextureArgs {
+    pub fn options(&self) -> TextureOptions {
+        TextureOptions {
+            size: self.texture_size,
+            budget: self.texture_budget,
+            bicubic: self.bicubic,
+            placement: self.texel_placement.clone(),
+        }
+    }
+}
+
+fn parse_bytes(s: &str) -> Result<u64, String> {
+    base::method::parse_bytes("--texture-budget", s).map_err(reason)
+}
+
+fn parse_bicubic(s: &str) -> Result<(f32, f32), String> {
+    base::method::parse_bicubic(s).map_err(reason)
+}
+
+/// The reason of an option error, for clap (which names the option and the value itself).
+fn reason(e: Error) -> String {
+    match e {
+        Error::InvalidOption { reason, .. } => reason,
+        e => e.to_string(),
+    }
+}
+
+/// Parses `WxH` (both at least 1; the upper limit is checked by the job).
+fn parse_size(s: &str) -> Result<(u32, u32), String> {
+    let (w, h) = s
+        .split_once(['x', 'X'])
+        .ok_or_else(|| "expected WxH, for example 256x256".to_string())?;
+    match (w.trim().parse::<u32>(), h.trim().parse::<u32>()) {
+        (Ok(w), Ok(h)) if w > 0 && h > 0 => Ok((w, h)),
+        _ => Err("expected WxH with two integers of at least 1".to_string()),
+    }
+}

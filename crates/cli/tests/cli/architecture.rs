@@ -1,0 +1,488 @@
+//! The architecture points one way, at two levels.
+//!
+//! **Crates.** The workspace's crates are the stages data passes through, in the order of
+//! [`CRATES`]: every crate's `[dependencies]` names only crates earlier in that order (no cycle,
+//! no arrow upstream), and only the command line depends on the user-interface crates (argument
+//! parsing, progress bars, signal handling, error context for people).
+//!
+//! **Modules.** Inside the crates built from several stages ([`MODULES`]), every `crate::` path
+//! of non-test code names a module that comes earlier in the crate's order than the module it
+//! is written in, and `lib.rs` declares the modules in that order, so a new module has to be
+//! placed in the flow before it can be used. Unit tests (`#[cfg(test)]` modules, inline or in
+//! their own files) are exempt: a stage's tests may run later stages to check it in context.
+
+use std::collections::BTreeSet;
+use std::path::{Path, PathBuf};
+
+/// The crates, upstream first (directory under `crates/`, package name).
+const CRATES: &[(&str, &str)] = &[
+    ("lanes", "pixelflow-lanes"),
+    ("base", "pixelflow-base"),
+    ("scene", "pixelflow-scene"),
+    ("radiosity", "pixelflow-radiosity"),
+    ("reconstruction", "pixelflow-reconstruction"),
+    ("engine", "pixelflow-engine"),
+    ("metric", "pixelflow-metric"),
+    ("lab", "pixelflow-lab"),
+    ("cli", "pixelflow-sim"),
+];
+
+/// The crates made of several stages, and their modules, upstream first.
+const MODULES: &[(&str, &[&str])] = &[
+    (
+        "base",
+        &["error", "output", "progress", "image", "quadtree", "method"],
+    ),
+    ("engine", &["raster", "composition", "shading", "frame"]),
+    (
+        "lab",
+        &["image", "jobs", "report", "plot", "experiment", "generate"],
+    ),
+];
+
+/// Dependencies that belong to the command line only.
+const USER_INTERFACE: &[&str] = &["clap", "indicatif", "ctrlc", "anyhow"];
+
+fn crates_dir() -> PathBuf {
+    Path::new(crate::REPO).join("crates")
+}
+
+/// Every `.rs` file under `dir`, sorted.
+fn rust_files(dir: &Path, out: &mut Vec<PathBuf>) {
+    let mut entries: Vec<PathBuf> = std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .collect();
+    entries.sort();
+    for p in entries {
+        if p.is_dir() {
+            rust_files(&p, out);
+        } else if p.extension().is_some_and(|e| e == "rs") {
+            out.push(p);
+        }
+    }
+}
+
+/// The package names in the `[dependencies]` table of a crate's manifest (renamed workspace
+/// dependencies `scene.workspace = true` are resolved through the workspace's table).
+fn dependencies(dir: &str) -> Vec<String> {
+    let manifest = std::fs::read_to_string(crates_dir().join(dir).join("Cargo.toml")).unwrap();
+    let workspace = std::fs::read_to_string(Path::new(crate::REPO).join("Cargo.toml")).unwrap();
+    let mut out = Vec::new();
+    let mut in_deps = false;
+    for line in manifest.lines() {
+        let line = line.trim();
+        if line.starts_with('[') {
+            in_deps = line == "[dependencies]";
+            continue;
+        }
+        if !in_deps || line.is_empty() || line.starts_with('#') {
+            continue;
+        }
+        let key = line.split(['.', '=', ' ']).next().unwrap().to_string();
+        // A workspace dependency may be renamed: `key = { package = "pixelflow-x", ... }`.
+        let package = workspace
+            .lines()
+            .find(|l| l.starts_with(&format!("{key} =")))
+            .and_then(|l| l.split("package = \"").nth(1))
+            .and_then(|p| p.split('"').next())
+            .map(str::to_string)
+            .unwrap_or(key);
+        out.push(package);
+    }
+    out
+}
+
+#[test]
+fn every_crate_depends_only_on_crates_upstream_of_it() {
+    let rank = |package: &str| CRATES.iter().position(|(_, p)| *p == package);
+    let mut dirs: Vec<String> = std::fs::read_dir(crates_dir())
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    dirs.sort();
+    let mut listed: Vec<String> = CRATES.iter().map(|(d, _)| d.to_string()).collect();
+    listed.sort();
+    assert_eq!(dirs, listed, "crates/ holds exactly the crates of CRATES");
+    let mut bad = Vec::new();
+    for (k, (dir, package)) in CRATES.iter().enumerate() {
+        for dep in dependencies(dir) {
+            match rank(&dep) {
+                Some(r) if r >= k => bad.push(format!("{package} -> {dep} (not upstream of it)")),
+                _ => {}
+            }
+            if USER_INTERFACE.contains(&dep.as_str()) && *dir != "cli" {
+                bad.push(format!(
+                    "{package} -> {dep} (the command line's dependency)"
+                ));
+            }
+        }
+    }
+    assert!(
+        bad.is_empty(),
+        "crate arrows against the data flow:\n{}",
+        bad.join("\n")
+    );
+    // The scan does see the arrows.
+    assert!(dependencies("engine").contains(&"pixelflow-reconstruction".to_string()));
+    assert!(dependencies("cli").contains(&"clap".to_string()));
+}
+
+/// `text` with comments removed and the contents of string and char literals blanked (so braces
+/// and `crate::` inside them do not count). Line structure is kept.
+fn strip(text: &str) -> String {
+    let b = text.as_bytes();
+    let mut out = String::with_capacity(b.len());
+    let mut i = 0;
+    while i < b.len() {
+        let c = b[i];
+        if c == b'/' && b.get(i + 1) == Some(&b'/') {
+            while i < b.len() && b[i] != b'\n' {
+                i += 1;
+            }
+        } else if c == b'/' && b.get(i + 1) == Some(&b'*') {
+            let mut depth = 0;
+            while i < b.len() {
+                if b[i] == b'/' && b.get(i + 1) == Some(&b'*') {
+                    depth += 1;
+                    i += 2;
+                } else if b[i] == b'*' && b.get(i + 1) == Some(&b'/') {
+                    depth -= 1;
+                    i += 2;
+                    if depth == 0 {
+                        break;
+                    }
+                } else {
+                    if b[i] == b'\n' {
+                        out.push('\n');
+                    }
+                    i += 1;
+                }
+            }
+        } else if c == b'r' && matches!(b.get(i + 1), Some(b'"') | Some(b'#')) && {
+            let mut j = i + 1;
+            while b.get(j) == Some(&b'#') {
+                j += 1;
+            }
+            b.get(j) == Some(&b'"')
+                && (i == 0 || !(b[i - 1].is_ascii_alphanumeric() || b[i - 1] == b'_'))
+        } {
+            // Raw string r#"..."#.
+            let mut j = i + 1;
+            let mut hashes = 0;
+            while b[j] == b'#' {
+                hashes += 1;
+                j += 1;
+            }
+            j += 1;
+            loop {
+                if j >= b.len() {
+                    break;
+                }
+                if b[j] == b'"' && (0..hashes).all(|k| b.get(j + 1 + k) == Some(&b'#')) {
+                    j += 1 + hashes;
+                    break;
+                }
+                if b[j] == b'\n' {
+                    out.push('\n');
+                }
+                j += 1;
+            }
+            out.push_str("\"\"");
+            i = j;
+        } else if c == b'"' {
+            i += 1;
+            while i < b.len() && b[i] != b'"' {
+                if b[i] == b'\\' {
+                    i += 1;
+                }
+                if i < b.len() && b[i] == b'\n' {
+                    out.push('\n');
+                }
+                i += 1;
+            }
+            i += 1;
+            out.push_str("\"\"");
+        } else if c == b'\'' {
+            // A char literal ('x', '\n', '\u{..}') or a lifetime ('a).
+            let end = if b.get(i + 1) == Some(&b'\\') {
+                (i + 2..b.len().min(i + 12)).find(|&j| b[j] == b'\'')
+            } else if b.get(i + 2) == Some(&b'\'') {
+                Some(i + 2)
+            } else {
+                None
+            };
+            match end {
+                Some(j) => {
+                    out.push_str("' '");
+                    i = j + 1;
+                }
+                None => {
+                    out.push('\'');
+                    i += 1;
+                }
+            }
+        } else {
+            out.push(c as char);
+            i += 1;
+        }
+    }
+    out
+}
+
+/// `text` (stripped) without `#[cfg(test)]` items: an inline `mod x { ... }` is removed up to
+/// its matching brace; `mod x;` is removed and `x` returned as a test-only child file.
+fn remove_test_items(text: &str) -> (String, Vec<String>) {
+    let mut out = String::new();
+    let mut children = Vec::new();
+    let mut rest = text;
+    while let Some(at) = rest.find("#[cfg(test)]") {
+        out.push_str(&rest[..at]);
+        let after = &rest[at + "#[cfg(test)]".len()..];
+        let item = after.trim_start();
+        let skipped = after.len() - item.len();
+        // The item: up to the first `;` or the matching `}` of its first `{`.
+        let semi = item.find(';');
+        let brace = item.find('{');
+        let end = match (semi, brace) {
+            (Some(s), Some(b)) if s < b => s + 1,
+            (Some(s), None) => s + 1,
+            (_, Some(b)) => {
+                let mut depth = 0;
+                let mut end = item.len();
+                for (k, ch) in item[b..].char_indices() {
+                    match ch {
+                        '{' => depth += 1,
+                        '}' => {
+                            depth -= 1;
+                            if depth == 0 {
+                                end = b + k + 1;
+                                break;
+                            }
+                        }
+                        _ => {}
+                    }
+                }
+                end
+            }
+            (None, None) => item.len(),
+        };
+        let decl = &item[..end];
+        let words: Vec<&str> = decl.split_whitespace().collect();
+        if let Some(k) = words.iter().position(|w| *w == "mod") {
+            if let Some(name) = words.get(k + 1) {
+                if let Some(name) = name.strip_suffix(';') {
+                    children.push(name.to_string());
+                }
+            }
+        }
+        // Keep the line count.
+        out.push_str(&"\n".repeat(after[..skipped + end].matches('\n').count()));
+        rest = &after[skipped + end..];
+    }
+    out.push_str(rest);
+    (out, children)
+}
+
+/// The crate-root modules named by `crate::` paths in `text`, with their line numbers,
+/// including every member of `crate::{a, b::c}` groups.
+fn crate_refs(text: &str) -> Vec<(String, usize)> {
+    let mut refs = Vec::new();
+    let b = text.as_bytes();
+    let mut from = 0;
+    while let Some(k) = text[from..].find("crate::") {
+        let at = from + k;
+        from = at + "crate::".len();
+        // `crate` must be a whole word (not `pixelflow_crate::`, not `$crate::`).
+        if at > 0 && (b[at - 1].is_ascii_alphanumeric() || b[at - 1] == b'_' || b[at - 1] == b'$') {
+            continue;
+        }
+        let line = text[..at].matches('\n').count() + 1;
+        let rest = &text[from..];
+        if let Some(group) = rest.strip_prefix('{') {
+            // Top-level members of the group: split on commas at brace depth 0.
+            let mut depth = 0;
+            let mut member = String::new();
+            let mut members = Vec::new();
+            for ch in group.chars() {
+                match ch {
+                    '{' => {
+                        depth += 1;
+                        member.push(ch)
+                    }
+                    '}' if depth == 0 => {
+                        members.push(std::mem::take(&mut member));
+                        break;
+                    }
+                    '}' => {
+                        depth -= 1;
+                        member.push(ch)
+                    }
+                    ',' if depth == 0 => members.push(std::mem::take(&mut member)),
+                    _ => member.push(ch),
+                }
+            }
+            for m in members {
+                let name: String = m
+                    .trim()
+                    .chars()
+                    .take_while(|c| c.is_ascii_alphanumeric() || *c == '_')
+                    .collect();
+                if !name.is_empty() && name != "self" {
+                    refs.push((name, line));
+                }
+            }
+        } else {
+            let name: String = rest
+                .chars()
+                .take_while(|c| c.is_ascii_alphanumeric() || *c == '_')
+                .collect();
+            if !name.is_empty() {
+                refs.push((name, line));
+            }
+        }
+    }
+    refs
+}
+
+/// The top-level module (of `src`) a source file belongs to (`src/raster/gbuffer.rs` ->
+/// `raster`).
+fn module_of(src: &Path, path: &Path) -> Option<String> {
+    let rel = path.strip_prefix(src).ok()?;
+    let first = rel.components().next()?.as_os_str().to_str()?;
+    Some(first.trim_end_matches(".rs").to_string())
+}
+
+/// The directory a file's child modules live in (`src/a/mod.rs` -> `src/a`, `src/a/b.rs` ->
+/// `src/a/b`).
+fn child_dir(path: &Path) -> PathBuf {
+    if path
+        .file_name()
+        .is_some_and(|n| n == "mod.rs" || n == "lib.rs")
+    {
+        path.parent().unwrap().to_path_buf()
+    } else {
+        path.with_extension("")
+    }
+}
+
+/// Every edge `(file, line, from, to)` between the top-level modules of the crate in `src`, in
+/// non-test code.
+fn edges(src: &Path) -> Vec<(PathBuf, usize, String, String)> {
+    let mut files = Vec::new();
+    rust_files(src, &mut files);
+    let mut test_only: BTreeSet<PathBuf> = BTreeSet::new();
+    let mut stripped = Vec::new();
+    for f in &files {
+        let (code, children) = remove_test_items(&strip(&std::fs::read_to_string(f).unwrap()));
+        for c in children {
+            let dir = child_dir(f);
+            test_only.insert(dir.join(format!("{c}.rs")));
+            test_only.insert(dir.join(&c).join("mod.rs"));
+        }
+        stripped.push((f.clone(), code));
+    }
+    let mut out = Vec::new();
+    for (f, code) in stripped {
+        let name = f.file_name().unwrap().to_str().unwrap();
+        if name == "lib.rs" || test_only.contains(&f) {
+            continue;
+        }
+        let Some(from) = module_of(src, &f) else {
+            continue;
+        };
+        for (to, line) in crate_refs(&code) {
+            if to != from {
+                out.push((f.clone(), line, from.clone(), to));
+            }
+        }
+    }
+    out
+}
+
+#[test]
+fn lib_rs_declares_the_modules_in_the_data_flow_order() {
+    for (krate, order) in MODULES {
+        let lib = crates_dir().join(krate).join("src/lib.rs");
+        let lib = strip(&std::fs::read_to_string(lib).unwrap());
+        let declared: Vec<String> = lib
+            .lines()
+            .filter_map(|l| l.trim().strip_prefix("pub mod "))
+            .map(|m| m.trim_end_matches(';').to_string())
+            .collect();
+        let mut sorted = declared.clone();
+        sorted.sort_by_key(|m| order.iter().position(|o| o == m));
+        assert_eq!(
+            declared.iter().collect::<BTreeSet<_>>(),
+            order
+                .iter()
+                .map(|s| s.to_string())
+                .collect::<BTreeSet<_>>()
+                .iter()
+                .collect(),
+            "crates/{krate}/src/lib.rs must declare exactly the modules of MODULES"
+        );
+        assert_eq!(
+            declared, sorted,
+            "crates/{krate}/src/lib.rs: modules out of order"
+        );
+    }
+}
+
+#[test]
+fn every_module_edge_points_down_the_data_flow() {
+    let mut bad = Vec::new();
+    let mut total = 0;
+    for (krate, order) in MODULES {
+        let src = crates_dir().join(krate).join("src");
+        let rank = |m: &str| order.iter().position(|o| *o == m);
+        let all = edges(&src);
+        total += all.len();
+        for (file, line, from, to) in &all {
+            let rel = file
+                .strip_prefix(Path::new(crate::REPO))
+                .unwrap_or(file)
+                .display();
+            match (rank(from), rank(to)) {
+                (Some(a), Some(b)) if b < a => {}
+                (Some(_), Some(_)) => bad.push(format!(
+                    "{rel}:{line}: {from} -> {to} ({to} comes after {from} in the data flow)"
+                )),
+                _ => bad.push(format!(
+                    "{rel}:{line}: {from} -> {to} (a module missing from MODULES)"
+                )),
+            }
+        }
+    }
+    assert!(total > 20, "the scan found only {total} edges");
+    assert!(
+        bad.is_empty(),
+        "edges against the data flow:\n{}",
+        bad.join("\n")
+    );
+}
+
+/// The scanner itself: it sees grouped, nested and inline paths, and ignores comments, strings
+/// and test modules.
+#[test]
+fn the_scanner_sees_every_form_of_crate_path() {
+    let code = r#"
+use crate::a::B;
+use crate::{b, c::{D, E}, self};
+fn f() { crate::d::g(); let s = "crate::x"; let c = '{'; }
+// crate::y
+/* crate::z */
+#[cfg(test)]
+mod tests { use crate::w; fn h() { let _ = "}"; } }
+#[cfg(test)]
+mod more;
+fn k<'a>(x: &'a str) -> &'a str { crate::e::id(x) }
+"#;
+    let (code, children) = remove_test_items(&strip(code));
+    let names: Vec<String> = crate_refs(&code).into_iter().map(|(n, _)| n).collect();
+    assert_eq!(names, ["a", "b", "c", "d", "e"]);
+    assert_eq!(children, ["more"]);
+    // Line numbers survive stripping.
+    let lines: Vec<usize> = crate_refs(&code).into_iter().map(|(_, l)| l).collect();
+    assert_eq!(lines, [2, 3, 3, 4, 11]);
+}

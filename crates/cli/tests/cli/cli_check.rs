@@ -1,0 +1,273 @@
+//! `pixelflow-sim check`, run as a process: exit codes 0 (valid scene) and 2 (bad input or
+//! usage), the summary on stdout, warnings and errors on stderr.
+
+use std::path::{Path, PathBuf};
+use std::process::Output;
+
+fn run(args: &[&str]) -> Output {
+    crate::bin()
+        .args(args)
+        .current_dir(crate::REPO)
+        .output()
+        .expect("the binary runs")
+}
+
+fn text(b: &[u8]) -> String {
+    String::from_utf8_lossy(b).into_owned()
+}
+
+fn scratch(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("pfs-cli-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+#[test]
+fn check_valid_scene_prints_summary_and_exits_0() {
+    let out = run(&["check", "scenes/two-spots.toml"]);
+    assert_eq!(out.status.code(), Some(0), "{}", text(&out.stderr));
+    let stdout = text(&out.stdout);
+    assert!(
+        stdout.contains("polygons        1 (1 quads, 0 triangles)"),
+        "{stdout}"
+    );
+    assert!(stdout.contains("spot lights     2"), "{stdout}");
+    assert!(stdout.contains("image           256 x 256"), "{stdout}");
+    assert!(text(&out.stderr).is_empty());
+}
+
+#[test]
+fn check_cornell_warns_on_stderr_and_exits_0() {
+    let out = run(&["check", "scenes/cornell-box.toml"]);
+    assert_eq!(out.status.code(), Some(0), "{}", text(&out.stderr));
+    let stderr = text(&out.stderr);
+    assert!(
+        stderr.starts_with("warning: scenes/cornell-box/CornellBox-Original.obj:62:"),
+        "{stderr}"
+    );
+    assert!(stderr.contains("split into two triangles"), "{stderr}");
+    let stdout = text(&out.stdout);
+    assert!(
+        stdout.contains("polygons        19 (17 quads, 2 triangles)"),
+        "{stdout}"
+    );
+    assert!(stdout.contains("emitters        1 polygons"), "{stdout}");
+}
+
+#[test]
+fn check_bad_scene_names_file_line_and_key_and_exits_2() {
+    let dir = scratch("bad");
+    let scene = dir.join("bad.toml");
+    std::fs::write(
+        &scene,
+        "[camera]\neye = [0, 0, 1]\nlook_at = [0, 0, 0]\nfov_y = 40\n\n[[materials]]\nname = \"m\"\nreflectance = [0.5, 1.2, 0.5]\n",
+    )
+    .unwrap();
+    let out = run(&["check", scene.to_str().unwrap()]);
+    assert_eq!(out.status.code(), Some(2));
+    let stderr = text(&out.stderr);
+    let expect = format!(
+        "error: {}:8: materials[0].reflectance: component 1 is 1.2",
+        scene.display()
+    );
+    assert!(stderr.starts_with(&expect), "{stderr}");
+    assert!(text(&out.stdout).is_empty());
+}
+
+#[test]
+fn check_missing_file_exits_2() {
+    let out = run(&["check", "no/such/scene.toml"]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(text(&out.stderr).contains("no/such/scene.toml: cannot read scene file"));
+}
+
+#[test]
+fn usage_errors_exit_2_and_help_exits_0() {
+    assert_eq!(run(&[]).status.code(), Some(2));
+    assert_eq!(run(&["check"]).status.code(), Some(2));
+    assert_eq!(run(&["frobnicate"]).status.code(), Some(2));
+    let help = run(&["check", "--help"]);
+    assert_eq!(help.status.code(), Some(0));
+    assert!(text(&help.stdout).contains("Load and validate a scene file"));
+    assert!(Path::new(env!("CARGO_BIN_EXE_pixelflow-sim")).exists());
+}
+
+#[test]
+fn gallery_fine_is_the_gallery_with_a_finer_solve() {
+    // Same geometry, lights, camera and path as gallery.toml; only [radiosity] differs.
+    use scene::load_scene;
+    let root = std::path::Path::new(crate::REPO);
+    let a = load_scene(&root.join("scenes/gallery.toml")).unwrap();
+    let b = load_scene(&root.join("scenes/gallery-fine.toml")).unwrap();
+    assert_eq!(a.polygons.len(), b.polygons.len());
+    assert_eq!(a.spots, b.spots);
+    assert_eq!(a.camera, b.camera);
+    assert_eq!(a.camera_path, b.camera_path);
+    assert!(b.radiosity.tolerance < a.radiosity.tolerance);
+    assert!(b.radiosity.max_depth > a.radiosity.max_depth);
+}
+
+/// Inputs are read with a size limit and requests with absurd counts are refused before any
+/// work. Regressions: an include pointing at an endless file grew memory until the allocator
+/// aborted; `--threads 100000` and `--frames 4294967295` ran until they aborted or for hours.
+#[cfg(unix)]
+#[test]
+fn endless_inputs_and_absurd_counts_are_refused_with_exit_2() {
+    let d = scratch("endless");
+    let scene = d.join("z.toml");
+    std::fs::write(
+        &scene,
+        "[camera]\neye = [0, 0, 5]\nlook_at = [0, 0, 0]\nfov_y = 40\n\n[[materials]]\nname = \"grey\"\n\
+         reflectance = [0.5, 0.5, 0.5]\n\n[[obj]]\nfile = \"/dev/zero\"\n",
+    )
+    .unwrap();
+    let out = run(&["check", scene.to_str().unwrap()]);
+    assert_eq!(out.status.code(), Some(2), "{}", text(&out.stderr));
+    let err = text(&out.stderr);
+    assert!(
+        err.contains("obj[0].file") && err.contains("larger than"),
+        "{err}"
+    );
+    // A scene file that never ends, and a compare input that never ends.
+    let out = run(&["check", "/dev/zero"]);
+    assert_eq!(out.status.code(), Some(2), "{}", text(&out.stderr));
+    assert!(text(&out.stderr).contains("larger than"));
+    let cases: [&[&str]; 4] = [
+        &["render", "scenes/two-spots.toml", "--threads", "100000"],
+        &["bench", "scenes/two-spots.toml", "--frames", "4294967295"],
+        &["stats", "scenes/two-spots.toml", "--frames", "4294967295"],
+        &["sweep", "scenes/two-spots.toml", "--frames", "4294967295"],
+    ];
+    for args in cases {
+        let out = run(args);
+        assert_eq!(
+            out.status.code(),
+            Some(2),
+            "{args:?}: {}",
+            text(&out.stderr)
+        );
+    }
+}
+
+/// Memory over the limit is refused before the allocation, with exit 2 and the estimate in the
+/// message: `check` reports the estimate against the limit and fails over it; a solve whose
+/// starting trees cannot fit, a solve whose refinement would pass the limit, a frame too large,
+/// and textures too large are each refused within seconds.
+#[test]
+fn memory_requests_over_the_limit_are_refused_with_the_estimate() {
+    let out = run(&["check", "scenes/two-spots.toml"]);
+    assert_eq!(out.status.code(), Some(0), "{}", text(&out.stderr));
+    let stdout = text(&out.stdout);
+    assert!(stdout.contains("verdict         fits\n"), "{stdout}");
+    assert!(stdout.contains("solve at start  "), "{stdout}");
+
+    let out = run(&["check", "scenes/two-spots.toml", "--memory-limit", "1K"]);
+    assert_eq!(out.status.code(), Some(2), "{}", text(&out.stderr));
+    assert!(text(&out.stdout).contains("memory limit    1.0 KiB\n"));
+    let stderr = text(&out.stderr);
+    assert!(
+        stderr.contains("the solve of scenes/two-spots.toml needs an estimated")
+            && stderr.contains("over the memory limit of 1.0 KiB"),
+        "{stderr}"
+    );
+
+    // One quad forced to depth 16 from the start: 4^17 / 3 nodes, hundreds of GiB.
+    let dir = scratch("memory");
+    let deep = dir.join("deep.toml");
+    std::fs::write(
+        &deep,
+        "[camera]\neye = [0.5, 0.5, 2]\nlook_at = [0.5, 0.5, 0]\nfov_y = 40\n\
+         [[materials]]\nname = \"w\"\nreflectance = [0.5, 0.5, 0.5]\n\
+         [[polygons]]\nvertices = [[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]]\nmaterial = \"w\"\n\
+         [[spots]]\nposition = [0.5, 0.5, 1]\ndirection = [0, 0, -1]\nintensity = [1, 1, 1]\nhalf_angle = 60\n\
+         [radiosity]\nmin_depth = 16\nmax_depth = 16\n",
+    )
+    .unwrap();
+    let deep = deep.to_str().unwrap();
+    for cmd in [
+        vec!["check", deep, "--memory-limit", "16G"],
+        vec![
+            "solve",
+            deep,
+            "-o",
+            "/dev/null/x.pfsol",
+            "--memory-limit",
+            "16G",
+        ],
+    ] {
+        let out = run(&cmd);
+        assert_eq!(out.status.code(), Some(2), "{cmd:?}: {}", text(&out.stderr));
+        let stderr = text(&out.stderr);
+        assert!(
+            stderr.contains("needs an estimated 1.2 TiB (quadtrees and samples"),
+            "{cmd:?}: {stderr}"
+        );
+    }
+
+    // The solve's own guard: the Cornell box starts at 22 KiB but refines past 2 MiB.
+    let out = run(&[
+        "solve",
+        "scenes/cornell-box.toml",
+        "-o",
+        dir.join("c.pfsol").to_str().unwrap(),
+        "--memory-limit",
+        "2M",
+        "--quiet",
+    ]);
+    assert_eq!(out.status.code(), Some(2), "{}", text(&out.stderr));
+    let stderr = text(&out.stderr);
+    assert!(
+        stderr.contains("in this refinement pass") && stderr.contains("over the memory limit"),
+        "{stderr}"
+    );
+    assert!(!dir.join("c.pfsol").exists());
+
+    // The largest documented frame, with every output.
+    let png = dir.join("big.png");
+    let out = run(&[
+        "render",
+        "scenes/two-spots.toml",
+        "--width",
+        "16384",
+        "--height",
+        "16384",
+        "--aa",
+        "16",
+        "--exr",
+        dir.join("big.exr").to_str().unwrap(),
+        "-o",
+        png.to_str().unwrap(),
+        "--memory-limit",
+        "16G",
+    ]);
+    assert_eq!(out.status.code(), Some(2), "{}", text(&out.stderr));
+    assert!(
+        text(&out.stderr).contains("a 16384 x 16384 frame with 16 samples per pixel needs"),
+        "{}",
+        text(&out.stderr)
+    );
+
+    // 4096^2 textures: 4096^2 x 12 B x 4/3 = 256 MiB for the one polygon.
+    let out = run(&[
+        "render",
+        "scenes/two-spots.toml",
+        "--method",
+        "texture-bilinear",
+        "--texture-size",
+        "4096",
+        "-o",
+        png.to_str().unwrap(),
+        "--memory-limit",
+        "100M",
+        "--quiet",
+    ]);
+    assert_eq!(out.status.code(), Some(2), "{}", text(&out.stderr));
+    assert!(
+        text(&out.stderr).contains("the radiosity textures needs an estimated 256."),
+        "{}",
+        text(&out.stderr)
+    );
+    assert!(!png.exists());
+    let _ = std::fs::remove_dir_all(&dir);
+}

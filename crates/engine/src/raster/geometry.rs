@@ -1,0 +1,562 @@
+//! Geometry: the first stage of the renderer. It turns each scene polygon into a screen-space
+//! convex polygon plus the plane equations the rasterizer evaluates per pixel: the camera's view
+//! transform and projection (perspective or orthographic, any aspect ratio), clipping against the
+//! near plane in view space (so polygons crossing the eye plane render correctly), clipping against
+//! a guard band far outside the image in screen space (so fixed-point edge functions cannot
+//! overflow), and the back-face policy.
+//!
+//! Per pixel the rasterizer needs the depth and the polygon's (u, v). Neither is linear in screen
+//! space under perspective, so this stage hands it linear expressions from which both follow
+//! exactly: with the pixel's view ray P(px, py, w) = O(px, py) + w D(px, py) (perspective: O = 0;
+//! orthographic: D = forward), the polygon's plane gives a quantity Q linear in (px, py) that is
+//! 1/w (perspective) or w itself (orthographic), and the point's 2-D coordinates (s, t) in an
+//! orthonormal frame of the polygon's plane are `Sa + w Sb`, `Ta + w Tb` with Sa, Sb, Ta, Tb linear
+//! in (px, py). These are derived analytically from the unclipped polygon's plane, so clipping never
+//! perturbs them. The rasterizer then inverts the polygon's bilinear map in that 2-D frame.
+//!
+//! Clip vertices on an edge shared by two polygons must be bit-identical in both, or the snapped
+//! edges would differ and leave cracks: every intersection is computed from the edge's endpoints
+//! in a canonical (lexicographic) order, whichever polygon asks.
+//!
+//! Back faces are NOT culled by default. Radiosity surfaces are one-sided, but they are also
+//! opaque: culling a polygon seen from behind would let the viewer see through it, which is worse
+//! than showing it with the radiosity of its front side (the only one the solver computes). In
+//! closed scenes seen from inside (the Cornell box) every back face is hidden behind front faces, so
+//! the default changes no pixel there; [`crate::frame::FrameOptions::cull_back_faces`] turns culling
+//! on to save raster work in such scenes.
+
+use glam::DVec3;
+use smallvec::SmallVec;
+
+use base::error::{Error, Result};
+use scene::{Camera, Polygon, Projection, Shape};
+
+/// Guard band, in pixels beyond each image edge: screen polygons are clipped to it, which bounds
+/// fixed-point coordinates to below 2^26 (8 subpixel bits) and edge functions to below 2^56.
+pub const GUARD_BAND: f64 = 65536.0;
+
+/// Largest near plane distance relative to the scene's extent (perspective cameras).
+pub const NEAR_RELATIVE: f64 = 1e-4;
+
+/// Smallest near plane distance relative to the scene's extent: where the eye touches a
+/// polygon. Depth is interpolated as 1/w in floating point, whose relative precision is the
+/// same at every distance, so a small near plane costs no depth resolution.
+pub const MIN_NEAR_RELATIVE: f64 = 1e-9;
+
+/// The near plane of a perspective view: half the distance from the eye to the nearest
+/// geometry (`nearest`, a lower bound of the distance to every polygon), so it never clips
+/// anything, but at most [`NEAR_RELATIVE`] and at least [`MIN_NEAR_RELATIVE`] times `extent`.
+/// A fixed fraction of the extent alone let one huge polygon far away push the near plane past
+/// everything close to the camera (a black image).
+pub fn near_plane(extent: f64, nearest: f64) -> f64 {
+    let nearest = if nearest.is_nan() { 0.0 } else { nearest };
+    (0.5 * nearest).clamp(MIN_NEAR_RELATIVE * extent, NEAR_RELATIVE * extent)
+}
+
+/// A lower bound of the distance from `eye` to polygon `p`: the larger of the distance to its
+/// plane and the distance to its bounding sphere (about its centroid).
+pub fn distance_lower_bound(p: &Polygon, eye: DVec3) -> f64 {
+    let c = p.centroid();
+    let radius = p
+        .vertices()
+        .iter()
+        .map(|v| (*v - c).length())
+        .fold(0.0, f64::max);
+    let sphere = ((eye - c).length() - radius).max(0.0);
+    let plane = p.normal.dot(eye - p.corners[0]).abs();
+    sphere.max(plane)
+}
+
+/// A linear expression `a * px + b * py + c` over continuous pixel coordinates (pixel (i, j) has
+/// its centre at (i + 0.5, j + 0.5), row 0 at the top).
+#[derive(Clone, Copy, Debug, PartialEq, Default)]
+pub struct Plane {
+    /// Coefficient of px.
+    pub a: f64,
+    /// Coefficient of py.
+    pub b: f64,
+    /// Constant term.
+    pub c: f64,
+}
+
+impl Plane {
+    /// Value at (px, py).
+    pub fn at(&self, px: f64, py: f64) -> f64 {
+        self.a * px + self.b * py + self.c
+    }
+}
+
+/// The camera's view transform and projection for one image size.
+#[derive(Clone, Copy, Debug)]
+pub struct View {
+    eye: DVec3,
+    right: DVec3,
+    up: DVec3,
+    forward: DVec3,
+    perspective: bool,
+    // px = sx * x + ox, py = sy * y + oy, with (x, y) = view (x, y) / w under perspective.
+    sx: f64,
+    sy: f64,
+    ox: f64,
+    oy: f64,
+    near: f64,
+    width: u32,
+    height: u32,
+}
+
+/// Index of each linear expression in [`ScreenPolygon::planes`].
+pub mod plane {
+    /// 1/w (perspective) or w (orthographic).
+    pub const Q: usize = 0;
+    /// s = SA + w * SB.
+    pub const SA: usize = 1;
+    /// See [`SA`].
+    pub const SB: usize = 2;
+    /// t = TA + w * TB.
+    pub const TA: usize = 3;
+    /// See [`TA`].
+    pub const TB: usize = 4;
+}
+
+/// Inline capacity of a clipped polygon's vertex list: 4 corners, +1 at the near plane, +1 per
+/// guard-band side, with room to spare.
+pub const CLIP_CAPACITY: usize = 12;
+
+/// A clipped polygon's screen vertices, held inline.
+pub type Verts = SmallVec<[[f64; 2]; CLIP_CAPACITY]>;
+
+/// A polygon after the geometry stage: a clipped convex screen polygon and its per-pixel
+/// expressions.
+#[derive(Clone, Debug)]
+pub struct ScreenPolygon {
+    /// Index of the polygon in the scene: the stable primitive id of every later tie-break.
+    pub id: u32,
+    /// Screen vertices (pixels), 3 to 9 of them, in polygon order (held inline: no allocation).
+    pub verts: Verts,
+    /// Q, Sa, Sb, Ta, Tb (see [`plane`]).
+    pub planes: [Plane; 5],
+    /// Corners c0..c3 in the polygon's 2-D frame (c0 at the origin).
+    pub corners: [[f64; 2]; 4],
+    /// Whether the polygon is a triangle (collapsed quad).
+    pub triangle: bool,
+    /// Whether Q is 1/w (perspective) rather than w.
+    pub perspective: bool,
+    /// Whether the camera sees the polygon's front side.
+    pub front_facing: bool,
+}
+
+impl View {
+    /// Builds the view of `camera` for a `width` x `height` image; `extent` is the scene's size
+    /// and `nearest` a lower bound of the distance from the eye to any polygon (the near plane
+    /// of a perspective camera is [`near_plane`]`(extent, nearest)`).
+    ///
+    /// Orthographic views map the camera's width x height rectangle onto the image exactly (pixels
+    /// are not square when the two aspect ratios differ). Perspective views take the vertical field
+    /// of view from the camera and the horizontal one from the image's aspect ratio.
+    pub fn new(
+        camera: &Camera,
+        width: u32,
+        height: u32,
+        extent: f64,
+        nearest: f64,
+    ) -> Result<View> {
+        if width == 0 || height == 0 {
+            return Err(Error::invalid_option(
+                "image size",
+                format!("{width} x {height}"),
+                "width and height must be at least 1",
+            ));
+        }
+        let f = camera.look_at - camera.eye;
+        if !f.is_finite() || !camera.eye.is_finite() || f.length() == 0.0 {
+            return Err(Error::invalid_option(
+                "camera",
+                "",
+                "look_at must be finite and differ from eye",
+            ));
+        }
+        let forward = f.normalize();
+        let r = forward.cross(camera.up);
+        if !r.is_finite() || r.length() <= 1e-9 * camera.up.length() || r.length() == 0.0 {
+            return Err(Error::invalid_option(
+                "camera",
+                "",
+                "up must not be parallel to the view direction",
+            ));
+        }
+        let right = r.normalize();
+        let up = right.cross(forward);
+        let (w, h) = (width as f64, height as f64);
+        let extent = if extent.is_finite() && extent > 0.0 {
+            extent
+        } else {
+            1.0
+        };
+        let (perspective, sx, sy, near) = match camera.projection {
+            Projection::Perspective { fov_y_deg } => {
+                if !(fov_y_deg > 0.0 && fov_y_deg < 180.0) {
+                    return Err(Error::invalid_option(
+                        "camera",
+                        "",
+                        format!("field of view {fov_y_deg} must be in (0, 180) degrees"),
+                    ));
+                }
+                let ty = (0.5 * fov_y_deg.to_radians()).tan();
+                let tx = ty * w / h;
+                (
+                    true,
+                    w / (2.0 * tx),
+                    -h / (2.0 * ty),
+                    near_plane(extent, nearest),
+                )
+            }
+            Projection::Orthographic {
+                width: vw,
+                height: vh,
+            } => {
+                if !(vw > 0.0 && vh > 0.0 && vw.is_finite() && vh.is_finite()) {
+                    return Err(Error::invalid_option(
+                        "camera",
+                        "",
+                        "orthographic width and height must be positive",
+                    ));
+                }
+                (false, w / vw, -h / vh, 0.0)
+            }
+        };
+        Ok(View {
+            eye: camera.eye,
+            right,
+            up,
+            forward,
+            perspective,
+            sx,
+            sy,
+            ox: 0.5 * w,
+            oy: 0.5 * h,
+            near,
+            width,
+            height,
+        })
+    }
+
+    /// View coordinates (right, up, forward distance w) of a world point.
+    pub fn to_view(&self, p: DVec3) -> DVec3 {
+        let d = p - self.eye;
+        DVec3::new(d.dot(self.right), d.dot(self.up), d.dot(self.forward))
+    }
+
+    fn dir_to_view(&self, d: DVec3) -> DVec3 {
+        DVec3::new(d.dot(self.right), d.dot(self.up), d.dot(self.forward))
+    }
+
+    /// Screen position (pixels) of a view-space point in front of the near plane.
+    pub fn project(&self, v: DVec3) -> [f64; 2] {
+        if self.perspective {
+            [self.sx * v.x / v.z + self.ox, self.sy * v.y / v.z + self.oy]
+        } else {
+            [self.sx * v.x + self.ox, self.sy * v.y + self.oy]
+        }
+    }
+
+    /// Transforms, clips and sets up polygon `id`; `None` when nothing of it can be seen (behind
+    /// the near plane, outside the guard band, or edge-on: a plane through the eye projects to a
+    /// line and covers no pixel centre).
+    pub fn transform(&self, poly: &Polygon, id: u32) -> Option<ScreenPolygon> {
+        let cv: [DVec3; 4] = poly.corners.map(|c| self.to_view(c));
+        let k = poly.shape.corner_count();
+        // Trivial rejection before any setup: every corner behind the near plane (the clip
+        // below would return nothing). Cheap culling matters for meshes of 10^5 triangles.
+        if cv[..k].iter().all(|p| p.z < self.near) {
+            return None;
+        }
+        let n = self.dir_to_view(poly.normal);
+        let c0 = cv[0];
+        let d = n.dot(c0);
+        // The largest corner distance, as one square root of the largest square (the same
+        // value: the correctly rounded square root is monotonic).
+        let size = poly
+            .vertices()
+            .iter()
+            .map(|c| (*c - poly.corners[0]).length_squared())
+            .fold(0.0, f64::max)
+            .sqrt();
+        let front_facing = if self.perspective { d < 0.0 } else { n.z < 0.0 };
+
+        // Orthonormal frame of the polygon's plane (view coordinates), origin c0.
+        let far = if (cv[1] - c0).length_squared() >= (cv[2] - c0).length_squared() {
+            cv[1]
+        } else {
+            cv[2]
+        };
+        let e1 = (far - c0).normalize();
+        let e2 = n.cross(e1).normalize();
+        if !e1.is_finite() || !e2.is_finite() {
+            return None;
+        }
+        let mut corners = [[0.0; 2]; 4];
+        for (k, c) in cv.iter().enumerate() {
+            corners[k] = [e1.dot(*c - c0), e2.dot(*c - c0)];
+        }
+
+        // View-space ray of pixel (px, py): X(px) = (px - ox) / sx, Y(py) = (py - oy) / sy.
+        let (ax, bx) = (1.0 / self.sx, -self.ox / self.sx);
+        let (ay, by) = (1.0 / self.sy, -self.oy / self.sy);
+        let lin = |e: DVec3, z: f64| Plane {
+            a: e.x * ax,
+            b: e.y * ay,
+            c: e.x * bx + e.y * by + z,
+        };
+        let planes = if self.perspective {
+            // P = w (X, Y, 1); n . P = d  =>  1/w = (n . (X, Y, 1)) / d.
+            if d.abs() <= 1e-12 * (c0.length() + size) {
+                return None;
+            }
+            let q = lin(n, n.z);
+            let q = Plane {
+                a: q.a / d,
+                b: q.b / d,
+                c: q.c / d,
+            };
+            let ks = e1.dot(c0);
+            let kt = e2.dot(c0);
+            [
+                q,
+                Plane {
+                    a: 0.0,
+                    b: 0.0,
+                    c: -ks,
+                },
+                lin(e1, e1.z),
+                Plane {
+                    a: 0.0,
+                    b: 0.0,
+                    c: -kt,
+                },
+                lin(e2, e2.z),
+            ]
+        } else {
+            // P = (X, Y, w); n . P = d  =>  w = (d - n.x X - n.y Y) / n.z.
+            if n.z.abs() <= 1e-12 {
+                return None;
+            }
+            let q = lin(-n, d);
+            let q = Plane {
+                a: q.a / n.z,
+                b: q.b / n.z,
+                c: q.c / n.z,
+            };
+            let sa = lin(e1, -e1.dot(c0));
+            let ta = lin(e2, -e2.dot(c0));
+            [
+                q,
+                sa,
+                Plane {
+                    a: 0.0,
+                    b: 0.0,
+                    c: e1.z,
+                },
+                ta,
+                Plane {
+                    a: 0.0,
+                    b: 0.0,
+                    c: e2.z,
+                },
+            ]
+        };
+        if !planes
+            .iter()
+            .all(|p| p.a.is_finite() && p.b.is_finite() && p.c.is_finite())
+        {
+            return None;
+        }
+
+        // Near plane clip in view space (w >= near), then project. With every corner in front
+        // of the plane the clip returns its input, so it is skipped (the common case).
+        let near = self.near;
+        let mut verts: Verts = if cv[..k].iter().all(|p| p.z - near >= 0.0) {
+            cv[..k].iter().map(|&p| self.project(p)).collect()
+        } else {
+            let clipped = clip(
+                &cv[..k],
+                |p| p.z - near,
+                |a, b, t| {
+                    let mut p = a + t * (b - a);
+                    p.z = p.z.max(near);
+                    p
+                },
+                |p| [p.x, p.y, p.z],
+            );
+            if clipped.len() < 3 {
+                return None;
+            }
+            clipped.iter().map(|&p| self.project(p)).collect()
+        };
+        // Trivial rejection: entirely beyond one side of the image, where no sample lies (sample
+        // positions are strictly inside (0, width) x (0, height)); setup would reject it later.
+        let (w, h) = (self.width as f64, self.height as f64);
+        if verts.iter().all(|p| p[0] < 0.0)
+            || verts.iter().all(|p| p[0] > w)
+            || verts.iter().all(|p| p[1] < 0.0)
+            || verts.iter().all(|p| p[1] > h)
+        {
+            return None;
+        }
+        // Guard band clip in screen space: the projective map keeps straight lines straight.
+        // Skipped when every vertex is inside the band, where each clip returns its input.
+        let (lo_x, hi_x) = (-GUARD_BAND, w + GUARD_BAND);
+        let (lo_y, hi_y) = (-GUARD_BAND, h + GUARD_BAND);
+        let inside = |p: &[f64; 2]| p[0] >= lo_x && p[0] <= hi_x && p[1] >= lo_y && p[1] <= hi_y;
+        if !verts.iter().all(inside) {
+            let lerp2 = |a: [f64; 2], b: [f64; 2], t: f64| {
+                [a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1])]
+            };
+            let key2 = |p: &[f64; 2]| [p[0], p[1], 0.0];
+            verts = clip(&verts, |p| p[0] - lo_x, lerp2, key2);
+            verts = clip(&verts, |p| hi_x - p[0], lerp2, key2);
+            verts = clip(&verts, |p| p[1] - lo_y, lerp2, key2);
+            verts = clip(&verts, |p| hi_y - p[1], lerp2, key2);
+        }
+        if verts.len() < 3 || !verts.iter().all(|p| p[0].is_finite() && p[1].is_finite()) {
+            return None;
+        }
+        Some(ScreenPolygon {
+            id,
+            verts,
+            planes,
+            corners,
+            triangle: poly.shape == Shape::Triangle,
+            perspective: self.perspective,
+            front_facing,
+        })
+    }
+}
+
+/// Sutherland-Hodgman clip of a convex polygon against `dist >= 0`. The intersection on an edge is
+/// computed from its endpoints in lexicographic order of `key`, so two polygons sharing the edge
+/// get bit-identical points.
+fn clip<T: Copy>(
+    poly: &[T],
+    dist: impl Fn(&T) -> f64,
+    lerp: impl Fn(T, T, f64) -> T,
+    key: impl Fn(&T) -> [f64; 3],
+) -> SmallVec<[T; CLIP_CAPACITY]> {
+    let mut out = SmallVec::new();
+    if poly.is_empty() {
+        return out;
+    }
+    for i in 0..poly.len() {
+        let a = poly[i];
+        let b = poly[(i + 1) % poly.len()];
+        let (da, db) = (dist(&a), dist(&b));
+        if da >= 0.0 {
+            out.push(a);
+        }
+        if (da >= 0.0) != (db >= 0.0) {
+            let (p, q, dp, dq) = if key(&a) <= key(&b) {
+                (a, b, da, db)
+            } else {
+                (b, a, db, da)
+            };
+            out.push(lerp(p, q, dp / (dp - dq)));
+        }
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn persp() -> Camera {
+        Camera {
+            eye: DVec3::new(0.0, 0.0, 5.0),
+            look_at: DVec3::ZERO,
+            up: DVec3::Y,
+            projection: Projection::Perspective { fov_y_deg: 90.0 },
+        }
+    }
+
+    #[test]
+    fn perspective_maps_the_look_at_point_to_the_centre_and_the_fov_to_the_edges() {
+        let v = View::new(&persp(), 200, 100, 10.0, f64::INFINITY).unwrap();
+        let c = v.project(v.to_view(DVec3::ZERO));
+        assert_eq!(c, [100.0, 50.0]);
+        // fov 90: at distance 5 the top edge is at y = 5; the image is twice as wide.
+        let top = v.project(v.to_view(DVec3::new(0.0, 5.0, 0.0)));
+        assert!((top[1] - 0.0).abs() < 1e-12);
+        let right = v.project(v.to_view(DVec3::new(10.0, 0.0, 0.0)));
+        assert!((right[0] - 200.0).abs() < 1e-12, "{right:?}");
+    }
+
+    #[test]
+    fn q_plane_is_the_reciprocal_depth_of_the_polygon() {
+        let v = View::new(&persp(), 64, 64, 10.0, f64::INFINITY).unwrap();
+        let p = Polygon::quad(
+            [
+                DVec3::new(-1.0, -1.0, 0.0),
+                DVec3::new(1.0, -1.0, -1.0),
+                DVec3::new(1.0, 1.0, -1.0),
+                DVec3::new(-1.0, 1.0, 0.0),
+            ],
+            0,
+            0,
+        )
+        .unwrap();
+        let sp = v.transform(&p, 0).unwrap();
+        for &(u, w) in &[(0.5, 0.5), (0.1, 0.9), (0.8, 0.3)] {
+            let world = p.point(u, w);
+            let vw = v.to_view(world);
+            let [px, py] = v.project(vw);
+            let q = sp.planes[plane::Q].at(px, py);
+            assert!((1.0 / q - vw.z).abs() < 1e-9, "{} vs {}", 1.0 / q, vw.z);
+            let wd = 1.0 / q;
+            let s = sp.planes[plane::SA].at(px, py) + wd * sp.planes[plane::SB].at(px, py);
+            let t = sp.planes[plane::TA].at(px, py) + wd * sp.planes[plane::TB].at(px, py);
+            // (s, t) must be the point's coordinates in the frame, |P - c0| = |(s, t)|.
+            let dist = (world - p.corners[0]).length();
+            assert!(((s * s + t * t).sqrt() - dist).abs() < 1e-9);
+        }
+    }
+
+    #[test]
+    fn near_clip_of_a_polygon_through_the_eye_plane_keeps_the_front_part() {
+        let v = View::new(&persp(), 64, 64, 10.0, f64::INFINITY).unwrap();
+        // A floor quad reaching from behind the camera to the far side.
+        let p = Polygon::quad(
+            [
+                DVec3::new(-1.0, -1.0, 10.0),
+                DVec3::new(1.0, -1.0, 10.0),
+                DVec3::new(1.0, -1.0, -10.0),
+                DVec3::new(-1.0, -1.0, -10.0),
+            ],
+            0,
+            0,
+        )
+        .unwrap();
+        let sp = v.transform(&p, 0).unwrap();
+        assert!(sp.verts.len() >= 3);
+        assert!(sp
+            .verts
+            .iter()
+            .all(|q| q[0].is_finite() && q[1].is_finite()));
+        assert!(
+            sp.verts.iter().all(|q| q[1] >= 32.0 - 1e-9),
+            "{:?}",
+            sp.verts
+        );
+    }
+
+    #[test]
+    fn bad_cameras_are_usage_errors() {
+        let mut c = persp();
+        c.up = DVec3::Z;
+        assert!(View::new(&c, 8, 8, 1.0, f64::INFINITY).is_err());
+        let mut c = persp();
+        c.look_at = c.eye;
+        assert!(View::new(&c, 8, 8, 1.0, f64::INFINITY).is_err());
+        let mut c = persp();
+        c.projection = Projection::Perspective { fov_y_deg: 180.0 };
+        assert!(View::new(&c, 8, 8, 1.0, f64::INFINITY).is_err());
+    }
+}

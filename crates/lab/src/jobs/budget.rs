@@ -1,0 +1,521 @@
+//! The resource budget: one estimator of the memory a job will hold, compared with one limit
+//! before anything large is allocated, so a request that cannot fit is refused (exit code 2,
+//! [`Error::Memory`], the estimate and what it is made of in the message) instead of growing
+//! until the allocator aborts the process.
+//!
+//! **The limit** travels in the job's [`super::Context`] (`memory_limit`): the binary sets it from
+//! `--memory-limit`, by default [`default_limit`] (three quarters of the machine's physical
+//! memory, read from `/proc/meminfo`; 8 GiB where that cannot be read); a library caller that
+//! sets none has no limit. Every allocation site a job reaches (solve, textures, mesh, frame,
+//! outputs) checks its estimate against that one value.
+//!
+//! **What is estimated**, from the sizes each stage itself exports (never from a measurement):
+//! - **solve**: the quadtrees and samples ([`shoot::state_bytes`]), the RRPs built from them,
+//!   the cache of coarse transfers, the pair tables (every shooter against every polygon with
+//!   exact visibility, against at most its probe rays' hits with sampled visibility:
+//!   [`transfer::pair_table_bound`]) and the shooters' sample points, with every tree at its starting
+//!   depth (`min_depth`, or its shooter-patch depth if deeper: what the solve surely allocates,
+//!   checked before it starts) and, as the worst case, every tree as deep as its smallest
+//!   element size lets it refine ([`shoot::depth_bound`]). The worst case is reported, not
+//!   refused: adaptive refinement rarely comes near it. Not estimable in advance: the occluder
+//!   candidate lists of occluded pairs, which only the classification finds (the gallery:
+//!   386,000 occluded pairs with 12 candidates each, 18 MB). So the solve also guards itself
+//!   ([`radiosity::SolveOptions::memory_limit`]): its actual trees and pair tables,
+//!   candidates included, are checked before every refinement pass and every new pair table,
+//!   and it stops with [`Error::Memory`] before it would pass the limit.
+//! - **textures**: every polygon's side under the size policy ([`TextureSet::sides`]), 32-bit
+//!   texels with mip chains, plus the expanded RRPs they are resampled from, checked before they
+//!   are built, with what is held already (solution and compact RRPs);
+//! - **mesh**: at most two triangles per leaf plus one per T-vertex, each with its vertices,
+//!   indices and its primitive record in a frame ([`MESH_TRIANGLE_BYTES`]), checked likewise;
+//! - **frame**: the region G-buffers of every sample (all regions are held until shading, and
+//!   renderers' parts may wait for composition: `renderers + 1` copies at
+//!   [`PIXEL_RECORD_BYTES`]), the shaded samples and the image ([`frame_bytes`]);
+//! - **outputs**: the 8-bit PNG buffer and the 32-bit EXR buffer, each held twice while encoding
+//!   ([`output_bytes`]).
+//!
+//! These are the allocations that grow with the scene and the request; the program itself, its
+//! thread stacks and the allocator's slack (about 6 MB resident on Linux) are not counted, nor
+//! are short-lived buffers smaller than the largest counted one. docs/performance.md compares
+//! the estimates with measured peaks.
+//!
+//! Work is bounded where it can run away: the option limits of [`base::method`] and the binary
+//! (threads, renderers, frame counts, image sides) cap it; the solve reports its progress.
+
+use base::error::{human_bytes, Error, Result};
+use engine::raster::gbuffer::PIXEL_RECORD_BYTES;
+use radiosity::shoot;
+use radiosity::transfer;
+use reconstruction::texture::{SizePolicy, TextureMemory, TextureSet};
+use reconstruction::PatchCoeffs;
+use scene::Scene;
+
+/// Physical memory of this machine in bytes (`MemTotal` of `/proc/meminfo`), if it can be read.
+pub fn machine_memory() -> Option<u64> {
+    let text = std::fs::read_to_string("/proc/meminfo").ok()?;
+    let line = text.lines().find(|l| l.starts_with("MemTotal:"))?;
+    let kib: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    kib.checked_mul(1024)
+}
+
+/// Used when the machine's memory cannot be read.
+pub const FALLBACK_LIMIT: u64 = 8 << 30;
+
+/// The default limit: three quarters of the machine's physical memory (the rest for the system
+/// and for what the estimates do not count), or [`FALLBACK_LIMIT`].
+pub fn default_limit() -> u64 {
+    machine_memory().map_or(FALLBACK_LIMIT, |m| m / 4 * 3)
+}
+
+/// Parses a memory size: a number of bytes with an optional unit, `K`/`M`/`G`/`T` (binary,
+/// also written `KiB` .. `TiB`, or with a `B`), case-insensitive, a decimal fraction allowed
+/// (`1.5G`); or `none` / `unlimited` for no limit (`u64::MAX`). Zero is refused.
+pub fn parse_size(text: &str) -> std::result::Result<u64, String> {
+    let t = text.trim();
+    let lower = t.to_ascii_lowercase();
+    if lower == "none" || lower == "unlimited" {
+        return Ok(u64::MAX);
+    }
+    let split = lower
+        .find(|c: char| !(c.is_ascii_digit() || c == '.'))
+        .unwrap_or(lower.len());
+    let (num, unit) = lower.split_at(split);
+    let shift = match unit.trim() {
+        "" | "b" => 0,
+        "k" | "kb" | "kib" => 10,
+        "m" | "mb" | "mib" => 20,
+        "g" | "gb" | "gib" => 30,
+        "t" | "tb" | "tib" => 40,
+        u => {
+            return Err(format!(
+                "unknown unit `{u}`: write bytes, or a number with K, M, G or T"
+            ))
+        }
+    };
+    let x: f64 = num
+        .parse()
+        .map_err(|_| format!("`{t}` is not a size (for example 512M, 8G or 8589934592)"))?;
+    let bytes = x * (1u64 << shift) as f64;
+    if !(bytes.is_finite() && bytes >= 1.0) {
+        return Err("must be at least 1 byte".into());
+    }
+    if bytes >= u64::MAX as f64 {
+        return Ok(u64::MAX);
+    }
+    Ok(bytes as u64)
+}
+
+/// One estimate: what it is for, its parts (name, bytes) and what to change if it is too big.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Estimate {
+    /// The job or stage (`the solve of scenes/a.toml`).
+    pub what: String,
+    /// Named parts in bytes, in the order they were added.
+    pub parts: Vec<(String, u64)>,
+    /// What lowers it.
+    pub hint: String,
+}
+
+impl Estimate {
+    /// An empty estimate.
+    pub fn new(what: impl Into<String>, hint: impl Into<String>) -> Estimate {
+        Estimate {
+            what: what.into(),
+            parts: Vec::new(),
+            hint: hint.into(),
+        }
+    }
+
+    /// Adds a part.
+    pub fn add(&mut self, name: impl Into<String>, bytes: u64) -> &mut Estimate {
+        self.parts.push((name.into(), bytes));
+        self
+    }
+
+    /// The sum of the parts (saturating).
+    pub fn total(&self) -> u64 {
+        self.parts
+            .iter()
+            .fold(0u64, |a, (_, b)| a.saturating_add(*b))
+    }
+
+    /// `quadtrees 1.2 GiB + pair tables 3.0 MiB`.
+    pub fn detail(&self) -> String {
+        self.parts
+            .iter()
+            .map(|(n, b)| format!("{n} {}", human_bytes(*b)))
+            .collect::<Vec<_>>()
+            .join(" + ")
+    }
+
+    /// `Ok` if the total is at most `limit`, else [`Error::Memory`] with the estimate.
+    pub fn check(&self, limit: u64) -> Result<()> {
+        let total = self.total();
+        if total <= limit {
+            return Ok(());
+        }
+        Err(Error::Memory {
+            what: self.what.clone(),
+            estimate: total,
+            limit,
+            detail: self.detail(),
+            hint: self.hint.clone(),
+        })
+    }
+}
+
+/// Nodes and samples of one quadtree refined uniformly to `depth` (saturating).
+fn uniform_tree(depth: u32) -> (u64, u64) {
+    let d = depth.min(30);
+    let nodes = ((1u64 << (2 * d + 2)) - 1) / 3;
+    let side = (1u64 << d) + 1;
+    (nodes, side * side)
+}
+
+/// Which depth [`solve_parts`] puts every quadtree at.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Depth {
+    /// The starting depth: `min_depth`, or the polygon's shooter-patch depth if deeper (what
+    /// the solve surely allocates).
+    Start,
+    /// The deepest a polygon's leaves can reach ([`shoot::depth_bound`], at most `max_depth`),
+    /// uniformly: the worst case.
+    Worst,
+}
+
+/// Per polygon, the uniform depth of its quadtree under `depth`.
+pub fn polygon_depths(scene: &Scene, depth: Depth) -> Vec<u32> {
+    let st = &scene.radiosity;
+    let total_area: f64 = scene.polygons.iter().map(|p| p.area).sum();
+    let min_size = shoot::min_element_size(scene);
+    scene
+        .polygons
+        .iter()
+        .enumerate()
+        .map(|(i, p)| {
+            let pd = if scene.material_of(i).reflectance.max_element() > 0.0 {
+                transfer::patch_depth(p.area, total_area, st.max_depth)
+            } else {
+                0
+            };
+            let start = st.min_depth.max(pd).min(st.max_depth.max(pd));
+            match depth {
+                Depth::Start => start,
+                Depth::Worst => start.max(shoot::depth_bound(scene, i, min_size)),
+            }
+        })
+        .collect()
+}
+
+/// The solve's memory with every quadtree uniformly at `depth`, as parts: quadtrees and
+/// samples, the RRPs built from them, the cache of coarse transfers (at most
+/// [`shoot::COARSE_CACHE_ENTRIES`]), pair tables, shooters.
+pub fn solve_parts(scene: &Scene, depth: Depth) -> Vec<(String, u64)> {
+    let st = &scene.radiosity;
+    let total_area: f64 = scene.polygons.iter().map(|p| p.area).sum();
+    let nrays = u64::from(st.shadow_rays.max(1));
+    let (mut nodes, mut vertices, mut leaves) = (0u64, 0u64, 0u64);
+    let (mut shooters, mut shooter_points, mut coarse) = (0u64, 0u64, 0u64);
+    shooters += scene.spots.len() as u64;
+    let mut lights = shooters;
+    for (i, d) in polygon_depths(scene, depth).into_iter().enumerate() {
+        let (n, v) = uniform_tree(d);
+        nodes = nodes.saturating_add(n);
+        vertices = vertices.saturating_add(v);
+        leaves = leaves.saturating_add(1u64 << (2 * d.min(30)));
+        let m = scene.material_of(i);
+        if m.is_emitter() {
+            shooters += 1;
+            lights += 1;
+            shooter_points += nrays;
+        }
+        if m.reflectance.max_element() > 0.0 {
+            let pd = transfer::patch_depth(scene.polygons[i].area, total_area, st.max_depth);
+            let patches = 1u64 << (2 * pd);
+            shooters += patches;
+            shooter_points += patches * nrays.div_ceil(4);
+            coarse += uniform_tree(pd + 1).1;
+        }
+    }
+    vec![
+        (
+            "quadtrees and samples".to_string(),
+            shoot::state_bytes(nodes, vertices),
+        ),
+        (
+            // Built from the finished solution (solve and render jobs): one expanded patch
+            // per leaf while the compact form is made.
+            "RRP build".to_string(),
+            leaves.saturating_mul(std::mem::size_of::<PatchCoeffs>() as u64),
+        ),
+        (
+            "coarse transfer cache".to_string(),
+            4 * shooters
+                .saturating_mul(coarse)
+                .min(shoot::COARSE_CACHE_ENTRIES as u64),
+        ),
+        (
+            "pair tables".to_string(),
+            transfer::pair_table_bound(scene, shooters, lights),
+        ),
+        ("shooters".to_string(), shooter_points.saturating_mul(3 * 8)),
+    ]
+}
+
+/// The solve's estimate: what it surely allocates ([`Depth::Start`]) as an [`Estimate`], and
+/// the worst case ([`Depth::Worst`]) in bytes.
+pub fn solve_estimate(scene: &Scene) -> (Estimate, u64) {
+    let mut e = Estimate::new(
+        format!("the solve of {}", scene.source.display()),
+        "lower radiosity.min_depth, use fewer polygons, or raise --memory-limit",
+    );
+    for (name, b) in solve_parts(scene, Depth::Start) {
+        e.add(name, b);
+    }
+    let worst = solve_parts(scene, Depth::Worst)
+        .iter()
+        .fold(0u64, |a, (_, b)| a.saturating_add(*b));
+    (e, worst)
+}
+
+/// The worst case of the methods' own data: textures (under `policy`) and mesh with every
+/// quadtree uniformly at its [`Depth::Worst`] depth, in bytes.
+pub fn worst_method_bytes(scene: &Scene, policy: SizePolicy) -> Result<(u64, u64)> {
+    let depths = polygon_depths(scene, Depth::Worst);
+    let (mut nodes, mut leaves) = (0u64, 0u64);
+    for &d in &depths {
+        let (n, _) = uniform_tree(d);
+        nodes = nodes.saturating_add(n);
+        leaves = leaves.saturating_add(1u64 << (2 * d.min(30)));
+    }
+    let textures = texture_bytes(&depths, policy, leaves, nodes)?;
+    Ok((textures, mesh_bytes(leaves, 0)))
+}
+
+/// Bytes of a frame of `width` x `height` pixels with `samples` samples per pixel and
+/// `renderers` renderers, as an upper bound: `renderers + 1` G-buffer records per sample, a
+/// shaded RGB `f32` per sample, and the RGB `f32` image. The frame engine holds far less (two
+/// region G-buffers per worker thread, reused region after region, plus the image);
+/// the bound is kept whole-frame so that it holds for any thread count and region size.
+pub fn frame_bytes(width: u32, height: u32, samples: u32, renderers: u32) -> u64 {
+    let pixels = u64::from(width) * u64::from(height);
+    let s = pixels.saturating_mul(u64::from(samples.max(1)));
+    s.saturating_mul(PIXEL_RECORD_BYTES.saturating_mul(u64::from(renderers) + 1) + 12)
+        .saturating_add(pixels.saturating_mul(12))
+}
+
+/// Bytes of the output buffers: the 8-bit RGB PNG (3 B per pixel) and the 32-bit RGB EXR
+/// (12 B per pixel), each counted twice (the pixels and the encoder's copy).
+pub fn output_bytes(width: u32, height: u32, png: bool, exr: bool) -> u64 {
+    let pixels = u64::from(width) * u64::from(height);
+    let per = if png { 3 } else { 0 } + if exr { 12 } else { 0 };
+    pixels.saturating_mul(2 * per)
+}
+
+/// Bytes of the radiosity textures under `policy` for quadtrees of the given `depths` (32-bit
+/// texels with mip chains, as they are held), plus the expanded RRPs with `leaves` leaves and
+/// `nodes` nodes they are resampled from.
+pub fn texture_bytes(depths: &[u32], policy: SizePolicy, leaves: u64, nodes: u64) -> Result<u64> {
+    let sides = TextureSet::sides(depths, policy)?;
+    let m = TextureMemory::of_sides(&sides);
+    let rrps = leaves
+        .saturating_mul(std::mem::size_of::<PatchCoeffs>() as u64)
+        .saturating_add(nodes.saturating_mul(4))
+        .saturating_add(4 * depths.len() as u64);
+    Ok(m.bytes_with_chain[2].saturating_add(rrps))
+}
+
+/// Bytes one Gouraud mesh triangle takes: its polygon record in the mesh's scene, its colour
+/// patch, its source polygon and parent (u, v), and while a frame draws it its primitive record
+/// and a bin entry.
+pub const MESH_TRIANGLE_BYTES: u64 = (std::mem::size_of::<scene::Polygon>()
+    + std::mem::size_of::<PatchCoeffs>()
+    + 4
+    + 48
+    + std::mem::size_of::<engine::raster::setup::Prim>()
+    + 4) as u64;
+
+/// Bytes of the Gouraud mesh of a solution with `leaves` leaves and `t_vertices` T-vertices.
+/// A leaf with `k` T-vertices on its edges becomes `2 + k` triangles fanned from a corner, or
+/// `4 + k` fanned from its centre when `k >= 2`; both are at most `2 + 2k`, so the mesh has at
+/// most `2 leaves + 2 t_vertices` triangles.
+pub fn mesh_bytes(leaves: u64, t_vertices: u64) -> u64 {
+    leaves
+        .saturating_add(t_vertices)
+        .saturating_mul(2)
+        .saturating_mul(MESH_TRIANGLE_BYTES)
+}
+
+/// Refuses a solve of `scene` whose sure allocation is over `limit`.
+pub fn check_solve(scene: &Scene, limit: u64) -> Result<()> {
+    solve_estimate(scene).0.check(limit)
+}
+
+/// Refuses frames under `opts` (and outputs: PNG, EXR) over `limit`.
+pub fn check_frame_options(
+    opts: &engine::frame::FrameOptions,
+    outputs: (bool, bool),
+    limit: u64,
+) -> Result<()> {
+    check_frame(
+        opts.width,
+        opts.height,
+        opts.aa,
+        opts.renderers,
+        outputs,
+        limit,
+    )
+}
+
+/// The estimate of a frame of `width` x `height` pixels with `samples` samples per pixel and
+/// `renderers` renderers, and its outputs (`outputs`: PNG, EXR).
+pub fn frame_estimate(
+    width: u32,
+    height: u32,
+    samples: u32,
+    renderers: u32,
+    outputs: (bool, bool),
+) -> Estimate {
+    let mut e = Estimate::new(
+        format!("a {width} x {height} frame with {samples} samples per pixel"),
+        "lower --width/--height, --aa or --renderers, or raise --memory-limit",
+    );
+    e.add(
+        "G-buffers and image",
+        frame_bytes(width, height, samples, renderers),
+    );
+    e.add("outputs", output_bytes(width, height, outputs.0, outputs.1));
+    e
+}
+
+/// Refuses a frame (and its outputs) over `limit`.
+pub fn check_frame(
+    width: u32,
+    height: u32,
+    samples: u32,
+    renderers: u32,
+    outputs: (bool, bool),
+    limit: u64,
+) -> Result<()> {
+    frame_estimate(width, height, samples, renderers, outputs).check(limit)
+}
+
+/// What `check` reports for a scene: the solve (what it surely allocates, and the worst case),
+/// one frame at the scene's image size with a PNG, and the worst cases of the textures and the
+/// mesh.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct SceneBudget {
+    /// The solve at its starting depth (refused over the limit).
+    pub solve: Estimate,
+    /// The solve with every tree as deep as it can refine, bytes (reported only).
+    pub solve_worst: u64,
+    /// One frame at the scene's size, samples and the default renderer count, with a PNG
+    /// (refused over the limit).
+    pub frame: Estimate,
+    /// Renderers the frame estimate assumes.
+    pub renderers: u32,
+    /// Textures under the scene's size policy at the worst depths, bytes (reported only).
+    pub textures_worst: u64,
+    /// The mesh at the worst depths, bytes (reported only).
+    pub mesh_worst: u64,
+}
+
+impl SceneBudget {
+    /// Refuses what a solve or render of the scene would refuse: the solve's or the frame's
+    /// estimate over `limit`.
+    pub fn check(&self, limit: u64) -> Result<()> {
+        self.solve.check(limit)?;
+        self.frame.check(limit)
+    }
+}
+
+/// The [`SceneBudget`] of `scene`.
+pub fn scene_budget(scene: &Scene) -> Result<SceneBudget> {
+    let (solve, solve_worst) = solve_estimate(scene);
+    let renderers = engine::frame::FrameOptions::new(scene.width, scene.height).renderers;
+    let frame = frame_estimate(
+        scene.width,
+        scene.height,
+        scene.render.aa_samples,
+        renderers,
+        (true, false),
+    );
+    let (textures_worst, mesh_worst) =
+        worst_method_bytes(scene, super::scene_texture_policy(scene))?;
+    Ok(SceneBudget {
+        solve,
+        solve_worst,
+        frame,
+        renderers,
+        textures_worst,
+        mesh_worst,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn sizes_parse_with_binary_units() {
+        assert_eq!(parse_size("123"), Ok(123));
+        assert_eq!(parse_size("4k"), Ok(4096));
+        assert_eq!(parse_size("512M"), Ok(512 << 20));
+        assert_eq!(parse_size("8GiB"), Ok(8 << 30));
+        assert_eq!(parse_size("1.5 G"), Ok(3 << 29));
+        assert_eq!(parse_size("2tb"), Ok(2 << 40));
+        assert_eq!(parse_size("none"), Ok(u64::MAX));
+        assert_eq!(
+            parse_size("1e300T"),
+            Err("unknown unit `e300t`: write bytes, or a number with K, M, G or T".into())
+        );
+        assert!(parse_size("0").is_err());
+        assert!(parse_size("-5G").is_err());
+        assert!(parse_size("").is_err());
+        assert!(parse_size("5X").is_err());
+        assert_eq!(parse_size("99999999999999999999T"), Ok(u64::MAX));
+    }
+
+    #[test]
+    fn uniform_tree_counts_match_a_built_tree() {
+        for d in 0..5 {
+            let mut t = base::quadtree::Quadtree::new();
+            let mut frontier = vec![0u32];
+            for _ in 0..d {
+                let mut next = Vec::new();
+                for id in frontier {
+                    let f = t.split(id);
+                    next.extend(f..f + 4);
+                }
+                frontier = next;
+            }
+            assert_eq!(
+                uniform_tree(d),
+                (t.nodes().len() as u64, t.vertex_keys().len() as u64)
+            );
+        }
+    }
+
+    #[test]
+    fn an_estimate_over_the_limit_names_its_parts() {
+        let mut e = Estimate::new("the solve of a.toml", "lower it");
+        e.add("quadtrees", 3 << 30).add("pair tables", 1 << 20);
+        assert_eq!(e.total(), (3 << 30) + (1 << 20));
+        assert!(e.check(4 << 30).is_ok());
+        let err = e.check(1 << 30).unwrap_err();
+        assert_eq!(err.exit_code(), base::error::EXIT_BAD_INPUT);
+        assert_eq!(
+            err.to_string(),
+            "the solve of a.toml needs an estimated 3.0 GiB (quadtrees 3.0 GiB + pair tables \
+             1.0 MiB), over the memory limit of 1.0 GiB; lower it"
+        );
+    }
+
+    #[test]
+    fn the_largest_frame_is_refused_under_a_machine_sized_limit() {
+        // 16384^2 pixels x 16 samples x (2 renderers + 1) x 20 B alone is 240 GiB.
+        let e = check_frame(16384, 16384, 16, 2, (true, true), 24 << 30).unwrap_err();
+        assert!(e.to_string().contains("16384 x 16384"), "{e}");
+        assert!(check_frame(1024, 1024, 4, 2, (true, true), 24 << 30).is_ok());
+    }
+}

@@ -1,0 +1,565 @@
+//! Jobs: what the command line runs, each built from the stages in the same three steps.
+//!
+//! 1. **Load the input** ([`Input::load`]): a scene file, or a solution file and the scene it
+//!    names. This is cheap (parsing and checking the scene, checking the solution file's envelope)
+//!    and gives every job what it needs to validate its options.
+//! 2. **Plan**: every option and setting is resolved against the scene's defaults and checked
+//!    (method, antialiasing, image size, renderers, region, texture size or budget, camera path),
+//!    so a bad value is refused in milliseconds with an [`base::Error::InvalidOption`], before
+//!    any solve.
+//! 3. **Prepare and run** ([`prepare`]): solve (or read the solution), build the RRPs in compact
+//!    form (what the direct method evaluates: quantized vertex data, each patch expanded when a
+//!    screen region first needs it), then render, measure or tabulate. The expanded patches (which
+//!    the texture methods resample), the textures and the mesh are built lazily on first use, so a
+//!    job that only draws `direct` never pays for them.
+//!
+//! The jobs: [`solve`] (scene to solution file), [`render`] (one frame or a walkthrough to PNG,
+//! EXR and statistics), [`mod@bench`] (frame times, methods interleaved), [`stats`] (the paper's
+//! Table 1), [`sweep`] (speed against error over sampling densities and texture sizes);
+//! [`walkthrough`] summarizes a walkthrough's frames. Each runs in the caller's rayon pool, so the
+//! thread count is the caller's choice and the results do not depend on it. Progress reaches the
+//! caller through a [`base::progress::Observer`]; the library prints nothing.
+
+pub mod bench;
+pub mod compare;
+pub mod equal_error;
+pub mod budget;
+pub mod memory;
+pub mod render;
+pub mod solve;
+pub mod stats;
+pub mod sweep;
+pub mod walkthrough;
+
+use std::path::{Path, PathBuf};
+use std::sync::OnceLock;
+use std::time::Instant;
+
+use base::error::{Error, Result};
+use base::method::{check_texture_side, Method, Placement};
+use base::progress::Observer;
+use engine::frame::FrameOptions;
+use lanes::Isa;
+use radiosity::{self, file as solution_file, Solution, SolveOptions};
+use reconstruction::compact::CompactReconstruction;
+use reconstruction::mesh::MeshModel;
+use reconstruction::texture::{SizePolicy, TextureSet};
+use reconstruction::{Estimator, Reconstruction};
+use scene::{load_scene, Scene};
+
+/// What a job may use, given by its caller and passed down explicitly (the library holds no
+/// process-wide setting): the memory limit every estimate is checked against, the instruction
+/// set frames run with, and the observer progress goes to.
+#[derive(Clone, Copy)]
+pub struct Context<'a> {
+    /// Bytes a job may hold ([`budget`]'s estimates are refused above it); `u64::MAX`: none.
+    pub memory_limit: u64,
+    /// The instruction set the frames' kernels run with (a choice of speed: the images are the
+    /// same for every one).
+    pub isa: Isa,
+    /// Where progress and trace lines go.
+    pub observer: &'a dyn Observer,
+}
+
+impl<'a> Context<'a> {
+    /// No memory limit, the widest instruction set the CPU has, progress to `observer`.
+    pub fn new(observer: &'a dyn Observer) -> Context<'a> {
+        Context {
+            memory_limit: u64::MAX,
+            isa: Isa::detect(),
+            observer,
+        }
+    }
+
+    /// This context with a memory limit of `bytes`.
+    pub fn with_memory_limit(self, bytes: u64) -> Context<'a> {
+        Context {
+            memory_limit: bytes,
+            ..self
+        }
+    }
+
+    /// This context with progress going to `observer`.
+    pub fn with_observer<'b>(&self, observer: &'b dyn Observer) -> Context<'b> {
+        Context {
+            memory_limit: self.memory_limit,
+            isa: self.isa,
+            observer,
+        }
+    }
+
+    /// This context with the instruction set `isa`.
+    pub fn with_isa(self, isa: Isa) -> Context<'a> {
+        Context { isa, ..self }
+    }
+
+    /// Frame options for a `width` x `height` image with the defaults and this context's
+    /// instruction set.
+    pub fn frame_options(&self, width: u32, height: u32) -> FrameOptions {
+        FrameOptions {
+            isa: self.isa,
+            ..FrameOptions::new(width, height)
+        }
+    }
+}
+
+impl Default for Context<'static> {
+    /// [`Context::new`] with no observer ([`base::progress::SILENT`]).
+    fn default() -> Context<'static> {
+        Context::new(&base::progress::SILENT)
+    }
+}
+
+/// A job's input, loaded and checked but not solved: the scene, and the solution file if the
+/// input was one.
+#[derive(Debug, Clone)]
+pub struct Input {
+    /// The path the user gave.
+    pub path: PathBuf,
+    /// The scene (from the file itself, or the one the solution file names).
+    pub scene: Scene,
+    /// The solution file, when the input is one (its envelope is checked already).
+    pub solution_file: Option<PathBuf>,
+    /// The RRPs' derivative estimator (`--estimator`; default [`Estimator::default`]). A
+    /// solution file's stored RRPs were built with the default; another estimator rebuilds
+    /// them from the samples.
+    pub estimator: Estimator,
+}
+
+impl Input {
+    /// Loads a scene file, or a solution file's scene (checking the solution file's magic,
+    /// version, length and checksum). A file is a solution file by its magic bytes, or by its
+    /// `.pfsol` extension (so an empty or damaged one is reported as a bad solution file, not as
+    /// a scene that fails to parse). Nothing is solved.
+    pub fn load(path: &Path) -> Result<Input> {
+        let named_solution = path
+            .extension()
+            .is_some_and(|e| e.eq_ignore_ascii_case(SOLUTION_EXTENSION));
+        if named_solution || is_solution_file(path) {
+            let scene_path = solution_file::read_scene_path(path)?;
+            Ok(Input {
+                path: path.to_path_buf(),
+                scene: load_scene(&scene_path)?,
+                solution_file: Some(path.to_path_buf()),
+                estimator: Estimator::default(),
+            })
+        } else {
+            Ok(Input {
+                path: path.to_path_buf(),
+                scene: load_scene(path)?,
+                solution_file: None,
+                estimator: Estimator::default(),
+            })
+        }
+    }
+}
+
+/// The extension of solution files (`solve -o x.pfsol`).
+pub const SOLUTION_EXTENSION: &str = "pfsol";
+
+/// Whether `path` is a solution file (by its magic bytes) rather than a scene.
+pub fn is_solution_file(path: &Path) -> bool {
+    use std::io::Read;
+    let mut magic = [0u8; 8];
+    std::fs::File::open(path)
+        .and_then(|mut f| f.read_exact(&mut magic))
+        .map(|_| &magic == solution_file::MAGIC)
+        .unwrap_or(false)
+}
+
+/// Command-line choices of the texture methods (all optional; the scene's `[render]` gives the
+/// defaults).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct TextureOptions {
+    /// One texture side for every polygon (`--texture-size`, a power of two).
+    pub size: Option<u32>,
+    /// A texture memory budget in bytes at 12 bits per channel with mip chains
+    /// (`--texture-budget`).
+    pub budget: Option<u64>,
+    /// The bicubic filter's (B, C) (`--bicubic B,C`; default Mitchell–Netravali 1/3, 1/3).
+    pub bicubic: Option<(f32, f32)>,
+    /// Where the texels sit, by name (`--texel-placement centre|corner`), checked by
+    /// [`TextureOptions::placement`] in the plan.
+    pub placement: Option<String>,
+}
+
+impl TextureOptions {
+    /// The size policy these options choose for `scene`, checked against it: a size (a power of
+    /// two in range), a budget (at least what 1 x 1 textures of every polygon of the scene take),
+    /// or the scene's [`scene_texture_policy`]. Giving both a size and a budget is an error.
+    pub fn policy(&self, scene: &Scene) -> Result<SizePolicy> {
+        let policy = match (self.size, self.budget) {
+            (Some(n), Some(_)) => {
+                return Err(Error::invalid_option(
+                    "--texture-size",
+                    n.to_string(),
+                    "excludes --texture-budget; give one of them",
+                ))
+            }
+            (Some(n), None) => {
+                check_texture_side("--texture-size", n)?;
+                SizePolicy::Fixed(n)
+            }
+            (None, Some(b)) => SizePolicy::Budget(b),
+            (None, None) => scene_texture_policy(scene),
+        };
+        // Whether a budget can be met depends only on the polygon count (every texture can
+        // shrink to 1 x 1), which the scene gives before any solve.
+        TextureSet::sides(&vec![0; scene.polygons.len()], policy)?;
+        Ok(policy)
+    }
+
+    /// The texel placement: `--texel-placement` if given (an unknown name is an
+    /// [`Error::InvalidOption`] naming it), else the scene's `[render] texel_placement`.
+    pub fn placement(&self, scene: &Scene) -> Result<Placement> {
+        match &self.placement {
+            Some(name) => Placement::parse_option("--texel-placement", name),
+            None => Ok(scene.render.texel_placement),
+        }
+    }
+
+    /// `method` with these options' bicubic parameters applied (checked).
+    pub fn method(&self, method: Method) -> Result<Method> {
+        match self.bicubic {
+            Some((b, c)) => method.with_bicubic(b, c),
+            None => Ok(method),
+        }
+    }
+}
+
+/// The texture size policy a scene asks for: `[render] texture_size` 0 means per polygon from
+/// its quadtree depth, any other value one fixed size.
+pub fn scene_texture_policy(scene: &Scene) -> SizePolicy {
+    match scene.render.texture_size {
+        0 => SizePolicy::FromDepth,
+        n => SizePolicy::Fixed(n),
+    }
+}
+
+/// A scene with its solution and reconstruction: everything a frame needs.
+pub struct Prepared {
+    /// The scene.
+    pub scene: Scene,
+    /// Its radiosity solution (solved now, or read from a file).
+    pub solution: Solution,
+    /// The RRPs of every polygon in compact form: what the direct method holds and evaluates.
+    pub compact: CompactReconstruction,
+    /// Time spent solving in this run (0 when read from a file), ms.
+    pub solve_ms: f64,
+    /// Time spent building the compact RRPs, ms.
+    pub reconstruction_ms: f64,
+    /// The derivative estimator the RRPs (compact and expanded) are built with.
+    pub estimator: Estimator,
+    /// How the texture methods size their textures (fixed by [`prepare`]).
+    texture_policy: SizePolicy,
+    /// Where the texture methods place their texels (fixed by [`prepare`]).
+    texture_placement: Placement,
+    /// The memory limit the lazily built textures and mesh are checked against.
+    memory_limit: u64,
+    /// The solution file the solution was read from (`None`: solved in this run).
+    pub solution_file: Option<PathBuf>,
+    expanded: OnceLock<(Reconstruction, f64)>,
+    textures: OnceLock<(TextureSet, f64)>,
+    mesh: OnceLock<(MeshModel, f64)>,
+}
+
+impl Prepared {
+    /// How the texture methods size their textures.
+    pub fn texture_policy(&self) -> SizePolicy {
+        self.texture_policy
+    }
+
+    /// Where the texture methods place their texels.
+    pub fn texture_placement(&self) -> Placement {
+        self.texture_placement
+    }
+
+    /// A failure of a later stage on data read from a solution file (a value no solve would
+    /// produce behind a valid checksum) is that file's fault: an [`Error::Solution`]
+    /// ([`base::error::SolutionProblem::Corrupt`], exit 2), not a runtime failure. Errors of a
+    /// fresh solve's data pass through.
+    fn file_error(&self, e: Error) -> Error {
+        match (e, &self.solution_file) {
+            (Error::Runtime(m), Some(path)) => Error::solution(
+                path,
+                base::error::SolutionProblem::Corrupt,
+                format!("corrupt solution file: {m}"),
+            ),
+            (e, _) => e,
+        }
+    }
+
+    /// Bytes held before any method's data: the solution's trees and samples and the compact
+    /// RRPs.
+    pub fn held_bytes(&self) -> u64 {
+        let st = &self.solution.stats;
+        let nodes: u64 = self
+            .solution
+            .polygons
+            .iter()
+            .map(|p| p.tree.nodes().len() as u64)
+            .sum();
+        radiosity::shoot::state_bytes(nodes, st.vertices)
+            .saturating_add(self.compact.stats().total_bytes as u64)
+    }
+
+    /// The RRPs with every patch expanded to power basis (unquantized vertex data), built on
+    /// first use (the texture methods resample them; the direct method does not need them), with
+    /// their build time in ms.
+    pub fn expanded(&self) -> Result<(&Reconstruction, f64)> {
+        if self.expanded.get().is_none() {
+            let t = Instant::now();
+            let r = Reconstruction::build(&self.solution.polygons, self.estimator)
+                .map_err(|e| self.file_error(e))?;
+            let _ = self.expanded.set((r, t.elapsed().as_secs_f64() * 1e3));
+        }
+        let (r, ms) = self
+            .expanded
+            .get()
+            .ok_or_else(|| Error::Runtime("expanded RRPs missing after build".into()))?;
+        Ok((r, *ms))
+    }
+
+    /// The radiosity textures under [`Prepared::texture_policy`], built on first use (a scene
+    /// rendered only with the direct method never pays for them), with their build time in ms.
+    ///
+    /// Refused with [`Error::Memory`] before anything is built when their estimate
+    /// ([`budget::texture_bytes`]) and what is held already pass the job's memory limit.
+    pub fn textures(&self) -> Result<(&TextureSet, f64)> {
+        if self.textures.get().is_none() {
+            let depths = TextureSet::depths(&self.solution.polygons);
+            let cs = self.compact.stats();
+            let mut e = budget::Estimate::new(
+                "the radiosity textures",
+                "lower --texture-size or [render] texture_size, give --texture-budget, or \
+                 raise --memory-limit",
+            );
+            e.add("held", self.held_bytes()).add(
+                "textures and expanded RRPs",
+                budget::texture_bytes(
+                    &depths,
+                    self.texture_policy,
+                    cs.leaves as u64,
+                    cs.nodes as u64,
+                )?,
+            );
+            e.check(self.memory_limit)?;
+            let t = Instant::now();
+            let set = TextureSet::build(
+                self.expanded()?.0,
+                &depths,
+                self.texture_policy,
+                self.texture_placement,
+            )
+            .map_err(|e| self.file_error(e))?;
+            let _ = self.textures.set((set, t.elapsed().as_secs_f64() * 1e3));
+        }
+        let (set, ms) = self
+            .textures
+            .get()
+            .ok_or_else(|| Error::Runtime("texture set missing after build".into()))?;
+        Ok((set, *ms))
+    }
+
+    /// The Gouraud mesh of the solution (T-vertex fans), built on first use, with its build
+    /// time in ms.
+    ///
+    /// Refused with [`Error::Memory`] before it is built when its estimate
+    /// ([`budget::mesh_bytes`]) and what is held already pass the job's memory limit.
+    pub fn mesh(&self) -> Result<(&MeshModel, f64)> {
+        if self.mesh.get().is_none() {
+            let st = &self.solution.stats;
+            let mut e = budget::Estimate::new(
+                "the Gouraud mesh",
+                "raise radiosity.tolerance or lower radiosity.max_depth, or raise --memory-limit",
+            );
+            e.add("held", self.held_bytes())
+                .add("mesh", budget::mesh_bytes(st.elements, st.t_vertices));
+            e.check(self.memory_limit)?;
+            let t = Instant::now();
+            let mesh = MeshModel::build(&self.scene, &self.solution.polygons)
+                .map_err(|e| self.file_error(e))?;
+            let _ = self.mesh.set((mesh, t.elapsed().as_secs_f64() * 1e3));
+        }
+        let (mesh, ms) = self
+            .mesh
+            .get()
+            .ok_or_else(|| Error::Runtime("mesh missing after build".into()))?;
+        Ok((mesh, *ms))
+    }
+}
+
+/// Solves the input's scene (or reads its solution file) and builds the reconstruction; the
+/// textures will be sized by `texture_policy` and their texels placed by `texture_placement`.
+/// This is where a job's work starts: plan and validate before calling it.
+pub fn prepare(
+    ctx: &Context<'_>,
+    input: Input,
+    texture_policy: SizePolicy,
+    texture_placement: Placement,
+) -> Result<Prepared> {
+    let Input {
+        scene,
+        solution_file: file,
+        estimator,
+        ..
+    } = input;
+    let (solution, stored, solve_ms) = match &file {
+        Some(path) => {
+            let (solution, rrps) = solution_file::read_solution(path, &scene)?;
+            (solution, Some((path, rrps)), 0.0)
+        }
+        None => {
+            let limit = ctx.memory_limit;
+            budget::check_solve(&scene, limit)?;
+            let t = Instant::now();
+            let solution = radiosity::solve(
+                &scene,
+                &SolveOptions {
+                    observer: ctx.observer,
+                    memory_limit: limit,
+                },
+            )?;
+            (solution, None, t.elapsed().as_secs_f64() * 1e3)
+        }
+    };
+    let t = Instant::now();
+    // A solution file stores the compact RRPs its solve built with the default estimator:
+    // decode them (checked) instead of building again; a file without them, another estimator
+    // or a fresh solve builds them from the samples.
+    let compact = match stored {
+        Some((path, rrps)) if !rrps.is_empty() && estimator == Estimator::default() => {
+            let corrupt = |m: String| {
+                Error::solution(
+                    path,
+                    base::error::SolutionProblem::Corrupt,
+                    format!("corrupt solution file: its RRPs: {m}"),
+                )
+            };
+            let c = CompactReconstruction::decode(&rrps).map_err(|e| corrupt(e.to_string()))?;
+            if c.polygon_count() != scene.polygons.len() {
+                return Err(corrupt(format!(
+                    "{} polygons, the scene has {}",
+                    c.polygon_count(),
+                    scene.polygons.len()
+                )));
+            }
+            c
+        }
+        // Samples read from a file that cannot be reconstructed (values so large the patches
+        // overflow f32) are a bad file, exit 2, like any other inconsistency behind a valid
+        // checksum; from a fresh solve they would be a failure of this program.
+        Some((path, _)) => {
+            CompactReconstruction::build(&solution.polygons, estimator).map_err(|e| {
+                Error::solution(
+                    path,
+                    base::error::SolutionProblem::Corrupt,
+                    format!("corrupt solution file: its samples cannot be reconstructed: {e}"),
+                )
+            })?
+        }
+        None => CompactReconstruction::build(&solution.polygons, estimator)?,
+    };
+    let reconstruction_ms = t.elapsed().as_secs_f64() * 1e3;
+    Ok(Prepared {
+        solution_file: file,
+        texture_policy,
+        texture_placement,
+        memory_limit: ctx.memory_limit,
+        scene,
+        solution,
+        compact,
+        solve_ms,
+        reconstruction_ms,
+        estimator,
+        expanded: OnceLock::new(),
+        textures: OnceLock::new(),
+        mesh: OnceLock::new(),
+    })
+}
+
+/// Loads `path`, checks `texture`'s options against its scene, then solves and reconstructs:
+/// [`Input::load`], [`TextureOptions::policy`] and [`prepare`] in one call.
+pub fn prepare_path(ctx: &Context<'_>, path: &Path, texture: &TextureOptions) -> Result<Prepared> {
+    let input = Input::load(path)?;
+    let policy = texture.policy(&input.scene)?;
+    let placement = texture.placement(&input.scene)?;
+    prepare(ctx, input, policy, placement)
+}
+
+/// Renders one frame of a prepared scene with `method`, in a new frame context (a cold frame;
+/// [`render_frame_in`] reuses one).
+pub fn render_frame(
+    p: &Prepared,
+    method: Method,
+    camera: &scene::Camera,
+    opts: &engine::frame::FrameOptions,
+) -> Result<engine::frame::Frame> {
+    let mut ctx = engine::frame::FrameContext::new();
+    let stats = render_frame_in(&mut ctx, p, method, camera, opts)?;
+    Ok(ctx.into_frame(stats))
+}
+
+/// Builds, once per job, what `method` draws from (the textures, the mesh), so that neither a
+/// reservation nor a frame timed after it pays for that.
+pub fn build_method_data(p: &Prepared, method: Method) -> Result<()> {
+    match method {
+        Method::Texture(_) => p.textures().map(|_| ()),
+        Method::Mesh => p.mesh().map(|_| ()),
+        Method::Direct | Method::Reference => Ok(()),
+    }
+}
+
+/// Reserves in `ctx` what frames of `method` at `opts` need ([`engine::frame::FrameContext::reserve_scene`]
+/// with the scene `method` draws: the mesh's triangles for the mesh method; for the direct method
+/// also every worker's patch cache, [`engine::frame::FrameContext::reserve_source`]).
+pub fn reserve_frames(
+    ctx: &mut engine::frame::FrameContext,
+    p: &Prepared,
+    method: Method,
+    opts: &engine::frame::FrameOptions,
+) -> Result<()> {
+    match method {
+        Method::Mesh => ctx.reserve_scene(opts, &p.mesh()?.0.scene),
+        Method::Direct => {
+            ctx.reserve_source(&p.compact);
+            ctx.reserve_scene(opts, &p.scene)
+        }
+        _ => ctx.reserve_scene(opts, &p.scene),
+    }
+}
+
+/// Renders one frame of a prepared scene with `method` into `ctx` (its pixels:
+/// [`engine::frame::FrameContext::view`]), reusing the context's buffers.
+pub fn render_frame_in(
+    ctx: &mut engine::frame::FrameContext,
+    p: &Prepared,
+    method: Method,
+    camera: &scene::Camera,
+    opts: &engine::frame::FrameOptions,
+) -> Result<engine::frame::FrameStats> {
+    use engine::shading::Shader;
+    match method {
+        Method::Direct => ctx.render(&p.scene, camera, &Shader::Patches(&p.compact), method, opts),
+        Method::Texture(filter) => {
+            let (set, _) = p.textures()?;
+            ctx.render(
+                &p.scene,
+                camera,
+                &Shader::Texture { set, filter },
+                method,
+                opts,
+            )
+        }
+        Method::Mesh => {
+            let (mesh, _) = p.mesh()?;
+            ctx.render(&mesh.scene, camera, &Shader::Patches(mesh), method, opts)
+        }
+        Method::Reference => {
+            let oracle =
+                radiosity::Oracle::new(&p.solution, &p.scene).map_err(|e| p.file_error(e))?;
+            let f = |poly: u32, u: f32, v: f32| oracle.radiosity(poly as usize, u as f64, v as f64);
+            ctx.render(&p.scene, camera, &Shader::Reference(&f), method, opts)
+        }
+    }
+}

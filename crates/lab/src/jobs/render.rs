@@ -1,0 +1,501 @@
+//! The render job: one frame, or every frame of the scene's camera path, to PNG (and EXR and
+//! statistics JSON on request).
+//!
+//! [`RenderPlan::new`] resolves every option against the scene's defaults and checks it before
+//! [`run_render`] solves anything; a walkthrough reuses one solution and one reconstruction for
+//! all its frames, reports its progress as the stage [`WALKTHROUGH_STAGE`] and ends with a
+//! [`WalkthroughSummary`]. Every file is written atomically.
+
+use std::path::{Path, PathBuf};
+
+use serde::Serialize;
+
+use super::walkthrough::WalkthroughSummary;
+use super::Context;
+use super::{prepare, render_frame_in, Input, Prepared, TextureOptions};
+use crate::image;
+use base::error::{Error, Result};
+use base::method::Method;
+use base::progress::Stage;
+use engine::frame::{FrameContext, FrameOptions, FrameStats};
+use reconstruction::mesh::MeshStats;
+use reconstruction::texture::{Placement, SizePolicy, TextureMemory};
+use scene::{Camera, Scene};
+
+/// What `pixelflow-sim render` was asked to do.
+#[derive(Debug, Clone, Default)]
+pub struct RenderRequest {
+    /// Scene file or solution file.
+    pub input: PathBuf,
+    /// PNG to write (default [`default_png_path`]); walkthrough frames are numbered beside it.
+    pub output: Option<PathBuf>,
+    /// OpenEXR of the linear radiosity to write (single frames only).
+    pub exr: Option<PathBuf>,
+    /// Method name (default: the scene's `[render] method`).
+    pub method: Option<String>,
+    /// Image width (default: the scene's).
+    pub width: Option<u32>,
+    /// Image height (default: the scene's).
+    pub height: Option<u32>,
+    /// Samples per pixel (default: the scene's).
+    pub aa: Option<u32>,
+    /// Virtual renderers.
+    pub renderers: u32,
+    /// Region side in pixels.
+    pub region: u32,
+    /// Where to write the statistics JSON (for a walkthrough, an object with the `summary` and
+    /// the `frames`).
+    pub stats: Option<PathBuf>,
+    /// Render every frame of the scene's camera path.
+    pub walkthrough: bool,
+    /// Texture sizes and the bicubic filter's parameters.
+    pub texture: TextureOptions,
+    /// The RRPs' derivative estimator by name (`--estimator`; default: the default estimator).
+    pub estimator: Option<String>,
+}
+
+/// A render request resolved against its scene and checked: what will be drawn, how, and where
+/// it goes.
+#[derive(Debug, Clone)]
+pub struct RenderPlan {
+    /// The method, with the bicubic filter's parameters applied.
+    pub method: Method,
+    /// The frame options (checked).
+    pub frame: FrameOptions,
+    /// How textures are sized (checked against the scene's polygon count).
+    pub texture_policy: SizePolicy,
+    /// Where the texels sit (`--texel-placement` or the scene's).
+    pub texture_placement: Placement,
+    /// Each frame's camera and PNG path: one, or the whole camera path.
+    pub frames: Vec<(Camera, PathBuf)>,
+    /// The EXR to write (single frames only).
+    pub exr: Option<PathBuf>,
+    /// The statistics JSON to write.
+    pub stats: Option<PathBuf>,
+    /// Whether this is a walkthrough.
+    pub walkthrough: bool,
+}
+
+impl RenderPlan {
+    /// Resolves `req` against `scene` and checks every option: method and bicubic parameters,
+    /// image size, antialiasing, renderers, region, texture size or budget, texel placement,
+    /// `--exr` with
+    /// `--walkthrough`, and that a walkthrough has a camera path.
+    pub fn new(ctx: &Context<'_>, req: &RenderRequest, scene: &Scene) -> Result<RenderPlan> {
+        let method = match &req.method {
+            Some(name) => Method::parse(name)?,
+            None => scene.render.method,
+        };
+        let method = req.texture.method(method)?;
+        let frame = FrameOptions {
+            width: req.width.unwrap_or(scene.width),
+            height: req.height.unwrap_or(scene.height),
+            aa: req.aa.unwrap_or(scene.render.aa_samples),
+            renderers: req.renderers,
+            region: req.region,
+            cull_back_faces: false,
+            isa: ctx.isa,
+        };
+        frame.validate()?;
+        super::budget::check_frame_options(&frame, (true, req.exr.is_some()), ctx.memory_limit)?;
+        let texture_policy = req.texture.policy(scene)?;
+        let texture_placement = req.texture.placement(scene)?;
+        if req.walkthrough && req.exr.is_some() {
+            return Err(Error::invalid_option(
+                "--exr",
+                req.exr
+                    .as_deref()
+                    .map(|p| p.display().to_string())
+                    .unwrap_or_default(),
+                "writes one frame; it cannot be combined with --walkthrough",
+            ));
+        }
+        let png = req
+            .output
+            .clone()
+            .unwrap_or_else(|| default_png_path(&req.input, method));
+        let frames = if req.walkthrough {
+            let path = scene.camera_path.as_ref().ok_or_else(|| {
+                Error::invalid_option(
+                    "--walkthrough",
+                    "",
+                    format!("{} has no [camera_path]", scene.source.display()),
+                )
+            })?;
+            (0..path.frames)
+                .map(|k| {
+                    (
+                        path.camera(scene.camera.projection, k),
+                        walkthrough_frame_path(&png, k),
+                    )
+                })
+                .collect()
+        } else {
+            vec![(scene.camera, png)]
+        };
+        Ok(RenderPlan {
+            method,
+            frame,
+            texture_policy,
+            texture_placement,
+            frames,
+            exr: req.exr.clone(),
+            stats: req.stats.clone(),
+            walkthrough: req.walkthrough,
+        })
+    }
+}
+
+/// What a render job reports as it goes.
+#[derive(Debug)]
+pub enum RenderEvent<'a> {
+    /// A warning: the scene's (a non-planar quad split, ...), or a frame with no polygon in
+    /// view ([`empty_view_warning`]).
+    Warning(&'a str),
+    /// A file was written.
+    Wrote(&'a Path),
+    /// A frame was rendered.
+    Frame(&'a RenderReport),
+    /// A walkthrough ended: its summary (the last event of a walkthrough).
+    Walkthrough(&'a WalkthroughSummary),
+}
+
+/// The progress stage of a walkthrough's frames: fraction `k / n` after frame `k` of `n`.
+pub const WALKTHROUGH_STAGE: &str = "walkthrough";
+
+/// The `--stats` JSON of a walkthrough.
+#[derive(Debug, Clone, Serialize)]
+pub struct WalkthroughReport<'a> {
+    /// Frame rates and medians over the frames.
+    pub summary: &'a WalkthroughSummary,
+    /// Every frame's report, in path order.
+    pub frames: &'a [RenderReport],
+}
+
+/// Runs a render job: load the input, plan and check every option, then prepare once and
+/// render one frame or every walkthrough frame, writing PNG, EXR and statistics.
+pub fn run_render(
+    ctx: &Context<'_>,
+    req: &RenderRequest,
+    on: &mut dyn FnMut(RenderEvent<'_>),
+) -> Result<()> {
+    let mut input = Input::load(&req.input)?;
+    let plan = RenderPlan::new(ctx, req, &input.scene)?;
+    if let Some(name) = &req.estimator {
+        input.estimator = reconstruction::Estimator::parse_option("--estimator", name)?;
+    }
+    // No output may replace an input, another output or anything but a regular file.
+    let mut inputs = input.scene.inputs.clone();
+    inputs.push(req.input.clone());
+    let mut outputs: Vec<(&str, &Path)> = plan
+        .frames
+        .iter()
+        .map(|(_, png)| ("-o", png.as_path()))
+        .collect();
+    outputs.extend(plan.exr.as_deref().map(|e| ("--exr", e)));
+    outputs.extend(plan.stats.as_deref().map(|s| ("--stats", s)));
+    base::output::check_outputs(&inputs, &outputs)?;
+    for w in &input.scene.warnings {
+        on(RenderEvent::Warning(w));
+    }
+    let p = prepare(ctx, input, plan.texture_policy, plan.texture_placement)?;
+    let exposure = p.scene.display.exposure;
+    let n = plan.frames.len();
+    // The walkthrough's own stage, after the solve's: it ends (also on an error) when dropped.
+    let mut stage = plan
+        .walkthrough
+        .then(|| Stage::start(ctx.observer, WALKTHROUGH_STAGE));
+    let mut reports = Vec::new();
+    // A single frame's PNG, EXR and statistics are one batch: all replaced or none
+    // (base::output). A walkthrough's frames are written as they are drawn.
+    let mut batch = base::output::Batch::default();
+    let mut staged: Vec<&Path> = Vec::new();
+    // One frame context for every frame: a walkthrough's frames reuse its buffers, and the
+    // frame and G-buffers are reserved before the first frame (timed apart), as a display
+    // system allocates its framebuffers before it draws.
+    let mut ctx = FrameContext::new();
+    super::build_method_data(&p, plan.method)?;
+    let t = std::time::Instant::now();
+    super::reserve_frames(&mut ctx, &p, plan.method, &plan.frame)?;
+    let reserve_ms = t.elapsed().as_secs_f64() * 1e3;
+    for (k, (camera, png)) in plan.frames.iter().enumerate() {
+        let stats = render_frame_in(&mut ctx, &p, plan.method, camera, &plan.frame)?;
+        // A valid scene can still put nothing in view (every polygon behind the camera or
+        // outside its frustum): the image is drawn, but never silently as the background alone.
+        if stats.pixels_shaded == 0 {
+            on(RenderEvent::Warning(&empty_view_warning(
+                &req.input,
+                plan.walkthrough.then_some(k),
+            )));
+        }
+        if plan.walkthrough {
+            image::write_png(png, ctx.view(), exposure)?;
+            on(RenderEvent::Wrote(png));
+        } else {
+            batch.stage(png, &image::encode_png(ctx.view(), exposure)?)?;
+            staged.push(png);
+        }
+        if let Some(exr) = &plan.exr {
+            batch.stage(exr, &image::encode_exr(ctx.view())?)?;
+            staged.push(exr);
+        }
+        let mut report = RenderReport::new(&p, plan.method, stats);
+        report.reserve_ms = reserve_ms;
+        on(RenderEvent::Frame(&report));
+        reports.push(report);
+        if let Some(stage) = &mut stage {
+            stage.advance((k + 1) as f64 / n as f64);
+        }
+    }
+    drop(stage);
+    let summary = plan.walkthrough.then(|| {
+        let frames: Vec<FrameStats> = reports.iter().map(|r| r.frame.clone()).collect();
+        WalkthroughSummary::new(&frames)
+    });
+    if let Some(path) = &plan.stats {
+        let json = match &summary {
+            Some(summary) => serde_json::to_string_pretty(&WalkthroughReport {
+                summary,
+                frames: &reports,
+            }),
+            None => serde_json::to_string_pretty(&reports[0]),
+        }
+        .map_err(|e| Error::Runtime(format!("statistics to JSON: {e}")))?;
+        batch.stage(path, json.as_bytes())?;
+        staged.push(path);
+    }
+    batch.commit()?;
+    for path in staged {
+        on(RenderEvent::Wrote(path));
+    }
+    if let Some(summary) = &summary {
+        on(RenderEvent::Walkthrough(summary));
+    }
+    Ok(())
+}
+
+/// The warning of a frame in which no polygon is in view, so every pixel is the background:
+/// names the input and, in a walkthrough, the frame.
+pub fn empty_view_warning(input: &Path, walkthrough_frame: Option<usize>) -> String {
+    let frame = walkthrough_frame.map_or(String::new(), |k| format!(" (frame {k})"));
+    format!(
+        "{}{frame}: no polygon is in view (all behind the camera or outside its field of view): \
+         the image is only the background",
+        input.display()
+    )
+}
+
+/// The statistics written by `--stats`: the frame's counters and stage times, plus the
+/// one-off costs that are not part of `frame_ms`.
+#[derive(Debug, Clone, Serialize)]
+pub struct RenderReport {
+    /// The frame's counters and stage times.
+    #[serde(flatten)]
+    pub frame: FrameStats,
+    /// Frames per second of this frame, `1000 / frame_ms` (the wall-clock frame time).
+    pub fps: f64,
+    /// Solve time in this run (0 when the solution was read from a file), ms.
+    pub solve_ms: f64,
+    /// RRP construction time, ms.
+    pub reconstruction_ms: f64,
+    /// Time to allocate and first touch the frame context's frame and G-buffers, once per job
+    /// before the first frame (`FrameContext::reserve`), ms.
+    pub reserve_ms: f64,
+    /// RRP patches stored.
+    pub patches: u64,
+    /// Radiosity samples in the solution.
+    pub samples: u64,
+    /// Texture memory and count (texture methods only).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub texture_memory: Option<TextureMemory>,
+    /// Time to resample the textures from the RRPs, once per job (texture methods only), ms.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub texture_build_ms: Option<f64>,
+    /// The mesh's triangles, vertices and size (mesh method only).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub mesh: Option<MeshStats>,
+    /// Time to triangulate the mesh, once per job (mesh method only), ms.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub mesh_build_ms: Option<f64>,
+}
+
+impl RenderReport {
+    /// The report of a frame rendered from `p`, with its statistics `frame`.
+    pub fn new(p: &Prepared, method: Method, frame: FrameStats) -> RenderReport {
+        let tex = match method {
+            Method::Texture(_) => p.textures().ok(),
+            _ => None,
+        };
+        let mesh = match method {
+            Method::Mesh => p.mesh().ok(),
+            _ => None,
+        };
+        RenderReport {
+            mesh: mesh.map(|(m, _)| m.stats),
+            mesh_build_ms: mesh.map(|(_, ms)| ms),
+            texture_memory: tex.map(|(set, _)| set.memory),
+            texture_build_ms: tex.map(|(_, ms)| ms),
+            fps: fps(frame.frame_ms),
+            frame,
+            solve_ms: p.solve_ms,
+            reconstruction_ms: p.reconstruction_ms,
+            reserve_ms: 0.0,
+            patches: p.compact.leaf_count() as u64,
+            samples: p.solution.stats.vertices,
+        }
+    }
+
+    /// Pretty JSON.
+    pub fn to_json(&self) -> String {
+        serde_json::to_string_pretty(self).unwrap_or_else(|_| "{}".into())
+    }
+}
+
+/// Frames per second of a frame time in ms (0 for a time of 0).
+pub fn fps(frame_ms: f64) -> f64 {
+    if frame_ms > 0.0 {
+        1e3 / frame_ms
+    } else {
+        0.0
+    }
+}
+
+/// Where output goes when the user names no file: `out/<scene stem>-<method>.png`.
+pub fn default_png_path(input: &Path, method: Method) -> PathBuf {
+    let stem = input
+        .file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_else(|| "frame".into());
+    PathBuf::from("out").join(format!("{stem}-{}.png", method.name()))
+}
+
+/// The frame file name of walkthrough frame `k`: `<png stem>-NNNN.png` beside `png`.
+pub fn walkthrough_frame_path(png: &Path, k: u32) -> PathBuf {
+    let stem = png
+        .file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_else(|| "frame".into());
+    png.with_file_name(format!("{stem}-{k:04}.png"))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use base::progress::{Event, Recorder};
+
+    /// A directory of this test process for `name`'s files.
+    fn tmp(name: &str) -> PathBuf {
+        let d = std::env::temp_dir()
+            .join(format!("pfs-render-{}", std::process::id()))
+            .join(name);
+        std::fs::create_dir_all(&d).expect("temporary directory");
+        d
+    }
+
+    /// The two-spots scene with a `frames`-frame camera path, written into `dir`.
+    fn walk_scene(dir: &Path, frames: u32) -> PathBuf {
+        let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes/two-spots.toml");
+        let text = std::fs::read_to_string(scene).expect("two-spots scene")
+            + &format!(
+                "\n[camera_path]\nframes = {frames}\nkeyframes = [\n\
+                 {{ eye = [0.3, 0.5, 2.0], look_at = [0.3, 0.5, 0.0], up = [0.0, 1.0, 0.0] }},\n\
+                 {{ eye = [0.7, 0.5, 2.0], look_at = [0.7, 0.5, 0.0], up = [0.0, 1.0, 0.0] }},\n]\n"
+            );
+        let path = dir.join("walk.toml");
+        std::fs::write(&path, text).expect("scene written");
+        path
+    }
+
+    fn request(input: PathBuf, output: PathBuf) -> RenderRequest {
+        RenderRequest {
+            input,
+            output: Some(output),
+            width: Some(16),
+            height: Some(16),
+            renderers: 1,
+            region: 128,
+            walkthrough: true,
+            ..RenderRequest::default()
+        }
+    }
+
+    /// The fractions of the walkthrough stage and whether it finished after them.
+    fn walkthrough_events(r: &Recorder) -> (Vec<f64>, usize) {
+        let mut fractions = Vec::new();
+        let mut finished = 0;
+        for e in r.events() {
+            match e {
+                Event::Progress(s, f) if s == WALKTHROUGH_STAGE => {
+                    assert_eq!(finished, 0, "progress after finished");
+                    fractions.push(f);
+                }
+                Event::Finished(s) if s == WALKTHROUGH_STAGE => finished += 1,
+                _ => {}
+            }
+        }
+        (fractions, finished)
+    }
+
+    #[test]
+    fn a_walkthrough_reports_its_own_stage_up_to_one_then_finishes() {
+        let dir = tmp("stage");
+        let r = Recorder::default();
+        let mut summaries = Vec::new();
+        let mut frames = 0;
+        let req = request(walk_scene(&dir, 4), dir.join("w.png"));
+        run_render(&Context::new(&r), &req, &mut |e| match e {
+            RenderEvent::Frame(_) => frames += 1,
+            RenderEvent::Walkthrough(s) => summaries.push(s.clone()),
+            _ => {}
+        })
+        .expect("walkthrough renders");
+        let (fractions, finished) = walkthrough_events(&r);
+        assert_eq!(fractions, [0.0, 0.25, 0.5, 0.75, 1.0]);
+        assert_eq!(finished, 1);
+        // The solve's stage ended before the walkthrough's began.
+        let events = r.events();
+        let solve_end = events
+            .iter()
+            .position(|e| matches!(e, Event::Finished(s) if s == "solve"))
+            .expect("the scene was solved");
+        let walk_start = events
+            .iter()
+            .position(|e| matches!(e, Event::Progress(s, _) if s == WALKTHROUGH_STAGE))
+            .expect("the walkthrough started");
+        assert!(solve_end < walk_start, "{events:?}");
+        assert_eq!(frames, 4);
+        assert_eq!(summaries.len(), 1);
+        assert_eq!(summaries[0].frames, 4);
+    }
+
+    #[test]
+    fn a_failing_walkthrough_still_finishes_its_stage() {
+        // The frames' directory is a regular file: the first PNG cannot be written.
+        let dir = tmp("fail");
+        let blocker = dir.join("not-a-dir");
+        std::fs::write(&blocker, b"x").expect("file written");
+        let r = Recorder::default();
+        let req = request(walk_scene(&dir, 3), blocker.join("w.png"));
+        assert!(run_render(&Context::new(&r), &req, &mut |_| {}).is_err());
+        let (fractions, finished) = walkthrough_events(&r);
+        assert_eq!(fractions, [0.0]);
+        assert_eq!(finished, 1);
+    }
+
+    #[test]
+    fn a_single_frame_reports_no_walkthrough_stage() {
+        let dir = tmp("single");
+        let r = Recorder::default();
+        let req = RenderRequest {
+            walkthrough: false,
+            ..request(walk_scene(&dir, 2), dir.join("one.png"))
+        };
+        let mut summary = false;
+        run_render(&Context::new(&r), &req, &mut |e| {
+            summary |= matches!(e, RenderEvent::Walkthrough(_));
+        })
+        .expect("frame renders");
+        assert_eq!(walkthrough_events(&r), (vec![], 0));
+        assert!(!summary);
+    }
+}

@@ -1,0 +1,31 @@
+//! The solve job: a scene file to a solution file, so later renders and walkthroughs never solve
+//! again. The file names its scene (absolute path), stores the compact RRPs (so a render never
+//! rebuilds them either) and is written atomically.
+
+use std::path::Path;
+
+use super::Context;
+use base::error::Result;
+use radiosity::{self, file as solution_file, Solution, SolveOptions};
+use reconstruction::compact::CompactReconstruction;
+use reconstruction::Estimator;
+use scene::load_scene;
+
+/// Solves `scene_path` and writes the solution to `out`. A solve over the memory limit
+/// ([`super::budget`]) is refused before it starts or stopped when it would pass it.
+pub fn solve_to_file(ctx: &Context<'_>, scene_path: &Path, out: &Path) -> Result<Solution> {
+    let scene = load_scene(scene_path)?;
+    base::output::check_outputs(&scene.inputs, &[("-o", out)])?;
+    let limit = ctx.memory_limit;
+    super::budget::check_solve(&scene, limit)?;
+    let solution = radiosity::solve(
+        &scene,
+        &SolveOptions {
+            observer: ctx.observer,
+            memory_limit: limit,
+        },
+    )?;
+    let rrps = CompactReconstruction::build(&solution.polygons, Estimator::default())?;
+    solution_file::write_solution(out, &solution, Some(scene_path), &rrps.encode())?;
+    Ok(solution)
+}

@@ -1,0 +1,624 @@
+//! The sweep job: speed against error. For one scene it varies what decides a method's cost and
+//! error — the solution's sampling density (the solver's subdivision tolerance), and for the
+//! texture methods the texture size — and measures, for every method at every point, at one image
+//! size:
+//!
+//! - the warm frame time (median of several frames after a warm-up, all points of one density
+//!   interleaved within each repeat, the median over repeats, with the spread of the repeats);
+//! - the bytes of the representation that method must hold (RRP patches and locate trees; 12-bit
+//!   textures with mip chains; the mesh's vertices and indices);
+//! - the error against two references, each as perceptual distance, RMSE, maximum error and the
+//!   Mach-band measure (`docs/metrics.md`): **reconstruction error**, against the same solution's
+//!   exact value at every pixel (the `reference` method: it isolates the method), and **total
+//!   error**, against a converged finer solution's exact value (what a user sees).
+//!
+//! Each point is flagged if it is on the Pareto front of total error against frame time, and of
+//! total error against bytes, over all points of the sweep.
+//!
+//! Invariants: every option is checked before the first solve; each density is solved once; the
+//! errors and bytes are deterministic (only the times vary between runs).
+
+use std::path::PathBuf;
+
+use serde::Serialize;
+
+use super::bench::{median, min_max};
+use super::equal_error::{self, EqualError};
+use super::memory;
+use super::Context;
+use super::{prepare, render_frame, render_frame_in, Input, Prepared};
+use crate::image::LinearImage;
+use base::error::{Error, Result};
+use base::method::{Method, Placement};
+use base::quadtree::MAX_DEPTH;
+use engine::frame::{Frame, FrameContext, FrameStats};
+use engine::shading::Shader;
+use metric::{compare, Comparison, DEFAULT_PPD};
+use reconstruction::texture::{SizePolicy, TextureMemory, TextureSet};
+use scene::{Scene, MAX_IMAGE_DIM};
+
+/// The methods a sweep measures when none are named.
+pub const DEFAULT_METHODS: [&str; 5] = [
+    "direct",
+    "texture-nearest",
+    "texture-bilinear",
+    "texture-bicubic",
+    "mesh",
+];
+
+/// Default tolerance factors of the density levels, coarse to fine.
+pub const DEFAULT_DENSITIES: [f64; 4] = [4.0, 2.0, 1.0, 0.5];
+
+/// What `pixelflow-sim sweep` was asked to do.
+#[derive(Debug, Clone)]
+pub struct SweepRequest {
+    /// Scene file or solution file (a solution file's scene is solved again at each density).
+    pub input: PathBuf,
+    /// Method names (`reference` is the error reference, not a swept method).
+    pub methods: Vec<String>,
+    /// Image width and height.
+    pub width: u32,
+    /// Image height.
+    pub height: u32,
+    /// Density levels: factors of the scene's `[radiosity] tolerance`, coarse to fine.
+    pub densities: Vec<f64>,
+    /// The converged reference's tolerance factor (its `max_depth` is one more than the scene's).
+    pub reference_density: f64,
+    /// Texture sizes per density: the quadtree-depth sizes halved 0, 1, ... levels - 1 times.
+    pub texture_levels: u32,
+    /// Frames timed per point and repeat (after one warm-up frame).
+    pub frames: u32,
+    /// Repeats of the timing (the spread is over repeats).
+    pub repeats: u32,
+    /// Pixels per degree of the perceptual metric.
+    pub ppd: f64,
+    /// Also search the texture memory each texture method needs to reach the direct method's
+    /// error ([`super::equal_error`]), at the density level whose factor is nearest 1.
+    pub equal_error: bool,
+}
+
+impl SweepRequest {
+    /// A request with the defaults: every method, 256 x 256, four densities, four texture sizes,
+    /// 5 frames x 3 repeats.
+    pub fn new(input: PathBuf) -> SweepRequest {
+        SweepRequest {
+            input,
+            methods: DEFAULT_METHODS.iter().map(|s| s.to_string()).collect(),
+            width: 256,
+            height: 256,
+            densities: DEFAULT_DENSITIES.to_vec(),
+            reference_density: 0.25,
+            texture_levels: 4,
+            frames: 5,
+            repeats: 3,
+            ppd: DEFAULT_PPD,
+            equal_error: true,
+        }
+    }
+}
+
+/// The four error measures of one image against one reference.
+#[derive(Debug, Clone, Copy, Serialize, PartialEq)]
+pub struct Errors {
+    /// Perceptual distance (`docs/metrics.md`).
+    pub perceptual: f64,
+    /// RMSE of luminance.
+    pub rmse: f64,
+    /// Largest absolute luminance error.
+    pub max_abs: f64,
+    /// Mach-band measure of the difference.
+    pub mach_band: f64,
+}
+
+impl From<&Comparison> for Errors {
+    fn from(c: &Comparison) -> Errors {
+        Errors {
+            perceptual: c.perceptual_distance,
+            rmse: c.rmse,
+            max_abs: c.max_abs_error,
+            mach_band: c.mach_band,
+        }
+    }
+}
+
+/// A texture method's texture size and texel placement at a point.
+#[derive(Debug, Clone, Copy, Serialize, PartialEq)]
+pub struct TextureLevel {
+    /// How many times the quadtree-depth sides were halved (0: as deep as the quadtree).
+    pub halvings: u32,
+    /// Where the texels sit: `centre` (u = (i + 0.5) / N) or `corner` (u = i / (N - 1)).
+    pub placement: &'static str,
+    /// Level-0 texels of all textures.
+    pub texels: u64,
+    /// Bytes at 12 bits per channel with mip chains.
+    pub bytes: u64,
+}
+
+/// One measured point.
+#[derive(Debug, Clone, Serialize, PartialEq)]
+pub struct SweepPoint {
+    /// Method name.
+    pub method: String,
+    /// Density level, 0 the coarsest.
+    pub density: usize,
+    /// The solver tolerance of that level.
+    pub tolerance: f64,
+    /// Radiosity samples of that level's solution.
+    pub samples: u64,
+    /// Texture size (texture methods only).
+    pub texture: Option<TextureLevel>,
+    /// Median warm frame time, ms (median over repeats of the per-repeat medians).
+    pub frame_ms: f64,
+    /// Smallest and largest per-repeat median, ms.
+    pub frame_ms_spread: [f64; 2],
+    /// Bytes the method must hold.
+    pub bytes: u64,
+    /// Perceptual distance to the same solution's exact image.
+    pub error_reconstruction: f64,
+    /// Perceptual distance to the converged solution's exact image.
+    pub error_total: f64,
+    /// Every measure against the same solution's exact image.
+    pub reconstruction: Errors,
+    /// Every measure against the converged solution's exact image.
+    pub total: Errors,
+    /// On the Pareto front of total error against frame time.
+    pub pareto_time: bool,
+    /// On the Pareto front of total error against bytes.
+    pub pareto_memory: bool,
+}
+
+/// One solution of a sweep: its tolerance, maximum depth and sample count.
+#[derive(Debug, Clone, Copy, Serialize, PartialEq)]
+pub struct SolutionLevel {
+    /// The solver's subdivision tolerance.
+    pub tolerance: f64,
+    /// The quadtrees' maximum depth.
+    pub max_depth: u32,
+    /// Radiosity samples.
+    pub samples: u64,
+}
+
+impl SolutionLevel {
+    fn of(p: &Prepared) -> SolutionLevel {
+        SolutionLevel {
+            tolerance: p.scene.radiosity.tolerance,
+            max_depth: p.scene.radiosity.max_depth,
+            samples: p.solution.stats.vertices,
+        }
+    }
+}
+
+/// A sweep's result.
+#[derive(Debug, Clone, Serialize)]
+pub struct SweepReport {
+    /// The scene file swept.
+    pub scene: String,
+    /// Image width.
+    pub width: u32,
+    /// Image height.
+    pub height: u32,
+    /// Worker threads.
+    pub threads: usize,
+    /// Each density level's solution, coarse to fine.
+    pub densities: Vec<SolutionLevel>,
+    /// The converged reference solution.
+    pub reference: SolutionLevel,
+    /// The points, density-major, then method, then texture size.
+    pub points: Vec<SweepPoint>,
+    /// The equal-error memory comparison (with texture methods and the search asked for).
+    pub equal_error: Option<EqualError>,
+}
+
+/// The Pareto flags of points `(cost, error)`: a point is on the front when no other point is at
+/// most as costly and at most as wrong, and strictly better in one of the two. Ties (equal cost
+/// and error) are all on the front.
+pub fn pareto_front(points: &[(f64, f64)]) -> Vec<bool> {
+    points
+        .iter()
+        .map(|&(c, e)| {
+            !points
+                .iter()
+                .any(|&(c2, e2)| c2 <= c && e2 <= e && (c2 < c || e2 < e))
+        })
+        .collect()
+}
+
+/// One method at one texture size, at one density.
+struct Candidate<'a> {
+    method: Method,
+    texture: Option<(TextureLevel, &'a TextureSet)>,
+}
+
+/// Checks every option of `req` (what [`run_sweep`] does before its first solve).
+pub fn check_request(req: &SweepRequest) -> Result<()> {
+    check(req).map(|_| ())
+}
+
+fn check(req: &SweepRequest) -> Result<Vec<Method>> {
+    let methods = req
+        .methods
+        .iter()
+        .map(|m| Method::parse(m))
+        .collect::<Result<Vec<_>>>()?;
+    if methods.is_empty() {
+        return Err(Error::invalid_option("--methods", "", "names no method"));
+    }
+    if let Some(m) = methods.iter().find(|m| **m == Method::Reference) {
+        return Err(Error::invalid_option(
+            "--methods",
+            m.name(),
+            "is the sweep's error reference, not a swept method",
+        ));
+    }
+    for (name, v) in [("--size", req.width), ("--size", req.height)] {
+        if v == 0 {
+            return Err(Error::invalid_option(name, "0", "must be at least 1"));
+        }
+        if v > MAX_IMAGE_DIM {
+            return Err(Error::limit(name, v.into(), MAX_IMAGE_DIM.into()));
+        }
+    }
+    if req.densities.is_empty() {
+        return Err(Error::invalid_option("--densities", "", "names no level"));
+    }
+    for &d in req.densities.iter().chain([&req.reference_density]) {
+        if !(d.is_finite() && d > 0.0) {
+            return Err(Error::invalid_option(
+                "--densities",
+                d.to_string(),
+                "tolerance factors must be finite and > 0",
+            ));
+        }
+    }
+    for (name, v) in [
+        ("--texture-levels", req.texture_levels),
+        ("--frames", req.frames),
+        ("--repeats", req.repeats),
+    ] {
+        if v == 0 {
+            return Err(Error::invalid_option(name, "0", "must be at least 1"));
+        }
+    }
+    if req.texture_levels > 12 {
+        return Err(Error::limit(
+            "--texture-levels",
+            req.texture_levels.into(),
+            12,
+        ));
+    }
+    if !(req.ppd.is_finite() && req.ppd > 0.0) {
+        return Err(Error::invalid_option(
+            "--ppd",
+            req.ppd.to_string(),
+            "must be finite and > 0",
+        ));
+    }
+    Ok(methods)
+}
+
+/// `scene` with its tolerance scaled by `factor` (and `max_depth` raised by `extra_depth`).
+fn at_density(scene: &Scene, factor: f64, extra_depth: u32) -> Scene {
+    let mut s = scene.clone();
+    s.radiosity.tolerance *= factor;
+    s.radiosity.max_depth = (s.radiosity.max_depth + extra_depth).min(MAX_DEPTH);
+    s
+}
+
+fn image(frame: Frame) -> Result<LinearImage> {
+    LinearImage::new(frame.width, frame.height, frame.pixels)
+}
+
+fn solve_at(ctx: &Context<'_>, input: &Input, scene: Scene) -> Result<Prepared> {
+    let input = Input {
+        path: input.path.clone(),
+        scene,
+        solution_file: None,
+        estimator: input.estimator,
+    };
+    prepare(ctx, input, SizePolicy::FromDepth, Placement::Centre)
+}
+
+/// Runs a sweep: check every option, solve the converged reference and each density once, and
+/// measure every method (and texture size) at each density.
+pub fn run_sweep(job: &Context<'_>, req: &SweepRequest) -> Result<SweepReport> {
+    let methods = check(req)?;
+    let input = Input::load(&req.input)?;
+    let opts = job.frame_options(req.width, req.height);
+    opts.validate()?;
+    super::budget::check_frame_options(&opts, (false, false), job.memory_limit)?;
+
+    let fine = solve_at(
+        job,
+        &input,
+        at_density(&input.scene, req.reference_density, 1),
+    )?;
+    let total_ref = image(render_frame(
+        &fine,
+        Method::Reference,
+        &fine.scene.camera,
+        &opts,
+    )?)?;
+    let reference = SolutionLevel::of(&fine);
+    drop(fine);
+
+    // The equal-error search runs at the scene's own density (the factor nearest 1).
+    let own = (0..req.densities.len())
+        .min_by(|&a, &b| {
+            let d = |i: usize| req.densities[i].ln().abs();
+            d(a).total_cmp(&d(b))
+        })
+        .unwrap_or(0);
+    let mut equal = None;
+    let mut points = Vec::new();
+    let mut densities = Vec::new();
+    for (level, &factor) in req.densities.iter().enumerate() {
+        let p = solve_at(job, &input, at_density(&input.scene, factor, 0))?;
+        let samples = p.solution.stats.vertices;
+        densities.push(SolutionLevel::of(&p));
+        let recon_ref = image(render_frame(&p, Method::Reference, &p.scene.camera, &opts)?)?;
+
+        // Texture sets: the quadtree-depth sides halved k times (a budget equal to that
+        // memory selects exactly that scale).
+        let depths = TextureSet::depths(&p.solution.polygons);
+        let full = TextureSet::sides(&depths, SizePolicy::FromDepth)?;
+        let mut sets = Vec::new();
+        if methods.iter().any(|m| matches!(m, Method::Texture(_))) {
+            for placement in [Placement::Centre, Placement::Corner] {
+                for k in 0..req.texture_levels {
+                    let sides: Vec<u32> = full.iter().map(|&n| (n >> k).max(1)).collect();
+                    let mem = TextureMemory::of_sides(&sides);
+                    let set = TextureSet::build(
+                        p.expanded()?.0,
+                        &depths,
+                        SizePolicy::Budget(memory::texture_bytes(&mem)),
+                        placement,
+                    )?;
+                    let level = TextureLevel {
+                        halvings: k,
+                        placement: placement.name(),
+                        texels: set.memory.texels,
+                        bytes: memory::texture_bytes(&set.memory),
+                    };
+                    sets.push((level, set));
+                }
+            }
+        }
+        let mut candidates: Vec<Candidate<'_>> = Vec::new();
+        for &m in &methods {
+            match m {
+                Method::Texture(_) => {
+                    for (level, set) in &sets {
+                        candidates.push(Candidate {
+                            method: m,
+                            texture: Some((*level, set)),
+                        });
+                    }
+                }
+                _ => candidates.push(Candidate {
+                    method: m,
+                    texture: None,
+                }),
+            }
+        }
+        let draw_in = |ctx: &mut FrameContext, c: &Candidate<'_>| -> Result<FrameStats> {
+            match (c.method, c.texture) {
+                (Method::Texture(filter), Some((_, set))) => ctx.render(
+                    &p.scene,
+                    &p.scene.camera,
+                    &Shader::Texture { set, filter },
+                    c.method,
+                    &opts,
+                ),
+                _ => render_frame_in(ctx, &p, c.method, &p.scene.camera, &opts),
+            }
+        };
+        let draw = |c: &Candidate<'_>| -> Result<Frame> {
+            let mut ctx = FrameContext::new();
+            let stats = draw_in(&mut ctx, c)?;
+            Ok(ctx.into_frame(stats))
+        };
+        // Errors (deterministic) and one warm-up frame per candidate.
+        let mut errors = Vec::new();
+        for c in &candidates {
+            let img = image(draw(c)?)?;
+            errors.push((
+                compare(&img, &recon_ref, req.ppd)?,
+                compare(&img, &total_ref, req.ppd)?,
+            ));
+        }
+        // Times: every candidate once per repeat, interleaved, `frames` frames each.
+        let mut per_repeat = vec![Vec::new(); candidates.len()];
+        let mut ctx = FrameContext::new();
+        for _ in 0..req.repeats {
+            for (i, c) in candidates.iter().enumerate() {
+                let mut ms = Vec::new();
+                for _ in 0..req.frames {
+                    ms.push(draw_in(&mut ctx, c)?.frame_ms);
+                }
+                per_repeat[i].push(median(ms));
+            }
+        }
+        for ((c, (rc, tc)), reps) in candidates.iter().zip(&errors).zip(per_repeat) {
+            let bytes = match (c.method, c.texture) {
+                (_, Some((level, _))) => level.bytes,
+                (Method::Mesh, _) => p.mesh()?.0.stats.bytes,
+                _ => memory::rrp_bytes(&p.compact),
+            };
+            points.push(SweepPoint {
+                method: c.method.name().to_string(),
+                density: level,
+                tolerance: p.scene.radiosity.tolerance,
+                samples,
+                texture: c.texture.map(|(l, _)| l),
+                frame_ms_spread: min_max(&reps),
+                frame_ms: median(reps),
+                bytes,
+                error_reconstruction: rc.perceptual_distance,
+                error_total: tc.perceptual_distance,
+                reconstruction: Errors::from(rc),
+                total: Errors::from(tc),
+                pareto_time: false,
+                pareto_memory: false,
+            });
+        }
+        if req.equal_error && level == own {
+            equal = equal_error::equal_error(
+                &p,
+                level,
+                &methods,
+                &recon_ref,
+                &opts,
+                req.ppd,
+                job.observer,
+            )?;
+        }
+    }
+    let by_time: Vec<(f64, f64)> = points.iter().map(|p| (p.frame_ms, p.error_total)).collect();
+    let by_bytes: Vec<(f64, f64)> = points
+        .iter()
+        .map(|p| (p.bytes as f64, p.error_total))
+        .collect();
+    for ((p, t), m) in points
+        .iter_mut()
+        .zip(pareto_front(&by_time))
+        .zip(pareto_front(&by_bytes))
+    {
+        p.pareto_time = t;
+        p.pareto_memory = m;
+    }
+    Ok(SweepReport {
+        scene: input.scene.source.display().to_string(),
+        width: req.width,
+        height: req.height,
+        threads: rayon::current_num_threads(),
+        densities,
+        reference,
+        points,
+        equal_error: equal,
+    })
+}
+
+/// The points as CSV, one row per point, with a header.
+pub fn csv(report: &SweepReport) -> String {
+    let mut s = String::from(
+        "method,density,tolerance,samples,texture_halvings,texture_placement,texture_texels,frame_ms,frame_ms_min,\
+         frame_ms_max,bytes,error_reconstruction,error_total,rmse_reconstruction,rmse_total,\
+         max_abs_reconstruction,max_abs_total,mach_band_reconstruction,mach_band_total,\
+         pareto_time,pareto_memory\n",
+    );
+    for p in &report.points {
+        let (h, pl, t) = match p.texture {
+            Some(l) => (l.halvings.to_string(), l.placement, l.texels.to_string()),
+            None => (String::new(), "", String::new()),
+        };
+        s += &format!(
+            "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}\n",
+            p.method,
+            p.density,
+            p.tolerance,
+            p.samples,
+            h,
+            pl,
+            t,
+            p.frame_ms,
+            p.frame_ms_spread[0],
+            p.frame_ms_spread[1],
+            p.bytes,
+            p.error_reconstruction,
+            p.error_total,
+            p.reconstruction.rmse,
+            p.total.rmse,
+            p.reconstruction.max_abs,
+            p.total.max_abs,
+            p.reconstruction.mach_band,
+            p.total.mach_band,
+            p.pareto_time,
+            p.pareto_memory
+        );
+    }
+    s
+}
+
+/// The points as a fixed-width table.
+pub fn table(report: &SweepReport) -> String {
+    let mut s = format!(
+        "{}: {} x {}, {} threads; reference: tolerance {}, max depth {}, {} samples\n\
+         method            dens  samples  texture   frame_ms       bytes  err_recon  err_total  front\n",
+        report.scene,
+        report.width,
+        report.height,
+        report.threads,
+        report.reference.tolerance,
+        report.reference.max_depth,
+        report.reference.samples
+    );
+    for p in &report.points {
+        let tex = p
+            .texture
+            .map(|l| format!("/{} {}", 1u64 << l.halvings, &l.placement[..3]))
+            .unwrap_or_default();
+        let front = match (p.pareto_time, p.pareto_memory) {
+            (true, true) => "time+mem",
+            (true, false) => "time",
+            (false, true) => "mem",
+            (false, false) => "",
+        };
+        s += &format!(
+            "{:<17} {:>4} {:>8} {:>8} {:>10.3} {:>11} {:>10.4} {:>10.4}  {}\n",
+            p.method,
+            p.density,
+            p.samples,
+            tex,
+            p.frame_ms,
+            p.bytes,
+            p.error_reconstruction,
+            p.error_total,
+            front
+        );
+    }
+    if let Some(e) = &report.equal_error {
+        s += "\n";
+        s += &equal_error::table(e);
+    }
+    s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn pareto_front_by_hand() {
+        // (cost, error): b dominates d; a and c trade; e ties a exactly.
+        let pts = [(1.0, 5.0), (2.0, 2.0), (4.0, 1.0), (3.0, 3.0), (1.0, 5.0)];
+        assert_eq!(pareto_front(&pts), [true, true, true, false, true]);
+        assert_eq!(pareto_front(&[]), Vec::<bool>::new());
+        // Equal cost, larger error: dominated.
+        assert_eq!(pareto_front(&[(1.0, 1.0), (1.0, 2.0)]), [true, false]);
+    }
+
+    #[test]
+    fn bad_options_are_refused() {
+        let base = SweepRequest::new(PathBuf::from("none.toml"));
+        type Edit = fn(&mut SweepRequest);
+        let cases: [(&str, Edit); 7] = [
+            ("--method", |r| r.methods = vec!["phong".into()]),
+            ("--methods", |r| r.methods = vec!["reference".into()]),
+            ("--methods", |r| r.methods.clear()),
+            ("--size", |r| r.width = 0),
+            ("--densities", |r| r.densities = vec![1.0, -2.0]),
+            ("--frames", |r| r.frames = 0),
+            ("--texture-levels", |r| r.texture_levels = 40),
+        ];
+        for (option, edit) in cases {
+            let mut r = base.clone();
+            edit(&mut r);
+            match check(&r).unwrap_err() {
+                Error::InvalidOption { option: o, .. } | Error::ResourceLimit { what: o, .. } => {
+                    assert_eq!(o, option)
+                }
+                e => panic!("{e:?}"),
+            }
+        }
+    }
+}

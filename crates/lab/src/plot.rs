@@ -1,0 +1,272 @@
+//! Plots of a speed-against-error sweep: total error against warm frame time, and total error
+//! against the bytes a method holds, on log axes, one series per method, the Pareto front drawn
+//! as a line through its points. Each plot is written as PNG and SVG.
+//!
+//! Drawn with `plotters` (no hand-made axes). Text uses DejaVu Sans, shipped in `assets/fonts`
+//! and registered once, so the plots look the same on any machine and need no system fonts; the
+//! PNG is encoded by the `image` crate from plotters' RGB buffer. Files are written atomically.
+//!
+//! Invariant: the plot shows exactly the report's points and flags; nothing is recomputed here.
+
+use std::path::{Path, PathBuf};
+use std::sync::OnceLock;
+
+use plotters::prelude::*;
+use plotters::style::{register_font, FontStyle};
+
+use crate::jobs::sweep::{SweepPoint, SweepReport};
+use base::error::{Error, Result};
+use base::output::write_atomic;
+
+/// Plot size in pixels.
+pub const PLOT_SIZE: (u32, u32) = (1000, 700);
+
+static FONT: &[u8] = include_bytes!("../assets/fonts/DejaVuSans.ttf");
+
+fn font() -> Result<()> {
+    static REGISTERED: OnceLock<bool> = OnceLock::new();
+    let ok =
+        *REGISTERED.get_or_init(|| register_font("sans-serif", FontStyle::Normal, FONT).is_ok());
+    if ok {
+        Ok(())
+    } else {
+        Err(Error::Runtime("the shipped plot font does not load".into()))
+    }
+}
+
+/// The colour of a method's series (fixed per method, so plots of different scenes agree).
+fn colour(method: &str) -> RGBColor {
+    match method {
+        "direct" => RGBColor(213, 62, 79),
+        "texture-nearest" => RGBColor(102, 194, 165),
+        "texture-bilinear" => RGBColor(50, 136, 189),
+        "texture-bicubic" => RGBColor(94, 79, 162),
+        "mesh" => RGBColor(244, 165, 66),
+        _ => RGBColor(90, 90, 90),
+    }
+}
+
+/// Which axis a plot puts the cost on.
+#[derive(Clone, Copy)]
+enum Cost {
+    Time,
+    Bytes,
+}
+
+impl Cost {
+    fn of(self, p: &SweepPoint) -> f64 {
+        match self {
+            Cost::Time => p.frame_ms,
+            Cost::Bytes => p.bytes as f64,
+        }
+    }
+    fn on_front(self, p: &SweepPoint) -> bool {
+        match self {
+            Cost::Time => p.pareto_time,
+            Cost::Bytes => p.pareto_memory,
+        }
+    }
+    fn label(self) -> &'static str {
+        match self {
+            Cost::Time => "warm frame time (ms, log)",
+            Cost::Bytes => "bytes held by the method (log)",
+        }
+    }
+    fn file(self) -> &'static str {
+        match self {
+            Cost::Time => "error-vs-time",
+            Cost::Bytes => "error-vs-memory",
+        }
+    }
+}
+
+/// A tick label with at most 3 significant digits, large values with K / M / G (powers of 1000).
+fn tick(x: f64) -> String {
+    if !(x.is_finite() && x > 0.0) {
+        return format!("{x}");
+    }
+    let (v, suffix) = match x {
+        x if x >= 1e9 => (x / 1e9, "G"),
+        x if x >= 1e6 => (x / 1e6, "M"),
+        x if x >= 1e3 => (x / 1e3, "K"),
+        x => (x, ""),
+    };
+    let decimals = (2 - v.log10().floor() as i32).clamp(0, 6) as usize;
+    let s = format!("{v:.decimals$}");
+    let s = if s.contains('.') {
+        s.trim_end_matches('0').trim_end_matches('.').to_string()
+    } else {
+        s
+    };
+    s + suffix
+}
+
+/// A log axis range covering `xs` with a margin (a factor of 1.3 each side).
+fn log_range(xs: impl Iterator<Item = f64>) -> std::ops::Range<f64> {
+    let (lo, hi) = xs
+        .filter(|x| x.is_finite() && *x > 0.0)
+        .fold((f64::INFINITY, 0.0f64), |(lo, hi), x| {
+            (lo.min(x), hi.max(x))
+        });
+    if lo.is_finite() && hi > 0.0 {
+        lo / 1.3..hi * 1.3
+    } else {
+        0.1..10.0
+    }
+}
+
+fn draw<DB: DrawingBackend>(
+    area: DrawingArea<DB, plotters::coord::Shift>,
+    report: &SweepReport,
+    cost: Cost,
+) -> Result<()>
+where
+    DB::ErrorType: 'static,
+{
+    let err = |e: DrawingAreaErrorKind<DB::ErrorType>| Error::Runtime(format!("plotting: {e:?}"));
+    area.fill(&WHITE).map_err(err)?;
+    let pts: Vec<&SweepPoint> = report
+        .points
+        .iter()
+        .filter(|p| cost.of(p) > 0.0 && p.error_total > 0.0)
+        .collect();
+    let x = log_range(pts.iter().map(|p| cost.of(p)));
+    let y = log_range(pts.iter().map(|p| p.error_total));
+    let title = format!(
+        "{}: error against {} ({} x {})",
+        Path::new(&report.scene)
+            .file_stem()
+            .map(|s| s.to_string_lossy().into_owned())
+            .unwrap_or_default(),
+        match cost {
+            Cost::Time => "frame time",
+            Cost::Bytes => "memory",
+        },
+        report.width,
+        report.height
+    );
+    let mut chart = ChartBuilder::on(&area)
+        .caption(title, ("sans-serif", 26))
+        .margin(16)
+        .x_label_area_size(50)
+        .y_label_area_size(80)
+        .build_cartesian_2d(x.log_scale(), y.log_scale())
+        .map_err(err)?;
+    chart
+        .configure_mesh()
+        .x_desc(cost.label())
+        .y_desc("perceptual distance to the converged solution (log)")
+        .label_style(("sans-serif", 15))
+        .axis_desc_style(("sans-serif", 17))
+        .x_labels(16)
+        .y_labels(16)
+        .x_label_formatter(&|x| tick(*x))
+        .y_label_formatter(&|y| tick(*y))
+        .draw()
+        .map_err(err)?;
+    let mut methods: Vec<&str> = Vec::new();
+    for p in &pts {
+        if !methods.contains(&p.method.as_str()) {
+            methods.push(&p.method);
+        }
+    }
+    for m in methods {
+        let c = colour(m);
+        let series: Vec<(f64, f64)> = pts
+            .iter()
+            .filter(|p| p.method == m)
+            .map(|p| (cost.of(p), p.error_total))
+            .collect();
+        chart
+            .draw_series(series.iter().map(|&xy| Circle::new(xy, 5, c.filled())))
+            .map_err(err)?
+            .label(m)
+            .legend(move |(x, y)| Circle::new((x + 10, y), 5, c.filled()));
+    }
+    let mut front: Vec<(f64, f64)> = pts
+        .iter()
+        .filter(|p| cost.on_front(p))
+        .map(|p| (cost.of(p), p.error_total))
+        .collect();
+    front.sort_by(|a, b| a.0.total_cmp(&b.0).then(b.1.total_cmp(&a.1)));
+    chart
+        .draw_series(LineSeries::new(
+            front.iter().copied(),
+            BLACK.stroke_width(2),
+        ))
+        .map_err(err)?
+        .label("Pareto front")
+        .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLACK.stroke_width(2)));
+    chart
+        .draw_series(
+            front
+                .iter()
+                .map(|&xy| Circle::new(xy, 9, BLACK.stroke_width(2))),
+        )
+        .map_err(err)?;
+    chart
+        .configure_series_labels()
+        .label_font(("sans-serif", 15))
+        .background_style(WHITE.mix(0.85))
+        .border_style(BLACK)
+        .position(SeriesLabelPosition::UpperRight)
+        .draw()
+        .map_err(err)?;
+    area.present().map_err(err)?;
+    Ok(())
+}
+
+/// Writes `error-vs-time.{png,svg}` and `error-vs-memory.{png,svg}` for `report` into `dir`
+/// (created if missing). Returns the files written.
+pub fn sweep_plots(report: &SweepReport, dir: &Path) -> Result<Vec<PathBuf>> {
+    font()?;
+    let (w, h) = PLOT_SIZE;
+    let mut written = Vec::new();
+    for cost in [Cost::Time, Cost::Bytes] {
+        let mut rgb = vec![0u8; w as usize * h as usize * 3];
+        draw(
+            BitMapBackend::with_buffer(&mut rgb, (w, h)).into_drawing_area(),
+            report,
+            cost,
+        )?;
+        let img = ::image::RgbImage::from_raw(w, h, rgb)
+            .ok_or_else(|| Error::Runtime("plot buffer size mismatch".into()))?;
+        let mut png = Vec::new();
+        img.write_to(
+            &mut std::io::Cursor::new(&mut png),
+            ::image::ImageFormat::Png,
+        )
+        .map_err(|e| Error::Runtime(format!("PNG encoding of a plot failed: {e}")))?;
+        let path = dir.join(format!("{}.png", cost.file()));
+        write_atomic(&path, &png)?;
+        written.push(path);
+
+        let mut svg = String::new();
+        draw(
+            SVGBackend::with_string(&mut svg, (w, h)).into_drawing_area(),
+            report,
+            cost,
+        )?;
+        let path = dir.join(format!("{}.svg", cost.file()));
+        write_atomic(&path, svg.as_bytes())?;
+        written.push(path);
+    }
+    Ok(written)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn tick_labels_have_three_significant_digits() {
+        assert_eq!(tick(0.30000000000000004), "0.3");
+        assert_eq!(tick(0.1234), "0.123");
+        assert_eq!(tick(2.0), "2");
+        assert_eq!(tick(12.5), "12.5");
+        assert_eq!(tick(150.0), "150");
+        assert_eq!(tick(26339.0), "26.3K");
+        assert_eq!(tick(2_855_597.0), "2.86M");
+        assert_eq!(tick(4e9), "4G");
+    }
+}

@@ -1,0 +1,323 @@
+//! The solver against closed forms, each derived here independently of the solver's own code, in
+//! f64, at the default settings unless a case says otherwise:
+//! - a square emitter over a floor: the floor's radiosity is rho * E * F(x), F the point-to-polygon
+//!   form factor by Lambert's contour formula, F = 1/(2 pi) sum_i theta_i n . (R_i x R_i+1) /
+//!   |R_i x R_i+1| (R_i from x to the emitter's corners, theta_i the angle between consecutive
+//!   ones); nothing else reflects, so that is exact. The reconstruction (what every method
+//!   draws) must be within 1e-3 of the peak everywhere, and within 2 % of the local value
+//!   wherever the radiosity is at least 1 % of the peak;
+//! - a thin strip (100:1) under an off-centre area light, the same formula: within 2 % of the
+//!   peak everywhere, and the strip refined along its length (the light's footprint is resolved,
+//!   not a straight line between the initial samples);
+//! - an RGB furnace (a closed box, every face emitting E = 1 with reflectance (0.5, 0.9, 0.2)):
+//!   B = E / (1 - rho) per channel, every sample within the convergence setting in every channel
+//!   (the unshot power left behind, u in channel c, leaves a relative error of rho_c u < u);
+//! - a sharp shadow: a spot over a floor with a square occluder; the shadow's outline gets
+//!   samples at the depth limit, and no method draws negative radiosity near it.
+
+use glam::DVec3;
+use lab::jobs::Context;
+
+use base::method::{Method, Placement};
+use base::quadtree::SampledQuadtree;
+use engine::frame::FrameOptions;
+use lab::jobs::{prepare, render_frame, Input};
+use radiosity::{solve, Solution, SolveOptions};
+use reconstruction::texture::SizePolicy;
+use reconstruction::{Estimator, Reconstruction};
+use scene::{Camera, Material, Polygon, Projection, Scene, SpotLight};
+
+fn material(name: &str, rho: [f64; 3], e: [f64; 3]) -> Material {
+    Material {
+        name: name.into(),
+        reflectance: DVec3::from_array(rho),
+        emission: DVec3::from_array(e),
+    }
+}
+
+fn camera() -> Camera {
+    Camera {
+        eye: DVec3::new(0.0, -3.0, 3.0),
+        look_at: DVec3::ZERO,
+        up: DVec3::Z,
+        projection: Projection::Perspective { fov_y_deg: 50.0 },
+    }
+}
+
+/// A quad whose normal points along `facing` (its winding reversed if needed).
+fn quad(mut c: [DVec3; 4], facing: DVec3, material: u32) -> Polygon {
+    let p = Polygon::quad(c, material, 0).unwrap();
+    if p.normal.dot(facing) > 0.0 {
+        return p;
+    }
+    c.reverse();
+    let p = Polygon::quad(c, material, 0).unwrap();
+    assert!(p.normal.dot(facing) > 0.0);
+    p
+}
+
+/// Axis-aligned rectangle [x0, x1] x [y0, y1] at height z, facing `facing`.
+fn rect(x0: f64, x1: f64, y0: f64, y1: f64, z: f64, facing: DVec3, m: u32) -> Polygon {
+    quad(
+        [
+            DVec3::new(x0, y0, z),
+            DVec3::new(x1, y0, z),
+            DVec3::new(x1, y1, z),
+            DVec3::new(x0, y1, z),
+        ],
+        facing,
+        m,
+    )
+}
+
+/// Lambert's form factor from a point `x` with normal `n` to the polygon `v` (any winding).
+fn lambert(x: DVec3, n: DVec3, v: &[DVec3]) -> f64 {
+    let mut sum = 0.0;
+    for i in 0..v.len() {
+        let a = v[i] - x;
+        let b = v[(i + 1) % v.len()] - x;
+        let c = a.cross(b);
+        let theta = (a.dot(b) / (a.length() * b.length()))
+            .clamp(-1.0, 1.0)
+            .acos();
+        sum += theta * n.dot(c) / c.length();
+    }
+    (sum / (2.0 * std::f64::consts::PI)).abs()
+}
+
+/// A grey receiver (material 0, reflectance `rho`) and a black emitter (material 1, emission
+/// `e`): the light's is the only light the receiver gets, and nothing reflects back.
+fn lit_receiver(receiver: Polygon, rho: f64, light: Polygon, e: f64) -> Scene {
+    Scene::new(
+        camera(),
+        64,
+        64,
+        vec![
+            material("receiver", [rho; 3], [0.0; 3]),
+            material("light", [0.0; 3], [e; 3]),
+        ],
+        vec![receiver, light],
+    )
+}
+
+fn solved(scene: &Scene) -> Solution {
+    solve(scene, &SolveOptions::default()).unwrap()
+}
+
+/// Largest error (relative to the peak of the exact values) and largest relative error where
+/// the exact value is at least 1 % of the peak, of the reconstruction of polygon `r` on an
+/// n x n grid, channel 0.
+fn errors(
+    scene: &Scene,
+    sol: &Solution,
+    r: usize,
+    n: u32,
+    exact: impl Fn(DVec3) -> f64,
+) -> (f64, f64, f64) {
+    errors_with(scene, sol, r, n, Estimator::default(), exact)
+}
+
+fn errors_with(
+    scene: &Scene,
+    sol: &Solution,
+    r: usize,
+    n: u32,
+    estimator: Estimator,
+    exact: impl Fn(DVec3) -> f64,
+) -> (f64, f64, f64) {
+    let rec = Reconstruction::build(&sol.polygons, estimator).unwrap();
+    let p = &scene.polygons[r];
+    let mut pts = Vec::new();
+    for j in 0..=n {
+        for i in 0..=n {
+            let (u, v) = (i as f64 / n as f64, j as f64 / n as f64);
+            pts.push((u, v, exact(p.point(u, v))));
+        }
+    }
+    let peak = pts.iter().map(|t| t.2).fold(0.0, f64::max);
+    let (mut abs, mut rel) = (0f64, 0f64);
+    for (u, v, want) in pts {
+        let got = rec.eval(r as u32, u as f32, v as f32).x as f64;
+        abs = abs.max((got - want).abs() / peak);
+        if want >= 0.01 * peak {
+            rel = rel.max((got - want).abs() / want);
+        }
+    }
+    (peak, abs, rel)
+}
+
+#[test]
+fn emitter_square_over_a_floor_matches_lamberts_formula() {
+    let floor = rect(-2.0, 2.0, -2.0, 2.0, 0.0, DVec3::Z, 0);
+    let light = rect(-0.5, 0.5, -0.5, 0.5, 1.0, -DVec3::Z, 1);
+    let corners = light.vertices().to_vec();
+    let scene = lit_receiver(floor, 0.5, light, 1.0);
+    let sol = solved(&scene);
+    let (peak, abs, rel) = errors(&scene, &sol, 0, 200, |x| {
+        0.5 * lambert(x, DVec3::Z, &corners)
+    });
+    eprintln!("emitter over floor: peak {peak:.5}, max error {abs:.2e} of the peak, max relative error {rel:.2e}, {} samples", sol.polygons[0].values.len());
+    assert!(abs <= 1e-3, "max error {abs} of the peak");
+    assert!(rel <= 0.02, "max relative error {rel}");
+}
+
+#[test]
+fn a_thin_strip_refines_like_a_large_polygon() {
+    // 4 x 0.04 (aspect 100:1) under a 0.5 m square light 0.5 m up, off the strip's centre.
+    let strip = rect(-2.0, 2.0, -0.02, 0.02, 0.0, DVec3::Z, 0);
+    let light = rect(0.35, 0.85, -0.25, 0.25, 0.5, -DVec3::Z, 1);
+    let corners = light.vertices().to_vec();
+    let scene = lit_receiver(strip, 0.6, light, 4.0);
+    let sol = solved(&scene);
+    let strip_tree: &SampledQuadtree = &sol.polygons[0];
+    let (peak, abs, rel) = errors(&scene, &sol, 0, 400, |x| {
+        0.6 * 4.0 * lambert(x, DVec3::Z, &corners)
+    });
+    eprintln!(
+        "thin strip: peak {peak:.4}, max error {abs:.2e} of the peak, max relative error {rel:.2e}, depth {}, {} samples",
+        strip_tree.tree.depth(),
+        strip_tree.values.len()
+    );
+    assert!(abs <= 0.02, "max error {abs} of the peak");
+    assert!(rel <= 0.02, "max relative error {rel}");
+    assert!(strip_tree.tree.depth() >= 5, "the strip was not refined");
+}
+
+#[test]
+fn an_rgb_furnace_converges_in_every_channel() {
+    let rho = [0.5, 0.9, 0.2];
+    let (lo, hi) = (DVec3::ZERO, DVec3::ONE);
+    let c = 0.5 * (lo + hi);
+    let mut faces = Vec::new();
+    for axis in 0..3 {
+        for side in [lo[axis], hi[axis]] {
+            let mut pts = [DVec3::ZERO; 4];
+            let (a, b) = ((axis + 1) % 3, (axis + 2) % 3);
+            for (k, (s, t)) in [(0, 0), (1, 0), (1, 1), (0, 1)].into_iter().enumerate() {
+                pts[k][axis] = side;
+                pts[k][a] = if s == 0 { lo[a] } else { hi[a] };
+                pts[k][b] = if t == 0 { lo[b] } else { hi[b] };
+            }
+            let mut inward = DVec3::ZERO;
+            inward[axis] = c[axis] - side;
+            faces.push(quad(pts, inward, 0));
+        }
+    }
+    let scene = Scene::new(
+        Camera {
+            eye: DVec3::splat(0.5),
+            look_at: DVec3::new(0.5, 0.5, 0.0),
+            up: DVec3::Y,
+            projection: Projection::Perspective { fov_y_deg: 60.0 },
+        },
+        64,
+        64,
+        vec![material("furnace", rho, [1.0; 3])],
+        faces,
+    );
+    let conv = scene.radiosity.convergence;
+    let sol = solved(&scene);
+    let mut worst = [0f64; 3];
+    for p in &sol.polygons {
+        for v in &p.values {
+            for ch in 0..3 {
+                let want = 1.0 / (1.0 - rho[ch]);
+                worst[ch] = worst[ch].max((v[ch] as f64 - want).abs() / want);
+            }
+        }
+    }
+    eprintln!(
+        "furnace: worst relative error per channel {worst:?}, unshot {}",
+        sol.stats.unshot_fraction
+    );
+    for (ch, w) in worst.iter().enumerate() {
+        assert!(*w <= conv, "channel {ch}: {w} > convergence {conv}");
+    }
+}
+
+#[test]
+fn a_sharp_shadow_is_refined_to_the_depth_limit_and_never_negative() {
+    let floor = rect(-2.0, 2.0, -2.0, 2.0, 0.0, DVec3::Z, 0);
+    // A square occluder between the spot and the floor, seen from below as black.
+    let occluder = rect(-0.3, 0.3, -0.3, 0.3, 1.0, -DVec3::Z, 1);
+    let mut scene = Scene::new(
+        camera(),
+        64,
+        64,
+        vec![
+            material("floor", [0.7; 3], [0.0; 3]),
+            material("black", [0.0; 3], [0.0; 3]),
+        ],
+        vec![floor, occluder],
+    );
+    scene.spots.push(SpotLight {
+        position: DVec3::new(0.1, 0.05, 2.0),
+        direction: -DVec3::Z,
+        intensity: DVec3::splat(10.0),
+        half_angle: 60f64.to_radians(),
+        falloff: 1.0,
+    });
+    let sol = solved(&scene);
+    let tree = &sol.polygons[0].tree;
+    let max_depth = scene.radiosity.max_depth;
+    // The shadow of the occluder's edge x = 0.3 on the floor: from the spot at (0.1, .., 2)
+    // through z = 1 it lands at x = 0.1 + (0.3 - 0.1) * 2 = 0.5, for |y| under the shadow.
+    let (u, v) = ((0.5 + 2.0) / 4.0, (0.0 + 2.0) / 4.0);
+    let leaf = tree.find_leaf(u, v);
+    assert_eq!(
+        tree.node(leaf).cell.level,
+        max_depth,
+        "the leaf on the shadow edge is not at the depth limit"
+    );
+    // The bicubic reconstruction may ring slightly below zero beside the edge; what every
+    // method draws is clamped at the pixel resolve, so no image holds a negative value.
+    let rec = Reconstruction::build(&sol.polygons, Estimator::default()).unwrap();
+    let mut lowest = f32::INFINITY;
+    for j in 0..=300 {
+        for i in 0..=300 {
+            let v = rec.eval(0, i as f32 / 300.0, j as f32 / 300.0);
+            lowest = lowest.min(v.min_element());
+        }
+    }
+    let peak = sol.polygons[0]
+        .values
+        .iter()
+        .map(|v| v.x)
+        .fold(0.0, f32::max);
+    eprintln!("sharp shadow: lowest reconstructed value {lowest} (peak {peak})");
+    assert!(
+        lowest > -0.01 * peak,
+        "ringing of {lowest} against a peak of {peak}"
+    );
+    let input = Input {
+        path: "sharp-shadow.toml".into(),
+        scene: scene.clone(),
+        solution_file: None,
+        estimator: Estimator::default(),
+    };
+    let p = prepare(
+        &Context::default(),
+        input,
+        SizePolicy::FromDepth,
+        Placement::Centre,
+    )
+    .unwrap();
+    let mut cam = scene.camera;
+    cam.eye = DVec3::new(0.5, -0.6, 1.2);
+    cam.look_at = DVec3::new(0.5, 0.0, 0.0);
+    for name in Method::NAMES {
+        let method = Method::parse(name).unwrap();
+        let f = render_frame(&p, method, &cam, &FrameOptions::new(96, 96)).unwrap();
+        let low = f
+            .pixels
+            .iter()
+            .map(|c| c.min_element())
+            .fold(f32::INFINITY, f32::min);
+        assert!(
+            f.pixels
+                .iter()
+                .all(|c| c.is_finite() && c.min_element() >= 0.0 && c.x.is_sign_positive()),
+            "{name}: lowest pixel {low}"
+        );
+    }
+}

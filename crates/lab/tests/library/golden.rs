@@ -1,0 +1,152 @@
+//! Golden images: every shipped scene (`scenes/*.toml`) rendered at 64 x 64 by every method,
+//! compared pixel by pixel with the EXR committed under `crates/lab/tests/golden/<scene>/<method>.exr`.
+//!
+//! The tolerance ([`pixels::DEFAULT_TOLERANCE`], 16 `f32` rounding steps relative to the pixel,
+//! with an absolute floor for black pixels) passes a rebuild on the same CPU kind and breaks on
+//! any one pixel that moves visibly, so an unintended change anywhere between the scene file and
+//! the pixels fails here. On a failure the test names the pixels that moved and writes, under
+//! `target/golden-diff/`, the image it got (`<scene>-<method>-got.exr`) and a difference image
+//! (`<scene>-<method>-diff.png`, scaled so the largest difference is white).
+//!
+//! A change that is meant to move pixels regenerates the images on purpose, and the commit shows
+//! them changing:
+//!
+//! ```text
+//! PFS_UPDATE_GOLDEN=1 cargo test --release -p pixelflow-lab --test library golden
+//! ```
+//!
+//! The frames use 2 renderers (composition in the path) and no antialiasing; images are
+//! bit-identical for any thread and renderer count, so the tolerance only absorbs what a
+//! different build could round differently.
+
+use lab::jobs::Context;
+use std::path::{Path, PathBuf};
+
+use base::Method;
+use engine::frame::FrameOptions;
+use lab::image::{read_image, write_exr, write_png, LinearImage};
+use lab::jobs::{prepare_path, render_frame, TextureOptions};
+use metric::pixels::{self, DEFAULT_FLOOR, DEFAULT_TOLERANCE};
+
+const SIZE: u32 = 64;
+
+fn root() -> &'static Path {
+    Path::new(crate::REPO)
+}
+
+fn updating() -> bool {
+    std::env::var_os("PFS_UPDATE_GOLDEN").is_some_and(|v| v == "1")
+}
+
+/// Renders `scene` (a stem under `scenes/`) by every method and checks (or, when updating,
+/// writes) its golden images; panics listing every method whose image moved.
+fn check_scene(scene: &str) {
+    let path = root().join("scenes").join(format!("{scene}.toml"));
+    let p = prepare_path(&Context::default(), &path, &TextureOptions::default())
+        .expect("scene prepares");
+    let opts = FrameOptions {
+        renderers: 2,
+        aa: 1,
+        ..FrameOptions::new(SIZE, SIZE)
+    };
+    let dir = root().join("crates/lab/tests/golden").join(scene);
+    let out = root().join("target/golden-diff");
+    let mut failures = Vec::new();
+    for name in Method::NAMES {
+        let method = Method::parse(name).expect("a method name");
+        let frame = render_frame(&p, method, &p.scene.camera, &opts).expect("frame renders");
+        let got = LinearImage::new(frame.width, frame.height, frame.view().pixels.to_vec())
+            .expect("an image");
+        let golden = dir.join(format!("{name}.exr"));
+        if updating() {
+            write_exr(&golden, got.view()).expect("golden written");
+            continue;
+        }
+        let want = match read_image(&golden) {
+            Ok(w) => w,
+            Err(e) => {
+                failures.push(format!(
+                    "{name}: no golden image ({e}); create it with \
+                     PFS_UPDATE_GOLDEN=1 cargo test --release -p pixelflow-lab --test library golden"
+                ));
+                continue;
+            }
+        };
+        let d = pixels::diff(&got, &want, DEFAULT_TOLERANCE, DEFAULT_FLOOR).expect("same size");
+        if d.differing > 0 {
+            let stem = format!("{scene}-{name}");
+            let got_path: PathBuf = out.join(format!("{stem}-got.exr"));
+            let diff_path: PathBuf = out.join(format!("{stem}-diff.png"));
+            write_exr(&got_path, got.view()).expect("got written");
+            write_png(&diff_path, d.normalized_image().view(), 0.0).expect("diff written");
+            failures.push(format!(
+                "{name}: {}\n  wrote {} and {}",
+                d.summary(),
+                got_path.display(),
+                diff_path.display()
+            ));
+        }
+    }
+    assert!(
+        failures.is_empty(),
+        "{scene}: golden images differ (regenerate on purpose with \
+         PFS_UPDATE_GOLDEN=1 cargo test --release -p pixelflow-lab --test library golden):\n{}",
+        failures.join("\n")
+    );
+}
+
+/// Every shipped scene has a test below (so a new scene without goldens fails here).
+#[test]
+fn every_shipped_scene_has_a_golden_test() {
+    let mut stems: Vec<String> = std::fs::read_dir(root().join("scenes"))
+        .unwrap()
+        .filter_map(|e| {
+            let p = e.unwrap().path();
+            (p.extension().is_some_and(|x| x == "toml"))
+                .then(|| p.file_stem().unwrap().to_string_lossy().into_owned())
+        })
+        .collect();
+    stems.sort();
+    assert_eq!(stems, SCENES);
+}
+
+const SCENES: [&str; 6] = [
+    "building",
+    "cornell-box",
+    "gallery",
+    "gallery-fine",
+    "two-spots",
+    "two-spots-narrow",
+];
+
+/// The generated 10,048-polygon building (64 rooms; about 40 s to solve with sampled
+/// visibility): the large shipped scene, drawn by every method.
+#[test]
+fn golden_building() {
+    check_scene("building");
+}
+
+#[test]
+fn golden_cornell_box() {
+    check_scene("cornell-box");
+}
+
+#[test]
+fn golden_gallery() {
+    check_scene("gallery");
+}
+
+#[test]
+fn golden_gallery_fine() {
+    check_scene("gallery-fine");
+}
+
+#[test]
+fn golden_two_spots() {
+    check_scene("two-spots");
+}
+
+#[test]
+fn golden_two_spots_narrow() {
+    check_scene("two-spots-narrow");
+}

@@ -1,0 +1,473 @@
+//! Solution files: how a solve is kept between `solve` and `render`, so a walkthrough never solves
+//! twice. The format is little-endian binary:
+//!
+//! ```text
+//! magic        8 bytes  "PFSOLN\r\n"
+//! version      u32      FORMAT_VERSION
+//! path_len     u32      bytes of the scene path (0: none)
+//! payload_len  u64      bytes of payload
+//! scene_hash   u64      radiosity::scene_hash of the scene solved
+//! scene_path   path_len UTF-8 absolute path of the scene file (so `render <solution>` works)
+//! payload      ...      trees, keys, values, shooters, stats, then the RRPs: a u64 length and
+//!                       that many bytes of the compact reconstruction's encoding (see
+//!                       `encode_payload`; empty when not stored)
+//! checksum     u64      FNV-1a 64 of every byte before it
+//! ```
+//!
+//! Invariants: the bytes are a pure function of the solution (the solve time is not stored, so
+//! solving one scene twice writes identical files); files are written atomically through
+//! [`base::output::write_atomic`]; reading checks, in order, magic, version, length (truncation),
+//! checksum (corruption), scene hash (another scene), then rebuilds every quadtree with
+//! [`Quadtree::from_nodes`] and checks the stored keys are exactly its vertices. Every failure is an
+//! [`Error::Solution`] naming the file, the [`SolutionProblem`] and what is wrong.
+
+use std::path::Path;
+
+use glam::{DVec3, Vec3};
+
+use super::transfer::{build_shooters, ShooterKind};
+use super::{fill_tree_stats, scene_hash, Fnv, Shooter, Solution, SolveStats};
+use base::error::{Error, Result, SolutionProblem};
+use base::quadtree::{Cell, Node, Quadtree, SampledQuadtree};
+use scene::Scene;
+
+/// File magic.
+pub const MAGIC: &[u8; 8] = b"PFSOLN\r\n";
+/// Current format version. Version 2 added the compact RRPs after the statistics; version 3
+/// marks solutions of the local refinement criterion with per-channel convergence, their RRPs
+/// built with the Hyman estimator. Older files are refused (solve again).
+pub const FORMAT_VERSION: u32 = 3;
+const HEADER: usize = 8 + 4 + 4 + 8 + 8;
+
+/// Serializes a solution to bytes (the exact file content), naming no scene file and storing
+/// no RRPs.
+pub fn encode(sol: &Solution) -> Vec<u8> {
+    encode_with_scene(sol, None, &[])
+}
+
+/// Serializes a solution to bytes, naming the scene file it solves (so `render <solution>` can
+/// load it) and storing `rrps`, the compact reconstruction's encoding (opaque here: this module
+/// comes before the reconstruction stage, which encodes and decodes it). The path is stored as
+/// UTF-8 between the header and the payload.
+pub fn encode_with_scene(sol: &Solution, scene_path: Option<&Path>, rrps: &[u8]) -> Vec<u8> {
+    let payload = encode_payload(sol, rrps);
+    let path = scene_path
+        .map(|p| p.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    let mut out = Vec::with_capacity(HEADER + path.len() + payload.len() + 8);
+    out.extend_from_slice(MAGIC);
+    out.extend_from_slice(&FORMAT_VERSION.to_le_bytes());
+    out.extend_from_slice(&(path.len() as u32).to_le_bytes());
+    out.extend_from_slice(&(payload.len() as u64).to_le_bytes());
+    out.extend_from_slice(&sol.scene_hash.to_le_bytes());
+    out.extend_from_slice(path.as_bytes());
+    out.extend_from_slice(&payload);
+    let mut h = Fnv::default();
+    h.bytes(&out);
+    out.extend_from_slice(&h.0.to_le_bytes());
+    out
+}
+
+/// Writes `sol` and `rrps` (the compact reconstruction's encoding, or empty) to `path`
+/// atomically. `scene_path`, if given, is made absolute and stored so that the solution file
+/// alone is enough to render.
+pub fn write_solution(
+    path: &Path,
+    sol: &Solution,
+    scene_path: Option<&Path>,
+    rrps: &[u8],
+) -> Result<()> {
+    let abs = match scene_path {
+        Some(p) => Some(std::fs::canonicalize(p).map_err(|e| Error::io(p, e))?),
+        None => None,
+    };
+    base::output::write_atomic(path, &encode_with_scene(sol, abs.as_deref(), rrps))
+}
+
+/// The scene file a solution file names (checked: magic, version, length, checksum).
+pub fn read_scene_path(path: &Path) -> Result<std::path::PathBuf> {
+    let bytes = read(path)?;
+    let env = envelope(&bytes).map_err(|b| b.at(path))?;
+    let name = &bytes[HEADER..HEADER + env.path_len];
+    if name.is_empty() {
+        return Err(Error::solution(
+            path,
+            SolutionProblem::SceneMismatch,
+            "this solution file names no scene file; render the scene itself",
+        ));
+    }
+    let name = std::str::from_utf8(name).map_err(|_| {
+        Error::solution(
+            path,
+            SolutionProblem::Corrupt,
+            "corrupt solution file: scene path is not UTF-8",
+        )
+    })?;
+    Ok(std::path::PathBuf::from(name))
+}
+
+/// Reads a solution of `scene` from `path`, with the stored RRP bytes (empty if none).
+pub fn read_solution(path: &Path, scene: &Scene) -> Result<(Solution, Vec<u8>)> {
+    let bytes = read(path)?;
+    decode(&bytes, scene).map_err(|b| b.at(path))
+}
+
+fn read(path: &Path) -> Result<Vec<u8>> {
+    base::output::read_limited(path, base::output::MAX_INPUT_BYTES).map_err(|e| {
+        Error::solution(
+            path,
+            SolutionProblem::NotASolution,
+            format!("cannot read the solution file: {e}"),
+        )
+    })
+}
+
+/// A decoding failure: what kind, and the message for the user. A plain message (from the
+/// payload reader) is a corrupt file.
+#[derive(Debug)]
+pub struct Bad(pub SolutionProblem, pub String);
+
+impl From<String> for Bad {
+    fn from(m: String) -> Bad {
+        Bad(SolutionProblem::Corrupt, m)
+    }
+}
+
+impl Bad {
+    fn at(self, path: &Path) -> Error {
+        Error::solution(path, self.0, self.1)
+    }
+}
+
+/// Lengths of the checked envelope of a solution file.
+struct Envelope {
+    path_len: usize,
+    body: usize,
+}
+
+/// Checks magic, version, length (truncation) and checksum (corruption).
+fn envelope(bytes: &[u8]) -> std::result::Result<Envelope, Bad> {
+    if bytes.len() < 8 || &bytes[..8] != MAGIC {
+        return Err(Bad(
+            SolutionProblem::NotASolution,
+            "not a pixelflow-sim solution file (bad magic bytes)".to_string(),
+        ));
+    }
+    if bytes.len() < HEADER {
+        return Err(Bad(
+            SolutionProblem::Truncated,
+            format!(
+                "truncated solution file: {} bytes, the header alone is {HEADER}",
+                bytes.len()
+            ),
+        ));
+    }
+    let u32_at = |o: usize| u32::from_le_bytes(bytes[o..o + 4].try_into().unwrap_or([0; 4]));
+    let u64_at = |o: usize| u64::from_le_bytes(bytes[o..o + 8].try_into().unwrap_or([0; 8]));
+    let version = u32_at(8);
+    if version != FORMAT_VERSION {
+        return Err(Bad(
+            SolutionProblem::Version {
+                found: version,
+                supported: FORMAT_VERSION,
+            },
+            format!(
+                "solution file format version {version}, this program reads version {FORMAT_VERSION}; solve the scene again"
+            ),
+        ));
+    }
+    let path_len = u32_at(12) as u64;
+    let payload_len = u64_at(16);
+    let expect = (HEADER as u64)
+        .saturating_add(path_len)
+        .saturating_add(payload_len)
+        .saturating_add(8);
+    if (bytes.len() as u64) < expect {
+        return Err(Bad(
+            SolutionProblem::Truncated,
+            format!(
+                "truncated solution file: {} bytes, expected {expect}",
+                bytes.len()
+            ),
+        ));
+    }
+    if (bytes.len() as u64) > expect {
+        return Err(format!(
+            "corrupt solution file: {} bytes, expected {expect} (trailing data)",
+            bytes.len()
+        )
+        .into());
+    }
+    let body = bytes.len() - 8;
+    let mut h = Fnv::default();
+    h.bytes(&bytes[..body]);
+    if h.0 != u64_at(body) {
+        return Err("corrupt solution file: checksum mismatch"
+            .to_string()
+            .into());
+    }
+    Ok(Envelope {
+        path_len: path_len as usize,
+        body,
+    })
+}
+
+struct W(Vec<u8>);
+impl W {
+    fn u8(&mut self, x: u8) {
+        self.0.push(x);
+    }
+    fn u32(&mut self, x: u32) {
+        self.0.extend_from_slice(&x.to_le_bytes());
+    }
+    fn u64(&mut self, x: u64) {
+        self.0.extend_from_slice(&x.to_le_bytes());
+    }
+    fn f64(&mut self, x: f64) {
+        self.0.extend_from_slice(&x.to_le_bytes());
+    }
+    fn f32(&mut self, x: f32) {
+        self.0.extend_from_slice(&x.to_le_bytes());
+    }
+}
+
+fn encode_payload(sol: &Solution, rrps: &[u8]) -> Vec<u8> {
+    let mut w = W(Vec::new());
+    w.u32(sol.polygons.len() as u32);
+    for p in &sol.polygons {
+        let nodes = p.tree.nodes();
+        w.u32(nodes.len() as u32);
+        for n in nodes {
+            w.u8(n.cell.level as u8);
+            w.u32(n.cell.x);
+            w.u32(n.cell.y);
+            w.u32(n.first_child);
+        }
+        w.u32(p.keys.len() as u32);
+        for k in &p.keys {
+            w.u32(k.i);
+            w.u32(k.j);
+        }
+        for v in &p.values {
+            w.f32(v.x);
+            w.f32(v.y);
+            w.f32(v.z);
+        }
+    }
+    w.u32(sol.shooters.len() as u32);
+    for s in &sol.shooters {
+        let (tag, a, cell) = match s.kind {
+            ShooterKind::Spot { spot } => (0u8, spot, Cell::ROOT),
+            ShooterKind::Emitter { polygon } => (1, polygon, Cell::ROOT),
+            ShooterKind::Patch { polygon, cell } => (2, polygon, cell),
+        };
+        w.u8(tag);
+        w.u32(a);
+        w.u32(cell.level);
+        w.u32(cell.x);
+        w.u32(cell.y);
+        w.f64(s.total.x);
+        w.f64(s.total.y);
+        w.f64(s.total.z);
+    }
+    let st = &sol.stats;
+    w.u64(st.shots);
+    w.u64(st.rays_cast);
+    w.u32(st.refined_after.len() as u32);
+    for &x in &st.refined_after {
+        w.u64(x);
+    }
+    w.f64(st.emitted_power);
+    w.f64(st.unshot_fraction);
+    w.u32(st.unshot_history.len() as u32);
+    for &x in &st.unshot_history {
+        w.f64(x);
+    }
+    w.u64(rrps.len() as u64);
+    w.0.extend_from_slice(rrps);
+    w.0
+}
+
+struct R<'a> {
+    b: &'a [u8],
+    at: usize,
+}
+
+impl R<'_> {
+    fn take(&mut self, n: usize) -> std::result::Result<&[u8], String> {
+        if self.b.len() - self.at < n {
+            return Err("corrupt payload: a count runs past the end of the data".to_string());
+        }
+        let s = &self.b[self.at..self.at + n];
+        self.at += n;
+        Ok(s)
+    }
+    fn u8(&mut self) -> std::result::Result<u8, String> {
+        Ok(self.take(1)?[0])
+    }
+    fn u32(&mut self) -> std::result::Result<u32, String> {
+        let mut a = [0u8; 4];
+        a.copy_from_slice(self.take(4)?);
+        Ok(u32::from_le_bytes(a))
+    }
+    fn u64(&mut self) -> std::result::Result<u64, String> {
+        let mut a = [0u8; 8];
+        a.copy_from_slice(self.take(8)?);
+        Ok(u64::from_le_bytes(a))
+    }
+    fn f64(&mut self) -> std::result::Result<f64, String> {
+        Ok(f64::from_bits(self.u64()?))
+    }
+    fn f32(&mut self) -> std::result::Result<f32, String> {
+        Ok(f32::from_bits(self.u32()?))
+    }
+    /// A count of items of `size` bytes each that must fit in the remaining data.
+    fn count(&mut self, size: usize) -> std::result::Result<usize, String> {
+        let n = self.u32()? as usize;
+        if n.saturating_mul(size) > self.b.len() - self.at {
+            return Err("corrupt payload: a count runs past the end of the data".to_string());
+        }
+        Ok(n)
+    }
+}
+
+/// Decodes file bytes for `scene` into the solution and the stored RRP bytes; the error says
+/// what kind of problem, with a message for the user.
+pub fn decode(bytes: &[u8], scene: &Scene) -> std::result::Result<(Solution, Vec<u8>), Bad> {
+    let Envelope { path_len, body } = envelope(bytes)?;
+    let hash = u64::from_le_bytes(bytes[24..32].try_into().unwrap_or([0; 8]));
+    if hash != scene_hash(scene) {
+        return Err(Bad(
+            SolutionProblem::SceneMismatch,
+            "solution file is for another scene (or other radiosity settings); solve this scene again"
+                .to_string(),
+        ));
+    }
+    Ok(decode_payload(
+        &bytes[HEADER + path_len..body],
+        scene,
+        hash,
+    )?)
+}
+
+/// Decodes the payload (trees, keys, values, shooters, stats, RRP bytes) for `scene`; every
+/// failure is a corrupt file.
+fn decode_payload(
+    payload: &[u8],
+    scene: &Scene,
+    hash: u64,
+) -> std::result::Result<(Solution, Vec<u8>), String> {
+    let mut r = R { b: payload, at: 0 };
+    let np = r.u32()? as usize;
+    if np != scene.polygons.len() {
+        return Err(format!(
+            "corrupt payload: {np} polygons, the scene has {}",
+            scene.polygons.len()
+        ));
+    }
+    let mut polygons = Vec::with_capacity(np);
+    for pi in 0..np {
+        let nn = r.count(13)?;
+        let mut nodes = Vec::with_capacity(nn);
+        for _ in 0..nn {
+            let level = r.u8()? as u32;
+            let x = r.u32()?;
+            let y = r.u32()?;
+            let first_child = r.u32()?;
+            nodes.push(Node {
+                cell: Cell { level, x, y },
+                first_child,
+            });
+        }
+        let tree = Quadtree::from_nodes(nodes)
+            .ok_or_else(|| format!("corrupt payload: polygon {pi}: invalid quadtree"))?;
+        let nk = r.count(8)?;
+        let mut keys = Vec::with_capacity(nk);
+        for _ in 0..nk {
+            let i = r.u32()?;
+            let j = r.u32()?;
+            keys.push(base::quadtree::VertexKey::new(i, j));
+        }
+        if keys != tree.vertex_keys() {
+            return Err(format!(
+                "corrupt payload: polygon {pi}: sample keys do not match the quadtree's vertices"
+            ));
+        }
+        let mut values = Vec::with_capacity(nk);
+        for _ in 0..nk {
+            let v = Vec3::new(r.f32()?, r.f32()?, r.f32()?);
+            if !v.is_finite() || v.min_element() < 0.0 {
+                return Err(format!(
+                    "corrupt payload: polygon {pi}: a sample is negative or not finite"
+                ));
+            }
+            values.push(v);
+        }
+        polygons.push(SampledQuadtree { tree, keys, values });
+    }
+    let (geoms, _, _) = build_shooters(scene);
+    let ns = r.count(29)?;
+    if ns != geoms.len() {
+        return Err(format!(
+            "corrupt payload: {ns} shooters, the scene has {}",
+            geoms.len()
+        ));
+    }
+    let mut shooters = Vec::with_capacity(ns);
+    for g in &geoms {
+        let tag = r.u8()?;
+        let a = r.u32()?;
+        let cell = Cell {
+            level: r.u32()?,
+            x: r.u32()?,
+            y: r.u32()?,
+        };
+        let kind = match tag {
+            0 => ShooterKind::Spot { spot: a },
+            1 => ShooterKind::Emitter { polygon: a },
+            2 => ShooterKind::Patch { polygon: a, cell },
+            t => return Err(format!("corrupt payload: unknown shooter kind {t}")),
+        };
+        if kind != g.kind {
+            return Err("corrupt payload: shooters do not match the scene".to_string());
+        }
+        let total = DVec3::new(r.f64()?, r.f64()?, r.f64()?);
+        if !total.is_finite() || total.min_element() < 0.0 {
+            return Err("corrupt payload: a shooter total is negative or not finite".to_string());
+        }
+        shooters.push(Shooter { kind, total });
+    }
+    let mut stats = SolveStats {
+        shots: r.u64()?,
+        rays_cast: r.u64()?,
+        ..SolveStats::default()
+    };
+    let nr = r.count(8)?;
+    for _ in 0..nr {
+        stats.refined_after.push(r.u64()?);
+    }
+    stats.emitted_power = r.f64()?;
+    stats.unshot_fraction = r.f64()?;
+    let nh = r.count(8)?;
+    for _ in 0..nh {
+        stats.unshot_history.push(r.f64()?);
+    }
+    let nb = r.u64()?;
+    if nb > (r.b.len() - r.at) as u64 {
+        return Err("corrupt payload: the RRP length runs past the end of the data".to_string());
+    }
+    let rrps = r.take(nb as usize)?.to_vec();
+    if r.at != r.b.len() {
+        return Err("corrupt payload: trailing bytes".to_string());
+    }
+    fill_tree_stats(&mut stats, &polygons);
+    Ok((
+        Solution {
+            polygons,
+            shooters,
+            stats,
+            scene_hash: hash,
+        },
+        rrps,
+    ))
+}

@@ -1,0 +1,319 @@
+//! The receivers of each shooter: which polygons it can light, found once per shooter and
+//! kept as a sparse pair table ([`Pairs`]), and the two ways of finding them. `exact` tests
+//! every polygon, so its cost is shooters x polygons; `sampled` casts probe rays from the
+//! shooter and keeps what they hit, their corner neighbours and the polygons near the shooter,
+//! so its cost grows with what the shooter sees ([`Transfer::probe`]). Which one a scene uses
+//! is [`sampled_visibility`]; the memory either may take before it runs is
+//! [`pair_table_bound`].
+//!
+//! Invariants: a table lists receivers ascending, culled pairs left out; the probe set
+//! depends only on the scene (streams seeded by scene seed, shooter id and round), never on
+//! threads or the order in which shooters ask for it.
+
+use glam::DVec3;
+
+use super::{PairClass, ShooterGeom, ShooterKind, Transfer};
+use crate::bvh::Aabb;
+use crate::rng::{seed_of, Rng};
+use scene::{Scene, Visibility};
+
+/// Bytes of one shooter-receiver entry of a pair table (receiver id, candidate range), without
+/// its candidate list. Culled pairs have no entry.
+pub const PAIR_BYTES: u64 = 12;
+
+/// The receivers of one shooter: every polygon it may light (culled pairs are left out), each
+/// with its class and the polygons that may occlude it. Sparse, so that its size grows with
+/// what the shooter reaches, not with the scene.
+#[derive(Debug, Clone, Default)]
+pub struct Pairs {
+    /// Receiver polygons, ascending.
+    pub(super) recv: Vec<u32>,
+    /// Per entry of `recv`, the range of its candidates in `cands` (none: the pair is open).
+    pub(super) range: Vec<(u32, u32)>,
+    /// Occluder candidates, concatenated.
+    pub(super) cands: Vec<u32>,
+}
+
+impl Pairs {
+    pub(super) fn find(&self, r: usize) -> Option<usize> {
+        self.recv.binary_search(&(r as u32)).ok()
+    }
+    /// Class of receiver polygon `r`.
+    pub fn class(&self, r: usize) -> PairClass {
+        match self.find(r) {
+            None => PairClass::Culled,
+            Some(i) if self.range[i].1 == 0 => PairClass::Open,
+            Some(_) => PairClass::Occluded,
+        }
+    }
+    /// Number of occluder candidates of receiver polygon `r`.
+    pub fn cands_len(&self, r: usize) -> usize {
+        self.find(r).map_or(0, |i| self.range[i].1 as usize)
+    }
+    /// Every receiver that is not culled, ascending, with its class.
+    pub fn receivers(&self) -> impl Iterator<Item = (usize, PairClass)> + '_ {
+        self.recv.iter().zip(&self.range).map(|(&r, &(_, n))| {
+            let c = if n == 0 {
+                PairClass::Open
+            } else {
+                PairClass::Occluded
+            };
+            (r as usize, c)
+        })
+    }
+    pub(super) fn at(&self, i: usize) -> (PairClass, &[u32]) {
+        let (a, n) = self.range[i];
+        let c = if n == 0 {
+            PairClass::Open
+        } else {
+            PairClass::Occluded
+        };
+        (c, &self.cands[a as usize..(a + n) as usize])
+    }
+    pub(super) fn bytes(&self) -> u64 {
+        self.recv.len() as u64 * PAIR_BYTES + 4 * self.cands.len() as u64
+    }
+}
+
+/// Scenes with at most this many (shooter, polygon) pairs classify every pair
+/// ([`Visibility::Auto`] picks `exact`); larger ones find each shooter's receivers with probe
+/// rays. 1 M pairs is about 1,000 polygons: the gallery (912,000 pairs) and the Cornell box
+/// stay exact; a building of 3 x 3 rooms (1,233 polygons, 1.5 M pairs) solves in 14.5 s exact
+/// and about 6 s sampled.
+pub const EXACT_PAIRS_LIMIT: u64 = 1 << 20;
+
+/// Whether a scene with `shooters` shooters finds receivers by probe rays: its
+/// `radiosity.visibility`, and for `auto` whether shooters x polygons passes
+/// [`EXACT_PAIRS_LIMIT`].
+pub fn sampled_visibility(scene: &Scene, shooters: u64) -> bool {
+    match scene.radiosity.visibility {
+        Visibility::Exact => false,
+        Visibility::Sampled => true,
+        Visibility::Auto => {
+            shooters.saturating_mul(scene.polygons.len() as u64) > EXACT_PAIRS_LIMIT
+        }
+    }
+}
+
+/// Bytes of the pair tables' entries before any is built, an upper bound: every pair with
+/// exact visibility, and with sampled visibility as many receivers per shooter as it casts
+/// probe rays (the distinct polygons they hit; the neighbours added to them and the occluder
+/// candidates are not known in advance, and the solve's own guard counts them). `lights` of
+/// the `shooters` are spots and emitters.
+pub fn pair_table_bound(scene: &Scene, shooters: u64, lights: u64) -> u64 {
+    let n = scene.polygons.len() as u64;
+    let entry = PAIR_BYTES + 8;
+    if !sampled_visibility(scene, shooters) {
+        return shooters.saturating_mul(n).saturating_mul(entry);
+    }
+    let patch = n.min(PROBE_RAYS as u64);
+    let light = n.min((PROBE_RAYS * LIGHT_PROBE_FACTOR) as u64);
+    let patches = shooters.saturating_sub(lights);
+    patches
+        .saturating_mul(patch)
+        .saturating_add(lights.saturating_mul(light))
+        .saturating_mul(entry)
+}
+
+/// Probe rays per reflecting patch in sampled visibility (spots and emitters cast
+/// [`LIGHT_PROBE_FACTOR`] times as many). See [`Transfer::probe`].
+pub const PROBE_RAYS: usize = 2048;
+
+/// A shooter keeps casting rounds of probe rays until it has cast at least this many per
+/// distinct polygon hit. A polygon receiving a fraction f of the shooter's light is missed by
+/// N rays with probability about exp(-f N), so the light missed in expectation is at most
+/// m / (e N) for m receivers; 4 rays per receiver bounds it by about 9 % in the worst case
+/// (every receiver equally lit) and, measured, keeps a gallery room cut into 1,200 quads within
+/// the solver's own noise.
+pub const PROBES_PER_HIT: usize = 4;
+
+/// Most probe rays per shooter, over all rounds.
+pub const MAX_PROBE_RAYS: usize = 32 * PROBE_RAYS;
+
+/// Spots and emitters light the scene directly and are few: they cast this many times
+/// [`PROBE_RAYS`].
+pub const LIGHT_PROBE_FACTOR: usize = 4;
+
+impl Transfer<'_> {
+    /// The polygons shooter `s`'s probe rays hit first, with every polygon sharing a corner
+    /// with one of them or with the shooter's own polygon, and every polygon near the shooter
+    /// (see below), ascending.
+    ///
+    /// Rays: rounds of [`PROBE_RAYS`] ([`LIGHT_PROBE_FACTOR`] times as many for a light),
+    /// each from stratified points of the shooter (its cell's domain split into a grid, one
+    /// jittered point per stratum) in cosine-distributed directions about its normal,
+    /// stratified too and paired through a permutation (Latin hypercube); a spot casts from
+    /// its position, uniformly over its cone. Rounds go on while fewer than
+    /// [`PROBES_PER_HIT`] rays per distinct polygon hit have been cast (at most
+    /// [`MAX_PROBE_RAYS`]). All from streams seeded by (scene seed, shooter id, round), so the
+    /// set depends only on the scene.
+    ///
+    /// Why this is enough: a polygon that receives a fraction f of the shooter's light (its
+    /// cosine-weighted solid angle) is hit on average by f times the rays, so whatever the
+    /// probes miss receives little, the more so as rays grow with the receivers; and since
+    /// light a missed polygon would receive is shared with its neighbours' (a wall cut into
+    /// pieces), adding the neighbours of every hit recovers most small pieces among visible
+    /// ones. What is still missed is lost light, measured in `docs/performance.md` against
+    /// exact visibility.
+    pub fn probe(&self, s: usize) -> Vec<u32> {
+        let sg = &self.shooters[s];
+        let is_light = !matches!(sg.kind, ShooterKind::Patch { .. });
+        let n = if is_light {
+            PROBE_RAYS * LIGHT_PROBE_FACTOR
+        } else {
+            PROBE_RAYS
+        };
+        // Rounds of `n` rays, each its own stratified set, until the rays cast are at least
+        // PROBES_PER_HIT times the distinct polygons hit (or MAX_PROBE_RAYS): a shooter that
+        // sees many polygons gets more rays (see below).
+        let mut hits: Vec<u32> = Vec::new();
+        let mut cast = 0usize;
+        let mut round = 0u64;
+        while cast == 0 || (cast < PROBES_PER_HIT * hits.len() && cast + n <= MAX_PROBE_RAYS) {
+            hits.extend(self.probe_round(s, n, round));
+            hits.sort_unstable();
+            hits.dedup();
+            cast += n;
+            round += 1;
+        }
+        let mut out = hits.clone();
+        for &h in &hits {
+            out.extend_from_slice(&self.neighbours[h as usize]);
+        }
+        // Polygons at the shooter: a probe ray ignores hits closer than the BVH's end
+        // tolerance (`T_EPS` of its length), so an emitter a hair in front of a wall would never
+        // find the wall it lights most (`scenes/hard/light-touching.toml` lost half its light).
+        // Every polygon whose box comes within a tenth of the shooter's size (and at least
+        // 1e-6 of the scene's) of the shooter's box is a receiver too.
+        let pts: &[DVec3] = match sg.kind {
+            ShooterKind::Spot { spot } => {
+                std::slice::from_ref(&self.scene.spots[spot as usize].position)
+            }
+            _ => sg.outline.verts(),
+        };
+        let b = Aabb::of(pts);
+        let grow = 0.1 * (b.hi - b.lo).max_element() + 1e-6 * self.reach / 4.0;
+        let near = Aabb {
+            lo: b.lo - DVec3::splat(grow),
+            hi: b.hi + DVec3::splat(grow),
+        };
+        self.bvh.for_each_overlapping(&near, |q| out.push(q));
+        if let Some(own) = self.neighbours.get(sg.polygon as usize) {
+            out.extend_from_slice(own);
+        }
+        out.sort_unstable();
+        out.dedup();
+        out.retain(|&r| r != sg.polygon);
+        out
+    }
+
+    /// The first polygons hit by round `round` of `n` probe rays of shooter `s` (with
+    /// repeats, in ray order).
+    fn probe_round(&self, s: usize, n: usize, round: u64) -> Vec<u32> {
+        use rayon::prelude::*;
+        let sg = &self.shooters[s];
+        let reach = self.reach;
+        let seed = seed_of(&[self.scene.radiosity.seed, s as u64, 0x7072_6f62_6573, round]);
+        let grid = (n as f64).sqrt().ceil() as usize;
+        // One permutation pairs origin strata with direction strata.
+        let mut rng = Rng::new(seed);
+        let mut perm: Vec<u32> = (0..n as u32).collect();
+        for i in (1..n).rev() {
+            let j = rng.below(i as u32 + 1) as usize;
+            perm.swap(i, j);
+        }
+        const CHUNK: usize = 64;
+        (0..n.div_ceil(CHUNK))
+            .into_par_iter()
+            .flat_map_iter(|c| {
+                let mut rng = Rng::new(seed_of(&[seed, c as u64]));
+                let perm = &perm;
+                (c * CHUNK..((c + 1) * CHUNK).min(n)).filter_map(move |i| {
+                    let (o, d) = self.probe_ray(sg, i, perm[i] as usize, grid, &mut rng);
+                    self.bvh.first_hit(o, d * reach, sg.polygon).map(|h| h.0)
+                })
+            })
+            .collect()
+    }
+
+    /// Origin and unit direction of probe ray `i` (origin stratum `i`, direction stratum `j`).
+    fn probe_ray(
+        &self,
+        sg: &ShooterGeom,
+        i: usize,
+        j: usize,
+        grid: usize,
+        rng: &mut Rng,
+    ) -> (DVec3, DVec3) {
+        let g = grid as f64;
+        let a = ((j % grid) as f64 + rng.next_f64()) / g;
+        let b = ((j / grid) as f64 + rng.next_f64()) / g;
+        let phi = 2.0 * std::f64::consts::PI * b;
+        match sg.kind {
+            ShooterKind::Spot { spot } => {
+                let sp = &self.scene.spots[spot as usize];
+                let ca = sp.half_angle.cos().clamp(-1.0, 1.0);
+                let cos = 1.0 - a * (1.0 - ca);
+                let sin = (1.0 - cos * cos).max(0.0).sqrt();
+                let (t1, t2) = sp.direction.normalize_or_zero().any_orthonormal_pair();
+                let d = sp.direction.normalize_or_zero() * cos
+                    + (t1 * phi.cos() + t2 * phi.sin()) * sin;
+                (sp.position, d)
+            }
+            _ => {
+                let p = &self.scene.polygons[sg.polygon as usize];
+                let (u0, v0, u1, v1) = sg.bounds;
+                let su = ((i % grid) as f64 + rng.next_f64()) / g;
+                let sv = ((i / grid) as f64 + rng.next_f64()) / g;
+                let o = p.point(u0 + (u1 - u0) * su, v0 + (v1 - v0) * sv.min(1.0));
+                let (t1, t2) = sg.normal.any_orthonormal_pair();
+                let r = a.sqrt();
+                let d = (t1 * phi.cos() + t2 * phi.sin()) * r + sg.normal * (1.0 - a).sqrt();
+                (o, d)
+            }
+        }
+    }
+}
+
+/// Most polygons sharing one corner for which [`corner_neighbours`] records them.
+const MAX_SHARING: usize = 32;
+
+/// Per polygon, the other polygons that share a corner with it (exact coordinates), ascending.
+pub(super) fn corner_neighbours(scene: &Scene) -> Vec<Vec<u32>> {
+    let key = |p: &DVec3| [p.x.to_bits(), p.y.to_bits(), p.z.to_bits()];
+    let mut at: Vec<([u64; 3], u32)> = scene
+        .polygons
+        .iter()
+        .enumerate()
+        .flat_map(|(i, p)| p.vertices().iter().map(move |c| (key(c), i as u32)))
+        .collect();
+    at.sort_unstable();
+    at.dedup();
+    let mut out = vec![Vec::new(); scene.polygons.len()];
+    let mut i = 0;
+    while i < at.len() {
+        let mut j = i;
+        while j < at.len() && at[j].0 == at[i].0 {
+            j += 1;
+        }
+        // A corner shared by more than MAX_SHARING polygons (the centre of a large fan) adds no
+        // neighbours: the pass would cost its square, and such fans are rare in models.
+        if j - i > MAX_SHARING {
+            i = j;
+            continue;
+        }
+        for a in &at[i..j] {
+            for b in &at[i..j] {
+                if a.1 != b.1 {
+                    out[a.1 as usize].push(b.1);
+                }
+            }
+        }
+        i = j;
+    }
+    for l in &mut out {
+        l.sort_unstable();
+        l.dedup();
+    }
+    out
+}

@@ -1,0 +1,745 @@
+//! Radiosity textures (RAT, paper sec. 3.4): the comparison backend that stores each polygon's
+//! radiosity as a power-of-two texture with a mip chain and filters it on screen, instead of
+//! evaluating the RRPs per pixel.
+//!
+//! Pipeline role: after [`crate`] has built the RRPs, [`TextureSet::build`]
+//! resamples every polygon's RRP (not its raw samples) into an N x N level 0 and a mip chain
+//! down to 1 x 1, with the texels placed by a [`Placement`]:
+//!
+//! - [`Placement::Centre`] (default): texel i at u = `(i + 0.5) / N`, the filters map u to
+//!   x = u N - 0.5; the chain is box-filtered ([`mip_chain`]). The samples stop half a texel
+//!   short of the polygon's edges, where the filters clamp.
+//! - [`Placement::Corner`] (the lightmap convention): texel i at u = `i / (N - 1)` (0.5 for
+//!   N = 1), the filters map u to x = u (N - 1); the first and last texels lie on the edges, so
+//!   bilinear filtering reproduces a linear function on all of [0, 1]. Each coarser level is
+//!   resampled from the RRP at its own corner positions ([`corner_chain`]): box filtering would
+//!   not keep the corner alignment. The level of detail is still log2 of N texels per unit
+//!   (not N - 1), the same choice of level for both placements.
+//!
+//! Both placements use clamp-to-edge addressing and the same filter code; the placement is
+//! recorded in each [`RadiosityTexture`] and in the [`TextureSet`].
+//! The deferred pass then calls [`RadiosityTexture::sample`] / [`RadiosityTexture::sample_lod`]
+//! with a [`Filter`] and a level of detail from [`lod`]; its hot loop uses the lane form
+//! [`Sampler::sample8`] (8 samples per call, module `sample8`), which returns the same bits.
+//!
+//! Invariants: every texture is square with a power-of-two side between 1 and
+//! [`MAX_TEXTURE_SIZE`]; its chain has `log2(side) + 1` levels, the last 1 x 1, all at one
+//! placement; all texels are
+//! finite (the RRPs are). Sampling never returns NaN or inf: coordinates are clamped to [0, 1]
+//! (NaN to 0) and texel indices clamped to the edge (clamp-to-edge addressing). Memory is
+//! accounted as the paper's hardware did ([`TextureMemory`]): power-of-two blocks of 3 channels.
+//!
+//! Why this way: the filters are written out (separable 4 x 4 for the bicubic, Mitchell and Netravali 1988)
+//! in f32 so that the cost comparison against the direct method measures the same kind of inner
+//! loop; the sizes follow the quadtree depth so that a texture holds as many samples as the
+//! solution had at its finest level, which is the paper's equal-quality comparison.
+
+use glam::Vec3;
+use rayon::prelude::*;
+
+use crate::Reconstruction;
+use base::error::{Error, Result};
+use base::quadtree::SampledQuadtree;
+
+mod sample8;
+#[cfg(test)]
+mod tests;
+
+pub use sample8::Rgb8;
+
+/// The on-screen filters are named with the methods, which the scene loader parses.
+pub use base::method::Filter;
+/// Where the texels sit (texel centres or the lightmap's corner alignment), an option the scene
+/// loader parses as well.
+pub use base::method::Placement;
+/// Largest texture side any policy produces (4096 x 4096 texels, 192 MiB at 32-bit floats).
+/// Deeper quadtrees are clamped to this side under [`SizePolicy::FromDepth`].
+pub use base::method::MAX_TEXTURE_SIZE;
+
+/// How each polygon's texture side is chosen.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum SizePolicy {
+    /// Per polygon the smallest power of two `>= 2^depth + 1`, i.e. a texture with at least as
+    /// many texels per side as the polygon's quadtree has samples per side at its finest level
+    /// (depth 0: 2 -> 2, depth 3: 9 -> 16). Clamped to [`MAX_TEXTURE_SIZE`].
+    FromDepth,
+    /// The same side for every polygon (the global `--texture-size`); must be a power of two in
+    /// `1..=MAX_TEXTURE_SIZE`.
+    Fixed(u32),
+    /// The largest uniform scale `2^-k` (k >= 0) of the [`SizePolicy::FromDepth`] sides (each
+    /// halved k times, not below 1) whose memory at 12 bits per channel **with** mip chains fits
+    /// the given number of bytes. Power-of-two scales keep every side a power of two. An error if
+    /// even all-1 x 1 textures do not fit.
+    Budget(u64),
+    /// The [`SizePolicy::FromDepth`] sides scaled by `2^k`: doubled `k` times for `k > 0`
+    /// (clamped to [`MAX_TEXTURE_SIZE`]), halved `-k` times for `k < 0` (not below 1). Power-of-two
+    /// scales keep every side a power of two; the speed-against-error sweep searches over `k`.
+    Scaled(i32),
+}
+
+/// The Mitchell–Netravali kernel as polynomial coefficients (Mitchell and Netravali 1988), evaluated in f32.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Cubic {
+    /// |x| < 1: coefficients of |x|^3, |x|^2, |x|^1, 1 (already divided by 6).
+    near: [f32; 4],
+    /// 1 <= |x| < 2: coefficients of |x|^3, |x|^2, |x|^1, 1 (already divided by 6).
+    far: [f32; 4],
+}
+
+impl Cubic {
+    /// The kernel for (B, C).
+    pub fn new(b: f32, c: f32) -> Cubic {
+        Cubic {
+            near: [
+                (12.0 - 9.0 * b - 6.0 * c) / 6.0,
+                (-18.0 + 12.0 * b + 6.0 * c) / 6.0,
+                0.0,
+                (6.0 - 2.0 * b) / 6.0,
+            ],
+            far: [
+                (-b - 6.0 * c) / 6.0,
+                (6.0 * b + 30.0 * c) / 6.0,
+                (-12.0 * b - 48.0 * c) / 6.0,
+                (8.0 * b + 24.0 * c) / 6.0,
+            ],
+        }
+    }
+
+    /// k(x): 0 outside (-2, 2).
+    pub fn k(&self, x: f32) -> f32 {
+        let a = x.abs();
+        let p = if a < 1.0 {
+            self.near
+        } else if a < 2.0 {
+            self.far
+        } else {
+            return 0.0;
+        };
+        ((p[0] * a + p[1]) * a + p[2]) * a + p[3]
+    }
+
+    /// The weights k(1 + t), k(t), k(1 - t), k(2 - t) of texels i - 1 .. i + 2 for the fraction
+    /// t in [0, 1). Each argument lies in the branch its position fixes (1 + t and 2 - t in
+    /// [1, 2], t and 1 - t in [0, 1]), so no branch is taken.
+    #[inline(always)]
+    pub fn weights(&self, t: f32) -> [f32; 4] {
+        let n = |a: f32| ((self.near[0] * a + self.near[1]) * a + self.near[2]) * a + self.near[3];
+        let f = |a: f32| ((self.far[0] * a + self.far[1]) * a + self.far[2]) * a + self.far[3];
+        [f(1.0 + t), n(t), n(1.0 - t), f(2.0 - t)]
+    }
+}
+
+/// One polygon's radiosity texture: a square power-of-two level 0 and its mip chain to 1 x 1.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RadiosityTexture {
+    /// Level-0 texels per row.
+    pub width: u32,
+    /// Level-0 rows.
+    pub height: u32,
+    /// Levels, finest first; level l is `max(1, width >> l)` x `max(1, height >> l)`.
+    pub levels: Vec<MipLevel>,
+    /// Where every level's texels sit in (u, v); the filters map coordinates accordingly.
+    pub placement: Placement,
+}
+
+/// Clamps a texture coordinate into [0, 1]; NaN goes to 0 (documented clamp: a point outside
+/// the polygon's parameter square samples its edge).
+#[inline(always)]
+fn clamp01(x: f32) -> f32 {
+    if x.is_nan() {
+        0.0
+    } else {
+        x.clamp(0.0, 1.0)
+    }
+}
+
+/// Fractional texel position of coordinate `u` on an `n`-texel axis under placement `p`:
+/// x = u scale - offset with ([`Placement::texel_map`]) x = u n - 0.5 for centres and
+/// x = u (n - 1) for corners; i = floor(x), t = x - i. u must be clamped already.
+#[inline(always)]
+fn split(u: f32, n: u32, p: Placement) -> (i32, f32) {
+    let (scale, offset) = p.texel_map(n);
+    let x = u * scale - offset;
+    let i = x.floor();
+    (i as i32, x - i)
+}
+
+/// Index of the texel nearest to coordinate `u` on an `n`-texel axis under placement `p`:
+/// floor(x + 0.5) with x as in [`split`], i.e. floor(u n) for centres (u n + 0 has the bits of
+/// u n) and floor(u (n - 1) + 0.5) for corners. Not yet clamped to the edge.
+#[inline(always)]
+fn nearest_index(u: f32, n: u32, p: Placement) -> i32 {
+    let (scale, offset) = p.texel_map(n);
+    (u * scale + (0.5 - offset)).floor() as i32
+}
+
+impl RadiosityTexture {
+    /// Resamples polygon `polygon` of `recon` at `side` x `side` with a full mip chain, texels
+    /// placed by `placement`. `side` must be a power of two in `1..=MAX_TEXTURE_SIZE` (checked by
+    /// the callers).
+    ///
+    /// Centre: level 0 at the texel centres, the chain box-filtered ([`mip_chain`]); a coarse
+    /// texel's footprint is exactly the 2 x 2 fine texels it averages. Corner: every level is
+    /// resampled from the RRP at its own corner-aligned positions ([`corner_chain`]), because
+    /// the corner positions i / (n - 1) of a level are not those of the finer level (for n = 8
+    /// and 4: sevenths and thirds), so averaging fine texels would move the samples off the
+    /// edges and corners.
+    pub fn from_rrp(
+        recon: &Reconstruction,
+        polygon: u32,
+        side: u32,
+        placement: Placement,
+    ) -> RadiosityTexture {
+        let levels = match placement {
+            Placement::Centre => mip_chain(MipLevel {
+                width: side,
+                height: side,
+                texels: recon.resample(polygon, side, side),
+            }),
+            Placement::Corner => corner_chain(side, |n| {
+                recon.resample_placed(polygon, n, n, Placement::Corner)
+            }),
+        };
+        RadiosityTexture {
+            width: side,
+            height: side,
+            levels,
+            placement,
+        }
+    }
+
+    /// A texture of `side` x `side` (a power of two in `1..=MAX_TEXTURE_SIZE`) sampling the
+    /// function `f(u, v)` at the texel positions of `placement` ([`Placement::texel_position`]),
+    /// with the chain [`RadiosityTexture::from_rrp`] builds: for Centre level 0 and the box
+    /// chain, for Corner every level sampled at its own positions. Errors for a bad side or a
+    /// non-finite value.
+    pub fn from_fn(
+        side: u32,
+        placement: Placement,
+        f: impl Fn(f32, f32) -> Vec3,
+    ) -> Result<RadiosityTexture> {
+        check_side(side)?;
+        let sample = |n: u32| -> Vec<Vec3> {
+            let mut t = Vec::with_capacity(n as usize * n as usize);
+            for j in 0..n {
+                let v = placement.texel_position(j, n);
+                for i in 0..n {
+                    t.push(f(placement.texel_position(i, n), v));
+                }
+            }
+            t
+        };
+        let levels = match placement {
+            Placement::Centre => mip_chain(MipLevel {
+                width: side,
+                height: side,
+                texels: sample(side),
+            }),
+            Placement::Corner => corner_chain(side, sample),
+        };
+        if levels
+            .iter()
+            .any(|l| l.texels.iter().any(|t| !t.is_finite()))
+        {
+            return Err(Error::Runtime("texture texel is not finite".into()));
+        }
+        Ok(RadiosityTexture {
+            width: side,
+            height: side,
+            levels,
+            placement,
+        })
+    }
+
+    /// A texture from a given level 0 at the texel centres ([`Placement::Centre`]; mip chain
+    /// box-filtered down to 1 x 1). Errors if the size
+    /// is not a power of two in `1..=MAX_TEXTURE_SIZE` per axis, if `texels.len()` is not
+    /// `width * height`, or if a texel is not finite.
+    pub fn from_texels(width: u32, height: u32, texels: Vec<Vec3>) -> Result<RadiosityTexture> {
+        for n in [width, height] {
+            check_side(n)?;
+        }
+        if texels.len() != width as usize * height as usize {
+            return Err(Error::Runtime(format!(
+                "texture of {width} x {height} needs {} texels, got {}",
+                width as usize * height as usize,
+                texels.len()
+            )));
+        }
+        if texels.iter().any(|t| !t.is_finite()) {
+            return Err(Error::Runtime("texture texel is not finite".into()));
+        }
+        Ok(RadiosityTexture {
+            width,
+            height,
+            levels: mip_chain(MipLevel {
+                width,
+                height,
+                texels,
+            }),
+            placement: Placement::Centre,
+        })
+    }
+
+    /// Index of the last (1 x 1) level.
+    pub fn last_level(&self) -> usize {
+        self.levels.len() - 1
+    }
+
+    /// Texels stored over all levels.
+    pub fn texels_with_chain(&self) -> u64 {
+        self.levels
+            .iter()
+            .map(|l| l.width as u64 * l.height as u64)
+            .sum()
+    }
+
+    /// Filtered value at (u, v) of level `level` (clamped to the last level). u and v are clamped
+    /// to [0, 1] (NaN to 0) and texel fetches clamp to the edge, so the result is finite.
+    pub fn sample(&self, level: usize, u: f32, v: f32, filter: Filter) -> Vec3 {
+        let l = &self.levels[level.min(self.last_level())];
+        let (u, v) = (clamp01(u), clamp01(v));
+        let p = self.placement;
+        match filter {
+            Filter::Nearest => nearest(l, p, u, v),
+            Filter::Bilinear => bilinear(l, p, u, v),
+            Filter::Bicubic { b, c } => bicubic(l, p, u, v, &Cubic::new(b, c)),
+        }
+    }
+
+    /// Samples `uv.len().min(out.len())` points of level `level`: `out[k] = sample(level, uv[k])`,
+    /// with the level lookup, the filter match and the cubic's coefficients hoisted out of the
+    /// loop (the form the deferred pass uses for a run of pixels).
+    pub fn sample_many(&self, level: usize, uv: &[[f32; 2]], filter: Filter, out: &mut [Vec3]) {
+        let l = &self.levels[level.min(self.last_level())];
+        let pl = self.placement;
+        let pts = uv.iter().zip(out.iter_mut());
+        match filter {
+            Filter::Nearest => {
+                pts.for_each(|(p, o)| *o = nearest(l, pl, clamp01(p[0]), clamp01(p[1])))
+            }
+            Filter::Bilinear => {
+                pts.for_each(|(p, o)| *o = bilinear(l, pl, clamp01(p[0]), clamp01(p[1])))
+            }
+            Filter::Bicubic { b, c } => {
+                let k = Cubic::new(b, c);
+                pts.for_each(|(p, o)| *o = bicubic(l, pl, clamp01(p[0]), clamp01(p[1]), &k))
+            }
+        }
+    }
+
+    /// Trilinear-style sampling at a fractional level of detail (from [`lod`]): the filtered
+    /// values of levels floor(lod) and floor(lod) + 1 blended linearly by the fraction. `lod` is
+    /// clamped to [0, last level] (NaN to 0). Chosen over nearest-level selection because it has
+    /// no visible seams where the selected level changes across a polygon.
+    pub fn sample_lod(&self, lod_value: f32, u: f32, v: f32, filter: Filter) -> Vec3 {
+        let last = self.last_level();
+        let d = if lod_value.is_nan() {
+            0.0
+        } else {
+            lod_value.clamp(0.0, last as f32)
+        };
+        let l0 = (d.floor() as usize).min(last);
+        let f = d - l0 as f32;
+        let a = self.sample(l0, u, v, filter);
+        if f <= 0.0 || l0 == last {
+            return a;
+        }
+        let b = self.sample(l0 + 1, u, v, filter);
+        a + (b - a) * f
+    }
+}
+
+/// A [`Filter`] prepared for many lookups (the cubic's coefficients computed once), with the
+/// level-of-detail policy of the deferred pass: nearest filtering takes the nearest mip level
+/// (`round(lod)`, like `GL_NEAREST_MIPMAP_NEAREST`); bilinear and bicubic blend the two nearest
+/// levels ([`RadiosityTexture::sample_lod`], like `GL_LINEAR_MIPMAP_LINEAR`). Under magnification
+/// (lod 0) every filter reads level 0 once.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Sampler {
+    /// The filter.
+    pub filter: Filter,
+    cubic: Cubic,
+}
+
+impl Sampler {
+    /// A sampler for `filter`.
+    pub fn new(filter: Filter) -> Sampler {
+        let cubic = match filter {
+            Filter::Bicubic { b, c } => Cubic::new(b, c),
+            _ => Cubic::new(1.0 / 3.0, 1.0 / 3.0),
+        };
+        Sampler { filter, cubic }
+    }
+
+    #[inline(always)]
+    fn level(&self, l: &MipLevel, p: Placement, u: f32, v: f32) -> Vec3 {
+        let (u, v) = (clamp01(u), clamp01(v));
+        match self.filter {
+            Filter::Nearest => nearest(l, p, u, v),
+            Filter::Bilinear => bilinear(l, p, u, v),
+            Filter::Bicubic { .. } => bicubic(l, p, u, v, &self.cubic),
+        }
+    }
+
+    /// The filtered value of `tex` at (u, v) and level of detail `lod` (clamped to the chain, NaN
+    /// to 0). Equals [`RadiosityTexture::sample_lod`] for bilinear and bicubic filters, and
+    /// [`RadiosityTexture::sample`] at level `round(lod)` for the nearest filter.
+    #[inline]
+    pub fn sample(&self, tex: &RadiosityTexture, lod: f32, u: f32, v: f32) -> Vec3 {
+        let last = tex.last_level();
+        let d = if lod.is_nan() {
+            0.0
+        } else {
+            lod.clamp(0.0, last as f32)
+        };
+        if let Filter::Nearest = self.filter {
+            return self.level(
+                &tex.levels[(d.round() as usize).min(last)],
+                tex.placement,
+                u,
+                v,
+            );
+        }
+        let l0 = (d.floor() as usize).min(last);
+        let f = d - l0 as f32;
+        let a = self.level(&tex.levels[l0], tex.placement, u, v);
+        if f <= 0.0 || l0 == last {
+            return a;
+        }
+        let b = self.level(&tex.levels[l0 + 1], tex.placement, u, v);
+        a + (b - a) * f
+    }
+}
+
+/// [`lod`] from squared footprint lengths: `lx2 = |(W du/dx, H dv/dx)|^2` and `ly2` likewise in
+/// y (texels per pixel, squared), for a chain whose last level is `last`. Magnification (both
+/// <= 1) returns 0 without a logarithm; NaN gives 0 and infinity the last level.
+#[inline(always)]
+pub fn lod_from_squares(lx2: f32, ly2: f32, last: usize) -> f32 {
+    let r2 = lx2.max(ly2);
+    if r2.is_nan() || r2 <= 1.0 {
+        return 0.0;
+    }
+    (0.5 * r2.log2()).min(last as f32)
+}
+
+/// Level of detail from screen-space derivatives of (u, v): with the texture of `width` x
+/// `height` texels at level 0, rho = max(|(du/dx, dv/dx)|, |(du/dy, dv/dy)|) in texels per pixel
+/// and lod = log2(rho), clamped to [0, log2(max(width, height))] (the last level of a
+/// power-of-two chain). Non-finite derivatives or rho give 0 (the finest level).
+pub fn lod(du_dx: f32, dv_dx: f32, du_dy: f32, dv_dy: f32, width: u32, height: u32) -> f32 {
+    let (w, h) = (width.max(1) as f32, height.max(1) as f32);
+    let lx = (du_dx * w).hypot(dv_dx * h);
+    let ly = (du_dy * w).hypot(dv_dy * h);
+    let rho = lx.max(ly);
+    let last = width.max(height).max(1).ilog2() as f32;
+    let d = rho.log2();
+    if d.is_nan() {
+        0.0
+    } else {
+        d.clamp(0.0, last)
+    }
+}
+
+#[inline(always)]
+fn fetch(l: &MipLevel, i: i32, j: i32) -> Vec3 {
+    let x = i.clamp(0, l.width as i32 - 1) as usize;
+    let y = j.clamp(0, l.height as i32 - 1) as usize;
+    l.texels[y * l.width as usize + x]
+}
+
+fn nearest(l: &MipLevel, p: Placement, u: f32, v: f32) -> Vec3 {
+    // Centre: floor(u n), with u = 1 mapped onto the last texel by the edge clamp.
+    let i = nearest_index(u, l.width, p);
+    let j = nearest_index(v, l.height, p);
+    fetch(l, i, j)
+}
+
+fn bilinear(l: &MipLevel, p: Placement, u: f32, v: f32) -> Vec3 {
+    let (i, s) = split(u, l.width, p);
+    let (j, t) = split(v, l.height, p);
+    let a = fetch(l, i, j) * (1.0 - s) + fetch(l, i + 1, j) * s;
+    let b = fetch(l, i, j + 1) * (1.0 - s) + fetch(l, i + 1, j + 1) * s;
+    a * (1.0 - t) + b * t
+}
+
+/// Separable 4 x 4: each of the 4 rows j - 1 .. j + 2 is filtered horizontally with the u
+/// weights, then the 4 row results vertically with the v weights. The column indices are clamped
+/// once; the row loop is fixed-length so the compiler unrolls it.
+fn bicubic(l: &MipLevel, p: Placement, u: f32, v: f32, k: &Cubic) -> Vec3 {
+    let (i, s) = split(u, l.width, p);
+    let (j, t) = split(v, l.height, p);
+    let wu = k.weights(s);
+    let wv = k.weights(t);
+    let wmax = l.width as i32 - 1;
+    let hmax = l.height as i32 - 1;
+    let cols: [usize; 4] = std::array::from_fn(|a| (i - 1 + a as i32).clamp(0, wmax) as usize);
+    let mut acc = Vec3::ZERO;
+    for (b, &wy) in wv.iter().enumerate() {
+        let row = (j - 1 + b as i32).clamp(0, hmax) as usize * l.width as usize;
+        let r = &l.texels[row..row + l.width as usize];
+        let h = r[cols[0]] * wu[0] + r[cols[1]] * wu[1] + r[cols[2]] * wu[2] + r[cols[3]] * wu[3];
+        acc += h * wy;
+    }
+    acc
+}
+
+/// One level of a mip chain (see [`mip_chain`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct MipLevel {
+    /// Texels per row.
+    pub width: u32,
+    /// Rows.
+    pub height: u32,
+    /// Row-major texels, `width * height` of them.
+    pub texels: Vec<Vec3>,
+}
+
+/// Area weights of a box filter from `src` texels to `dst` texels along one axis: destination
+/// texel x covers source interval [x src / dst, (x + 1) src / dst); each entry lists the source
+/// texels it overlaps with their overlap length divided by the footprint length (summing to 1).
+fn box_weights(src: u32, dst: u32) -> Vec<Vec<(usize, f64)>> {
+    let r = src as f64 / dst as f64;
+    (0..dst)
+        .map(|x| {
+            let (a, b) = (x as f64 * r, (x + 1) as f64 * r);
+            let lo = a.floor() as u32;
+            let hi = (b.ceil() as u32).min(src);
+            (lo..hi)
+                .filter_map(|k| {
+                    let ov = (b.min(k as f64 + 1.0) - a.max(k as f64)) / r;
+                    (ov > 0.0).then_some((k as usize, ov))
+                })
+                .collect()
+        })
+        .collect()
+}
+
+impl MipLevel {
+    fn downsample(&self) -> MipLevel {
+        let (w, h) = (self.width, self.height);
+        let (nw, nh) = ((w / 2).max(1), (h / 2).max(1));
+        let wx = box_weights(w, nw);
+        let wy = box_weights(h, nh);
+        let mut texels = Vec::with_capacity(nw as usize * nh as usize);
+        for ys in &wy {
+            for xs in &wx {
+                let mut acc = [0.0f64; 3];
+                for &(y, a) in ys {
+                    for &(x, b) in xs {
+                        let t = self.texels[y * w as usize + x];
+                        for (c, tc) in acc.iter_mut().zip(t.to_array()) {
+                            *c += a * b * tc as f64;
+                        }
+                    }
+                }
+                texels.push(Vec3::new(acc[0] as f32, acc[1] as f32, acc[2] as f32));
+            }
+        }
+        MipLevel {
+            width: nw,
+            height: nh,
+            texels,
+        }
+    }
+}
+
+/// A level-of-detail chain from its finest level: each next level half the size
+/// (`max(1, size / 2)` per axis) down to 1 x 1, box-filtered from the previous one with area
+/// weights (exact for odd sizes; for powers of two the plain 2 x 2 or 2 x 1 average). Box filtering
+/// keeps every level's mean equal to level 0's and averages sharp shadow edges instead of aliasing
+/// them, which point-resampling the RRP at 1 x 1 would do. Empty if level 0 is empty.
+pub fn mip_chain(level0: MipLevel) -> Vec<MipLevel> {
+    if level0.width == 0 || level0.height == 0 {
+        return Vec::new();
+    }
+    let mut levels = vec![level0];
+    while let Some(last) = levels.last().filter(|l| l.width > 1 || l.height > 1) {
+        let next = last.downsample();
+        levels.push(next);
+    }
+    levels
+}
+
+/// The chain of a corner-aligned square texture of side `side`: level l (side
+/// `max(1, side >> l)`) is `sample(n)`, the n x n values at the corner positions i / (n - 1)
+/// (0.5 for n = 1) of that level. Point samples, not averages: a coarse corner-aligned texel
+/// stands for the value at its position, and no average of the finer level sits there.
+pub fn corner_chain(side: u32, mut sample: impl FnMut(u32) -> Vec<Vec3>) -> Vec<MipLevel> {
+    let mut levels = Vec::new();
+    let mut n = side;
+    while n >= 1 {
+        levels.push(MipLevel {
+            width: n,
+            height: n,
+            texels: sample(n),
+        });
+        n /= 2;
+    }
+    levels
+}
+
+fn check_side(n: u32) -> Result<()> {
+    base::method::check_texture_side("--texture-size", n)
+}
+
+/// Side chosen by [`SizePolicy::FromDepth`] for a quadtree of the given depth: the smallest power
+/// of two `>= 2^depth + 1`, clamped to [`MAX_TEXTURE_SIZE`].
+pub fn side_from_depth(depth: u32) -> u32 {
+    if depth >= MAX_TEXTURE_SIZE.ilog2() {
+        return MAX_TEXTURE_SIZE;
+    }
+    ((1u32 << depth) + 1).next_power_of_two()
+}
+
+/// `n` (a power of two) times `2^k`, within `1..=MAX_TEXTURE_SIZE`.
+fn scale_side(n: u32, k: i32) -> u32 {
+    let n = n.clamp(1, MAX_TEXTURE_SIZE) as u64;
+    let shift = k.unsigned_abs().min(32);
+    let s = if k >= 0 { n << shift } else { n >> shift };
+    s.clamp(1, MAX_TEXTURE_SIZE as u64) as u32
+}
+
+/// Texture memory as the paper's hardware accounted it: power-of-two blocks (the sides are
+/// already powers of two), 3 channels per texel, at 8, 12 and 32 bits per channel; bytes are
+/// rounded up to whole bytes per texture (matters only for 12 bits and odd texel counts, e.g.
+/// a 1 x 1 texture: 36 bits -> 5 bytes).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize)]
+pub struct TextureMemory {
+    /// Number of textures (one per polygon).
+    pub textures: usize,
+    /// Level-0 texels of all textures.
+    pub texels: u64,
+    /// Texels including every mip level (for square power-of-two sides n: (4 n^2 - 1) / 3 each,
+    /// i.e. level 0 plus about 1/3).
+    pub texels_with_chain: u64,
+    /// Level 0 only, [8, 12, 32] bits per channel, bytes.
+    pub bytes: [u64; 3],
+    /// With mip chains, [8, 12, 32] bits per channel, bytes.
+    pub bytes_with_chain: [u64; 3],
+}
+
+/// Bits per channel of [`TextureMemory::bytes`] entries, in order.
+pub const CHANNEL_BITS: [u64; 3] = [8, 12, 32];
+
+impl TextureMemory {
+    /// Memory of square textures with the given sides (each a power of two).
+    pub fn of_sides(sides: &[u32]) -> TextureMemory {
+        let mut m = TextureMemory {
+            textures: sides.len(),
+            ..Default::default()
+        };
+        for &n in sides {
+            let base = n as u64 * n as u64;
+            let mut chain = 0u64;
+            let mut s = n.max(1) as u64;
+            loop {
+                chain += s * s;
+                if s == 1 {
+                    break;
+                }
+                s /= 2;
+            }
+            m.texels += base;
+            m.texels_with_chain += chain;
+            for (k, bits) in CHANNEL_BITS.iter().enumerate() {
+                m.bytes[k] += (base * 3 * bits).div_ceil(8);
+                m.bytes_with_chain[k] += (chain * 3 * bits).div_ceil(8);
+            }
+        }
+        m
+    }
+}
+
+/// The radiosity textures of every polygon of a scene, in scene polygon order.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TextureSet {
+    /// One texture per polygon.
+    pub textures: Vec<RadiosityTexture>,
+    /// Their memory.
+    pub memory: TextureMemory,
+    /// Where the texels of every texture sit (all textures of a set share it).
+    pub placement: Placement,
+}
+
+impl TextureSet {
+    /// Drops every texture's mip chain, keeping level 0: every lookup then reads level 0 whatever
+    /// the footprint (the level of detail clamps to the last level), as with mip-mapping off.
+    /// [`TextureSet::memory`] is unchanged; a chainless set holds `memory.bytes`.
+    pub fn drop_mip_chains(&mut self) {
+        for t in &mut self.textures {
+            t.levels.truncate(1);
+        }
+    }
+
+    /// Quadtree depth of each polygon of a solution, the input of [`TextureSet::build`].
+    pub fn depths(polygons: &[SampledQuadtree]) -> Vec<u32> {
+        polygons.iter().map(|p| p.tree.depth()).collect()
+    }
+
+    /// The per-polygon sides `policy` chooses for quadtrees of the given depths.
+    ///
+    /// Errors ([`Error::InvalidOption`]): a `Fixed` size that is not a power of two in
+    /// `1..=MAX_TEXTURE_SIZE`; a `Budget` that even 1 x 1 textures exceed.
+    pub fn sides(depths: &[u32], policy: SizePolicy) -> Result<Vec<u32>> {
+        let from_depth: Vec<u32> = depths.iter().map(|&d| side_from_depth(d)).collect();
+        match policy {
+            SizePolicy::FromDepth => Ok(from_depth),
+            SizePolicy::Fixed(n) => {
+                check_side(n)?;
+                Ok(vec![n; depths.len()])
+            }
+            SizePolicy::Budget(bytes) => {
+                for k in 0..=MAX_TEXTURE_SIZE.ilog2() {
+                    let s: Vec<u32> = from_depth.iter().map(|&n| (n >> k).max(1)).collect();
+                    if TextureMemory::of_sides(&s).bytes_with_chain[1] <= bytes {
+                        return Ok(s);
+                    }
+                }
+                Err(Error::invalid_option(
+                    "--texture-budget",
+                    bytes.to_string(),
+                    format!(
+                        "is below {} bytes, the size of {} 1 x 1 textures at 12 bits per channel",
+                        TextureMemory::of_sides(&vec![1; depths.len()]).bytes_with_chain[1],
+                        depths.len()
+                    ),
+                ))
+            }
+            SizePolicy::Scaled(k) => Ok(from_depth.iter().map(|&n| scale_side(n, k)).collect()),
+        }
+    }
+
+    /// Builds every polygon's texture by resampling its RRP at the side `policy` chooses from
+    /// `depths` (one per polygon, see [`TextureSet::depths`]) at the texel positions of
+    /// `placement`, with mip chains ([`RadiosityTexture::from_rrp`]), in parallel. Errors if
+    /// `depths.len()` differs from the polygon count or as [`TextureSet::sides`].
+    pub fn build(
+        recon: &Reconstruction,
+        depths: &[u32],
+        policy: SizePolicy,
+        placement: Placement,
+    ) -> Result<TextureSet> {
+        if depths.len() != recon.polygon_count() {
+            return Err(Error::Runtime(format!(
+                "{} quadtree depths for {} polygons",
+                depths.len(),
+                recon.polygon_count()
+            )));
+        }
+        let sides = Self::sides(depths, policy)?;
+        // One independent job per polygon; collect keeps polygon order, so the result does not
+        // depend on the thread count.
+        let textures = sides
+            .par_iter()
+            .enumerate()
+            .map(|(p, &n)| RadiosityTexture::from_rrp(recon, p as u32, n, placement))
+            .collect();
+        Ok(TextureSet {
+            textures,
+            memory: TextureMemory::of_sides(&sides),
+            placement,
+        })
+    }
+}

@@ -1,0 +1,338 @@
+//! Texture filtering 8 samples at a time: the lane form of [`Sampler::sample`] that the deferred
+//! pass uses for radiosity textures (RAT), so that the texture method runs the same kind of inner
+//! loop as the direct method's broadcast patch evaluation: fixed-width [`F32x8`] lanes, compiled
+//! for the instruction set of the kernel they are inlined into, with the texel gather the one
+//! operation taken from the token ([`Simd::gather_rgb8`]).
+//!
+//! Per block of 8 samples of one texture: the level of detail, the level choice, the texel
+//! coordinates, the fractions and the filter weights are computed lane-wise; the texels are
+//! gathered with scalar loads (row base + clamped column, one `Vec3` per texel and lane) into
+//! per-channel lane arrays and blended lane-wise. Lanes are grouped by mip level; under
+//! magnification (the usual case) all lanes share level 0 and one filter pass serves the block,
+//! without the trilinear second level.
+//!
+//! Invariant: every lane performs the same IEEE operations in the same order as the scalar
+//! [`Sampler::sample`] (clamp of (u, v), `x = u n - 0.5` or `x = u (n - 1)` by the texture's
+//! [`Placement`], `floor`, the cubic weights by Horner,
+//! the row-then-column sums starting from 0, the level blend `a + (b - a) f`), so a lane's result
+//! has the same bits as the scalar call: the lane path is an implementation detail, not a new
+//! filter. Texel indices are clamped to the level (clamp-to-edge addressing), so every load is in
+//! bounds and every result finite.
+
+// Lane loops index several fixed-width arrays with one lane index on purpose: that is the form
+// the compiler vectorizes and the reader checks lane by lane.
+#![allow(clippy::needless_range_loop)]
+
+use glam::Vec3;
+
+use super::MipLevel;
+use super::{clamp01, lod_from_squares, Cubic, Filter, Placement, RadiosityTexture, Sampler};
+use lanes::{F32x8, Simd, LANES};
+
+/// Three channels of 8 lanes (r, g, b).
+pub type Rgb8 = [F32x8; 3];
+
+/// Loads texel `idx[l]` of `texels` into lane l of each channel, by the token's gather.
+///
+/// Safety: every `idx[l]` must be a valid index of `texels` (the callers build the indices from
+/// clamped rows and columns of a level whose `texels.len() == width * height`, see
+/// [`check_level`]).
+#[inline(always)]
+unsafe fn gather<S: Simd>(s: S, texels: &[Vec3], idx: &[i32; LANES]) -> Rgb8 {
+    // SAFETY: the caller guarantees 0 <= idx[l] < texels.len().
+    unsafe { s.gather_rgb8(texels, idx) }
+}
+
+/// The level invariant the unchecked gathers rely on: `texels.len() == width * height`, both
+/// sides at least 1, and `width * height <= 2^24` so that every texel index is an integer that
+/// f32 represents exactly. Holds for every level [`RadiosityTexture`] builds (sides are powers
+/// of two up to [`super::MAX_TEXTURE_SIZE`] = 2^12); checked once per level and block.
+#[inline(always)]
+fn check_level(lv: &MipLevel) {
+    let n = lv.width as usize * lv.height as usize;
+    assert!(
+        lv.width >= 1 && lv.height >= 1 && n <= 1 << 24 && lv.texels.len() == n,
+        "mip level of {} x {} with {} texels",
+        lv.width,
+        lv.height,
+        lv.texels.len()
+    );
+}
+
+/// Lane-wise `floor` (a loop, not a closure: closures do not inherit the caller's target
+/// features, and a non-inlined `floor` would be a library call per lane).
+#[inline(always)]
+fn floor8(x: F32x8) -> F32x8 {
+    let mut r = [0.0f32; LANES];
+    for l in 0..LANES {
+        r[l] = x.0[l].floor();
+    }
+    F32x8(r)
+}
+
+/// Lane form of `split` in the float domain: x = u scale - offset ([`Placement::texel_map`]:
+/// u n - 0.5 for centres, u (n - 1) for corners), returns (floor(x), x - floor(x)). With u in
+/// [0, 1], floor(x) is an integer in [-1, n - 1], exact in f32.
+#[inline(always)]
+fn split8(u: F32x8, n: u32, p: Placement) -> (F32x8, F32x8) {
+    let (scale, offset) = p.texel_map(n);
+    let x = u * F32x8::splat(scale) - F32x8::splat(offset);
+    let f = floor8(x);
+    (f, x - f)
+}
+
+/// `i + off` clamped per lane into [0, max] (clamp-to-edge addressing), computed on the exact
+/// small integers that f32 holds, so it equals the scalar code's integer clamp.
+#[inline(always)]
+fn clamp_index(i: F32x8, off: f32, max: f32) -> F32x8 {
+    let mut r = [0.0f32; LANES];
+    for l in 0..LANES {
+        r[l] = (i.0[l] + off).max(0.0).min(max);
+    }
+    F32x8(r)
+}
+
+/// `row * w + col` per lane as an integer texel index. Row and column are clamped integers of
+/// the level, so the index is an integer below `width * height <= 2^24`: exact in f32 and in
+/// range for the conversion.
+#[inline(always)]
+fn index(row: F32x8, w: f32, col: F32x8) -> [i32; LANES] {
+    let f = row * F32x8::splat(w) + col;
+    let mut r = [0i32; LANES];
+    for l in 0..LANES {
+        // SAFETY: f.0[l] is an integer in [0, 2^24) (see above), representable in i32.
+        r[l] = unsafe { f.0[l].to_int_unchecked::<i32>() };
+    }
+    r
+}
+
+/// Lane form of `nearest_index`: floor(u scale + (0.5 - offset)) (floor(u n) for centres),
+/// clamped to the edge.
+#[inline(always)]
+fn nearest_index8(u: F32x8, n: u32, p: Placement) -> F32x8 {
+    let (scale, offset) = p.texel_map(n);
+    let x = u * F32x8::splat(scale) + F32x8::splat(0.5 - offset);
+    clamp_index(floor8(x), 0.0, n as f32 - 1.0)
+}
+
+/// Lane form of `nearest`.
+#[inline(always)]
+fn nearest8<S: Simd>(simd: S, lv: &MipLevel, p: Placement, u: F32x8, v: F32x8) -> Rgb8 {
+    check_level(lv);
+    let w = lv.width as f32;
+    let i = nearest_index8(u, lv.width, p);
+    let j = nearest_index8(v, lv.height, p);
+    // SAFETY: clamped row and column of a level checked by check_level.
+    unsafe { gather(simd, &lv.texels, &index(j, w, i)) }
+}
+
+/// Lane form of `bilinear`.
+#[inline(always)]
+fn bilinear8<S: Simd>(simd: S, lv: &MipLevel, p: Placement, u: F32x8, v: F32x8) -> Rgb8 {
+    check_level(lv);
+    let (w, h) = (lv.width as f32, lv.height as f32);
+    let (i, s) = split8(u, lv.width, p);
+    let (j, t) = split8(v, lv.height, p);
+    let (c0, c1) = (clamp_index(i, 0.0, w - 1.0), clamp_index(i, 1.0, w - 1.0));
+    let (r0, r1) = (clamp_index(j, 0.0, h - 1.0), clamp_index(j, 1.0, h - 1.0));
+    // SAFETY: clamped rows and columns of a level checked by check_level.
+    let (t00, t10, t01, t11) = unsafe {
+        (
+            gather(simd, &lv.texels, &index(r0, w, c0)),
+            gather(simd, &lv.texels, &index(r0, w, c1)),
+            gather(simd, &lv.texels, &index(r1, w, c0)),
+            gather(simd, &lv.texels, &index(r1, w, c1)),
+        )
+    };
+    let one = F32x8::splat(1.0);
+    let (s1, t1) = (one - s, one - t);
+    let mut r = [F32x8::splat(0.0); 3];
+    for ch in 0..3 {
+        let a = t00[ch] * s1 + t10[ch] * s;
+        let b = t01[ch] * s1 + t11[ch] * s;
+        r[ch] = a * t1 + b * t;
+    }
+    r
+}
+
+/// Lane form of [`Cubic::weights`]: k(1 + t), k(t), k(1 - t), k(2 - t).
+#[inline(always)]
+fn weights8(k: &Cubic, t: F32x8) -> [F32x8; 4] {
+    let one = F32x8::splat(1.0);
+    [
+        cubic8(&k.far, one + t),
+        cubic8(&k.near, t),
+        cubic8(&k.near, one - t),
+        cubic8(&k.far, F32x8::splat(2.0) - t),
+    ]
+}
+
+/// ((p0 a + p1) a + p2) a + p3 per lane (a function, not a closure: a closure is compiled without
+/// the target features of the kernel it is written in unless it is inlined).
+#[inline(always)]
+fn cubic8(p: &[f32; 4], a: F32x8) -> F32x8 {
+    let c = F32x8::splat;
+    ((c(p[0]) * a + c(p[1])) * a + c(p[2])) * a + c(p[3])
+}
+
+/// Lane form of `bicubic`: per row j - 1 .. j + 2 the 4 clamped columns are gathered and
+/// filtered with the u weights, then accumulated (from 0, as the scalar code) with the v weight.
+#[inline(always)]
+fn bicubic8<S: Simd>(simd: S, lv: &MipLevel, p: Placement, u: F32x8, v: F32x8, k: &Cubic) -> Rgb8 {
+    check_level(lv);
+    let (w, h) = (lv.width as f32, lv.height as f32);
+    let (i, s) = split8(u, lv.width, p);
+    let (j, t) = split8(v, lv.height, p);
+    let wu = weights8(k, s);
+    let wv = weights8(k, t);
+    let cols = [
+        clamp_index(i, -1.0, w - 1.0),
+        clamp_index(i, 0.0, w - 1.0),
+        clamp_index(i, 1.0, w - 1.0),
+        clamp_index(i, 2.0, w - 1.0),
+    ];
+    let mut acc = [F32x8::splat(0.0); 3];
+    for (b, &wy) in wv.iter().enumerate() {
+        let row = clamp_index(j, b as f32 - 1.0, h - 1.0);
+        // SAFETY: clamped rows and columns of a level checked by check_level.
+        let tx = unsafe {
+            [
+                gather(simd, &lv.texels, &index(row, w, cols[0])),
+                gather(simd, &lv.texels, &index(row, w, cols[1])),
+                gather(simd, &lv.texels, &index(row, w, cols[2])),
+                gather(simd, &lv.texels, &index(row, w, cols[3])),
+            ]
+        };
+        for ch in 0..3 {
+            let h = tx[0][ch] * wu[0] + tx[1][ch] * wu[1] + tx[2][ch] * wu[2] + tx[3][ch] * wu[3];
+            acc[ch] = acc[ch] + h * wy;
+        }
+    }
+    acc
+}
+
+impl Sampler {
+    /// Filters one level for 8 lanes of already clamped coordinates.
+    #[inline(always)]
+    fn level8<S: Simd>(&self, simd: S, lv: &MipLevel, p: Placement, u: F32x8, v: F32x8) -> Rgb8 {
+        // One instance per placement, so that the texel map is a constant in each and the
+        // centre instance is the code without placements (a run-time placement in the lane
+        // loops made the deferred pass about 1.5x slower).
+        match p {
+            Placement::Centre => self.level8_at::<S, false>(simd, lv, u, v),
+            Placement::Corner => self.level8_at::<S, true>(simd, lv, u, v),
+        }
+    }
+
+    /// [`Sampler::level8`] for the placement `CORNER` selects.
+    #[inline(always)]
+    fn level8_at<S: Simd, const CORNER: bool>(
+        &self,
+        simd: S,
+        lv: &MipLevel,
+        u: F32x8,
+        v: F32x8,
+    ) -> Rgb8 {
+        let p = if CORNER {
+            Placement::Corner
+        } else {
+            Placement::Centre
+        };
+        match self.filter {
+            Filter::Nearest => nearest8(simd, lv, p, u, v),
+            Filter::Bilinear => bilinear8(simd, lv, p, u, v),
+            Filter::Bicubic { .. } => bicubic8(simd, lv, p, u, v, &self.cubic),
+        }
+    }
+
+    /// The lane form of [`Sampler::sample`]: lane l of the result has the bits of
+    /// `self.sample(tex, lod_from_squares(lx2[l], ly2[l], tex.last_level()), u[l], v[l])` for
+    /// every lane with `mask[l]`; lanes without it hold unspecified finite values (their
+    /// coordinates are still clamped, so they cost no more than a masked lane would).
+    ///
+    /// `lx2` and `ly2` are the squared footprint lengths in level-0 texels per pixel (see
+    /// [`lod_from_squares`]). Lanes are processed in groups of equal mip level: one filter pass
+    /// per distinct level in the block, plus one for the next level when a lane of the group
+    /// blends two levels (bilinear and bicubic under minification).
+    ///
+    /// The texels are gathered with the token `simd`; every other operation is the same for every
+    /// token, so the result does not depend on it.
+    #[inline(always)]
+    #[allow(clippy::too_many_arguments)]
+    pub fn sample8<S: Simd>(
+        &self,
+        simd: S,
+        tex: &RadiosityTexture,
+        lx2: F32x8,
+        ly2: F32x8,
+        u: F32x8,
+        v: F32x8,
+        mask: &[bool; LANES],
+    ) -> Rgb8 {
+        let last = tex.last_level();
+        let nearest = matches!(self.filter, Filter::Nearest);
+        let mut level = [0usize; LANES];
+        let mut frac = [0.0f32; LANES];
+        let mut blend = [false; LANES];
+        let mut magnified = true;
+        for l in 0..LANES {
+            if !mask[l] {
+                continue;
+            }
+            let lod = lod_from_squares(lx2.0[l], ly2.0[l], last);
+            if lod == 0.0 {
+                // d = 0: level 0 for every filter, no blend (the scalar code's f <= 0 exit).
+                continue;
+            }
+            magnified = false;
+            let d = if lod.is_nan() {
+                0.0
+            } else {
+                lod.clamp(0.0, last as f32)
+            };
+            if nearest {
+                level[l] = (d.round() as usize).min(last);
+            } else {
+                let l0 = (d.floor() as usize).min(last);
+                level[l] = l0;
+                frac[l] = d - l0 as f32;
+                blend[l] = !(frac[l] <= 0.0 || l0 == last);
+            }
+        }
+        let (mut uc, mut vc) = (u, v);
+        for l in 0..LANES {
+            uc.0[l] = clamp01(u.0[l]);
+            vc.0[l] = clamp01(v.0[l]);
+        }
+        if magnified {
+            return self.level8(simd, &tex.levels[0], tex.placement, uc, vc);
+        }
+        let mut out = [F32x8::splat(0.0); 3];
+        let mut done = [false; LANES];
+        for l in 0..LANES {
+            done[l] = !mask[l];
+        }
+        while let Some(first) = done.iter().position(|&d| !d) {
+            let lv = level[first];
+            let mut m = [false; LANES];
+            let mut any_blend = false;
+            for l in 0..LANES {
+                m[l] = !done[l] && level[l] == lv;
+                done[l] |= m[l];
+                any_blend |= m[l] && blend[l];
+            }
+            let mut a = self.level8(simd, &tex.levels[lv], tex.placement, uc, vc);
+            if any_blend {
+                let b = self.level8(simd, &tex.levels[lv + 1], tex.placement, uc, vc);
+                let f = F32x8(frac);
+                for ch in 0..3 {
+                    a[ch] = F32x8::select(&blend, a[ch] + (b[ch] - a[ch]) * f, a[ch]);
+                }
+            }
+            for ch in 0..3 {
+                out[ch] = F32x8::select(&m, a[ch], out[ch]);
+            }
+        }
+        out
+    }
+}

@@ -1,0 +1,523 @@
+//! Scene: the first stage a frame passes through. A validated, immutable description of what is
+//! rendered: camera, materials, polygons, spot lights and the settings of every later stage.
+//!
+//! Invariants every later stage relies on (the loader establishes them; the constructors of this
+//! module check them again so a scene built in code is held to the same rules):
+//! - every number is finite; reflectance is in [0, 1) per channel, emission >= 0;
+//! - every [`Polygon`] is a planar (within [`PLANARITY_TOLERANCE`]), convex triangle or quad with
+//!   non-zero area, a unit normal and a valid material index;
+//! - every polygon carries the parametric domain (u, v) in [0, 1]^2 through [`Polygon::point`]:
+//!   the bilinear map of its four corners. A triangle is stored as a quad whose last corner repeats
+//!   the third (`c3 == c2`), so its v = 1 edge collapses onto `c2` (the "collapsed quad" map,
+//!   P(u, v) = (1 - v)((1 - u) c0 + u c1) + v c2). Quadtrees, patches and textures all live in this
+//!   one domain, whatever the polygon's shape.
+//!
+//! Geometry is kept in `f64`: the radiosity solver integrates over it and the rasterizer converts to
+//! its own fixed-point form. Colours are linear RGB; nothing here knows about sRGB.
+
+use glam::DVec3;
+
+use base::method::{Method, Placement};
+
+pub mod camera_path;
+pub mod format;
+pub mod load;
+mod obj;
+
+pub use load::{load_scene, parse_scene, parse_scene_with};
+
+/// Largest image width or height accepted, in pixels.
+pub const MAX_IMAGE_DIM: u32 = 16384;
+
+/// A quad whose fourth corner is farther than this from the plane of the first three, relative to
+/// the quad's longest diagonal, is not planar: the loader splits it into two triangles with a
+/// warning.
+pub const PLANARITY_TOLERANCE: f64 = 1e-3;
+
+/// Whether a polygon has three or four distinct corners.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Shape {
+    /// Three corners; stored with `corners[3] == corners[2]`.
+    Triangle,
+    /// Four corners, planar and convex.
+    Quad,
+}
+
+/// A planar convex triangle or quad with its parametric domain.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Polygon {
+    /// Corners in order c0, c1, c2, c3, counter-clockwise seen from the front (the side the normal
+    /// points to). (u, v) = (0,0), (1,0), (1,1), (0,1) map to c0, c1, c2, c3.
+    pub corners: [DVec3; 4],
+    /// Triangle or quad.
+    pub shape: Shape,
+    /// Index into [`Scene::materials`].
+    pub material: u32,
+    /// Unit normal (Newell's method over the distinct corners).
+    pub normal: DVec3,
+    /// Area in square scene units.
+    pub area: f64,
+    /// Index into [`Scene::objects`]: the inline polygon or OBJ group this came from.
+    pub object: u32,
+}
+
+impl Polygon {
+    /// Builds a triangle; `None` if it has (near) zero area or a non-finite coordinate.
+    pub fn triangle(c: [DVec3; 3], material: u32, object: u32) -> Option<Polygon> {
+        Self::build([c[0], c[1], c[2], c[2]], Shape::Triangle, material, object)
+    }
+
+    /// Builds a quad without checking planarity or convexity (the loader checks those and says
+    /// what is wrong); `None` if it has (near) zero area or a non-finite coordinate.
+    pub fn quad(c: [DVec3; 4], material: u32, object: u32) -> Option<Polygon> {
+        Self::build(c, Shape::Quad, material, object)
+    }
+
+    fn build(corners: [DVec3; 4], shape: Shape, material: u32, object: u32) -> Option<Polygon> {
+        if !corners.iter().all(|c| c.is_finite()) {
+            return None;
+        }
+        let n = newell_normal(&corners[..shape.corner_count()]);
+        let len = n.length();
+        let scale = corners
+            .iter()
+            .map(|c| (*c - corners[0]).length_squared())
+            .fold(0.0, f64::max);
+        // Twice the area against the squared size: a sliver this thin is degenerate.
+        if len <= 1e-12 * scale || len == 0.0 {
+            return None;
+        }
+        Some(Polygon {
+            corners,
+            shape,
+            material,
+            normal: n / len,
+            area: 0.5 * len,
+            object,
+        })
+    }
+
+    /// The distinct corners (3 or 4).
+    pub fn vertices(&self) -> &[DVec3] {
+        &self.corners[..self.shape.corner_count()]
+    }
+
+    /// The point at parameters (u, v) in [0, 1]^2 (bilinear map of the corners).
+    #[inline]
+    pub fn point(&self, u: f64, v: f64) -> DVec3 {
+        let [c0, c1, c2, c3] = self.corners;
+        (1.0 - v) * ((1.0 - u) * c0 + u * c1) + v * ((1.0 - u) * c3 + u * c2)
+    }
+
+    /// Partial derivatives dP/du and dP/dv at (u, v).
+    #[inline]
+    pub fn tangents(&self, u: f64, v: f64) -> (DVec3, DVec3) {
+        let [c0, c1, c2, c3] = self.corners;
+        let dpdu = (1.0 - v) * (c1 - c0) + v * (c2 - c3);
+        let dpdv = (1.0 - u) * (c3 - c0) + u * (c2 - c1);
+        (dpdu, dpdv)
+    }
+
+    /// Area element |dP/du x dP/dv| at (u, v): integrating it over [0, 1]^2 gives the area.
+    #[inline]
+    pub fn area_element(&self, u: f64, v: f64) -> f64 {
+        let (a, b) = self.tangents(u, v);
+        a.cross(b).length()
+    }
+
+    /// Centroid of the distinct corners.
+    pub fn centroid(&self) -> DVec3 {
+        let vs = self.vertices();
+        vs.iter().copied().sum::<DVec3>() / vs.len() as f64
+    }
+}
+
+impl Shape {
+    /// 3 for a triangle, 4 for a quad.
+    pub fn corner_count(self) -> usize {
+        match self {
+            Shape::Triangle => 3,
+            Shape::Quad => 4,
+        }
+    }
+}
+
+/// Newell's normal (not normalised; its length is twice the polygon's area for a planar polygon).
+pub fn newell_normal(vs: &[DVec3]) -> DVec3 {
+    let mut n = DVec3::ZERO;
+    for i in 0..vs.len() {
+        let a = vs[i];
+        let b = vs[(i + 1) % vs.len()];
+        n += (a - vs[0]).cross(b - vs[0]);
+    }
+    n
+}
+
+/// A diffuse material.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Material {
+    /// Name, unique in the scene.
+    pub name: String,
+    /// Diffuse reflectance per channel, in [0, 1).
+    pub reflectance: DVec3,
+    /// Emitted radiosity (exitance, W/m^2 per channel), >= 0.
+    pub emission: DVec3,
+}
+
+impl Material {
+    /// Whether the material emits light.
+    pub fn is_emitter(&self) -> bool {
+        self.emission.max_element() > 0.0
+    }
+}
+
+/// A spot light: a point source with a cone.
+///
+/// Radiant intensity in direction w: I(theta) = intensity * cos(theta)^falloff for
+/// theta <= half_angle, and 0 outside the cone, where theta is the angle between w and
+/// `direction`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SpotLight {
+    /// Position of the point source.
+    pub position: DVec3,
+    /// Unit axis of the cone.
+    pub direction: DVec3,
+    /// Radiant intensity on the axis, per channel (W/sr), >= 0.
+    pub intensity: DVec3,
+    /// Cone half-angle in radians, in (0, pi/2].
+    pub half_angle: f64,
+    /// Exponent of the cos(theta) falloff, >= 0.
+    pub falloff: f64,
+}
+
+impl SpotLight {
+    /// Radiant intensity towards the unit direction `w` from the light.
+    #[inline]
+    pub fn intensity_towards(&self, w: DVec3) -> DVec3 {
+        let c = self.direction.dot(w);
+        if c <= 0.0 || c < self.half_angle.cos() {
+            return DVec3::ZERO;
+        }
+        self.intensity * c.powf(self.falloff)
+    }
+}
+
+/// How the camera projects.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Projection {
+    /// Perspective with a vertical field of view in degrees, in (0, 180).
+    Perspective {
+        /// Vertical field of view, degrees.
+        fov_y_deg: f64,
+    },
+    /// Orthographic with the view's width and height in scene units.
+    Orthographic {
+        /// Width of the view, scene units.
+        width: f64,
+        /// Height of the view, scene units.
+        height: f64,
+    },
+}
+
+/// A camera: where it is, where it looks, and how it projects.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Camera {
+    /// Eye position.
+    pub eye: DVec3,
+    /// A point the camera looks at (distinct from `eye`).
+    pub look_at: DVec3,
+    /// Up direction (not parallel to the view direction).
+    pub up: DVec3,
+    /// Projection.
+    pub projection: Projection,
+}
+
+/// One keyframe of a walkthrough: a camera pose. The projection is the scene camera's.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Keyframe {
+    /// Eye position.
+    pub eye: DVec3,
+    /// Point looked at.
+    pub look_at: DVec3,
+    /// Up direction.
+    pub up: DVec3,
+}
+
+/// An optional camera path for walkthroughs.
+#[derive(Debug, Clone, PartialEq)]
+pub struct CameraPath {
+    /// Keyframes, at least two.
+    pub keyframes: Vec<Keyframe>,
+    /// Frames rendered along the whole path, >= 2.
+    pub frames: u32,
+}
+
+/// Settings of the radiosity solve (stage 2).
+#[derive(Debug, Clone, PartialEq)]
+pub struct RadiositySettings {
+    /// Subdivision tolerance, a relative error: a leaf splits when the true reflected radiosity
+    /// at a test point differs from the bilinear prediction of its corners by more than
+    /// `tolerance` times the leaf's own level, a level never taken below 1 % of the brightest
+    /// reflected radiosity (`radiosity::shoot::REFINE_FLOOR`), or when a shadow boundary crosses
+    /// it (`docs/scene-format.md`).
+    pub tolerance: f64,
+    /// Every polygon's quadtree is subdivided at least to this depth.
+    pub min_depth: u32,
+    /// No leaf is deeper than this (at most [`base::quadtree::MAX_DEPTH`]).
+    pub max_depth: u32,
+    /// The solve stops when, in every channel, the unshot power falls below this fraction of
+    /// the power emitted in that channel.
+    pub convergence: f64,
+    /// Shadow rays per receiver point and source (stratified over the source).
+    pub shadow_rays: u32,
+    /// Seed of every pseudo-random choice of the solve.
+    pub seed: u64,
+    /// How the solver finds which polygons each shooter can reach (`docs/scene-format.md`).
+    pub visibility: Visibility,
+}
+
+/// How the solver finds the receivers a shooter can reach (`radiosity.visibility`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Visibility {
+    /// `exact` for scenes whose shooter-polygon pairs are few enough to test them all
+    /// (`radiosity::transfer::EXACT_PAIRS_LIMIT`), `sampled` beyond.
+    #[default]
+    Auto,
+    /// Every (shooter, polygon) pair is classified: cost and memory grow with their product.
+    Exact,
+    /// The polygons a shooter's probe rays hit, and their neighbours, are its receivers: cost
+    /// grows with what each shooter sees (`radiosity::transfer::PROBE_RAYS`).
+    Sampled,
+}
+
+impl Default for RadiositySettings {
+    fn default() -> Self {
+        RadiositySettings {
+            tolerance: 0.01,
+            min_depth: 1,
+            max_depth: 7,
+            convergence: 0.01,
+            shadow_rays: 16,
+            seed: 1,
+            visibility: Visibility::Auto,
+        }
+    }
+}
+
+/// Settings of the render (stages 4 to 7).
+#[derive(Debug, Clone, PartialEq)]
+pub struct RenderSettings {
+    /// Method used when the command line names none (`direct`, `texture-bilinear`, ...).
+    pub method: Method,
+    /// Supersamples per pixel (1 = no antialiasing).
+    pub aa_samples: u32,
+    /// Texture size for the texture methods (0 = chosen per polygon from its quadtree depth).
+    pub texture_size: u32,
+    /// Where the texture methods place their texels (`--texel-placement` overrides it).
+    pub texel_placement: Placement,
+}
+
+impl Default for RenderSettings {
+    fn default() -> Self {
+        RenderSettings {
+            method: Method::Direct,
+            aa_samples: 1,
+            texture_size: 0,
+            texel_placement: Placement::Centre,
+        }
+    }
+}
+
+/// How linear radiosity becomes a PNG.
+#[derive(Debug, Clone, PartialEq)]
+pub struct DisplaySettings {
+    /// Exposure in stops: a pixel's radiosity is multiplied by 2^exposure before sRGB encoding.
+    pub exposure: f64,
+    /// Linear RGB of pixels that see no polygon.
+    pub background: DVec3,
+}
+
+impl Default for DisplaySettings {
+    fn default() -> Self {
+        DisplaySettings {
+            exposure: 0.0,
+            background: DVec3::ZERO,
+        }
+    }
+}
+
+/// A validated scene.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Scene {
+    /// The file the scene was loaded from (empty for scenes built in code).
+    pub source: std::path::PathBuf,
+    /// The camera.
+    pub camera: Camera,
+    /// Image width in pixels, in 1..=[`MAX_IMAGE_DIM`].
+    pub width: u32,
+    /// Image height in pixels, in 1..=[`MAX_IMAGE_DIM`].
+    pub height: u32,
+    /// Materials; polygons refer to them by index.
+    pub materials: Vec<Material>,
+    /// Names of the inline polygons and OBJ groups polygons came from.
+    pub objects: Vec<String>,
+    /// The polygons.
+    pub polygons: Vec<Polygon>,
+    /// Spot lights.
+    pub spots: Vec<SpotLight>,
+    /// Radiosity settings.
+    pub radiosity: RadiositySettings,
+    /// Render settings.
+    pub render: RenderSettings,
+    /// Display settings.
+    pub display: DisplaySettings,
+    /// Optional walkthrough path.
+    pub camera_path: Option<CameraPath>,
+    /// Warnings the loader emitted (non-planar quads split, ...), for the user to read.
+    pub warnings: Vec<String>,
+    /// Every file read to build the scene: the scene file, then its OBJ and MTL files in load
+    /// order (empty for scenes built in code). Outputs are checked against these, so that no
+    /// job overwrites its own input.
+    pub inputs: Vec<std::path::PathBuf>,
+}
+
+impl Scene {
+    /// A scene built in code (tests, benchmarks): the given camera, image size, materials and
+    /// polygons, one object named "code", no spot lights, no source file, default settings.
+    /// The caller keeps the invariants listed in the module docs.
+    pub fn new(
+        camera: Camera,
+        width: u32,
+        height: u32,
+        materials: Vec<Material>,
+        polygons: Vec<Polygon>,
+    ) -> Scene {
+        Scene {
+            source: std::path::PathBuf::new(),
+            camera,
+            width,
+            height,
+            materials,
+            objects: vec!["code".to_string()],
+            polygons,
+            spots: Vec::new(),
+            radiosity: RadiositySettings::default(),
+            render: RenderSettings::default(),
+            display: DisplaySettings::default(),
+            camera_path: None,
+            warnings: Vec::new(),
+            inputs: Vec::new(),
+        }
+    }
+
+    /// The material of polygon `i`.
+    pub fn material_of(&self, i: usize) -> &Material {
+        &self.materials[self.polygons[i].material as usize]
+    }
+
+    /// Axis-aligned bounds of all polygon corners and spot light positions: (min, max).
+    pub fn bounds(&self) -> (DVec3, DVec3) {
+        let mut lo = DVec3::splat(f64::INFINITY);
+        let mut hi = DVec3::splat(f64::NEG_INFINITY);
+        for p in &self.polygons {
+            for c in p.vertices() {
+                lo = lo.min(*c);
+                hi = hi.max(*c);
+            }
+        }
+        self.bounds_with(lo, hi)
+    }
+
+    /// [`Scene::bounds`] from the bounds (`lo`, `hi`) of the polygon corners, computed by the
+    /// caller (the renderer's geometry stage does it in parallel): the spot lights added, and
+    /// (0, 0) for a scene with no finite bound.
+    pub fn bounds_with(&self, mut lo: DVec3, mut hi: DVec3) -> (DVec3, DVec3) {
+        for s in &self.spots {
+            lo = lo.min(s.position);
+            hi = hi.max(s.position);
+        }
+        if !lo.is_finite() {
+            return (DVec3::ZERO, DVec3::ZERO);
+        }
+        (lo, hi)
+    }
+
+    /// Number of polygons whose material emits.
+    pub fn emitter_count(&self) -> usize {
+        (0..self.polygons.len())
+            .filter(|&i| self.material_of(i).is_emitter())
+            .count()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn unit_square_parametric_map() {
+        let q = Polygon::quad(
+            [
+                DVec3::new(0.0, 0.0, 0.0),
+                DVec3::new(2.0, 0.0, 0.0),
+                DVec3::new(2.0, 1.0, 0.0),
+                DVec3::new(0.0, 1.0, 0.0),
+            ],
+            0,
+            0,
+        )
+        .unwrap();
+        assert_eq!(q.normal, DVec3::Z);
+        assert!((q.area - 2.0).abs() < 1e-15);
+        assert_eq!(q.point(0.5, 0.5), DVec3::new(1.0, 0.5, 0.0));
+        assert!((q.area_element(0.3, 0.7) - 2.0).abs() < 1e-15);
+    }
+
+    #[test]
+    fn triangle_collapses_v1_edge_and_integrates_to_area() {
+        let t = Polygon::triangle(
+            [
+                DVec3::new(0.0, 0.0, 0.0),
+                DVec3::new(1.0, 0.0, 0.0),
+                DVec3::new(0.0, 1.0, 0.0),
+            ],
+            0,
+            0,
+        )
+        .unwrap();
+        assert!((t.area - 0.5).abs() < 1e-15);
+        assert_eq!(t.point(0.3, 1.0), DVec3::new(0.0, 1.0, 0.0));
+        // Area element is 2 * area * (1 - v): midpoint rule in v is exact for a linear integrand.
+        let n = 64;
+        let mut s = 0.0;
+        for j in 0..n {
+            let v = (j as f64 + 0.5) / n as f64;
+            s += t.area_element(0.5, v) / n as f64;
+        }
+        assert!((s - 0.5).abs() < 1e-12);
+    }
+
+    #[test]
+    fn degenerate_polygons_are_refused() {
+        let z = DVec3::ZERO;
+        assert!(Polygon::triangle([z, DVec3::X, 2.0 * DVec3::X], 0, 0).is_none());
+        assert!(Polygon::triangle([z, DVec3::X, DVec3::new(f64::NAN, 0.0, 0.0)], 0, 0).is_none());
+    }
+
+    #[test]
+    fn spot_cone_and_falloff() {
+        let s = SpotLight {
+            position: DVec3::ZERO,
+            direction: -DVec3::Z,
+            intensity: DVec3::splat(2.0),
+            half_angle: 30f64.to_radians(),
+            falloff: 2.0,
+        };
+        assert_eq!(s.intensity_towards(-DVec3::Z), DVec3::splat(2.0));
+        let w = DVec3::new(20f64.to_radians().sin(), 0.0, -20f64.to_radians().cos());
+        let expect = 2.0 * 20f64.to_radians().cos().powi(2);
+        assert!((s.intensity_towards(w).x - expect).abs() < 1e-14);
+        let w = DVec3::new(40f64.to_radians().sin(), 0.0, -40f64.to_radians().cos());
+        assert_eq!(s.intensity_towards(w), DVec3::ZERO);
+    }
+}
