@@ -1,12 +1,19 @@
 //! Errors of the library, and the exit codes the binary maps them to.
 //!
-//! Every fallible public function returns [`Result`]. The variants separate what the *user* got
-//! wrong (a scene file, an option, a request over a limit, a solution file: exit code 2) from what
-//! went wrong while running (an I/O failure writing output, an internal failure: exit code 1), and
-//! carry what a caller needs to act on them (the location, the option, the limit, the path). Input errors carry the
-//! file, and where known the line and the key, so a message reads like a compiler's:
+//! Every fallible public function returns [`Result`]. The variants separate three parties:
+//! what the *user* got wrong (a scene file, an option, a request over a limit, a solution file:
+//! exit code 2), what went wrong while running that is nobody's mistake (an I/O failure writing
+//! output, an encoder that fails: exit code 1), and what is a bug of this program
+//! ([`Error::Internal`], exit code 1, said as such). Errors carry what a caller needs to act on
+//! them (the location, the option, the limit, the path). Input errors carry the file, and where
+//! known the line and the key, so a message reads like a compiler's:
 //! `scenes/foo.toml:12: materials[2].reflectance: component 0 is 1.2, must be in [0, 1)`.
-//! Library code never panics on bad input; a panic is a bug.
+//!
+//! [`Error::Inconsistent`] is the one kind whose party depends on where the data came from:
+//! samples or patches that no solve produces (non-finite values, missing vertices, values that
+//! overflow f32). Read from a solution file, the file is corrupt (the jobs report it as
+//! [`Error::Solution`], exit 2); produced by this run's own solve, it is a bug (the jobs report
+//! it as [`Error::Internal`]). Library code never panics on bad input; a panic is a bug.
 
 use std::fmt;
 use std::path::{Path, PathBuf};
@@ -156,10 +163,17 @@ pub enum Error {
         /// `anyhow`'s `{:#}` would print it twice).
         error: std::io::Error,
     },
-    /// A failure while running that is not the input's fault (an internal invariant, a thread
-    /// that could not start, an encoder failure).
+    /// A failure while running that is neither the input's fault nor a bug: a thread that could
+    /// not start, an encoder or plotting backend that failed, a check that found a difference.
     #[error("{0}")]
     Runtime(String),
+    /// Data that no valid solve produces (see the module documentation): a corrupt solution file
+    /// when read from one, a bug when computed in this run.
+    #[error("{0}")]
+    Inconsistent(String),
+    /// A broken invariant of this program: a bug, never the user's input.
+    #[error("internal error: {0} (this is a bug in pixelflow-sim; please report it with the command that caused it)")]
+    Internal(String),
 }
 
 impl Error {
@@ -206,6 +220,16 @@ impl Error {
         }
     }
 
+    /// A broken invariant of this program (a bug).
+    pub fn internal(message: impl Into<String>) -> Self {
+        Error::Internal(message.into())
+    }
+
+    /// Data that no valid solve produces ([`Error::Inconsistent`]).
+    pub fn inconsistent(message: impl Into<String>) -> Self {
+        Error::Inconsistent(message.into())
+    }
+
     /// An I/O error on `path`.
     pub fn io(path: impl AsRef<Path>, source: std::io::Error) -> Self {
         Error::Io {
@@ -227,7 +251,9 @@ impl Error {
             | Error::ResourceLimit { .. }
             | Error::Memory { .. }
             | Error::Solution { .. } => EXIT_BAD_INPUT,
-            Error::Io { .. } | Error::Runtime(_) => EXIT_FAILURE,
+            Error::Io { .. } | Error::Runtime(_) | Error::Inconsistent(_) | Error::Internal(_) => {
+                EXIT_FAILURE
+            }
         }
     }
 }
@@ -276,6 +302,22 @@ mod tests {
         );
         assert_eq!(e.exit_code(), EXIT_BAD_INPUT);
         assert_eq!(Error::Runtime("x".into()).exit_code(), EXIT_FAILURE);
+    }
+
+    #[test]
+    fn an_internal_error_says_it_is_a_bug_and_exits_1() {
+        let e = Error::internal("mesh missing after build");
+        assert_eq!(e.exit_code(), EXIT_FAILURE);
+        let text = e.to_string();
+        assert!(
+            text.starts_with("internal error: mesh missing after build"),
+            "{text}"
+        );
+        assert!(text.contains("this is a bug"), "{text}");
+        assert_eq!(
+            Error::inconsistent("a NaN sample").exit_code(),
+            EXIT_FAILURE
+        );
     }
 
     #[test]
