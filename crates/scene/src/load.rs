@@ -5,19 +5,22 @@
 //! mirror the file (unknown keys and type errors are caught there, with a span); this module then
 //! checks every value semantically, fills in the defaults of the `Default` impls in [`super`],
 //! resolves material names to indices, loads the `[[obj]]` includes through `scene::obj` and
-//! turns every face into [`Polygon`]s with `build_face`. The rules [`Scene`] promises to later
-//! stages (finite numbers, reflectance in [0, 1), planar convex faces, at least one polygon and
-//! one light) are all established here, and nothing is silently changed except two documented
+//! turns every face into [`Polygon`]s with `build_face`; the materials, objects and polygons
+//! are collected in file order in `Surfaces`. The rules [`Scene`] promises to later stages
+//! (finite numbers, reflectance in [0, 1), planar convex faces, at least one polygon and one
+//! light) are all established here, and nothing is silently changed except two documented
 //! repairs: quads within [`PLANARITY_TOLERANCE`] are projected onto their best-fit plane, and
-//! quads beyond it are split into two triangles with a warning in [`Scene::warnings`].
+//! quads beyond it are split into two triangles with a warning in [`Scene::warnings`] (OBJ
+//! faces of more than four corners are projected and fan-triangulated, see `build_face`).
 //!
 //! Every input is untrusted: no value reaches arithmetic that could panic (indices, casts,
-//! divisions) before it has been checked, and the property tests in `tests/scene_loading.rs`
-//! feed random and mutated files to [`parse_scene`].
+//! divisions) before it has been checked, and the property tests in
+//! `crates/lab/tests/library/scene_loading.rs` feed random and mutated files to
+//! [`parse_scene`].
 
 use super::format::{
-    CameraPathSection, CameraSection, DisplaySection, ImageSection, RadiositySection,
-    RenderSection, SceneFile, Vec3,
+    CameraPathSection, CameraSection, DisplaySection, ImageSection, MaterialSection,
+    PolygonSection, RadiositySection, RenderSection, SceneFile, SpotSection, Vec3,
 };
 use super::{
     newell_normal, Camera, CameraPath, DisplaySettings, Keyframe, Material, Polygon, Projection,
@@ -51,8 +54,8 @@ pub const MIN_FOV_Y: f64 = 0.01;
 pub const MAX_FRAMES: u32 = 1_000_000;
 
 /// Most corners of one face (an OBJ `f` statement; inline polygons have 3 or 4). Checking a
-/// face compares every pair of its corners, so the limit bounds that work (a 30 000-corner
-/// face took seconds) and the fan triangles one face becomes.
+/// face compares every pair of its corners, so the limit bounds that work (for 30 000 corners
+/// it would take seconds) and the fan triangles one face becomes.
 pub const MAX_FACE_CORNERS: usize = 256;
 
 /// Most MTL files one OBJ include may name (`mtllib`); each is read once, however often it is
@@ -135,11 +138,49 @@ pub(crate) struct BuiltFace {
     pub(crate) warning: Option<String>,
 }
 
+impl BuiltFace {
+    /// A face that is one polygon as it stands.
+    fn single(polygon: Polygon) -> BuiltFace {
+        BuiltFace {
+            polygons: vec![polygon],
+            warning: None,
+        }
+    }
+}
+
+/// The materials, objects and polygons of a scene, as the `[[materials]]`, `[[polygons]]` and
+/// `[[obj]]` sections add them in file order.
+#[derive(Default)]
+pub(crate) struct Surfaces {
+    pub(crate) materials: Vec<Material>,
+    /// The index of every material in `materials`, by name.
+    pub(crate) by_name: BTreeMap<String, u32>,
+    pub(crate) objects: Vec<String>,
+    pub(crate) polygons: Vec<Polygon>,
+}
+
+impl Surfaces {
+    /// Appends `material` (its name not yet taken) and returns its index.
+    pub(crate) fn add_material(&mut self, material: Material) -> u32 {
+        let idx = self.materials.len() as u32;
+        self.by_name.insert(material.name.clone(), idx);
+        self.materials.push(material);
+        idx
+    }
+
+    /// Appends an object named `name` and returns its index.
+    pub(crate) fn add_object(&mut self, name: String) -> u32 {
+        let idx = self.objects.len() as u32;
+        self.objects.push(name);
+        idx
+    }
+}
+
 impl<'a> Cx<'a> {
     pub(crate) fn loc(&self, span: Range<usize>, key: impl Into<String>) -> Location {
         // The offsets of the text's newlines, found once: a location costs a binary search,
-        // not a scan of the text (locations are made per polygon, so a scan made loading
-        // quadratic in the number of inline polygons).
+        // not a scan of the text (locations are made per polygon, so a scan for each would make
+        // loading quadratic in the number of inline polygons).
         let newlines = self.newlines.get_or_init(|| {
             self.text
                 .bytes()
@@ -203,157 +244,22 @@ impl<'a> Cx<'a> {
     fn scene(&mut self, file: SceneFile) -> Result<Scene> {
         let camera = self.camera(&file.camera)?;
         let (width, height) = self.image(file.image.as_ref())?;
-
-        // Materials: names unique, values in range.
-        let mut materials = Vec::new();
-        let mut by_name: BTreeMap<String, u32> = BTreeMap::new();
+        let mut surfaces = Surfaces::default();
         for (i, m) in file.materials.iter().enumerate() {
-            let m = m.get_ref();
-            let key = format!("materials[{i}]");
-            let name = m.name.get_ref().clone();
-            if name.is_empty() {
-                return Err(self.err(m.name.span(), format!("{key}.name"), "is empty"));
-            }
-            if by_name.contains_key(&name) {
-                return Err(self.err(
-                    m.name.span(),
-                    format!("{key}.name"),
-                    format!("duplicate material name `{name}`"),
-                ));
-            }
-            let reflectance = self.vec3(&m.reflectance, &format!("{key}.reflectance"))?;
-            check_reflectance(reflectance)
-                .map_err(|msg| self.err(m.reflectance.span(), format!("{key}.reflectance"), msg))?;
-            let emission = match &m.emission {
-                Some(e) => {
-                    let v = self.vec3(e, &format!("{key}.emission"))?;
-                    check_emission(v)
-                        .map_err(|msg| self.err(e.span(), format!("{key}.emission"), msg))?;
-                    v
-                }
-                None => DVec3::ZERO,
-            };
-            by_name.insert(name.clone(), materials.len() as u32);
-            materials.push(Material {
-                name,
-                reflectance,
-                emission,
-            });
+            self.material(m, &format!("materials[{i}]"), &mut surfaces)?;
         }
-
-        let mut objects = Vec::new();
-        let mut polygons = Vec::new();
-
-        // Inline polygons.
         for (i, p) in file.polygons.iter().enumerate() {
-            let p = p.get_ref();
-            let key = format!("polygons[{i}]");
-            let vs = p.vertices.get_ref();
-            if vs.len() != 3 && vs.len() != 4 {
-                return Err(self.err(
-                    p.vertices.span(),
-                    format!("{key}.vertices"),
-                    format!("has {} points; a polygon has 3 or 4", vs.len()),
-                ));
-            }
-            let mut corners = Vec::with_capacity(4);
-            for (j, v) in vs.iter().enumerate() {
-                if let Some(x) = v.0.iter().find(|x| !in_range(**x)) {
-                    return Err(self.err(
-                        p.vertices.span(),
-                        format!("{key}.vertices[{j}]"),
-                        format!("has {x}; {FINITE_RULE}"),
-                    ));
-                }
-                corners.push(DVec3::from_array(v.0));
-            }
-            let mname = p.material.get_ref();
-            let Some(&mat) = by_name.get(mname) else {
-                return Err(self.err(
-                    p.material.span(),
-                    format!("{key}.material"),
-                    format!("unknown material `{mname}`{}", known_names(&by_name)),
-                ));
-            };
-            let object = objects.len() as u32;
-            objects.push(p.name.clone().unwrap_or_else(|| key.clone()));
-            // Geometry problems are reported at the vertex list.
-            let location = self.loc(p.vertices.span(), format!("{key}.vertices"));
-            let built = build_face(&corners, mat, object)
-                .map_err(|msg| Error::input(location.clone(), msg))?;
-            if let Some(w) = built.warning {
-                self.warnings.push(format!("{location}: {w}"));
-            }
-            polygons.extend(built.polygons);
+            self.inline_polygon(p, &format!("polygons[{i}]"), &mut surfaces)?;
         }
-
-        // OBJ includes.
         for (i, o) in file.obj.iter().enumerate() {
-            super::obj::include(
-                self,
-                o,
-                &format!("obj[{i}]"),
-                &mut materials,
-                &mut by_name,
-                &mut objects,
-                &mut polygons,
-            )?;
+            super::obj::include(self, o, &format!("obj[{i}]"), &mut surfaces)?;
         }
-
-        // Spot lights.
-        let mut spots = Vec::new();
-        for (i, s) in file.spots.iter().enumerate() {
-            let s = s.get_ref();
-            let key = format!("spots[{i}]");
-            let position = self.vec3(&s.position, &format!("{key}.position"))?;
-            let direction = self.vec3(&s.direction, &format!("{key}.direction"))?;
-            let len = direction.length();
-            if !(len > 0.0 && len.is_finite()) {
-                return Err(self.err(
-                    s.direction.span(),
-                    format!("{key}.direction"),
-                    "must be a non-zero vector",
-                ));
-            }
-            let intensity = self.vec3(&s.intensity, &format!("{key}.intensity"))?;
-            if intensity.min_element() < 0.0 {
-                return Err(self.err(
-                    s.intensity.span(),
-                    format!("{key}.intensity"),
-                    "must be >= 0 in every channel",
-                ));
-            }
-            let half = self.num(&s.half_angle, &format!("{key}.half_angle"))?;
-            if !(half > 0.0 && half <= 90.0) {
-                return Err(self.err(
-                    s.half_angle.span(),
-                    format!("{key}.half_angle"),
-                    format!("is {half} degrees, must be in (0, 90]"),
-                ));
-            }
-            let falloff = match &s.falloff {
-                Some(f) => {
-                    let x = self.num(f, &format!("{key}.falloff"))?;
-                    if !(0.0..=1.0e4).contains(&x) {
-                        return Err(self.err(
-                            f.span(),
-                            format!("{key}.falloff"),
-                            format!("is {x}, must be in [0, 10000]"),
-                        ));
-                    }
-                    x
-                }
-                None => 1.0,
-            };
-            spots.push(SpotLight {
-                position,
-                direction: direction / len,
-                intensity,
-                half_angle: half.to_radians(),
-                falloff,
-            });
-        }
-
+        let spots = file
+            .spots
+            .iter()
+            .enumerate()
+            .map(|(i, s)| self.spot(s, &format!("spots[{i}]")))
+            .collect::<Result<Vec<_>>>()?;
         let radiosity = self.radiosity(file.radiosity.as_ref())?;
         let render = self.render(file.render.as_ref())?;
         let display = self.display(file.display.as_ref())?;
@@ -361,26 +267,13 @@ impl<'a> Cx<'a> {
             Some(cp) => Some(self.camera_path(cp)?),
             None => None,
         };
-
-        let whole = Location::file(self.path);
-        if polygons.is_empty() {
-            return Err(Error::input(
-                whole,
-                "the scene has no polygons: add [[polygons]] or [[obj]] entries",
-            ));
-        }
-        let has_emitter = polygons
-            .iter()
-            .any(|p| materials[p.material as usize].is_emitter());
-        let has_spot = spots.iter().any(|s| s.intensity.max_element() > 0.0);
-        if !has_emitter && !has_spot {
-            return Err(Error::input(
-                whole,
-                "the scene has no light (no polygon with an emitting material and no spot light \
-                 with intensity > 0): the image would be black",
-            ));
-        }
-
+        self.check_polygons_and_light(&surfaces, &spots)?;
+        let Surfaces {
+            materials,
+            objects,
+            polygons,
+            ..
+        } = surfaces;
         Ok(Scene {
             source: self.path.to_path_buf(),
             camera,
@@ -397,6 +290,185 @@ impl<'a> Cx<'a> {
             warnings: std::mem::take(&mut self.warnings),
             inputs: std::mem::take(&mut self.inputs),
         })
+    }
+
+    /// One `[[materials]]` entry: a unique, non-empty name and values in range.
+    fn material(
+        &self,
+        m: &Spanned<MaterialSection>,
+        key: &str,
+        surfaces: &mut Surfaces,
+    ) -> Result<()> {
+        let m = m.get_ref();
+        let name = m.name.get_ref().clone();
+        if name.is_empty() {
+            return Err(self.err(m.name.span(), format!("{key}.name"), "is empty"));
+        }
+        if surfaces.by_name.contains_key(&name) {
+            return Err(self.err(
+                m.name.span(),
+                format!("{key}.name"),
+                format!("duplicate material name `{name}`"),
+            ));
+        }
+        let reflectance = self.vec3(&m.reflectance, &format!("{key}.reflectance"))?;
+        check_reflectance(reflectance)
+            .map_err(|msg| self.err(m.reflectance.span(), format!("{key}.reflectance"), msg))?;
+        let emission = match &m.emission {
+            Some(e) => {
+                let v = self.vec3(e, &format!("{key}.emission"))?;
+                check_emission(v)
+                    .map_err(|msg| self.err(e.span(), format!("{key}.emission"), msg))?;
+                v
+            }
+            None => DVec3::ZERO,
+        };
+        surfaces.add_material(Material {
+            name,
+            reflectance,
+            emission,
+        });
+        Ok(())
+    }
+
+    /// One `[[polygons]]` entry: 3 or 4 finite corners and a known material, one object of its
+    /// own (named by `name`, else by its key).
+    fn inline_polygon(
+        &mut self,
+        p: &Spanned<PolygonSection>,
+        key: &str,
+        surfaces: &mut Surfaces,
+    ) -> Result<()> {
+        let p = p.get_ref();
+        let vs = p.vertices.get_ref();
+        if vs.len() != 3 && vs.len() != 4 {
+            return Err(self.err(
+                p.vertices.span(),
+                format!("{key}.vertices"),
+                format!("has {} points; a polygon has 3 or 4", vs.len()),
+            ));
+        }
+        let mut corners = Vec::with_capacity(4);
+        for (j, v) in vs.iter().enumerate() {
+            if let Some(x) = v.0.iter().find(|x| !in_range(**x)) {
+                return Err(self.err(
+                    p.vertices.span(),
+                    format!("{key}.vertices[{j}]"),
+                    format!("has {x}; {FINITE_RULE}"),
+                ));
+            }
+            corners.push(DVec3::from_array(v.0));
+        }
+        let mname = p.material.get_ref();
+        let Some(&material) = surfaces.by_name.get(mname) else {
+            return Err(self.err(
+                p.material.span(),
+                format!("{key}.material"),
+                format!(
+                    "unknown material `{mname}`{}",
+                    known_names(&surfaces.by_name)
+                ),
+            ));
+        };
+        let object = surfaces.add_object(p.name.clone().unwrap_or_else(|| key.to_string()));
+        // Geometry problems are reported at the vertex list.
+        let location = self.loc(p.vertices.span(), format!("{key}.vertices"));
+        self.add_face(&corners, material, object, location, &mut surfaces.polygons)
+    }
+
+    /// Turns one face into polygons with [`build_face`] and appends them to `polygons`; a
+    /// problem is an input error at `location`, a repair a warning there.
+    pub(crate) fn add_face(
+        &mut self,
+        corners: &[DVec3],
+        material: u32,
+        object: u32,
+        location: Location,
+        polygons: &mut Vec<Polygon>,
+    ) -> Result<()> {
+        let built = build_face(corners, material, object)
+            .map_err(|msg| Error::input(location.clone(), msg))?;
+        if let Some(w) = built.warning {
+            self.warnings.push(format!("{location}: {w}"));
+        }
+        polygons.extend(built.polygons);
+        Ok(())
+    }
+
+    /// One `[[spots]]` entry.
+    fn spot(&self, s: &Spanned<SpotSection>, key: &str) -> Result<SpotLight> {
+        let s = s.get_ref();
+        let position = self.vec3(&s.position, &format!("{key}.position"))?;
+        let direction = self.vec3(&s.direction, &format!("{key}.direction"))?;
+        let len = direction.length();
+        if !(len > 0.0 && len.is_finite()) {
+            return Err(self.err(
+                s.direction.span(),
+                format!("{key}.direction"),
+                "must be a non-zero vector",
+            ));
+        }
+        let intensity = self.vec3(&s.intensity, &format!("{key}.intensity"))?;
+        if intensity.min_element() < 0.0 {
+            return Err(self.err(
+                s.intensity.span(),
+                format!("{key}.intensity"),
+                "must be >= 0 in every channel",
+            ));
+        }
+        let half = self.num(&s.half_angle, &format!("{key}.half_angle"))?;
+        if !(half > 0.0 && half <= 90.0) {
+            return Err(self.err(
+                s.half_angle.span(),
+                format!("{key}.half_angle"),
+                format!("is {half} degrees, must be in (0, 90]"),
+            ));
+        }
+        let falloff = match &s.falloff {
+            Some(f) => {
+                let x = self.num(f, &format!("{key}.falloff"))?;
+                if !(0.0..=1.0e4).contains(&x) {
+                    return Err(self.err(
+                        f.span(),
+                        format!("{key}.falloff"),
+                        format!("is {x}, must be in [0, 10000]"),
+                    ));
+                }
+                x
+            }
+            None => 1.0,
+        };
+        Ok(SpotLight {
+            position,
+            direction: direction / len,
+            intensity,
+            half_angle: half.to_radians(),
+            falloff,
+        })
+    }
+
+    /// Refuses a scene without polygons, or without any light (its image would be black).
+    fn check_polygons_and_light(&self, surfaces: &Surfaces, spots: &[SpotLight]) -> Result<()> {
+        let whole = Location::file(self.path);
+        if surfaces.polygons.is_empty() {
+            return Err(Error::input(
+                whole,
+                "the scene has no polygons: add [[polygons]] or [[obj]] entries",
+            ));
+        }
+        let has_emitter = surfaces
+            .polygons
+            .iter()
+            .any(|p| surfaces.materials[p.material as usize].is_emitter());
+        let has_spot = spots.iter().any(|s| s.intensity.max_element() > 0.0);
+        if !has_emitter && !has_spot {
+            return Err(Error::input(
+                whole,
+                "the scene has no light (no polygon with an emitting material and no spot light \
+                 with intensity > 0): the image would be black",
+            ));
+        }
+        Ok(())
     }
 
     fn pose(
@@ -548,20 +620,23 @@ impl<'a> Cx<'a> {
             s.seed = self.int(v, "radiosity.seed", 0, i64::MAX, "")? as u64;
         }
         if let Some(v) = &r.visibility {
-            s.visibility = match v.get_ref().as_str() {
-                "auto" => crate::Visibility::Auto,
-                "exact" => crate::Visibility::Exact,
-                "sampled" => crate::Visibility::Sampled,
-                other => {
-                    return Err(self.err(
-                        v.span(),
-                        "radiosity.visibility",
-                        format!("is `{other}`, must be `auto`, `exact` or `sampled`"),
-                    ))
-                }
-            };
+            s.visibility = self.visibility(v)?;
         }
         Ok(s)
+    }
+
+    /// `radiosity.visibility`: `auto`, `exact` or `sampled`.
+    fn visibility(&self, v: &Spanned<String>) -> Result<crate::Visibility> {
+        match v.get_ref().as_str() {
+            "auto" => Ok(crate::Visibility::Auto),
+            "exact" => Ok(crate::Visibility::Exact),
+            "sampled" => Ok(crate::Visibility::Sampled),
+            other => Err(self.err(
+                v.span(),
+                "radiosity.visibility",
+                format!("is `{other}`, must be `auto`, `exact` or `sampled`"),
+            )),
+        }
     }
 
     fn render(&self, r: Option<&Spanned<RenderSection>>) -> Result<RenderSettings> {
@@ -745,6 +820,23 @@ pub(crate) fn build_face(
     material: u32,
     object: u32,
 ) -> std::result::Result<BuiltFace, String> {
+    check_corners(corners)?;
+    if corners.len() == 3 {
+        let t = Polygon::triangle([corners[0], corners[1], corners[2]], material, object)
+            .ok_or("has zero area (its corners are collinear or coincide)")?;
+        return Ok(BuiltFace::single(t));
+    }
+    let plane = BestFitPlane::of(corners)?;
+    plane.check_convex()?;
+    if corners.len() == 4 {
+        build_quad(corners, &plane, material, object)
+    } else {
+        build_fan(&plane, material, object)
+    }
+}
+
+/// `Ok` if a face has between 3 and [`MAX_FACE_CORNERS`] corners, all in range.
+fn check_corners(corners: &[DVec3]) -> std::result::Result<(), String> {
     let n = corners.len();
     if n < 3 {
         return Err(format!("has {n} corners; a face needs at least 3"));
@@ -760,107 +852,141 @@ pub(crate) fn build_face(
     {
         return Err(format!("corner {c}: {FINITE_RULE}"));
     }
-    if n == 3 {
-        let t = Polygon::triangle([corners[0], corners[1], corners[2]], material, object)
-            .ok_or("has zero area (its corners are collinear or coincide)")?;
-        return Ok(BuiltFace {
-            polygons: vec![t],
-            warning: None,
-        });
-    }
-    let normal = newell_normal(corners);
-    let len = normal.length();
-    let size2 = corners
-        .iter()
-        .flat_map(|a| corners.iter().map(move |b| (*a - *b).length_squared()))
-        .fold(0.0, f64::max);
-    // Same degeneracy threshold as `Polygon::build`: twice the area against the squared size.
-    if len <= 1e-12 * size2 {
-        return Err(
-            "has zero net area (its corners are collinear or coincide, or it crosses itself)"
-                .to_string(),
-        );
-    }
-    let nh = normal / len;
-    let centroid = corners.iter().copied().sum::<DVec3>() / n as f64;
-    let deviation = corners
-        .iter()
-        .map(|c| (*c - centroid).dot(nh).abs())
-        .fold(0.0, f64::max);
-    // The quad's longest diagonal (the polygon's diameter for more corners) is the size that
-    // the planarity tolerance is relative to.
-    let diagonal = if n == 4 {
-        (corners[2] - corners[0])
-            .length()
-            .max((corners[3] - corners[1]).length())
-    } else {
-        size2.sqrt()
-    };
-    let relative = deviation / diagonal;
-    let projected: Vec<DVec3> = corners
-        .iter()
-        .map(|c| *c - (*c - centroid).dot(nh) * nh)
-        .collect();
-    // Convexity on the projected polygon: every turn must be to the left of the normal. A zero
-    // turn means three collinear consecutive corners, which the parametric map cannot use.
-    for i in 0..n {
-        let a = projected[i];
-        let b = projected[(i + 1) % n];
-        let c = projected[(i + 2) % n];
-        let turn = (b - a).cross(c - b).dot(nh);
-        if turn <= 1e-9 * size2 {
-            return Err(format!(
-                "is concave, self-intersecting or has three collinear corners (at corner {}); \
-                 faces must be convex",
-                (i + 1) % n
-            ));
+    Ok(())
+}
+
+/// The best-fit plane of a face of 4 or more corners (Newell normal through the centroid) and
+/// how far the face is from it.
+struct BestFitPlane {
+    /// Unit normal.
+    normal: DVec3,
+    /// Largest squared distance between two corners.
+    size2: f64,
+    /// Largest distance of a corner from the plane over the face's longest diagonal.
+    relative: f64,
+    /// The corners projected onto the plane.
+    projected: Vec<DVec3>,
+}
+
+impl BestFitPlane {
+    /// The plane of `corners` (4 or more, in range); refused if the face has zero net area.
+    fn of(corners: &[DVec3]) -> std::result::Result<BestFitPlane, String> {
+        let n = corners.len();
+        let normal = newell_normal(corners);
+        let len = normal.length();
+        let size2 = corners
+            .iter()
+            .flat_map(|a| corners.iter().map(move |b| (*a - *b).length_squared()))
+            .fold(0.0, f64::max);
+        // Same degeneracy threshold as `Polygon::build`: twice the area against the squared size.
+        if len <= 1e-12 * size2 {
+            return Err(
+                "has zero net area (its corners are collinear or coincide, or it crosses itself)"
+                    .to_string(),
+            );
         }
-    }
-    let planar = relative <= PLANARITY_TOLERANCE;
-    if n == 4 {
-        if planar {
-            let q = Polygon::quad(
-                [projected[0], projected[1], projected[2], projected[3]],
-                material,
-                object,
-            )
-            .ok_or("has zero area")?;
-            return Ok(BuiltFace {
-                polygons: vec![q],
-                warning: None,
-            });
-        }
-        let t0 = Polygon::triangle([corners[0], corners[1], corners[2]], material, object);
-        let t1 = Polygon::triangle([corners[0], corners[2], corners[3]], material, object);
-        let (Some(t0), Some(t1)) = (t0, t1) else {
-            return Err("is not planar and cannot be split into two valid triangles".to_string());
+        let nh = normal / len;
+        let centroid = corners.iter().copied().sum::<DVec3>() / n as f64;
+        let deviation = corners
+            .iter()
+            .map(|c| (*c - centroid).dot(nh).abs())
+            .fold(0.0, f64::max);
+        // The quad's longest diagonal (the polygon's diameter for more corners) is the size that
+        // the planarity tolerance is relative to.
+        let diagonal = if n == 4 {
+            (corners[2] - corners[0])
+                .length()
+                .max((corners[3] - corners[1]).length())
+        } else {
+            size2.sqrt()
         };
-        return Ok(BuiltFace {
-            polygons: vec![t0, t1],
-            warning: Some(format!(
-                "quad is not planar (a corner is {:.3}% of its longest diagonal off the best-fit \
-                 plane, tolerance {}%): split into two triangles along its c0-c2 diagonal",
-                100.0 * relative,
-                100.0 * PLANARITY_TOLERANCE
-            )),
-        });
+        let projected = corners
+            .iter()
+            .map(|c| *c - (*c - centroid).dot(nh) * nh)
+            .collect();
+        Ok(BestFitPlane {
+            normal: nh,
+            size2,
+            relative: deviation / diagonal,
+            projected,
+        })
     }
-    if !planar {
+
+    /// Whether the face is within [`PLANARITY_TOLERANCE`] of the plane.
+    fn is_planar(&self) -> bool {
+        self.relative <= PLANARITY_TOLERANCE
+    }
+
+    /// Convexity on the projected polygon: every turn must be to the left of the normal. A zero
+    /// turn means three collinear consecutive corners, which the parametric map cannot use.
+    fn check_convex(&self) -> std::result::Result<(), String> {
+        let p = &self.projected;
+        let n = p.len();
+        for i in 0..n {
+            let (a, b, c) = (p[i], p[(i + 1) % n], p[(i + 2) % n]);
+            let turn = (b - a).cross(c - b).dot(self.normal);
+            if turn <= 1e-9 * self.size2 {
+                return Err(format!(
+                    "is concave, self-intersecting or has three collinear corners (at corner \
+                     {}); faces must be convex",
+                    (i + 1) % n
+                ));
+            }
+        }
+        Ok(())
+    }
+}
+
+/// A convex quad: projected onto its plane if planar, else split along its c0-c2 diagonal into
+/// two triangles of the original corners, with a warning.
+fn build_quad(
+    corners: &[DVec3],
+    plane: &BestFitPlane,
+    material: u32,
+    object: u32,
+) -> std::result::Result<BuiltFace, String> {
+    if plane.is_planar() {
+        let p = &plane.projected;
+        let q = Polygon::quad([p[0], p[1], p[2], p[3]], material, object).ok_or("has zero area")?;
+        return Ok(BuiltFace::single(q));
+    }
+    let t0 = Polygon::triangle([corners[0], corners[1], corners[2]], material, object);
+    let t1 = Polygon::triangle([corners[0], corners[2], corners[3]], material, object);
+    let (Some(t0), Some(t1)) = (t0, t1) else {
+        return Err("is not planar and cannot be split into two valid triangles".to_string());
+    };
+    Ok(BuiltFace {
+        polygons: vec![t0, t1],
+        warning: Some(format!(
+            "quad is not planar (a corner is {:.3}% of its longest diagonal off the best-fit \
+             plane, tolerance {}%): split into two triangles along its c0-c2 diagonal",
+            100.0 * plane.relative,
+            100.0 * PLANARITY_TOLERANCE
+        )),
+    })
+}
+
+/// A convex face of 5 or more corners: refused unless planar, then projected and
+/// fan-triangulated from its first corner.
+fn build_fan(
+    plane: &BestFitPlane,
+    material: u32,
+    object: u32,
+) -> std::result::Result<BuiltFace, String> {
+    let p = &plane.projected;
+    let n = p.len();
+    if !plane.is_planar() {
         return Err(format!(
             "has {n} corners and is not planar (a corner is {:.3}% of its longest diagonal off \
              the best-fit plane, tolerance {}%); faces with more than 4 corners must be planar",
-            100.0 * relative,
+            100.0 * plane.relative,
             100.0 * PLANARITY_TOLERANCE
         ));
     }
     let mut polygons = Vec::with_capacity(n - 2);
     for i in 1..n - 1 {
-        let t = Polygon::triangle(
-            [projected[0], projected[i], projected[i + 1]],
-            material,
-            object,
-        )
-        .ok_or("has a degenerate fan triangle")?;
+        let t = Polygon::triangle([p[0], p[i], p[i + 1]], material, object)
+            .ok_or("has a degenerate fan triangle")?;
         polygons.push(t);
     }
     Ok(BuiltFace {
@@ -872,7 +998,7 @@ pub(crate) fn build_face(
 /// Whether `look_at` is far enough from `eye` to give a view direction: apart by more than
 /// 1e-12 of their size (rounding cannot tell closer points apart), and the difference
 /// normalizable. The size has no floor, so a scene at any scale has a valid camera (a floor of
-/// one scene unit refused every camera of a scene 1e-12 units across as "equals the eye").
+/// one scene unit would refuse every camera of a scene 1e-12 units across as "equals the eye").
 fn view_direction_is_distinct(eye: DVec3, look_at: DVec3) -> bool {
     let d = look_at - eye;
     let size = eye.length().max(look_at.length());

@@ -27,13 +27,15 @@
 //! most 7 significant digits therefore load as written.
 
 use super::format::{ObjSection, ScaleSpec};
-use super::load::{build_face, check_emission, check_reflectance, in_range, Cx, MAX_MTL_FILES};
-use super::{Material, Polygon};
+use super::load::{
+    check_emission, check_reflectance, in_range, Cx, ReadText, Surfaces, MAX_MTL_FILES,
+};
+use super::Material;
 use base::error::{Error, Location, Result};
 use glam::{DMat3, DVec3};
 use std::cell::RefCell;
 use std::collections::{BTreeMap, BTreeSet};
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use toml::Spanned;
 
 /// Loads one `[[obj]]` include, appending to the scene's materials, objects and polygons.
@@ -41,17 +43,45 @@ pub(crate) fn include(
     cx: &mut Cx<'_>,
     section: &Spanned<ObjSection>,
     key: &str,
-    materials: &mut Vec<Material>,
-    by_name: &mut BTreeMap<String, u32>,
-    objects: &mut Vec<String>,
-    polygons: &mut Vec<Polygon>,
+    surfaces: &mut Surfaces,
 ) -> Result<()> {
     let o = section.get_ref();
-    let file = o.file.get_ref();
+    let (obj_path, text) = read_obj(cx, o, key)?;
+    let transform = Transform::of(cx, o, key)?;
+    let parsed = parse_obj(cx, &text, &obj_path)?;
+    // The MTL materials' names, looked up once per `usemtl` and per override: a scan of the
+    // materials for each would make a file with many of both quadratic to load.
+    let mtl_names: BTreeSet<&str> = parsed.materials.iter().map(|m| m.name.as_str()).collect();
+    let overrides = overrides(cx, o, key, &mtl_names, &surfaces.by_name)?;
+    let default_material = default_material(cx, o, key, &surfaces.by_name)?;
+    check_usemtl(&text, &obj_path, &mtl_names, parsed.mtl_error.as_deref())?;
+    let mut converter = Converter {
+        stem: obj_path
+            .file_stem()
+            .map(|s| s.to_string_lossy().into_owned())
+            .unwrap_or_else(|| "obj".to_string()),
+        obj_path: &obj_path,
+        face_lines: face_lines(&text, &parsed.models),
+        transform,
+        parsed: &parsed,
+        overrides,
+        default_material,
+        imported: BTreeMap::new(),
+        object_ids: BTreeMap::new(),
+        face_no: 0,
+    };
+    for model in &parsed.models {
+        converter.add_model(cx, model, surfaces)?;
+    }
+    Ok(())
+}
+
+/// The path of the include's OBJ file (relative to the scene file's directory) and its text,
+/// which is recorded as an input of the scene.
+fn read_obj(cx: &mut Cx<'_>, o: &ObjSection, key: &str) -> Result<(PathBuf, String)> {
     let base = cx.path.parent().unwrap_or_else(|| Path::new(""));
-    let obj_path = base.join(file);
-    let read = cx.read;
-    let text = read(&obj_path).map_err(|e| {
+    let obj_path = base.join(o.file.get_ref());
+    let text = (cx.read)(&obj_path).map_err(|e| {
         cx.err(
             o.file.span(),
             format!("{key}.file"),
@@ -59,160 +89,272 @@ pub(crate) fn include(
         )
     })?;
     cx.inputs.push(obj_path.clone());
+    Ok((obj_path, text))
+}
 
-    // The transform.
-    let scale = match &o.scale {
-        None => DVec3::ONE,
-        Some(s) => {
-            let v = match s.get_ref() {
-                ScaleSpec::Uniform(x) => DVec3::splat(*x),
-                ScaleSpec::PerAxis(a) => DVec3::from_array(a.0),
-            };
-            if !v.to_array().iter().all(|x| in_range(*x)) || v.x == 0.0 || v.y == 0.0 || v.z == 0.0
-            {
-                return Err(cx.err(
-                    s.span(),
-                    format!("{key}.scale"),
-                    format!("is {v}; every factor must be non-zero, finite and at most 1e9"),
-                ));
-            }
-            v
-        }
-    };
-    let rotate = match &o.rotate {
-        None => DVec3::ZERO,
-        Some(r) => cx.vec3(r, &format!("{key}.rotate"))?,
-    };
-    let translate = match &o.translate {
-        None => DVec3::ZERO,
-        Some(t) => cx.vec3(t, &format!("{key}.translate"))?,
-    };
-    let rotation = DMat3::from_rotation_z(rotate.z.to_radians())
-        * DMat3::from_rotation_y(rotate.y.to_radians())
-        * DMat3::from_rotation_x(rotate.x.to_radians());
-    let mirrored = scale.x * scale.y * scale.z < 0.0;
-    let transform = |p: DVec3| translate + rotation * (scale * p);
+/// Where an include puts the OBJ's points (see the module docs).
+struct Transform {
+    scale: DVec3,
+    rotation: DMat3,
+    translate: DVec3,
+}
 
+impl Transform {
+    /// The include's `scale`, `rotate` and `translate`, checked.
+    fn of(cx: &Cx<'_>, o: &ObjSection, key: &str) -> Result<Transform> {
+        let scale = match &o.scale {
+            None => DVec3::ONE,
+            Some(s) => scale(cx, s, key)?,
+        };
+        let rotate = match &o.rotate {
+            None => DVec3::ZERO,
+            Some(r) => cx.vec3(r, &format!("{key}.rotate"))?,
+        };
+        let translate = match &o.translate {
+            None => DVec3::ZERO,
+            Some(t) => cx.vec3(t, &format!("{key}.translate"))?,
+        };
+        let rotation = DMat3::from_rotation_z(rotate.z.to_radians())
+            * DMat3::from_rotation_y(rotate.y.to_radians())
+            * DMat3::from_rotation_x(rotate.x.to_radians());
+        Ok(Transform {
+            scale,
+            rotation,
+            translate,
+        })
+    }
+
+    /// Whether the transform mirrors (an odd number of negative scale factors).
+    fn mirrors(&self) -> bool {
+        self.scale.x * self.scale.y * self.scale.z < 0.0
+    }
+
+    /// Where the OBJ point `p` goes.
+    fn apply(&self, p: DVec3) -> DVec3 {
+        self.translate + self.rotation * (self.scale * p)
+    }
+}
+
+/// The scale factors of `scale`: each non-zero and in range.
+fn scale(cx: &Cx<'_>, s: &Spanned<ScaleSpec>, key: &str) -> Result<DVec3> {
+    let v = match s.get_ref() {
+        ScaleSpec::Uniform(x) => DVec3::splat(*x),
+        ScaleSpec::PerAxis(a) => DVec3::from_array(a.0),
+    };
+    if !v.to_array().iter().all(|x| in_range(*x)) || v.x == 0.0 || v.y == 0.0 || v.z == 0.0 {
+        return Err(cx.err(
+            s.span(),
+            format!("{key}.scale"),
+            format!("is {v}; every factor must be non-zero, finite and at most 1e9"),
+        ));
+    }
+    Ok(v)
+}
+
+/// What tobj made of an OBJ file and its MTL files.
+struct ParsedObj {
+    models: Vec<tobj::Model>,
+    /// The materials of the MTL files; empty if they could not be loaded.
+    materials: Vec<tobj::Material>,
+    /// Why the MTL files could not be loaded, if they could not.
+    mtl_error: Option<String>,
+    /// Where the MTL files define each material.
+    sources: BTreeMap<String, MtlSource>,
+}
+
+/// Parses the OBJ `text` (the file at `obj_path`) and its MTL files with tobj, recording the
+/// MTL files read as inputs of the scene.
+///
+/// A problem that [`MtlLoader`] found in an MTL file is reported as such; an MTL file that
+/// cannot be read is not an error here: its materials are missing, and `mtl_error` says why
+/// for the messages about faces that need them.
+fn parse_obj(cx: &mut Cx<'_>, text: &str, obj_path: &Path) -> Result<ParsedObj> {
+    // Untriangulated, so quads stay quads (see the module docs).
     let opts = tobj::LoadOptions {
         triangulate: false,
         single_index: false,
         ..Default::default()
     };
-    // tobj reads the MTL through this loader so that each MTL is checked first (see
-    // `check_mtl`), and an unreadable MTL is reported by name. Each MTL file is read once:
-    // tobj calls the loader for every `mtllib` statement, and reading the file again for each
-    // made an OBJ repeating one `mtllib` line quadratic (2000 lines of a 2000-material MTL took
-    // 15 s, and each repeat duplicated every material). A file named again adds no materials
-    // (tobj already has them), and an OBJ names at most `MAX_MTL_FILES` files (the bound on
-    // reading one file under several spellings of its path).
-    let mtl_seen: RefCell<BTreeSet<std::path::PathBuf>> = RefCell::new(BTreeSet::new());
-    let mtl_problem: RefCell<Option<Error>> = RefCell::new(None);
-    let mtl_unreadable: RefCell<Option<String>> = RefCell::new(None);
-    let mtl_read: RefCell<Vec<std::path::PathBuf>> = RefCell::new(Vec::new());
-    let mtl_defined: RefCell<BTreeMap<String, MtlSource>> = RefCell::new(BTreeMap::new());
-    let obj_dir = obj_path
-        .parent()
-        .unwrap_or_else(|| Path::new(""))
-        .to_path_buf();
-    let load_mtl = |name: &Path| -> tobj::MTLLoadResult {
-        let mtl_path = obj_dir.join(name);
+    let loader = MtlLoader::new(obj_path, cx.read);
+    let parsed = tobj::load_obj_buf(&mut text.as_bytes(), &opts, |name| loader.load(name));
+    cx.inputs.extend(loader.files_read.into_inner());
+    if let Some(e) = loader.problem.into_inner() {
+        return Err(e);
+    }
+    let (models, mtl) = parsed.map_err(|e| {
+        Error::input(
+            Location::file(obj_path),
+            format!("cannot parse OBJ file: {e}"),
+        )
+    })?;
+    let mtl = match (mtl, loader.unreadable.into_inner()) {
+        (Err(_), Some(why)) => Err(why),
+        (m, _) => m.map_err(|e| e.to_string()),
+    };
+    let (materials, mtl_error) = match mtl {
+        Ok(m) => (m, None),
+        Err(e) => (Vec::new(), Some(e)),
+    };
+    Ok(ParsedObj {
+        models,
+        materials,
+        mtl_error,
+        sources: loader.sources.into_inner(),
+    })
+}
+
+/// Reads the MTL files of one OBJ for tobj, so that each MTL is checked first (see
+/// [`check_mtl`]) and an unreadable MTL is reported by name.
+///
+/// Each MTL file is read once: tobj calls the loader for every `mtllib` statement, and reading
+/// the file again for each would make an OBJ that repeats one `mtllib` line quadratic to load
+/// and duplicate every material at each repeat. A file named again adds no materials (tobj
+/// already has them), and an OBJ names at most [`MAX_MTL_FILES`] files (the bound on reading
+/// one file under several spellings of its path). tobj calls the loader through a shared
+/// reference, hence the cells.
+struct MtlLoader<'a> {
+    obj_path: &'a Path,
+    /// The OBJ file's directory, which MTL names are relative to.
+    dir: PathBuf,
+    read: ReadText<'a>,
+    /// The MTL paths named so far, by their components.
+    seen: RefCell<BTreeSet<PathBuf>>,
+    /// The first problem found in an MTL file (or in the OBJ's list of them).
+    problem: RefCell<Option<Error>>,
+    /// Why an MTL file could not be read (the last one that could not).
+    unreadable: RefCell<Option<String>>,
+    /// The MTL files read, in order.
+    files_read: RefCell<Vec<PathBuf>>,
+    /// Where each material is defined (the first definition of a name).
+    sources: RefCell<BTreeMap<String, MtlSource>>,
+}
+
+impl<'a> MtlLoader<'a> {
+    fn new(obj_path: &'a Path, read: ReadText<'a>) -> Self {
+        MtlLoader {
+            obj_path,
+            dir: obj_path
+                .parent()
+                .unwrap_or_else(|| Path::new(""))
+                .to_path_buf(),
+            read,
+            seen: RefCell::new(BTreeSet::new()),
+            problem: RefCell::new(None),
+            unreadable: RefCell::new(None),
+            files_read: RefCell::new(Vec::new()),
+            sources: RefCell::new(BTreeMap::new()),
+        }
+    }
+
+    /// tobj's material loader: the materials of the MTL file `name`.
+    fn load(&self, name: &Path) -> tobj::MTLLoadResult {
+        let mtl_path = self.dir.join(name);
         {
-            let mut seen = mtl_seen.borrow_mut();
+            let mut seen = self.seen.borrow_mut();
             if !seen.insert(mtl_path.components().collect()) {
                 return Ok((Vec::new(), Default::default()));
             }
             if seen.len() > MAX_MTL_FILES {
-                mtl_problem.borrow_mut().get_or_insert(Error::input(
-                    Location::file(&obj_path).with_key("mtllib"),
+                self.problem.borrow_mut().get_or_insert(Error::input(
+                    Location::file(self.obj_path).with_key("mtllib"),
                     format!("names more than {MAX_MTL_FILES} MTL files"),
                 ));
                 return Err(tobj::LoadError::MaterialParseError);
             }
         }
-        let mtl_text = match read(&mtl_path) {
+        let mtl_text = match (self.read)(&mtl_path) {
             Ok(t) => {
-                mtl_read.borrow_mut().push(mtl_path.clone());
+                self.files_read.borrow_mut().push(mtl_path.clone());
                 t
             }
             Err(e) => {
-                *mtl_unreadable.borrow_mut() =
+                *self.unreadable.borrow_mut() =
                     Some(format!("cannot read MTL file {}: {e}", mtl_path.display()));
                 return Err(tobj::LoadError::OpenFileFailed);
             }
         };
         if let Err(e) = check_mtl(&mtl_text, &mtl_path) {
-            mtl_problem.borrow_mut().get_or_insert(e);
+            self.problem.borrow_mut().get_or_insert(e);
             return Err(tobj::LoadError::MaterialParseError);
         }
-        mtl_sources(&mtl_text, &mtl_path, &mut mtl_defined.borrow_mut());
+        mtl_sources(&mtl_text, &mtl_path, &mut self.sources.borrow_mut());
         tobj::load_mtl_buf(&mut mtl_text.as_bytes())
-    };
-    let parsed = tobj::load_obj_buf(&mut text.as_bytes(), &opts, load_mtl);
-    cx.inputs.extend(mtl_read.into_inner());
-    let mtl_defined = mtl_defined.into_inner();
-    if let Some(e) = mtl_problem.into_inner() {
-        return Err(e);
     }
-    let (models, mtl) = parsed.map_err(|e| {
-        Error::input(
-            Location::file(&obj_path),
-            format!("cannot parse OBJ file: {e}"),
-        )
-    })?;
-    let mtl = match (mtl, mtl_unreadable.into_inner()) {
-        (Err(_), Some(why)) => Err(why),
-        (m, _) => m.map_err(|e| e.to_string()),
-    };
-    let (mtl_materials, mtl_error) = match mtl {
-        Ok(m) => (m, None),
-        Err(e) => (Vec::new(), Some(e)),
-    };
+}
 
-    // The MTL materials' names, looked up once per `usemtl` and per override (a scan of the
-    // materials for each made a file with many of both quadratic: 50 000 of each took 13 s).
-    let mtl_names: BTreeSet<&str> = mtl_materials.iter().map(|m| m.name.as_str()).collect();
-
-    // Material overrides: every key must be an MTL material, every value a scene material.
-    let mut overrides: BTreeMap<String, u32> = BTreeMap::new();
-    if let Some(map) = &o.materials {
-        for (from, to) in map.get_ref() {
-            let mkey = format!("{key}.materials.{from}");
-            if !mtl_names.contains(from.as_str()) {
-                return Err(cx.err(
-                    map.span(),
-                    mkey,
-                    format!("the OBJ's MTL has no material `{from}`"),
-                ));
-            }
-            let Some(&idx) = by_name.get(to) else {
-                return Err(cx.err(map.span(), mkey, format!("unknown material `{to}`")));
-            };
-            overrides.insert(from.clone(), idx);
+/// The include's `materials` map: every key must be an MTL material, every value a scene
+/// material.
+fn overrides(
+    cx: &Cx<'_>,
+    o: &ObjSection,
+    key: &str,
+    mtl_names: &BTreeSet<&str>,
+    by_name: &BTreeMap<String, u32>,
+) -> Result<BTreeMap<String, u32>> {
+    let mut overrides = BTreeMap::new();
+    let Some(map) = &o.materials else {
+        return Ok(overrides);
+    };
+    for (from, to) in map.get_ref() {
+        let mkey = format!("{key}.materials.{from}");
+        if !mtl_names.contains(from.as_str()) {
+            return Err(cx.err(
+                map.span(),
+                mkey,
+                format!("the OBJ's MTL has no material `{from}`"),
+            ));
         }
+        let Some(&idx) = by_name.get(to) else {
+            return Err(cx.err(map.span(), mkey, format!("unknown material `{to}`")));
+        };
+        overrides.insert(from.clone(), idx);
     }
-    let default_material = match &o.default_material {
-        None => None,
-        Some(d) => match by_name.get(d.get_ref()) {
-            Some(&i) => Some(i),
-            None => {
-                return Err(cx.err(
-                    d.span(),
-                    format!("{key}.default_material"),
-                    format!("unknown material `{}`", d.get_ref()),
-                ))
-            }
-        },
-    };
+    Ok(overrides)
+}
 
-    // Lines of the `f` and `l` statements, in order: face k of the file is on face_lines[k].
-    let face_lines: Vec<usize> = text
+/// The include's `default_material`, which must be a scene material.
+fn default_material(
+    cx: &Cx<'_>,
+    o: &ObjSection,
+    key: &str,
+    by_name: &BTreeMap<String, u32>,
+) -> Result<Option<u32>> {
+    let Some(d) = &o.default_material else {
+        return Ok(None);
+    };
+    match by_name.get(d.get_ref()) {
+        Some(&i) => Ok(Some(i)),
+        None => Err(cx.err(
+            d.span(),
+            format!("{key}.default_material"),
+            format!("unknown material `{}`", d.get_ref()),
+        )),
+    }
+}
+
+/// The line of every face of the OBJ `text`, in order (face k of the file is on line
+/// `lines[k]`): the lines of its `f` and `l` statements, if they are as many as the faces of
+/// `models`, else `None`.
+fn face_lines(text: &str, models: &[tobj::Model]) -> Option<Vec<usize>> {
+    let lines: Vec<usize> = text
         .lines()
         .enumerate()
         .filter(|(_, l)| matches!(l.split_whitespace().next(), Some("f") | Some("l")))
         .map(|(i, _)| i + 1)
         .collect();
-    // Every `usemtl` must name a material an MTL file defined: tobj would leave the faces
-    // without a material (then the default material, or an error) without saying why.
+    let faces: usize = models.iter().map(|m| arities(&m.mesh).len()).sum();
+    (faces == lines.len()).then_some(lines)
+}
+
+/// `Ok` if every `usemtl` of the OBJ `text` names a material an MTL file defined: tobj would
+/// leave the faces without a material (then the default material, or an error) without saying
+/// why.
+fn check_usemtl(
+    text: &str,
+    obj_path: &Path,
+    mtl_names: &BTreeSet<&str>,
+    mtl_error: Option<&str>,
+) -> Result<()> {
     for (i, line) in text.lines().enumerate() {
         let t = line.trim();
         if t.split_whitespace().next() != Some("usemtl") {
@@ -220,158 +362,176 @@ pub(crate) fn include(
         }
         let name = t["usemtl".len()..].trim();
         if !mtl_names.contains(name) {
-            let why = match &mtl_error {
+            let why = match mtl_error {
                 Some(e) => format!("its MTL file could not be loaded: {e}"),
                 None => "no MTL file of this OBJ defines it".to_string(),
             };
             return Err(Error::input(
-                Location::file(&obj_path)
+                Location::file(obj_path)
                     .at_line(i + 1)
                     .with_key(format!("usemtl `{name}`")),
                 format!("unknown material: {why}"),
             ));
         }
     }
-    let total_faces: usize = models.iter().map(|m| arities(&m.mesh).len()).sum();
-    let lines_known = total_faces == face_lines.len();
+    Ok(())
+}
 
-    let stem = obj_path
-        .file_stem()
-        .map(|s| s.to_string_lossy().into_owned())
-        .unwrap_or_else(|| "obj".to_string());
-    let mut imported: BTreeMap<usize, u32> = BTreeMap::new();
-    let mut object_ids: BTreeMap<String, u32> = BTreeMap::new();
-    let mut face_no = 0usize;
+/// Turns the models of one parsed OBJ into scene materials, objects and polygons.
+struct Converter<'o> {
+    obj_path: &'o Path,
+    /// The OBJ file's stem, which names its objects and renamed materials.
+    stem: String,
+    /// The line of every face, if the `f`/`l` lines match tobj's faces one to one.
+    face_lines: Option<Vec<usize>>,
+    transform: Transform,
+    parsed: &'o ParsedObj,
+    /// MTL material name -> scene material, from the include's `materials` map.
+    overrides: BTreeMap<String, u32>,
+    default_material: Option<u32>,
+    /// MTL material index -> the scene material made of it.
+    imported: BTreeMap<usize, u32>,
+    /// Object name -> index, for the objects of this include.
+    object_ids: BTreeMap<String, u32>,
+    /// Faces of the file converted so far.
+    face_no: usize,
+}
 
-    for model in &models {
-        let mesh = &model.mesh;
-        let face_loc = |face_no: usize, local: usize| {
-            let mut loc = Location::file(&obj_path);
-            if let Some(&line) = face_lines.get(face_no).filter(|_| lines_known) {
-                loc = loc.at_line(line);
-            }
-            loc.with_key(format!(
-                "face {} (group `{}`, face {})",
-                face_no + 1,
-                model.name,
-                local + 1
-            ))
-        };
-        // The material of every face of this model.
-        let material = match mesh.material_id {
-            Some(id) => {
-                let Some(m) = mtl_materials.get(id) else {
-                    return Err(Error::input(
-                        face_loc(face_no, 0),
-                        format!("material index {id} is out of range"),
-                    ));
-                };
-                if let Some(&idx) = overrides.get(&m.name) {
-                    idx
-                } else if let Some(&idx) = imported.get(&id) {
-                    idx
-                } else {
-                    // Problems of a material's values are the MTL file's, at their line.
-                    let src = mtl_defined.get(&m.name);
-                    let mloc = |line: Option<usize>, what: &str| match src {
-                        Some(src) => Location::file(&src.path)
-                            .at_line(line.unwrap_or(src.newmtl))
-                            .with_key(format!("material `{}` {what}", m.name)),
-                        None => Location::file(&obj_path)
-                            .with_key(format!("material `{}` {what}", m.name)),
-                    };
-                    let Some(kd) = m.diffuse else {
-                        return Err(Error::input(
-                            mloc(None, "Kd"),
-                            "is missing (diffuse reflectance)",
-                        ));
-                    };
-                    let reflectance = DVec3::new(
-                        decimal(kd[0] as f64),
-                        decimal(kd[1] as f64),
-                        decimal(kd[2] as f64),
-                    );
-                    check_reflectance(reflectance)
-                        .map_err(|msg| Error::input(mloc(src.and_then(|s| s.kd), "Kd"), msg))?;
-                    // tobj 4 parses `Ke` into `emissive` (`check_mtl` made sure it has three
-                    // values); absent means 0.
-                    let emission = m.emissive.map_or(DVec3::ZERO, |ke| {
-                        DVec3::new(
-                            decimal(ke[0] as f64),
-                            decimal(ke[1] as f64),
-                            decimal(ke[2] as f64),
-                        )
-                    });
-                    check_emission(emission)
-                        .map_err(|msg| Error::input(mloc(src.and_then(|s| s.ke), "Ke"), msg))?;
-                    let mut name = m.name.clone();
-                    if by_name.contains_key(&name) {
-                        // `<stem>/<name>`, then `#2`, `#3`, ...: the search resumes where the
-                        // last one for this base stopped (scanning from 1 again made 8000
-                        // includes of one OBJ take 10 s).
-                        let base = format!("{stem}/{}", m.name);
-                        let k = cx.next_suffix.entry(base.clone()).or_insert(1);
-                        loop {
-                            name = if *k == 1 {
-                                base.clone()
-                            } else {
-                                format!("{base}#{k}")
-                            };
-                            *k += 1;
-                            if !by_name.contains_key(&name) {
-                                break;
-                            }
-                        }
-                    }
-                    let idx = materials.len() as u32;
-                    by_name.insert(name.clone(), idx);
-                    materials.push(Material {
-                        name,
-                        reflectance,
-                        emission,
-                    });
-                    imported.insert(id, idx);
-                    idx
-                }
-            }
-            None => match default_material {
-                Some(i) => i,
-                None => {
-                    let why = match &mtl_error {
-                        Some(e) => format!(" (its MTL file could not be loaded: {e})"),
-                        None => String::new(),
-                    };
-                    return Err(Error::input(
-                        face_loc(face_no, 0),
-                        format!(
-                            "faces have no material{why}; add `usemtl` or set \
-                             `default_material` in the scene's [[obj]] entry"
-                        ),
-                    ));
-                }
-            },
-        };
-        // One object per tobj model (a group, split again where `usemtl` changes inside it),
-        // named `<stem>/<group>`, or `<stem>/<group>/<material>` if that name is taken.
-        let mut object_name = format!("{stem}/{}", model.name);
-        if object_ids.contains_key(&object_name) {
-            object_name = format!("{object_name}/{}", materials[material as usize].name);
+impl Converter<'_> {
+    /// Where the next face of the file is, for messages: face `local` of `model`.
+    fn face_loc(&self, model: &tobj::Model, local: usize) -> Location {
+        let mut loc = Location::file(self.obj_path);
+        if let Some(&line) = self.face_lines.as_ref().and_then(|l| l.get(self.face_no)) {
+            loc = loc.at_line(line);
         }
-        let object = match object_ids.get(&object_name) {
-            Some(&i) => i,
-            None => {
-                let i = objects.len() as u32;
-                objects.push(object_name.clone());
-                object_ids.insert(object_name, i);
-                i
-            }
-        };
+        loc.with_key(format!(
+            "face {} (group `{}`, face {})",
+            self.face_no + 1,
+            model.name,
+            local + 1
+        ))
+    }
 
+    /// Adds the faces of one tobj model: one group, split again where `usemtl` changes inside
+    /// it, so one material for all of them.
+    fn add_model(
+        &mut self,
+        cx: &mut Cx<'_>,
+        model: &tobj::Model,
+        surfaces: &mut Surfaces,
+    ) -> Result<()> {
+        let material = self.model_material(cx, model, surfaces)?;
+        let object = self.object(model, material, surfaces);
+        self.add_faces(cx, model, material, object, surfaces)
+    }
+
+    /// The scene material of the faces of `model`: its `usemtl` material (overridden, or
+    /// imported once), else the include's default material.
+    fn model_material(
+        &mut self,
+        cx: &mut Cx<'_>,
+        model: &tobj::Model,
+        surfaces: &mut Surfaces,
+    ) -> Result<u32> {
+        let Some(id) = model.mesh.material_id else {
+            return self.default_material.ok_or_else(|| {
+                let why = match &self.parsed.mtl_error {
+                    Some(e) => format!(" (its MTL file could not be loaded: {e})"),
+                    None => String::new(),
+                };
+                Error::input(
+                    self.face_loc(model, 0),
+                    format!(
+                        "faces have no material{why}; add `usemtl` or set \
+                         `default_material` in the scene's [[obj]] entry"
+                    ),
+                )
+            });
+        };
+        let Some(m) = self.parsed.materials.get(id) else {
+            return Err(Error::input(
+                self.face_loc(model, 0),
+                format!("material index {id} is out of range"),
+            ));
+        };
+        if let Some(&idx) = self.overrides.get(&m.name) {
+            return Ok(idx);
+        }
+        if let Some(&idx) = self.imported.get(&id) {
+            return Ok(idx);
+        }
+        let (reflectance, emission) = self.material_values(m)?;
+        let name = unique_name(cx, &self.stem, &m.name, &surfaces.by_name);
+        let idx = surfaces.add_material(Material {
+            name,
+            reflectance,
+            emission,
+        });
+        self.imported.insert(id, idx);
+        Ok(idx)
+    }
+
+    /// The reflectance (`Kd`) and emission (`Ke`) of the MTL material `m`, checked; a problem
+    /// is the MTL file's, at the line of the statement.
+    fn material_values(&self, m: &tobj::Material) -> Result<(DVec3, DVec3)> {
+        let src = self.parsed.sources.get(&m.name);
+        let mloc = |line: Option<usize>, what: &str| match src {
+            Some(src) => Location::file(&src.path)
+                .at_line(line.unwrap_or(src.newmtl))
+                .with_key(format!("material `{}` {what}", m.name)),
+            None => Location::file(self.obj_path).with_key(format!("material `{}` {what}", m.name)),
+        };
+        let Some(kd) = m.diffuse else {
+            return Err(Error::input(
+                mloc(None, "Kd"),
+                "is missing (diffuse reflectance)",
+            ));
+        };
+        let reflectance = decimal3(kd);
+        check_reflectance(reflectance)
+            .map_err(|msg| Error::input(mloc(src.and_then(|s| s.kd), "Kd"), msg))?;
+        // tobj 4 parses `Ke` into `emissive` (`check_mtl` made sure it has three values);
+        // absent means 0.
+        let emission = m.emissive.map_or(DVec3::ZERO, decimal3);
+        check_emission(emission)
+            .map_err(|msg| Error::input(mloc(src.and_then(|s| s.ke), "Ke"), msg))?;
+        Ok((reflectance, emission))
+    }
+
+    /// The object of the faces of `model`, named `<stem>/<group>`, or
+    /// `<stem>/<group>/<material>` if that name is taken; the first model of a name creates it.
+    fn object(&mut self, model: &tobj::Model, material: u32, surfaces: &mut Surfaces) -> u32 {
+        let mut object_name = format!("{}/{}", self.stem, model.name);
+        if self.object_ids.contains_key(&object_name) {
+            object_name = format!(
+                "{object_name}/{}",
+                surfaces.materials[material as usize].name
+            );
+        }
+        if let Some(&i) = self.object_ids.get(&object_name) {
+            return i;
+        }
+        let i = surfaces.add_object(object_name.clone());
+        self.object_ids.insert(object_name, i);
+        i
+    }
+
+    /// Adds the faces of `model`: points and lines are skipped with a warning, every other face
+    /// becomes polygons through [`Cx::add_face`].
+    fn add_faces(
+        &mut self,
+        cx: &mut Cx<'_>,
+        model: &tobj::Model,
+        material: u32,
+        object: u32,
+        surfaces: &mut Surfaces,
+    ) -> Result<()> {
+        let mesh = &model.mesh;
         let mut start = 0usize;
         for (local, &arity) in arities(mesh).iter().enumerate() {
             let arity = arity as usize;
-            let loc = face_loc(face_no, local);
-            face_no += 1;
+            let loc = self.face_loc(model, local);
+            self.face_no += 1;
             let Some(idx) = mesh.indices.get(start..start + arity) else {
                 return Err(Error::input(loc, "face indices out of range"));
             };
@@ -382,41 +542,76 @@ pub(crate) fn include(
                 ));
                 continue;
             }
-            let mut corners = Vec::with_capacity(arity);
-            for &i in idx {
-                let i = i as usize;
-                let Some(p) = mesh.positions.get(3 * i..3 * i + 3) else {
-                    return Err(Error::input(
-                        loc,
-                        format!("vertex index {} is out of range", i + 1),
-                    ));
-                };
-                let p = DVec3::new(
-                    decimal(p[0] as f64),
-                    decimal(p[1] as f64),
-                    decimal(p[2] as f64),
-                );
-                let q = transform(p);
-                if !q.is_finite() {
-                    return Err(Error::input(
-                        loc,
-                        format!("vertex {p} is not finite after the transform"),
-                    ));
-                }
-                corners.push(q);
+            let corners = self.corners(mesh, idx, &loc)?;
+            cx.add_face(&corners, material, object, loc, &mut surfaces.polygons)?;
+        }
+        Ok(())
+    }
+
+    /// The transformed corners of the face with vertex indices `idx`, in the scene's winding.
+    fn corners(&self, mesh: &tobj::Mesh, idx: &[u32], loc: &Location) -> Result<Vec<DVec3>> {
+        let mut corners = Vec::with_capacity(idx.len());
+        for &i in idx {
+            let i = i as usize;
+            let Some(p) = mesh.positions.get(3 * i..3 * i + 3) else {
+                return Err(Error::input(
+                    loc.clone(),
+                    format!("vertex index {} is out of range", i + 1),
+                ));
+            };
+            let p = decimal3([p[0], p[1], p[2]]);
+            let q = self.transform.apply(p);
+            if !q.is_finite() {
+                return Err(Error::input(
+                    loc.clone(),
+                    format!("vertex {p} is not finite after the transform"),
+                ));
             }
-            if mirrored {
-                corners.reverse();
-            }
-            let built = build_face(&corners, material, object)
-                .map_err(|msg| Error::input(loc.clone(), msg))?;
-            if let Some(w) = built.warning {
-                cx.warnings.push(format!("{loc}: {w}"));
-            }
-            polygons.extend(built.polygons);
+            corners.push(q);
+        }
+        if self.transform.mirrors() {
+            corners.reverse();
+        }
+        Ok(corners)
+    }
+}
+
+/// A name for a material imported from an MTL file: its own name if free, else
+/// `<stem>/<name>`, then `<stem>/<name>#2`, `#3`, ...
+///
+/// The search resumes where the last one for the same base stopped (`cx.next_suffix`), so
+/// many includes of one OBJ do not rescan the suffixes already taken.
+fn unique_name(
+    cx: &mut Cx<'_>,
+    stem: &str,
+    mtl_name: &str,
+    by_name: &BTreeMap<String, u32>,
+) -> String {
+    if !by_name.contains_key(mtl_name) {
+        return mtl_name.to_string();
+    }
+    let base = format!("{stem}/{mtl_name}");
+    let k = cx.next_suffix.entry(base.clone()).or_insert(1);
+    loop {
+        let name = if *k == 1 {
+            base.clone()
+        } else {
+            format!("{base}#{k}")
+        };
+        *k += 1;
+        if !by_name.contains_key(&name) {
+            return name;
         }
     }
-    Ok(())
+}
+
+/// [`decimal`] of every component of a tobj triple.
+fn decimal3(v: [f32; 3]) -> DVec3 {
+    DVec3::new(
+        decimal(v[0] as f64),
+        decimal(v[1] as f64),
+        decimal(v[2] as f64),
+    )
 }
 
 /// The `f64` nearest to the shortest decimal that round-trips `x` (see the module docs); `x`
@@ -452,7 +647,7 @@ fn check_mtl(text: &str, path: &Path) -> Result<()> {
 /// and `Ke` statements (the last of each, as tobj keeps the last).
 #[derive(Debug, Clone)]
 struct MtlSource {
-    path: std::path::PathBuf,
+    path: PathBuf,
     newmtl: usize,
     kd: Option<usize>,
     ke: Option<usize>,
