@@ -176,6 +176,34 @@ pub struct FrameStats {
     pub mixed_blocks: u64,
 }
 
+impl FrameStats {
+    /// Adds the regions' counters and stage times, summed in region order (deterministic), the
+    /// busy times divided by the worker threads (the stages' shares of the wall clock).
+    fn add_regions(&mut self, outcomes: &[RegionOutcome]) {
+        let (mut raster, mut composition, mut shading) =
+            (Duration::ZERO, Duration::ZERO, Duration::ZERO);
+        for o in outcomes {
+            self.regions_touched += (o.renderers > 0) as u32;
+            self.pixels_rasterized += o.fragments;
+            self.pixels_shaded += o.shade.samples_shaded;
+            self.uniform_blocks += o.shade.uniform_blocks;
+            self.mixed_blocks += o.shade.mixed_blocks;
+            self.composition_traffic_bytes += o.traffic;
+            self.gbuffer_bytes += o.gbuffer_bytes;
+            self.patch_table_entries += o.table_entries;
+            raster += o.raster;
+            composition += o.composition;
+            shading += o.shading;
+        }
+        let per_worker = |d: Duration| ms(d) / self.threads.max(1) as f64;
+        self.raster_ms = per_worker(raster);
+        self.composition_ms = per_worker(composition);
+        self.shading_ms = per_worker(shading);
+        self.stage_sum_ms =
+            self.geometry_ms + self.raster_ms + self.composition_ms + self.shading_ms;
+    }
+}
+
 /// A rendered frame.
 #[derive(Clone, Debug)]
 pub struct Frame {
@@ -356,11 +384,21 @@ impl FrameContext {
         Ok(())
     }
 
-    /// Prepares every worker of the current rayon pool for frames shaded from `source`
-    /// ([`PatchSource::warm_thread`]: the compact RRPs' per-thread patch cache allocated, first
-    /// touched and filled), so the first frame does not pay for it.
-    pub fn reserve_source(&self, source: &dyn PatchSource) {
-        rayon::broadcast(|_| source.warm_thread());
+    /// Prepares every worker's workspace for frames shaded from `source`
+    /// ([`PatchSource::warm`]: the compact RRPs' patch cache allocated, first touched and
+    /// filled, in parallel over the current rayon pool), so the first frame does not pay for it.
+    /// Call it after [`FrameContext::reserve`], which makes a workspace per worker.
+    pub fn reserve_source(&mut self, source: &dyn PatchSource) {
+        let pool = self.pool.get_mut().unwrap_or_else(|e| e.into_inner());
+        pool.par_iter_mut()
+            .with_max_len(1)
+            .for_each(|ws| ws.patches.warm(source));
+    }
+
+    /// Bytes of the workspaces' patch caches (one per worker in flight).
+    pub fn patch_cache_bytes(&mut self) -> usize {
+        let pool = self.pool.get_mut().unwrap_or_else(|e| e.into_inner());
+        pool.iter().map(|ws| ws.patches.cache_bytes()).sum()
     }
 
     /// The last frame as an owned [`Frame`] with `stats` (the context's buffers are dropped).
@@ -472,12 +510,11 @@ impl FrameContext {
                 pool.lock().unwrap_or_else(|e| e.into_inner()).push(ws);
             });
 
-        let threads = rayon::current_num_threads();
         let mut stats = FrameStats {
             width: opts.width,
             height: opts.height,
             method: method.name().into(),
-            threads,
+            threads: rayon::current_num_threads(),
             renderers: opts.renderers,
             aa: opts.aa,
             region_size: opts.region,
@@ -485,28 +522,7 @@ impl FrameContext {
             geometry_ms,
             ..FrameStats::default()
         };
-        let (mut raster, mut composition, mut shading) =
-            (Duration::ZERO, Duration::ZERO, Duration::ZERO);
-        for o in &self.outcomes {
-            stats.regions_touched += (o.renderers > 0) as u32;
-            stats.pixels_rasterized += o.fragments;
-            stats.pixels_shaded += o.shade.samples_shaded;
-            stats.uniform_blocks += o.shade.uniform_blocks;
-            stats.mixed_blocks += o.shade.mixed_blocks;
-            stats.composition_traffic_bytes += o.traffic;
-            stats.gbuffer_bytes += o.gbuffer_bytes;
-            stats.patch_table_entries += o.table_entries;
-            raster += o.raster;
-            composition += o.composition;
-            shading += o.shading;
-        }
-        // Busy time summed over the workers, per worker: the stages' shares of the wall clock.
-        let per_worker = |d: Duration| ms(d) / threads.max(1) as f64;
-        stats.raster_ms = per_worker(raster);
-        stats.composition_ms = per_worker(composition);
-        stats.shading_ms = per_worker(shading);
-        stats.stage_sum_ms =
-            stats.geometry_ms + stats.raster_ms + stats.composition_ms + stats.shading_ms;
+        stats.add_regions(&self.outcomes);
         stats.frame_ms = ms(t_frame.elapsed());
         Ok(stats)
     }

@@ -651,7 +651,7 @@ pub fn generate_building(o: &BuildingOptions, paths: &BuildingPaths) -> Result<B
     let m = build(o);
     let polygons = m.faces.len() as u64;
     if polygons != o.polygon_count() {
-        return Err(Error::Runtime(format!(
+        return Err(Error::internal(format!(
             "building generator: {polygons} polygons built, {} counted",
             o.polygon_count()
         )));

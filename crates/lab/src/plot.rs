@@ -30,7 +30,7 @@ fn font() -> Result<()> {
     if ok {
         Ok(())
     } else {
-        Err(Error::Runtime("the shipped plot font does not load".into()))
+        Err(Error::internal("the shipped plot font does not load"))
     }
 }
 
@@ -230,7 +230,7 @@ pub fn sweep_plots(report: &SweepReport, dir: &Path) -> Result<Vec<PathBuf>> {
             cost,
         )?;
         let img = ::image::RgbImage::from_raw(w, h, rgb)
-            .ok_or_else(|| Error::Runtime("plot buffer size mismatch".into()))?;
+            .ok_or_else(|| Error::internal("plot buffer size mismatch"))?;
         let mut png = Vec::new();
         img.write_to(
             &mut std::io::Cursor::new(&mut png),

@@ -69,9 +69,6 @@
 //! depth, exponent range, canonical zero quantities and padding, finite expansions) and returns
 //! an error, never panics, on malformed bytes.
 
-use std::cell::RefCell;
-use std::sync::atomic::{AtomicU64, Ordering};
-
 use rayon::prelude::*;
 
 use super::hermite::{HermiteData, PatchPoly};
@@ -235,7 +232,7 @@ impl Part {
         for k in &keys {
             // Refinement keeps data for every corner of every final leaf.
             let d = p.refined.data.get(k).copied().ok_or_else(|| {
-                Error::Runtime(format!(
+                Error::Inconsistent(format!(
                     "compact reconstruction of polygon {index}: no data at a vertex"
                 ))
             })?;
@@ -246,7 +243,7 @@ impl Part {
         for q in 0..QUANTITIES {
             let max = data.iter().fold(0.0f64, |m, d| m.max(quantity(d, q).abs()));
             if !max.is_finite() {
-                return Err(Error::Runtime(format!(
+                return Err(Error::Inconsistent(format!(
                     "compact reconstruction of polygon {index}: vertex data not finite"
                 )));
             }
@@ -325,129 +322,124 @@ pub struct CompactReconstruction {
     exponents: Vec<[i16; QUANTITIES]>,
     /// Per polygon: the 12 scales 2^e (0 for a zero quantity).
     scales: Vec<[f64; QUANTITIES]>,
-    /// Which instance the per-thread patch caches hold patches of.
-    cache_id: CacheId,
+    /// A hash of the stored data, naming the reconstruction whose patches a [`PatchCache`]
+    /// holds (equal data expands to equal patches, so equal reconstructions may share a cache).
+    content_id: u64,
 }
 
-/// A process-unique number per constructed [`CompactReconstruction`] (clones share it: they hold
-/// the same data). It names the instance whose patches a thread's [`PatchCache`] holds; it is not
-/// part of the value, so it never makes two equal reconstructions compare unequal.
-#[derive(Debug, Clone, Copy)]
-struct CacheId(u64);
-
-impl CacheId {
-    fn fresh() -> CacheId {
-        static NEXT: AtomicU64 = AtomicU64::new(1);
-        CacheId(NEXT.fetch_add(1, Ordering::Relaxed))
-    }
-}
-
-impl PartialEq for CacheId {
-    fn eq(&self, _: &CacheId) -> bool {
-        true
-    }
-}
-
-/// Most slots of a thread's patch cache (a power of two): 16384 x 212 bytes, 3.5 MB per thread.
-/// A reconstruction with fewer leaves gets the largest power of two not above its leaf count
-/// ([`CompactReconstruction::cache_slots`]), so the cache never has more slots than patches.
-/// Measured (callgrind, cornell-box at 512 x 512, one thread): 8192 slots thrash on its ~18,000
-/// leaves (+15 % instructions per frame over stored patches), 16384 slots cost +1.5 %.
+/// Most slots of a patch cache (a power of two): 16384 x 212 bytes, 3.5 MB. A reconstruction
+/// with fewer leaves gets the smallest power of two holding them all
+/// ([`CompactReconstruction::cache_slots`]), so no two of its patches share a slot. Measured
+/// (callgrind, cornell-box at 512 x 512, one thread): 8192 slots thrash on its ~18,000 leaves
+/// (+15 % instructions per frame over stored patches), 16384 slots cost +1.5 %.
 pub const CACHE_SLOTS: usize = 16384;
 
-/// A thread's direct-mapped cache of expanded patches: leaf `id` lives in slot
+/// A worker's direct-mapped cache of expanded patches, owned by the caller (the frame stage
+/// keeps one per worker, [`crate::PatchSource::warm`] fills it): leaf `id` lives in slot
 /// `id % slots` (neighbouring leaves have neighbouring ids, so a region's patches rarely
 /// collide). Expansion is a pure function of the stored integers, so a hit returns exactly what
 /// [`CompactReconstruction::expand`] would: the cache changes times, never pixels.
-struct PatchCache {
+#[derive(Debug, Default)]
+pub struct PatchCache {
+    /// The content id of the reconstruction whose patches the slots hold (0: none).
     owner: u64,
     ids: Vec<u32>,
     patches: Vec<PatchCoeffs>,
 }
 
-thread_local! {
-    static CACHE: RefCell<PatchCache> = const {
-        RefCell::new(PatchCache {
-            owner: 0,
-            ids: Vec::new(),
-            patches: Vec::new(),
-        })
-    };
+impl PatchCache {
+    /// Bytes the cache has allocated (its slots' patches and ids).
+    pub fn bytes(&self) -> usize {
+        self.ids.capacity() * std::mem::size_of::<u32>()
+            + self.patches.capacity() * std::mem::size_of::<PatchCoeffs>()
+    }
 }
 
 impl CompactReconstruction {
-    /// Slots of each thread's patch cache for this reconstruction: the largest power of two not
-    /// above the leaf count, at most [`CACHE_SLOTS`] (at least 1).
+    /// Slots of a patch cache for this reconstruction: the smallest power of two holding every
+    /// leaf, at most [`CACHE_SLOTS`] (at least 1).
     pub fn cache_slots(&self) -> usize {
-        let n = self.leaves.len().max(1);
-        let p = if n.is_power_of_two() {
-            n
-        } else {
-            n.next_power_of_two() / 2
-        };
-        p.min(CACHE_SLOTS)
+        self.leaves
+            .len()
+            .max(1)
+            .next_power_of_two()
+            .min(CACHE_SLOTS)
     }
 
-    /// Bytes one thread's patch cache holds for this reconstruction (slots x (patch + id)).
-    pub fn cache_bytes_per_thread(&self) -> usize {
-        self.cache_slots() * (std::mem::size_of::<PatchCoeffs>() + 4)
+    /// Bytes a patch cache allocates for this reconstruction (slots x (patch + id)): what
+    /// [`PatchCache::bytes`] reports once it holds this reconstruction's patches.
+    pub fn cache_bytes(&self) -> usize {
+        self.cache_slots() * (std::mem::size_of::<PatchCoeffs>() + std::mem::size_of::<u32>())
     }
 
-    /// The patch of leaf `id` through this thread's bounded cache ([`CACHE_SLOTS`]): what the
-    /// direct method's region tables are filled from. Equal to [`CompactReconstruction::expand`].
+    /// The patch of leaf `id` through `cache`: what the direct method's region tables are filled
+    /// from. Equal to [`CompactReconstruction::expand`].
     #[inline]
-    pub fn cached_patch(&self, id: u32) -> PatchCoeffs {
-        CACHE.with(|c| {
-            let mut c = c.borrow_mut();
-            self.claim(&mut c);
-            let slot = id as usize % CACHE_SLOTS;
-            if c.ids[slot] != id {
-                let p = self.expand(id);
-                c.ids[slot] = id;
-                c.patches[slot] = p;
-            }
-            c.patches[slot]
-        })
+    pub fn cached_patch(&self, id: u32, cache: &mut PatchCache) -> PatchCoeffs {
+        self.claim(cache);
+        let slot = id as usize & (cache.ids.len() - 1);
+        if cache.ids[slot] != id {
+            cache.patches[slot] = self.expand(id);
+            cache.ids[slot] = id;
+        }
+        cache.patches[slot]
     }
-}
 
-impl CompactReconstruction {
-    /// Makes `c` this reconstruction's cache: emptied, and allocated (first touched) on first use.
+    /// Makes `cache` this reconstruction's: emptied and sized to [`Self::cache_slots`] exactly
+    /// (allocated and first touched) when it held another's patches or none.
     #[inline]
-    fn claim(&self, c: &mut PatchCache) {
-        if c.owner != self.cache_id.0 || c.ids.is_empty() {
-            c.owner = self.cache_id.0;
-            c.ids.clear();
-            c.ids.resize(CACHE_SLOTS, u32::MAX);
-            c.patches
-                .resize(CACHE_SLOTS, PatchCoeffs::whole([[0.0; 16]; 3]));
+    fn claim(&self, cache: &mut PatchCache) {
+        if cache.owner != self.content_id || cache.ids.is_empty() {
+            let slots = self.cache_slots();
+            cache.owner = self.content_id;
+            cache.ids = vec![u32::MAX; slots];
+            cache.patches = vec![PatchCoeffs::whole([[0.0; 16]; 3]); slots];
         }
     }
 
-    /// Fills the calling thread's patch cache for this reconstruction ahead of the first frame:
-    /// its memory allocated and first touched, and every leaf expanded into its slot in id order
-    /// (with more leaves than slots, the later ids keep the shared slots), so that frame neither
-    /// pays the page faults nor expands each visible patch on first use, as PixelFlow's renderers
-    /// had every patch in memory before the first frame. The frame stage calls it on every worker
-    /// (`engine::frame::FrameContext::reserve_source`); it changes times, never pixels (an
+    /// Fills `cache` with this reconstruction's patches ahead of the first frame: its memory
+    /// allocated and first touched, and every leaf expanded into its slot in id order (with more
+    /// leaves than slots, the later ids keep the shared slots), so that frame neither pays the
+    /// page faults nor expands each visible patch on first use, as PixelFlow's renderers had
+    /// every patch in memory before the first frame. It changes times, never pixels (an
     /// expansion is a pure function of the stored integers).
-    pub fn warm_thread_cache(&self) {
-        CACHE.with(|c| {
-            let mut c = c.borrow_mut();
-            self.claim(&mut c);
-            for id in 0..self.leaves.len() as u32 {
-                let slot = id as usize % CACHE_SLOTS;
-                if c.ids[slot] != id {
-                    c.patches[slot] = self.expand(id);
-                    c.ids[slot] = id;
-                }
+    pub fn warm(&self, cache: &mut PatchCache) {
+        self.claim(cache);
+        let mask = cache.ids.len() - 1;
+        for id in 0..self.leaves.len() as u32 {
+            let slot = id as usize & mask;
+            if cache.ids[slot] != id {
+                cache.patches[slot] = self.expand(id);
+                cache.ids[slot] = id;
             }
-        });
+        }
+    }
+
+    /// The content id: FNV-1a over every stored array (never 0, the empty cache's owner).
+    fn content_hash(&self) -> u64 {
+        let mut h: u64 = 0xcbf2_9ce4_8422_2325;
+        let mut eat = |x: u64| {
+            for b in x.to_le_bytes() {
+                h = (h ^ b as u64).wrapping_mul(0x0000_0100_0000_01b3);
+            }
+        };
+        self.nodes.iter().for_each(|&n| eat(n as u64));
+        self.roots.iter().for_each(|&r| eat(r as u64));
+        for l in &self.leaves {
+            l.corners.iter().for_each(|&c| eat(c as u64));
+            eat(l.origin as u64);
+            eat(l.tag as u64);
+        }
+        for m in self.mantissas.iter().chain(&self.exponents) {
+            m.iter().for_each(|&x| eat(x as u16 as u64));
+        }
+        self.first_vertex.iter().for_each(|&f| eat(f as u64));
+        h.max(1)
     }
 }
 
 fn limit_error() -> Error {
-    Error::Runtime("compact reconstruction: more than 2^31 leaves, nodes or vertices".into())
+    Error::Inconsistent("compact reconstruction: more than 2^31 leaves, nodes or vertices".into())
 }
 
 impl CompactReconstruction {
@@ -460,7 +452,7 @@ impl CompactReconstruction {
             first_vertex: Vec::new(),
             exponents: Vec::new(),
             scales: Vec::new(),
-            cache_id: CacheId::fresh(),
+            content_id: 0,
         }
     }
 
@@ -473,7 +465,7 @@ impl CompactReconstruction {
         estimator: Estimator,
     ) -> Result<CompactReconstruction> {
         if polygons.len() > MAX_POLYGONS {
-            return Err(Error::Runtime(
+            return Err(Error::Inconsistent(
                 "compact reconstruction: more than 2^27 polygons".into(),
             ));
         }
@@ -490,6 +482,7 @@ impl CompactReconstruction {
         for part in parts {
             out.push(part?)?;
         }
+        out.content_id = out.content_hash();
         Ok(out)
     }
 
@@ -678,7 +671,7 @@ impl CompactReconstruction {
     /// Decodes [`Self::encode`]'s output. Malformed bytes (wrong magic, truncation, trailing
     /// bytes, a bit pattern that is not a quadtree of depth <= 16 in canonical order, nonzero
     /// padding bits, exponents out of range, nonzero mantissas of a zero quantity, a mantissa of
-    /// -32768, expansions that overflow f32) are an [`Error::Runtime`], never a panic.
+    /// -32768, expansions that overflow f32) are an [`Error::Inconsistent`], never a panic.
     pub fn decode(bytes: &[u8]) -> Result<CompactReconstruction> {
         let mut r = Reader { bytes, at: 0 };
         if r.take(MAGIC.len())? != MAGIC {
@@ -699,12 +692,13 @@ impl CompactReconstruction {
         if r.left() != 0 {
             return Err(bad("trailing bytes"));
         }
+        out.content_id = out.content_hash();
         Ok(out)
     }
 }
 
 fn bad(msg: &str) -> Error {
-    Error::Runtime(format!("compact reconstruction decode: {msg}"))
+    Error::Inconsistent(format!("compact reconstruction decode: {msg}"))
 }
 
 struct Reader<'a> {
@@ -804,11 +798,16 @@ impl PatchSource for CompactReconstruction {
 
     #[inline]
     fn patch(&self, id: u32) -> PatchCoeffs {
-        self.cached_patch(id)
+        self.expand(id)
     }
 
-    fn warm_thread(&self) {
-        self.warm_thread_cache();
+    #[inline]
+    fn patch_cached(&self, id: u32, cache: &mut PatchCache) -> PatchCoeffs {
+        self.cached_patch(id, cache)
+    }
+
+    fn warm(&self, cache: &mut PatchCache) {
+        CompactReconstruction::warm(self, cache);
     }
 
     /// Exactly [`Reconstruction`]'s cells (the same trees, the same f32 arithmetic).

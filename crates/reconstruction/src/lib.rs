@@ -73,6 +73,8 @@ pub mod mesh;
 mod refine;
 pub mod samples_form;
 pub mod texture;
+
+pub use compact::PatchCache;
 #[cfg(test)]
 mod tests;
 
@@ -361,7 +363,8 @@ pub(crate) fn build_polygon(
     sq: &SampledQuadtree,
     estimator: Estimator,
 ) -> Result<PolygonRrp> {
-    let bad = |msg: String| Error::Runtime(format!("reconstruction of polygon {index}: {msg}"));
+    let bad =
+        |msg: String| Error::Inconsistent(format!("reconstruction of polygon {index}: {msg}"));
     if sq.keys.len() != sq.values.len() {
         return Err(bad(format!(
             "{} sample keys but {} values",
@@ -420,7 +423,7 @@ fn leaf_patch(index: usize, p: &PatchPoly, level: u32) -> Result<PatchCoeffs> {
     if pc.is_finite() {
         Ok(pc)
     } else {
-        Err(Error::Runtime(format!(
+        Err(Error::Inconsistent(format!(
             "reconstruction of polygon {index}: a patch coefficient overflows f32 (sample values \
              too large)"
         )))
@@ -468,7 +471,7 @@ fn lattice_f64(x: f64) -> u32 {
 impl Reconstruction {
     /// Reconstructs every polygon (in parallel; the result does not depend on the thread count).
     ///
-    /// Errors ([`Error::Runtime`], naming the first bad polygon in order): sample keys that are
+    /// Errors ([`Error::Inconsistent`], naming the first bad polygon in order): sample keys that are
     /// not the tree's vertices, non-finite samples, or values so large that a coefficient
     /// overflows f32.
     pub fn build(polygons: &[SampledQuadtree], estimator: Estimator) -> Result<Reconstruction> {
@@ -494,7 +497,7 @@ impl Reconstruction {
                     nodes.push((base + n.first_child as usize) as u32);
                 }
                 if patches.len() >= LEAF as usize || nodes.len() >= LEAF as usize {
-                    return Err(Error::Runtime(
+                    return Err(Error::Inconsistent(
                         "reconstruction: more than 2^31 patches or tree nodes".into(),
                     ));
                 }
@@ -645,10 +648,17 @@ pub trait PatchSource: Sync {
     fn cell(&self, _id: u32) -> Option<[f32; 4]> {
         None
     }
-    /// Prepares the calling thread's working memory for this source ahead of a first frame (a
-    /// cache of expanded patches, say); called once on every worker thread by
-    /// `engine::frame::FrameContext::reserve_source`. The default has nothing to prepare.
-    fn warm_thread(&self) {}
+    /// [`PatchSource::patch`] through a worker's `cache` of expanded patches (the same value:
+    /// a cache changes times, never results). The default does not cache.
+    fn patch_cached(&self, id: u32, cache: &mut PatchCache) -> PatchCoeffs {
+        let _ = cache;
+        self.patch(id)
+    }
+    /// Fills a worker's `cache` for this source ahead of a first frame (allocated, first
+    /// touched, patches expanded). The default has nothing to prepare.
+    fn warm(&self, cache: &mut PatchCache) {
+        let _ = cache;
+    }
 }
 
 /// The direct method's view of a reconstruction: the rasterizer locates each pixel's patch and

@@ -39,7 +39,7 @@
 //! its own Newell normal, equal to the parent's for a planar parent).
 //!
 //! Vertex colours are the samples themselves ([`SampledQuadtree::sample`]); a missing or
-//! non-finite sample is an [`Error::Runtime`]. Model size ([`MeshStats::bytes`]) is counted as
+//! non-finite sample is an [`Error::Inconsistent`]. Model size ([`MeshStats::bytes`]) is counted as
 //! the paper's Table 1 counts a triangle mesh with per-vertex colour: 3 x f32 position + 3 x f32
 //! colour per vertex ([`BYTES_PER_VERTEX`]) and 3 x u32 indices per triangle
 //! ([`BYTES_PER_TRIANGLE`]).
@@ -158,13 +158,13 @@ fn edge_vertices(a: VertexKey, b: VertexKey, keys: &[VertexKey], out: &mut Vec<u
 fn sample_vertex(sq: &SampledQuadtree, polygon: usize, idx: usize) -> Result<MeshVertex> {
     let k = sq.keys[idx];
     let colour = sq.values.get(idx).copied().ok_or_else(|| {
-        Error::Runtime(format!(
+        Error::Inconsistent(format!(
             "mesh: polygon {polygon}: no sample at vertex ({}, {})",
             k.i, k.j
         ))
     })?;
     if !colour.is_finite() {
-        return Err(Error::Runtime(format!(
+        return Err(Error::Inconsistent(format!(
             "mesh: polygon {polygon}: non-finite sample at vertex ({}, {})",
             k.i, k.j
         )));
@@ -188,7 +188,7 @@ fn triangulate(sq: &SampledQuadtree, polygon: usize) -> Result<DomainMesh> {
         let mut corner_idx = [0usize; 4];
         for (c, k) in corners.iter().enumerate() {
             corner_idx[c] = keys.binary_search(k).map_err(|_| {
-                Error::Runtime(format!(
+                Error::Inconsistent(format!(
                     "mesh: polygon {polygon}: no sample at leaf corner ({}, {})",
                     k.i, k.j
                 ))
@@ -269,7 +269,7 @@ struct PolygonMesh {
 
 fn mesh_polygon(parent: &Polygon, sq: &SampledQuadtree, polygon: usize) -> Result<PolygonMesh> {
     if sq.values.len() != sq.keys.len() {
-        return Err(Error::Runtime(format!(
+        return Err(Error::Inconsistent(format!(
             "mesh: polygon {polygon}: {} samples for {} vertices",
             sq.values.len(),
             sq.keys.len()
@@ -303,11 +303,11 @@ fn mesh_polygon(parent: &Polygon, sq: &SampledQuadtree, polygon: usize) -> Resul
 
 impl MeshModel {
     /// Builds the mesh of a solution: `polygons` holds one sampled quadtree per scene polygon, in
-    /// scene order (`Solution::polygons`). Fails with [`Error::Runtime`] if the counts differ, a
+    /// scene order (`Solution::polygons`). Fails with [`Error::Inconsistent`] if the counts differ, a
     /// leaf vertex has no sample, a sample is not finite, or the mesh would exceed `u32` ids.
     pub fn build(scene: &Scene, polygons: &[SampledQuadtree]) -> Result<MeshModel> {
         if polygons.len() != scene.polygons.len() {
-            return Err(Error::Runtime(format!(
+            return Err(Error::Inconsistent(format!(
                 "mesh: {} quadtrees for {} polygons",
                 polygons.len(),
                 scene.polygons.len()
@@ -322,7 +322,7 @@ impl MeshModel {
             .collect::<Result<_>>()?;
         let total: usize = parts.iter().map(|p| p.triangles.len()).sum();
         if total >= u32::MAX as usize {
-            return Err(Error::Runtime(format!(
+            return Err(Error::Inconsistent(format!(
                 "mesh: {total} triangles exceed the u32 polygon ids"
             )));
         }
@@ -613,23 +613,23 @@ mod tests {
         missing.values.remove(4);
         assert!(matches!(
             MeshModel::build(&scene, &[missing]),
-            Err(Error::Runtime(_))
+            Err(Error::Inconsistent(_))
         ));
         let mut nan = good.clone();
         nan.values[2] = Vec3::new(f32::NAN, 0.0, 0.0);
         assert!(matches!(
             MeshModel::build(&scene, &[nan]),
-            Err(Error::Runtime(_))
+            Err(Error::Inconsistent(_))
         ));
         let mut short = good.clone();
         short.values.pop();
         assert!(matches!(
             MeshModel::build(&scene, &[short]),
-            Err(Error::Runtime(_))
+            Err(Error::Inconsistent(_))
         ));
         assert!(matches!(
             MeshModel::build(&scene, &[]),
-            Err(Error::Runtime(_))
+            Err(Error::Inconsistent(_))
         ));
     }
 

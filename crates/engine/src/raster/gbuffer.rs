@@ -19,7 +19,7 @@
 
 use std::collections::HashMap;
 
-use reconstruction::{PatchCoeffs, PatchSource};
+use reconstruction::{PatchCache, PatchCoeffs, PatchSource};
 
 /// Polygon id of a sample that sees nothing.
 pub const NO_POLYGON: u32 = u32::MAX;
@@ -139,7 +139,11 @@ impl RegionGBuffer {
     pub fn assign_patches_with(&mut self, source: &dyn PatchSource, scratch: &mut PatchScratch) {
         self.table.clear();
         self.table_ids.clear();
-        let PatchScratch { index, cells } = scratch;
+        let PatchScratch {
+            index,
+            cells,
+            cache,
+        } = scratch;
         index.clear();
         // cells[slot]: the polygon and cell on which `locate` returns table_ids[slot].
         cells.clear();
@@ -217,7 +221,7 @@ impl RegionGBuffer {
                 }
                 let id = source.locate(p, u, v);
                 let slot = *index.entry(id).or_insert_with(|| {
-                    self.table.push(source.patch(id));
+                    self.table.push(source.patch_cached(id, cache));
                     self.table_ids.push(id);
                     cells.push(SlotCell::new(p, source.cell(id)));
                     (self.table.len() - 1) as u32
@@ -230,11 +234,26 @@ impl RegionGBuffer {
 }
 
 /// Working memory of [`RegionGBuffer::assign_patches_with`], kept by the frame stage across
-/// regions and frames so that locating patches allocates nothing once warm.
+/// regions and frames so that locating patches allocates nothing once warm: the slot index, the
+/// slots' cells and the worker's cache of expanded patches ([`PatchCache`], for sources that
+/// expand patches on demand).
 #[derive(Debug, Default)]
 pub struct PatchScratch {
     index: IdMap,
     cells: Vec<SlotCell>,
+    cache: PatchCache,
+}
+
+impl PatchScratch {
+    /// Fills the patch cache for `source` ahead of a first frame ([`PatchSource::warm`]).
+    pub fn warm(&mut self, source: &dyn PatchSource) {
+        source.warm(&mut self.cache);
+    }
+
+    /// Bytes of the patch cache.
+    pub fn cache_bytes(&self) -> usize {
+        self.cache.bytes()
+    }
 }
 
 /// The polygon and half-open (u, v) rectangle on which a table slot's patch is `locate`'s answer.

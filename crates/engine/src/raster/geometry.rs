@@ -282,23 +282,33 @@ impl View {
             .fold(0.0, f64::max)
             .sqrt();
         let front_facing = if self.perspective { d < 0.0 } else { n.z < 0.0 };
+        let (e1, e2, corners) = plane_frame(&cv, n)?;
+        let planes = self.pixel_planes(n, d, c0, size, e1, e2)?;
+        let verts = self.clip_to_screen(&cv[..k])?;
+        Some(ScreenPolygon {
+            id,
+            verts,
+            planes,
+            corners,
+            triangle: poly.shape == Shape::Triangle,
+            perspective: self.perspective,
+            front_facing,
+        })
+    }
 
-        // Orthonormal frame of the polygon's plane (view coordinates), origin c0.
-        let far = if (cv[1] - c0).length_squared() >= (cv[2] - c0).length_squared() {
-            cv[1]
-        } else {
-            cv[2]
-        };
-        let e1 = (far - c0).normalize();
-        let e2 = n.cross(e1).normalize();
-        if !e1.is_finite() || !e2.is_finite() {
-            return None;
-        }
-        let mut corners = [[0.0; 2]; 4];
-        for (k, c) in cv.iter().enumerate() {
-            corners[k] = [e1.dot(*c - c0), e2.dot(*c - c0)];
-        }
-
+    /// The per-pixel expressions of a polygon with view normal `n`, plane offset `d = n . c0`,
+    /// corner c0, size `size` and plane frame (e1, e2): Q (1/w in perspective, w in
+    /// orthographic) and the plane coordinates as [`plane`] orders them. `None` when the plane
+    /// is edge-on or an expression is not finite.
+    fn pixel_planes(
+        &self,
+        n: DVec3,
+        d: f64,
+        c0: DVec3,
+        size: f64,
+        e1: DVec3,
+        e2: DVec3,
+    ) -> Option<[Plane; 5]> {
         // View-space ray of pixel (px, py): X(px) = (px - ox) / sx, Y(py) = (py - oy) / sy.
         let (ax, bx) = (1.0 / self.sx, -self.ox / self.sx);
         let (ay, by) = (1.0 / self.sy, -self.oy / self.sy);
@@ -307,6 +317,7 @@ impl View {
             b: e.y * ay,
             c: e.x * bx + e.y * by + z,
         };
+        let constant = |c: f64| Plane { a: 0.0, b: 0.0, c };
         let planes = if self.perspective {
             // P = w (X, Y, 1); n . P = d  =>  1/w = (n . (X, Y, 1)) / d.
             if d.abs() <= 1e-12 * (c0.length() + size) {
@@ -318,21 +329,12 @@ impl View {
                 b: q.b / d,
                 c: q.c / d,
             };
-            let ks = e1.dot(c0);
-            let kt = e2.dot(c0);
+            let (ks, kt) = (e1.dot(c0), e2.dot(c0));
             [
                 q,
-                Plane {
-                    a: 0.0,
-                    b: 0.0,
-                    c: -ks,
-                },
+                constant(-ks),
                 lin(e1, e1.z),
-                Plane {
-                    a: 0.0,
-                    b: 0.0,
-                    c: -kt,
-                },
+                constant(-kt),
                 lin(e2, e2.z),
             ]
         } else {
@@ -348,37 +350,26 @@ impl View {
             };
             let sa = lin(e1, -e1.dot(c0));
             let ta = lin(e2, -e2.dot(c0));
-            [
-                q,
-                sa,
-                Plane {
-                    a: 0.0,
-                    b: 0.0,
-                    c: e1.z,
-                },
-                ta,
-                Plane {
-                    a: 0.0,
-                    b: 0.0,
-                    c: e2.z,
-                },
-            ]
+            [q, sa, constant(e1.z), ta, constant(e2.z)]
         };
-        if !planes
+        planes
             .iter()
             .all(|p| p.a.is_finite() && p.b.is_finite() && p.c.is_finite())
-        {
-            return None;
-        }
+            .then_some(planes)
+    }
 
+    /// The screen polygon of the view-space corners `cv`: clipped at the near plane, projected,
+    /// rejected when entirely beyond one side of the image, clipped at the guard band. `None`
+    /// when fewer than 3 vertices remain or one is not finite.
+    fn clip_to_screen(&self, cv: &[DVec3]) -> Option<Verts> {
         // Near plane clip in view space (w >= near), then project. With every corner in front
         // of the plane the clip returns its input, so it is skipped (the common case).
         let near = self.near;
-        let mut verts: Verts = if cv[..k].iter().all(|p| p.z - near >= 0.0) {
-            cv[..k].iter().map(|&p| self.project(p)).collect()
+        let mut verts: Verts = if cv.iter().all(|p| p.z - near >= 0.0) {
+            cv.iter().map(|&p| self.project(p)).collect()
         } else {
             let clipped = clip(
-                &cv[..k],
+                cv,
                 |p| p.z - near,
                 |a, b, t| {
                     let mut p = a + t * (b - a);
@@ -420,16 +411,30 @@ impl View {
         if verts.len() < 3 || !verts.iter().all(|p| p[0].is_finite() && p[1].is_finite()) {
             return None;
         }
-        Some(ScreenPolygon {
-            id,
-            verts,
-            planes,
-            corners,
-            triangle: poly.shape == Shape::Triangle,
-            perspective: self.perspective,
-            front_facing,
-        })
+        Some(verts)
     }
+}
+
+/// The orthonormal frame (e1, e2) of a polygon's plane in view coordinates, origin at the first
+/// corner, e1 towards the farther of corners 1 and 2, and the four corners in that frame. `None`
+/// when the frame is not finite (a degenerate polygon).
+fn plane_frame(cv: &[DVec3; 4], n: DVec3) -> Option<(DVec3, DVec3, [[f64; 2]; 4])> {
+    let c0 = cv[0];
+    let far = if (cv[1] - c0).length_squared() >= (cv[2] - c0).length_squared() {
+        cv[1]
+    } else {
+        cv[2]
+    };
+    let e1 = (far - c0).normalize();
+    let e2 = n.cross(e1).normalize();
+    if !e1.is_finite() || !e2.is_finite() {
+        return None;
+    }
+    let mut corners = [[0.0; 2]; 4];
+    for (k, c) in cv.iter().enumerate() {
+        corners[k] = [e1.dot(*c - c0), e2.dot(*c - c0)];
+    }
+    Some((e1, e2, corners))
 }
 
 /// Sutherland-Hodgman clip of a convex polygon against `dist >= 0`. The intersection on an edge is

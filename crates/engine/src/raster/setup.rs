@@ -17,7 +17,7 @@
 //! make a grazing polygon very slightly non-convex; the half-plane intersection then loses at most
 //! the samples within 1/512 pixel of the snapped vertex, a documented approximation.
 
-use super::geometry::{ScreenPolygon, GUARD_BAND};
+use super::geometry::{Plane, ScreenPolygon, CLIP_CAPACITY, GUARD_BAND};
 
 /// Subpixel bits of the fixed-point vertex grid.
 pub const SUBPIXEL_BITS: u32 = 8;
@@ -153,8 +153,41 @@ pub fn setup_into(sp: &ScreenPolygon, width: u32, height: u32, out: &mut Prim) -
         .verts
         .iter()
         .all(|p| p[0].abs() <= GUARD_BAND + 2.0e4 + width as f64));
-    let mut pts: smallvec::SmallVec<[[i64; 2]; super::geometry::CLIP_CAPACITY]> =
-        smallvec::SmallVec::new();
+    let Some(pts) = snapped_ccw(sp) else {
+        return false;
+    };
+    let n = pts.len();
+    let mut edges = [Edge::default(); MAX_EDGES];
+    for i in 0..n {
+        edges[i] = edge(pts[i], pts[(i + 1) % n]);
+    }
+    let Some(bbox) = pixel_box(&pts, width, height) else {
+        return false;
+    };
+    let (inverse, kind) = inverse_of(sp);
+    let mut planes = sp.planes;
+    if kind != InverseKind::General && !fold_linear_inverse(&mut planes, &inverse_frame(sp)) {
+        return false;
+    }
+    *out = Prim {
+        id: sp.id,
+        edges,
+        n_edges: n,
+        bbox,
+        i32_edges: edges_fit_i32(&edges[..n], bbox),
+        planes,
+        inverse,
+        kind,
+        perspective: sp.perspective,
+    };
+    true
+}
+
+/// Vertices snapped to the fixed-point grid, repeats dropped, counter-clockwise in screen
+/// coordinates (interior on the side where every edge function is positive); `None` when fewer
+/// than 3 or more than [`MAX_EDGES`] remain, or the snapped area is zero.
+fn snapped_ccw(sp: &ScreenPolygon) -> Option<smallvec::SmallVec<[[i64; 2]; CLIP_CAPACITY]>> {
+    let mut pts: smallvec::SmallVec<[[i64; 2]; CLIP_CAPACITY]> = smallvec::SmallVec::new();
     for p in &sp.verts {
         let q = [snap(p[0]), snap(p[1])];
         if pts.last() != Some(&q) {
@@ -165,7 +198,7 @@ pub fn setup_into(sp: &ScreenPolygon, width: u32, height: u32, out: &mut Prim) -
         pts.pop();
     }
     if pts.len() < 3 || pts.len() > MAX_EDGES {
-        return false;
+        return None;
     }
     let n = pts.len();
     let area2: i128 = (0..n)
@@ -175,51 +208,77 @@ pub fn setup_into(sp: &ScreenPolygon, width: u32, height: u32, out: &mut Prim) -
         })
         .sum();
     if area2 == 0 {
-        return false;
+        return None;
     }
     if area2 < 0 {
         pts.reverse();
     }
-    let mut edges = [Edge::default(); MAX_EDGES];
-    for i in 0..n {
-        let (a, b) = (pts[i], pts[(i + 1) % n]);
-        let (dx, dy) = (b[0] - a[0], b[1] - a[1]);
-        let owns = dy < 0 || (dy == 0 && dx > 0);
-        // Within the guard band every coordinate is below 2^26 and every difference below
-        // 2^27 in magnitude, so the narrowing is exact.
-        edges[i] = Edge {
-            dx: dx as i32,
-            dy: dy as i32,
-            x0: a[0] as i32,
-            y0: a[1] as i32,
-            bias: if owns { 0 } else { -1 },
-        };
+    Some(pts)
+}
+
+/// The edge function from snapped vertex `a` to `b`, owning the samples exactly on it when it
+/// is a left or top edge (the top-left rule).
+fn edge(a: [i64; 2], b: [i64; 2]) -> Edge {
+    let (dx, dy) = (b[0] - a[0], b[1] - a[1]);
+    let owns = dy < 0 || (dy == 0 && dx > 0);
+    // Within the guard band every coordinate is below 2^26 and every difference below 2^27 in
+    // magnitude, so the narrowing is exact.
+    Edge {
+        dx: dx as i32,
+        dy: dy as i32,
+        x0: a[0] as i32,
+        y0: a[1] as i32,
+        bias: if owns { 0 } else { -1 },
     }
+}
+
+/// The inclusive pixel box of the snapped vertices clamped to the image, `None` when off
+/// screen. Samples of pixel i lie in [i * ONE, (i + 1) * ONE): pixels whose square meets the box.
+fn pixel_box(pts: &[[i64; 2]], width: u32, height: u32) -> Option<[u32; 4]> {
     let (mut lo_x, mut lo_y, mut hi_x, mut hi_y) = (i64::MAX, i64::MAX, i64::MIN, i64::MIN);
-    for p in &pts {
+    for p in pts {
         lo_x = lo_x.min(p[0]);
         hi_x = hi_x.max(p[0]);
         lo_y = lo_y.min(p[1]);
         hi_y = hi_y.max(p[1]);
     }
-    // Samples of pixel i lie in [i * ONE, (i + 1) * ONE): pixels whose square meets the box.
     let px0 = lo_x.div_euclid(ONE).max(0);
     let py0 = lo_y.div_euclid(ONE).max(0);
     let px1 = hi_x.div_euclid(ONE).min(width as i64 - 1);
     let py1 = hi_y.div_euclid(ONE).min(height as i64 - 1);
     if px0 > px1 || py0 > py1 {
-        return false;
+        return None;
     }
+    Some([px0 as u32, py0 as u32, px1 as u32, py1 as u32])
+}
+
+/// The polygon's bilinear map in its plane frame: b = c1 - c0, c = c3 - c0 (the apex c2 - c0
+/// for triangles), d = c0 - c1 + c2 - c3.
+struct InverseFrame {
+    b: [f64; 2],
+    c: [f64; 2],
+    d: [f64; 2],
+}
+
+fn inverse_frame(sp: &ScreenPolygon) -> InverseFrame {
     let [p0, p1, p2, p3] = sp.corners;
     let sub = |a: [f64; 2], b: [f64; 2]| [a[0] - b[0], a[1] - b[1]];
+    InverseFrame {
+        b: sub(p1, p0),
+        c: if sp.triangle {
+            sub(p2, p0)
+        } else {
+            sub(p3, p0)
+        },
+        d: [p0[0] - p1[0] + p2[0] - p3[0], p0[1] - p1[1] + p2[1] - p3[1]],
+    }
+}
+
+/// The (u, v) inverse's constants and the closed form that applies: triangles, parallelograms
+/// (|d| below 1e-7 of the sides: linear) and general quads.
+fn inverse_of(sp: &ScreenPolygon) -> (BilinearInverse, InverseKind) {
+    let InverseFrame { b, c, d } = inverse_frame(sp);
     let cross = |a: [f64; 2], b: [f64; 2]| a[0] * b[1] - a[1] * b[0];
-    let b = sub(p1, p0);
-    let c = if sp.triangle {
-        sub(p2, p0)
-    } else {
-        sub(p3, p0)
-    };
-    let d = [p0[0] - p1[0] + p2[0] - p3[0], p0[1] - p1[1] + p2[1] - p3[1]];
     let f = |v: [f64; 2]| [v[0] as f32, v[1] as f32];
     let inverse = BilinearInverse {
         b: f(b),
@@ -237,48 +296,35 @@ pub fn setup_into(sp: &ScreenPolygon, width: u32, height: u32, out: &mut Prim) -
     } else {
         InverseKind::General
     };
-    let mut planes = sp.planes;
-    if kind != InverseKind::General {
-        // h = u' b + v c (u' = u for parallelograms, U for triangles): by Cramer's rule
-        // u' = cross(h, c) / cross(b, c), v = cross(b, h) / cross(b, c), linear in h = (s, t),
-        // and s, t are each `A + w B`, so u' and v are too.
-        use super::geometry::{plane as pl, Plane};
-        let det = cross(b, c);
-        let comb = |x: f64, p: Plane, y: f64, q: Plane| Plane {
-            a: (x * p.a + y * q.a) / det,
-            b: (x * p.b + y * q.b) / det,
-            c: (x * p.c + y * q.c) / det,
-        };
-        let (sa, sb, ta, tb) = (
-            planes[pl::SA],
-            planes[pl::SB],
-            planes[pl::TA],
-            planes[pl::TB],
-        );
-        planes[pl::SA] = comb(c[1], sa, -c[0], ta);
-        planes[pl::SB] = comb(c[1], sb, -c[0], tb);
-        planes[pl::TA] = comb(-b[1], sa, b[0], ta);
-        planes[pl::TB] = comb(-b[1], sb, b[0], tb);
-        if !planes
-            .iter()
-            .all(|p| p.a.is_finite() && p.b.is_finite() && p.c.is_finite())
-        {
-            return false;
-        }
-    }
-    let bbox = [px0 as u32, py0 as u32, px1 as u32, py1 as u32];
-    *out = Prim {
-        id: sp.id,
-        edges,
-        n_edges: n,
-        bbox,
-        i32_edges: edges_fit_i32(&edges[..n], bbox),
-        planes,
-        inverse,
-        kind,
-        perspective: sp.perspective,
+    (inverse, kind)
+}
+
+/// Folds a linear (u, v) inverse into the per-pixel expressions: h = u' b + v c (u' = u for
+/// parallelograms, U for triangles), by Cramer's rule u' = cross(h, c) / cross(b, c),
+/// v = cross(b, h) / cross(b, c), linear in h = (s, t); s and t are each `A + w B`, so u' and v
+/// are too. Returns whether every folded expression is finite.
+fn fold_linear_inverse(planes: &mut [Plane; 5], m: &InverseFrame) -> bool {
+    use super::geometry::plane as pl;
+    let (b, c) = (m.b, m.c);
+    let det = b[0] * c[1] - b[1] * c[0];
+    let comb = |x: f64, p: Plane, y: f64, q: Plane| Plane {
+        a: (x * p.a + y * q.a) / det,
+        b: (x * p.b + y * q.b) / det,
+        c: (x * p.c + y * q.c) / det,
     };
-    true
+    let (sa, sb, ta, tb) = (
+        planes[pl::SA],
+        planes[pl::SB],
+        planes[pl::TA],
+        planes[pl::TB],
+    );
+    planes[pl::SA] = comb(c[1], sa, -c[0], ta);
+    planes[pl::SB] = comb(c[1], sb, -c[0], tb);
+    planes[pl::TA] = comb(-b[1], sa, b[0], ta);
+    planes[pl::TB] = comb(-b[1], sb, b[0], tb);
+    planes
+        .iter()
+        .all(|p| p.a.is_finite() && p.b.is_finite() && p.c.is_finite())
 }
 
 /// (u, v) of the point with plane coordinates (s, t), clamped into [0, 1]^2.

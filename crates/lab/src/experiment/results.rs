@@ -215,7 +215,7 @@ fn stem(p: &Path) -> String {
 }
 
 fn json<T: Serialize>(value: &T) -> Result<String> {
-    serde_json::to_string_pretty(value).map_err(|e| Error::Runtime(format!("JSON: {e}")))
+    serde_json::to_string_pretty(value).map_err(|e| Error::internal(format!("JSON: {e}")))
 }
 
 /// The directory the page's data and images go to: `results/` beside the page.

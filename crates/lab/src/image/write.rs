@@ -100,7 +100,7 @@ pub fn srgb8_bytes(frame: ImageView<'_>, exposure: f32) -> Vec<u8> {
 
 fn check(frame: ImageView<'_>) -> Result<()> {
     if frame.pixels.len() != (frame.width as usize) * (frame.height as usize) || frame.width == 0 {
-        return Err(Error::Runtime(format!(
+        return Err(Error::internal(format!(
             "image of {} x {} holds {} pixels",
             frame.width,
             frame.height,
@@ -120,7 +120,7 @@ pub fn encode_png(frame: ImageView<'_>, exposure: f64) -> Result<Vec<u8>> {
     };
     let raw = srgb8_bytes(frame, e);
     let img: ImageBuffer<Rgb<u8>, Vec<u8>> = ImageBuffer::from_raw(frame.width, frame.height, raw)
-        .ok_or_else(|| Error::Runtime("PNG buffer size mismatch".into()))?;
+        .ok_or_else(|| Error::internal("PNG buffer size mismatch"))?;
     let mut bytes = Vec::new();
     img.write_to(&mut Cursor::new(&mut bytes), ImageFormat::Png)
         .map_err(|e| Error::Runtime(format!("PNG encoding failed: {e}")))?;
@@ -138,7 +138,7 @@ pub fn encode_exr(frame: ImageView<'_>) -> Result<Vec<u8>> {
     }
     let img: ImageBuffer<Rgb<f32>, Vec<f32>> =
         ImageBuffer::from_raw(frame.width, frame.height, raw)
-            .ok_or_else(|| Error::Runtime("EXR buffer size mismatch".into()))?;
+            .ok_or_else(|| Error::internal("EXR buffer size mismatch"))?;
     let mut bytes = Vec::new();
     img.write_to(&mut Cursor::new(&mut bytes), ImageFormat::OpenExr)
         .map_err(|e| Error::Runtime(format!("EXR encoding failed: {e}")))?;

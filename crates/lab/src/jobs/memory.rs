@@ -5,9 +5,9 @@
 //!   trees, leaf records and 16-bit vertex data; **encoded** (what a solution file stores):
 //!   [`CompactStats::encoded_bytes`]; **samples alone** (measured, not stored: the solution's
 //!   trees and 16-bit samples, derivatives re-estimated on load): [`samples_form::encoded_len`];
-//!   **patch caches**: the direct method's per-thread caches of
-//!   expanded patches ([`CompactReconstruction::cache_bytes_per_thread`] times the worker
-//!   threads), working memory reported beside the RRPs, not in them.
+//!   **patch caches**: the direct method's caches of expanded patches, one per worker
+//!   ([`CompactReconstruction::cache_bytes`] times the worker threads: what the frame's
+//!   workspaces allocate), working memory reported beside the RRPs, not in them.
 //! - **RRPs, expanded** (what the texture methods resample): one [`PatchCoeffs`] per leaf plus
 //!   a 4-byte locate-tree node per node and a 4-byte root per polygon, computed from the compact
 //!   form's counts without building it (the same formula as
@@ -58,7 +58,7 @@ pub struct Memory {
     pub rrp_samples: u64,
     /// Expanded RRPs ([`expanded_rrp_bytes`]).
     pub rrp_expanded: u64,
-    /// The direct method's patch caches, all worker threads together.
+    /// The direct method's patch caches, one per worker thread, all together.
     pub rrp_caches: u64,
     /// Textures under the job's size policy, at 8 / 12 / 32 bits, with and without mip chains.
     pub textures: TextureMemory,
@@ -76,7 +76,7 @@ impl Memory {
             rrp_samples: samples_form::encoded_len(&p.solution.polygons, samples_form::DEFAULT_BITS)
                 as u64,
             rrp_expanded: expanded_rrp_bytes(&p.compact),
-            rrp_caches: (p.compact.cache_bytes_per_thread() * rayon::current_num_threads()) as u64,
+            rrp_caches: (p.compact.cache_bytes() * rayon::current_num_threads()) as u64,
             textures: p.textures()?.0.memory,
             mesh: p.mesh()?.0.stats.bytes,
         })

@@ -274,17 +274,21 @@ impl Prepared {
         self.texture_placement
     }
 
-    /// A failure of a later stage on data read from a solution file (a value no solve would
-    /// produce behind a valid checksum) is that file's fault: an [`Error::Solution`]
-    /// ([`base::error::SolutionProblem::Corrupt`], exit 2), not a runtime failure. Errors of a
-    /// fresh solve's data pass through.
+    /// Whose fault [`Error::Inconsistent`] data of a later stage is: read from a solution file
+    /// (a value no solve would produce behind a valid checksum), the file's, an
+    /// [`Error::Solution`] ([`base::error::SolutionProblem::Corrupt`], exit 2); computed by this
+    /// run's own solve, this program's, an [`Error::Internal`]. Every other error passes through
+    /// as it is (an internal error stays one, whatever was read).
     fn file_error(&self, e: Error) -> Error {
         match (e, &self.solution_file) {
-            (Error::Runtime(m), Some(path)) => Error::solution(
+            (Error::Inconsistent(m), Some(path)) => Error::solution(
                 path,
                 base::error::SolutionProblem::Corrupt,
                 format!("corrupt solution file: {m}"),
             ),
+            (Error::Inconsistent(m), None) => {
+                Error::internal(format!("this run's own solution is inconsistent: {m}"))
+            }
             (e, _) => e,
         }
     }
@@ -316,7 +320,7 @@ impl Prepared {
         let (r, ms) = self
             .expanded
             .get()
-            .ok_or_else(|| Error::Runtime("expanded RRPs missing after build".into()))?;
+            .ok_or_else(|| Error::internal("expanded RRPs missing after build"))?;
         Ok((r, *ms))
     }
 
@@ -357,7 +361,7 @@ impl Prepared {
         let (set, ms) = self
             .textures
             .get()
-            .ok_or_else(|| Error::Runtime("texture set missing after build".into()))?;
+            .ok_or_else(|| Error::internal("texture set missing after build"))?;
         Ok((set, *ms))
     }
 
@@ -384,7 +388,7 @@ impl Prepared {
         let (mesh, ms) = self
             .mesh
             .get()
-            .ok_or_else(|| Error::Runtime("mesh missing after build".into()))?;
+            .ok_or_else(|| Error::internal("mesh missing after build"))?;
         Ok((mesh, *ms))
     }
 }
@@ -448,17 +452,25 @@ pub fn prepare(
         }
         // Samples read from a file that cannot be reconstructed (values so large the patches
         // overflow f32) are a bad file, exit 2, like any other inconsistency behind a valid
-        // checksum; from a fresh solve they would be a failure of this program.
+        // checksum; from a fresh solve they are a failure of this program.
         Some((path, _)) => {
-            CompactReconstruction::build(&solution.polygons, estimator).map_err(|e| {
-                Error::solution(
+            CompactReconstruction::build(&solution.polygons, estimator).map_err(|e| match e {
+                Error::Inconsistent(m) => Error::solution(
                     path,
                     base::error::SolutionProblem::Corrupt,
-                    format!("corrupt solution file: its samples cannot be reconstructed: {e}"),
-                )
+                    format!("corrupt solution file: its samples cannot be reconstructed: {m}"),
+                ),
+                e => e,
             })?
         }
-        None => CompactReconstruction::build(&solution.polygons, estimator)?,
+        None => {
+            CompactReconstruction::build(&solution.polygons, estimator).map_err(|e| match e {
+                Error::Inconsistent(m) => {
+                    Error::internal(format!("this run's own solution is inconsistent: {m}"))
+                }
+                e => e,
+            })?
+        }
     };
     let reconstruction_ms = t.elapsed().as_secs_f64() * 1e3;
     Ok(Prepared {
@@ -522,8 +534,9 @@ pub fn reserve_frames(
     match method {
         Method::Mesh => ctx.reserve_scene(opts, &p.mesh()?.0.scene),
         Method::Direct => {
+            ctx.reserve_scene(opts, &p.scene)?;
             ctx.reserve_source(&p.compact);
-            ctx.reserve_scene(opts, &p.scene)
+            Ok(())
         }
         _ => ctx.reserve_scene(opts, &p.scene),
     }

@@ -260,7 +260,7 @@ pub fn run_render(
             }),
             None => serde_json::to_string_pretty(&reports[0]),
         }
-        .map_err(|e| Error::Runtime(format!("statistics to JSON: {e}")))?;
+        .map_err(|e| Error::internal(format!("statistics to JSON: {e}")))?;
         batch.stage(path, json.as_bytes())?;
         staged.push(path);
     }

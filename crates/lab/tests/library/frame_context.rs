@@ -97,3 +97,16 @@ fn a_reused_context_draws_many_small_quads_as_a_new_one() {
 fn a_reused_context_draws_patch_borders_as_a_new_one() {
     check_scene("scenes/hard/patch-borders.toml");
 }
+
+/// The memory report counts the patch caches the frame's workspaces allocate: one per worker,
+/// each what [`reconstruction::compact::CompactReconstruction::cache_bytes`] says.
+#[test]
+fn the_memory_report_counts_the_patch_caches_the_frame_allocates() {
+    let p = prepared("scenes/two-spots.toml");
+    let mut ctx = FrameContext::new();
+    reserve_frames(&mut ctx, &p, Method::Direct, &FrameOptions::new(64, 48)).unwrap();
+    let workers = rayon::current_num_threads();
+    assert_eq!(ctx.patch_cache_bytes(), workers * p.compact.cache_bytes());
+    let m = lab::jobs::memory::Memory::of(&p).unwrap();
+    assert_eq!(m.rrp_caches, ctx.patch_cache_bytes() as u64);
+}

@@ -2,7 +2,7 @@
 //! cache, against the expanded [`Reconstruction`] built from the same samples.
 
 use super::*;
-use crate::compact::{CompactReconstruction, CACHE_SLOTS, ZERO_EXPONENT};
+use crate::compact::{CompactReconstruction, PatchCache, CACHE_SLOTS, ZERO_EXPONENT};
 
 fn compact1(sq: &SampledQuadtree, e: Estimator) -> CompactReconstruction {
     CompactReconstruction::build(std::slice::from_ref(sq), e).unwrap()
@@ -368,8 +368,8 @@ fn compact_same_bytes_for_any_thread_count_and_bad_input_errors() {
 
 #[test]
 fn the_patch_cache_returns_exactly_the_expanded_patch() {
-    // Two reconstructions used alternately on one thread (the cache must not serve one's patches
-    // for the other's ids), every id visited twice (misses, then hits), and ids that share a slot.
+    // Two reconstructions used alternately with one cache (the cache must not serve one's
+    // patches for the other's ids), every id visited twice (misses, then hits).
     let a = compact1(
         &SampledQuadtree::from_fn(criterion_tree(&spot, 1, 7, 1e-3), grey(spot)),
         Estimator::Monotone,
@@ -380,16 +380,58 @@ fn the_patch_cache_returns_exactly_the_expanded_patch() {
     );
     assert!(a.leaf_count() > 64 && b.leaf_count() > 64);
     for c in [&a, &b] {
+        // Below the cap, every leaf has a slot of its own.
         let slots = c.cache_slots();
-        assert!(slots.is_power_of_two() && slots <= c.leaf_count().min(CACHE_SLOTS));
-        assert!(2 * slots > c.leaf_count().min(CACHE_SLOTS));
+        assert!(slots.is_power_of_two() && slots >= c.leaf_count() && slots < 2 * c.leaf_count());
     }
+    let mut cache = PatchCache::default();
     for _ in 0..2 {
         for c in [&a, &b] {
             for id in 0..c.leaf_count() as u32 {
-                assert_eq!(c.cached_patch(id), c.expand(id));
+                assert_eq!(c.cached_patch(id, &mut cache), c.expand(id));
                 assert_eq!(PatchSource::patch(c, id), c.expand(id));
             }
         }
     }
+}
+
+#[test]
+fn a_patch_cache_allocates_what_its_accounting_says() {
+    let small = compact1(
+        &SampledQuadtree::from_fn(criterion_tree(&spot, 1, 7, 1e-3), grey(spot)),
+        Estimator::Monotone,
+    );
+    let mut cache = PatchCache::default();
+    assert_eq!(cache.bytes(), 0);
+    small.warm(&mut cache);
+    assert_eq!(cache.bytes(), small.cache_bytes());
+    assert!(small.cache_bytes() < CACHE_SLOTS * std::mem::size_of::<crate::PatchCoeffs>());
+    // More leaves than the cap (a full depth-8 tree, 65,536 leaves): CACHE_SLOTS slots, shared
+    // by several leaves each, every patch still the expanded one.
+    let mut t = Quadtree::new();
+    let mut level = vec![0u32];
+    for _ in 0..8 {
+        level = level
+            .iter()
+            .flat_map(|&n| {
+                let c = t.split(n);
+                [c, c + 1, c + 2, c + 3]
+            })
+            .collect();
+    }
+    let wavy = |u: f64, v: f64| 2.0 + (37.0 * u).sin() * (29.0 * v).cos();
+    let big = compact1(
+        &SampledQuadtree::from_fn(t, grey(wavy)),
+        Estimator::Monotone,
+    );
+    assert_eq!(big.leaf_count(), 65_536);
+    assert_eq!(big.cache_slots(), CACHE_SLOTS);
+    big.warm(&mut cache);
+    assert_eq!(cache.bytes(), big.cache_bytes());
+    for id in (0..big.leaf_count() as u32).step_by(97) {
+        assert_eq!(big.cached_patch(id, &mut cache), big.expand(id));
+    }
+    // Back to the small one: the cache is resized to its slots again.
+    small.warm(&mut cache);
+    assert_eq!(cache.bytes(), small.cache_bytes());
 }

@@ -241,7 +241,7 @@ impl RadiosityTexture {
             .iter()
             .any(|l| l.texels.iter().any(|t| !t.is_finite()))
         {
-            return Err(Error::Runtime("texture texel is not finite".into()));
+            return Err(Error::Inconsistent("texture texel is not finite".into()));
         }
         Ok(RadiosityTexture {
             width: side,
@@ -260,14 +260,14 @@ impl RadiosityTexture {
             check_side(n)?;
         }
         if texels.len() != width as usize * height as usize {
-            return Err(Error::Runtime(format!(
+            return Err(Error::Inconsistent(format!(
                 "texture of {width} x {height} needs {} texels, got {}",
                 width as usize * height as usize,
                 texels.len()
             )));
         }
         if texels.iter().any(|t| !t.is_finite()) {
-            return Err(Error::Runtime("texture texel is not finite".into()));
+            return Err(Error::Inconsistent("texture texel is not finite".into()));
         }
         Ok(RadiosityTexture {
             width,
@@ -722,7 +722,7 @@ impl TextureSet {
         placement: Placement,
     ) -> Result<TextureSet> {
         if depths.len() != recon.polygon_count() {
-            return Err(Error::Runtime(format!(
+            return Err(Error::Inconsistent(format!(
                 "{} quadtree depths for {} polygons",
                 depths.len(),
                 recon.polygon_count()
