@@ -28,7 +28,7 @@ use glam::{DVec3, Vec3};
 use super::transfer::{build_shooters, ShooterKind};
 use super::{fill_tree_stats, scene_hash, Fnv, Shooter, Solution, SolveStats};
 use base::error::{Error, Result, SolutionProblem};
-use base::quadtree::{Cell, Node, Quadtree, SampledQuadtree};
+use base::quadtree::{Cell, Node, Quadtree, SampledQuadtree, VertexKey};
 use scene::Scene;
 
 /// File magic.
@@ -147,37 +147,9 @@ struct Envelope {
 
 /// Checks magic, version, length (truncation) and checksum (corruption).
 fn envelope(bytes: &[u8]) -> std::result::Result<Envelope, Bad> {
-    if bytes.len() < 8 || &bytes[..8] != MAGIC {
-        return Err(Bad(
-            SolutionProblem::NotASolution,
-            "not a pixelflow-sim solution file (bad magic bytes)".to_string(),
-        ));
-    }
-    if bytes.len() < HEADER {
-        return Err(Bad(
-            SolutionProblem::Truncated,
-            format!(
-                "truncated solution file: {} bytes, the header alone is {HEADER}",
-                bytes.len()
-            ),
-        ));
-    }
-    let u32_at = |o: usize| u32::from_le_bytes(bytes[o..o + 4].try_into().unwrap_or([0; 4]));
-    let u64_at = |o: usize| u64::from_le_bytes(bytes[o..o + 8].try_into().unwrap_or([0; 8]));
-    let version = u32_at(8);
-    if version != FORMAT_VERSION {
-        return Err(Bad(
-            SolutionProblem::Version {
-                found: version,
-                supported: FORMAT_VERSION,
-            },
-            format!(
-                "solution file format version {version}, this program reads version {FORMAT_VERSION}; solve the scene again"
-            ),
-        ));
-    }
-    let path_len = u32_at(12) as u64;
-    let payload_len = u64_at(16);
+    check_header(bytes)?;
+    let path_len = le_u32(bytes, 12) as u64;
+    let payload_len = le_u64(bytes, 16);
     let expect = (HEADER as u64)
         .saturating_add(path_len)
         .saturating_add(payload_len)
@@ -201,7 +173,7 @@ fn envelope(bytes: &[u8]) -> std::result::Result<Envelope, Bad> {
     let body = bytes.len() - 8;
     let mut h = Fnv::default();
     h.bytes(&bytes[..body]);
-    if h.0 != u64_at(body) {
+    if h.0 != le_u64(bytes, body) {
         return Err("corrupt solution file: checksum mismatch"
             .to_string()
             .into());
@@ -212,7 +184,51 @@ fn envelope(bytes: &[u8]) -> std::result::Result<Envelope, Bad> {
     })
 }
 
+/// Checks the magic, that the header is whole, and the format version.
+fn check_header(bytes: &[u8]) -> std::result::Result<(), Bad> {
+    if bytes.len() < 8 || &bytes[..8] != MAGIC {
+        return Err(Bad(
+            SolutionProblem::NotASolution,
+            "not a pixelflow-sim solution file (bad magic bytes)".to_string(),
+        ));
+    }
+    if bytes.len() < HEADER {
+        return Err(Bad(
+            SolutionProblem::Truncated,
+            format!(
+                "truncated solution file: {} bytes, the header alone is {HEADER}",
+                bytes.len()
+            ),
+        ));
+    }
+    let version = le_u32(bytes, 8);
+    if version != FORMAT_VERSION {
+        return Err(Bad(
+            SolutionProblem::Version {
+                found: version,
+                supported: FORMAT_VERSION,
+            },
+            format!(
+                "solution file format version {version}, this program reads version {FORMAT_VERSION}; solve the scene again"
+            ),
+        ));
+    }
+    Ok(())
+}
+
+/// The little-endian `u32` at byte `o` (the caller has checked that `bytes` reaches it).
+fn le_u32(bytes: &[u8], o: usize) -> u32 {
+    u32::from_le_bytes(bytes[o..o + 4].try_into().unwrap_or([0; 4]))
+}
+
+/// The little-endian `u64` at byte `o` (the caller has checked that `bytes` reaches it).
+fn le_u64(bytes: &[u8], o: usize) -> u64 {
+    u64::from_le_bytes(bytes[o..o + 8].try_into().unwrap_or([0; 8]))
+}
+
+/// Little-endian writer of the payload.
 struct W(Vec<u8>);
+
 impl W {
     fn u8(&mut self, x: u8) {
         self.0.push(x);
@@ -229,72 +245,91 @@ impl W {
     fn f32(&mut self, x: f32) {
         self.0.extend_from_slice(&x.to_le_bytes());
     }
+
+    /// A polygon: node count and nodes (level u8, x, y, first child), key count and keys,
+    /// then the RGB f32 value of every key.
+    fn polygon(&mut self, p: &SampledQuadtree) {
+        let nodes = p.tree.nodes();
+        self.u32(nodes.len() as u32);
+        for n in nodes {
+            self.u8(n.cell.level as u8);
+            self.u32(n.cell.x);
+            self.u32(n.cell.y);
+            self.u32(n.first_child);
+        }
+        self.u32(p.keys.len() as u32);
+        for k in &p.keys {
+            self.u32(k.i);
+            self.u32(k.j);
+        }
+        for v in &p.values {
+            self.f32(v.x);
+            self.f32(v.y);
+            self.f32(v.z);
+        }
+    }
+
+    /// A shooter: kind tag (0 spot, 1 emitter, 2 patch), its spot or polygon, its cell (the
+    /// root but for a patch) and its RGB f64 total.
+    fn shooter(&mut self, s: &Shooter) {
+        let (tag, a, cell) = match s.kind {
+            ShooterKind::Spot { spot } => (0u8, spot, Cell::ROOT),
+            ShooterKind::Emitter { polygon } => (1, polygon, Cell::ROOT),
+            ShooterKind::Patch { polygon, cell } => (2, polygon, cell),
+        };
+        self.u8(tag);
+        self.u32(a);
+        self.u32(cell.level);
+        self.u32(cell.x);
+        self.u32(cell.y);
+        self.f64(s.total.x);
+        self.f64(s.total.y);
+        self.f64(s.total.z);
+    }
+
+    /// The statistics a solution file keeps (not those of its trees, recomputed when read).
+    fn stats(&mut self, st: &SolveStats) {
+        self.u64(st.shots);
+        self.u64(st.rays_cast);
+        self.u32(st.refined_after.len() as u32);
+        for &x in &st.refined_after {
+            self.u64(x);
+        }
+        self.f64(st.emitted_power);
+        self.f64(st.unshot_fraction);
+        self.u32(st.unshot_history.len() as u32);
+        for &x in &st.unshot_history {
+            self.f64(x);
+        }
+    }
 }
 
 fn encode_payload(sol: &Solution, rrps: &[u8]) -> Vec<u8> {
     let mut w = W(Vec::new());
     w.u32(sol.polygons.len() as u32);
     for p in &sol.polygons {
-        let nodes = p.tree.nodes();
-        w.u32(nodes.len() as u32);
-        for n in nodes {
-            w.u8(n.cell.level as u8);
-            w.u32(n.cell.x);
-            w.u32(n.cell.y);
-            w.u32(n.first_child);
-        }
-        w.u32(p.keys.len() as u32);
-        for k in &p.keys {
-            w.u32(k.i);
-            w.u32(k.j);
-        }
-        for v in &p.values {
-            w.f32(v.x);
-            w.f32(v.y);
-            w.f32(v.z);
-        }
+        w.polygon(p);
     }
     w.u32(sol.shooters.len() as u32);
     for s in &sol.shooters {
-        let (tag, a, cell) = match s.kind {
-            ShooterKind::Spot { spot } => (0u8, spot, Cell::ROOT),
-            ShooterKind::Emitter { polygon } => (1, polygon, Cell::ROOT),
-            ShooterKind::Patch { polygon, cell } => (2, polygon, cell),
-        };
-        w.u8(tag);
-        w.u32(a);
-        w.u32(cell.level);
-        w.u32(cell.x);
-        w.u32(cell.y);
-        w.f64(s.total.x);
-        w.f64(s.total.y);
-        w.f64(s.total.z);
+        w.shooter(s);
     }
-    let st = &sol.stats;
-    w.u64(st.shots);
-    w.u64(st.rays_cast);
-    w.u32(st.refined_after.len() as u32);
-    for &x in &st.refined_after {
-        w.u64(x);
-    }
-    w.f64(st.emitted_power);
-    w.f64(st.unshot_fraction);
-    w.u32(st.unshot_history.len() as u32);
-    for &x in &st.unshot_history {
-        w.f64(x);
-    }
+    w.stats(&sol.stats);
     w.u64(rrps.len() as u64);
     w.0.extend_from_slice(rrps);
     w.0
 }
 
+/// Little-endian reader of the payload; every failure is a message for a corrupt file.
 struct R<'a> {
     b: &'a [u8],
     at: usize,
 }
 
+type Decoded<T> = std::result::Result<T, String>;
+
 impl R<'_> {
-    fn take(&mut self, n: usize) -> std::result::Result<&[u8], String> {
+    fn take(&mut self, n: usize) -> Decoded<&[u8]> {
         if self.b.len() - self.at < n {
             return Err("corrupt payload: a count runs past the end of the data".to_string());
         }
@@ -302,32 +337,140 @@ impl R<'_> {
         self.at += n;
         Ok(s)
     }
-    fn u8(&mut self) -> std::result::Result<u8, String> {
+    fn u8(&mut self) -> Decoded<u8> {
         Ok(self.take(1)?[0])
     }
-    fn u32(&mut self) -> std::result::Result<u32, String> {
+    fn u32(&mut self) -> Decoded<u32> {
         let mut a = [0u8; 4];
         a.copy_from_slice(self.take(4)?);
         Ok(u32::from_le_bytes(a))
     }
-    fn u64(&mut self) -> std::result::Result<u64, String> {
+    fn u64(&mut self) -> Decoded<u64> {
         let mut a = [0u8; 8];
         a.copy_from_slice(self.take(8)?);
         Ok(u64::from_le_bytes(a))
     }
-    fn f64(&mut self) -> std::result::Result<f64, String> {
+    fn f64(&mut self) -> Decoded<f64> {
         Ok(f64::from_bits(self.u64()?))
     }
-    fn f32(&mut self) -> std::result::Result<f32, String> {
+    fn f32(&mut self) -> Decoded<f32> {
         Ok(f32::from_bits(self.u32()?))
     }
     /// A count of items of `size` bytes each that must fit in the remaining data.
-    fn count(&mut self, size: usize) -> std::result::Result<usize, String> {
+    fn count(&mut self, size: usize) -> Decoded<usize> {
         let n = self.u32()? as usize;
         if n.saturating_mul(size) > self.b.len() - self.at {
             return Err("corrupt payload: a count runs past the end of the data".to_string());
         }
         Ok(n)
+    }
+
+    /// Polygon `pi` (see [`W::polygon`]): its quadtree must be valid, its keys exactly the
+    /// tree's vertices and its values finite and >= 0.
+    fn polygon(&mut self, pi: usize) -> Decoded<SampledQuadtree> {
+        let tree = self.tree(pi)?;
+        let nk = self.count(8)?;
+        let mut keys = Vec::with_capacity(nk);
+        for _ in 0..nk {
+            let i = self.u32()?;
+            let j = self.u32()?;
+            keys.push(VertexKey::new(i, j));
+        }
+        if keys != tree.vertex_keys() {
+            return Err(format!(
+                "corrupt payload: polygon {pi}: sample keys do not match the quadtree's vertices"
+            ));
+        }
+        let mut values = Vec::with_capacity(nk);
+        for _ in 0..nk {
+            let v = Vec3::new(self.f32()?, self.f32()?, self.f32()?);
+            if !v.is_finite() || v.min_element() < 0.0 {
+                return Err(format!(
+                    "corrupt payload: polygon {pi}: a sample is negative or not finite"
+                ));
+            }
+            values.push(v);
+        }
+        Ok(SampledQuadtree { tree, keys, values })
+    }
+
+    /// The quadtree of polygon `pi`.
+    fn tree(&mut self, pi: usize) -> Decoded<Quadtree> {
+        let nn = self.count(13)?;
+        let mut nodes = Vec::with_capacity(nn);
+        for _ in 0..nn {
+            let level = self.u8()? as u32;
+            let x = self.u32()?;
+            let y = self.u32()?;
+            let first_child = self.u32()?;
+            nodes.push(Node {
+                cell: Cell { level, x, y },
+                first_child,
+            });
+        }
+        Quadtree::from_nodes(nodes)
+            .ok_or_else(|| format!("corrupt payload: polygon {pi}: invalid quadtree"))
+    }
+
+    /// A shooter (see [`W::shooter`]), which must be `expected` (the scene's shooter of its id)
+    /// and have a finite total >= 0.
+    fn shooter(&mut self, expected: ShooterKind) -> Decoded<Shooter> {
+        let tag = self.u8()?;
+        let a = self.u32()?;
+        let cell = Cell {
+            level: self.u32()?,
+            x: self.u32()?,
+            y: self.u32()?,
+        };
+        let kind = match tag {
+            0 => ShooterKind::Spot { spot: a },
+            1 => ShooterKind::Emitter { polygon: a },
+            2 => ShooterKind::Patch { polygon: a, cell },
+            t => return Err(format!("corrupt payload: unknown shooter kind {t}")),
+        };
+        if kind != expected {
+            return Err("corrupt payload: shooters do not match the scene".to_string());
+        }
+        let total = DVec3::new(self.f64()?, self.f64()?, self.f64()?);
+        if !total.is_finite() || total.min_element() < 0.0 {
+            return Err("corrupt payload: a shooter total is negative or not finite".to_string());
+        }
+        Ok(Shooter { kind, total })
+    }
+
+    /// The statistics (see [`W::stats`]); those of the trees are left to fill.
+    fn stats(&mut self) -> Decoded<SolveStats> {
+        let mut stats = SolveStats {
+            shots: self.u64()?,
+            rays_cast: self.u64()?,
+            ..SolveStats::default()
+        };
+        let nr = self.count(8)?;
+        for _ in 0..nr {
+            stats.refined_after.push(self.u64()?);
+        }
+        stats.emitted_power = self.f64()?;
+        stats.unshot_fraction = self.f64()?;
+        let nh = self.count(8)?;
+        for _ in 0..nh {
+            stats.unshot_history.push(self.f64()?);
+        }
+        Ok(stats)
+    }
+
+    /// The RRP bytes, which must end the payload.
+    fn rrps(&mut self) -> Decoded<Vec<u8>> {
+        let nb = self.u64()?;
+        if nb > (self.b.len() - self.at) as u64 {
+            return Err(
+                "corrupt payload: the RRP length runs past the end of the data".to_string(),
+            );
+        }
+        let rrps = self.take(nb as usize)?.to_vec();
+        if self.at != self.b.len() {
+            return Err("corrupt payload: trailing bytes".to_string());
+        }
+        Ok(rrps)
     }
 }
 
@@ -335,7 +478,7 @@ impl R<'_> {
 /// what kind of problem, with a message for the user.
 pub fn decode(bytes: &[u8], scene: &Scene) -> std::result::Result<(Solution, Vec<u8>), Bad> {
     let Envelope { path_len, body } = envelope(bytes)?;
-    let hash = u64::from_le_bytes(bytes[24..32].try_into().unwrap_or([0; 8]));
+    let hash = le_u64(bytes, 24);
     if hash != scene_hash(scene) {
         return Err(Bad(
             SolutionProblem::SceneMismatch,
@@ -352,11 +495,7 @@ pub fn decode(bytes: &[u8], scene: &Scene) -> std::result::Result<(Solution, Vec
 
 /// Decodes the payload (trees, keys, values, shooters, stats, RRP bytes) for `scene`; every
 /// failure is a corrupt file.
-fn decode_payload(
-    payload: &[u8],
-    scene: &Scene,
-    hash: u64,
-) -> std::result::Result<(Solution, Vec<u8>), String> {
+fn decode_payload(payload: &[u8], scene: &Scene, hash: u64) -> Decoded<(Solution, Vec<u8>)> {
     let mut r = R { b: payload, at: 0 };
     let np = r.u32()? as usize;
     if np != scene.polygons.len() {
@@ -365,46 +504,9 @@ fn decode_payload(
             scene.polygons.len()
         ));
     }
-    let mut polygons = Vec::with_capacity(np);
-    for pi in 0..np {
-        let nn = r.count(13)?;
-        let mut nodes = Vec::with_capacity(nn);
-        for _ in 0..nn {
-            let level = r.u8()? as u32;
-            let x = r.u32()?;
-            let y = r.u32()?;
-            let first_child = r.u32()?;
-            nodes.push(Node {
-                cell: Cell { level, x, y },
-                first_child,
-            });
-        }
-        let tree = Quadtree::from_nodes(nodes)
-            .ok_or_else(|| format!("corrupt payload: polygon {pi}: invalid quadtree"))?;
-        let nk = r.count(8)?;
-        let mut keys = Vec::with_capacity(nk);
-        for _ in 0..nk {
-            let i = r.u32()?;
-            let j = r.u32()?;
-            keys.push(base::quadtree::VertexKey::new(i, j));
-        }
-        if keys != tree.vertex_keys() {
-            return Err(format!(
-                "corrupt payload: polygon {pi}: sample keys do not match the quadtree's vertices"
-            ));
-        }
-        let mut values = Vec::with_capacity(nk);
-        for _ in 0..nk {
-            let v = Vec3::new(r.f32()?, r.f32()?, r.f32()?);
-            if !v.is_finite() || v.min_element() < 0.0 {
-                return Err(format!(
-                    "corrupt payload: polygon {pi}: a sample is negative or not finite"
-                ));
-            }
-            values.push(v);
-        }
-        polygons.push(SampledQuadtree { tree, keys, values });
-    }
+    let polygons = (0..np)
+        .map(|pi| r.polygon(pi))
+        .collect::<Decoded<Vec<_>>>()?;
     let (geoms, _, _) = build_shooters(scene);
     let ns = r.count(29)?;
     if ns != geoms.len() {
@@ -413,53 +515,12 @@ fn decode_payload(
             geoms.len()
         ));
     }
-    let mut shooters = Vec::with_capacity(ns);
-    for g in &geoms {
-        let tag = r.u8()?;
-        let a = r.u32()?;
-        let cell = Cell {
-            level: r.u32()?,
-            x: r.u32()?,
-            y: r.u32()?,
-        };
-        let kind = match tag {
-            0 => ShooterKind::Spot { spot: a },
-            1 => ShooterKind::Emitter { polygon: a },
-            2 => ShooterKind::Patch { polygon: a, cell },
-            t => return Err(format!("corrupt payload: unknown shooter kind {t}")),
-        };
-        if kind != g.kind {
-            return Err("corrupt payload: shooters do not match the scene".to_string());
-        }
-        let total = DVec3::new(r.f64()?, r.f64()?, r.f64()?);
-        if !total.is_finite() || total.min_element() < 0.0 {
-            return Err("corrupt payload: a shooter total is negative or not finite".to_string());
-        }
-        shooters.push(Shooter { kind, total });
-    }
-    let mut stats = SolveStats {
-        shots: r.u64()?,
-        rays_cast: r.u64()?,
-        ..SolveStats::default()
-    };
-    let nr = r.count(8)?;
-    for _ in 0..nr {
-        stats.refined_after.push(r.u64()?);
-    }
-    stats.emitted_power = r.f64()?;
-    stats.unshot_fraction = r.f64()?;
-    let nh = r.count(8)?;
-    for _ in 0..nh {
-        stats.unshot_history.push(r.f64()?);
-    }
-    let nb = r.u64()?;
-    if nb > (r.b.len() - r.at) as u64 {
-        return Err("corrupt payload: the RRP length runs past the end of the data".to_string());
-    }
-    let rrps = r.take(nb as usize)?.to_vec();
-    if r.at != r.b.len() {
-        return Err("corrupt payload: trailing bytes".to_string());
-    }
+    let shooters = geoms
+        .iter()
+        .map(|g| r.shooter(g.kind))
+        .collect::<Decoded<Vec<_>>>()?;
+    let mut stats = r.stats()?;
+    let rrps = r.rrps()?;
     fill_tree_stats(&mut stats, &polygons);
     Ok((
         Solution {

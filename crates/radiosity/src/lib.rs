@@ -15,20 +15,19 @@
 //! receiver ([`transfer`]); a shot touches its receivers, a gather the shooters that reach its
 //! point, and the next shooter comes from a tournament tree ([`shoot`]). Receivers are found by
 //! testing every polygon for scenes of up to about 1,000 polygons (`exact` visibility) and by
-//! probe rays beyond (`sampled`, [`scene::Visibility`]). Why this method, by
-//! measurement: on a building of 4 x 4 rooms (2,320 polygons) the previous solver (every pair
-//! classified and kept, every gather over every shooter) spent 57 s, of which 34 s in gathers,
-//! and 1.94 M of its 2.08 M unculled pairs were pairs in different rooms whose every shadow ray
-//! a wall stopped: the cost was interactions that carry no light, not the many weak ones that
-//! hierarchical radiosity with clustering (Hanrahan, Salzman and Aupperle 1991; Smits, Arvo and
-//! Greenberg 1994) approximates. Dropping them keeps what this solver is built on: exact
-//! point-to-polygon form factors and an [`Oracle`] whose answer at a vertex is the stored
-//! sample, bit for bit (links and push-pull would make a stored value something the
-//! reference renderer cannot recompute). A conservative alternative, proving a pair blocked by
-//! one occluder (coplanar wall pieces merged), was worked out and dropped before measuring: a
-//! closed room is hidden by the union of its walls, never by one plane, so it would have kept
-//! most pairs between rooms. Probe rays lose the light of receivers they miss; measured, it
-//! moves a building's images less than a change of seed does (docs/performance.md).
+//! probe rays beyond (`sampled`, [`scene::Visibility`]). Why this method, by measurement: on a
+//! building of 4 x 4 rooms (2,320 polygons) a solver that classifies and keeps every pair and
+//! gathers over every shooter spends 57 s, 34 s of it in gathers, and 1.94 M of its 2.08 M
+//! unculled pairs are pairs in different rooms whose every shadow ray a wall stops: the cost is
+//! interactions that carry no light, not the many weak ones that hierarchical radiosity with
+//! clustering (Hanrahan, Salzman and Aupperle 1991; Smits, Arvo and Greenberg 1994)
+//! approximates. Dropping them keeps what this solver is built on: exact point-to-polygon form
+//! factors and an [`Oracle`] whose answer at a vertex is the stored sample, bit for bit (links
+//! and push-pull would make a stored value something the reference renderer cannot recompute).
+//! Proving a pair blocked by one occluder (coplanar wall pieces merged) would not do: a closed
+//! room is hidden by the union of its walls, never by one plane, so it would keep most pairs
+//! between rooms. Probe rays lose the light of receivers they miss; measured, it moves a
+//! building's images less than a change of seed does (docs/performance.md).
 //!
 //! Invariants: values are linear RGB radiosity (emission included), finite and >= 0 (any
 //! non-finite value would be a bug; [`sanitize`] maps it to 0 rather than let it reach an image);
@@ -207,8 +206,8 @@ pub const MAX_SPOT_RADIOSITY: f64 = 1e30;
 /// at most rho I h / d^3 with d >= h its distance from the polygon (cone and falloff left
 /// out: the bound is conservative). A spot within the solver's plane tolerance of the plane
 /// lights nothing on it ([`transfer`]), so it is not refused. Without this check a sample
-/// beyond the f32 range was zeroed by [`sanitize`]: a spot 1e-15 above a 1e-7 square drew a
-/// black image with exit 0.
+/// beyond the f32 range would be zeroed by [`sanitize`], and a spot 1e-15 above a 1e-7 square
+/// would draw a black image with exit 0.
 fn check_spot_peaks(scene: &Scene) -> Result<()> {
     let eps = transfer::plane_tolerance(scene);
     for (k, spot) in scene.spots.iter().enumerate() {
@@ -234,7 +233,10 @@ fn check_spot_peaks(scene: &Scene) -> Result<()> {
                 return Err(Error::input(
                     Location::file(&scene.source).with_key(format!("spots[{k}].position")),
                     format!(
-                        "is {d:e} from polygon {name}: its radiosity there could reach                          rho I h / d^3 = {peak:e}, beyond {MAX_SPOT_RADIOSITY:e}, the most a                          solution holds (f32 samples); move the spot away or lower its                          intensity"
+                        "is {d:e} from polygon {name}: its radiosity there could reach \
+                         rho I h / d^3 = {peak:e}, beyond {MAX_SPOT_RADIOSITY:e}, the most a \
+                         solution holds (f32 samples); move the spot away or lower its \
+                         intensity"
                     ),
                 ));
             }
@@ -403,17 +405,23 @@ pub struct Oracle<'a> {
 
 impl<'a> Oracle<'a> {
     /// Prepares the oracle of `sol` on `scene` (which must be the scene `sol` solves).
+    ///
+    /// A solution of another scene (its scene hash differs), or one whose shooters are not the
+    /// scene's, is [`Error::Inconsistent`]: no solve of `scene` produces it (the caller decides
+    /// whether that is a corrupt file or a bug).
     pub fn new(sol: &Solution, scene: &'a Scene) -> Result<Oracle<'a>> {
         if sol.scene_hash != scene_hash(scene) {
-            return Err(Error::Runtime(
-                "the solution was computed for another scene".to_string(),
+            return Err(Error::inconsistent(
+                "the solution was computed for another scene",
             ));
         }
         let mut tr = Transfer::new(scene);
         if tr.shooters.len() != sol.shooters.len() {
-            return Err(Error::Runtime(
-                "solution shooters do not match the scene".to_string(),
-            ));
+            return Err(Error::inconsistent(format!(
+                "the solution has {} shooters, the scene {}",
+                sol.shooters.len(),
+                tr.shooters.len()
+            )));
         }
         let totals: Vec<DVec3> = sol.shooters.iter().map(|s| s.total).collect();
         for (s, t) in totals.iter().enumerate() {

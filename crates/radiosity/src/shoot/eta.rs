@@ -6,7 +6,7 @@ use std::time::Instant;
 
 use glam::DVec3;
 
-use super::Poly;
+use super::poly::Poly;
 use crate::transfer::Transfer;
 use base::progress::Stage;
 
@@ -15,8 +15,8 @@ use base::progress::Stage;
 /// [`ETA_WINDOW`] reports (the fraction falls about geometrically in shots); of those, as many
 /// as there are patches with unshot light that have not shot yet are priced at the measured
 /// cost of a first shot (which finds the shooter's receivers and computes its transfers), the
-/// rest at the measured cost of a repeated one (cached transfers): pricing all shots alike
-/// overestimated by 2-3 times, the first shots being the slow ones. Then the round's gather:
+/// rest at the measured cost of a repeated one (cached transfers): the first shots are the slow
+/// ones, and pricing all shots alike overestimates by 2-3 times. Then the round's gather:
 /// its transfers (every vertex times the shooters that reach it) at the time per transfer
 /// that the shots which computed theirs measured. It covers the current round; refinement and
 /// a further round, which the solve cannot know it will need, are not in it (the gather

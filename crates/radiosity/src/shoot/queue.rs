@@ -1,6 +1,6 @@
 //! The unshot power of every shooter, the next shooter to shoot and the total unshot power, in
-//! a tournament tree: each costs O(log shooters) per change, where a scan per shot made the
-//! solve quadratic in the number of shooters.
+//! a tournament tree: each costs O(log shooters) per change (a scan per shot would make the
+//! solve quadratic in the number of shooters).
 
 use glam::DVec3;
 

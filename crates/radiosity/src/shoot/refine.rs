@@ -5,9 +5,10 @@
 use glam::DVec3;
 use rayon::prelude::*;
 
-use super::{lum, memory_error, rebuild_leaves, state_bytes, Poly};
+use super::poly::{PatchLayout, Poly};
+use super::{lum, memory_error, state_bytes};
 use crate::transfer::{PairClass, ShooterKind, Transfer};
-use base::error::Result;
+use base::error::{human_bytes, Result};
 use base::quadtree::{Cell, VertexKey};
 use scene::Scene;
 
@@ -16,15 +17,6 @@ use scene::Scene;
 /// never to a level below this fraction of the peak, so that dark regions (where any noise is a
 /// large relative change) do not refine to the depth limit.
 pub const REFINE_FLOOR: f64 = 0.01;
-
-/// The brightest reflected radiosity rho * G (luminance) at any vertex of a reflecting polygon.
-fn peak_reflected(polys: &[Poly]) -> f64 {
-    polys
-        .iter()
-        .filter(|p| lum(p.rho) > 0.0)
-        .flat_map(|p| p.g.iter().map(|g| lum(p.rho * *g)))
-        .fold(0.0, f64::max)
-}
 
 /// Adaptive subdivision against the true radiosity; returns the number of splits.
 ///
@@ -40,34 +32,309 @@ fn peak_reflected(polys: &[Poly]) -> f64 {
 ///   shadow boundary crosses it) and the light's unshadowed contribution times that difference
 ///   exceeds the same `tolerance * level`: the leaf is split toward the boundary, down to the
 ///   depth limit, even where the bilinear prediction happens to agree at the test points.
+///
+/// The leaves are judged a generation at a time: the splittable leaves, then the children of
+/// those that split, until none splits. Every G the pass computes is the oracle's gather from
+/// `totals`, and the new vertices keep it.
 pub(super) fn refine(
     scene: &Scene,
     tr: &Transfer<'_>,
     polys: &mut [Poly],
     totals: &[DVec3],
-    (base, depth): (&[u32], &[u32]),
+    patches: &PatchLayout,
     memory_limit: u64,
 ) -> Result<usize> {
-    let st = &scene.radiosity;
-    let tol = st.tolerance;
-    if tol <= 0.0 || !tol.is_finite() {
+    let tolerance = scene.radiosity.tolerance;
+    if tolerance <= 0.0 || !tolerance.is_finite() {
         return Ok(0);
     }
-    // The memory guard: nodes and samples held now, and the pair tables built so far (they do
-    // not grow while refining).
-    let mut nodes: u64 = polys.iter().map(|p| p.tree.nodes().len() as u64).sum();
-    let mut vertices: u64 = polys.iter().map(|p| p.keys.len() as u64).sum();
-    let pair_bytes = tr.pair_bytes();
-    let mut peak = peak_reflected(polys);
-    // The lights that have shot (their shadows drive the visibility test) and, per polygon,
-    // those whose pairs with it may be occluded, ascending (from the per-receiver index, so
-    // this costs the pairs, not lights x polygons).
+    let mut pass = Refinement::new(scene, tr, polys, totals, memory_limit);
+    let mut pending = pass.splittable_leaves(polys);
+    let mut splits = 0;
+    while !pending.is_empty() {
+        let probes = pass.probe(polys, &pending);
+        let split_now = pass.leaves_to_split(polys, &pending, &probes);
+        pass.memory.admit(scene, split_now.len() as u64)?;
+        splits += split_now.len();
+        pending = pass.split(polys, &split_now, &probes, patches);
+    }
+    Ok(splits)
+}
+
+/// One refinement pass: what judges the leaves, and the memory guard.
+struct Refinement<'r, 't> {
+    scene: &'r Scene,
+    tr: &'r Transfer<'t>,
+    totals: &'r [DVec3],
+    /// The scene's `radiosity.tolerance`.
+    tolerance: f64,
+    /// [`min_element_size`] of the scene.
+    min_size: f64,
+    /// The brightest reflected luminance sampled so far (the criterion's floor follows it).
+    peak: f64,
+    /// Per polygon: the lights that have shot and whose pairs with it may be occluded,
+    /// ascending (their shadows drive the visibility test).
+    shadow_lights: Vec<Vec<usize>>,
+    memory: MemoryGuard,
+}
+
+/// The memory guard of a refinement pass: nodes and samples held, and the pair tables built so
+/// far (they do not grow while refining).
+struct MemoryGuard {
+    nodes: u64,
+    vertices: u64,
+    pair_bytes: u64,
+    limit: u64,
+}
+
+impl MemoryGuard {
+    /// Admits `splits` more splits, each adding 4 nodes and at most 5 samples (4 edge midpoints
+    /// and the centre), or stops the solve with [`base::error::Error::Memory`] before they
+    /// allocate.
+    fn admit(&mut self, scene: &Scene, splits: u64) -> Result<()> {
+        let (nodes, vertices) = (self.nodes + 4 * splits, self.vertices + 5 * splits);
+        let need = state_bytes(nodes, vertices).saturating_add(self.pair_bytes);
+        if need > self.limit {
+            return Err(memory_error(
+                scene,
+                need,
+                self.limit,
+                format!(
+                    "{nodes} quadtree nodes and up to {vertices} samples in this refinement \
+                     pass, pair tables {}",
+                    human_bytes(self.pair_bytes)
+                ),
+            ));
+        }
+        (self.nodes, self.vertices) = (nodes, vertices);
+        Ok(())
+    }
+}
+
+/// What a generation of pending leaves is judged on.
+struct Probes {
+    /// Test points of pending leaves that are not yet vertices, per polygon, deduplicated and
+    /// sorted, and G gathered at each.
+    keys: Vec<(u32, VertexKey)>,
+    g: Vec<DVec3>,
+    /// Every point (corners and test points) of a pending leaf that some light's shadow may
+    /// cross, sorted, and at each per shadow light (in `shadow_lights` order) the unshadowed
+    /// reflected luminance and the visible fraction.
+    shadow_keys: Vec<(u32, VertexKey)>,
+    shadows: Vec<Vec<(f64, f64)>>,
+}
+
+impl Probes {
+    /// G at point `k` of polygon `r` (`p`): its vertex's, or the probe's.
+    fn g_at(&self, p: &Poly, r: u32, k: VertexKey) -> DVec3 {
+        match p.keys.binary_search(&k) {
+            Ok(i) => p.g[i],
+            Err(_) => {
+                let i = self
+                    .keys
+                    .binary_search(&(r, k))
+                    .expect("every test point was probed");
+                self.g[i]
+            }
+        }
+    }
+
+    /// Per shadow light of polygon `r`: the unshadowed reflected luminance and the visible
+    /// fraction at point `k`.
+    fn shadows_at(&self, r: u32, k: VertexKey) -> &[(f64, f64)] {
+        let i = self
+            .shadow_keys
+            .binary_search(&(r, k))
+            .expect("every point of a shadowed leaf was tested");
+        &self.shadows[i]
+    }
+}
+
+impl<'r, 't> Refinement<'r, 't> {
+    fn new(
+        scene: &'r Scene,
+        tr: &'r Transfer<'t>,
+        polys: &[Poly],
+        totals: &'r [DVec3],
+        memory_limit: u64,
+    ) -> Self {
+        Refinement {
+            scene,
+            tr,
+            totals,
+            tolerance: scene.radiosity.tolerance,
+            min_size: min_element_size(scene),
+            peak: peak_reflected(polys),
+            shadow_lights: shadow_lights(tr, totals, polys.len()),
+            memory: MemoryGuard {
+                nodes: polys.iter().map(|p| p.tree.nodes().len() as u64).sum(),
+                vertices: polys.iter().map(|p| p.keys.len() as u64).sum(),
+                pair_bytes: tr.pair_bytes(),
+                limit: memory_limit,
+            },
+        }
+    }
+
+    /// Every leaf that may split, in polygon order (a non-reflecting polygon's radiosity is its
+    /// constant emission: none of its leaves).
+    fn splittable_leaves(&self, polys: &[Poly]) -> Vec<(u32, u32)> {
+        let mut pending = Vec::new();
+        for (r, p) in polys.iter().enumerate() {
+            if p.rho.max_element() <= 0.0 {
+                continue;
+            }
+            for id in p.tree.leaves() {
+                if can_split(self.scene, r, p.tree.node(id).cell, self.min_size) {
+                    pending.push((r as u32, id));
+                }
+            }
+        }
+        pending
+    }
+
+    /// Gathers G at the test points of the `pending` leaves that are not vertices yet, and the
+    /// shadows of their lights at every point of the leaves some shadow may cross; raises the
+    /// peak to the new values.
+    fn probe(&mut self, polys: &[Poly], pending: &[(u32, u32)]) -> Probes {
+        let mut keys: Vec<(u32, VertexKey)> = Vec::new();
+        let mut shadow_keys: Vec<(u32, VertexKey)> = Vec::new();
+        for &(r, id) in pending {
+            let p = &polys[r as usize];
+            let cell = p.tree.node(id).cell;
+            for k in test_points(cell) {
+                if p.keys.binary_search(&k).is_err() {
+                    keys.push((r, k));
+                }
+            }
+            if !self.shadow_lights[r as usize].is_empty() {
+                shadow_keys.extend(leaf_points(cell).map(|k| (r, k)));
+            }
+        }
+        keys.sort_unstable();
+        keys.dedup();
+        shadow_keys.sort_unstable();
+        shadow_keys.dedup();
+        let (tr, totals) = (self.tr, self.totals);
+        let g: Vec<DVec3> = keys
+            .par_iter()
+            .map(|&(r, k)| tr.gather(totals, r as usize, k.u(), k.v()))
+            .collect();
+        let shadows = shadow_keys
+            .par_iter()
+            .map(|&(r, k)| self.shadows(polys[r as usize].rho, r as usize, k))
+            .collect();
+        for (&(r, _), g) in keys.iter().zip(&g) {
+            self.peak = self.peak.max(lum(polys[r as usize].rho * *g));
+        }
+        Probes {
+            keys,
+            g,
+            shadow_keys,
+            shadows,
+        }
+    }
+
+    /// Per shadow light of polygon `r` (reflectance `rho`) at point `k`: the unshadowed
+    /// reflected luminance and the visible fraction of the light.
+    fn shadows(&self, rho: DVec3, r: usize, k: VertexKey) -> Vec<(f64, f64)> {
+        self.shadow_lights[r]
+            .iter()
+            .map(|&s| {
+                let (open, vis) = self.tr.shadowed(s, r, k.u(), k.v());
+                (lum(rho * self.totals[s] * open), vis)
+            })
+            .collect()
+    }
+
+    /// The `pending` leaves that split (see [`refine`]), in order.
+    fn leaves_to_split(
+        &self,
+        polys: &[Poly],
+        pending: &[(u32, u32)],
+        probes: &Probes,
+    ) -> Vec<(u32, u32)> {
+        let floor = REFINE_FLOOR * self.peak;
+        pending
+            .iter()
+            .copied()
+            .filter(|&(r, id)| {
+                let p = &polys[r as usize];
+                self.should_split(p, r, p.tree.node(id).cell, probes, floor)
+            })
+            .collect()
+    }
+
+    /// Whether leaf `cell` of polygon `r` (`p`) splits: its light varies from the bilinear
+    /// prediction, or a shadow boundary crosses it, by more than the tolerance times its level
+    /// (at least `floor`).
+    fn should_split(&self, p: &Poly, r: u32, cell: Cell, probes: &Probes, floor: f64) -> bool {
+        let corners = cell.corners().map(|k| probes.g_at(p, r, k));
+        let tests = test_points(cell).map(|k| probes.g_at(p, r, k));
+        let level = corners
+            .iter()
+            .chain(&tests)
+            .map(|g| lum(p.rho * *g))
+            .sum::<f64>()
+            / 9.0;
+        let threshold = self.tolerance * level.max(floor);
+        varies(p.rho, &corners, &tests, threshold)
+            || (!self.shadow_lights[r as usize].is_empty()
+                && crosses_shadow(probes, r, cell, threshold))
+    }
+
+    /// Splits the leaves `split_now`, gives the polygons that changed their new vertices (G
+    /// from the probes) and leaves; returns the children that may split in turn.
+    fn split(
+        &self,
+        polys: &mut [Poly],
+        split_now: &[(u32, u32)],
+        probes: &Probes,
+        patches: &PatchLayout,
+    ) -> Vec<(u32, u32)> {
+        let mut next = Vec::new();
+        let mut touched: Vec<u32> = Vec::new();
+        for &(r, id) in split_now {
+            let p = &mut polys[r as usize];
+            let f = p.tree.split(id);
+            for c in f..f + 4 {
+                if can_split(self.scene, r as usize, p.tree.node(c).cell, self.min_size) {
+                    next.push((r, c));
+                }
+            }
+            touched.push(r);
+        }
+        touched.dedup();
+        for &r in &touched {
+            let p = &mut polys[r as usize];
+            let keys = p.tree.vertex_keys();
+            let g: Vec<DVec3> = keys.iter().map(|&k| probes.g_at(p, r, k)).collect();
+            p.keys = keys;
+            p.g = g;
+            p.rebuild_leaves(self.scene, r as usize, patches);
+        }
+        next
+    }
+}
+
+/// The brightest reflected radiosity rho * G (luminance) at any vertex of a reflecting polygon.
+fn peak_reflected(polys: &[Poly]) -> f64 {
+    polys
+        .iter()
+        .filter(|p| lum(p.rho) > 0.0)
+        .flat_map(|p| p.g.iter().map(|g| lum(p.rho * *g)))
+        .fold(0.0, f64::max)
+}
+
+/// Per polygon, the lights (spots and emitters) that have shot and whose pairs with it may be
+/// occluded, ascending. From the per-receiver index, so this costs the pairs, not lights x
+/// polygons.
+fn shadow_lights(tr: &Transfer<'_>, totals: &[DVec3], polygons: usize) -> Vec<Vec<usize>> {
     let is_light: Vec<bool> = (0..tr.shooters.len())
         .map(|s| {
             !matches!(tr.shooters[s].kind, ShooterKind::Patch { .. }) && totals[s] != DVec3::ZERO
         })
         .collect();
-    let shadow_lights: Vec<Vec<usize>> = (0..polys.len())
+    (0..polygons)
         .map(|r| {
             tr.shooters_of(r)
                 .iter()
@@ -80,170 +347,48 @@ pub(super) fn refine(
                 })
                 .collect()
         })
-        .collect();
-    let min_size = min_element_size(scene);
-    let mut pending: Vec<(u32, u32)> = Vec::new();
-    for (r, p) in polys.iter().enumerate() {
-        if p.rho.max_element() <= 0.0 {
-            // A non-reflecting polygon's radiosity is its constant emission.
-            continue;
+        .collect()
+}
+
+/// Whether rho * G at the test points `tests` (centre, edge midpoints) differs from the
+/// bilinear prediction of the `corners` by more than `threshold` (luminance of the per-channel
+/// difference) at any of them.
+fn varies(rho: DVec3, corners: &[DVec3; 4], tests: &[DVec3; 5], threshold: f64) -> bool {
+    let c = corners;
+    let predicted = [
+        0.25 * (c[0] + c[1] + c[2] + c[3]),
+        0.5 * (c[0] + c[1]),
+        0.5 * (c[1] + c[2]),
+        0.5 * (c[2] + c[3]),
+        0.5 * (c[3] + c[0]),
+    ];
+    tests.iter().zip(predicted).any(|(g, pr)| {
+        let d = rho * (*g - pr);
+        lum(d.abs()) > threshold
+    })
+}
+
+/// Whether a shadow boundary crosses leaf `cell` of polygon `r`: for some shadow light the
+/// visible fraction differs across the leaf's points, and the light's largest unshadowed
+/// contribution there times that difference exceeds `threshold`.
+fn crosses_shadow(probes: &Probes, r: u32, cell: Cell, threshold: f64) -> bool {
+    let points: Vec<&[(f64, f64)]> = leaf_points(cell).map(|k| probes.shadows_at(r, k)).collect();
+    let lights = points.first().map_or(0, |v| v.len());
+    (0..lights).any(|j| {
+        let (mut lo, mut hi, mut open) = (f64::INFINITY, f64::NEG_INFINITY, 0f64);
+        for q in &points {
+            let (a, v) = q[j];
+            lo = lo.min(v);
+            hi = hi.max(v);
+            open = open.max(a);
         }
-        for id in p.tree.leaves() {
-            if can_split(scene, r, p.tree.node(id).cell, min_size) {
-                pending.push((r as u32, id));
-            }
-        }
-    }
-    let mut splits = 0;
-    while !pending.is_empty() {
-        // Probe keys not yet vertices, per polygon, deduplicated and sorted.
-        let mut probes: Vec<(u32, VertexKey)> = Vec::new();
-        // Every point (corners and test points) of a pending leaf that some light's shadow
-        // may cross.
-        let mut shadow_keys: Vec<(u32, VertexKey)> = Vec::new();
-        for &(r, id) in &pending {
-            let p = &polys[r as usize];
-            let cell = p.tree.node(id).cell;
-            for k in test_points(cell) {
-                if p.keys.binary_search(&k).is_err() {
-                    probes.push((r, k));
-                }
-            }
-            if !shadow_lights[r as usize].is_empty() {
-                shadow_keys.extend(
-                    cell.corners()
-                        .iter()
-                        .chain(&test_points(cell))
-                        .map(|&k| (r, k)),
-                );
-            }
-        }
-        probes.sort_unstable();
-        probes.dedup();
-        shadow_keys.sort_unstable();
-        shadow_keys.dedup();
-        let vals: Vec<DVec3> = probes
-            .par_iter()
-            .map(|&(r, k)| tr.gather(totals, r as usize, k.u(), k.v()))
-            .collect();
-        // Per shadow key and light (in `lights` order; lights without occluders toward the
-        // polygon are skipped): the unshadowed reflected luminance and the visible fraction.
-        let shadows: Vec<Vec<(f64, f64)>> = shadow_keys
-            .par_iter()
-            .map(|&(r, k)| {
-                let rho = polys[r as usize].rho;
-                shadow_lights[r as usize]
-                    .iter()
-                    .map(|&s| {
-                        let (open, vis) = tr.shadowed(s, r as usize, k.u(), k.v());
-                        (lum(rho * totals[s] * open), vis)
-                    })
-                    .collect()
-            })
-            .collect();
-        for (&(r, _), g) in probes.iter().zip(&vals) {
-            peak = peak.max(lum(polys[r as usize].rho * *g));
-        }
-        let floor = REFINE_FLOOR * peak;
-        let probe_g = |r: u32, k: VertexKey, polys: &[Poly]| -> DVec3 {
-            let p = &polys[r as usize];
-            match p.keys.binary_search(&k) {
-                Ok(i) => p.g[i],
-                Err(_) => {
-                    let i = probes
-                        .binary_search(&(r, k))
-                        .expect("every test point was probed");
-                    vals[i]
-                }
-            }
-        };
-        let mut split_now: Vec<(u32, u32)> = Vec::new();
-        for &(r, id) in &pending {
-            let p = &polys[r as usize];
-            let cell = p.tree.node(id).cell;
-            let c = cell.corners().map(|k| probe_g(r, k, polys));
-            let tp = test_points(cell);
-            let t = tp.map(|k| probe_g(r, k, polys));
-            let level = c.iter().chain(&t).map(|g| lum(p.rho * *g)).sum::<f64>() / 9.0;
-            let thresh = tol * level.max(floor);
-            let pred = [
-                0.25 * (c[0] + c[1] + c[2] + c[3]),
-                0.5 * (c[0] + c[1]),
-                0.5 * (c[1] + c[2]),
-                0.5 * (c[2] + c[3]),
-                0.5 * (c[3] + c[0]),
-            ];
-            let varies = t.iter().zip(pred).any(|(g, pr)| {
-                let d = p.rho * (*g - pr);
-                lum(d.abs()) > thresh
-            });
-            let shadowed = !varies && !shadow_lights[r as usize].is_empty() && {
-                let at = |k: VertexKey| {
-                    let i = shadow_keys
-                        .binary_search(&(r, k))
-                        .expect("every point of a shadowed leaf was tested");
-                    &shadows[i]
-                };
-                let pts: Vec<&Vec<(f64, f64)>> =
-                    cell.corners().iter().chain(&tp).map(|&k| at(k)).collect();
-                let n = pts.first().map_or(0, |v| v.len());
-                (0..n).any(|j| {
-                    let (mut lo, mut hi, mut open) = (f64::INFINITY, f64::NEG_INFINITY, 0f64);
-                    for q in &pts {
-                        let (a, v) = q[j];
-                        lo = lo.min(v);
-                        hi = hi.max(v);
-                        open = open.max(a);
-                    }
-                    hi > lo && open * (hi - lo) > thresh
-                })
-            };
-            if varies || shadowed {
-                split_now.push((r, id));
-            }
-        }
-        // Each split adds 4 nodes and at most 5 samples (4 edge midpoints and the centre).
-        let k = split_now.len() as u64;
-        let (n_after, v_after) = (nodes + 4 * k, vertices + 5 * k);
-        let need = state_bytes(n_after, v_after).saturating_add(pair_bytes);
-        if need > memory_limit {
-            return Err(memory_error(
-                scene,
-                need,
-                memory_limit,
-                format!(
-                    "{n_after} quadtree nodes and up to {v_after} samples in this refinement \
-                     pass, pair tables {}",
-                    base::error::human_bytes(pair_bytes)
-                ),
-            ));
-        }
-        (nodes, vertices) = (n_after, v_after);
-        let mut next = Vec::new();
-        let mut touched: Vec<u32> = Vec::new();
-        for &(r, id) in &split_now {
-            let p = &mut polys[r as usize];
-            let f = p.tree.split(id);
-            splits += 1;
-            for c in f..f + 4 {
-                if can_split(scene, r as usize, p.tree.node(c).cell, min_size) {
-                    next.push((r, c));
-                }
-            }
-            touched.push(r);
-        }
-        touched.dedup();
-        for &r in &touched {
-            let keys = polys[r as usize].tree.vertex_keys();
-            let g: Vec<DVec3> = keys.iter().map(|&k| probe_g(r, k, polys)).collect();
-            let p = &mut polys[r as usize];
-            p.keys = keys;
-            p.g = g;
-            rebuild_leaves(scene, r as usize, p, base, depth);
-        }
-        pending = next;
-    }
-    Ok(splits)
+        hi > lo && open * (hi - lo) > threshold
+    })
+}
+
+/// The corners, then the test points, of a cell.
+fn leaf_points(cell: Cell) -> impl Iterator<Item = VertexKey> {
+    cell.corners().into_iter().chain(test_points(cell))
 }
 
 /// Smallest element edge worth splitting: the scene's bounding diagonal / 2^max_depth. Depth

@@ -1,0 +1,189 @@
+//! What the solve holds per polygon: its quadtree, the vertices with their irradiance G, the
+//! coarse receiver points of the indirect pass, and the leaves with the patch each lies in; and
+//! where each polygon's patches are among the shooters.
+
+use std::ops::Range;
+
+use glam::DVec3;
+
+use crate::transfer::{build_shooters, sub_area};
+use base::quadtree::{Cell, Quadtree, VertexKey};
+use scene::Scene;
+
+/// One leaf (or coarse cell), with what the unshot estimate needs.
+#[derive(Debug, Clone, Copy)]
+pub(super) struct Leaf {
+    /// Its corners, as indices into the polygon's keys (or coarse keys).
+    corners: [u32; 4],
+    /// World-space area.
+    area: f64,
+    /// The patch shooter it lies in (`u32::MAX` in a polygon that does not reflect).
+    patch: u32,
+}
+
+/// Per-polygon solve state.
+pub(super) struct Poly {
+    pub(super) tree: Quadtree,
+    /// The tree's vertices, sorted, and G at each.
+    pub(super) keys: Vec<VertexKey>,
+    pub(super) g: Vec<DVec3>,
+    /// The tree's leaves.
+    leaves: Vec<Leaf>,
+    /// Coarse receiver points of the indirect pass, their G since the last full gather, and the
+    /// cells between them.
+    pub(super) ckeys: Vec<VertexKey>,
+    pub(super) cg: Vec<DVec3>,
+    cleaves: Vec<Leaf>,
+    /// Reflectance.
+    pub(super) rho: DVec3,
+}
+
+/// Where each polygon's reflecting patches are among the shooters (see [`build_shooters`]):
+/// `2^depth x 2^depth` patches, row-major, from the polygon's first patch id on.
+pub(super) struct PatchLayout {
+    /// Per polygon: the id of its first patch, `u32::MAX` if it does not reflect.
+    first: Vec<u32>,
+    /// Per polygon: its patch depth.
+    pub(super) depth: Vec<u32>,
+}
+
+impl PatchLayout {
+    /// The patches of `scene`'s polygons.
+    pub(super) fn of(scene: &Scene) -> Self {
+        let (_, first, depth) = build_shooters(scene);
+        PatchLayout { first, depth }
+    }
+
+    /// Patch shooter ids of polygon `r` (empty for one that does not reflect).
+    pub(super) fn ids(&self, r: usize) -> Range<usize> {
+        match self.first(r) {
+            None => 0..0,
+            Some(b) => b..b + (1usize << (2 * self.depth[r])),
+        }
+    }
+
+    /// Id of polygon `r`'s first patch, if it reflects.
+    fn first(&self, r: usize) -> Option<usize> {
+        (self.first[r] != u32::MAX).then_some(self.first[r] as usize)
+    }
+
+    /// The patch of polygon `r` that `cell` lies in (`u32::MAX` if `r` does not reflect).
+    fn patch_at(&self, r: usize, cell: Cell) -> u32 {
+        if self.first[r] == u32::MAX {
+            return u32::MAX;
+        }
+        let d = self.depth[r];
+        let sh = cell.level.saturating_sub(d);
+        let n = 1u32 << d;
+        self.first[r] + (cell.y >> sh) * n + (cell.x >> sh)
+    }
+}
+
+impl Poly {
+    /// Polygon `i` at the start of a solve: its tree uniform to `max(min_depth, patch depth)`
+    /// (at most `max_depth`, so a shooter patch is a union of leaves), its coarse receivers the
+    /// vertices of the uniform grid one level below its patch depth, G zero everywhere.
+    pub(super) fn new(scene: &Scene, i: usize, patches: &PatchLayout) -> Poly {
+        let st = &scene.radiosity;
+        let patch_depth = patches.depth[i];
+        let tree = uniform_tree(st.min_depth.max(patch_depth).min(st.max_depth));
+        let keys = tree.vertex_keys();
+        let coarse = uniform_tree((patch_depth + 1).min(st.max_depth.max(patch_depth)));
+        let ckeys = coarse.vertex_keys();
+        let cleaves = leaves_of(scene, i, &coarse, &ckeys, patches);
+        let leaves = leaves_of(scene, i, &tree, &keys, patches);
+        Poly {
+            g: vec![DVec3::ZERO; keys.len()],
+            leaves,
+            tree,
+            keys,
+            cg: vec![DVec3::ZERO; ckeys.len()],
+            ckeys,
+            cleaves,
+            rho: scene.material_of(i).reflectance,
+        }
+    }
+
+    /// Whether the polygon reflects light (only then do its points receive).
+    pub(super) fn reflects(&self) -> bool {
+        self.rho.max_element() > 0.0
+    }
+
+    /// Recomputes the leaves of polygon `i` after its tree changed.
+    pub(super) fn rebuild_leaves(&mut self, scene: &Scene, i: usize, patches: &PatchLayout) {
+        self.leaves = leaves_of(scene, i, &self.tree, &self.keys, patches);
+    }
+
+    /// The integral of G over each patch of polygon `r` (trapezoid rule over its fine leaves, or
+    /// its coarse cells if `coarse`) into `out`, indexed by shooter id. Nothing for a polygon
+    /// that does not reflect.
+    pub(super) fn integrate(
+        &self,
+        r: usize,
+        patches: &PatchLayout,
+        coarse: bool,
+        out: &mut [DVec3],
+    ) {
+        let Some(first) = patches.first(r) else {
+            return;
+        };
+        let (leaves, g) = if coarse {
+            (&self.cleaves, &self.cg)
+        } else {
+            (&self.leaves, &self.g)
+        };
+        let last = leaves
+            .iter()
+            .map(|l| l.patch as usize)
+            .max()
+            .unwrap_or(first);
+        out[first..=last].iter_mut().for_each(|x| *x = DVec3::ZERO);
+        for l in leaves {
+            let avg = 0.25 * l.corners.iter().map(|&c| g[c as usize]).sum::<DVec3>();
+            out[l.patch as usize] += l.area * avg;
+        }
+    }
+
+    /// Forgets the light shot to the coarse receivers (a full gather has superseded it).
+    pub(super) fn clear_coarse(&mut self) {
+        self.cg.iter_mut().for_each(|g| *g = DVec3::ZERO);
+    }
+}
+
+/// A quadtree split uniformly to `depth`.
+fn uniform_tree(depth: u32) -> Quadtree {
+    let mut tree = Quadtree::new();
+    let mut frontier = vec![0u32];
+    for _ in 0..depth {
+        let mut next = Vec::new();
+        for id in frontier {
+            let f = tree.split(id);
+            next.extend(f..f + 4);
+        }
+        frontier = next;
+    }
+    tree
+}
+
+/// The leaves of `tree` on polygon `i`, their corners indexed in `keys`.
+fn leaves_of(
+    scene: &Scene,
+    i: usize,
+    tree: &Quadtree,
+    keys: &[VertexKey],
+    patches: &PatchLayout,
+) -> Vec<Leaf> {
+    let poly = &scene.polygons[i];
+    let idx = |k: VertexKey| keys.binary_search(&k).map_or(0, |x| x as u32);
+    tree.leaves()
+        .into_iter()
+        .map(|id| {
+            let cell = tree.node(id).cell;
+            Leaf {
+                corners: cell.corners().map(idx),
+                area: sub_area(poly, cell),
+                patch: patches.patch_at(i, cell),
+            }
+        })
+        .collect()
+}

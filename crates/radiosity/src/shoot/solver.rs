@@ -1,0 +1,503 @@
+//! The solver: the state of one solve and its phases, in the order of the parent module's
+//! documentation (set-up, direct pass, refinement, indirect rounds of shooting, gathering and
+//! refining again), with the memory guard, the progress and the trace lines.
+
+use std::sync::atomic::Ordering;
+use std::time::Instant;
+
+use glam::DVec3;
+use rayon::prelude::*;
+
+use super::eta::Eta;
+use super::poly::{PatchLayout, Poly};
+use super::refine::refine;
+use super::shot::{shoot, CoarseCache};
+use super::unshot::{self, Unshot};
+use super::{elapsed_ms, memory_error, state_bytes, Outcome, MAX_ROUNDS, SHOOT_MARGIN};
+use crate::transfer::{PairClass, ShooterKind, Transfer};
+use base::error::{human_bytes, Result};
+use base::progress::Stage;
+use scene::Scene;
+
+/// The final gather runs in this many chunks, so that its remaining time can be reported.
+const GATHER_CHUNKS: usize = 64;
+
+/// One solve in progress. It borrows the caller's scene, transfer and stage for `'a`; `'t` and
+/// `'o` are the transfer's and the stage's own.
+pub(super) struct Solver<'a, 't, 'o> {
+    scene: &'a Scene,
+    /// Shooters, pair tables and the light transfer (built on `scene`).
+    tr: &'a mut Transfer<'t>,
+    /// Where progress, remaining time and trace lines go.
+    stage: &'a mut Stage<'o>,
+    /// Whether the observer wants trace lines.
+    tracing: bool,
+    /// Bytes the solve's state may hold ([`state_bytes`] plus the pair tables).
+    memory_limit: u64,
+    /// The scene's `radiosity.convergence`: the unshot fraction the solve stops below.
+    convergence: f64,
+    /// Where each polygon's patches are among the shooters.
+    patches: PatchLayout,
+    /// Per polygon: its tree, vertices and G, coarse receivers and leaves.
+    polys: Vec<Poly>,
+    /// Per shooter: the total radiosity it has shot (the history every gather sums).
+    totals: Vec<DVec3>,
+    /// Per shooter: what it has still to shoot; the next shooter.
+    unshot: Unshot,
+    /// Per patch shooter: the integral of G over the patch from the fine leaves (light that
+    /// reached every vertex: direct shots, gathers) ...
+    fine: Vec<DVec3>,
+    /// ... and from the coarse cells (light shot to the coarse receivers since the last full
+    /// gather).
+    coarse: Vec<DVec3>,
+    /// The patches' coarse transfers, kept from their first shot.
+    cache: CoarseCache,
+    /// Shots taken, and the most the solve takes.
+    shots: u64,
+    max_shots: u64,
+    /// Indirect rounds started.
+    round: u32,
+    /// The unshot fraction the solve is judged on: after the latest indirect shot or
+    /// refinement pass.
+    fraction: f64,
+    /// The unshot fraction after every shot.
+    history: Vec<f64>,
+    /// Shots taken before each refinement pass.
+    refined_after: Vec<u64>,
+    /// Wall-clock times of the trace lines.
+    clock: Clock,
+    /// The remaining-time estimate while shooting.
+    eta: Eta,
+}
+
+/// Wall-clock times for the trace lines.
+struct Clock {
+    start: Instant,
+    /// Seconds spent building pair tables, and shooting, in the indirect rounds.
+    pairs: f64,
+    shots: f64,
+}
+
+impl<'a, 't, 'o> Solver<'a, 't, 'o> {
+    /// Set-up: every polygon uniformly subdivided, spots and emitters holding their emission.
+    /// `tr` must be built on `scene`; at most `cache_entries` coarse transfers are cached.
+    pub(super) fn new(
+        scene: &'a Scene,
+        tr: &'a mut Transfer<'t>,
+        stage: &'a mut Stage<'o>,
+        cache_entries: usize,
+        memory_limit: u64,
+    ) -> Self {
+        let patches = PatchLayout::of(scene);
+        let polys = (0..scene.polygons.len())
+            .map(|i| Poly::new(scene, i, &patches))
+            .collect();
+        let ns = tr.shooters.len();
+        let unshot = Unshot::new(tr);
+        Solver {
+            scene,
+            tracing: stage.observer().tracing(),
+            tr,
+            stage,
+            memory_limit,
+            convergence: scene.radiosity.convergence,
+            patches,
+            polys,
+            totals: vec![DVec3::ZERO; ns],
+            unshot,
+            fine: vec![DVec3::ZERO; ns],
+            coarse: vec![DVec3::ZERO; ns],
+            cache: CoarseCache::new(ns, cache_entries),
+            shots: 0,
+            max_shots: 100 * ns as u64 + 100,
+            round: 0,
+            fraction: 0.0,
+            history: Vec::new(),
+            refined_after: Vec::new(),
+            clock: Clock {
+                start: Instant::now(),
+                pairs: 0.0,
+                shots: 0.0,
+            },
+            eta: Eta::new(),
+        }
+    }
+
+    /// Runs every phase. With nothing emitted, only the direct pass runs (it shoots nothing) and
+    /// every G stays zero.
+    pub(super) fn solve(mut self) -> Result<Outcome> {
+        self.direct_pass();
+        if self.unshot.emitted > 0.0 {
+            self.refine_and_reestimate()?;
+            self.trace(|sv| {
+                format!(
+                    "direct + refine {:.0} ms, shots {}, vertices {}, unshot {:.4}",
+                    elapsed_ms(sv.clock.start),
+                    sv.shots,
+                    sv.vertices(),
+                    sv.fraction
+                )
+            });
+            while self.round < MAX_ROUNDS {
+                if self.indirect_round()? {
+                    break;
+                }
+            }
+            if self.round == 0 {
+                // No indirect round (MAX_ROUNDS is 0): the samples still come from a full gather.
+                self.gather();
+            }
+        }
+        Ok(self.into_outcome())
+    }
+
+    /// The direct pass's order: spots in id order, then emitters by decreasing power (ties by id).
+    fn direct_order(&self) -> Vec<usize> {
+        let tr = &*self.tr;
+        let is_spot = |s: usize| matches!(tr.shooters[s].kind, ShooterKind::Spot { .. });
+        let power = |s: usize| unshot::power(tr, s, self.unshot.radiosity[s]);
+        let mut direct: Vec<usize> = (0..tr.shooters.len())
+            .filter(|&s| !matches!(tr.shooters[s].kind, ShooterKind::Patch { .. }))
+            .collect();
+        direct.sort_by(|&a, &b| {
+            let (spot_a, spot_b) = (is_spot(a), is_spot(b));
+            spot_b
+                .cmp(&spot_a)
+                .then_with(|| {
+                    if spot_a && spot_b {
+                        std::cmp::Ordering::Equal
+                    } else {
+                        power(b).total_cmp(&power(a))
+                    }
+                })
+                .then(a.cmp(&b))
+        });
+        direct
+    }
+
+    /// Direct pass: every spot and emitter with power shoots its emission once, to every vertex.
+    fn direct_pass(&mut self) {
+        for s in self.direct_order() {
+            let db = self.unshot.radiosity[s];
+            if unshot::power(self.tr, s, db) <= 0.0 {
+                continue;
+            }
+            let (touched, _) = shoot(self.tr, &mut self.polys, s, db, None);
+            self.record_shot(s, db, &touched, false);
+        }
+    }
+
+    /// One indirect round: patches shoot to the coarse receivers until the estimate is below
+    /// [`SHOOT_MARGIN`] times the convergence threshold, then every vertex gathers, the trees
+    /// are refined and the unshot light is re-estimated. Returns whether the solve is done
+    /// (converged, or out of shots).
+    fn indirect_round(&mut self) -> Result<bool> {
+        self.round += 1;
+        let target = SHOOT_MARGIN * self.convergence;
+        while self.fraction >= target && self.shots < self.max_shots {
+            let Some(s) = self.unshot.next() else { break };
+            self.indirect_shot(s, target)?;
+        }
+        self.trace_shooting_done();
+        self.gather();
+        self.eta.phase_start();
+        self.trace(|sv| format!("  gather done {:.0} ms", elapsed_ms(sv.clock.start)));
+        let splits = self.refine_and_reestimate()?;
+        self.trace(|sv| {
+            format!(
+                "round {}: {:.0} ms, shots {}, splits {splits}, vertices {}, unshot {:.4}, rays {}",
+                sv.round,
+                elapsed_ms(sv.clock.start),
+                sv.shots,
+                sv.vertices(),
+                sv.fraction,
+                sv.rays()
+            )
+        });
+        Ok(self.fraction < self.convergence || self.shots >= self.max_shots)
+    }
+
+    /// Patch `s` shoots its unshot radiosity to the coarse receivers (building its pair table
+    /// on its first shot); `target` is the round's, for the remaining-time estimate.
+    fn indirect_shot(&mut self, s: usize, target: f64) -> Result<()> {
+        let db = self.unshot.radiosity[s];
+        if self.shots.is_multiple_of(100) {
+            self.trace(|sv| {
+                format!(
+                    "  shot {}: {:.0} ms, unshot {:.4}, rays {}",
+                    sv.shots,
+                    elapsed_ms(sv.clock.start),
+                    sv.fraction,
+                    sv.rays()
+                )
+            });
+        }
+        let shot_start = Instant::now();
+        let first_shot = self.tr.pairs[s].is_none();
+        if first_shot {
+            self.add_pair_table(s)?;
+        }
+        self.clock.pairs += shot_start.elapsed().as_secs_f64();
+        let transfer_start = Instant::now();
+        // Whether this shot computes its transfers (a cached one only adds them): only computed
+        // ones tell what a gather's transfer costs.
+        let computes = !self.cache.holds(s);
+        let (touched, points) = shoot(self.tr, &mut self.polys, s, db, Some(&mut self.cache));
+        let dt = transfer_start.elapsed().as_secs_f64();
+        self.clock.shots += dt;
+        if computes {
+            self.eta.transfers(points, dt);
+        }
+        self.fraction = self.record_shot(s, db, &touched, true);
+        self.eta
+            .shot_took(first_shot, shot_start.elapsed().as_secs_f64());
+        self.eta.shot(
+            self.stage,
+            self.tr,
+            &self.polys,
+            &self.unshot.radiosity,
+            self.fraction,
+            target,
+            self.round,
+        );
+        Ok(())
+    }
+
+    /// After shooter `s` shot `db` (to the fine vertices, or to the coarse receivers if
+    /// `coarse`): its total and unshot radiosity, the integrals and unshot radiosity of the
+    /// patches of the polygons it reached (`touched`), the history and the progress. Returns the
+    /// unshot fraction.
+    fn record_shot(&mut self, s: usize, db: DVec3, touched: &[u32], coarse: bool) -> f64 {
+        self.totals[s] += db;
+        self.unshot.set(self.tr, s, DVec3::ZERO);
+        self.shots += 1;
+        let touched = || touched.iter().map(|&r| r as usize);
+        self.integrate(touched(), coarse);
+        self.reestimate(touched());
+        let fraction = self.unshot.fraction();
+        self.history.push(fraction);
+        self.report_progress(fraction);
+        fraction
+    }
+
+    /// Builds shooter `s`'s pair table, then applies the memory guard again (the trees do not
+    /// grow while shooting, the pair tables do).
+    fn add_pair_table(&mut self, s: usize) -> Result<()> {
+        self.tr.ensure_pairs(s);
+        let (nodes, vertices) = (self.nodes(), self.vertices());
+        let pair_bytes = self.tr.pair_bytes();
+        let need = state_bytes(nodes, vertices as u64).saturating_add(pair_bytes);
+        if need > self.memory_limit {
+            return Err(memory_error(
+                self.scene,
+                need,
+                self.memory_limit,
+                format!(
+                    "{nodes} quadtree nodes, {vertices} samples, pair tables {} after {} shots",
+                    human_bytes(pair_bytes),
+                    self.shots
+                ),
+            ));
+        }
+        Ok(())
+    }
+
+    /// Every vertex of every reflecting polygon gathers G from the history, in
+    /// [`GATHER_CHUNKS`] chunks (each in parallel), reporting the time left after each from the
+    /// rate so far. Chunking changes no value: each vertex's gather is the same computation.
+    fn gather(&mut self) {
+        self.tr.index_receivers();
+        let work: Vec<(u32, u32)> = self
+            .polys
+            .iter()
+            .enumerate()
+            .filter(|(_, p)| p.reflects())
+            .flat_map(|(r, p)| (0..p.keys.len() as u32).map(move |k| (r as u32, k)))
+            .collect();
+        let (tr, polys, totals) = (&*self.tr, &self.polys, &self.totals);
+        let start = Instant::now();
+        let chunk = work.len().div_ceil(GATHER_CHUNKS).max(1);
+        let mut g: Vec<DVec3> = Vec::with_capacity(work.len());
+        let phase = format!("round {} gather", self.round);
+        for part in work.chunks(chunk) {
+            g.par_extend(part.par_iter().map(|&(r, k)| {
+                let key = polys[r as usize].keys[k as usize];
+                tr.gather(totals, r as usize, key.u(), key.v())
+            }));
+            let done = g.len() as f64 / work.len() as f64;
+            let t = start.elapsed().as_secs_f64();
+            self.stage.remaining(&phase, t / done - t);
+        }
+        for (&(r, k), g) in work.iter().zip(g) {
+            self.polys[r as usize].g[k as usize] = g;
+        }
+    }
+
+    /// A refinement pass against the light at the vertices, then the unshot light re-estimated
+    /// from every vertex: the fine integrals hold all the light shot so far (the direct
+    /// pass shot to every vertex, a round ends with a full gather), so the coarse estimate
+    /// starts again from zero. Returns the number of splits.
+    fn refine_and_reestimate(&mut self) -> Result<usize> {
+        // The gathers of the refinement need the receiver index sorted.
+        self.tr.index_receivers();
+        self.refined_after.push(self.shots);
+        let splits = refine(
+            self.scene,
+            self.tr,
+            &mut self.polys,
+            &self.totals,
+            &self.patches,
+            self.memory_limit,
+        )?;
+        let all = 0..self.polys.len();
+        self.integrate(all.clone(), false);
+        for p in self.polys.iter_mut() {
+            p.clear_coarse();
+        }
+        self.coarse.iter_mut().for_each(|c| *c = DVec3::ZERO);
+        self.reestimate(all);
+        self.fraction = self.unshot.fraction();
+        Ok(splits)
+    }
+
+    /// Recomputes the patch integrals of G of `polygons` (fine leaves, or coarse cells if
+    /// `coarse`).
+    fn integrate(&mut self, polygons: impl Iterator<Item = usize>, coarse: bool) {
+        let out = if coarse {
+            &mut self.coarse
+        } else {
+            &mut self.fine
+        };
+        for r in polygons {
+            self.polys[r].integrate(r, &self.patches, coarse, out);
+        }
+    }
+
+    /// Re-estimates the unshot radiosity of the patches of `polygons` from their integrals.
+    fn reestimate(&mut self, polygons: impl Iterator<Item = usize>) {
+        for r in polygons {
+            for s in self.patches.ids(r) {
+                let u = self.patch_unshot(s);
+                self.unshot.set(self.tr, s, u);
+            }
+        }
+    }
+
+    /// Unshot radiosity of patch `s`: rho * (fine + coarse integral) / area - total, clamped at
+    /// zero per channel (see the module doc).
+    fn patch_unshot(&self, s: usize) -> DVec3 {
+        let sg = &self.tr.shooters[s];
+        let ShooterKind::Patch { polygon, .. } = sg.kind else {
+            return DVec3::ZERO;
+        };
+        let rho = self.polys[polygon as usize].rho;
+        let b = if sg.area > 0.0 {
+            rho * (self.fine[s] + self.coarse[s]) / sg.area
+        } else {
+            DVec3::ZERO
+        };
+        (b - self.totals[s]).max(DVec3::ZERO)
+    }
+
+    /// Reports the distance to convergence of unshot fraction `fraction` on a log scale (the
+    /// stage keeps the reported progress non-decreasing: the fraction may rise after a
+    /// refinement pass).
+    fn report_progress(&mut self, fraction: f64) {
+        let done = if fraction <= 0.0 {
+            1.0
+        } else {
+            let log_target = -(self.convergence.max(1e-12)).ln();
+            (-fraction.ln() / log_target).clamp(0.0, 1.0)
+        };
+        self.stage.advance(done);
+    }
+
+    /// Sends the line `line` makes of the solver to the observer, if it is tracing.
+    fn trace(&self, line: impl FnOnce(&Self) -> String) {
+        if self.tracing {
+            self.stage.observer().trace(&line(self));
+        }
+    }
+
+    /// The trace line at the end of a round's shooting: times, shots, the pair tables.
+    fn trace_shooting_done(&self) {
+        self.trace(|sv| {
+            let pairs = PairCounts::of(sv.tr);
+            format!(
+                "  shooting done {:.0} ms (pairs {:.0} ms, shots {:.0} ms), shots {}, pairs open {} occluded {} (mean cands {:.1}), shooters with total {}",
+                elapsed_ms(sv.clock.start),
+                sv.clock.pairs * 1e3,
+                sv.clock.shots * 1e3,
+                sv.shots,
+                pairs.open,
+                pairs.occluded,
+                pairs.candidates as f64 / pairs.occluded.max(1) as f64,
+                sv.totals.iter().filter(|t| **t != DVec3::ZERO).count()
+            )
+        });
+    }
+
+    /// Samples of all polygons.
+    fn vertices(&self) -> usize {
+        self.polys.iter().map(|p| p.keys.len()).sum()
+    }
+
+    /// Quadtree nodes of all polygons.
+    fn nodes(&self) -> u64 {
+        self.polys.iter().map(|p| p.tree.nodes().len() as u64).sum()
+    }
+
+    /// Shadow rays cast so far.
+    fn rays(&self) -> u64 {
+        self.tr.rays.load(Ordering::Relaxed)
+    }
+
+    /// The trees with their gathered G, and the history.
+    fn into_outcome(self) -> Outcome {
+        Outcome {
+            trees: self
+                .polys
+                .into_iter()
+                .map(|p| (p.tree, p.keys, p.g))
+                .collect(),
+            totals: self.totals,
+            kinds: self.tr.shooters.iter().map(|s| s.kind).collect(),
+            shots: self.shots,
+            history: self.history,
+            unshot: self.fraction,
+            emitted: self.unshot.emitted,
+            refined_after: self.refined_after,
+        }
+    }
+}
+
+/// The pair tables built so far, for the trace: open and occluded pairs, and the occluder
+/// candidates of the occluded ones.
+struct PairCounts {
+    open: usize,
+    occluded: usize,
+    candidates: usize,
+}
+
+impl PairCounts {
+    fn of(tr: &Transfer<'_>) -> Self {
+        let mut c = PairCounts {
+            open: 0,
+            occluded: 0,
+            candidates: 0,
+        };
+        for p in tr.pairs.iter().flatten() {
+            for (r, class) in p.receivers() {
+                match class {
+                    PairClass::Open => c.open += 1,
+                    PairClass::Occluded => {
+                        c.occluded += 1;
+                        c.candidates += p.cands_len(r);
+                    }
+                    PairClass::Culled => {}
+                }
+            }
+        }
+        c
+    }
+}
