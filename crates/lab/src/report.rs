@@ -348,8 +348,8 @@ mod tests {
         // the emitter's `shadow_rays` and a quarter of them per patch. RRP build: one patch
         // per leaf (16 + 4 leaves at the start). Coarse points: the quad's depth-3 grid (81)
         // and the triangle's depth-2 grid (25), 4 B per shooter and point.
-        use radiosity::shoot::state_bytes;
-        use radiosity::transfer::PAIR_BYTES;
+        use radiosity::sizes::state_bytes;
+        use radiosity::sizes::PAIR_BYTES;
         let patch = std::mem::size_of::<reconstruction::PatchCoeffs>() as u64;
         let rays = u64::from(scene.radiosity.shadow_rays);
         // Exact visibility (44 pairs): an entry and an index slot per pair.

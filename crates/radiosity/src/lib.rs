@@ -3,17 +3,17 @@
 //! true RGB radiosity sample at every leaf vertex, T-vertices included. The reconstruction stage
 //! reads these samples; nothing downstream ever sees an interpolated value.
 //!
-//! The solve is progressive refinement ([`shoot`]) with exact point-to-polygon form factors
-//! ([`formfactor`]) and shadow rays through a BVH ([`bvh`]); the light transfer itself lives in one
-//! function ([`transfer`]) shared with the [`Oracle`], which answers the radiosity at any point
+//! The solve is progressive refinement (`shoot`) with exact point-to-polygon form factors
+//! (`formfactor`) and shadow rays through a BVH (`bvh`); the light transfer itself lives in one
+//! function (`transfer`) shared with the [`Oracle`], which answers the radiosity at any point
 //! from the converged history (per-shooter totals). Because a vertex's stored value is computed by
 //! the oracle's own gather, `Solution::radiosity` at a vertex returns the stored sample bit for
 //! bit. Solutions are saved and loaded by [`file`](mod@file).
 //!
 //! **Scale.** Every cost of the solve grows with what a shooter or a point can see, not with the
 //! scene: each shooter's receivers are found once, as a sparse table with an index per
-//! receiver ([`transfer`]); a shot touches its receivers, a gather the shooters that reach its
-//! point, and the next shooter comes from a tournament tree ([`shoot`]). Receivers are found by
+//! receiver (`transfer`); a shot touches its receivers, a gather the shooters that reach its
+//! point, and the next shooter comes from a tournament tree (`shoot`). Receivers are found by
 //! testing every polygon for scenes of up to about 1,000 polygons (`exact` visibility) and by
 //! probe rays beyond (`sampled`, [`scene::Visibility`]). Why this method, by measurement: on a
 //! building of 4 x 4 rooms (2,320 polygons) a solver that classifies and keeps every pair and
@@ -36,14 +36,22 @@
 //! [`SolveOptions`], which receives the solve's progress (stage [`STAGE`]) and, when it asks for
 //! them, the solver's trace lines (phase times, shots, vertices, unshot fraction).
 
-pub mod bvh;
+mod bvh;
 pub mod file;
-pub mod formfactor;
+mod formfactor;
 pub(crate) mod rng;
-pub mod shoot;
+mod shoot;
 #[cfg(test)]
 pub(crate) mod test_scenes;
-pub mod transfer;
+mod transfer;
+
+/// What the solve's data structures take, for estimating a solve's memory before it starts (the
+/// jobs' budget): bytes per tree node, vertex and pair, the coarse transfers' cache, and the
+/// depths a solve starts at and can reach.
+pub mod sizes {
+    pub use crate::shoot::{depth_bound, min_element_size, state_bytes, COARSE_CACHE_ENTRIES};
+    pub use crate::transfer::{pair_table_bound, patch_depth, EDGE_INSET, PAIR_BYTES};
+}
 
 use std::time::Instant;
 
@@ -297,8 +305,8 @@ pub fn radiosity_from_g(m: &scene::Material, g: DVec3) -> Vec3 {
 /// they reach (repeated shots reuse cached transfers), and one full gather per round (every
 /// vertex x the shooters that reach it), each transfer casting `shadow_rays` shadow rays for an
 /// emitter, `shadow_rays / 4` for a reflecting patch, only for pairs an occluder may cut; plus
-/// finding each shooter's receivers once (all polygons, or its probe rays' hits); see [`shoot`]
-/// and [`transfer`].
+/// finding each shooter's receivers once (all polygons, or its probe rays' hits); see `shoot`
+/// and `transfer`.
 ///
 /// Reports to `opts.observer`: progress of stage [`STAGE`] (after the settings are checked),
 /// `finished` once the shooting is done, trace lines if the observer wants them.

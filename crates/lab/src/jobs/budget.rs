@@ -10,13 +10,13 @@
 //! outputs) checks its estimate against that one value.
 //!
 //! **What is estimated**, from the sizes each stage itself exports (never from a measurement):
-//! - **solve**: the quadtrees and samples ([`shoot::state_bytes`]), the RRPs built from them,
+//! - **solve**: the quadtrees and samples ([`sizes::state_bytes`]), the RRPs built from them,
 //!   the cache of coarse transfers, the pair tables (every shooter against every polygon with
 //!   exact visibility, against at most its probe rays' hits with sampled visibility:
-//!   [`transfer::pair_table_bound`]) and the shooters' sample points, with every tree at its starting
+//!   [`sizes::pair_table_bound`]) and the shooters' sample points, with every tree at its starting
 //!   depth (`min_depth`, or its shooter-patch depth if deeper: what the solve surely allocates,
 //!   checked before it starts) and, as the worst case, every tree as deep as its smallest
-//!   element size lets it refine ([`shoot::depth_bound`]). The worst case is reported, not
+//!   element size lets it refine ([`sizes::depth_bound`]). The worst case is reported, not
 //!   refused: adaptive refinement rarely comes near it. Not estimable in advance: the occluder
 //!   candidate lists of occluded pairs, which only the classification finds (the gallery:
 //!   386,000 occluded pairs with 12 candidates each, 18 MB). So the solve also guards itself
@@ -44,8 +44,7 @@
 
 use base::error::{human_bytes, Error, Result};
 use engine::raster::gbuffer::PIXEL_RECORD_BYTES;
-use radiosity::shoot;
-use radiosity::transfer;
+use radiosity::sizes;
 use reconstruction::texture::{SizePolicy, TextureMemory, TextureSet};
 use reconstruction::PatchCoeffs;
 use scene::Scene;
@@ -178,7 +177,7 @@ pub enum Depth {
     /// The starting depth: `min_depth`, or the polygon's shooter-patch depth if deeper (what
     /// the solve surely allocates).
     Start,
-    /// The deepest a polygon's leaves can reach ([`shoot::depth_bound`], at most `max_depth`),
+    /// The deepest a polygon's leaves can reach ([`sizes::depth_bound`], at most `max_depth`),
     /// uniformly: the worst case.
     Worst,
 }
@@ -187,21 +186,21 @@ pub enum Depth {
 pub fn polygon_depths(scene: &Scene, depth: Depth) -> Vec<u32> {
     let st = &scene.radiosity;
     let total_area: f64 = scene.polygons.iter().map(|p| p.area).sum();
-    let min_size = shoot::min_element_size(scene);
+    let min_size = sizes::min_element_size(scene);
     scene
         .polygons
         .iter()
         .enumerate()
         .map(|(i, p)| {
             let pd = if scene.material_of(i).reflectance.max_element() > 0.0 {
-                transfer::patch_depth(p.area, total_area, st.max_depth)
+                sizes::patch_depth(p.area, total_area, st.max_depth)
             } else {
                 0
             };
             let start = st.min_depth.max(pd).min(st.max_depth.max(pd));
             match depth {
                 Depth::Start => start,
-                Depth::Worst => start.max(shoot::depth_bound(scene, i, min_size)),
+                Depth::Worst => start.max(sizes::depth_bound(scene, i, min_size)),
             }
         })
         .collect()
@@ -209,7 +208,7 @@ pub fn polygon_depths(scene: &Scene, depth: Depth) -> Vec<u32> {
 
 /// The solve's memory with every quadtree uniformly at `depth`, as parts: quadtrees and
 /// samples, the RRPs built from them, the cache of coarse transfers (at most
-/// [`shoot::COARSE_CACHE_ENTRIES`]), pair tables, shooters.
+/// [`sizes::COARSE_CACHE_ENTRIES`]), pair tables, shooters.
 pub fn solve_parts(scene: &Scene, depth: Depth) -> Vec<(String, u64)> {
     let st = &scene.radiosity;
     let total_area: f64 = scene.polygons.iter().map(|p| p.area).sum();
@@ -230,7 +229,7 @@ pub fn solve_parts(scene: &Scene, depth: Depth) -> Vec<(String, u64)> {
             shooter_points += nrays;
         }
         if m.reflectance.max_element() > 0.0 {
-            let pd = transfer::patch_depth(scene.polygons[i].area, total_area, st.max_depth);
+            let pd = sizes::patch_depth(scene.polygons[i].area, total_area, st.max_depth);
             let patches = 1u64 << (2 * pd);
             shooters += patches;
             shooter_points += patches * nrays.div_ceil(4);
@@ -240,7 +239,7 @@ pub fn solve_parts(scene: &Scene, depth: Depth) -> Vec<(String, u64)> {
     vec![
         (
             "quadtrees and samples".to_string(),
-            shoot::state_bytes(nodes, vertices),
+            sizes::state_bytes(nodes, vertices),
         ),
         (
             // Built from the finished solution (solve and render jobs): one expanded patch
@@ -252,11 +251,11 @@ pub fn solve_parts(scene: &Scene, depth: Depth) -> Vec<(String, u64)> {
             "coarse transfer cache".to_string(),
             4 * shooters
                 .saturating_mul(coarse)
-                .min(shoot::COARSE_CACHE_ENTRIES as u64),
+                .min(sizes::COARSE_CACHE_ENTRIES as u64),
         ),
         (
             "pair tables".to_string(),
-            transfer::pair_table_bound(scene, shooters, lights),
+            sizes::pair_table_bound(scene, shooters, lights),
         ),
         ("shooters".to_string(), shooter_points.saturating_mul(3 * 8)),
     ]

@@ -303,7 +303,7 @@ impl Prepared {
             .iter()
             .map(|p| p.tree.nodes().len() as u64)
             .sum();
-        radiosity::shoot::state_bytes(nodes, st.vertices)
+        radiosity::sizes::state_bytes(nodes, st.vertices)
             .saturating_add(self.compact.stats().total_bytes as u64)
     }
 

@@ -8,7 +8,7 @@ use lab::experiment::{
     fig5, fig6, spot_fraction_at, spot_radius_10, sweep_falloffs, sweep_half_angle, Figure,
     FigureOptions, CONE_EDGE_FRACTION, MAX_SWEEP_HALF_ANGLE_DEG,
 };
-use radiosity::{self, transfer::EDGE_INSET, Oracle, SolveOptions};
+use radiosity::{self, sizes::EDGE_INSET, Oracle, SolveOptions};
 use scene::load_scene;
 
 fn scene_path(name: &str) -> PathBuf {

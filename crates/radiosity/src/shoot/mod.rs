@@ -72,9 +72,9 @@ use super::transfer::{ShooterKind, Transfer};
 use base::error::{Error, Result};
 use base::progress::Stage;
 use base::quadtree::{Quadtree, VertexKey};
-pub use refine::{depth_bound, min_element_size, REFINE_FLOOR};
+pub use refine::{depth_bound, min_element_size};
 use scene::Scene;
-pub use shot::{CoarseCache, COARSE_CACHE_ENTRIES};
+pub use shot::COARSE_CACHE_ENTRIES;
 use solver::Solver;
 
 /// Most indirect-shooting rounds (each ends with a full gather and a refinement pass).

@@ -45,10 +45,7 @@ use super::formfactor::{point_to_polygon, SmallPoly};
 use super::rng::{seed_of, Rng};
 use base::quadtree::Cell;
 use receivers::corner_neighbours;
-pub use receivers::{
-    pair_table_bound, sampled_visibility, Pairs, EXACT_PAIRS_LIMIT, LIGHT_PROBE_FACTOR,
-    MAX_PROBE_RAYS, PAIR_BYTES, PROBES_PER_HIT, PROBE_RAYS,
-};
+pub use receivers::{pair_table_bound, sampled_visibility, Pairs, PAIR_BYTES};
 use scene::{Polygon, Scene, Shape};
 
 /// Receiver points are evaluated at (u, v) clamped into [EDGE_INSET, 1 - EDGE_INSET]^2.
@@ -324,6 +321,7 @@ impl<'a> Transfer<'a> {
     }
 
     /// Whether receivers are found by probe rays (see [`Visibility`](scene::Visibility)).
+    #[cfg(test)]
     pub fn sampled(&self) -> bool {
         self.sampled
     }
@@ -495,6 +493,7 @@ impl<'a> Transfer<'a> {
 
     /// Irradiance at the receiver point of polygon `r` at (u, v) per unit radiosity of shooter `s`
     /// (per unit intensity scale for a spot). Requires [`Transfer::ensure_pairs`] for `s`.
+    #[cfg(test)]
     pub fn transfer(&self, s: usize, r: usize, u: f64, v: f64) -> DVec3 {
         self.transfer_with(s, r, self.pair_of(s, r), u, v)
     }
