@@ -1,11 +1,14 @@
 //! The command line's arguments: every subcommand and option, with its help text, parsed and
 //! range-checked by clap before the library sees it (an out-of-range value exits 2 with clap's
-//! usage message). `main.rs` turns them into the library's requests.
+//! usage message). `commands.rs` turns them into the library's requests.
+//!
+//! Each subcommand's options are a struct of their own (`Command::Render(RenderArgs)`); the
+//! doc comment of the `Command` variant is the subcommand's help text.
 
 use std::path::PathBuf;
 
 use base::Error;
-use clap::{Parser, Subcommand};
+use clap::{Args, Parser, Subcommand};
 use lab::generate;
 use lab::jobs::TextureOptions;
 
@@ -44,31 +47,13 @@ pub enum Command {
     /// of polygons, materials, emitters, spot lights, bounds and the estimated memory of the
     /// radiosity solve. Warnings (such as non-planar quads that were split) go to stderr.
     /// Exit code 0 if the scene is valid, 2 if it is not (the message names file, line and key).
-    Check {
-        /// The scene file (`scenes/cornell-box.toml`).
-        scene: PathBuf,
-    },
+    Check(CheckArgs),
     /// Compute a scene's radiosity solution and save it.
     ///
     /// Progressive-refinement shooting with adaptive, unrestricted quadtrees (the `[radiosity]`
     /// settings of the scene). The solution file is versioned and checksummed and names the
     /// scene file, so `render <file>` can draw it without solving again.
-    Solve {
-        /// The scene file.
-        scene: PathBuf,
-        /// Where to write the solution (written atomically).
-        #[arg(short, long)]
-        output: PathBuf,
-        /// Worker threads (default: all cores). The solution is identical for any count.
-        #[arg(long)]
-        threads: Option<usize>,
-        /// No progress bar.
-        #[arg(short, long)]
-        quiet: bool,
-        /// Print the solver's trace lines (phase times, shots, vertices, unshot) to stderr.
-        #[arg(long)]
-        trace: bool,
-    },
+    Solve(SolveArgs),
     /// Render a scene (solving it first) or a solution file.
     ///
     /// Reconstructs every polygon's radiosity as C1 bicubic patches and renders them the
@@ -77,93 +62,13 @@ pub enum Command {
     /// pixel's radiosity from its patch. Writes a PNG (exposure and sRGB from the scene's
     /// `[display]`), optionally the linear radiosity as OpenEXR and the statistics as JSON.
     /// With `--walkthrough`, renders every frame of the scene's camera path.
-    Render {
-        /// A scene file (`.toml`) or a solution file written by `solve`.
-        input: PathBuf,
-        /// PNG to write (default: `out/<scene>-<method>.png`).
-        #[arg(short, long)]
-        output: Option<PathBuf>,
-        /// Also write the linear radiosity of every pixel as OpenEXR.
-        #[arg(long)]
-        exr: Option<PathBuf>,
-        /// Rendering method (default: the scene's `[render] method`).
-        #[arg(long)]
-        method: Option<String>,
-        /// Image width (default: the scene's).
-        #[arg(long)]
-        width: Option<u32>,
-        /// Image height (default: the scene's).
-        #[arg(long)]
-        height: Option<u32>,
-        /// Samples per pixel: 1, 4 or 16 (default: the scene's `[render] aa`).
-        #[arg(long)]
-        aa: Option<u32>,
-        /// Worker threads (default: all cores). The image is identical for any count.
-        #[arg(long)]
-        threads: Option<usize>,
-        /// Virtual PixelFlow renderers merged by image composition. The image is identical for
-        /// any count.
-        #[arg(long, default_value_t = 1)]
-        renderers: u32,
-        /// Side of the screen regions in pixels (a multiple of 8).
-        #[arg(long, default_value_t = 128)]
-        region: u32,
-        /// Write the frame statistics as JSON to this file (for a walkthrough: the summary and
-        /// every frame).
-        #[arg(long)]
-        stats: Option<PathBuf>,
-        /// Render every frame of the scene's `[camera_path]` (files `<output stem>-NNNN.png`) and
-        /// print a frame-rate summary (fps min / median / max, median stage times).
-        #[arg(long)]
-        walkthrough: bool,
-        #[command(flatten)]
-        texture: TextureArgs,
-        /// The RRPs' derivative estimator: `hyman` (default: Hyman-filtered central
-        /// differences), `monotone` (Fritsch-Butland) or `plain` (central differences).
-        #[arg(long)]
-        estimator: Option<String>,
-        /// Print the statistics.
-        #[arg(short, long)]
-        verbose: bool,
-        /// No progress bar, no "wrote" lines, no walkthrough summary.
-        #[arg(short, long)]
-        quiet: bool,
-        /// Print the solver's trace lines (phase times, shots, vertices, unshot) to stderr.
-        #[arg(long)]
-        trace: bool,
-    },
+    Render(RenderArgs),
     /// The paper's Table 1 for a scene: triangles and vertices of the original, mesh and RAT
     /// models, model sizes, texture memory and count, RRP memory; with `--frames`, the frame
     /// times of mesh, texture-bilinear, texture-bicubic and direct measured in one run.
     ///
     /// Sizes are decimal MB; the byte accounting of each model is in `docs/performance.md`.
-    Stats {
-        /// A scene file or a solution file.
-        input: PathBuf,
-        /// Frames timed per method (after one warm-up); 0 = sizes only.
-        #[arg(long, default_value_t = 0, value_parser = clap::value_parser!(u32).range(0..=MAX_TIMED_FRAMES))]
-        frames: u32,
-        /// Frame width for the timings.
-        #[arg(long, default_value_t = 1024)]
-        width: u32,
-        /// Frame height for the timings.
-        #[arg(long, default_value_t = 1024)]
-        height: u32,
-        /// Samples per pixel: 1, 4 or 16.
-        #[arg(long, default_value_t = 1)]
-        aa: u32,
-        #[command(flatten)]
-        texture: TextureArgs,
-        /// Worker threads (default: all cores).
-        #[arg(long)]
-        threads: Option<usize>,
-        /// Print JSON instead of the table.
-        #[arg(long)]
-        json: bool,
-        /// When solving a scene, print the solver's trace lines (phase times, shots, vertices, unshot) to stderr.
-        #[arg(long)]
-        trace: bool,
-    },
+    Stats(StatsArgs),
     /// Rerun the paper's experiments: `fig5`, `fig6`, `table1`, or `all` (which also writes
     /// `docs/experiments.md` when given `--doc`).
     ///
@@ -172,82 +77,14 @@ pub enum Command {
     /// and the direct method; fig6: the RRP resampled to an 8 x 8 texture (texels at centres, then
     /// at corners) drawn with bilinear and Mitchell-Netravali filters, and direct; each with the perceptual distance to the reference
     /// beside the paper's numbers. table1: `stats` of the shipped scenes beside the paper's Table 1.
-    Experiment {
-        /// `fig5`, `fig6`, `table1` or `all`.
-        which: String,
-        /// Directory for the images (default: `out/experiments`).
-        #[arg(long, default_value = "out/experiments")]
-        out_dir: PathBuf,
-        /// With `all`: write the Markdown report to this file (`docs/experiments.md`); image
-        /// links are relative to its directory.
-        #[arg(long)]
-        doc: Option<PathBuf>,
-        /// The texture-space scene of fig5 and fig6.
-        #[arg(long, default_value = "scenes/two-spots.toml")]
-        scene: PathBuf,
-        /// Image side of fig5 and fig6.
-        #[arg(long, default_value_t = 256)]
-        size: u32,
-        /// Pixels per degree of the perceptual metric.
-        #[arg(long, default_value_t = metric::DEFAULT_PPD)]
-        ppd: f64,
-        /// fig5, fig6: the RRPs' derivative estimator, `hyman` (default), `monotone` or
-        /// `plain` (central differences).
-        #[arg(long, default_value = "hyman")]
-        estimator: String,
-        /// table1: the scenes (default: the three shipped scenes).
-        #[arg(long, value_delimiter = ',')]
-        scenes: Vec<PathBuf>,
-        /// table1: frames timed per method at 1024 x 1024 (0 = sizes only).
-        #[arg(long, default_value_t = 10, value_parser = clap::value_parser!(u32).range(0..=MAX_TIMED_FRAMES))]
-        frames: u32,
-        /// Worker threads (default: all cores).
-        #[arg(long)]
-        threads: Option<usize>,
-        /// Print JSON instead of tables.
-        #[arg(long)]
-        json: bool,
-    },
+    Experiment(ExperimentArgs),
     /// Measure frame time: render the scene camera's view repeatedly at several sizes and print
     /// the medians of every stage and the deferred pass's throughput.
     ///
     /// Solving and reconstruction happen once, before timing. Give a solution file to skip the
     /// solve. Timings are wall-clock on this machine; compare methods and sizes measured in the
     /// same run.
-    Bench {
-        /// A scene file or a solution file.
-        input: PathBuf,
-        /// Methods to measure, comma-separated (`direct`, `texture-bilinear`, ...), each at
-        /// every size, interleaved per size so they see the same machine state.
-        #[arg(long, value_delimiter = ',', default_values_t = [String::from("direct")])]
-        methods: Vec<String>,
-        #[command(flatten)]
-        texture: TextureArgs,
-        /// Square image sizes to measure, comma-separated.
-        #[arg(long, value_delimiter = ',', default_values_t = [512u32, 1024, 2048])]
-        sizes: Vec<u32>,
-        /// Frames timed per size (after one warm-up frame).
-        #[arg(long, default_value_t = 20, value_parser = clap::value_parser!(u32).range(0..=MAX_TIMED_FRAMES))]
-        frames: u32,
-        /// Samples per pixel: 1, 4 or 16.
-        #[arg(long, default_value_t = 1)]
-        aa: u32,
-        /// Virtual PixelFlow renderers.
-        #[arg(long, default_value_t = 1)]
-        renderers: u32,
-        /// Side of the screen regions in pixels (a multiple of 8).
-        #[arg(long, default_value_t = 128)]
-        region: u32,
-        /// Worker threads (default: all cores).
-        #[arg(long)]
-        threads: Option<usize>,
-        /// Print JSON instead of the table.
-        #[arg(long)]
-        json: bool,
-        /// When solving a scene, print the solver's trace lines (phase times, shots, vertices, unshot) to stderr.
-        #[arg(long)]
-        trace: bool,
-    },
+    Bench(BenchArgs),
     /// Speed against error: solve the scene at several sampling densities and measure, for every
     /// method (and texture size), the warm frame time, the bytes it holds and its error against
     /// the same solution's exact image and against a converged finer solution's.
@@ -257,95 +94,16 @@ pub enum Command {
     /// maximum error, Mach-band measure against both references). Then, at the scene's own density,
     /// the texture memory each texture method needs to reach the direct method's reconstruction
     /// error (texture sides scaled by 1/8 to 16), beside the RRP bytes.
-    Sweep {
-        /// A scene file or a solution file (its scene is solved again at every density).
-        input: PathBuf,
-        /// Methods, comma-separated (default: direct and every texture method, and mesh).
-        #[arg(long, value_delimiter = ',', default_values_t = lab::jobs::sweep::DEFAULT_METHODS.map(String::from))]
-        methods: Vec<String>,
-        /// Image size, `WxH`.
-        #[arg(long, default_value = "256x256", value_parser = parse_size)]
-        size: (u32, u32),
-        /// Density levels as factors of the scene's solver tolerance, coarse to fine.
-        #[arg(long, value_delimiter = ',', default_values_t = lab::jobs::sweep::DEFAULT_DENSITIES)]
-        densities: Vec<f64>,
-        /// Tolerance factor of the converged reference solution (solved one level deeper).
-        #[arg(long, default_value_t = 0.25)]
-        reference_density: f64,
-        /// Texture sizes per density: the quadtree-depth sizes halved 0 .. N-1 times.
-        #[arg(long, default_value_t = 4)]
-        texture_levels: u32,
-        /// Frames timed per point and repeat (after a warm-up).
-        #[arg(long, default_value_t = 5, value_parser = clap::value_parser!(u32).range(0..=MAX_TIMED_FRAMES))]
-        frames: u32,
-        /// Timing repeats (the spread is over repeats).
-        #[arg(long, default_value_t = 3)]
-        repeats: u32,
-        /// Pixels per degree of the perceptual metric.
-        #[arg(long, default_value_t = metric::DEFAULT_PPD)]
-        ppd: f64,
-        /// Write every point as JSON to this file.
-        #[arg(long)]
-        json: Option<PathBuf>,
-        /// Write every point as CSV to this file.
-        #[arg(long)]
-        csv: Option<PathBuf>,
-        /// Write the plots (error against frame time and against memory, PNG and SVG) into this
-        /// directory.
-        #[arg(long)]
-        plots: Option<PathBuf>,
-        /// Skip the equal-error memory search.
-        #[arg(long)]
-        no_equal_error: bool,
-        /// Worker threads (default: all cores).
-        #[arg(long)]
-        threads: Option<usize>,
-        /// No progress bar.
-        #[arg(short, long)]
-        quiet: bool,
-        /// Print the solver's trace lines.
-        #[arg(long)]
-        trace: bool,
-    },
+    Sweep(SweepArgs),
     /// The results page: every shipped scene's sweep (with the equal-error memory search),
     /// walkthrough frame rates of every method, and a gallery of small images by every method,
     /// written as Markdown (default `docs/results.md`) with the data, plots and images in
     /// `results/` beside it.
-    Results {
-        /// The Markdown page to write.
-        #[arg(long, default_value = "docs/results.md")]
-        doc: PathBuf,
-        /// Scene files, comma-separated (default: two-spots, cornell-box, gallery).
-        #[arg(long, value_delimiter = ',')]
-        scenes: Vec<PathBuf>,
-        /// Side of the sweeps' square images.
-        #[arg(long, default_value_t = 256)]
-        size: u32,
-        /// Width of the gallery's images.
-        #[arg(long, default_value_t = 192)]
-        gallery_width: u32,
-        /// Frames timed per sweep point and repeat.
-        #[arg(long, default_value_t = 5, value_parser = clap::value_parser!(u32).range(0..=MAX_TIMED_FRAMES))]
-        frames: u32,
-        /// Sweep timing repeats.
-        #[arg(long, default_value_t = 3)]
-        repeats: u32,
-        /// Worker threads (default: all cores).
-        #[arg(long)]
-        threads: Option<usize>,
-        /// No progress bar.
-        #[arg(short, long)]
-        quiet: bool,
-        /// Print the solver's trace lines.
-        #[arg(long)]
-        trace: bool,
-    },
+    Results(ResultsArgs),
     /// Generate a test scene (`generate building`): OBJ, MTL and a scene file that includes
     /// them, of any size, for measuring the solver and the renderers.
-    Generate {
-        #[command(subcommand)]
-        scene: Generate,
-    },
+    #[command(subcommand)]
+    Generate(Generate),
     /// Compare an image with a reference: the perceptual distance and error measures.
     ///
     /// Reads two images (OpenEXR, Radiance HDR, PFM, or PNG decoded from sRGB to linear) of the
@@ -357,33 +115,303 @@ pub enum Command {
     /// `--tolerance default` compares pixel by pixel and lists the pixels that moved, `--diff`
     /// writes a difference image, `--max-distance` bounds the perceptual distance; exit 1 when a
     /// check fails, 0 when all pass.
-    Compare {
-        /// The image under test.
-        a: PathBuf,
-        /// The reference image.
-        b: PathBuf,
-        /// Pixels per degree of visual angle (viewing distance) for the contrast sensitivity.
-        #[arg(long, default_value_t = metric::DEFAULT_PPD)]
-        ppd: f64,
-        /// Print JSON instead of the table.
-        #[arg(long)]
-        json: bool,
-        /// Regression check: compare pixel by pixel; a pixel differs when a channel moves by more
-        /// than this times max(|reference|, --floor) (`default` = 2^-19, 16 f32 rounding steps).
-        /// Lists the first differing pixels; exit 1 if any differ.
-        #[arg(long, value_name = "REL|default", value_parser = parse_tolerance)]
-        tolerance: Option<f32>,
-        /// With --tolerance: the reference level under which the tolerance is absolute.
-        #[arg(long, default_value_t = metric::pixels::DEFAULT_FLOOR)]
-        floor: f32,
-        /// With --tolerance: write the difference image here (PNG scaled so the largest
-        /// difference is white, or EXR with the raw |a - b|).
-        #[arg(long, value_name = "PATH", requires = "tolerance")]
-        diff: Option<PathBuf>,
-        /// Fail (exit 1) when the perceptual distance is above this.
-        #[arg(long, value_name = "D")]
-        max_distance: Option<f64>,
-    },
+    Compare(CompareArgs),
+}
+
+#[derive(Args, Debug)]
+pub struct CheckArgs {
+    /// The scene file (`scenes/cornell-box.toml`).
+    pub scene: PathBuf,
+}
+
+#[derive(Args, Debug)]
+pub struct SolveArgs {
+    /// The scene file.
+    pub scene: PathBuf,
+    /// Where to write the solution (written atomically).
+    #[arg(short, long)]
+    pub output: PathBuf,
+    /// Worker threads (default: all cores). The solution is identical for any count.
+    #[arg(long)]
+    pub threads: Option<usize>,
+    /// No progress bar.
+    #[arg(short, long)]
+    pub quiet: bool,
+    /// Print the solver's trace lines (phase times, shots, vertices, unshot) to stderr.
+    #[arg(long)]
+    pub trace: bool,
+}
+
+#[derive(Args, Debug)]
+pub struct RenderArgs {
+    /// A scene file (`.toml`) or a solution file written by `solve`.
+    pub input: PathBuf,
+    /// PNG to write (default: `out/<scene>-<method>.png`).
+    #[arg(short, long)]
+    pub output: Option<PathBuf>,
+    /// Also write the linear radiosity of every pixel as OpenEXR.
+    #[arg(long)]
+    pub exr: Option<PathBuf>,
+    /// Rendering method (default: the scene's `[render] method`).
+    #[arg(long)]
+    pub method: Option<String>,
+    /// Image width (default: the scene's).
+    #[arg(long)]
+    pub width: Option<u32>,
+    /// Image height (default: the scene's).
+    #[arg(long)]
+    pub height: Option<u32>,
+    /// Samples per pixel: 1, 4 or 16 (default: the scene's `[render] aa`).
+    #[arg(long)]
+    pub aa: Option<u32>,
+    /// Worker threads (default: all cores). The image is identical for any count.
+    #[arg(long)]
+    pub threads: Option<usize>,
+    /// Virtual PixelFlow renderers merged by image composition. The image is identical for
+    /// any count.
+    #[arg(long, default_value_t = 1)]
+    pub renderers: u32,
+    /// Side of the screen regions in pixels (a multiple of 8).
+    #[arg(long, default_value_t = 128)]
+    pub region: u32,
+    /// Write the frame statistics as JSON to this file (for a walkthrough: the summary and
+    /// every frame).
+    #[arg(long)]
+    pub stats: Option<PathBuf>,
+    /// Render every frame of the scene's `[camera_path]` (files `<output stem>-NNNN.png`) and
+    /// print a frame-rate summary (fps min / median / max, median stage times).
+    #[arg(long)]
+    pub walkthrough: bool,
+    #[command(flatten)]
+    pub texture: TextureArgs,
+    /// The RRPs' derivative estimator: `hyman` (default: Hyman-filtered central
+    /// differences), `monotone` (Fritsch-Butland) or `plain` (central differences).
+    #[arg(long)]
+    pub estimator: Option<String>,
+    /// Print the statistics.
+    #[arg(short, long)]
+    pub verbose: bool,
+    /// No progress bar, no "wrote" lines, no walkthrough summary.
+    #[arg(short, long)]
+    pub quiet: bool,
+    /// Print the solver's trace lines (phase times, shots, vertices, unshot) to stderr.
+    #[arg(long)]
+    pub trace: bool,
+}
+
+#[derive(Args, Debug)]
+pub struct StatsArgs {
+    /// A scene file or a solution file.
+    pub input: PathBuf,
+    /// Frames timed per method (after one warm-up); 0 = sizes only.
+    #[arg(long, default_value_t = 0, value_parser = clap::value_parser!(u32).range(0..=MAX_TIMED_FRAMES))]
+    pub frames: u32,
+    /// Frame width for the timings.
+    #[arg(long, default_value_t = 1024)]
+    pub width: u32,
+    /// Frame height for the timings.
+    #[arg(long, default_value_t = 1024)]
+    pub height: u32,
+    /// Samples per pixel: 1, 4 or 16.
+    #[arg(long, default_value_t = 1)]
+    pub aa: u32,
+    #[command(flatten)]
+    pub texture: TextureArgs,
+    /// Worker threads (default: all cores).
+    #[arg(long)]
+    pub threads: Option<usize>,
+    /// Print JSON instead of the table.
+    #[arg(long)]
+    pub json: bool,
+    /// When solving a scene, print the solver's trace lines (phase times, shots, vertices, unshot) to stderr.
+    #[arg(long)]
+    pub trace: bool,
+}
+
+#[derive(Args, Debug)]
+pub struct ExperimentArgs {
+    /// `fig5`, `fig6`, `table1` or `all`.
+    pub which: String,
+    /// Directory for the images (default: `out/experiments`).
+    #[arg(long, default_value = "out/experiments")]
+    pub out_dir: PathBuf,
+    /// With `all`: write the Markdown report to this file (`docs/experiments.md`); image
+    /// links are relative to its directory.
+    #[arg(long)]
+    pub doc: Option<PathBuf>,
+    /// The texture-space scene of fig5 and fig6.
+    #[arg(long, default_value = "scenes/two-spots.toml")]
+    pub scene: PathBuf,
+    /// Image side of fig5 and fig6.
+    #[arg(long, default_value_t = 256)]
+    pub size: u32,
+    /// Pixels per degree of the perceptual metric.
+    #[arg(long, default_value_t = metric::DEFAULT_PPD)]
+    pub ppd: f64,
+    /// fig5, fig6: the RRPs' derivative estimator, `hyman` (default), `monotone` or
+    /// `plain` (central differences).
+    #[arg(long, default_value = "hyman")]
+    pub estimator: String,
+    /// table1: the scenes (default: the three shipped scenes).
+    #[arg(long, value_delimiter = ',')]
+    pub scenes: Vec<PathBuf>,
+    /// table1: frames timed per method at 1024 x 1024 (0 = sizes only).
+    #[arg(long, default_value_t = 10, value_parser = clap::value_parser!(u32).range(0..=MAX_TIMED_FRAMES))]
+    pub frames: u32,
+    /// Worker threads (default: all cores).
+    #[arg(long)]
+    pub threads: Option<usize>,
+    /// Print JSON instead of tables.
+    #[arg(long)]
+    pub json: bool,
+}
+
+#[derive(Args, Debug)]
+pub struct BenchArgs {
+    /// A scene file or a solution file.
+    pub input: PathBuf,
+    /// Methods to measure, comma-separated (`direct`, `texture-bilinear`, ...), each at
+    /// every size, interleaved per size so they see the same machine state.
+    #[arg(long, value_delimiter = ',', default_values_t = [String::from("direct")])]
+    pub methods: Vec<String>,
+    #[command(flatten)]
+    pub texture: TextureArgs,
+    /// Square image sizes to measure, comma-separated.
+    #[arg(long, value_delimiter = ',', default_values_t = [512u32, 1024, 2048])]
+    pub sizes: Vec<u32>,
+    /// Frames timed per size (after one warm-up frame).
+    #[arg(long, default_value_t = 20, value_parser = clap::value_parser!(u32).range(0..=MAX_TIMED_FRAMES))]
+    pub frames: u32,
+    /// Samples per pixel: 1, 4 or 16.
+    #[arg(long, default_value_t = 1)]
+    pub aa: u32,
+    /// Virtual PixelFlow renderers.
+    #[arg(long, default_value_t = 1)]
+    pub renderers: u32,
+    /// Side of the screen regions in pixels (a multiple of 8).
+    #[arg(long, default_value_t = 128)]
+    pub region: u32,
+    /// Worker threads (default: all cores).
+    #[arg(long)]
+    pub threads: Option<usize>,
+    /// Print JSON instead of the table.
+    #[arg(long)]
+    pub json: bool,
+    /// When solving a scene, print the solver's trace lines (phase times, shots, vertices, unshot) to stderr.
+    #[arg(long)]
+    pub trace: bool,
+}
+
+#[derive(Args, Debug)]
+pub struct SweepArgs {
+    /// A scene file or a solution file (its scene is solved again at every density).
+    pub input: PathBuf,
+    /// Methods, comma-separated (default: direct and every texture method, and mesh).
+    #[arg(long, value_delimiter = ',', default_values_t = lab::jobs::sweep::DEFAULT_METHODS.map(String::from))]
+    pub methods: Vec<String>,
+    /// Image size, `WxH`.
+    #[arg(long, default_value = "256x256", value_parser = parse_size)]
+    pub size: (u32, u32),
+    /// Density levels as factors of the scene's solver tolerance, coarse to fine.
+    #[arg(long, value_delimiter = ',', default_values_t = lab::jobs::sweep::DEFAULT_DENSITIES)]
+    pub densities: Vec<f64>,
+    /// Tolerance factor of the converged reference solution (solved one level deeper).
+    #[arg(long, default_value_t = 0.25)]
+    pub reference_density: f64,
+    /// Texture sizes per density: the quadtree-depth sizes halved 0 .. N-1 times.
+    #[arg(long, default_value_t = 4)]
+    pub texture_levels: u32,
+    /// Frames timed per point and repeat (after a warm-up).
+    #[arg(long, default_value_t = 5, value_parser = clap::value_parser!(u32).range(0..=MAX_TIMED_FRAMES))]
+    pub frames: u32,
+    /// Timing repeats (the spread is over repeats).
+    #[arg(long, default_value_t = 3)]
+    pub repeats: u32,
+    /// Pixels per degree of the perceptual metric.
+    #[arg(long, default_value_t = metric::DEFAULT_PPD)]
+    pub ppd: f64,
+    /// Write every point as JSON to this file.
+    #[arg(long)]
+    pub json: Option<PathBuf>,
+    /// Write every point as CSV to this file.
+    #[arg(long)]
+    pub csv: Option<PathBuf>,
+    /// Write the plots (error against frame time and against memory, PNG and SVG) into this
+    /// directory.
+    #[arg(long)]
+    pub plots: Option<PathBuf>,
+    /// Skip the equal-error memory search.
+    #[arg(long)]
+    pub no_equal_error: bool,
+    /// Worker threads (default: all cores).
+    #[arg(long)]
+    pub threads: Option<usize>,
+    /// No progress bar.
+    #[arg(short, long)]
+    pub quiet: bool,
+    /// Print the solver's trace lines.
+    #[arg(long)]
+    pub trace: bool,
+}
+
+#[derive(Args, Debug)]
+pub struct ResultsArgs {
+    /// The Markdown page to write.
+    #[arg(long, default_value = "docs/results.md")]
+    pub doc: PathBuf,
+    /// Scene files, comma-separated (default: two-spots, cornell-box, gallery).
+    #[arg(long, value_delimiter = ',')]
+    pub scenes: Vec<PathBuf>,
+    /// Side of the sweeps' square images.
+    #[arg(long, default_value_t = 256)]
+    pub size: u32,
+    /// Width of the gallery's images.
+    #[arg(long, default_value_t = 192)]
+    pub gallery_width: u32,
+    /// Frames timed per sweep point and repeat.
+    #[arg(long, default_value_t = 5, value_parser = clap::value_parser!(u32).range(0..=MAX_TIMED_FRAMES))]
+    pub frames: u32,
+    /// Sweep timing repeats.
+    #[arg(long, default_value_t = 3)]
+    pub repeats: u32,
+    /// Worker threads (default: all cores).
+    #[arg(long)]
+    pub threads: Option<usize>,
+    /// No progress bar.
+    #[arg(short, long)]
+    pub quiet: bool,
+    /// Print the solver's trace lines.
+    #[arg(long)]
+    pub trace: bool,
+}
+
+#[derive(Args, Debug)]
+pub struct CompareArgs {
+    /// The image under test.
+    pub a: PathBuf,
+    /// The reference image.
+    pub b: PathBuf,
+    /// Pixels per degree of visual angle (viewing distance) for the contrast sensitivity.
+    #[arg(long, default_value_t = metric::DEFAULT_PPD)]
+    pub ppd: f64,
+    /// Print JSON instead of the table.
+    #[arg(long)]
+    pub json: bool,
+    /// Regression check: compare pixel by pixel; a pixel differs when a channel moves by more
+    /// than this times max(|reference|, --floor) (`default` = 2^-19, 16 f32 rounding steps).
+    /// Lists the first differing pixels; exit 1 if any differ.
+    #[arg(long, value_name = "REL|default", value_parser = parse_tolerance)]
+    pub tolerance: Option<f32>,
+    /// With --tolerance: the reference level under which the tolerance is absolute.
+    #[arg(long, default_value_t = metric::pixels::DEFAULT_FLOOR)]
+    pub floor: f32,
+    /// With --tolerance: write the difference image here (PNG scaled so the largest
+    /// difference is white, or EXR with the raw |a - b|).
+    #[arg(long, value_name = "PATH", requires = "tolerance")]
+    pub diff: Option<PathBuf>,
+    /// Fail (exit 1) when the perceptual distance is above this.
+    #[arg(long, value_name = "D")]
+    pub max_distance: Option<f64>,
 }
 
 /// The scenes `generate` makes.
@@ -397,33 +425,36 @@ pub enum Generate {
     /// together) and prints the polygon count: cut^2 (14 rooms + 12 doorways) + rooms (lights +
     /// 5 furniture). The same options give the same bytes. Exit code 2 for a bad option or over
     /// 1,000,000 polygons.
-    Building {
-        /// Rooms along x on each storey.
-        #[arg(long, value_name = "N")]
-        rooms_x: u32,
-        /// Rooms along z on each storey.
-        #[arg(long, value_name = "M")]
-        rooms_z: u32,
-        /// Storeys (not connected to each other).
-        #[arg(long, value_name = "F", default_value_t = generate::DEFAULT_FLOORS)]
-        floors: u32,
-        /// Cut every wall, floor, ceiling and doorway cell into K x K quads.
-        #[arg(long, value_name = "K", default_value_t = generate::DEFAULT_CUT)]
-        cut: u32,
-        /// Emissive ceiling panels per room, 1 or 2.
-        #[arg(long, default_value_t = generate::DEFAULT_LIGHTS)]
-        lights: u32,
-        /// Boxes or pillars per room, 0 to 4.
-        #[arg(long, default_value_t = generate::DEFAULT_FURNITURE)]
-        furniture: u32,
-        /// Seed of the furniture's sizes and places.
-        #[arg(long, default_value_t = generate::DEFAULT_SEED)]
-        seed: u64,
-        /// The scene file to write (`scenes/building.toml`), or a directory (the scene is then
-        /// `<dir>/building.toml`).
-        #[arg(short, long)]
-        output: PathBuf,
-    },
+    Building(BuildingArgs),
+}
+
+#[derive(Args, Debug)]
+pub struct BuildingArgs {
+    /// Rooms along x on each storey.
+    #[arg(long, value_name = "N")]
+    pub rooms_x: u32,
+    /// Rooms along z on each storey.
+    #[arg(long, value_name = "M")]
+    pub rooms_z: u32,
+    /// Storeys (not connected to each other).
+    #[arg(long, value_name = "F", default_value_t = generate::DEFAULT_FLOORS)]
+    pub floors: u32,
+    /// Cut every wall, floor, ceiling and doorway cell into K x K quads.
+    #[arg(long, value_name = "K", default_value_t = generate::DEFAULT_CUT)]
+    pub cut: u32,
+    /// Emissive ceiling panels per room, 1 or 2.
+    #[arg(long, default_value_t = generate::DEFAULT_LIGHTS)]
+    pub lights: u32,
+    /// Boxes or pillars per room, 0 to 4.
+    #[arg(long, default_value_t = generate::DEFAULT_FURNITURE)]
+    pub furniture: u32,
+    /// Seed of the furniture's sizes and places.
+    #[arg(long, default_value_t = generate::DEFAULT_SEED)]
+    pub seed: u64,
+    /// The scene file to write (`scenes/building.toml`), or a directory (the scene is then
+    /// `<dir>/building.toml`).
+    #[arg(short, long)]
+    pub output: PathBuf,
 }
 
 fn parse_tolerance(text: &str) -> Result<f32, String> {

@@ -1,0 +1,436 @@
+//! One function per subcommand: each turns its arguments into the library's request, runs the
+//! job with the shared [`Settings`] (in a pool of `--threads` workers where it has the option)
+//! and prints the result. Errors go back to `main`, which prints them and picks the exit code.
+
+use std::path::{Path, PathBuf};
+
+use base::progress::Observer;
+use base::Error;
+use engine::frame::FrameOptions;
+use lab::experiment;
+use lab::jobs::bench::{bench_table, run_bench, BenchRequest};
+use lab::jobs::budget;
+use lab::jobs::render::{run_render, RenderEvent, RenderRequest};
+use lab::jobs::solve::solve_to_file;
+use lab::jobs::stats::{run_stats, StatsRequest};
+use lab::jobs::sweep;
+
+use crate::args::{
+    BenchArgs, BuildingArgs, CheckArgs, CompareArgs, ExperimentArgs, RenderArgs, ResultsArgs,
+    SolveArgs, StatsArgs, SweepArgs,
+};
+use crate::terminal::Terminal;
+use crate::{json, note, out};
+
+/// The environment variable that caps the lane build.
+const LANES_ENV: &str = "PIXELFLOW_SIM_LANES";
+
+/// Most worker threads `--threads` accepts: far above any machine this runs on, far below what
+/// would exhaust the process's thread and stack limits.
+const MAX_THREADS: usize = 1024;
+
+/// What every job runs with: the memory limit and the instruction set of the frames' kernels.
+pub struct Settings {
+    limit: u64,
+    isa: lanes::Isa,
+}
+
+impl Settings {
+    /// The limit of `--memory-limit` (default: [`budget::default_limit`]) and the widest
+    /// instruction set of this CPU, capped by [`LANES_ENV`].
+    pub fn new(memory_limit: Option<u64>) -> anyhow::Result<Settings> {
+        let limit = memory_limit.unwrap_or_else(budget::default_limit);
+        Ok(Settings {
+            limit,
+            isa: isa_from_env()?,
+        })
+    }
+
+    /// A job context reporting progress to `observer`.
+    fn context<'a>(&self, observer: &'a dyn Observer) -> lab::jobs::Context<'a> {
+        lab::jobs::Context::new(observer)
+            .with_memory_limit(self.limit)
+            .with_isa(self.isa)
+    }
+}
+
+/// The detected instruction set, capped by [`LANES_ENV`] (portable, avx2, avx512, auto) to time
+/// the builds against each other; the images are the same.
+fn isa_from_env() -> anyhow::Result<lanes::Isa> {
+    let isa = lanes::Isa::detect();
+    let Some(v) = std::env::var_os(LANES_ENV) else {
+        return Ok(isa);
+    };
+    let v = v.to_string_lossy();
+    let cap = lanes::Level::parse_cap(&v).map_err(|reason| Error::InvalidOption {
+        option: LANES_ENV.to_string(),
+        value: v.to_string(),
+        reason,
+    })?;
+    Ok(cap.map_or(isa, |cap| isa.capped(cap)))
+}
+
+/// Runs `f` in a rayon pool of `threads` workers (all cores when `None`).
+fn in_pool<T: Send>(threads: Option<usize>, f: impl FnOnce() -> T + Send) -> anyhow::Result<T> {
+    match threads {
+        None => Ok(f()),
+        Some(0) => Err(Error::invalid_option("--threads", "0", "needs at least one thread").into()),
+        Some(n) if n > MAX_THREADS => Err(Error::invalid_option(
+            "--threads",
+            n.to_string(),
+            format!("at most {MAX_THREADS} worker threads"),
+        )
+        .into()),
+        Some(n) => {
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(n)
+                .build()
+                .map_err(|e| Error::Runtime(format!("cannot start {n} threads: {e}")))?;
+            Ok(pool.install(f))
+        }
+    }
+}
+
+/// A "wrote" line on stderr, unless `quiet`.
+fn wrote(path: &Path, quiet: bool) {
+    if !quiet {
+        note(&format!("wrote {}", path.display()));
+    }
+}
+
+/// `check`: the scene's warnings, summary and memory estimate against the limit.
+pub fn check(settings: &Settings, args: CheckArgs) -> anyhow::Result<()> {
+    let s = scene::load_scene(&args.scene)?;
+    for w in &s.warnings {
+        note(&format!("warning: {w}"));
+    }
+    let summary = lab::report::summarize(&s);
+    let b = budget::scene_budget(&s)?;
+    let text = lab::report::budget_text(&s, &b, settings.limit);
+    out(&format!("{summary}{text}"))?;
+    // Over the limit: the same refusal a solve or render of this scene would give.
+    b.check(settings.limit)?;
+    Ok(())
+}
+
+/// `solve`: solves the scene into the solution file and reports the solver's statistics.
+pub fn solve(settings: &Settings, args: SolveArgs) -> anyhow::Result<()> {
+    let observer = Terminal::new(!args.quiet, args.trace);
+    let sol = in_pool(args.threads, || {
+        solve_to_file(&settings.context(&observer), &args.scene, &args.output)
+    })??;
+    if !args.quiet {
+        let s = &sol.stats;
+        note(&format!(
+            "solved {} in {:.0} ms: {} elements, {} samples ({} T-vertices), {} shots, unshot {:.3}%; wrote {}",
+            args.scene.display(),
+            s.solve_ms,
+            s.elements,
+            s.vertices,
+            s.t_vertices,
+            s.shots,
+            100.0 * s.unshot_fraction,
+            args.output.display()
+        ));
+    }
+    Ok(())
+}
+
+/// `render`: one image or a walkthrough, with its warnings, "wrote" lines and statistics.
+pub fn render(settings: &Settings, args: RenderArgs) -> anyhow::Result<()> {
+    let req = RenderRequest {
+        input: args.input,
+        output: args.output,
+        exr: args.exr,
+        method: args.method,
+        width: args.width,
+        height: args.height,
+        aa: args.aa,
+        renderers: args.renderers,
+        region: args.region,
+        stats: args.stats,
+        walkthrough: args.walkthrough,
+        texture: args.texture.options(),
+        estimator: args.estimator,
+    };
+    let (verbose, quiet) = (args.verbose, args.quiet);
+    let observer = Terminal::new(!quiet, args.trace);
+    let mut stdout_closed = false;
+    let mut on_event = |event: RenderEvent| match event {
+        RenderEvent::Warning(w) => observer.note(&format!("warning: {w}")),
+        // Above the walkthrough's bar, not into it.
+        RenderEvent::Wrote(path) if !quiet => observer.note(&format!("wrote {}", path.display())),
+        RenderEvent::Frame(report) if verbose && !stdout_closed => {
+            // A closed stdout stops the printing, not the render.
+            stdout_closed = out(&(report.to_json() + "\n")).is_err();
+        }
+        RenderEvent::Walkthrough(summary) if !quiet => observer.note(&summary.line()),
+        _ => {}
+    };
+    in_pool(args.threads, || {
+        run_render(&settings.context(&observer), &req, &mut on_event)
+    })??;
+    Ok(())
+}
+
+/// `stats`: the paper's Table 1 for one scene, as a table or JSON.
+pub fn stats(settings: &Settings, args: StatsArgs) -> anyhow::Result<()> {
+    in_pool(args.threads, || -> anyhow::Result<()> {
+        let req = StatsRequest {
+            input: args.input,
+            frames: args.frames,
+            frame: FrameOptions {
+                aa: args.aa,
+                isa: settings.isa,
+                ..FrameOptions::new(args.width, args.height)
+            },
+            texture: args.texture.options(),
+        };
+        let stats = run_stats(&settings.context(&Terminal::new(false, args.trace)), &req)?;
+        if args.json {
+            out(&json(&stats)?)
+        } else {
+            out(&lab::report::model_stats_text(&stats))
+        }
+    })?
+}
+
+/// `experiment`: reruns the paper's figures and tables, printing the results.
+pub fn experiment(settings: &Settings, args: ExperimentArgs) -> anyhow::Result<()> {
+    in_pool(args.threads, || -> anyhow::Result<()> {
+        let req = experiment::Request {
+            which: experiment::Which::parse(&args.which)?,
+            figures: experiment::FigureOptions {
+                size: args.size,
+                ppd: args.ppd,
+                estimator: experiment::parse_estimator(&args.estimator)?,
+                out_dir: Some(args.out_dir),
+                ..experiment::FigureOptions::paper(&args.scene)
+            },
+            scenes: if args.scenes.is_empty() {
+                experiment::SHIPPED_SCENES
+                    .iter()
+                    .map(PathBuf::from)
+                    .collect()
+            } else {
+                args.scenes
+            },
+            frames: args.frames,
+            doc: args.doc,
+        };
+        let results = experiment::run(
+            &settings.context(&base::progress::SILENT),
+            &req,
+            &mut |path| wrote(path, false),
+        )?;
+        if args.json {
+            out(&json(&results)?)
+        } else {
+            out(&experiment::results_text(&results))
+        }
+    })?
+}
+
+/// `bench`: frame times of the methods at every size, as a table or JSON.
+pub fn bench(settings: &Settings, args: BenchArgs) -> anyhow::Result<()> {
+    in_pool(args.threads, || -> anyhow::Result<()> {
+        let req = BenchRequest {
+            input: args.input,
+            methods: args.methods,
+            texture: args.texture.options(),
+            sizes: args.sizes,
+            frames: args.frames,
+            aa: args.aa,
+            renderers: args.renderers,
+            region: args.region,
+        };
+        let report = run_bench(&settings.context(&Terminal::new(false, args.trace)), &req)?;
+        if args.json {
+            out(&json(&report.rows)?)
+        } else {
+            out(&format!(
+                "{}: {} polygons, {} samples, {} RRP patches, {} threads\n{}",
+                report.input,
+                report.polygons,
+                report.samples,
+                report.patches,
+                report.threads,
+                bench_table(&report.rows)
+            ))
+        }
+    })?
+}
+
+/// `sweep`: speed against error over densities and methods; the table on stdout, the points
+/// and plots in the files asked for.
+pub fn sweep(settings: &Settings, args: SweepArgs) -> anyhow::Result<()> {
+    in_pool(args.threads, || -> anyhow::Result<()> {
+        check_sweep_outputs(&args)?;
+        let req = sweep::SweepRequest {
+            input: args.input.clone(),
+            methods: args.methods.clone(),
+            width: args.size.0,
+            height: args.size.1,
+            densities: args.densities.clone(),
+            reference_density: args.reference_density,
+            texture_levels: args.texture_levels,
+            frames: args.frames,
+            repeats: args.repeats,
+            ppd: args.ppd,
+            equal_error: !args.no_equal_error,
+        };
+        let observer = Terminal::new(!args.quiet, args.trace);
+        let report = sweep::run_sweep(&settings.context(&observer), &req)?;
+        write_sweep_outputs(&report, &args)?;
+        out(&sweep::table(&report))
+    })?
+}
+
+/// Checks the `--json` and `--csv` paths ([`base::output::check_outputs`]) against the input and
+/// the scene's includes (through the scene the plan loads) before the sweep's minutes of work.
+fn check_sweep_outputs(args: &SweepArgs) -> anyhow::Result<()> {
+    let mut inputs = vec![args.input.clone()];
+    if let Ok(i) = lab::jobs::Input::load(&args.input) {
+        inputs.extend(i.scene.inputs);
+    }
+    let outputs: Vec<(&str, &Path)> = args
+        .json
+        .as_deref()
+        .map(|p| ("--json", p))
+        .into_iter()
+        .chain(args.csv.as_deref().map(|p| ("--csv", p)))
+        .collect();
+    base::output::check_outputs(&inputs, &outputs)?;
+    Ok(())
+}
+
+/// Writes the sweep's `--json`, `--csv` and `--plots` files.
+fn write_sweep_outputs(report: &sweep::SweepReport, args: &SweepArgs) -> anyhow::Result<()> {
+    if let Some(path) = &args.json {
+        base::output::write_atomic(path, json(report)?.as_bytes())?;
+        wrote(path, args.quiet);
+    }
+    if let Some(path) = &args.csv {
+        base::output::write_atomic(path, sweep::csv(report).as_bytes())?;
+        wrote(path, args.quiet);
+    }
+    if let Some(dir) = &args.plots {
+        for path in lab::plot::sweep_plots(report, dir)? {
+            wrote(&path, args.quiet);
+        }
+    }
+    Ok(())
+}
+
+/// `results`: writes the results page and its data, then a one-line summary.
+pub fn results(settings: &Settings, args: ResultsArgs) -> anyhow::Result<()> {
+    use lab::experiment::results;
+    in_pool(args.threads, || -> anyhow::Result<()> {
+        let mut req = results::ResultsRequest::new(args.doc);
+        if !args.scenes.is_empty() {
+            req.scenes = args.scenes;
+        }
+        req.sweep_size = args.size;
+        req.gallery_width = args.gallery_width;
+        req.frames = args.frames;
+        req.repeats = args.repeats;
+        let observer = Terminal::new(!args.quiet, args.trace);
+        let report = results::run_results(&settings.context(&observer), &req, &mut |p| {
+            wrote(p, args.quiet)
+        })?;
+        out(&format!(
+            "{} scenes in {:.0} s on {}; wrote {}\n",
+            report.scenes.len(),
+            report.seconds,
+            report.machine.line(),
+            req.doc.display()
+        ))
+    })?
+}
+
+/// `generate building`: writes the scene and its OBJ and MTL, then the polygon count.
+pub fn generate_building(args: BuildingArgs) -> anyhow::Result<()> {
+    use lab::generate::{write_building, BuildingOptions};
+    let options = BuildingOptions {
+        rooms_x: args.rooms_x,
+        rooms_z: args.rooms_z,
+        floors: args.floors,
+        cut: args.cut,
+        lights: args.lights,
+        furniture: args.furniture,
+        seed: args.seed,
+    };
+    let written = write_building(&options, &args.output)?;
+    let p = &written.paths;
+    for path in [&p.scene, &p.obj, &p.mtl] {
+        wrote(path, false);
+    }
+    out(&format!("{}\n", written.building.summary))
+}
+
+/// `compare`: the pixel-by-pixel check (with `--tolerance`) and the perceptual measures
+/// (without it, or with `--max-distance`); an error naming every failed check.
+pub fn compare(args: CompareArgs) -> anyhow::Result<()> {
+    let mut failed = Vec::new();
+    if let Some(tolerance) = args.tolerance {
+        failed.extend(compare_pixels(&args, tolerance)?);
+    }
+    if args.tolerance.is_none() || args.max_distance.is_some() {
+        failed.extend(compare_perceptual(&args)?);
+    }
+    if failed.is_empty() {
+        return Ok(());
+    }
+    Err(Error::Runtime(format!(
+        "{} differs from {}: {}",
+        args.a.display(),
+        args.b.display(),
+        failed.join("; ")
+    ))
+    .into())
+}
+
+/// The pixel-by-pixel check: prints the differing pixels, writes `--diff`; the failure, if any
+/// pixel differs.
+fn compare_pixels(args: &CompareArgs, tolerance: f32) -> anyhow::Result<Option<String>> {
+    use lab::image::{read_image, write_exr, write_png};
+    let (a, b) = (read_image(&args.a)?, read_image(&args.b)?);
+    let d = metric::pixels::diff(&a, &b, tolerance, args.floor)?;
+    if let Some(path) = &args.diff {
+        base::output::check_outputs(&[args.a.clone(), args.b.clone()], &[("--diff", path)])?;
+        let exr = path
+            .extension()
+            .is_some_and(|e| e.eq_ignore_ascii_case("exr"));
+        if exr {
+            write_exr(path, d.image.view())?;
+        } else {
+            write_png(path, d.normalized_image().view(), 0.0)?;
+        }
+    }
+    if args.json {
+        out(&json(&d)?)?;
+    } else {
+        out(&(d.summary() + "\n"))?;
+    }
+    Ok((d.differing > 0).then(|| format!("{} pixels differ", d.differing)))
+}
+
+/// The perceptual distance and error measures; the failure, if the distance is above
+/// `--max-distance`.
+fn compare_perceptual(args: &CompareArgs) -> anyhow::Result<Option<String>> {
+    let c = lab::jobs::compare::compare_files(&args.a, &args.b, args.ppd)?;
+    if args.json {
+        out(&json(&c)?)?;
+    } else {
+        out(&c.table())?;
+    }
+    Ok(args
+        .max_distance
+        .filter(|&m| c.perceptual_distance > m)
+        .map(|m| {
+            format!(
+                "perceptual distance {:.6} above --max-distance {m}",
+                c.perceptual_distance
+            )
+        }))
+}
