@@ -18,12 +18,26 @@
 //! - a token's `LANES` is 8 or 16; `Half` is the 8-lane token of the same instruction set (the
 //!   token itself when it has 8 lanes), for a kernel's tail or for kernels built on blocks of 8.
 //!
+//! Writing a kernel (each rule learnt from a measured slowdown):
+//! - no out-of-line call inside a kernel's loops, not even on a cold path (a copy through
+//!   `copy_from_slice`, a helper marked `#[inline(never)]`): every vector register is
+//!   caller-saved, so the loop spills and reloads what it keeps in registers (the 16-lane patch
+//!   shader ran 20 % slower with one `memcpy` on its row-tail path); panics are fine (they never
+//!   return);
+//! - no closure that calls a token operation: a closure is a function of its own, compiled
+//!   without the kernel's target features unless the optimizer happens to inline it (the patch
+//!   shader ran 30 times slower with its channels in a `map` closure); helpers are
+//!   `#[inline(always)]` functions;
+//! - values needed once per patch are loaded where they are used rather than held across a loop
+//!   (16-lane rows need most of the 32 registers).
+//!
 //! Why tokens rather than a `const HW: bool` or per-ISA copies: the compiler checks that AVX-512
 //! operations are only reachable through a value that proves the CPU has them, and a kernel has
 //! one body whatever the instruction set. Why our own rather than a crate: the kernels need a few
-//! operations with exact semantics the crates do not promise (a blend written with full-width
-//! stores, the sign-bit test of edge functions, the image's clamp in three instructions), and
-//! measured against `pulp` (docs/performance.md) the hand-kept set was no slower.
+//! operations with exact semantics the crates do not offer (a blend written with full-width
+//! stores, the sign-bit test of edge functions, the image's clamp in three instructions, pixels
+//! interleaved by permutation), and measured against `pulp` on the patch shader's arithmetic
+//! (`tools/compare-pulp`) the set kept here is as fast with AVX2 and faster with AVX-512.
 
 #![warn(missing_docs)]
 // Lane loops index several fixed-width arrays with one lane index on purpose: that is the form
