@@ -12,11 +12,13 @@
 //! leaves every target as it was; only a kill between two renames (microseconds) can leave some
 //! replaced and some not. Temporaries of a failed batch are removed.
 //!
-//! Interruption: every temporary that exists is listed ([`remove_temporaries`] deletes them);
-//! the binary calls it from its SIGINT/SIGTERM handler before exiting, so an interrupted run
-//! leaves no hidden temporary behind. A batch's renames run under a lock the handler also takes,
-//! so a signal during a commit waits for the renames to finish: a run's outputs are replaced all
-//! together or not at all (only SIGKILL or a power cut, which no handler sees, can split them).
+//! Every write goes through an [`Outputs`] value, the registry of the temporaries that exist
+//! ([`Outputs::remove_temporaries`] deletes them): the caller owns it and hands a clone to
+//! whatever must clean up (the binary's SIGINT/SIGTERM handler, before exiting), so an
+//! interrupted run leaves no hidden temporary behind, and nothing here is process-wide state. A
+//! batch's renames run under a lock the handler also takes, so a signal during a commit waits for
+//! the renames to finish: a run's outputs are replaced all together or not at all (only SIGKILL
+//! or a power cut, which no handler sees, can split them).
 //!
 //! The other direction lives here too: every input file (scene, OBJ, MTL, solution, image) is
 //! read through [`read_limited`], so a path to an endless file (`/dev/zero`, a FIFO that never
@@ -25,7 +27,7 @@
 
 use std::io::{Read, Write};
 use std::path::{Path, PathBuf};
-use std::sync::Mutex;
+use std::sync::{Arc, Mutex, MutexGuard};
 
 use crate::error::{Error, Result};
 
@@ -70,65 +72,91 @@ fn temporary_of(path: &Path) -> Result<(PathBuf, PathBuf)> {
     Ok((dir, tmp))
 }
 
-/// Temporaries that may exist now (registered before they are created, removed from the list
-/// once renamed or deleted).
-static LIVE: Mutex<Vec<PathBuf>> = Mutex::new(Vec::new());
-
-/// Held while a batch renames its temporaries, and by [`remove_temporaries`].
-static COMMIT: Mutex<()> = Mutex::new(());
-
-fn live() -> std::sync::MutexGuard<'static, Vec<PathBuf>> {
-    LIVE.lock().unwrap_or_else(|e| e.into_inner())
+/// The registry of the temporaries a set of writes has created and not yet renamed or removed,
+/// and the lock batch commits hold. Cheap to clone (the clones share the registry): the writer
+/// keeps one, the code that cleans up after a signal another.
+#[derive(Clone, Debug, Default)]
+pub struct Outputs {
+    shared: Arc<Registry>,
 }
 
-fn forget(tmp: &Path) {
-    live().retain(|t| t != tmp);
+#[derive(Debug, Default)]
+struct Registry {
+    /// Temporaries that may exist now (registered before they are created, removed from the
+    /// list once renamed or deleted).
+    live: Mutex<Vec<PathBuf>>,
+    /// Held while a batch renames its temporaries, and by [`Outputs::remove_temporaries`].
+    commit: Mutex<()>,
 }
 
-/// Removes every temporary this process has created and not yet renamed or removed, after any
-/// batch commit in progress has finished its renames; returns how many were removed. For a
-/// signal handler: after it, the process should exit (a write still running would recreate
-/// nothing, but its rename would fail).
-pub fn remove_temporaries() -> usize {
-    let _commit = COMMIT.lock().unwrap_or_else(|e| e.into_inner());
-    let mut removed = 0;
-    for t in live().drain(..) {
-        if std::fs::remove_file(&t).is_ok() {
-            removed += 1;
+impl Outputs {
+    /// A new, empty registry.
+    pub fn new() -> Outputs {
+        Outputs::default()
+    }
+
+    fn live(&self) -> MutexGuard<'_, Vec<PathBuf>> {
+        self.shared.live.lock().unwrap_or_else(|e| e.into_inner())
+    }
+
+    fn forget(&self, tmp: &Path) {
+        self.live().retain(|t| t != tmp);
+    }
+
+    /// Removes every temporary of this registry that was created and not yet renamed or
+    /// removed, after any batch commit in progress has finished its renames; returns how many
+    /// were removed. For a signal handler: after it, the process should exit (a write still
+    /// running would recreate nothing, but its rename would fail).
+    pub fn remove_temporaries(&self) -> usize {
+        let _commit = self.shared.commit.lock().unwrap_or_else(|e| e.into_inner());
+        let mut removed = 0;
+        for t in self.live().drain(..) {
+            if std::fs::remove_file(&t).is_ok() {
+                removed += 1;
+            }
+        }
+        removed
+    }
+
+    /// Writes `bytes` to the temporary `tmp` (created in `dir`, which is created if missing)
+    /// and flushes it to disk; removes it on failure.
+    fn write_temporary(&self, dir: &Path, tmp: &Path, path: &Path, bytes: &[u8]) -> Result<()> {
+        std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
+        self.live().push(tmp.to_path_buf());
+        let result = (|| {
+            let mut f = std::fs::File::create(tmp)?;
+            f.write_all(bytes)?;
+            f.sync_all()
+        })();
+        if let Err(e) = result {
+            let _ = std::fs::remove_file(tmp);
+            self.forget(tmp);
+            return Err(Error::io(path, e));
+        }
+        Ok(())
+    }
+
+    /// Writes `bytes` to `path` atomically. Creates missing parent directories.
+    pub fn write_atomic(&self, path: &Path, bytes: &[u8]) -> Result<()> {
+        let mut batch = self.batch();
+        batch.stage(path, bytes)?;
+        batch.commit()
+    }
+
+    /// An empty batch writing through this registry.
+    pub fn batch(&self) -> Batch {
+        Batch {
+            outputs: self.clone(),
+            staged: Vec::new(),
         }
     }
-    removed
-}
-
-/// Writes `bytes` to the temporary `tmp` (created in `dir`, which is created if missing) and
-/// flushes it to disk; removes it on failure.
-fn write_temporary(dir: &Path, tmp: &Path, path: &Path, bytes: &[u8]) -> Result<()> {
-    std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
-    live().push(tmp.to_path_buf());
-    let result = (|| {
-        let mut f = std::fs::File::create(tmp)?;
-        f.write_all(bytes)?;
-        f.sync_all()
-    })();
-    if let Err(e) = result {
-        let _ = std::fs::remove_file(tmp);
-        forget(tmp);
-        return Err(Error::io(path, e));
-    }
-    Ok(())
-}
-
-/// Writes `bytes` to `path` atomically. Creates missing parent directories.
-pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
-    let mut batch = Batch::default();
-    batch.stage(path, bytes)?;
-    batch.commit()
 }
 
 /// Several files written as one: [`Batch::stage`] writes each to its temporary, [`Batch::commit`]
 /// renames them all over their targets. Dropping an uncommitted batch removes its temporaries.
-#[derive(Debug, Default)]
+#[derive(Debug)]
 pub struct Batch {
+    outputs: Outputs,
     staged: Vec<(PathBuf, PathBuf)>,
 }
 
@@ -136,7 +164,7 @@ impl Batch {
     /// Writes `bytes` to `path`'s temporary (flushed); `path` is replaced on commit.
     pub fn stage(&mut self, path: &Path, bytes: &[u8]) -> Result<()> {
         let (dir, tmp) = temporary_of(path)?;
-        write_temporary(&dir, &tmp, path, bytes)?;
+        self.outputs.write_temporary(&dir, &tmp, path, bytes)?;
         self.staged.push((tmp, path.to_path_buf()));
         Ok(())
     }
@@ -145,16 +173,17 @@ impl Batch {
     /// remaining temporaries are removed and the error names the target.
     pub fn commit(mut self) -> Result<()> {
         let staged = std::mem::take(&mut self.staged);
-        let _commit = COMMIT.lock().unwrap_or_else(|e| e.into_inner());
+        let shared = Arc::clone(&self.outputs.shared);
+        let _commit = shared.commit.lock().unwrap_or_else(|e| e.into_inner());
         for (k, (tmp, path)) in staged.iter().enumerate() {
             if let Err(e) = std::fs::rename(tmp, path) {
                 for (t, _) in &staged[k..] {
                     let _ = std::fs::remove_file(t);
-                    forget(t);
+                    self.outputs.forget(t);
                 }
                 return Err(Error::io(path, e));
             }
-            forget(tmp);
+            self.outputs.forget(tmp);
         }
         Ok(())
     }
@@ -164,7 +193,7 @@ impl Drop for Batch {
     fn drop(&mut self) {
         for (tmp, _) in &self.staged {
             let _ = std::fs::remove_file(tmp);
-            forget(tmp);
+            self.outputs.forget(tmp);
         }
     }
 }
@@ -361,8 +390,9 @@ mod tests {
         let (a, b) = (dir.join("a.png"), dir.join("b.exr"));
         std::fs::write(&a, "old a").unwrap();
         std::fs::write(&b, "old b").unwrap();
+        let outputs = Outputs::new();
         {
-            let mut batch = Batch::default();
+            let mut batch = outputs.batch();
             batch.stage(&a, b"new a").unwrap();
             batch.stage(&b, b"new b").unwrap();
             // Dropped without commit (an error after staging): nothing replaced, no temporary.
@@ -370,7 +400,7 @@ mod tests {
         assert_eq!(std::fs::read(&a).unwrap(), b"old a");
         assert_eq!(std::fs::read(&b).unwrap(), b"old b");
         assert_eq!(std::fs::read_dir(&dir).unwrap().count(), 2);
-        let mut batch = Batch::default();
+        let mut batch = outputs.batch();
         batch.stage(&a, b"new a").unwrap();
         batch.stage(&b, b"new b").unwrap();
         batch.commit().unwrap();
@@ -384,14 +414,34 @@ mod tests {
     fn writes_and_replaces_without_leaving_temporaries() {
         let dir = std::env::temp_dir().join(format!("pfs-out-{}", std::process::id()));
         let p = dir.join("sub/a.txt");
-        write_atomic(&p, b"one").unwrap();
-        write_atomic(&p, b"two").unwrap();
+        let outputs = Outputs::new();
+        outputs.write_atomic(&p, b"one").unwrap();
+        outputs.write_atomic(&p, b"two").unwrap();
         assert_eq!(std::fs::read(&p).unwrap(), b"two");
         let names: Vec<_> = std::fs::read_dir(p.parent().unwrap())
             .unwrap()
             .map(|e| e.unwrap().file_name())
             .collect();
         assert_eq!(names.len(), 1, "temporary left behind: {names:?}");
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn a_registry_removes_only_its_own_live_temporaries() {
+        let dir = fresh_dir("registry");
+        let (mine, theirs) = (Outputs::new(), Outputs::new());
+        let mut a = mine.batch();
+        a.stage(&dir.join("a.png"), b"a").unwrap();
+        let mut b = theirs.batch();
+        b.stage(&dir.join("b.png"), b"b").unwrap();
+        assert_eq!(std::fs::read_dir(&dir).unwrap().count(), 2);
+        // A clone shares the registry (a signal handler holds one).
+        assert_eq!(mine.clone().remove_temporaries(), 1);
+        assert_eq!(std::fs::read_dir(&dir).unwrap().count(), 1);
+        b.commit().unwrap();
+        assert!(dir.join("b.png").exists() && !dir.join("a.png").exists());
+        assert_eq!(theirs.remove_temporaries(), 0);
+        drop(a);
         std::fs::remove_dir_all(&dir).unwrap();
     }
 }

@@ -4,6 +4,7 @@
 
 use std::path::{Path, PathBuf};
 
+use base::output::Outputs;
 use base::progress::Observer;
 use base::Error;
 use engine::frame::FrameOptions;
@@ -33,16 +34,19 @@ const MAX_THREADS: usize = 1024;
 pub struct Settings {
     limit: u64,
     isa: lanes::Isa,
+    outputs: Outputs,
 }
 
 impl Settings {
     /// The limit of `--memory-limit` (default: [`budget::default_limit`]) and the widest
-    /// instruction set of this CPU, capped by [`LANES_ENV`].
-    pub fn new(memory_limit: Option<u64>) -> anyhow::Result<Settings> {
+    /// instruction set of this CPU, capped by [`LANES_ENV`]; every file is written through
+    /// `outputs`.
+    pub fn new(memory_limit: Option<u64>, outputs: Outputs) -> anyhow::Result<Settings> {
         let limit = memory_limit.unwrap_or_else(budget::default_limit);
         Ok(Settings {
             limit,
             isa: isa_from_env()?,
+            outputs,
         })
     }
 
@@ -51,6 +55,7 @@ impl Settings {
         lab::jobs::Context::new(observer)
             .with_memory_limit(self.limit)
             .with_isa(self.isa)
+            .with_outputs(self.outputs.clone())
     }
 }
 
@@ -281,7 +286,7 @@ pub fn sweep(settings: &Settings, args: SweepArgs) -> anyhow::Result<()> {
         };
         let observer = Terminal::new(!args.quiet, args.trace);
         let report = sweep::run_sweep(&settings.context(&observer), &req)?;
-        write_sweep_outputs(&report, &args)?;
+        write_sweep_outputs(&settings.outputs, &report, &args)?;
         out(&sweep::table(&report))
     })?
 }
@@ -305,17 +310,21 @@ fn check_sweep_outputs(args: &SweepArgs) -> anyhow::Result<()> {
 }
 
 /// Writes the sweep's `--json`, `--csv` and `--plots` files.
-fn write_sweep_outputs(report: &sweep::SweepReport, args: &SweepArgs) -> anyhow::Result<()> {
+fn write_sweep_outputs(
+    files: &Outputs,
+    report: &sweep::SweepReport,
+    args: &SweepArgs,
+) -> anyhow::Result<()> {
     if let Some(path) = &args.json {
-        base::output::write_atomic(path, json(report)?.as_bytes())?;
+        files.write_atomic(path, json(report)?.as_bytes())?;
         wrote(path, args.quiet);
     }
     if let Some(path) = &args.csv {
-        base::output::write_atomic(path, sweep::csv(report).as_bytes())?;
+        files.write_atomic(path, sweep::csv(report).as_bytes())?;
         wrote(path, args.quiet);
     }
     if let Some(dir) = &args.plots {
-        for path in lab::plot::sweep_plots(report, dir)? {
+        for path in lab::plot::sweep_plots(files, report, dir)? {
             wrote(&path, args.quiet);
         }
     }
@@ -349,7 +358,7 @@ pub fn results(settings: &Settings, args: ResultsArgs) -> anyhow::Result<()> {
 }
 
 /// `generate building`: writes the scene and its OBJ and MTL, then the polygon count.
-pub fn generate_building(args: BuildingArgs) -> anyhow::Result<()> {
+pub fn generate_building(settings: &Settings, args: BuildingArgs) -> anyhow::Result<()> {
     use lab::generate::{write_building, BuildingOptions};
     let options = BuildingOptions {
         rooms_x: args.rooms_x,
@@ -360,7 +369,7 @@ pub fn generate_building(args: BuildingArgs) -> anyhow::Result<()> {
         furniture: args.furniture,
         seed: args.seed,
     };
-    let written = write_building(&options, &args.output)?;
+    let written = write_building(&settings.outputs, &options, &args.output)?;
     let p = &written.paths;
     for path in [&p.scene, &p.obj, &p.mtl] {
         wrote(path, false);
@@ -370,10 +379,10 @@ pub fn generate_building(args: BuildingArgs) -> anyhow::Result<()> {
 
 /// `compare`: the pixel-by-pixel check (with `--tolerance`) and the perceptual measures
 /// (without it, or with `--max-distance`); an error naming every failed check.
-pub fn compare(args: CompareArgs) -> anyhow::Result<()> {
+pub fn compare(settings: &Settings, args: CompareArgs) -> anyhow::Result<()> {
     let mut failed = Vec::new();
     if let Some(tolerance) = args.tolerance {
-        failed.extend(compare_pixels(&args, tolerance)?);
+        failed.extend(compare_pixels(&settings.outputs, &args, tolerance)?);
     }
     if args.tolerance.is_none() || args.max_distance.is_some() {
         failed.extend(compare_perceptual(&args)?);
@@ -392,7 +401,11 @@ pub fn compare(args: CompareArgs) -> anyhow::Result<()> {
 
 /// The pixel-by-pixel check: prints the differing pixels, writes `--diff`; the failure, if any
 /// pixel differs.
-fn compare_pixels(args: &CompareArgs, tolerance: f32) -> anyhow::Result<Option<String>> {
+fn compare_pixels(
+    files: &Outputs,
+    args: &CompareArgs,
+    tolerance: f32,
+) -> anyhow::Result<Option<String>> {
     use lab::image::{read_image, write_exr, write_png};
     let (a, b) = (read_image(&args.a)?, read_image(&args.b)?);
     let d = metric::pixels::diff(&a, &b, tolerance, args.floor)?;
@@ -402,9 +415,9 @@ fn compare_pixels(args: &CompareArgs, tolerance: f32) -> anyhow::Result<Option<S
             .extension()
             .is_some_and(|e| e.eq_ignore_ascii_case("exr"));
         if exr {
-            write_exr(path, d.image.view())?;
+            write_exr(files, path, d.image.view())?;
         } else {
-            write_png(path, d.normalized_image().view(), 0.0)?;
+            write_png(files, path, d.normalized_image().view(), 0.0)?;
         }
     }
     if args.json {

@@ -8,6 +8,7 @@
 //! function of [`commands`], with its options from [`args`].
 
 use base::error::EXIT_FAILURE;
+use base::output::Outputs;
 use clap::Parser;
 use std::io::Write;
 use std::process::ExitCode;
@@ -55,8 +56,8 @@ fn json<T: serde::Serialize>(value: &T) -> anyhow::Result<String> {
 
 /// Builds the shared settings (before any job, so a bad `PIXELFLOW_SIM_LANES` is refused by every
 /// subcommand) and runs the subcommand.
-fn run(cli: Cli) -> anyhow::Result<()> {
-    let settings = Settings::new(cli.memory_limit)?;
+fn run(cli: Cli, outputs: Outputs) -> anyhow::Result<()> {
+    let settings = Settings::new(cli.memory_limit, outputs)?;
     match cli.command {
         Command::Check(args) => commands::check(&settings, args),
         Command::Solve(args) => commands::solve(&settings, args),
@@ -66,8 +67,8 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Bench(args) => commands::bench(&settings, args),
         Command::Sweep(args) => commands::sweep(&settings, args),
         Command::Results(args) => commands::results(&settings, args),
-        Command::Generate(Generate::Building(args)) => commands::generate_building(args),
-        Command::Compare(args) => commands::compare(args),
+        Command::Generate(Generate::Building(args)) => commands::generate_building(&settings, args),
+        Command::Compare(args) => commands::compare(&settings, args),
     }
 }
 
@@ -80,12 +81,14 @@ fn main() -> ExitCode {
     // renames in progress finishes) and exit, so an interrupted run leaves no hidden files and
     // never half of a run's outputs replaced. If the handler cannot be installed the run goes
     // on with the default signal behaviour.
-    let _ = ctrlc::set_handler(|| {
-        base::output::remove_temporaries();
+    let outputs = Outputs::new();
+    let live = outputs.clone();
+    let _ = ctrlc::set_handler(move || {
+        live.remove_temporaries();
         note("interrupted");
         std::process::exit(EXIT_INTERRUPTED);
     });
-    match run(cli) {
+    match run(cli, outputs) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) if e.is::<StdoutClosed>() => ExitCode::SUCCESS,
         Err(e) => {

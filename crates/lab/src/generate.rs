@@ -41,6 +41,7 @@ use std::path::{Path, PathBuf};
 use glam::DVec3;
 
 use base::error::{Error, Result};
+use base::output::Outputs;
 
 /// Most polygons a generated scene may have.
 pub const MAX_POLYGONS: u64 = 1_000_000;
@@ -442,16 +443,8 @@ impl Mesh {
     }
 }
 
-/// Builds the building's faces.
+/// Builds the building's faces: room after room, storey by storey, row by row.
 fn build(o: &BuildingOptions) -> Mesh {
-    let (w, h, d, t) = (
-        units(ROOM_WIDTH),
-        units(ROOM_HEIGHT),
-        units(ROOM_DEPTH),
-        units(WALL),
-    );
-    let (dw, dh) = (units(DOOR_WIDTH), units(DOOR_HEIGHT));
-    let cut = i64::from(o.cut);
     let mut m = Mesh {
         groups: Vec::new(),
         faces: Vec::with_capacity(usize::try_from(o.polygon_count()).unwrap_or(0)),
@@ -459,107 +452,186 @@ fn build(o: &BuildingOptions) -> Mesh {
     for f in 0..o.floors {
         for iz in 0..o.rooms_z {
             for ix in 0..o.rooms_x {
-                let x0 = i64::from(ix) * (w + t);
-                let y0 = i64::from(f) * (h + t);
-                let z0 = i64::from(iz) * (d + t);
-                let (x1, y1, z1) = (x0 + w, y0 + h, z0 + d);
-                // Doorway lines: a doorway in an x wall spans z in [za, zb], one in a z wall x
-                // in [xa, xb].
-                let (za, zb) = (z0 + (d - dw) / 2, z0 + (d + dw) / 2);
-                let (xa, xb) = (x0 + (w - dw) / 2, x0 + (w + dw) / 2);
-                let name = |what: &str| format!("s{f}_x{ix}_z{iz}_{what}");
-                let full_x: &[i64] = &[x0, x1];
-                let full_y: &[i64] = &[y0, y1];
-                let full_z: &[i64] = &[z0, z1];
-                let door_x: &[i64] = &[x0, xa, xb, x1];
-                let door_y: &[i64] = &[y0, y0 + dh, y1];
-                let door_z: &[i64] = &[z0, za, zb, z1];
-
-                let g = m.group(name("floor"));
-                m.rect(
-                    (g, FLOOR),
-                    Facing::PosY,
-                    y0,
-                    [door_x, &[], door_z],
-                    None,
-                    cut,
-                );
-                let g = m.group(name("ceiling"));
-                m.rect(
-                    (g, CEILING),
-                    Facing::NegY,
-                    y1,
-                    [full_x, &[], full_z],
-                    None,
-                    cut,
-                );
-                // Walls: (name, facing, level, has a doorway). A doorway's hole is the box of
-                // the doorway's cell in the wall's plane.
-                let walls = [
-                    ("wall_west", Facing::PosX, x0, ix > 0),
-                    ("wall_east", Facing::NegX, x1, ix + 1 < o.rooms_x),
-                    ("wall_south", Facing::PosZ, z0, iz > 0),
-                    ("wall_north", Facing::NegZ, z1, iz + 1 < o.rooms_z),
-                ];
-                for (what, facing, level, door) in walls {
-                    let g = m.group(name(what));
-                    let along_x = matches!(facing, Facing::PosZ | Facing::NegZ);
-                    let (breaks, hole): ([&[i64]; 3], _) = match (door, along_x) {
-                        (false, false) => ([&[], full_y, full_z], None),
-                        (false, true) => ([full_x, full_y, &[]], None),
-                        (true, false) => {
-                            ([&[], door_y, door_z], Some(([0, y0, za], [0, y0 + dh, zb])))
-                        }
-                        (true, true) => {
-                            ([door_x, door_y, &[]], Some(([xa, y0, 0], [xb, y0 + dh, 0])))
-                        }
-                    };
-                    m.rect((g, WALL_MAT), facing, level, breaks, hole, cut);
-                }
-                // Doorway linings to the east and north neighbours (each doorway once).
-                if ix + 1 < o.rooms_x {
-                    let g = m.group(name("door_east"));
-                    let xs: &[i64] = &[x1, x1 + t];
-                    let ys: &[i64] = &[y0, y0 + dh];
-                    let zs: &[i64] = &[za, zb];
-                    let b = [xs, ys, zs];
-                    m.rect((g, FLOOR), Facing::PosY, y0, b, None, cut);
-                    m.rect((g, WALL_MAT), Facing::NegY, y0 + dh, b, None, cut);
-                    m.rect((g, WALL_MAT), Facing::PosZ, za, b, None, cut);
-                    m.rect((g, WALL_MAT), Facing::NegZ, zb, b, None, cut);
-                }
-                if iz + 1 < o.rooms_z {
-                    let g = m.group(name("door_north"));
-                    let xs: &[i64] = &[xa, xb];
-                    let ys: &[i64] = &[y0, y0 + dh];
-                    let zs: &[i64] = &[z1, z1 + t];
-                    let b = [xs, ys, zs];
-                    m.rect((g, FLOOR), Facing::PosY, y0, b, None, cut);
-                    m.rect((g, WALL_MAT), Facing::NegY, y0 + dh, b, None, cut);
-                    m.rect((g, WALL_MAT), Facing::PosX, xa, b, None, cut);
-                    m.rect((g, WALL_MAT), Facing::NegX, xb, b, None, cut);
-                }
-                // Ceiling panels, 1 cm below the ceiling, facing down: one of 1.4 m square in
-                // the middle, or two of 1 m square at a quarter and three quarters of the width
-                // (the same emitting area, 2 m^2, within 2 %).
-                let below = y1 - units(0.01);
-                let (zc, half) = (z0 + d / 2, units(if o.lights == 1 { 0.7 } else { 0.5 }));
-                let centres: &[i64] = if o.lights == 1 {
-                    &[x0 + w / 2]
-                } else {
-                    &[x0 + w / 4, x0 + 3 * w / 4]
-                };
-                for (k, xc) in centres.iter().enumerate() {
-                    let g = m.group(name(&format!("light{k}")));
-                    let xs: &[i64] = &[xc - half, xc + half];
-                    let zs: &[i64] = &[zc - half, zc + half];
-                    m.rect((g, LIGHT), Facing::NegY, below, [xs, &[], zs], None, 1);
-                }
-                furnish(&mut m, o, (f, ix, iz), [x0, y0, z0], name);
+                Room::new(o, (f, ix, iz)).build(&mut m, o);
             }
         }
     }
     m
+}
+
+/// One room of the building, in units: its inside box, the lines of its doorways, and which of
+/// its walls have one.
+struct Room {
+    /// Storey, column (along x) and row (along z).
+    at: (u32, u32, u32),
+    /// The inside box's lower corner.
+    lo: [i64; 3],
+    /// The inside box's upper corner.
+    hi: [i64; 3],
+    /// A doorway in a z wall spans x in `door_x`.
+    door_x: [i64; 2],
+    /// A doorway in an x wall spans z in `door_z`.
+    door_z: [i64; 2],
+    /// Doorways in the west, east, south and north walls (towards the neighbours).
+    doors: [bool; 4],
+    /// Every shell cell is cut into `cut` x `cut` quads.
+    cut: i64,
+}
+
+impl Room {
+    fn new(o: &BuildingOptions, (f, ix, iz): (u32, u32, u32)) -> Room {
+        let (w, h, d, t) = (
+            units(ROOM_WIDTH),
+            units(ROOM_HEIGHT),
+            units(ROOM_DEPTH),
+            units(WALL),
+        );
+        let dw = units(DOOR_WIDTH);
+        let x0 = i64::from(ix) * (w + t);
+        let y0 = i64::from(f) * (h + t);
+        let z0 = i64::from(iz) * (d + t);
+        Room {
+            at: (f, ix, iz),
+            lo: [x0, y0, z0],
+            hi: [x0 + w, y0 + h, z0 + d],
+            door_x: [x0 + (w - dw) / 2, x0 + (w + dw) / 2],
+            door_z: [z0 + (d - dw) / 2, z0 + (d + dw) / 2],
+            doors: [ix > 0, ix + 1 < o.rooms_x, iz > 0, iz + 1 < o.rooms_z],
+            cut: i64::from(o.cut),
+        }
+    }
+
+    /// The group name of one of the room's surfaces or pieces: `s0_x1_z2_floor`.
+    fn name(&self, what: &str) -> String {
+        let (f, ix, iz) = self.at;
+        format!("s{f}_x{ix}_z{iz}_{what}")
+    }
+
+    /// The top of the room's doorways.
+    fn door_top(&self) -> i64 {
+        self.lo[1] + units(DOOR_HEIGHT)
+    }
+
+    /// Everything in and around the room, in group order: floor, ceiling, walls, the linings of
+    /// the doorways to the east and north, the ceiling lights, the furniture.
+    fn build(&self, m: &mut Mesh, o: &BuildingOptions) {
+        self.floor_and_ceiling(m);
+        self.walls(m);
+        self.doorway_linings(m);
+        self.ceiling_lights(m, o.lights);
+        furnish(m, o, self.at, self.lo, |what: &str| self.name(what));
+    }
+
+    /// The floor, divided at the doorway lines on both axes, and the ceiling, undivided.
+    fn floor_and_ceiling(&self, m: &mut Mesh) {
+        let ([x0, y0, z0], [x1, y1, z1]) = (self.lo, self.hi);
+        let ([xa, xb], [za, zb]) = (self.door_x, self.door_z);
+        let door_x: &[i64] = &[x0, xa, xb, x1];
+        let door_z: &[i64] = &[z0, za, zb, z1];
+        let full_x: &[i64] = &[x0, x1];
+        let full_z: &[i64] = &[z0, z1];
+        let g = m.group(self.name("floor"));
+        m.rect(
+            (g, FLOOR),
+            Facing::PosY,
+            y0,
+            [door_x, &[], door_z],
+            None,
+            self.cut,
+        );
+        let g = m.group(self.name("ceiling"));
+        m.rect(
+            (g, CEILING),
+            Facing::NegY,
+            y1,
+            [full_x, &[], full_z],
+            None,
+            self.cut,
+        );
+    }
+
+    /// The four walls. A wall with a doorway is the grid of cells around its hole (the box of
+    /// the doorway's cell in the wall's plane) minus the hole.
+    fn walls(&self, m: &mut Mesh) {
+        let ([x0, y0, z0], [x1, y1, z1]) = (self.lo, self.hi);
+        let ([xa, xb], [za, zb], top) = (self.door_x, self.door_z, self.door_top());
+        let full_x: &[i64] = &[x0, x1];
+        let full_y: &[i64] = &[y0, y1];
+        let full_z: &[i64] = &[z0, z1];
+        let door_x: &[i64] = &[x0, xa, xb, x1];
+        let door_y: &[i64] = &[y0, top, y1];
+        let door_z: &[i64] = &[z0, za, zb, z1];
+        let [west, east, south, north] = self.doors;
+        // (name, facing, level, has a doorway)
+        let walls = [
+            ("wall_west", Facing::PosX, x0, west),
+            ("wall_east", Facing::NegX, x1, east),
+            ("wall_south", Facing::PosZ, z0, south),
+            ("wall_north", Facing::NegZ, z1, north),
+        ];
+        for (what, facing, level, door) in walls {
+            let g = m.group(self.name(what));
+            let along_x = matches!(facing, Facing::PosZ | Facing::NegZ);
+            let (breaks, hole): ([&[i64]; 3], _) = match (door, along_x) {
+                (false, false) => ([&[], full_y, full_z], None),
+                (false, true) => ([full_x, full_y, &[]], None),
+                (true, false) => ([&[], door_y, door_z], Some(([0, y0, za], [0, top, zb]))),
+                (true, true) => ([door_x, door_y, &[]], Some(([xa, y0, 0], [xb, top, 0]))),
+            };
+            m.rect((g, WALL_MAT), facing, level, breaks, hole, self.cut);
+        }
+    }
+
+    /// The linings of the doorways to the east and north neighbours (each doorway once, by the
+    /// room to its west or south): floor, lintel and two jambs through the wall's thickness.
+    fn doorway_linings(&self, m: &mut Mesh) {
+        let ([x1, z1], t) = ([self.hi[0], self.hi[2]], units(WALL));
+        let ([xa, xb], [za, zb]) = (self.door_x, self.door_z);
+        let [_, east, _, north] = self.doors;
+        if east {
+            let jambs = [(Facing::PosZ, za), (Facing::NegZ, zb)];
+            self.lining(m, "door_east", [&[x1, x1 + t], &[za, zb]], jambs);
+        }
+        if north {
+            let jambs = [(Facing::PosX, xa), (Facing::NegX, xb)];
+            self.lining(m, "door_north", [&[xa, xb], &[z1, z1 + t]], jambs);
+        }
+    }
+
+    /// One doorway's lining over `[xs, zs]`: its floor, its lintel at the doorway's top and its
+    /// two jambs (facing and level each).
+    fn lining(&self, m: &mut Mesh, what: &str, [xs, zs]: [&[i64]; 2], jambs: [(Facing, i64); 2]) {
+        let (y0, top) = (self.lo[1], self.door_top());
+        let g = m.group(self.name(what));
+        let ys: &[i64] = &[y0, top];
+        let b = [xs, ys, zs];
+        m.rect((g, FLOOR), Facing::PosY, y0, b, None, self.cut);
+        m.rect((g, WALL_MAT), Facing::NegY, top, b, None, self.cut);
+        for (facing, level) in jambs {
+            m.rect((g, WALL_MAT), facing, level, b, None, self.cut);
+        }
+    }
+
+    /// Ceiling panels, 1 cm below the ceiling, facing down: one of 1.4 m square in the middle,
+    /// or two of 1 m square at a quarter and three quarters of the width (the same emitting
+    /// area, 2 m^2, within 2 %).
+    fn ceiling_lights(&self, m: &mut Mesh, lights: u32) {
+        let ([x0, _, z0], y1) = (self.lo, self.hi[1]);
+        let (w, d) = (units(ROOM_WIDTH), units(ROOM_DEPTH));
+        let below = y1 - units(0.01);
+        let (zc, half) = (z0 + d / 2, units(if lights == 1 { 0.7 } else { 0.5 }));
+        let centres: &[i64] = if lights == 1 {
+            &[x0 + w / 2]
+        } else {
+            &[x0 + w / 4, x0 + 3 * w / 4]
+        };
+        for (k, xc) in centres.iter().enumerate() {
+            let g = m.group(self.name(&format!("light{k}")));
+            let xs: &[i64] = &[xc - half, xc + half];
+            let zs: &[i64] = &[zc - half, zc + half];
+            m.rect((g, LIGHT), Facing::NegY, below, [xs, &[], zs], None, 1);
+        }
+    }
 }
 
 /// Up to four pieces of furniture in a room whose inside starts at `lo`: each in its own corner
@@ -673,8 +745,24 @@ pub fn generate_building(o: &BuildingOptions, paths: &BuildingPaths) -> Result<B
         o.cut,
         plural(polygons, "polygon", "polygons"),
     );
+    let command = o.command(&paths.scene);
+    let header = format!("# {summary}.\n# GENERATED by: {command}\nmtllib {name}.mtl\n");
+    Ok(Building {
+        toml: scene_toml(o, name, &summary, &paths.scene),
+        obj: header + &obj_body(&m),
+        mtl: mtl_text(&command),
+        summary,
+        polygons,
+        rooms,
+        doorways,
+        lights,
+        furniture,
+    })
+}
 
-    // OBJ: vertices numbered in order of first use, then faces by group.
+/// The OBJ's vertices, numbered in order of first use, then its faces by group, each group and
+/// each change of material announced once.
+fn obj_body(m: &Mesh) -> String {
     let mut index: HashMap<[i64; 3], u32> = HashMap::new();
     let mut vertices = String::new();
     let mut faces = String::new();
@@ -705,35 +793,19 @@ pub fn generate_building(o: &BuildingOptions, paths: &BuildingPaths) -> Result<B
         current = Some((*group, *mat));
         let _ = writeln!(faces, "f {} {} {} {}", ids[0], ids[1], ids[2], ids[3]);
     }
-    let header = format!(
-        "# {summary}.\n# GENERATED by: {}\nmtllib {name}.mtl\n",
-        o.command(&paths.scene)
-    );
-    let obj = header + &vertices + &faces;
+    vertices + &faces
+}
 
-    let mut mtl = format!(
-        "# Materials of the building. GENERATED by: {}\n",
-        o.command(&paths.scene)
-    );
+/// The MTL: every material of [`MATERIALS`], emitters with their `Ke`.
+fn mtl_text(command: &str) -> String {
+    let mut mtl = format!("# Materials of the building. GENERATED by: {command}\n");
     for (k, (n, kd, ke)) in MATERIALS.iter().enumerate() {
         if k > 0 {
             mtl.push('\n');
         }
         let _ = writeln!(mtl, "newmtl {n}\nKd {kd}\nKe {ke}");
     }
-
-    let toml = scene_toml(o, name, &summary, &paths.scene);
-    Ok(Building {
-        toml,
-        obj,
-        mtl,
-        summary,
-        polygons,
-        rooms,
-        doorways,
-        lights,
-        furniture,
-    })
+    mtl
 }
 
 /// The scene file: the camera in the first room looking down the longer row of rooms, the
@@ -822,7 +894,7 @@ fn scene_toml(o: &BuildingOptions, name: &str, summary: &str, scene: &Path) -> S
 /// the OBJ, the MTL and the scene file, each through a temporary renamed over its target, all
 /// renamed together after all three are written ([`base::output::Batch`]). Options and
 /// outputs are checked before anything is built.
-pub fn write_building(o: &BuildingOptions, out: &Path) -> Result<Written> {
+pub fn write_building(outputs: &Outputs, o: &BuildingOptions, out: &Path) -> Result<Written> {
     o.validate()?;
     let paths = BuildingPaths::for_output(out)?;
     base::output::check_outputs(
@@ -834,7 +906,7 @@ pub fn write_building(o: &BuildingOptions, out: &Path) -> Result<Written> {
         ],
     )?;
     let building = generate_building(o, &paths)?;
-    let mut batch = base::output::Batch::default();
+    let mut batch = outputs.batch();
     batch.stage(&paths.obj, building.obj.as_bytes())?;
     batch.stage(&paths.mtl, building.mtl.as_bytes())?;
     batch.stage(&paths.scene, building.toml.as_bytes())?;

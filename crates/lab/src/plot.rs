@@ -16,7 +16,7 @@ use plotters::style::{register_font, FontStyle};
 
 use crate::jobs::sweep::{SweepPoint, SweepReport};
 use base::error::{Error, Result};
-use base::output::write_atomic;
+use base::output::Outputs;
 
 /// Plot size in pixels.
 pub const PLOT_SIZE: (u32, u32) = (1000, 700);
@@ -218,7 +218,7 @@ where
 
 /// Writes `error-vs-time.{png,svg}` and `error-vs-memory.{png,svg}` for `report` into `dir`
 /// (created if missing). Returns the files written.
-pub fn sweep_plots(report: &SweepReport, dir: &Path) -> Result<Vec<PathBuf>> {
+pub fn sweep_plots(outputs: &Outputs, report: &SweepReport, dir: &Path) -> Result<Vec<PathBuf>> {
     font()?;
     let (w, h) = PLOT_SIZE;
     let mut written = Vec::new();
@@ -238,7 +238,7 @@ pub fn sweep_plots(report: &SweepReport, dir: &Path) -> Result<Vec<PathBuf>> {
         )
         .map_err(|e| Error::Runtime(format!("PNG encoding of a plot failed: {e}")))?;
         let path = dir.join(format!("{}.png", cost.file()));
-        write_atomic(&path, &png)?;
+        outputs.write_atomic(&path, &png)?;
         written.push(path);
 
         let mut svg = String::new();
@@ -248,7 +248,7 @@ pub fn sweep_plots(report: &SweepReport, dir: &Path) -> Result<Vec<PathBuf>> {
             cost,
         )?;
         let path = dir.join(format!("{}.svg", cost.file()));
-        write_atomic(&path, svg.as_bytes())?;
+        outputs.write_atomic(&path, svg.as_bytes())?;
         written.push(path);
     }
     Ok(written)

@@ -16,7 +16,7 @@
 //!
 //! Invariants: the bytes are a pure function of the solution (the solve time is not stored, so
 //! solving one scene twice writes identical files); files are written atomically through
-//! [`base::output::write_atomic`]; reading checks, in order, magic, version, length (truncation),
+//! [`base::output::Outputs::write_atomic`]; reading checks, in order, magic, version, length (truncation),
 //! checksum (corruption), scene hash (another scene), then rebuilds every quadtree with
 //! [`Quadtree::from_nodes`] and checks the stored keys are exactly its vertices. Every failure is an
 //! [`Error::Solution`] naming the file, the [`SolutionProblem`] and what is wrong.
@@ -69,9 +69,10 @@ pub fn encode_with_scene(sol: &Solution, scene_path: Option<&Path>, rrps: &[u8])
 }
 
 /// Writes `sol` and `rrps` (the compact reconstruction's encoding, or empty) to `path`
-/// atomically. `scene_path`, if given, is made absolute and stored so that the solution file
-/// alone is enough to render.
+/// atomically through `outputs`. `scene_path`, if given, is made absolute and stored so that the
+/// solution file alone is enough to render.
 pub fn write_solution(
+    outputs: &base::output::Outputs,
     path: &Path,
     sol: &Solution,
     scene_path: Option<&Path>,
@@ -81,7 +82,7 @@ pub fn write_solution(
         Some(p) => Some(std::fs::canonicalize(p).map_err(|e| Error::io(p, e))?),
         None => None,
     };
-    base::output::write_atomic(path, &encode_with_scene(sol, abs.as_deref(), rrps))
+    outputs.write_atomic(path, &encode_with_scene(sol, abs.as_deref(), rrps))
 }
 
 /// The scene file a solution file names (checked: magic, version, length, checksum).

@@ -355,7 +355,7 @@ fn solution_file_round_trip_and_errors() {
     let path = tmp("a.pfsol");
     // The RRP bytes are opaque to this module: any bytes round-trip.
     let rrps: Vec<u8> = (0..=255u8).collect();
-    file::write_solution(&path, &sol, None, &rrps).expect("write");
+    file::write_solution(&base::output::Outputs::new(), &path, &sol, None, &rrps).expect("write");
     let (back, back_rrps) = file::read_solution(&path, &s).expect("read");
     sol.stats.solve_ms = 0.0;
     assert_eq!(back, sol);

@@ -182,7 +182,7 @@ fn same_options_give_the_same_bytes() {
     let dir = scratch("determinism");
     let mut seen = Vec::new();
     for _ in 0..2 {
-        let w = write_building(&o, &dir.join("b.toml")).unwrap();
+        let w = write_building(&base::output::Outputs::new(), &o, &dir.join("b.toml")).unwrap();
         let p = &w.paths;
         seen.push(
             [p.scene.clone(), p.obj.clone(), p.mtl.clone()].map(|f| std::fs::read(f).unwrap()),

@@ -1,13 +1,12 @@
-//! Interrupted runs leave nothing behind: the list of live temporaries that the binary's
-//! SIGINT/SIGTERM handler removes, tested in-process (this file is its own test binary, so no
-//! other test's temporaries are in the list), and a walkthrough killed with SIGTERM while it
-//! writes frames.
+//! Interrupted runs leave nothing behind: the registry of live temporaries that the binary's
+//! SIGINT/SIGTERM handler removes, tested in-process, and a walkthrough killed with SIGTERM
+//! while it writes frames.
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::time::{Duration, Instant};
 
-use base::output::{remove_temporaries, Batch};
+use base::output::Outputs;
 
 fn fresh_dir(name: &str) -> PathBuf {
     let d = std::env::temp_dir().join(format!("pfs-interrupt-{}-{name}", std::process::id()));
@@ -30,18 +29,19 @@ fn names(dir: &Path) -> Vec<String> {
 fn the_handlers_cleanup_removes_every_staged_temporary_and_no_target() {
     let dir = fresh_dir("staged");
     std::fs::write(dir.join("old.png"), b"old").unwrap();
-    let mut batch = Batch::default();
+    let outputs = Outputs::new();
+    let mut batch = outputs.batch();
     batch.stage(&dir.join("old.png"), b"new png").unwrap();
     batch.stage(&dir.join("new.exr"), b"new exr").unwrap();
     assert_eq!(names(&dir).len(), 3, "{:?}", names(&dir));
     // What the signal handler does: both temporaries go, the old target stays as it was.
-    assert_eq!(remove_temporaries(), 2);
+    assert_eq!(outputs.remove_temporaries(), 2);
     assert_eq!(names(&dir), ["old.png"]);
     assert_eq!(std::fs::read(dir.join("old.png")).unwrap(), b"old");
     // A commit after the cleanup fails (its temporaries are gone) and replaces nothing.
     assert!(batch.commit().is_err());
     assert_eq!(names(&dir), ["old.png"]);
-    assert_eq!(remove_temporaries(), 0);
+    assert_eq!(outputs.remove_temporaries(), 0);
     let _ = std::fs::remove_dir_all(&dir);
 }
 

@@ -44,6 +44,8 @@ pub struct FigureOptions {
     pub first_spot_falloff: Option<f64>,
     /// Where images are written (`None`: nothing is written).
     pub out_dir: Option<PathBuf>,
+    /// The registry images are written through (atomically, removable on interrupt).
+    pub outputs: base::output::Outputs,
     /// The instruction set the frames run with (the images do not depend on it).
     pub isa: lanes::Isa,
 }
@@ -61,6 +63,7 @@ impl FigureOptions {
             estimator: Estimator::default(),
             first_spot_falloff: None,
             out_dir: None,
+            outputs: base::output::Outputs::new(),
             isa: lanes::Isa::detect(),
         }
     }
@@ -246,31 +249,71 @@ fn image_of_frame(frame: Frame) -> Result<LinearImage> {
     LinearImage::new(frame.width, frame.height, frame.pixels)
 }
 
-fn panel(
-    opts: &FigureOptions,
-    scene: &Scene,
-    fig: &str,
-    key: &str,
-    label: &str,
-    image: LinearImage,
-    reference: Option<&LinearImage>,
-) -> Result<Panel> {
-    let versus_reference = match reference {
-        Some(r) => Some(compare(&image, r, opts.ppd)?),
-        None => None,
-    };
-    let mut file = String::new();
-    if let Some(dir) = &opts.out_dir {
-        file = format!("{fig}-{key}.png");
-        image::write_png(&dir.join(&file), image.view(), scene.display.exposure)?;
+/// The frame options of a figure's `size` x `size` images.
+fn frame_options(opts: &FigureOptions) -> FrameOptions {
+    FrameOptions {
+        isa: opts.isa,
+        ..FrameOptions::new(opts.size, opts.size)
     }
-    Ok(Panel {
-        label: label.into(),
-        key: key.into(),
-        file,
-        versus_reference,
-        image,
-    })
+}
+
+/// Makes the panels of one figure: writes each image (when the options name a directory) and
+/// measures it against the oracle reference.
+struct Panels<'a> {
+    opts: &'a FigureOptions,
+    scene: &'a Scene,
+    /// `fig5` or `fig6`, the start of the images' file names.
+    fig: &'a str,
+    /// The oracle reference image.
+    reference: &'a LinearImage,
+}
+
+impl Panels<'_> {
+    /// Panel (a): the oracle reference itself.
+    fn reference(&self) -> Result<Panel> {
+        self.panel(
+            "reference",
+            "(a) reference: the solver's oracle at every pixel",
+            self.reference.clone(),
+            None,
+        )
+    }
+
+    /// A panel measured against the reference.
+    fn measured(&self, key: &str, label: &str, image: LinearImage) -> Result<Panel> {
+        self.panel(key, label, image, Some(self.reference))
+    }
+
+    /// Panel `key`, written when asked, measured against `reference` when given.
+    fn panel(
+        &self,
+        key: &str,
+        label: &str,
+        image: LinearImage,
+        reference: Option<&LinearImage>,
+    ) -> Result<Panel> {
+        let versus_reference = match reference {
+            Some(r) => Some(compare(&image, r, self.opts.ppd)?),
+            None => None,
+        };
+        let mut file = String::new();
+        if let Some(dir) = &self.opts.out_dir {
+            file = format!("{}-{key}.png", self.fig);
+            image::write_png(
+                &self.opts.outputs,
+                &dir.join(&file),
+                image.view(),
+                self.scene.display.exposure,
+            )?;
+        }
+        Ok(Panel {
+            label: label.into(),
+            key: key.into(),
+            file,
+            versus_reference,
+            image,
+        })
+    }
 }
 
 fn check(opts: &FigureOptions) -> Result<()> {
@@ -342,69 +385,44 @@ pub fn fig5(opts: &FigureOptions) -> Result<Figure> {
         scene,
         &scene.camera,
         &recon,
-        &FrameOptions {
-            isa: opts.isa,
-            ..FrameOptions::new(n, n)
-        },
+        &frame_options(opts),
     )?)?;
     let side = (1u32 << cd) + 1;
+    let p = Panels {
+        opts,
+        scene,
+        fig: "fig5",
+        reference: &reference,
+    };
     let panels = vec![
-        panel(
-            opts,
-            scene,
-            "fig5",
-            "reference",
-            "(a) reference: the solver's oracle at every pixel",
-            reference.clone(),
-            None,
-        )?,
-        panel(
-            opts,
-            scene,
-            "fig5",
+        p.reference()?,
+        p.measured(
             "full",
             &format!(
                 "(a') the paper's reference: depth-{rd} quadtree ({0} x {0} samples), bilinear",
                 (1u32 << rd) + 1
             ),
             image_of(n, |u, v| grid_bilinear(&fine, rd, u, v)),
-            Some(&reference),
         )?,
-        panel(
-            opts,
-            scene,
-            "fig5",
+        p.measured(
             "coarse",
             &format!("(b) depth-{cd} quadtree ({side} x {side} samples), nearest sample"),
             image_of(n, |u, v| grid_nearest(&coarse, cd, u, v)),
-            Some(&reference),
         )?,
-        panel(
-            opts,
-            scene,
-            "fig5",
+        p.measured(
             "bilinear",
             &format!("(c) RAT: bilinear resampling of (b) to {n} x {n}"),
             image_of(n, |u, v| grid_bilinear(&coarse, cd, u, v)),
-            Some(&reference),
         )?,
-        panel(
-            opts,
-            scene,
-            "fig5",
+        p.measured(
             "bicubic",
             &format!("(d) RAT: bicubic (RRP) resampling of (b) to {n} x {n}"),
             bicubic,
-            Some(&reference),
         )?,
-        panel(
-            opts,
-            scene,
-            "fig5",
+        p.measured(
             "direct",
             &format!("(e) direct: the RRPs of (b) evaluated per pixel at {n} x {n}"),
             direct,
-            Some(&reference),
         )?,
     ];
     Ok(Figure {
@@ -423,111 +441,123 @@ pub fn fig6(opts: &FigureOptions) -> Result<Figure> {
     check(opts)?;
     let setup = Setup::new(&opts.scene, opts.first_spot_falloff)?;
     let oracle = setup.oracle()?;
-    let n = opts.size;
-    let scene = &setup.scene;
-    let reference = oracle_image(&setup, &oracle, n, opts.isa)?;
-    let cd = opts.coarse_depth;
-    let coarse = sampled(&oracle, cd);
+    let reference = oracle_image(&setup, &oracle, opts.size, opts.isa)?;
+    let coarse = sampled(&oracle, opts.coarse_depth);
     let recon = Reconstruction::build(std::slice::from_ref(&coarse), opts.estimator)?;
-    let ts = opts.texture_size;
-    TextureSet::sides(&[0], reconstruction::texture::SizePolicy::Fixed(ts))?;
-    let set_of = |placement: Placement| TextureSet {
-        memory: TextureMemory::of_sides(&[ts]),
-        textures: vec![RadiosityTexture::from_rrp(&recon, 0, ts, placement)],
-        placement,
+    TextureSet::sides(
+        &[0],
+        reconstruction::texture::SizePolicy::Fixed(opts.texture_size),
+    )?;
+    let fig = SmallTexture {
+        opts,
+        scene: &setup.scene,
+        recon: &recon,
+        fopts: frame_options(opts),
     };
-    let (set, corner) = (set_of(Placement::Centre), set_of(Placement::Corner));
-    let fopts = FrameOptions {
-        isa: opts.isa,
-        ..FrameOptions::new(n, n)
-    };
-    let draw_set = |set: &TextureSet, filter: Filter| -> Result<LinearImage> {
-        image_of_frame(frame::render(
-            scene,
-            &scene.camera,
-            &Shader::Texture { set, filter },
-            Method::Texture(filter),
-            &fopts,
-        )?)
-    };
-    let draw = |filter: Filter| draw_set(&set, filter);
-    let direct = image_of_frame(frame::render_patches(scene, &scene.camera, &recon, &fopts)?)?;
-    let panels = vec![
-        panel(
-            opts,
-            scene,
-            "fig6",
-            "reference",
-            "(a) reference: the solver's oracle at every pixel",
-            reference.clone(),
-            None,
-        )?,
-        panel(
-            opts,
-            scene,
-            "fig6",
-            "texture",
-            &format!("(b) the bicubic RRP resampled to {ts} x {ts} texels, shown nearest"),
-            draw(Filter::Nearest)?,
-            Some(&reference),
-        )?,
-        panel(
-            opts,
-            scene,
-            "fig6",
-            "bilinear",
-            &format!("(c) the {ts} x {ts} texture drawn at {n} x {n}, bilinear filtering"),
-            draw(Filter::Bilinear)?,
-            Some(&reference),
-        )?,
-        panel(
-            opts,
-            scene,
-            "fig6",
-            "bicubic",
-            &format!(
-                "(d) the {ts} x {ts} texture drawn at {n} x {n}, Mitchell-Netravali (1/3, 1/3)"
-            ),
-            draw(Filter::MITCHELL)?,
-            Some(&reference),
-        )?,
-        panel(
-            opts,
-            scene,
-            "fig6",
-            "direct",
-            &format!("(e) direct: the RRPs evaluated per pixel at {n} x {n}"),
-            direct,
-            Some(&reference),
-        )?,
-        panel(
-            opts,
-            scene,
-            "fig6",
-            "corner-bilinear",
-            &format!(
-                "(f) corner-aligned texels: the RRP at u = i / {}, {ts} x {ts}, bilinear",
-                ts.saturating_sub(1).max(1)
-            ),
-            draw_set(&corner, Filter::Bilinear)?,
-            Some(&reference),
-        )?,
-        panel(
-            opts,
-            scene,
-            "fig6",
-            "corner-bicubic",
-            &format!("(g) corner-aligned texels, {ts} x {ts}, Mitchell-Netravali (1/3, 1/3)"),
-            draw_set(&corner, Filter::MITCHELL)?,
-            Some(&reference),
-        )?,
-    ];
+    let panels = fig.panels(&Panels {
+        opts,
+        scene: &setup.scene,
+        fig: "fig6",
+        reference: &reference,
+    })?;
     Ok(Figure {
         name: "fig6".into(),
         panels,
         paper: PAPER_FIG6,
         ppd: opts.ppd,
     })
+}
+
+/// Fig. 6's drawing: the coarse data's RRP resampled to one `texture_size` x `texture_size`
+/// texture and drawn on screen with a filter, beside the RRP drawn directly.
+struct SmallTexture<'a> {
+    opts: &'a FigureOptions,
+    scene: &'a Scene,
+    /// The RRP of the coarse quadtree.
+    recon: &'a Reconstruction,
+    /// The figure's frame options.
+    fopts: FrameOptions,
+}
+
+impl SmallTexture<'_> {
+    /// The RRP resampled to the texture, its texels at `placement`.
+    fn texture(&self, placement: Placement) -> TextureSet {
+        let ts = self.opts.texture_size;
+        TextureSet {
+            memory: TextureMemory::of_sides(&[ts]),
+            textures: vec![RadiosityTexture::from_rrp(self.recon, 0, ts, placement)],
+            placement,
+        }
+    }
+
+    /// `set` drawn with `filter`.
+    fn draw(&self, set: &TextureSet, filter: Filter) -> Result<LinearImage> {
+        image_of_frame(frame::render(
+            self.scene,
+            &self.scene.camera,
+            &Shader::Texture { set, filter },
+            Method::Texture(filter),
+            &self.fopts,
+        )?)
+    }
+
+    /// The RRP evaluated per pixel: the direct method, no texture.
+    fn direct(&self) -> Result<LinearImage> {
+        image_of_frame(frame::render_patches(
+            self.scene,
+            &self.scene.camera,
+            self.recon,
+            &self.fopts,
+        )?)
+    }
+
+    /// The panels in the paper's order, then the corner-aligned ones.
+    fn panels(&self, p: &Panels<'_>) -> Result<Vec<Panel>> {
+        let (n, ts) = (self.opts.size, self.opts.texture_size);
+        let (set, corner) = (
+            self.texture(Placement::Centre),
+            self.texture(Placement::Corner),
+        );
+        let direct = self.direct()?;
+        Ok(vec![
+            p.reference()?,
+            p.measured(
+                "texture",
+                &format!("(b) the bicubic RRP resampled to {ts} x {ts} texels, shown nearest"),
+                self.draw(&set, Filter::Nearest)?,
+            )?,
+            p.measured(
+                "bilinear",
+                &format!("(c) the {ts} x {ts} texture drawn at {n} x {n}, bilinear filtering"),
+                self.draw(&set, Filter::Bilinear)?,
+            )?,
+            p.measured(
+                "bicubic",
+                &format!(
+                    "(d) the {ts} x {ts} texture drawn at {n} x {n}, Mitchell-Netravali (1/3, 1/3)"
+                ),
+                self.draw(&set, Filter::MITCHELL)?,
+            )?,
+            p.measured(
+                "direct",
+                &format!("(e) direct: the RRPs evaluated per pixel at {n} x {n}"),
+                direct,
+            )?,
+            p.measured(
+                "corner-bilinear",
+                &format!(
+                    "(f) corner-aligned texels: the RRP at u = i / {}, {ts} x {ts}, bilinear",
+                    ts.saturating_sub(1).max(1)
+                ),
+                self.draw(&corner, Filter::Bilinear)?,
+            )?,
+            p.measured(
+                "corner-bicubic",
+                &format!("(g) corner-aligned texels, {ts} x {ts}, Mitchell-Netravali (1/3, 1/3)"),
+                self.draw(&corner, Filter::MITCHELL)?,
+            )?,
+        ])
+    }
 }
 
 /// One falloff of the spot sweep: how well the coarse grid resolves the bright spot decides

@@ -137,6 +137,7 @@ pub fn run(job: &Context<'_>, req: &Request, wrote: &mut dyn FnMut(&Path)) -> Re
     let mut r = Results::default();
     let figures = FigureOptions {
         isa: job.isa,
+        outputs: job.outputs.clone(),
         ..req.figures.clone()
     };
     let any = |w: Which| req.which == w || req.which == Which::All;
@@ -168,7 +169,7 @@ pub fn run(job: &Context<'_>, req: &Request, wrote: &mut dyn FnMut(&Path)) -> Re
     }
     if let (Which::All, Some(doc)) = (req.which, &req.doc) {
         let md = markdown(&r, req, doc)?;
-        base::output::write_atomic(doc, md.as_bytes())?;
+        job.outputs.write_atomic(doc, md.as_bytes())?;
         wrote(doc);
     }
     Ok(r)

@@ -23,12 +23,12 @@ use crate::jobs::equal_error::{EqualError, ScalePoint};
 use crate::jobs::sweep::{self, SweepPoint, SweepReport, SweepRequest};
 use crate::jobs::walkthrough::WalkthroughSummary;
 use crate::jobs::Context;
-use crate::jobs::{prepare, render_frame, render_frame_in, scene_texture_policy, Input};
+use crate::jobs::{prepare, render_frame, render_frame_in, scene_texture_policy, Input, Prepared};
 use base::error::{Error, Result};
 use base::method::Method;
-use base::output::write_atomic;
 use base::progress::Stage;
 use metric::{compare, DEFAULT_PPD};
+use scene::CameraPath;
 
 /// The scenes of the results page by default (gallery-fine is left to `stats` and Table 1: its
 /// sweep alone takes longer than the rest together).
@@ -231,49 +231,15 @@ pub fn run_results(
 ) -> Result<ResultsReport> {
     check(req)?;
     let start = Instant::now();
-    let sweep_req = |scene: &Path| SweepRequest {
-        width: req.sweep_size,
-        height: req.sweep_size,
-        frames: req.frames,
-        repeats: req.repeats,
-        ..SweepRequest::new(scene.to_path_buf())
-    };
     // Every option and every scene is checked before the first solve.
     for scene in &req.scenes {
-        sweep::check_request(&sweep_req(scene))?;
+        sweep::check_request(&sweep_request(req, scene))?;
         Input::load(scene)?;
     }
     let root = data_dir(&req.doc);
     let mut scenes = Vec::new();
     for scene in &req.scenes {
-        let t = Instant::now();
-        let name = stem(scene);
-        let dir = root.join(&name);
-        std::fs::create_dir_all(&dir).map_err(|e| Error::Io {
-            path: dir.clone(),
-            error: e,
-        })?;
-        let report = sweep::run_sweep(job, &sweep_req(scene))?;
-        let files = [
-            (dir.join("sweep.json"), json(&report)?),
-            (dir.join("sweep.csv"), sweep::csv(&report)),
-        ];
-        for (path, text) in &files {
-            write_atomic(path, text.as_bytes())?;
-            wrote(path);
-        }
-        for path in crate::plot::sweep_plots(&report, &dir)? {
-            wrote(&path);
-        }
-        let (gallery, walkthrough) = gallery_and_walkthrough(job, req, scene, &dir, wrote)?;
-        scenes.push(SceneResults {
-            name,
-            path: scene.display().to_string(),
-            sweep: report,
-            gallery,
-            walkthrough,
-            seconds: t.elapsed().as_secs_f64(),
-        });
+        scenes.push(scene_results(job, req, scene, &root, wrote)?);
     }
     let report = ResultsReport {
         machine: Machine::this(),
@@ -282,11 +248,62 @@ pub fn run_results(
         seconds: start.elapsed().as_secs_f64(),
     };
     let data = root.join("results.json");
-    write_atomic(&data, json(&report)?.as_bytes())?;
+    job.outputs.write_atomic(&data, json(&report)?.as_bytes())?;
     wrote(&data);
-    write_atomic(&req.doc, markdown(&report, req).as_bytes())?;
+    job.outputs
+        .write_atomic(&req.doc, markdown(&report, req).as_bytes())?;
     wrote(&req.doc);
     Ok(report)
+}
+
+/// The sweep of `scene` at the request's size, frames and repeats.
+fn sweep_request(req: &ResultsRequest, scene: &Path) -> SweepRequest {
+    SweepRequest {
+        width: req.sweep_size,
+        height: req.sweep_size,
+        frames: req.frames,
+        repeats: req.repeats,
+        ..SweepRequest::new(scene.to_path_buf())
+    }
+}
+
+/// Measures one scene and writes its data to `root/<name>/`: the sweep (JSON, CSV, plots), the
+/// gallery's images and the walkthroughs.
+fn scene_results(
+    job: &Context<'_>,
+    req: &ResultsRequest,
+    scene: &Path,
+    root: &Path,
+    wrote: &mut dyn FnMut(&Path),
+) -> Result<SceneResults> {
+    let t = Instant::now();
+    let name = stem(scene);
+    let dir = root.join(&name);
+    std::fs::create_dir_all(&dir).map_err(|e| Error::Io {
+        path: dir.clone(),
+        error: e,
+    })?;
+    let report = sweep::run_sweep(job, &sweep_request(req, scene))?;
+    let files = [
+        (dir.join("sweep.json"), json(&report)?),
+        (dir.join("sweep.csv"), sweep::csv(&report)),
+    ];
+    for (path, text) in &files {
+        job.outputs.write_atomic(path, text.as_bytes())?;
+        wrote(path);
+    }
+    for path in crate::plot::sweep_plots(&job.outputs, &report, &dir)? {
+        wrote(&path);
+    }
+    let (gallery, walkthrough) = gallery_and_walkthrough(job, req, scene, &dir, wrote)?;
+    Ok(SceneResults {
+        name,
+        path: scene.display().to_string(),
+        sweep: report,
+        gallery,
+        walkthrough,
+        seconds: t.elapsed().as_secs_f64(),
+    })
 }
 
 /// The command line that reproduces `req`.
@@ -325,6 +342,24 @@ fn gallery_and_walkthrough(
     let policy = scene_texture_policy(&input.scene);
     let placement = input.scene.render.texel_placement;
     let p = prepare(job, input, policy, placement)?;
+    let gallery = gallery(job, req, &p, dir, wrote)?;
+    let walkthrough = match p.scene.camera_path.clone() {
+        Some(path) => walkthroughs(job, &p, &path)?,
+        None => Vec::new(),
+    };
+    Ok((gallery, walkthrough))
+}
+
+/// Every method of [`GALLERY_METHODS`] drawn at the gallery's width (the height from the
+/// scene's aspect ratio), written to `dir` as `gallery-<method>.png`, each measured against the
+/// first (the exact image).
+fn gallery(
+    job: &Context<'_>,
+    req: &ResultsRequest,
+    p: &Prepared,
+    dir: &Path,
+    wrote: &mut dyn FnMut(&Path),
+) -> Result<Vec<GalleryImage>> {
     let (w, h) = (p.scene.width, p.scene.height);
     let gw = req.gallery_width;
     let gh = ((gw as u64 * h as u64 + w as u64 / 2) / w as u64).clamp(1, 4096) as u32;
@@ -335,9 +370,9 @@ fn gallery_and_walkthrough(
     let mut exact = None;
     for name in GALLERY_METHODS {
         let method = Method::parse(name)?;
-        let frame = render_frame(&p, method, &p.scene.camera, &opts)?;
+        let frame = render_frame(p, method, &p.scene.camera, &opts)?;
         let path = dir.join(format!("gallery-{name}.png"));
-        image::write_png(&path, frame.view(), exposure)?;
+        image::write_png(&job.outputs, &path, frame.view(), exposure)?;
         wrote(&path);
         let img = image::LinearImage::new(frame.width, frame.height, frame.pixels)?;
         let error = match &exact {
@@ -357,34 +392,39 @@ fn gallery_and_walkthrough(
             error,
         });
     }
+    Ok(gallery)
+}
+
+/// Every frame of the scene's camera path by every gallery method but the exact one, at the
+/// scene's image size, timed.
+fn walkthroughs(job: &Context<'_>, p: &Prepared, path: &CameraPath) -> Result<Vec<WalkthroughRow>> {
+    let (w, h) = (p.scene.width, p.scene.height);
+    let opts = job.frame_options(w, h);
+    let mut stage = Stage::start(job.observer, "walkthroughs");
+    let methods = &GALLERY_METHODS[1..];
     let mut walkthrough = Vec::new();
-    if let Some(path) = p.scene.camera_path.clone() {
-        let opts = job.frame_options(w, h);
-        let mut stage = Stage::start(job.observer, "walkthroughs");
-        let methods = &GALLERY_METHODS[1..];
-        for (i, name) in methods.iter().enumerate() {
-            let method = Method::parse(name)?;
-            let cameras: Vec<_> = (0..path.frames)
-                .map(|k| path.camera(p.scene.camera.projection, k))
-                .collect();
-            // One warm-up frame (builds the textures or the mesh once, outside the timing),
-            // then every frame in the same frame context, as `render` draws a walkthrough.
-            let mut ctx = engine::frame::FrameContext::new();
-            render_frame_in(&mut ctx, &p, method, &cameras[0], &opts)?;
-            let mut stats = Vec::new();
-            for c in &cameras {
-                stats.push(render_frame_in(&mut ctx, &p, method, c, &opts)?);
-            }
-            walkthrough.push(WalkthroughRow {
-                method: name.to_string(),
-                width: w,
-                height: h,
-                summary: WalkthroughSummary::new(&stats),
-            });
-            stage.advance((i + 1) as f64 / methods.len() as f64);
+    for (i, name) in methods.iter().enumerate() {
+        let method = Method::parse(name)?;
+        let cameras: Vec<_> = (0..path.frames)
+            .map(|k| path.camera(p.scene.camera.projection, k))
+            .collect();
+        // One warm-up frame (builds the textures or the mesh once, outside the timing),
+        // then every frame in the same frame context, as `render` draws a walkthrough.
+        let mut ctx = engine::frame::FrameContext::new();
+        render_frame_in(&mut ctx, p, method, &cameras[0], &opts)?;
+        let mut stats = Vec::new();
+        for c in &cameras {
+            stats.push(render_frame_in(&mut ctx, p, method, c, &opts)?);
         }
+        walkthrough.push(WalkthroughRow {
+            method: name.to_string(),
+            width: w,
+            height: h,
+            summary: WalkthroughSummary::new(&stats),
+        });
+        stage.advance((i + 1) as f64 / methods.len() as f64);
     }
-    Ok((gallery, walkthrough))
+    Ok(walkthrough)
 }
 
 fn mb(bytes: u64) -> String {
@@ -536,33 +576,35 @@ fn equal_error_markdown(e: &EqualError) -> String {
     }
     // The findings, one sentence each for the textures as drawn (mip-mapped) and without mips.
     s += "\n";
-    for (mip, what) in [
-        (true, "as the texture methods draw them (mip-mapped)"),
-        (false, "without mip chains (level 0 at every pixel)"),
-    ] {
-        let cheapest = e
-            .rows
-            .iter()
-            .filter(|r| r.mip_mapped == mip)
-            .filter_map(|r| r.reached.first().copied().flatten().map(|p| (r, p)))
-            .min_by_key(|(_, p)| p.bytes);
-        s += &match cheapest {
-            Some((r, p)) => format!(
-                "Textures {what}: the cheapest at the direct method's error is {} ({} texels, {} \
-                 filtering), {} the RRPs' bytes as held and {} their samples-alone form's. ",
-                mb(p.bytes),
-                r.placement,
-                r.method.trim_start_matches("texture-"),
-                ratio_words(p.bytes as f64 / e.rrp_bytes.max(1) as f64),
-                ratio_words(p.bytes as f64 / e.rrp_samples_bytes.max(1) as f64)
-            ),
-            None => format!(
-                "Textures {what}: none reaches the direct method's error at any size tried. "
-            ),
-        };
-    }
+    s += &cheapest_finding(e, true, "as the texture methods draw them (mip-mapped)");
+    s += &cheapest_finding(e, false, "without mip chains (level 0 at every pixel)");
     s += "\n\n";
     s
+}
+
+/// The cheapest texture set, mip-mapped or not (`mip`), at the direct method's error, against
+/// the RRPs' bytes in both forms; `what` says how the textures are drawn.
+fn cheapest_finding(e: &EqualError, mip: bool, what: &str) -> String {
+    let cheapest = e
+        .rows
+        .iter()
+        .filter(|r| r.mip_mapped == mip)
+        .filter_map(|r| r.reached.first().copied().flatten().map(|p| (r, p)))
+        .min_by_key(|(_, p)| p.bytes);
+    match cheapest {
+        Some((r, p)) => format!(
+            "Textures {what}: the cheapest at the direct method's error is {} ({} texels, {} \
+             filtering), {} the RRPs' bytes as held and {} their samples-alone form's. ",
+            mb(p.bytes),
+            r.placement,
+            r.method.trim_start_matches("texture-"),
+            ratio_words(p.bytes as f64 / e.rrp_bytes.max(1) as f64),
+            ratio_words(p.bytes as f64 / e.rrp_samples_bytes.max(1) as f64)
+        ),
+        None => {
+            format!("Textures {what}: none reaches the direct method's error at any size tried. ")
+        }
+    }
 }
 
 fn ratio_words(r: f64) -> String {
@@ -575,6 +617,20 @@ fn ratio_words(r: f64) -> String {
 
 /// The page.
 pub fn markdown(r: &ResultsReport, req: &ResultsRequest) -> String {
+    let mut s = introduction(r);
+    s += &contents(r);
+    for sc in &r.scenes {
+        s += &scene_section(sc);
+    }
+    s += &equal_error_section(r);
+    s += &walkthrough_section(r);
+    s += &gallery_section(r, req);
+    s += &commands_section(r, req);
+    s
+}
+
+/// The title, how the page was made and on what, and how the sweep is built.
+fn introduction(r: &ResultsReport) -> String {
     let mut s = String::from("# Results: speed, error and memory of every method\n\n");
     s += &format!(
         "Generated by `{}` in {:.0} s on {}. Every number on this page, and every image, comes \
@@ -594,66 +650,84 @@ pub fn markdown(r: &ResultsReport, req: &ResultsRequest) -> String {
           solution's exact image (the method's own error), **error total** to a converged \
           solution's (tolerance 1/4, one level deeper: what a user sees). Bytes: RRP patches and \
           locate trees; 12-bit textures with mip chains; the mesh's vertices and indices.\n\n";
-    s += "## Contents\n\n";
+    s
+}
+
+/// Links to every scene's section and to the sections after them.
+fn contents(r: &ResultsReport) -> String {
+    let mut s = String::from("## Contents\n\n");
     for sc in &r.scenes {
         s += &format!("- [{0}](#{0})\n", sc.name);
     }
     s += "- [Equal-error memory](#equal-error-memory)\n- [Walkthrough frame rates](#walkthrough-frame-rates)\n- [Image gallery](#image-gallery)\n\n";
+    s
+}
 
-    for sc in &r.scenes {
-        let sw = &sc.sweep;
-        s += &format!("## {}\n\n", sc.name);
-        let dens: Vec<String> = sw
-            .densities
-            .iter()
-            .map(|d| format!("tolerance {} ({} samples)", d.tolerance, d.samples))
-            .collect();
-        s += &format!(
-            "`{}` at {} x {}; densities: {}; converged reference: tolerance {}, depth {}, {} \
-             samples. ({:.0} s for this scene.)\n\n",
-            sc.path,
-            sw.width,
-            sw.height,
-            dens.join(", "),
-            sw.reference.tolerance,
-            sw.reference.max_depth,
-            sw.reference.samples,
-            sc.seconds
-        );
-        s += &format!(
-            "| error against frame time | error against memory |\n|---|---|\n| ![](results/{0}/error-vs-time.png) | ![](results/{0}/error-vs-memory.png) |\n\n",
-            sc.name
-        );
-        s += &format!("{}\n\n{}\n\n", front_counts(sw), best_at_finest(sw));
-        // The scene's own density: every method, textures at full size.
-        let own = sw
-            .equal_error
-            .as_ref()
-            .map_or(sw.densities.len().saturating_sub(1) / 2, |e| e.density);
-        s += &format!(
-            "At the scene's own density ({}), every method, the textures at the quadtree-depth size:\n\n{}",
-            own, POINT_HEADER
-        );
-        for p in sw
-            .points
-            .iter()
-            .filter(|p| p.density == own && p.texture.is_none_or(|l| l.halvings == 0))
-        {
-            s += &point_row(p);
-        }
-        s += "\nEvery point on a front, all densities:\n\n";
-        s += POINT_HEADER;
-        for p in sw
-            .points
-            .iter()
-            .filter(|p| p.pareto_time || p.pareto_memory)
-        {
-            s += &point_row(p);
-        }
-        s += "\n";
+/// One scene's sweep: its densities, plots and fronts, every method at the scene's own density,
+/// and every point on a front.
+fn scene_section(sc: &SceneResults) -> String {
+    let sw = &sc.sweep;
+    let mut s = format!("## {}\n\n", sc.name);
+    let dens: Vec<String> = sw
+        .densities
+        .iter()
+        .map(|d| format!("tolerance {} ({} samples)", d.tolerance, d.samples))
+        .collect();
+    s += &format!(
+        "`{}` at {} x {}; densities: {}; converged reference: tolerance {}, depth {}, {} \
+         samples. ({:.0} s for this scene.)\n\n",
+        sc.path,
+        sw.width,
+        sw.height,
+        dens.join(", "),
+        sw.reference.tolerance,
+        sw.reference.max_depth,
+        sw.reference.samples,
+        sc.seconds
+    );
+    s += &format!(
+        "| error against frame time | error against memory |\n|---|---|\n| ![](results/{0}/error-vs-time.png) | ![](results/{0}/error-vs-memory.png) |\n\n",
+        sc.name
+    );
+    s += &format!("{}\n\n{}\n\n", front_counts(sw), best_at_finest(sw));
+    s += &own_density_table(sw);
+    s += "\nEvery point on a front, all densities:\n\n";
+    s += POINT_HEADER;
+    for p in sw
+        .points
+        .iter()
+        .filter(|p| p.pareto_time || p.pareto_memory)
+    {
+        s += &point_row(p);
     }
+    s + "\n"
+}
 
-    s += "## Equal-error memory\n\n";
+/// Every method at the scene's own density (the equal-error search's, else the middle one), the
+/// textures at the quadtree-depth size.
+fn own_density_table(sw: &SweepReport) -> String {
+    let own = sw
+        .equal_error
+        .as_ref()
+        .map_or(sw.densities.len().saturating_sub(1) / 2, |e| e.density);
+    let mut s = format!(
+        "At the scene's own density ({}), every method, the textures at the quadtree-depth size:\n\n{}",
+        own, POINT_HEADER
+    );
+    for p in sw
+        .points
+        .iter()
+        .filter(|p| p.density == own && p.texture.is_none_or(|l| l.halvings == 0))
+    {
+        s += &point_row(p);
+    }
+    s
+}
+
+/// What the equal-error search measures and why mip-mapping keeps the textures' error up, then
+/// each scene's comparison.
+fn equal_error_section(r: &ResultsReport) -> String {
+    let mut s = String::from("## Equal-error memory\n\n");
     s += "How many bytes of texture each texture method needs to be as accurate as the direct \
           method, beside the bytes of the RRPs the direct method evaluates: the smallest texture \
           set tried (every polygon's quadtree-depth side scaled by the same power of two) whose \
@@ -672,8 +746,12 @@ pub fn markdown(r: &ResultsReport, req: &ResultsRequest) -> String {
             s += &format!("**{}**. {}\n", sc.name, equal_error_markdown(e));
         }
     }
+    s
+}
 
-    s += "## Walkthrough frame rates\n\n";
+/// Every walked scene's frame rates and stage times per method, and which scenes were walked.
+fn walkthrough_section(r: &ResultsReport) -> String {
+    let mut s = String::from("## Walkthrough frame rates\n\n");
     s += "Every frame of the scene's camera path, at the scene's image size, one method after \
           the other (one warm-up frame each, which also builds the textures or the mesh): frames \
           per second from each frame's wall-clock time, and the median stage times. Scenes \
@@ -715,8 +793,12 @@ pub fn markdown(r: &ResultsReport, req: &ResultsRequest) -> String {
             walked.join(", ")
         }
     );
+    s
+}
 
-    s += "## Image gallery\n\n";
+/// Every scene by every method, each image's distance to the exact image beneath it.
+fn gallery_section(r: &ResultsReport, req: &ResultsRequest) -> String {
+    let mut s = String::from("## Image gallery\n\n");
     s += &format!(
         "Every scene by every method at {} pixels wide, with the scene's own settings (its \
          solution, texture sizes and placement); under each image its perceptual distance to \
@@ -747,7 +829,13 @@ pub fn markdown(r: &ResultsReport, req: &ResultsRequest) -> String {
         }
         s += "\n";
     }
-    s += "\n## Commands\n\n";
+    s
+}
+
+/// The command that makes the page, the commands of its parts per scene, and a link to the
+/// paper's experiments.
+fn commands_section(r: &ResultsReport, req: &ResultsRequest) -> String {
+    let mut s = String::from("\n## Commands\n\n");
     s += &format!("The whole page: `{}`. Per scene, the parts:\n\n", r.command);
     for sc in &r.scenes {
         s += &format!(

@@ -1,5 +1,5 @@
 //! Image output: a frame's linear radiosity into files, always written
-//! atomically through [`base::output::write_atomic`].
+//! atomically through [`base::output::Outputs::write_atomic`].
 //!
 //! - PNG (8-bit sRGB): each channel is multiplied by 2^exposure (stops), clamped to [0, 1] (the
 //!   documented clamp: over-exposed values saturate, negative values from ringing of the bicubic
@@ -17,7 +17,7 @@ use glam::Vec3;
 
 use crate::image::ImageView;
 use base::error::{Error, Result};
-use base::output::write_atomic;
+use base::output::Outputs;
 
 /// sRGB transfer function of a linear value in [0, 1].
 pub fn srgb_encode(x: f32) -> f32 {
@@ -145,14 +145,19 @@ pub fn encode_exr(frame: ImageView<'_>) -> Result<Vec<u8>> {
     Ok(bytes)
 }
 
-/// Writes an image as an sRGB PNG (exposure in stops), atomically.
-pub fn write_png(path: &Path, frame: ImageView<'_>, exposure: f64) -> Result<()> {
-    write_atomic(path, &encode_png(frame, exposure)?)
+/// Writes an image as an sRGB PNG (exposure in stops), atomically through `outputs`.
+pub fn write_png(
+    outputs: &Outputs,
+    path: &Path,
+    frame: ImageView<'_>,
+    exposure: f64,
+) -> Result<()> {
+    outputs.write_atomic(path, &encode_png(frame, exposure)?)
 }
 
-/// Writes an image as a linear float EXR, atomically.
-pub fn write_exr(path: &Path, frame: ImageView<'_>) -> Result<()> {
-    write_atomic(path, &encode_exr(frame)?)
+/// Writes an image as a linear float EXR, atomically through `outputs`.
+pub fn write_exr(outputs: &Outputs, path: &Path, frame: ImageView<'_>) -> Result<()> {
+    outputs.write_atomic(path, &encode_exr(frame)?)
 }
 
 #[cfg(test)]

@@ -137,93 +137,18 @@ pub fn equal_error(
         return Ok(None);
     }
     let mut stage = Stage::start(observer, "equal-error search");
-    let image = |f: frame::Frame| LinearImage::new(f.width, f.height, f.pixels);
     let direct = image(render_frame(p, Method::Direct, &p.scene.camera, opts)?)?;
     let direct_error = compare(&direct, exact, ppd)?.perceptual_distance;
-    let placements = [Placement::Centre, Placement::Corner];
-    // Row order: mip-mapped first, then placement, then method.
-    let mut rows: Vec<EqualErrorRow> = Vec::new();
-    for mip_mapped in [true, false] {
-        for pl in placements {
-            for m in &filters {
-                rows.push(EqualErrorRow {
-                    method: m.name().to_string(),
-                    placement: pl.name(),
-                    mip_mapped,
-                    tested: Vec::new(),
-                    reached: vec![None; EQUAL_ERROR_RATIOS.len()],
-                });
-            }
-        }
-    }
-    let row_index = |mip: bool, pi: usize, mi: usize| {
-        (usize::from(!mip) * placements.len() + pi) * filters.len() + mi
+    let mut rows = empty_rows(&filters);
+    let search = Search {
+        p,
+        filters: &filters,
+        exact,
+        opts,
+        ppd,
+        direct_error,
     };
-    let depths = TextureSet::depths(&p.solution.polygons);
-    let mut previous: Option<Vec<u32>> = None;
-    let mut stopped = format!("every scale up to 2^{MAX_SCALE} was tried");
-    for k in MIN_SCALE..=MAX_SCALE {
-        let sides = TextureSet::sides(&depths, SizePolicy::Scaled(k))?;
-        if previous.as_ref() == Some(&sides) {
-            stopped = format!("every side reached the largest texture side at 2^{}", k - 1);
-            break;
-        }
-        let memory = TextureMemory::of_sides(&sides);
-        if held_bytes(&memory) > SEARCH_MEMORY_CAP {
-            stopped = format!(
-                "the textures at 2^{k} would hold {:.0} MB in memory, above the search's cap of \
-                 {:.0} MB",
-                held_bytes(&memory) as f64 / 1e6,
-                SEARCH_MEMORY_CAP as f64 / 1e6
-            );
-            break;
-        }
-        previous = Some(sides);
-        stage.advance((k - MIN_SCALE) as f64 / (MAX_SCALE - MIN_SCALE + 1) as f64);
-        for (pi, &placement) in placements.iter().enumerate() {
-            let mut set =
-                TextureSet::build(p.expanded()?.0, &depths, SizePolicy::Scaled(k), placement)?;
-            for mip in [true, false] {
-                if !mip {
-                    set.drop_mip_chains();
-                }
-                let bytes = if mip {
-                    super::memory::texture_bytes(&set.memory)
-                } else {
-                    set.memory.bytes[1]
-                };
-                for (mi, &m) in filters.iter().enumerate() {
-                    let Method::Texture(filter) = m else {
-                        continue;
-                    };
-                    let img = image(frame::render(
-                        &p.scene,
-                        &p.scene.camera,
-                        &Shader::Texture { set: &set, filter },
-                        m,
-                        opts,
-                    )?)?;
-                    let point = ScalePoint {
-                        scale: k,
-                        texels: set.memory.texels,
-                        bytes,
-                        error: compare(&img, exact, ppd)?.perceptual_distance,
-                    };
-                    let row = &mut rows[row_index(mip, pi, mi)];
-                    row.tested.push(point);
-                    for (slot, r) in row.reached.iter_mut().zip(EQUAL_ERROR_RATIOS) {
-                        if slot.is_none() && point.error <= r * direct_error {
-                            *slot = Some(point);
-                        }
-                    }
-                }
-            }
-        }
-        if rows.iter().all(|r| r.reached.iter().all(Option::is_some)) {
-            stopped = format!("every method reached the direct method's error by 2^{k}");
-            break;
-        }
-    }
+    let stopped = search.run(&mut rows, &mut stage)?;
     Ok(Some(EqualError {
         density,
         direct_error,
@@ -236,6 +161,149 @@ pub fn equal_error(
         stopped,
         rows,
     }))
+}
+
+/// A frame's pixels as an image.
+fn image(f: frame::Frame) -> Result<LinearImage> {
+    LinearImage::new(f.width, f.height, f.pixels)
+}
+
+/// The texel placements every scale is tried at, in row order.
+const PLACEMENTS: [Placement; 2] = [Placement::Centre, Placement::Corner];
+
+/// One empty row per texture method, placement and mip-mapping: mip-mapped first, then
+/// placement, then method.
+fn empty_rows(filters: &[Method]) -> Vec<EqualErrorRow> {
+    let mut rows = Vec::new();
+    for mip_mapped in [true, false] {
+        for pl in PLACEMENTS {
+            for m in filters {
+                rows.push(EqualErrorRow {
+                    method: m.name().to_string(),
+                    placement: pl.name(),
+                    mip_mapped,
+                    tested: Vec::new(),
+                    reached: vec![None; EQUAL_ERROR_RATIOS.len()],
+                });
+            }
+        }
+    }
+    rows
+}
+
+/// What the search draws each texture from and measures it against.
+struct Search<'a> {
+    p: &'a Prepared,
+    /// The texture methods searched.
+    filters: &'a [Method],
+    /// The same solution's exact image.
+    exact: &'a LinearImage,
+    opts: &'a FrameOptions,
+    ppd: f64,
+    /// The direct method's reconstruction error, the target.
+    direct_error: f64,
+}
+
+impl Search<'_> {
+    /// The row (of [`empty_rows`]) of mip-mapping `mip`, placement `pi` and method `mi`.
+    fn row_index(&self, mip: bool, pi: usize, mi: usize) -> usize {
+        (usize::from(!mip) * PLACEMENTS.len() + pi) * self.filters.len() + mi
+    }
+
+    /// Tries the scales from [`MIN_SCALE`] up until one of the stops, filling `rows`; returns
+    /// why it stopped.
+    fn run(&self, rows: &mut [EqualErrorRow], stage: &mut Stage<'_>) -> Result<String> {
+        let depths = TextureSet::depths(&self.p.solution.polygons);
+        let mut previous: Option<Vec<u32>> = None;
+        for k in MIN_SCALE..=MAX_SCALE {
+            let sides = TextureSet::sides(&depths, SizePolicy::Scaled(k))?;
+            if previous.as_ref() == Some(&sides) {
+                return Ok(format!(
+                    "every side reached the largest texture side at 2^{}",
+                    k - 1
+                ));
+            }
+            let memory = TextureMemory::of_sides(&sides);
+            if held_bytes(&memory) > SEARCH_MEMORY_CAP {
+                return Ok(format!(
+                    "the textures at 2^{k} would hold {:.0} MB in memory, above the search's cap \
+                     of {:.0} MB",
+                    held_bytes(&memory) as f64 / 1e6,
+                    SEARCH_MEMORY_CAP as f64 / 1e6
+                ));
+            }
+            previous = Some(sides);
+            stage.advance((k - MIN_SCALE) as f64 / (MAX_SCALE - MIN_SCALE + 1) as f64);
+            for (pi, &placement) in PLACEMENTS.iter().enumerate() {
+                self.measure_set(rows, k, &depths, pi, placement)?;
+            }
+            if rows.iter().all(|r| r.reached.iter().all(Option::is_some)) {
+                return Ok(format!(
+                    "every method reached the direct method's error by 2^{k}"
+                ));
+            }
+        }
+        Ok(format!("every scale up to 2^{MAX_SCALE} was tried"))
+    }
+
+    /// The set at scale `k` and placement `pi`, each texture method drawn with it mip-mapped,
+    /// then with its mip chains dropped.
+    fn measure_set(
+        &self,
+        rows: &mut [EqualErrorRow],
+        k: i32,
+        depths: &[u32],
+        pi: usize,
+        placement: Placement,
+    ) -> Result<()> {
+        let p = self.p;
+        let mut set = TextureSet::build(p.expanded()?.0, depths, SizePolicy::Scaled(k), placement)?;
+        for mip in [true, false] {
+            if !mip {
+                set.drop_mip_chains();
+            }
+            let bytes = if mip {
+                super::memory::texture_bytes(&set.memory)
+            } else {
+                set.memory.bytes[1]
+            };
+            for (mi, &m) in self.filters.iter().enumerate() {
+                let Method::Texture(filter) = m else {
+                    continue;
+                };
+                let img = image(frame::render(
+                    &p.scene,
+                    &p.scene.camera,
+                    &Shader::Texture { set: &set, filter },
+                    m,
+                    self.opts,
+                )?)?;
+                let point = ScalePoint {
+                    scale: k,
+                    texels: set.memory.texels,
+                    bytes,
+                    error: compare(&img, self.exact, self.ppd)?.perceptual_distance,
+                };
+                record(
+                    &mut rows[self.row_index(mip, pi, mi)],
+                    point,
+                    self.direct_error,
+                );
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Adds `point` to `row`'s tested scales, and as the answer of each ratio of the direct
+/// method's error it is the first to reach.
+fn record(row: &mut EqualErrorRow, point: ScalePoint, direct_error: f64) {
+    row.tested.push(point);
+    for (slot, r) in row.reached.iter_mut().zip(EQUAL_ERROR_RATIOS) {
+        if slot.is_none() && point.error <= r * direct_error {
+            *slot = Some(point);
+        }
+    }
 }
 
 /// The comparison as a fixed-width table.

@@ -37,6 +37,7 @@ use std::time::Instant;
 
 use base::error::{Error, Result};
 use base::method::{check_texture_side, Method, Placement};
+use base::output::Outputs;
 use base::progress::Observer;
 use engine::frame::FrameOptions;
 use lanes::Isa;
@@ -50,7 +51,7 @@ use scene::{load_scene, Scene};
 /// What a job may use, given by its caller and passed down explicitly (the library holds no
 /// process-wide setting): the memory limit every estimate is checked against, the instruction
 /// set frames run with, and the observer progress goes to.
-#[derive(Clone, Copy)]
+#[derive(Clone)]
 pub struct Context<'a> {
     /// Bytes a job may hold ([`budget`]'s estimates are refused above it); `u64::MAX`: none.
     pub memory_limit: u64,
@@ -59,6 +60,9 @@ pub struct Context<'a> {
     pub isa: Isa,
     /// Where progress and trace lines go.
     pub observer: &'a dyn Observer,
+    /// The registry every file the job writes goes through (a clone in the caller's signal
+    /// handler removes the temporaries of an interrupted write).
+    pub outputs: Outputs,
 }
 
 impl<'a> Context<'a> {
@@ -68,6 +72,7 @@ impl<'a> Context<'a> {
             memory_limit: u64::MAX,
             isa: Isa::detect(),
             observer,
+            outputs: Outputs::new(),
         }
     }
 
@@ -85,7 +90,13 @@ impl<'a> Context<'a> {
             memory_limit: self.memory_limit,
             isa: self.isa,
             observer,
+            outputs: self.outputs.clone(),
         }
+    }
+
+    /// This context writing through `outputs`.
+    pub fn with_outputs(self, outputs: Outputs) -> Context<'a> {
+        Context { outputs, ..self }
     }
 
     /// This context with the instruction set `isa`.

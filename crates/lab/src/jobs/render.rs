@@ -208,8 +208,9 @@ pub fn run_render(
     let mut reports = Vec::new();
     // A single frame's PNG, EXR and statistics are one batch: all replaced or none
     // (base::output). A walkthrough's frames are written as they are drawn.
-    let mut batch = base::output::Batch::default();
+    let mut batch = ctx.outputs.batch();
     let mut staged: Vec<&Path> = Vec::new();
+    let files = ctx.outputs.clone();
     // One frame context for every frame: a walkthrough's frames reuse its buffers, and the
     // frame and G-buffers are reserved before the first frame (timed apart), as a display
     // system allocates its framebuffers before it draws.
@@ -229,7 +230,7 @@ pub fn run_render(
             )));
         }
         if plan.walkthrough {
-            image::write_png(png, ctx.view(), exposure)?;
+            image::write_png(&files, png, ctx.view(), exposure)?;
             on(RenderEvent::Wrote(png));
         } else {
             batch.stage(png, &image::encode_png(ctx.view(), exposure)?)?;

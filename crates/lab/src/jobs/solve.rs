@@ -26,6 +26,12 @@ pub fn solve_to_file(ctx: &Context<'_>, scene_path: &Path, out: &Path) -> Result
         },
     )?;
     let rrps = CompactReconstruction::build(&solution.polygons, Estimator::default())?;
-    solution_file::write_solution(out, &solution, Some(scene_path), &rrps.encode())?;
+    solution_file::write_solution(
+        &ctx.outputs,
+        out,
+        &solution,
+        Some(scene_path),
+        &rrps.encode(),
+    )?;
     Ok(solution)
 }

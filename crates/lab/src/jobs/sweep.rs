@@ -31,7 +31,7 @@ use crate::image::LinearImage;
 use base::error::{Error, Result};
 use base::method::{Method, Placement};
 use base::quadtree::MAX_DEPTH;
-use engine::frame::{Frame, FrameContext, FrameStats};
+use engine::frame::{Frame, FrameContext, FrameOptions, FrameStats};
 use engine::shading::Shader;
 use metric::{compare, Comparison, DEFAULT_PPD};
 use reconstruction::texture::{SizePolicy, TextureMemory, TextureSet};
@@ -321,158 +321,58 @@ fn solve_at(ctx: &Context<'_>, input: &Input, scene: Scene) -> Result<Prepared> 
 /// Runs a sweep: check every option, solve the converged reference and each density once, and
 /// measure every method (and texture size) at each density.
 pub fn run_sweep(job: &Context<'_>, req: &SweepRequest) -> Result<SweepReport> {
-    let methods = check(req)?;
-    let input = Input::load(&req.input)?;
-    let opts = job.frame_options(req.width, req.height);
-    opts.validate()?;
-    super::budget::check_frame_options(&opts, (false, false), job.memory_limit)?;
-
-    let fine = solve_at(
-        job,
-        &input,
-        at_density(&input.scene, req.reference_density, 1),
-    )?;
-    let total_ref = image(render_frame(
-        &fine,
-        Method::Reference,
-        &fine.scene.camera,
-        &opts,
-    )?)?;
-    let reference = SolutionLevel::of(&fine);
-    drop(fine);
-
+    let sweep = Sweep::new(job, req)?;
+    let (total_ref, reference) = sweep.converged_reference()?;
     // The equal-error search runs at the scene's own density (the factor nearest 1).
-    let own = (0..req.densities.len())
-        .min_by(|&a, &b| {
-            let d = |i: usize| req.densities[i].ln().abs();
-            d(a).total_cmp(&d(b))
-        })
-        .unwrap_or(0);
+    let own = nearest_one(&req.densities);
     let mut equal = None;
     let mut points = Vec::new();
     let mut densities = Vec::new();
     for (level, &factor) in req.densities.iter().enumerate() {
-        let p = solve_at(job, &input, at_density(&input.scene, factor, 0))?;
-        let samples = p.solution.stats.vertices;
+        let p = solve_at(job, &sweep.input, at_density(&sweep.input.scene, factor, 0))?;
         densities.push(SolutionLevel::of(&p));
-        let recon_ref = image(render_frame(&p, Method::Reference, &p.scene.camera, &opts)?)?;
-
-        // Texture sets: the quadtree-depth sides halved k times (a budget equal to that
-        // memory selects exactly that scale).
-        let depths = TextureSet::depths(&p.solution.polygons);
-        let full = TextureSet::sides(&depths, SizePolicy::FromDepth)?;
-        let mut sets = Vec::new();
-        if methods.iter().any(|m| matches!(m, Method::Texture(_))) {
-            for placement in [Placement::Centre, Placement::Corner] {
-                for k in 0..req.texture_levels {
-                    let sides: Vec<u32> = full.iter().map(|&n| (n >> k).max(1)).collect();
-                    let mem = TextureMemory::of_sides(&sides);
-                    let set = TextureSet::build(
-                        p.expanded()?.0,
-                        &depths,
-                        SizePolicy::Budget(memory::texture_bytes(&mem)),
-                        placement,
-                    )?;
-                    let level = TextureLevel {
-                        halvings: k,
-                        placement: placement.name(),
-                        texels: set.memory.texels,
-                        bytes: memory::texture_bytes(&set.memory),
-                    };
-                    sets.push((level, set));
-                }
-            }
-        }
-        let mut candidates: Vec<Candidate<'_>> = Vec::new();
-        for &m in &methods {
-            match m {
-                Method::Texture(_) => {
-                    for (level, set) in &sets {
-                        candidates.push(Candidate {
-                            method: m,
-                            texture: Some((*level, set)),
-                        });
-                    }
-                }
-                _ => candidates.push(Candidate {
-                    method: m,
-                    texture: None,
-                }),
-            }
-        }
-        let draw_in = |ctx: &mut FrameContext, c: &Candidate<'_>| -> Result<FrameStats> {
-            match (c.method, c.texture) {
-                (Method::Texture(filter), Some((_, set))) => ctx.render(
-                    &p.scene,
-                    &p.scene.camera,
-                    &Shader::Texture { set, filter },
-                    c.method,
-                    &opts,
-                ),
-                _ => render_frame_in(ctx, &p, c.method, &p.scene.camera, &opts),
-            }
-        };
-        let draw = |c: &Candidate<'_>| -> Result<Frame> {
-            let mut ctx = FrameContext::new();
-            let stats = draw_in(&mut ctx, c)?;
-            Ok(ctx.into_frame(stats))
-        };
-        // Errors (deterministic) and one warm-up frame per candidate.
-        let mut errors = Vec::new();
-        for c in &candidates {
-            let img = image(draw(c)?)?;
-            errors.push((
-                compare(&img, &recon_ref, req.ppd)?,
-                compare(&img, &total_ref, req.ppd)?,
-            ));
-        }
-        // Times: every candidate once per repeat, interleaved, `frames` frames each.
-        let mut per_repeat = vec![Vec::new(); candidates.len()];
-        let mut ctx = FrameContext::new();
-        for _ in 0..req.repeats {
-            for (i, c) in candidates.iter().enumerate() {
-                let mut ms = Vec::new();
-                for _ in 0..req.frames {
-                    ms.push(draw_in(&mut ctx, c)?.frame_ms);
-                }
-                per_repeat[i].push(median(ms));
-            }
-        }
-        for ((c, (rc, tc)), reps) in candidates.iter().zip(&errors).zip(per_repeat) {
-            let bytes = match (c.method, c.texture) {
-                (_, Some((level, _))) => level.bytes,
-                (Method::Mesh, _) => p.mesh()?.0.stats.bytes,
-                _ => memory::rrp_bytes(&p.compact),
-            };
-            points.push(SweepPoint {
-                method: c.method.name().to_string(),
-                density: level,
-                tolerance: p.scene.radiosity.tolerance,
-                samples,
-                texture: c.texture.map(|(l, _)| l),
-                frame_ms_spread: min_max(&reps),
-                frame_ms: median(reps),
-                bytes,
-                error_reconstruction: rc.perceptual_distance,
-                error_total: tc.perceptual_distance,
-                reconstruction: Errors::from(rc),
-                total: Errors::from(tc),
-                pareto_time: false,
-                pareto_memory: false,
-            });
-        }
-        if req.equal_error && level == own {
-            equal = equal_error::equal_error(
+        let at = AtDensity {
+            sweep: &sweep,
+            p: &p,
+            level,
+            recon_ref: image(render_frame(
                 &p,
-                level,
-                &methods,
-                &recon_ref,
-                &opts,
-                req.ppd,
-                job.observer,
-            )?;
+                Method::Reference,
+                &p.scene.camera,
+                &sweep.opts,
+            )?)?,
+        };
+        points.extend(at.measure(&total_ref)?);
+        if req.equal_error && level == own {
+            equal = at.equal_error()?;
         }
     }
+    mark_fronts(&mut points);
+    Ok(SweepReport {
+        scene: sweep.input.scene.source.display().to_string(),
+        width: req.width,
+        height: req.height,
+        threads: rayon::current_num_threads(),
+        densities,
+        reference,
+        points,
+        equal_error: equal,
+    })
+}
+
+/// The index of the factor nearest 1 (on a log scale), the first of equals; 0 for none.
+fn nearest_one(densities: &[f64]) -> usize {
+    (0..densities.len())
+        .min_by(|&a, &b| {
+            let d = |i: usize| densities[i].ln().abs();
+            d(a).total_cmp(&d(b))
+        })
+        .unwrap_or(0)
+}
+
+/// Flags every point on the Pareto front of total error against frame time, and of total error
+/// against bytes.
+fn mark_fronts(points: &mut [SweepPoint]) {
     let by_time: Vec<(f64, f64)> = points.iter().map(|p| (p.frame_ms, p.error_total)).collect();
     let by_bytes: Vec<(f64, f64)> = points
         .iter()
@@ -486,16 +386,231 @@ pub fn run_sweep(job: &Context<'_>, req: &SweepRequest) -> Result<SweepReport> {
         p.pareto_time = t;
         p.pareto_memory = m;
     }
-    Ok(SweepReport {
-        scene: input.scene.source.display().to_string(),
-        width: req.width,
-        height: req.height,
-        threads: rayon::current_num_threads(),
-        densities,
-        reference,
-        points,
-        equal_error: equal,
-    })
+}
+
+/// A sweep whose options are checked: its request, methods, input and frame options.
+struct Sweep<'a> {
+    job: &'a Context<'a>,
+    req: &'a SweepRequest,
+    methods: Vec<Method>,
+    input: Input,
+    opts: FrameOptions,
+}
+
+impl<'a> Sweep<'a> {
+    /// Checks every option of `req`, loads its input and checks the frames against the memory
+    /// limit: everything before the first solve.
+    fn new(job: &'a Context<'a>, req: &'a SweepRequest) -> Result<Sweep<'a>> {
+        let methods = check(req)?;
+        let input = Input::load(&req.input)?;
+        let opts = job.frame_options(req.width, req.height);
+        opts.validate()?;
+        super::budget::check_frame_options(&opts, (false, false), job.memory_limit)?;
+        Ok(Sweep {
+            job,
+            req,
+            methods,
+            input,
+            opts,
+        })
+    }
+
+    /// The converged solution's exact image (the total error's reference) and its level; the
+    /// solution itself is dropped before the densities are solved.
+    fn converged_reference(&self) -> Result<(LinearImage, SolutionLevel)> {
+        let scene = at_density(&self.input.scene, self.req.reference_density, 1);
+        let fine = solve_at(self.job, &self.input, scene)?;
+        let exact = image(render_frame(
+            &fine,
+            Method::Reference,
+            &fine.scene.camera,
+            &self.opts,
+        )?)?;
+        Ok((exact, SolutionLevel::of(&fine)))
+    }
+}
+
+/// One density level of a sweep: its solution and that solution's exact image (the
+/// reconstruction error's reference).
+struct AtDensity<'a> {
+    sweep: &'a Sweep<'a>,
+    p: &'a Prepared,
+    level: usize,
+    recon_ref: LinearImage,
+}
+
+impl AtDensity<'_> {
+    /// Every candidate's point: errors against both references (deterministic, drawing each
+    /// once, which also warms it up), then the times, then the bytes.
+    fn measure(&self, total_ref: &LinearImage) -> Result<Vec<SweepPoint>> {
+        let sets = self.texture_sets()?;
+        let candidates = candidates(&self.sweep.methods, &sets);
+        let ppd = self.sweep.req.ppd;
+        let mut errors = Vec::new();
+        for c in &candidates {
+            let img = self.image(c)?;
+            errors.push((
+                compare(&img, &self.recon_ref, ppd)?,
+                compare(&img, total_ref, ppd)?,
+            ));
+        }
+        let per_repeat = self.times(&candidates)?;
+        candidates
+            .iter()
+            .zip(&errors)
+            .zip(per_repeat)
+            .map(|((c, errors), reps)| self.point(c, errors, reps))
+            .collect()
+    }
+
+    /// Texture sets: for each placement, the quadtree-depth sides halved k times (a budget
+    /// equal to that memory selects exactly that scale); none without a texture method.
+    fn texture_sets(&self) -> Result<Vec<(TextureLevel, TextureSet)>> {
+        let p = self.p;
+        let depths = TextureSet::depths(&p.solution.polygons);
+        let full = TextureSet::sides(&depths, SizePolicy::FromDepth)?;
+        let mut sets = Vec::new();
+        if !self
+            .sweep
+            .methods
+            .iter()
+            .any(|m| matches!(m, Method::Texture(_)))
+        {
+            return Ok(sets);
+        }
+        for placement in [Placement::Centre, Placement::Corner] {
+            for k in 0..self.sweep.req.texture_levels {
+                let sides: Vec<u32> = full.iter().map(|&n| (n >> k).max(1)).collect();
+                let mem = TextureMemory::of_sides(&sides);
+                let set = TextureSet::build(
+                    p.expanded()?.0,
+                    &depths,
+                    SizePolicy::Budget(memory::texture_bytes(&mem)),
+                    placement,
+                )?;
+                let level = TextureLevel {
+                    halvings: k,
+                    placement: placement.name(),
+                    texels: set.memory.texels,
+                    bytes: memory::texture_bytes(&set.memory),
+                };
+                sets.push((level, set));
+            }
+        }
+        Ok(sets)
+    }
+
+    /// One frame of `c` in `ctx`.
+    fn draw_in(&self, ctx: &mut FrameContext, c: &Candidate<'_>) -> Result<FrameStats> {
+        let (p, opts) = (self.p, &self.sweep.opts);
+        match (c.method, c.texture) {
+            (Method::Texture(filter), Some((_, set))) => ctx.render(
+                &p.scene,
+                &p.scene.camera,
+                &Shader::Texture { set, filter },
+                c.method,
+                opts,
+            ),
+            _ => render_frame_in(ctx, p, c.method, &p.scene.camera, opts),
+        }
+    }
+
+    /// The image of `c`, drawn in a frame context of its own.
+    fn image(&self, c: &Candidate<'_>) -> Result<LinearImage> {
+        let mut ctx = FrameContext::new();
+        let stats = self.draw_in(&mut ctx, c)?;
+        image(ctx.into_frame(stats))
+    }
+
+    /// Each candidate's median frame time per repeat: every candidate once per repeat,
+    /// interleaved, `frames` frames each, all in one frame context.
+    fn times(&self, candidates: &[Candidate<'_>]) -> Result<Vec<Vec<f64>>> {
+        let req = self.sweep.req;
+        let mut per_repeat = vec![Vec::new(); candidates.len()];
+        let mut ctx = FrameContext::new();
+        for _ in 0..req.repeats {
+            for (i, c) in candidates.iter().enumerate() {
+                let mut ms = Vec::new();
+                for _ in 0..req.frames {
+                    ms.push(self.draw_in(&mut ctx, c)?.frame_ms);
+                }
+                per_repeat[i].push(median(ms));
+            }
+        }
+        Ok(per_repeat)
+    }
+
+    /// The point of `c` from its errors (against the same solution's and the converged exact
+    /// image) and its per-repeat times; on no front yet.
+    fn point(
+        &self,
+        c: &Candidate<'_>,
+        (rc, tc): &(Comparison, Comparison),
+        reps: Vec<f64>,
+    ) -> Result<SweepPoint> {
+        let p = self.p;
+        let bytes = match (c.method, c.texture) {
+            (_, Some((level, _))) => level.bytes,
+            (Method::Mesh, _) => p.mesh()?.0.stats.bytes,
+            _ => memory::rrp_bytes(&p.compact),
+        };
+        Ok(SweepPoint {
+            method: c.method.name().to_string(),
+            density: self.level,
+            tolerance: p.scene.radiosity.tolerance,
+            samples: p.solution.stats.vertices,
+            texture: c.texture.map(|(l, _)| l),
+            frame_ms_spread: min_max(&reps),
+            frame_ms: median(reps),
+            bytes,
+            error_reconstruction: rc.perceptual_distance,
+            error_total: tc.perceptual_distance,
+            reconstruction: Errors::from(rc),
+            total: Errors::from(tc),
+            pareto_time: false,
+            pareto_memory: false,
+        })
+    }
+
+    /// The equal-error memory search at this density.
+    fn equal_error(&self) -> Result<Option<EqualError>> {
+        let s = self.sweep;
+        equal_error::equal_error(
+            self.p,
+            self.level,
+            &s.methods,
+            &self.recon_ref,
+            &s.opts,
+            s.req.ppd,
+            s.job.observer,
+        )
+    }
+}
+
+/// Every method of `methods` at one density: a texture method once per texture set, any other
+/// once.
+fn candidates<'s>(
+    methods: &[Method],
+    sets: &'s [(TextureLevel, TextureSet)],
+) -> Vec<Candidate<'s>> {
+    let mut candidates = Vec::new();
+    for &m in methods {
+        match m {
+            Method::Texture(_) => {
+                for (level, set) in sets {
+                    candidates.push(Candidate {
+                        method: m,
+                        texture: Some((*level, set)),
+                    });
+                }
+            }
+            _ => candidates.push(Candidate {
+                method: m,
+                texture: None,
+            }),
+        }
+    }
+    candidates
 }
 
 /// The points as CSV, one row per point, with a header.

@@ -22,6 +22,7 @@
 use lab::jobs::Context;
 use std::path::{Path, PathBuf};
 
+use base::output::Outputs;
 use base::Method;
 use engine::frame::FrameOptions;
 use lab::image::{read_image, write_exr, write_png, LinearImage};
@@ -59,7 +60,7 @@ fn check_scene(scene: &str) {
             .expect("an image");
         let golden = dir.join(format!("{name}.exr"));
         if updating() {
-            write_exr(&golden, got.view()).expect("golden written");
+            write_exr(&Outputs::new(), &golden, got.view()).expect("golden written");
             continue;
         }
         let want = match read_image(&golden) {
@@ -77,8 +78,14 @@ fn check_scene(scene: &str) {
             let stem = format!("{scene}-{name}");
             let got_path: PathBuf = out.join(format!("{stem}-got.exr"));
             let diff_path: PathBuf = out.join(format!("{stem}-diff.png"));
-            write_exr(&got_path, got.view()).expect("got written");
-            write_png(&diff_path, d.normalized_image().view(), 0.0).expect("diff written");
+            write_exr(&Outputs::new(), &got_path, got.view()).expect("got written");
+            write_png(
+                &Outputs::new(),
+                &diff_path,
+                d.normalized_image().view(),
+                0.0,
+            )
+            .expect("diff written");
             failures.push(format!(
                 "{name}: {}\n  wrote {} and {}",
                 d.summary(),
