@@ -139,7 +139,7 @@ impl Cell {
     }
 
     /// Whether lattice point `k` lies on the closed boundary of this cell but is not a corner.
-    pub fn has_on_edge_interior(self, k: VertexKey) -> bool {
+    pub(crate) fn has_on_edge_interior(self, k: VertexKey) -> bool {
         let s = self.size();
         let o = self.origin();
         let inside_i = k.i >= o.i && k.i <= o.i + s;
@@ -357,7 +357,7 @@ impl Quadtree {
 
 /// Lattice coordinates of (u, v), clamped into the domain; NaN maps to 0.
 #[inline]
-pub fn lattice_coords(u: f64, v: f64) -> (u32, u32) {
+pub(crate) fn lattice_coords(u: f64, v: f64) -> (u32, u32) {
     let f = |t: f64| {
         let x = (t * LATTICE as f64).floor();
         if x.is_nan() {

@@ -282,7 +282,8 @@ pub fn merge_records_into(isa: Isa, out: &mut RegionGBuffer, part: &RegionGBuffe
 
 /// Merges the reports of one region (in any order) into one G-buffer with a canonical table
 /// ([`composite_in_place`] on owned buffers).
-pub fn composite(isa: Isa, mut parts: Vec<RegionGBuffer>) -> RegionGBuffer {
+#[cfg(test)]
+pub(crate) fn composite(isa: Isa, mut parts: Vec<RegionGBuffer>) -> RegionGBuffer {
     composite_in_place(isa, &mut parts, &mut MergeScratch::default());
     parts.swap_remove(0)
 }

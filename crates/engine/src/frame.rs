@@ -58,7 +58,7 @@ pub struct FrameOptions {
     pub height: u32,
     /// Samples per pixel: 1, 4 or 16.
     pub aa: u32,
-    /// Virtual renderers (1 to [`MAX_RENDERERS`]).
+    /// Virtual renderers (1 to `MAX_RENDERERS`).
     pub renderers: u32,
     /// Region side in pixels: a multiple of 8 in 8..=1024.
     pub region: u32,

@@ -46,13 +46,13 @@ use base::output::Outputs;
 /// Most polygons a generated scene may have.
 pub const MAX_POLYGONS: u64 = 1_000_000;
 /// Most rooms along x or z (the polygon limit usually binds first).
-pub const MAX_ROOMS_PER_AXIS: u32 = 1000;
+pub(crate) const MAX_ROOMS_PER_AXIS: u32 = 1000;
 /// Most storeys.
-pub const MAX_FLOORS: u32 = 1000;
+pub(crate) const MAX_FLOORS: u32 = 1000;
 /// Largest `cut`.
-pub const MAX_CUT: u32 = 1000;
+pub(crate) const MAX_CUT: u32 = 1000;
 /// Most furniture pieces per room (one per corner quadrant).
-pub const MAX_FURNITURE: u32 = 4;
+pub(crate) const MAX_FURNITURE: u32 = 4;
 
 /// Default `cut`.
 pub const DEFAULT_CUT: u32 = 1;
@@ -96,17 +96,17 @@ fn units(m: f64) -> i64 {
 /// The options of `generate building`.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct BuildingOptions {
-    /// Rooms along x on each storey, 1 ..= [`MAX_ROOMS_PER_AXIS`].
+    /// Rooms along x on each storey, 1 ..= `MAX_ROOMS_PER_AXIS`.
     pub rooms_x: u32,
-    /// Rooms along z on each storey, 1 ..= [`MAX_ROOMS_PER_AXIS`].
+    /// Rooms along z on each storey, 1 ..= `MAX_ROOMS_PER_AXIS`.
     pub rooms_z: u32,
-    /// Storeys, 1 ..= [`MAX_FLOORS`].
+    /// Storeys, 1 ..= `MAX_FLOORS`.
     pub floors: u32,
-    /// Every shell cell is cut into `cut` x `cut` quads, 1 ..= [`MAX_CUT`].
+    /// Every shell cell is cut into `cut` x `cut` quads, 1 ..= `MAX_CUT`.
     pub cut: u32,
     /// Ceiling light panels per room, 1 or 2.
     pub lights: u32,
-    /// Furniture pieces per room, 0 ..= [`MAX_FURNITURE`].
+    /// Furniture pieces per room, 0 ..= `MAX_FURNITURE`.
     pub furniture: u32,
     /// Seed of the furniture's sizes and places.
     pub seed: u64,
@@ -169,7 +169,7 @@ impl BuildingOptions {
     }
 
     /// Doorways in the whole building: one between every two neighbours on a storey.
-    pub fn doorway_count(&self) -> u64 {
+    pub(crate) fn doorway_count(&self) -> u64 {
         let (x, z) = (u64::from(self.rooms_x), u64::from(self.rooms_z));
         ((x - 1) * z + x * (z - 1)) * u64::from(self.floors)
     }

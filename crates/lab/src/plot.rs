@@ -19,7 +19,7 @@ use base::error::{Error, Result};
 use base::output::Outputs;
 
 /// Plot size in pixels.
-pub const PLOT_SIZE: (u32, u32) = (1000, 700);
+pub(crate) const PLOT_SIZE: (u32, u32) = (1000, 700);
 
 static FONT: &[u8] = include_bytes!("../assets/fonts/DejaVuSans.ttf");
 

@@ -5,7 +5,7 @@
 //! is a range, not a promise: the adaptive solve's memory depends on how deep each quadtree
 //! actually refines, which only the solve knows. The range brackets it between every quadtree
 //! at its starting depth and every quadtree refined uniformly to `max_depth`
-//! ([`crate::jobs::budget::solve_estimate`], the estimator the jobs check against the memory
+//! (`crate::jobs::budget::solve_estimate`, the estimator the jobs check against the memory
 //! limit), which is what a user needs to see before a run that would not fit;
 //! [`budget_text`] adds the frame, textures and mesh against the limit.
 

@@ -125,7 +125,7 @@ fn which(i: usize) -> &'static str {
 
 /// Largest pixels-per-degree accepted: far beyond any display or eye (about 60 resolves the
 /// fovea), and small enough that every frequency of the measure stays a finite number.
-pub const MAX_PPD: f64 = 1e6;
+pub(crate) const MAX_PPD: f64 = 1e6;
 
 /// Checks what every measure needs: a positive ppd (at most [`MAX_PPD`]), valid shapes, equal sizes, finite pixels and
 /// a positive mean luminance in each image. Messages name the image as `a` or `b`.

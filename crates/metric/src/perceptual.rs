@@ -31,7 +31,7 @@
 //! > 5. Frequency of bin (kx, ky): fx = kx / W for kx < W/2, (kx - W)/W otherwise (likewise fy);
 //! > f = sqrt(fx^2 + fy^2) * ppd cycles per degree, ppd = 32 pixels per degree unless given.
 //!
-//! [`bin_frequency`] (cycles per pixel) and `axis_frequencies` (times ppd); `f` itself is formed
+//! `bin_frequency` (cycles per pixel) and `axis_frequencies` (times ppd); `f` itself is formed
 //! in the last loop of `distance_of_luminances`. For even W the bin W/2 gets
 //! fx = -1/2; its |fx| is the same as +1/2, so the choice does not matter.
 //!
@@ -75,7 +75,7 @@ pub fn csf(f: f64) -> f64 {
 
 /// The signed frequency of DFT bin `k` of `n`, in cycles per pixel (`docs/metrics.md`, step 5):
 /// `k / n` for `k < n / 2`, `(k - n) / n` otherwise.
-pub fn bin_frequency(k: usize, n: usize) -> f64 {
+pub(crate) fn bin_frequency(k: usize, n: usize) -> f64 {
     // `2 k < n` is `k < n / 2` without rounding n / 2 (for odd n, n / 2 is not an integer).
     if 2 * k < n {
         k as f64 / n as f64

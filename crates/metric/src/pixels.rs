@@ -45,7 +45,7 @@ pub struct PixelDiff {
     pub pixels: u64,
     /// Pixels that differ by more than the tolerance.
     pub differing: u64,
-    /// The first differing pixels in row order (at most [`PixelDiff::LISTED`]).
+    /// The first differing pixels in row order (at most `PixelDiff::LISTED`).
     pub first: Vec<DifferentPixel>,
     /// Largest absolute channel difference over all pixels.
     pub max_abs: f32,
@@ -59,7 +59,7 @@ pub struct PixelDiff {
 
 impl PixelDiff {
     /// How many differing pixels [`PixelDiff::first`] lists.
-    pub const LISTED: usize = 10;
+    pub(crate) const LISTED: usize = 10;
 
     /// `3 of 4096 pixels differ (largest relative difference 0.25): (12, 40) got [...] want
     /// [...]; ...`, or `identical within the tolerance`.

@@ -13,7 +13,7 @@ use glam::DVec3;
 use scene::{Polygon, Shape};
 
 /// Most polygons in a leaf.
-pub const LEAF_SIZE: usize = 4;
+pub(crate) const LEAF_SIZE: usize = 4;
 /// SAH bins per axis.
 const BINS: usize = 12;
 
@@ -28,7 +28,7 @@ pub struct Aabb {
 
 impl Aabb {
     /// The empty box (union identity).
-    pub const EMPTY: Aabb = Aabb {
+    pub(crate) const EMPTY: Aabb = Aabb {
         lo: DVec3::splat(f64::INFINITY),
         hi: DVec3::splat(f64::NEG_INFINITY),
     };
@@ -76,7 +76,7 @@ struct Node {
 
 /// A bounding volume hierarchy over a scene's polygons.
 #[derive(Debug, Clone)]
-pub struct Bvh {
+pub(crate) struct Bvh {
     nodes: Vec<Node>,
     order: Vec<u32>,
     tris: Vec<[DVec3; 4]>,
@@ -178,7 +178,7 @@ impl Bvh {
 
     /// Calls `f` with the index of every polygon whose bounding box overlaps `b`, in a
     /// deterministic order.
-    pub fn for_each_overlapping(&self, b: &Aabb, mut f: impl FnMut(u32)) {
+    pub(crate) fn for_each_overlapping(&self, b: &Aabb, mut f: impl FnMut(u32)) {
         if self.nodes.is_empty() {
             return;
         }
@@ -214,7 +214,12 @@ impl Bvh {
     /// box whose every point has `n . (p - p0) < -tol` is skipped. Callers whose own per-polygon
     /// tests reject everything outside the same half-spaces see exactly the polygons they would
     /// have accepted from the plain box query, found with far fewer node visits.
-    pub fn for_each_in(&self, b: &Aabb, planes: &[(DVec3, DVec3, f64)], mut f: impl FnMut(u32)) {
+    pub(crate) fn for_each_in(
+        &self,
+        b: &Aabb,
+        planes: &[(DVec3, DVec3, f64)],
+        mut f: impl FnMut(u32),
+    ) {
         if self.nodes.is_empty() {
             return;
         }
@@ -252,7 +257,7 @@ impl Bvh {
     /// The first polygon other than `skip` that the open segment a + t d, t in (`T_EPS`,
     /// 1 - `T_EPS`), hits, and its t; ties at equal t go to the smaller index, so the answer
     /// does not depend on the traversal.
-    pub fn first_hit(&self, a: DVec3, d: DVec3, skip: u32) -> Option<(u32, f64)> {
+    pub(crate) fn first_hit(&self, a: DVec3, d: DVec3, skip: u32) -> Option<(u32, f64)> {
         if self.nodes.is_empty() {
             return None;
         }
@@ -343,7 +348,7 @@ impl Bvh {
 /// Segment parameters closer than this to either end do not count as hits: the segment starts on a
 /// receiver and ends on a shooter, and polygons touching either end (a wall meeting the floor) must
 /// not shadow it.
-pub const T_EPS: f64 = 1e-7;
+pub(crate) const T_EPS: f64 = 1e-7;
 
 #[inline]
 fn slab_hit(b: &Aabb, a: DVec3, inv: DVec3) -> bool {

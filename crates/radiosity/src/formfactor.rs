@@ -15,11 +15,11 @@
 use glam::DVec3;
 
 /// Most vertices a convex polygon can have after one clip of a quad by a plane.
-pub const MAX_CLIPPED: usize = 8;
+pub(crate) const MAX_CLIPPED: usize = 8;
 
 /// A small convex polygon on the stack (at most [`MAX_CLIPPED`] vertices).
 #[derive(Debug, Clone, Copy)]
-pub struct SmallPoly {
+pub(crate) struct SmallPoly {
     /// Vertices; only the first `len` are meaningful.
     pub v: [DVec3; MAX_CLIPPED],
     /// Number of vertices.
@@ -52,7 +52,7 @@ impl SmallPoly {
     }
 
     /// Clips the polygon to the closed half-space `n . (p - x) >= 0` (Sutherland-Hodgman).
-    pub fn clip_to_front(&self, x: DVec3, n: DVec3) -> SmallPoly {
+    pub(crate) fn clip_to_front(&self, x: DVec3, n: DVec3) -> SmallPoly {
         let mut out = SmallPoly {
             v: [DVec3::ZERO; MAX_CLIPPED],
             len: 0,
@@ -84,7 +84,7 @@ impl SmallPoly {
 /// entirely behind the receiver's tangent plane. A polygon that straddles the tangent plane is
 /// clipped first. The result is clamped to [0, 1] (rounding can push a full-hemisphere polygon a
 /// few ulps above 1).
-pub fn point_to_polygon(x: DVec3, n: DVec3, poly: &SmallPoly, poly_normal: DVec3) -> f64 {
+pub(crate) fn point_to_polygon(x: DVec3, n: DVec3, poly: &SmallPoly, poly_normal: DVec3) -> f64 {
     if poly.len < 3 || poly_normal.dot(x - poly.v[0]) <= 0.0 {
         return 0.0;
     }

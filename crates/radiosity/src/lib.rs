@@ -33,7 +33,7 @@
 //! non-finite value would be a bug; [`sanitize`] maps it to 0 rather than let it reach an image);
 //! the solution depends only on the scene (fixed seeds, fixed reduction order), not on the number
 //! of threads of the caller's rayon pool nor on the [`Observer`] the caller passes in
-//! [`SolveOptions`], which receives the solve's progress (stage [`STAGE`]) and, when it asks for
+//! [`SolveOptions`], which receives the solve's progress (stage `STAGE`) and, when it asks for
 //! them, the solver's trace lines (phase times, shots, vertices, unshot fraction).
 
 mod bvh;
@@ -66,12 +66,12 @@ use transfer::Transfer;
 
 /// The stage name under which [`solve`] reports progress. Its fraction is the solve's distance
 /// to convergence on a log scale: -ln(unshot fraction) / -ln(`convergence`).
-pub const STAGE: &str = "solve";
+pub(crate) const STAGE: &str = "solve";
 
 /// Options of one solve that are not part of the scene. None of them changes the solution.
 #[derive(Clone, Copy)]
 pub struct SolveOptions<'a> {
-    /// Receives the progress of stage [`STAGE`] and, if it asks for them, trace lines.
+    /// Receives the progress of stage `STAGE` and, if it asks for them, trace lines.
     pub observer: &'a dyn Observer,
     /// Bytes the solve's state may hold (quadtrees, samples, pair tables; see
     /// [`shoot::state_bytes`]): a refinement pass that would pass it ends the solve with
@@ -205,7 +205,7 @@ fn check_settings(scene: &Scene) -> Result<()> {
 /// (largest 3.4e38), and the reconstruction's slopes, patch coefficients and a pixel's sum of
 /// supersamples multiply a value by at most a few tens, so 1e30 keeps every stage finite with
 /// eight orders of magnitude to spare.
-pub const MAX_SPOT_RADIOSITY: f64 = 1e30;
+pub(crate) const MAX_SPOT_RADIOSITY: f64 = 1e30;
 
 /// Refuses a spot that would light a surface beyond [`MAX_SPOT_RADIOSITY`], with an input
 /// error naming the spot, the polygon and the distance. Emitters cannot get there (emission is
@@ -292,7 +292,7 @@ pub fn sanitize(c: DVec3) -> Vec3 {
 /// Radiosity E + rho * G of material `m` under irradiance G (the one formula of both the solve
 /// and the oracle).
 #[inline]
-pub fn radiosity_from_g(m: &scene::Material, g: DVec3) -> Vec3 {
+pub(crate) fn radiosity_from_g(m: &scene::Material, g: DVec3) -> Vec3 {
     if m.reflectance.max_element() <= 0.0 {
         return sanitize(m.emission);
     }
@@ -308,7 +308,7 @@ pub fn radiosity_from_g(m: &scene::Material, g: DVec3) -> Vec3 {
 /// finding each shooter's receivers once (all polygons, or its probe rays' hits); see `shoot`
 /// and `transfer`.
 ///
-/// Reports to `opts.observer`: progress of stage [`STAGE`] (after the settings are checked),
+/// Reports to `opts.observer`: progress of stage `STAGE` (after the settings are checked),
 /// `finished` once the shooting is done, trace lines if the observer wants them.
 pub fn solve(scene: &Scene, opts: &SolveOptions<'_>) -> Result<Solution> {
     check_settings(scene)?;
@@ -354,7 +354,7 @@ pub fn solve(scene: &Scene, opts: &SolveOptions<'_>) -> Result<Solution> {
 }
 
 /// Fills elements, vertices, T-vertices and the depth histogram from the trees.
-pub fn fill_tree_stats(stats: &mut SolveStats, polygons: &[SampledQuadtree]) {
+pub(crate) fn fill_tree_stats(stats: &mut SolveStats, polygons: &[SampledQuadtree]) {
     stats.elements = 0;
     stats.vertices = 0;
     stats.t_vertices = 0;
@@ -376,7 +376,7 @@ pub fn fill_tree_stats(stats: &mut SolveStats, polygons: &[SampledQuadtree]) {
 /// T-vertices of a tree in O(n log n): an interior lattice point that is a corner of exactly two
 /// leaves lies inside the edge of a third (a regular interior vertex is a corner of four leaves,
 /// and no T-vertex can lie on the domain boundary).
-pub fn count_t_vertices(tree: &base::quadtree::Quadtree) -> usize {
+pub(crate) fn count_t_vertices(tree: &base::quadtree::Quadtree) -> usize {
     use base::quadtree::LATTICE;
     let mut corners: Vec<_> = tree
         .nodes()

@@ -30,7 +30,7 @@ pub fn scene(polygons: Vec<Polygon>, materials: Vec<Material>, spots: Vec<SpotLi
 }
 
 /// A quad with its winding chosen so the normal points towards `toward`.
-pub fn quad_facing(mut c: [DVec3; 4], toward: DVec3, material: u32) -> Polygon {
+pub(crate) fn quad_facing(mut c: [DVec3; 4], toward: DVec3, material: u32) -> Polygon {
     let p = Polygon::quad(c, material, 0).expect("test quad");
     if p.normal.dot(toward - p.centroid()) < 0.0 {
         c.reverse();
@@ -41,7 +41,7 @@ pub fn quad_facing(mut c: [DVec3; 4], toward: DVec3, material: u32) -> Polygon {
 
 /// The six inward faces of an axis-aligned cube of side `size` centred at the origin, with their
 /// inward normals.
-pub fn cube_faces(size: f64) -> Vec<([DVec3; 4], DVec3)> {
+pub(crate) fn cube_faces(size: f64) -> Vec<([DVec3; 4], DVec3)> {
     box_faces(DVec3::splat(-size / 2.0), DVec3::splat(size / 2.0), true)
         .into_iter()
         .map(|p| (p.corners, p.normal))
@@ -49,7 +49,7 @@ pub fn cube_faces(size: f64) -> Vec<([DVec3; 4], DVec3)> {
 }
 
 /// The six faces of the box [lo, hi], facing inwards or outwards, material 0.
-pub fn box_faces(lo: DVec3, hi: DVec3, inward: bool) -> Vec<Polygon> {
+pub(crate) fn box_faces(lo: DVec3, hi: DVec3, inward: bool) -> Vec<Polygon> {
     let c = 0.5 * (lo + hi);
     let p = |x: f64, y: f64, z: f64| DVec3::new(x, y, z);
     let faces = [
@@ -110,7 +110,7 @@ pub fn furnace() -> Scene {
 }
 
 /// A 4 x 4 floor at z = 0 (facing +z) under one spot at height 2, no other surfaces.
-pub fn spot_over_plane() -> Scene {
+pub(crate) fn spot_over_plane() -> Scene {
     let floor = quad_facing(
         [
             DVec3::new(-2.0, -2.0, 0.0),

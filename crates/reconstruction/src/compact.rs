@@ -10,7 +10,7 @@
 //! (f, f_u, f_v, f_uv per RGB channel, global parameter units) is `m * 2^e`: one power-of-two
 //! scale per polygon and quantity, e the smallest (not below -1074) with
 //! `max |x| / 2^e <= 32767`, and an i16 mantissa `m = round(x / 2^e)`, |m| <= 32767; a quantity
-//! that is zero at every vertex of its polygon has the exponent [`ZERO_EXPONENT`] and scale 0.
+//! that is zero at every vertex of its polygon has the exponent `ZERO_EXPONENT` and scale 0.
 //! Dequantization (`m as f64 * 2^e`) is exact, so `expand` is a pure function of the stored
 //! integers: the patch of a leaf goes through `PatchPoly::from_corners` and the same f64 to f32
 //! conversion as [`Reconstruction`], and with unquantized data it would be bit-identical to
@@ -80,10 +80,10 @@ use base::error::{Error, Result};
 use base::quadtree::{Cell, Quadtree, SampledQuadtree, VertexKey, MAX_DEPTH};
 
 /// Quantities per vertex: index `3 * kind + channel`, kind 0 = f, 1 = f_u, 2 = f_v, 3 = f_uv.
-pub const QUANTITIES: usize = 12;
+pub(crate) const QUANTITIES: usize = 12;
 
 /// Exponent of a quantity that is zero at every vertex of its polygon (scale 0).
-pub const ZERO_EXPONENT: i16 = i16::MIN;
+pub(crate) const ZERO_EXPONENT: i16 = i16::MIN;
 
 /// Largest |mantissa|.
 const MANTISSA_MAX: f64 = 32767.0;
@@ -332,7 +332,7 @@ pub struct CompactReconstruction {
 /// ([`CompactReconstruction::cache_slots`]), so no two of its patches share a slot. Measured
 /// (callgrind, cornell-box at 512 x 512, one thread): 8192 slots thrash on its ~18,000 leaves
 /// (+15 % instructions per frame over stored patches), 16384 slots cost +1.5 %.
-pub const CACHE_SLOTS: usize = 16384;
+pub(crate) const CACHE_SLOTS: usize = 16384;
 
 /// A worker's direct-mapped cache of expanded patches, owned by the caller (the frame stage
 /// keeps one per worker, [`crate::PatchSource::warm`] fills it): leaf `id` lives in slot
@@ -358,7 +358,7 @@ impl PatchCache {
 impl CompactReconstruction {
     /// Slots of a patch cache for this reconstruction: the smallest power of two holding every
     /// leaf, at most [`CACHE_SLOTS`] (at least 1).
-    pub fn cache_slots(&self) -> usize {
+    pub(crate) fn cache_slots(&self) -> usize {
         self.leaves
             .len()
             .max(1)
@@ -375,7 +375,7 @@ impl CompactReconstruction {
     /// The patch of leaf `id` through `cache`: what the direct method's region tables are filled
     /// from. Equal to [`CompactReconstruction::expand`].
     #[inline]
-    pub fn cached_patch(&self, id: u32, cache: &mut PatchCache) -> PatchCoeffs {
+    pub(crate) fn cached_patch(&self, id: u32, cache: &mut PatchCache) -> PatchCoeffs {
         self.claim(cache);
         let slot = id as usize & (cache.ids.len() - 1);
         if cache.ids[slot] != id {
@@ -562,7 +562,7 @@ impl CompactReconstruction {
         PatchCoeffs::from_poly(&self.poly(id), self.leaves[id as usize].level())
     }
 
-    /// The 12 exponents of `polygon` (index `3 * kind + channel`, see [`QUANTITIES`]).
+    /// The 12 exponents of `polygon` (index `3 * kind + channel`, see `QUANTITIES`).
     pub fn exponents(&self, polygon: u32) -> [i16; QUANTITIES] {
         self.exponents[polygon as usize]
     }
@@ -789,7 +789,7 @@ fn decode_part(r: &mut Reader) -> Result<Part> {
 }
 
 /// The direct method's view: `patch` comes through the thread's bounded cache of expanded
-/// patches ([`CompactReconstruction::cached_patch`]).
+/// patches (`CompactReconstruction::cached_patch`).
 impl PatchSource for CompactReconstruction {
     #[inline]
     fn locate(&self, polygon: u32, u: f32, v: f32) -> u32 {

@@ -14,7 +14,7 @@ use base::quadtree::Cell;
 /// Hermite data of one vertex, per RGB channel, in global parameter units (derivatives with
 /// respect to the polygon's u, v in [0, 1]).
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
-pub struct HermiteData {
+pub(crate) struct HermiteData {
     /// Value.
     pub f: [f64; 3],
     /// df/du.
@@ -50,7 +50,7 @@ fn hermite_to_power(x: [f64; 4]) -> [f64; 4] {
 
 /// One bicubic patch in f64 power basis: `c[ch][4 * j + i]` multiplies s^i t^j.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct PatchPoly {
+pub(crate) struct PatchPoly {
     /// Power coefficients per channel.
     pub c: [[f64; 16]; 3],
     /// Lower-left corner u.
@@ -99,7 +99,7 @@ impl PatchPoly {
 
     /// Value and local partials `[f, f_s, f_t, f_st]` per channel at local (s, t).
     #[allow(clippy::needless_range_loop)] // one index over several per-channel arrays
-    pub fn eval_local(&self, s: f64, t: f64) -> [[f64; 3]; 4] {
+    pub(crate) fn eval_local(&self, s: f64, t: f64) -> [[f64; 3]; 4] {
         let sp = [1.0, s, s * s, s * s * s];
         let tp = [1.0, t, t * t, t * t * t];
         let dsp = [0.0, 1.0, 2.0 * s, 3.0 * s * s];
@@ -127,7 +127,7 @@ impl PatchPoly {
 
     /// Hermite data of the patch polynomial at global (u, v), derivatives in global units.
     #[allow(clippy::needless_range_loop)] // one index over several per-channel arrays
-    pub fn hermite_at(&self, u: f64, v: f64) -> HermiteData {
+    pub(crate) fn hermite_at(&self, u: f64, v: f64) -> HermiteData {
         let r = self.eval_local((u - self.u0) / self.w, (v - self.v0) / self.w);
         let inv = 1.0 / self.w;
         let mut d = HermiteData::default();
@@ -143,7 +143,7 @@ impl PatchPoly {
     /// Whether `d` equals this polynomial's data at (u, v) within `tol`, comparing the value and
     /// the derivatives scaled to this patch (w f_u, w f_v, w^2 f_uv), so that all four are in
     /// units of the value.
-    pub fn agrees_with(&self, u: f64, v: f64, d: &HermiteData, tol: f64) -> bool {
+    pub(crate) fn agrees_with(&self, u: f64, v: f64, d: &HermiteData, tol: f64) -> bool {
         let p = self.hermite_at(u, v);
         let w = self.w;
         (0..3).all(|ch| {

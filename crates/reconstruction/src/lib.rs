@@ -121,7 +121,7 @@ impl Estimator {
     }
 
     /// The estimator named `name` ([`Estimator::name`]), if any.
-    pub fn from_name(name: &str) -> Option<Estimator> {
+    pub(crate) fn from_name(name: &str) -> Option<Estimator> {
         Estimator::ALL.into_iter().find(|e| e.name() == name)
     }
 
@@ -609,7 +609,13 @@ impl Reconstruction {
     /// [`Reconstruction::resample`] with the texels at the positions of `placement`
     /// ([`Placement::texel_position`]): texel (i, j) is the value at
     /// `(placement.texel_position(i, n), placement.texel_position(j, m))`.
-    pub fn resample_placed(&self, polygon: u32, n: u32, m: u32, placement: Placement) -> Vec<Vec3> {
+    pub(crate) fn resample_placed(
+        &self,
+        polygon: u32,
+        n: u32,
+        m: u32,
+        placement: Placement,
+    ) -> Vec<Vec3> {
         let mut uv = Vec::with_capacity(n as usize * m as usize);
         for j in 0..m {
             let v = placement.texel_position(j, m);

@@ -41,8 +41,8 @@
 //! Vertex colours are the samples themselves ([`SampledQuadtree::sample`]); a missing or
 //! non-finite sample is an [`Error::Inconsistent`]. Model size ([`MeshStats::bytes`]) is counted as
 //! the paper's Table 1 counts a triangle mesh with per-vertex colour: 3 x f32 position + 3 x f32
-//! colour per vertex ([`BYTES_PER_VERTEX`]) and 3 x u32 indices per triangle
-//! ([`BYTES_PER_TRIANGLE`]).
+//! colour per vertex (`BYTES_PER_VERTEX`) and 3 x u32 indices per triangle
+//! (`BYTES_PER_TRIANGLE`).
 
 use glam::Vec3;
 use rayon::prelude::*;
@@ -56,9 +56,9 @@ use scene::{Polygon, Scene, Shape};
 use super::PatchCoeffs;
 
 /// Bytes per mesh vertex in [`MeshStats::bytes`]: 3 x f32 position + 3 x f32 colour.
-pub const BYTES_PER_VERTEX: u64 = 24;
+pub(crate) const BYTES_PER_VERTEX: u64 = 24;
 /// Bytes per mesh triangle in [`MeshStats::bytes`]: 3 x u32 vertex indices.
-pub const BYTES_PER_TRIANGLE: u64 = 12;
+pub(crate) const BYTES_PER_TRIANGLE: u64 = 12;
 
 /// Sizes of a triangle model, as the paper's Table 1 counts them.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize)]
@@ -246,7 +246,7 @@ fn triangulate(sq: &SampledQuadtree, polygon: usize) -> Result<DomainMesh> {
 }
 
 /// The Gouraud patch of a triangle with vertex colours `c` at its (s, t) = (0,0), (1,0), (0|1, 1).
-pub fn gouraud_patch(c: [Vec3; 3]) -> PatchCoeffs {
+pub(crate) fn gouraud_patch(c: [Vec3; 3]) -> PatchCoeffs {
     let mut k = [[0.0f32; 16]; 3];
     for ch in 0..3 {
         let (c0, c1, c2) = (c[0][ch], c[1][ch], c[2][ch]);

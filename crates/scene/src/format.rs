@@ -32,7 +32,7 @@ impl<'de> Deserialize<'de> for Vec3 {
 /// The whole file.
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
-pub struct SceneFile {
+pub(crate) struct SceneFile {
     /// `[camera]`, required.
     pub camera: Spanned<CameraSection>,
     /// `[image]`, optional (defaults 512 x 512).
@@ -62,7 +62,7 @@ pub struct SceneFile {
 /// `[camera]`: perspective (`fov_y`) or orthographic (`ortho_width` and `ortho_height`).
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
-pub struct CameraSection {
+pub(crate) struct CameraSection {
     /// Eye position.
     pub eye: Spanned<Vec3>,
     /// Point looked at.
@@ -80,7 +80,7 @@ pub struct CameraSection {
 /// `[image]`.
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
-pub struct ImageSection {
+pub(crate) struct ImageSection {
     /// Width in pixels.
     pub width: Option<Spanned<i64>>,
     /// Height in pixels.
@@ -90,7 +90,7 @@ pub struct ImageSection {
 /// One `[[materials]]` entry.
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
-pub struct MaterialSection {
+pub(crate) struct MaterialSection {
     /// Unique name.
     pub name: Spanned<String>,
     /// Diffuse reflectance, each in [0, 1).
@@ -102,7 +102,7 @@ pub struct MaterialSection {
 /// One `[[polygons]]` entry.
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
-pub struct PolygonSection {
+pub(crate) struct PolygonSection {
     /// Optional name (for messages and `Scene::objects`).
     pub name: Option<String>,
     /// 3 or 4 corners, counter-clockwise seen from the front.
@@ -114,7 +114,7 @@ pub struct PolygonSection {
 /// `scale` of an `[[obj]]`: a number or one factor per axis.
 #[derive(Debug, Deserialize)]
 #[serde(untagged, expecting = "a number or three numbers [x, y, z]")]
-pub enum ScaleSpec {
+pub(crate) enum ScaleSpec {
     /// The same factor on every axis.
     Uniform(f64),
     /// One factor per axis.
@@ -124,7 +124,7 @@ pub enum ScaleSpec {
 /// One `[[obj]]` include.
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
-pub struct ObjSection {
+pub(crate) struct ObjSection {
     /// Path of the OBJ file, relative to the scene file's directory.
     pub file: Spanned<String>,
     /// Scale, applied first.
@@ -142,7 +142,7 @@ pub struct ObjSection {
 /// One `[[spots]]` entry.
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
-pub struct SpotSection {
+pub(crate) struct SpotSection {
     /// Position of the point source.
     pub position: Spanned<Vec3>,
     /// Axis of the cone (normalised by the loader).
@@ -158,7 +158,7 @@ pub struct SpotSection {
 /// `[radiosity]`.
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
-pub struct RadiositySection {
+pub(crate) struct RadiositySection {
     /// Subdivision tolerance.
     pub tolerance: Option<Spanned<f64>>,
     /// Minimum quadtree depth.
@@ -178,7 +178,7 @@ pub struct RadiositySection {
 /// `[render]`.
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
-pub struct RenderSection {
+pub(crate) struct RenderSection {
     /// Default method.
     pub method: Option<Spanned<String>>,
     /// Antialiasing samples per pixel.
@@ -192,7 +192,7 @@ pub struct RenderSection {
 /// `[display]`.
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
-pub struct DisplaySection {
+pub(crate) struct DisplaySection {
     /// Exposure in stops.
     pub exposure: Option<Spanned<f64>>,
     /// Background linear RGB.
@@ -202,7 +202,7 @@ pub struct DisplaySection {
 /// `[camera_path]`.
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
-pub struct CameraPathSection {
+pub(crate) struct CameraPathSection {
     /// Frames along the whole path.
     pub frames: Spanned<i64>,
     /// Keyframes, at least two.
@@ -212,7 +212,7 @@ pub struct CameraPathSection {
 /// One keyframe of `[camera_path]`.
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
-pub struct KeyframeSection {
+pub(crate) struct KeyframeSection {
     /// Eye.
     pub eye: Vec3,
     /// Point looked at.

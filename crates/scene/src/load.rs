@@ -35,7 +35,7 @@ use std::path::Path;
 use toml::Spanned;
 
 /// Image width and height when `[image]` does not give them.
-pub const DEFAULT_IMAGE_DIM: u32 = 512;
+pub(crate) const DEFAULT_IMAGE_DIM: u32 = 512;
 
 /// Most shadow rays per receiver point and source accepted in `[radiosity] shadow_rays`.
 pub const MAX_SHADOW_RAYS: u32 = 4096;
@@ -43,15 +43,15 @@ pub const MAX_SHADOW_RAYS: u32 = 4096;
 /// Largest magnitude of any number in a scene file (coordinates, intensities, ...): far beyond
 /// any sensible scene, and small enough that squares and cross products of differences of
 /// coordinates stay finite, so no later computation can overflow into inf or NaN.
-pub const MAX_MAGNITUDE: f64 = 1.0e9;
+pub(crate) const MAX_MAGNITUDE: f64 = 1.0e9;
 
 /// Smallest perspective field of view accepted, degrees: narrower than any lens (a 0.01 degree
 /// view of a 1 m object needs a camera 5.7 km away); a vanishing one would make every
 /// projected coordinate overflow the rasterizer's guard band and draw nothing.
-pub const MIN_FOV_Y: f64 = 0.01;
+pub(crate) const MIN_FOV_Y: f64 = 0.01;
 
 /// Most frames accepted in `[camera_path] frames`.
-pub const MAX_FRAMES: u32 = 1_000_000;
+pub(crate) const MAX_FRAMES: u32 = 1_000_000;
 
 /// Most corners of one face (an OBJ `f` statement; inline polygons have 3 or 4). Checking a
 /// face compares every pair of its corners, so the limit bounds that work (for 30 000 corners
@@ -79,7 +79,7 @@ pub fn parse_scene(text: &str, path: &Path) -> Result<Scene> {
 
 /// How [`parse_scene_with`] reads an included OBJ or MTL file: its path (the scene's directory
 /// joined with the include's name) in, its text out.
-pub type ReadText<'r> = &'r dyn Fn(&Path) -> std::io::Result<String>;
+pub(crate) type ReadText<'r> = &'r dyn Fn(&Path) -> std::io::Result<String>;
 
 /// [`parse_scene`], reading the `[[obj]]` includes and their MTL files through `read` instead of
 /// the file system: the entry point for parsing OBJ and MTL text held in memory (the fuzz

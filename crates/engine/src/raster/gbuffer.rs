@@ -28,10 +28,10 @@ pub const NO_POLYGON: u32 = u32::MAX;
 pub const PIXEL_RECORD_BYTES: u64 = 20;
 
 /// Bytes of one patch-table entry.
-pub const TABLE_ENTRY_BYTES: u64 = std::mem::size_of::<PatchCoeffs>() as u64;
+pub(crate) const TABLE_ENTRY_BYTES: u64 = std::mem::size_of::<PatchCoeffs>() as u64;
 
 /// The G-buffer of one region. `Default` is an empty buffer of no region, to be
-/// [`RegionGBuffer::reset`] before use.
+/// `RegionGBuffer::reset` before use.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct RegionGBuffer {
     /// Index of the region in the frame's region grid.
@@ -92,7 +92,15 @@ impl RegionGBuffer {
     /// `polygon` are cleared (every reader looks at `u`, `v` and `slot` only where `polygon` is
     /// not [`NO_POLYGON`], so their stale values are never read; they are finite values a
     /// rasterizer wrote, or zeros). The patch table is emptied.
-    pub fn reset(&mut self, region: u32, x0: u32, y0: u32, width: u32, height: u32, samples: u32) {
+    pub(crate) fn reset(
+        &mut self,
+        region: u32,
+        x0: u32,
+        y0: u32,
+        width: u32,
+        height: u32,
+        samples: u32,
+    ) {
         let stride = width.div_ceil(8) * 8;
         let n = (stride * height * samples) as usize;
         (self.region, self.x0, self.y0) = (region, x0, y0);

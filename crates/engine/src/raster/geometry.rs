@@ -33,19 +33,19 @@ use scene::{Camera, Polygon, Projection, Shape};
 
 /// Guard band, in pixels beyond each image edge: screen polygons are clipped to it, which bounds
 /// fixed-point coordinates to below 2^26 (8 subpixel bits) and edge functions to below 2^56.
-pub const GUARD_BAND: f64 = 65536.0;
+pub(crate) const GUARD_BAND: f64 = 65536.0;
 
 /// Largest near plane distance relative to the scene's extent (perspective cameras).
-pub const NEAR_RELATIVE: f64 = 1e-4;
+pub(crate) const NEAR_RELATIVE: f64 = 1e-4;
 
 /// Smallest near plane distance relative to the scene's extent: where the eye touches a
 /// polygon. Depth is interpolated as 1/w in floating point, whose relative precision is the
 /// same at every distance, so a small near plane costs no depth resolution.
-pub const MIN_NEAR_RELATIVE: f64 = 1e-9;
+pub(crate) const MIN_NEAR_RELATIVE: f64 = 1e-9;
 
 /// The near plane of a perspective view: half the distance from the eye to the nearest
 /// geometry (`nearest`, a lower bound of the distance to every polygon), so it never clips
-/// anything, but at most [`NEAR_RELATIVE`] and at least [`MIN_NEAR_RELATIVE`] times `extent`.
+/// anything, but at most `NEAR_RELATIVE` and at least `MIN_NEAR_RELATIVE` times `extent`.
 /// A fixed fraction of the extent alone let one huge polygon far away push the near plane past
 /// everything close to the camera (a black image).
 pub fn near_plane(extent: f64, nearest: f64) -> f64 {
@@ -55,7 +55,7 @@ pub fn near_plane(extent: f64, nearest: f64) -> f64 {
 
 /// A lower bound of the distance from `eye` to polygon `p`: the larger of the distance to its
 /// plane and the distance to its bounding sphere (about its centroid).
-pub fn distance_lower_bound(p: &Polygon, eye: DVec3) -> f64 {
+pub(crate) fn distance_lower_bound(p: &Polygon, eye: DVec3) -> f64 {
     let c = p.centroid();
     let radius = p
         .vertices()
@@ -88,7 +88,7 @@ impl Plane {
 
 /// The camera's view transform and projection for one image size.
 #[derive(Clone, Copy, Debug)]
-pub struct View {
+pub(crate) struct View {
     eye: DVec3,
     right: DVec3,
     up: DVec3,
@@ -120,10 +120,10 @@ pub mod plane {
 
 /// Inline capacity of a clipped polygon's vertex list: 4 corners, +1 at the near plane, +1 per
 /// guard-band side, with room to spare.
-pub const CLIP_CAPACITY: usize = 12;
+pub(crate) const CLIP_CAPACITY: usize = 12;
 
 /// A clipped polygon's screen vertices, held inline.
-pub type Verts = SmallVec<[[f64; 2]; CLIP_CAPACITY]>;
+pub(crate) type Verts = SmallVec<[[f64; 2]; CLIP_CAPACITY]>;
 
 /// A polygon after the geometry stage: a clipped convex screen polygon and its per-pixel
 /// expressions.
@@ -241,7 +241,7 @@ impl View {
     }
 
     /// View coordinates (right, up, forward distance w) of a world point.
-    pub fn to_view(&self, p: DVec3) -> DVec3 {
+    pub(crate) fn view_coords(&self, p: DVec3) -> DVec3 {
         let d = p - self.eye;
         DVec3::new(d.dot(self.right), d.dot(self.up), d.dot(self.forward))
     }
@@ -263,7 +263,7 @@ impl View {
     /// the near plane, outside the guard band, or edge-on: a plane through the eye projects to a
     /// line and covers no pixel centre).
     pub fn transform(&self, poly: &Polygon, id: u32) -> Option<ScreenPolygon> {
-        let cv: [DVec3; 4] = poly.corners.map(|c| self.to_view(c));
+        let cv: [DVec3; 4] = poly.corners.map(|c| self.view_coords(c));
         let k = poly.shape.corner_count();
         // Trivial rejection before any setup: every corner behind the near plane (the clip
         // below would return nothing). Cheap culling matters for meshes of 10^5 triangles.
@@ -485,12 +485,12 @@ mod tests {
     #[test]
     fn perspective_maps_the_look_at_point_to_the_centre_and_the_fov_to_the_edges() {
         let v = View::new(&persp(), 200, 100, 10.0, f64::INFINITY).unwrap();
-        let c = v.project(v.to_view(DVec3::ZERO));
+        let c = v.project(v.view_coords(DVec3::ZERO));
         assert_eq!(c, [100.0, 50.0]);
         // fov 90: at distance 5 the top edge is at y = 5; the image is twice as wide.
-        let top = v.project(v.to_view(DVec3::new(0.0, 5.0, 0.0)));
+        let top = v.project(v.view_coords(DVec3::new(0.0, 5.0, 0.0)));
         assert!((top[1] - 0.0).abs() < 1e-12);
-        let right = v.project(v.to_view(DVec3::new(10.0, 0.0, 0.0)));
+        let right = v.project(v.view_coords(DVec3::new(10.0, 0.0, 0.0)));
         assert!((right[0] - 200.0).abs() < 1e-12, "{right:?}");
     }
 
@@ -511,7 +511,7 @@ mod tests {
         let sp = v.transform(&p, 0).unwrap();
         for &(u, w) in &[(0.5, 0.5), (0.1, 0.9), (0.8, 0.3)] {
             let world = p.point(u, w);
-            let vw = v.to_view(world);
+            let vw = v.view_coords(world);
             let [px, py] = v.project(vw);
             let q = sp.planes[plane::Q].at(px, py);
             assert!((1.0 / q - vw.z).abs() < 1e-9, "{} vs {}", 1.0 / q, vw.z);

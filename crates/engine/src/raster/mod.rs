@@ -40,10 +40,10 @@ use region::RegionGrid;
 use setup::Prim;
 
 /// Default region side in pixels (PixelFlow's 1992 SIMD array).
-pub const DEFAULT_REGION: u32 = 128;
+pub(crate) const DEFAULT_REGION: u32 = 128;
 
 /// Most virtual renderers accepted.
-pub const MAX_RENDERERS: u32 = 64;
+pub(crate) const MAX_RENDERERS: u32 = 64;
 
 const CENTRE: [(f32, f32); 1] = [(0.5, 0.5)];
 const ROTATED_GRID: [(f32, f32); 4] = [
@@ -203,7 +203,7 @@ fn prefetch<T>(x: &T) {
 }
 
 /// One renderer's work on one region, with the instruction set `isa`: resets `gb` to region `reg` of `grid`
-/// ([`RegionGBuffer::reset`]), rasterizes the primitives `ids` (indices into `prims`, in
+/// (`RegionGBuffer::reset`), rasterizes the primitives `ids` (indices into `prims`, in
 /// increasing order) at every sample offset into it, then, if the method has patches, locates
 /// each visible sample's patch in `source` and fills the region's patch table, with the patch
 /// location's working memory in `scratch`. Returns the fragments rasterized (covered samples

@@ -90,7 +90,7 @@ impl RegionGrid {
 
     /// Appends primitive `i` to the list of every region its bounding box meets.
     #[inline]
-    pub fn bin_one(&self, i: u32, p: &Prim, bins: &mut [Vec<u32>]) {
+    pub(crate) fn bin_one(&self, i: u32, p: &Prim, bins: &mut [Vec<u32>]) {
         let [x0, y0, x1, y1] = p.bbox;
         for ry in y0 / self.size..=y1 / self.size {
             for rx in x0 / self.size..=x1 / self.size {

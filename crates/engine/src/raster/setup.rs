@@ -1,5 +1,5 @@
 //! Setup: the second stage of the renderer. It snaps each screen polygon's vertices to a fixed-point
-//! grid of [`SUBPIXEL_BITS`] bits and turns its edges into integer edge functions, then packs the
+//! grid of `SUBPIXEL_BITS` bits and turns its edges into integer edge functions, then packs the
 //! per-pixel expressions and the bilinear-inverse constants the region rasterizer evaluates.
 //!
 //! Watertightness comes from exact integer arithmetic: a vertex shared by two polygons snaps to the
@@ -12,7 +12,7 @@
 //! exactly once. The rule is folded into a bias (0 for owning edges, -1 otherwise) so the inner loop
 //! only tests `E + bias >= 0`, a sign bit.
 //!
-//! Convex polygons are rasterized whole, with one edge function per edge (up to [`MAX_EDGES`]
+//! Convex polygons are rasterized whole, with one edge function per edge (up to `MAX_EDGES`
 //! after clipping), rather than split into triangles: no internal edges, no fan seams. Snapping can
 //! make a grazing polygon very slightly non-convex; the half-plane intersection then loses at most
 //! the samples within 1/512 pixel of the snapped vertex, a documented approximation.
@@ -20,11 +20,11 @@
 use super::geometry::{Plane, ScreenPolygon, CLIP_CAPACITY, GUARD_BAND};
 
 /// Subpixel bits of the fixed-point vertex grid.
-pub const SUBPIXEL_BITS: u32 = 8;
+pub(crate) const SUBPIXEL_BITS: u32 = 8;
 /// One pixel in fixed point.
 pub const ONE: i64 = 1 << SUBPIXEL_BITS;
 /// Most edges a clipped convex polygon can have: 4 corners + 1 near plane + 4 guard-band sides.
-pub const MAX_EDGES: usize = 9;
+pub(crate) const MAX_EDGES: usize = 9;
 
 /// An integer edge function `E(X, Y) = dx (Y - y0) - dy (X - x0) + bias` over fixed-point sample
 /// positions; the sample is on the inner side when `E >= 0`. Stored in 32 bits (coordinates and
@@ -102,7 +102,7 @@ pub struct Prim {
     /// Whether Q is 1/w.
     pub perspective: bool,
     /// Whether every edge-function value the region walk computes fits in `i32` (small
-    /// primitives: [`edges_fit_i32`]), so the rasterizer may use 32-bit edge lanes.
+    /// primitives: `edges_fit_i32`), so the rasterizer may use 32-bit edge lanes.
     pub i32_edges: bool,
 }
 
@@ -121,7 +121,7 @@ impl Prim {
 /// block included) and Y in [y0 ONE, (y1 + 1) ONE]; on that rectangle
 /// |E| <= |dx| max|Y - Y0| + |dy| max|X - X0| + 1, with (X0, Y0) the edge's start vertex
 /// (which may lie far outside the clamped box).
-pub fn edges_fit_i32(edges: &[Edge], bbox: [u32; 4]) -> bool {
+pub(crate) fn edges_fit_i32(edges: &[Edge], bbox: [u32; 4]) -> bool {
     let [x0, y0, x1, y1] = bbox.map(|c| c as i64);
     let (xa, xb) = ((x0 - 8) * ONE, (x1 + 17) * ONE);
     let (ya, yb) = (y0 * ONE, (y1 + 1) * ONE);
@@ -148,7 +148,7 @@ pub fn setup(sp: &ScreenPolygon, width: u32, height: u32) -> Option<Prim> {
 /// [`setup`] written into `out` (the frame's record for the polygon, set up in place); returns
 /// whether the polygon covers a sample. When it does not, `out` is left partly written and the
 /// caller marks it empty.
-pub fn setup_into(sp: &ScreenPolygon, width: u32, height: u32, out: &mut Prim) -> bool {
+pub(crate) fn setup_into(sp: &ScreenPolygon, width: u32, height: u32, out: &mut Prim) -> bool {
     debug_assert!(sp
         .verts
         .iter()

@@ -13,12 +13,12 @@
 //!
 //! Why it is built this way: neighbouring samples nearly always share one patch, so each group of
 //! samples (8, or 16 on AVX-512) is evaluated with one patch's coefficients broadcast over the
-//! lanes ([`patches`]); groups that mix patches or contain empty samples evaluate each distinct
+//! lanes (`patches`); groups that mix patches or contain empty samples evaluate each distinct
 //! patch and merge through masks. Every lane performs the scalar rule's IEEE operations in its
 //! order ([`shade_sample`]; Rust never contracts `a * b + c` into an FMA), so neither the path a
 //! sample takes nor the instruction set ([`lanes::Isa`]) changes its bits.
 //!
-//! The radiosity-texture (RAT) method runs the same block structure ([`texture`]): per block of
+//! The radiosity-texture (RAT) method runs the same block structure (`texture`): per block of
 //! 8 samples the (u, v) derivatives, the level of detail and the filter are computed in lanes
 //! ([`reconstruction::texture::Sampler::sample8`]) with the texels gathered per lane, one lane
 //! group per distinct polygon of the block, so that the direct-versus-texture comparison sets
@@ -29,8 +29,8 @@
 //! averaged with equal weights, a box filter over the pixel's own square; samples that see nothing
 //! contribute the background colour.
 //!
-//! The module is split by shader: [`patches`] (the direct method and the Gouraud mesh: patch
-//! tables) and [`texture`] (the RAT filters); this file holds what every shader shares: the
+//! The module is split by shader: `patches` (the direct method and the Gouraud mesh: patch
+//! tables) and `texture` (the RAT filters); this file holds what every shader shares: the
 //! [`Shader`] choice, the plane-order accumulation and box-filter resolve every lane shader ends
 //! its blocks and rows with, the per-sample form used by the reference shader, and the frame pass over
 //! all regions. The two lane shaders keep their own row and block loops: folding them into one
@@ -41,8 +41,8 @@
 // the compiler vectorizes and the reader checks lane by lane.
 #![allow(clippy::needless_range_loop)]
 
-pub mod patches;
-pub mod texture;
+mod patches;
+mod texture;
 
 use glam::Vec3;
 use rayon::prelude::*;
@@ -51,11 +51,11 @@ use crate::raster::gbuffer::{RegionGBuffer, NO_POLYGON};
 use lanes::{sanitize1, Isa, Simd, LANES};
 use reconstruction::texture::{Filter, TextureSet};
 
-pub use patches::{shade_region, shade_sample};
+pub use patches::shade_sample;
 pub use reconstruction::{PatchCoeffs, PatchSource};
 
 /// The radiosity of a polygon at (u, v), for [`Shader::Reference`].
-pub type ReferenceFn<'a> = dyn Fn(u32, f32, f32) -> Vec3 + Sync + 'a;
+pub(crate) type ReferenceFn<'a> = dyn Fn(u32, f32, f32) -> Vec3 + Sync + 'a;
 
 /// What the deferred pass evaluates at each visible sample: the one place where the rendering
 /// methods differ (everything before it, rasterization and composition, is shared).
@@ -77,7 +77,7 @@ pub enum Shader<'a> {
 
 impl Shader<'_> {
     /// The patch source whose patches the rasterizer must copy into the regions, if any.
-    pub fn patch_source(&self) -> Option<&dyn PatchSource> {
+    pub(crate) fn patch_source(&self) -> Option<&dyn PatchSource> {
         match self {
             Shader::Patches(s) => Some(*s),
             _ => None,

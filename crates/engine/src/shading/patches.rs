@@ -151,7 +151,7 @@ fn shade_group<S: Simd>(
 
 /// Shades one composited region into `rows` (`gb.width` x `gb.height` pixels) with the
 /// instruction set `isa` at its full width; the image and the counters do not depend on it.
-pub fn shade_region_rows(
+pub(crate) fn shade_region_rows(
     isa: Isa,
     gb: &RegionGBuffer,
     background: Vec3,
@@ -162,20 +162,6 @@ pub fn shade_region_rows(
         background,
         rows,
     })
-}
-
-/// Shades one composited region: returns its `width * height` resolved linear pixels (row-major,
-/// row 0 at the region's top) and the counters.
-pub fn shade_region(isa: Isa, gb: &RegionGBuffer, background: Vec3) -> (Vec<Vec3>, ShadeCounts) {
-    let mut out = vec![Vec3::ZERO; (gb.width * gb.height) as usize];
-    let mut rows = Rows::new(
-        &mut out,
-        gb.width as usize,
-        gb.width as usize,
-        gb.height as usize,
-    );
-    let counts = shade_region_rows(isa, gb, background, &mut rows);
-    (out, counts)
 }
 
 /// The patch pass over one region, as a kernel.

@@ -88,7 +88,7 @@ fn shade_region_texture_scalar(
 /// (nearly always one), run with the instruction set `isa` (at most AVX2: an AVX-512 build of
 /// this pass measured no faster). Every lane performs the scalar operations in the scalar order,
 /// so the image has the bits of the sample-by-sample form and does not depend on `isa`.
-pub fn shade_region_texture_rows(
+pub(crate) fn shade_region_texture_rows(
     isa: Isa,
     set: &TextureSet,
     filter: Filter,

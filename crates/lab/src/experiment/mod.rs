@@ -121,9 +121,9 @@ pub struct Results {
 /// Falloff exponents of the spot sweep, joined by the scene's own and run from narrow to wide:
 /// from the narrow spot of `scenes/two-spots-narrow.toml` (60, its 10 % radius half the coarse
 /// grid's spacing) to one whose grid neighbours keep most of the peak.
-pub const SWEEP_FALLOFFS: [f64; 6] = [60.0, 30.0, 15.0, 8.0, 3.0, 1.0];
+pub(crate) const SWEEP_FALLOFFS: [f64; 6] = [60.0, 30.0, 15.0, 8.0, 3.0, 1.0];
 
-/// The sweep's falloffs: `own` (the scene's) with [`SWEEP_FALLOFFS`], narrowest spot first,
+/// The sweep's falloffs: `own` (the scene's) with `SWEEP_FALLOFFS`, narrowest spot first,
 /// each once.
 pub fn sweep_falloffs(own: Option<f64>) -> Vec<f64> {
     let mut v: Vec<f64> = own.into_iter().chain(SWEEP_FALLOFFS).collect();

@@ -32,14 +32,14 @@ use scene::CameraPath;
 
 /// The scenes of the results page by default (gallery-fine is left to `stats` and Table 1: its
 /// sweep alone takes longer than the rest together).
-pub const RESULT_SCENES: [&str; 3] = [
+pub(crate) const RESULT_SCENES: [&str; 3] = [
     "scenes/two-spots.toml",
     "scenes/cornell-box.toml",
     "scenes/gallery.toml",
 ];
 
 /// The methods of the gallery, in column order (the exact image first).
-pub const GALLERY_METHODS: [&str; 6] = [
+pub(crate) const GALLERY_METHODS: [&str; 6] = [
     "reference",
     "direct",
     "texture-nearest",
@@ -219,7 +219,7 @@ fn json<T: Serialize>(value: &T) -> Result<String> {
 }
 
 /// The directory the page's data and images go to: `results/` beside the page.
-pub fn data_dir(doc: &Path) -> PathBuf {
+pub(crate) fn data_dir(doc: &Path) -> PathBuf {
     doc.parent().unwrap_or(Path::new(".")).join("results")
 }
 

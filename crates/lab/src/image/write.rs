@@ -77,7 +77,7 @@ fn level_by_table(t: &[f32; 255], x: f32) -> u8 {
 /// The 8-bit sRGB bytes of a frame (RGB, row-major) after exposure `exposure` (stops), exactly
 /// [`to_srgb8`] per channel, computed by table and in parallel over rows (the bytes do not
 /// depend on the split).
-pub fn srgb8_bytes(frame: ImageView<'_>, exposure: f32) -> Vec<u8> {
+pub(crate) fn srgb8_bytes(frame: ImageView<'_>, exposure: f32) -> Vec<u8> {
     use rayon::prelude::*;
     let t = srgb8_thresholds();
     let k = exposure.exp2();

@@ -27,7 +27,7 @@ pub enum Timed {
 }
 
 /// The bench's name of [`Timed::DirectExpanded`].
-pub const DIRECT_EXPANDED: &str = "direct-expanded";
+pub(crate) const DIRECT_EXPANDED: &str = "direct-expanded";
 
 impl Timed {
     /// The row's method name.
@@ -196,7 +196,7 @@ pub struct BenchRow {
 }
 
 /// The smallest and largest of `xs` (`[inf, 0]` for none; the values are times and rates, >= 0).
-pub fn min_max(xs: &[f64]) -> [f64; 2] {
+pub(crate) fn min_max(xs: &[f64]) -> [f64; 2] {
     [
         xs.iter().copied().fold(f64::INFINITY, f64::min),
         xs.iter().copied().fold(0.0, f64::max),

@@ -27,12 +27,12 @@
 //!   texels with mip chains, plus the expanded RRPs they are resampled from, checked before they
 //!   are built, with what is held already (solution and compact RRPs);
 //! - **mesh**: at most two triangles per leaf plus one per T-vertex, each with its vertices,
-//!   indices and its primitive record in a frame ([`MESH_TRIANGLE_BYTES`]), checked likewise;
+//!   indices and its primitive record in a frame (`MESH_TRIANGLE_BYTES`), checked likewise;
 //! - **frame**: the region G-buffers of every sample (all regions are held until shading, and
 //!   renderers' parts may wait for composition: `renderers + 1` copies at
-//!   [`PIXEL_RECORD_BYTES`]), the shaded samples and the image ([`frame_bytes`]);
+//!   [`PIXEL_RECORD_BYTES`]), the shaded samples and the image (`frame_bytes`);
 //! - **outputs**: the 8-bit PNG buffer and the 32-bit EXR buffer, each held twice while encoding
-//!   ([`output_bytes`]).
+//!   (`output_bytes`).
 //!
 //! These are the allocations that grow with the scene and the request; the program itself, its
 //! thread stacks and the allocator's slack (about 6 MB resident on Linux) are not counted, nor
@@ -50,7 +50,7 @@ use reconstruction::PatchCoeffs;
 use scene::Scene;
 
 /// Physical memory of this machine in bytes (`MemTotal` of `/proc/meminfo`), if it can be read.
-pub fn machine_memory() -> Option<u64> {
+pub(crate) fn machine_memory() -> Option<u64> {
     let text = std::fs::read_to_string("/proc/meminfo").ok()?;
     let line = text.lines().find(|l| l.starts_with("MemTotal:"))?;
     let kib: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
@@ -58,10 +58,10 @@ pub fn machine_memory() -> Option<u64> {
 }
 
 /// Used when the machine's memory cannot be read.
-pub const FALLBACK_LIMIT: u64 = 8 << 30;
+pub(crate) const FALLBACK_LIMIT: u64 = 8 << 30;
 
 /// The default limit: three quarters of the machine's physical memory (the rest for the system
-/// and for what the estimates do not count), or [`FALLBACK_LIMIT`].
+/// and for what the estimates do not count), or `FALLBACK_LIMIT`.
 pub fn default_limit() -> u64 {
     machine_memory().map_or(FALLBACK_LIMIT, |m| m / 4 * 3)
 }
@@ -171,7 +171,7 @@ fn uniform_tree(depth: u32) -> (u64, u64) {
     (nodes, side * side)
 }
 
-/// Which depth [`solve_parts`] puts every quadtree at.
+/// Which depth `solve_parts` puts every quadtree at.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Depth {
     /// The starting depth: `min_depth`, or the polygon's shooter-patch depth if deeper (what
@@ -183,7 +183,7 @@ pub enum Depth {
 }
 
 /// Per polygon, the uniform depth of its quadtree under `depth`.
-pub fn polygon_depths(scene: &Scene, depth: Depth) -> Vec<u32> {
+pub(crate) fn polygon_depths(scene: &Scene, depth: Depth) -> Vec<u32> {
     let st = &scene.radiosity;
     let total_area: f64 = scene.polygons.iter().map(|p| p.area).sum();
     let min_size = sizes::min_element_size(scene);
@@ -209,7 +209,7 @@ pub fn polygon_depths(scene: &Scene, depth: Depth) -> Vec<u32> {
 /// The solve's memory with every quadtree uniformly at `depth`, as parts: quadtrees and
 /// samples, the RRPs built from them, the cache of coarse transfers (at most
 /// [`sizes::COARSE_CACHE_ENTRIES`]), pair tables, shooters.
-pub fn solve_parts(scene: &Scene, depth: Depth) -> Vec<(String, u64)> {
+pub(crate) fn solve_parts(scene: &Scene, depth: Depth) -> Vec<(String, u64)> {
     let st = &scene.radiosity;
     let total_area: f64 = scene.polygons.iter().map(|p| p.area).sum();
     let nrays = u64::from(st.shadow_rays.max(1));
@@ -263,7 +263,7 @@ pub fn solve_parts(scene: &Scene, depth: Depth) -> Vec<(String, u64)> {
 
 /// The solve's estimate: what it surely allocates ([`Depth::Start`]) as an [`Estimate`], and
 /// the worst case ([`Depth::Worst`]) in bytes.
-pub fn solve_estimate(scene: &Scene) -> (Estimate, u64) {
+pub(crate) fn solve_estimate(scene: &Scene) -> (Estimate, u64) {
     let mut e = Estimate::new(
         format!("the solve of {}", scene.source.display()),
         "lower radiosity.min_depth, use fewer polygons, or raise --memory-limit",
@@ -279,7 +279,7 @@ pub fn solve_estimate(scene: &Scene) -> (Estimate, u64) {
 
 /// The worst case of the methods' own data: textures (under `policy`) and mesh with every
 /// quadtree uniformly at its [`Depth::Worst`] depth, in bytes.
-pub fn worst_method_bytes(scene: &Scene, policy: SizePolicy) -> Result<(u64, u64)> {
+pub(crate) fn worst_method_bytes(scene: &Scene, policy: SizePolicy) -> Result<(u64, u64)> {
     let depths = polygon_depths(scene, Depth::Worst);
     let (mut nodes, mut leaves) = (0u64, 0u64);
     for &d in &depths {
@@ -296,7 +296,7 @@ pub fn worst_method_bytes(scene: &Scene, policy: SizePolicy) -> Result<(u64, u64
 /// shaded RGB `f32` per sample, and the RGB `f32` image. The frame engine holds far less (two
 /// region G-buffers per worker thread, reused region after region, plus the image);
 /// the bound is kept whole-frame so that it holds for any thread count and region size.
-pub fn frame_bytes(width: u32, height: u32, samples: u32, renderers: u32) -> u64 {
+pub(crate) fn frame_bytes(width: u32, height: u32, samples: u32, renderers: u32) -> u64 {
     let pixels = u64::from(width) * u64::from(height);
     let s = pixels.saturating_mul(u64::from(samples.max(1)));
     s.saturating_mul(PIXEL_RECORD_BYTES.saturating_mul(u64::from(renderers) + 1) + 12)
@@ -305,7 +305,7 @@ pub fn frame_bytes(width: u32, height: u32, samples: u32, renderers: u32) -> u64
 
 /// Bytes of the output buffers: the 8-bit RGB PNG (3 B per pixel) and the 32-bit RGB EXR
 /// (12 B per pixel), each counted twice (the pixels and the encoder's copy).
-pub fn output_bytes(width: u32, height: u32, png: bool, exr: bool) -> u64 {
+pub(crate) fn output_bytes(width: u32, height: u32, png: bool, exr: bool) -> u64 {
     let pixels = u64::from(width) * u64::from(height);
     let per = if png { 3 } else { 0 } + if exr { 12 } else { 0 };
     pixels.saturating_mul(2 * per)
@@ -327,7 +327,7 @@ pub fn texture_bytes(depths: &[u32], policy: SizePolicy, leaves: u64, nodes: u64
 /// Bytes one Gouraud mesh triangle takes: its polygon record in the mesh's scene, its colour
 /// patch, its source polygon and parent (u, v), and while a frame draws it its primitive record
 /// and a bin entry.
-pub const MESH_TRIANGLE_BYTES: u64 = (std::mem::size_of::<scene::Polygon>()
+pub(crate) const MESH_TRIANGLE_BYTES: u64 = (std::mem::size_of::<scene::Polygon>()
     + std::mem::size_of::<PatchCoeffs>()
     + 4
     + 48
@@ -338,7 +338,7 @@ pub const MESH_TRIANGLE_BYTES: u64 = (std::mem::size_of::<scene::Polygon>()
 /// A leaf with `k` T-vertices on its edges becomes `2 + k` triangles fanned from a corner, or
 /// `4 + k` fanned from its centre when `k >= 2`; both are at most `2 + 2k`, so the mesh has at
 /// most `2 leaves + 2 t_vertices` triangles.
-pub fn mesh_bytes(leaves: u64, t_vertices: u64) -> u64 {
+pub(crate) fn mesh_bytes(leaves: u64, t_vertices: u64) -> u64 {
     leaves
         .saturating_add(t_vertices)
         .saturating_mul(2)
@@ -346,12 +346,12 @@ pub fn mesh_bytes(leaves: u64, t_vertices: u64) -> u64 {
 }
 
 /// Refuses a solve of `scene` whose sure allocation is over `limit`.
-pub fn check_solve(scene: &Scene, limit: u64) -> Result<()> {
+pub(crate) fn check_solve(scene: &Scene, limit: u64) -> Result<()> {
     solve_estimate(scene).0.check(limit)
 }
 
 /// Refuses frames under `opts` (and outputs: PNG, EXR) over `limit`.
-pub fn check_frame_options(
+pub(crate) fn check_frame_options(
     opts: &engine::frame::FrameOptions,
     outputs: (bool, bool),
     limit: u64,
@@ -368,7 +368,7 @@ pub fn check_frame_options(
 
 /// The estimate of a frame of `width` x `height` pixels with `samples` samples per pixel and
 /// `renderers` renderers, and its outputs (`outputs`: PNG, EXR).
-pub fn frame_estimate(
+pub(crate) fn frame_estimate(
     width: u32,
     height: u32,
     samples: u32,
@@ -388,7 +388,7 @@ pub fn frame_estimate(
 }
 
 /// Refuses a frame (and its outputs) over `limit`.
-pub fn check_frame(
+pub(crate) fn check_frame(
     width: u32,
     height: u32,
     samples: u32,

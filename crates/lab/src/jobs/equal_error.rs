@@ -3,10 +3,10 @@
 //! the honest form of the compactness comparison: bytes at equal error, not at equal sampling.
 //!
 //! The search scales every polygon's quadtree-depth texture side ([`SizePolicy::Scaled`]) by
-//! `2^k` for `k` = [`MIN_SCALE`], ..., [`MAX_SCALE`] (halved three times up to doubled four
+//! `2^k` for `k` = `MIN_SCALE`, ..., `MAX_SCALE` (halved three times up to doubled four
 //! times), at both texel placements, renders each texture method at each scale and measures its
 //! **reconstruction error** (perceptual distance to the same solution's exact value at every
-//! pixel, the error of the method alone). For each ratio `r` of [`EQUAL_ERROR_RATIOS`] it reports
+//! pixel, the error of the method alone). For each ratio `r` of `EQUAL_ERROR_RATIOS` it reports
 //! the smallest tested texture whose error is at most `r` times the direct method's.
 //!
 //! Each set is measured twice: as the texture methods draw it (mip-mapped, the level of detail
@@ -23,7 +23,7 @@
 //!
 //! Invariants: deterministic (errors and bytes only, no timing); the scales tried stop early when
 //! every method reached the strict ratio, when every side is clamped at the largest texture side,
-//! or when a set would hold more than [`SEARCH_MEMORY_CAP`] bytes of f32 texels in memory.
+//! or when a set would hold more than `SEARCH_MEMORY_CAP` bytes of f32 texels in memory.
 
 use serde::Serialize;
 
@@ -39,14 +39,14 @@ use reconstruction::texture::{SizePolicy, TextureMemory, TextureSet};
 
 /// Error ratios to the direct method's reconstruction error at which the texture memory is
 /// reported: equal (1.0) and within 10 % (1.1).
-pub const EQUAL_ERROR_RATIOS: [f64; 2] = [1.0, 1.1];
+pub(crate) const EQUAL_ERROR_RATIOS: [f64; 2] = [1.0, 1.1];
 /// Smallest scale exponent tried: the quadtree-depth sides halved three times.
-pub const MIN_SCALE: i32 = -3;
+pub(crate) const MIN_SCALE: i32 = -3;
 /// Largest scale exponent tried: the quadtree-depth sides doubled four times.
-pub const MAX_SCALE: i32 = 4;
+pub(crate) const MAX_SCALE: i32 = 4;
 /// The largest texture set the search builds, in bytes held in memory (f32 RGB texels with mip
 /// chains): 1 GiB, a twentieth of the reference machine's memory.
-pub const SEARCH_MEMORY_CAP: u64 = 1 << 30;
+pub(crate) const SEARCH_MEMORY_CAP: u64 = 1 << 30;
 
 /// One tested texture scale of one method and placement.
 #[derive(Debug, Clone, Copy, Serialize, PartialEq)]
@@ -73,7 +73,7 @@ pub struct EqualErrorRow {
     pub mip_mapped: bool,
     /// Every scale tried, smallest first.
     pub tested: Vec<ScalePoint>,
-    /// For each of [`EQUAL_ERROR_RATIOS`]: the smallest tested texture whose error is at most that
+    /// For each of `EQUAL_ERROR_RATIOS`: the smallest tested texture whose error is at most that
     /// ratio times the direct method's, if any.
     pub reached: Vec<Option<ScalePoint>>,
 }

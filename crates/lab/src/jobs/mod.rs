@@ -85,7 +85,7 @@ impl<'a> Context<'a> {
     }
 
     /// This context with progress going to `observer`.
-    pub fn with_observer<'b>(&self, observer: &'b dyn Observer) -> Context<'b> {
+    pub(crate) fn with_observer<'b>(&self, observer: &'b dyn Observer) -> Context<'b> {
         Context {
             memory_limit: self.memory_limit,
             isa: self.isa,
@@ -106,7 +106,7 @@ impl<'a> Context<'a> {
 
     /// Frame options for a `width` x `height` image with the defaults and this context's
     /// instruction set.
-    pub fn frame_options(&self, width: u32, height: u32) -> FrameOptions {
+    pub(crate) fn frame_options(&self, width: u32, height: u32) -> FrameOptions {
         FrameOptions {
             isa: self.isa,
             ..FrameOptions::new(width, height)
@@ -166,10 +166,10 @@ impl Input {
 }
 
 /// The extension of solution files (`solve -o x.pfsol`).
-pub const SOLUTION_EXTENSION: &str = "pfsol";
+pub(crate) const SOLUTION_EXTENSION: &str = "pfsol";
 
 /// Whether `path` is a solution file (by its magic bytes) rather than a scene.
-pub fn is_solution_file(path: &Path) -> bool {
+pub(crate) fn is_solution_file(path: &Path) -> bool {
     use std::io::Read;
     let mut magic = [0u8; 8];
     std::fs::File::open(path)
@@ -197,7 +197,7 @@ pub struct TextureOptions {
 impl TextureOptions {
     /// The size policy these options choose for `scene`, checked against it: a size (a power of
     /// two in range), a budget (at least what 1 x 1 textures of every polygon of the scene take),
-    /// or the scene's [`scene_texture_policy`]. Giving both a size and a budget is an error.
+    /// or the scene's `scene_texture_policy`. Giving both a size and a budget is an error.
     pub fn policy(&self, scene: &Scene) -> Result<SizePolicy> {
         let policy = match (self.size, self.budget) {
             (Some(n), Some(_)) => {
@@ -240,7 +240,7 @@ impl TextureOptions {
 
 /// The texture size policy a scene asks for: `[render] texture_size` 0 means per polygon from
 /// its quadtree depth, any other value one fixed size.
-pub fn scene_texture_policy(scene: &Scene) -> SizePolicy {
+pub(crate) fn scene_texture_policy(scene: &Scene) -> SizePolicy {
     match scene.render.texture_size {
         0 => SizePolicy::FromDepth,
         n => SizePolicy::Fixed(n),
@@ -306,7 +306,7 @@ impl Prepared {
 
     /// Bytes held before any method's data: the solution's trees and samples and the compact
     /// RRPs.
-    pub fn held_bytes(&self) -> u64 {
+    pub(crate) fn held_bytes(&self) -> u64 {
         let st = &self.solution.stats;
         let nodes: u64 = self
             .solution
@@ -380,7 +380,7 @@ impl Prepared {
     /// time in ms.
     ///
     /// Refused with [`Error::Memory`] before it is built when its estimate
-    /// ([`budget::mesh_bytes`]) and what is held already pass the job's memory limit.
+    /// (`budget::mesh_bytes`) and what is held already pass the job's memory limit.
     pub fn mesh(&self) -> Result<(&MeshModel, f64)> {
         if self.mesh.get().is_none() {
             let st = &self.solution.stats;
@@ -525,7 +525,7 @@ pub fn render_frame(
 
 /// Builds, once per job, what `method` draws from (the textures, the mesh), so that neither a
 /// reservation nor a frame timed after it pays for that.
-pub fn build_method_data(p: &Prepared, method: Method) -> Result<()> {
+pub(crate) fn build_method_data(p: &Prepared, method: Method) -> Result<()> {
     match method {
         Method::Texture(_) => p.textures().map(|_| ()),
         Method::Mesh => p.mesh().map(|_| ()),

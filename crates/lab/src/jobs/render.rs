@@ -1,9 +1,9 @@
 //! The render job: one frame, or every frame of the scene's camera path, to PNG (and EXR and
 //! statistics JSON on request).
 //!
-//! [`RenderPlan::new`] resolves every option against the scene's defaults and checks it before
+//! `RenderPlan::new` resolves every option against the scene's defaults and checks it before
 //! [`run_render`] solves anything; a walkthrough reuses one solution and one reconstruction for
-//! all its frames, reports its progress as the stage [`WALKTHROUGH_STAGE`] and ends with a
+//! all its frames, reports its progress as the stage `WALKTHROUGH_STAGE` and ends with a
 //! [`WalkthroughSummary`]. Every file is written atomically.
 
 use std::path::{Path, PathBuf};
@@ -27,7 +27,7 @@ use scene::{Camera, Scene};
 pub struct RenderRequest {
     /// Scene file or solution file.
     pub input: PathBuf,
-    /// PNG to write (default [`default_png_path`]); walkthrough frames are numbered beside it.
+    /// PNG to write (default `default_png_path`); walkthrough frames are numbered beside it.
     pub output: Option<PathBuf>,
     /// OpenEXR of the linear radiosity to write (single frames only).
     pub exr: Option<PathBuf>,
@@ -57,7 +57,7 @@ pub struct RenderRequest {
 /// A render request resolved against its scene and checked: what will be drawn, how, and where
 /// it goes.
 #[derive(Debug, Clone)]
-pub struct RenderPlan {
+pub(crate) struct RenderPlan {
     /// The method, with the bicubic filter's parameters applied.
     pub method: Method,
     /// The frame options (checked).
@@ -150,7 +150,7 @@ impl RenderPlan {
 #[derive(Debug)]
 pub enum RenderEvent<'a> {
     /// A warning: the scene's (a non-planar quad split, ...), or a frame with no polygon in
-    /// view ([`empty_view_warning`]).
+    /// view (`empty_view_warning`).
     Warning(&'a str),
     /// A file was written.
     Wrote(&'a Path),
@@ -161,11 +161,11 @@ pub enum RenderEvent<'a> {
 }
 
 /// The progress stage of a walkthrough's frames: fraction `k / n` after frame `k` of `n`.
-pub const WALKTHROUGH_STAGE: &str = "walkthrough";
+pub(crate) const WALKTHROUGH_STAGE: &str = "walkthrough";
 
 /// The `--stats` JSON of a walkthrough.
 #[derive(Debug, Clone, Serialize)]
-pub struct WalkthroughReport<'a> {
+pub(crate) struct WalkthroughReport<'a> {
     /// Frame rates and medians over the frames.
     pub summary: &'a WalkthroughSummary,
     /// Every frame's report, in path order.
@@ -277,7 +277,7 @@ pub fn run_render(
 
 /// The warning of a frame in which no polygon is in view, so every pixel is the background:
 /// names the input and, in a walkthrough, the frame.
-pub fn empty_view_warning(input: &Path, walkthrough_frame: Option<usize>) -> String {
+pub(crate) fn empty_view_warning(input: &Path, walkthrough_frame: Option<usize>) -> String {
     let frame = walkthrough_frame.map_or(String::new(), |k| format!(" (frame {k})"));
     format!(
         "{}{frame}: no polygon is in view (all behind the camera or outside its field of view): \
@@ -362,7 +362,7 @@ pub fn fps(frame_ms: f64) -> f64 {
 }
 
 /// Where output goes when the user names no file: `out/<scene stem>-<method>.png`.
-pub fn default_png_path(input: &Path, method: Method) -> PathBuf {
+pub(crate) fn default_png_path(input: &Path, method: Method) -> PathBuf {
     let stem = input
         .file_stem()
         .map(|s| s.to_string_lossy().into_owned())
@@ -371,7 +371,7 @@ pub fn default_png_path(input: &Path, method: Method) -> PathBuf {
 }
 
 /// The frame file name of walkthrough frame `k`: `<png stem>-NNNN.png` beside `png`.
-pub fn walkthrough_frame_path(png: &Path, k: u32) -> PathBuf {
+pub(crate) fn walkthrough_frame_path(png: &Path, k: u32) -> PathBuf {
     let stem = png
         .file_stem()
         .map(|s| s.to_string_lossy().into_owned())

@@ -89,10 +89,10 @@ pub struct ModelStats {
 }
 
 /// Bytes per RAT vertex in [`ModelStats::rat_bytes`]: position (3 x f32) + (u, v) (2 x f32).
-pub const RAT_BYTES_PER_VERTEX: u64 = 20;
+pub(crate) const RAT_BYTES_PER_VERTEX: u64 = 20;
 
 /// The methods `stats --frames` measures, in the paper's Table 1 order plus the direct method.
-pub const STATS_METHODS: [Method; 4] = [
+pub(crate) const STATS_METHODS: [Method; 4] = [
     Method::Mesh,
     Method::Texture(Filter::Bilinear),
     Method::Texture(Filter::MITCHELL),
@@ -102,7 +102,7 @@ pub const STATS_METHODS: [Method; 4] = [
 /// Table 1 for a prepared scene; with `frames > 0`, each of [`STATS_METHODS`] is rendered
 /// `frames` times (after a warm-up) at `opts`'s size and the medians are reported. The bicubic
 /// filter is `bicubic`'s (Mitchell–Netravali unless given).
-pub fn model_stats(
+pub(crate) fn model_stats(
     p: &Prepared,
     frames: u32,
     opts: &FrameOptions,

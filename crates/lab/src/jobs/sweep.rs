@@ -212,7 +212,7 @@ pub struct SweepReport {
 /// The Pareto flags of points `(cost, error)`: a point is on the front when no other point is at
 /// most as costly and at most as wrong, and strictly better in one of the two. Ties (equal cost
 /// and error) are all on the front.
-pub fn pareto_front(points: &[(f64, f64)]) -> Vec<bool> {
+pub(crate) fn pareto_front(points: &[(f64, f64)]) -> Vec<bool> {
     points
         .iter()
         .map(|&(c, e)| {
@@ -230,7 +230,7 @@ struct Candidate<'a> {
 }
 
 /// Checks every option of `req` (what [`run_sweep`] does before its first solve).
-pub fn check_request(req: &SweepRequest) -> Result<()> {
+pub(crate) fn check_request(req: &SweepRequest) -> Result<()> {
     check(req).map(|_| ())
 }
 

@@ -78,14 +78,14 @@ pub use shot::COARSE_CACHE_ENTRIES;
 use solver::Solver;
 
 /// Most indirect-shooting rounds (each ends with a full gather and a refinement pass).
-pub const MAX_ROUNDS: u32 = 4;
+pub(crate) const MAX_ROUNDS: u32 = 4;
 
 /// Indirect shooting continues until the coarse unshot estimate falls below this fraction of
 /// `convergence`. The coarse estimate runs low (light shot to a few coarse points misses what the
 /// full gather then finds, typically by a factor of about 2 in the test scenes), and a round that
 /// ends above `convergence` costs a whole extra gather at every vertex, while the extra shots
 /// are cheap (coarse receivers, see the module doc).
-pub const SHOOT_MARGIN: f64 = 0.5;
+pub(crate) const SHOOT_MARGIN: f64 = 0.5;
 
 /// Luminance of linear RGB (Rec. 709 weights).
 #[inline]
@@ -94,7 +94,7 @@ pub fn lum(c: DVec3) -> f64 {
 }
 
 /// What the solver hands back to `solve`.
-pub struct Outcome {
+pub(crate) struct Outcome {
     /// Per polygon: tree, keys, and G at every key gathered from the final history (zero for a
     /// polygon that does not reflect).
     pub trees: Vec<(Quadtree, Vec<VertexKey>, Vec<DVec3>)>,
@@ -143,12 +143,12 @@ pub(crate) fn run_with_cache(
 
 /// Bytes the solve holds per quadtree node: the node and one leaf record (a leaf is counted
 /// with every node, an upper bound: a tree has about 3/4 as many leaves as nodes).
-pub const NODE_BYTES: u64 =
+pub(crate) const NODE_BYTES: u64 =
     (std::mem::size_of::<base::quadtree::Node>() + std::mem::size_of::<poly::Leaf>()) as u64;
 
 /// Bytes the solve holds per sample (vertex): its key, its gathered G (f64 RGB) and the RGB
 /// `f32` radiosity of the solution it becomes.
-pub const VERTEX_BYTES: u64 =
+pub(crate) const VERTEX_BYTES: u64 =
     (std::mem::size_of::<VertexKey>() + std::mem::size_of::<DVec3>() + 12) as u64;
 
 /// Bytes of the solve's state for `nodes` quadtree nodes and `vertices` samples, all polygons.
@@ -171,6 +171,6 @@ fn memory_error(scene: &Scene, need: u64, limit: u64, detail: String) -> Error {
 }
 
 /// Milliseconds since `t`: the one definition of the solver's trace times.
-pub fn elapsed_ms(t: Instant) -> f64 {
+pub(crate) fn elapsed_ms(t: Instant) -> f64 {
     t.elapsed().as_secs_f64() * 1e3
 }

@@ -9,7 +9,7 @@ use super::poly::Poly;
 use crate::transfer::{ShooterKind, Transfer};
 
 /// Transfers of indirect shots to the coarse receiver points, kept per shooter (see `shoot`).
-pub struct CoarseCache {
+pub(crate) struct CoarseCache {
     /// Per shooter: its transfer to every coarse point of every non-culled reflecting polygon, in
     /// work order (polygon order, then coarse key order), rounded to `f32`.
     per: Vec<Option<Vec<f32>>>,

@@ -75,7 +75,7 @@ pub enum ShooterKind {
 
 /// Class of a (shooter, receiver polygon) pair.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum PairClass {
+pub(crate) enum PairClass {
     /// No light can go from the shooter to any point of the receiver.
     Culled,
     /// No polygon can block any segment between them: visibility is 1.
@@ -86,7 +86,7 @@ pub enum PairClass {
 
 /// The fixed geometry of one shooter.
 #[derive(Debug, Clone)]
-pub struct ShooterGeom {
+pub(crate) struct ShooterGeom {
     /// What it is.
     pub kind: ShooterKind,
     /// Polygon index, or `u32::MAX` for a spot.
@@ -110,7 +110,7 @@ pub struct ShooterGeom {
 /// of the receiver point (it changes only where a sample's shadow boundary is crossed), so the
 /// adaptive subdivision follows real shadow edges instead of per-point Monte Carlo noise; and it is
 /// trivially independent of threads and shot order.
-pub fn shooter_samples(
+pub(crate) fn shooter_samples(
     p: &Polygon,
     bounds: (f64, f64, f64, f64),
     n: usize,
@@ -142,7 +142,7 @@ pub fn shooter_samples(
 }
 
 /// Divisor of the shadow-ray count for reflecting patches, see [`patch_rays`].
-pub const PATCH_RAY_DIVISOR: usize = 4;
+pub(crate) const PATCH_RAY_DIVISOR: usize = 4;
 
 /// Shadow rays per receiver point for a reflecting patch when the scene asks for `shadow_rays`:
 /// `max(1, shadow_rays / PATCH_RAY_DIVISOR)` (8 -> 2). Emitters keep the full count.
@@ -154,7 +154,7 @@ pub const PATCH_RAY_DIVISOR: usize = 4;
 /// with independent sample sets average out. Hard shadows come from spots and emitters, which
 /// keep `shadow_rays`. This is a coarser estimate of the same quantity, not a bias: every
 /// sample set is stratified over the patch, and the same fixed set serves every receiver.
-pub fn patch_rays(shadow_rays: usize) -> usize {
+pub(crate) fn patch_rays(shadow_rays: usize) -> usize {
     (shadow_rays / PATCH_RAY_DIVISOR).max(1)
 }
 
@@ -173,7 +173,7 @@ pub fn patch_depth(area: f64, total_area: f64, max_depth: u32) -> u32 {
 /// Builds every shooter of a scene in id order: spots, then emitters (polygon order), then the
 /// patches of reflecting polygons (polygon order, cells row-major). `patch_base[p]` is the id of
 /// polygon p's first patch (or `u32::MAX` if it does not reflect) and `patch_depth[p]` its depth.
-pub fn build_shooters(scene: &Scene) -> (Vec<ShooterGeom>, Vec<u32>, Vec<u32>) {
+pub(crate) fn build_shooters(scene: &Scene) -> (Vec<ShooterGeom>, Vec<u32>, Vec<u32>) {
     let mut out = Vec::new();
     let nrays = scene.radiosity.shadow_rays.max(1) as usize;
     let seed = scene.radiosity.seed;
@@ -250,13 +250,13 @@ pub fn build_shooters(scene: &Scene) -> (Vec<ShooterGeom>, Vec<u32>, Vec<u32>) {
 
 /// Area of a cell of a polygon's domain. The area element of a planar quad's bilinear map (and of
 /// a collapsed quad) is linear in u and v, so the midpoint rule is exact.
-pub fn sub_area(p: &Polygon, cell: Cell) -> f64 {
+pub(crate) fn sub_area(p: &Polygon, cell: Cell) -> f64 {
     let (u0, v0, u1, v1) = cell.bounds();
     p.area_element(0.5 * (u0 + u1), 0.5 * (v0 + v1)) * (u1 - u0) * (v1 - v0)
 }
 
 /// Everything a transfer needs: the scene, its BVH, the shooters and the pair classes.
-pub struct Transfer<'a> {
+pub(crate) struct Transfer<'a> {
     /// The scene.
     pub scene: &'a Scene,
     /// Ray-casting structure over the scene's polygons.
@@ -329,14 +329,14 @@ impl<'a> Transfer<'a> {
     /// Bytes of the pair tables built so far: per shooter with a table, a receiver id and a
     /// candidate range (two `u32`) per receiver it reaches, plus its candidate lists, and the
     /// per-receiver index (two `u32` per pair).
-    pub fn pair_bytes(&self) -> u64 {
+    pub(crate) fn pair_bytes(&self) -> u64 {
         self.pair_bytes
     }
 
     /// Computes the receivers of shooter `s` and their classes, if not done yet: every polygon
     /// (exact visibility) or the polygons its probe rays hit and their neighbours (sampled),
     /// classified in parallel; culled pairs are dropped.
-    pub fn ensure_pairs(&mut self, s: usize) {
+    pub(crate) fn ensure_pairs(&mut self, s: usize) {
         if self.pairs[s].is_some() {
             return;
         }
@@ -375,7 +375,7 @@ impl<'a> Transfer<'a> {
 
     /// Sorts the per-receiver index after pair tables were added out of shooter order; the
     /// gathers need it ascending (they sum in shooter id order).
-    pub fn index_receivers(&mut self) {
+    pub(crate) fn index_receivers(&mut self) {
         if self.unsorted {
             use rayon::prelude::*;
             self.by_receiver
@@ -387,7 +387,7 @@ impl<'a> Transfer<'a> {
 
     /// Class of the pair (shooter `s`, receiver polygon `r`), see [`PairClass`], and for an
     /// occluded pair the polygons (in index order) that may intersect the convex hull of the two.
-    pub fn classify(&self, s: usize, r: usize) -> (PairClass, Vec<u32>) {
+    pub(crate) fn classify(&self, s: usize, r: usize) -> (PairClass, Vec<u32>) {
         let eps = self.eps;
         let sg = &self.shooters[s];
         let rp = &self.scene.polygons[r];
@@ -518,7 +518,7 @@ impl<'a> Transfer<'a> {
 
     /// [`Transfer::transfer`] given the pair's entry `i` in shooter `s`'s table (as the
     /// per-receiver index and the shots hold it), without looking it up.
-    pub fn transfer_at(&self, s: usize, r: usize, i: usize, u: f64, v: f64) -> DVec3 {
+    pub(crate) fn transfer_at(&self, s: usize, r: usize, i: usize, u: f64, v: f64) -> DVec3 {
         let p = self.pairs[s].as_ref().expect("the pair's table exists");
         let (c, l) = p.at(i);
         self.transfer_with(s, r, (c, Candidates::Table(l)), u, v)
@@ -550,7 +550,7 @@ impl<'a> Transfer<'a> {
     /// fraction of the shooter (1 where no occluder can block; 0 or 1 for a spot, which casts
     /// one ray). `transfer` is their product. Used by refinement to find elements that a shadow
     /// boundary crosses. Requires [`Transfer::ensure_pairs`] for `s`.
-    pub fn shadowed(&self, s: usize, r: usize, u: f64, v: f64) -> (DVec3, f64) {
+    pub(crate) fn shadowed(&self, s: usize, r: usize, u: f64, v: f64) -> (DVec3, f64) {
         self.shadowed_with(s, r, self.pair_of(s, r), u, v)
     }
 
@@ -765,7 +765,7 @@ impl<'a> Transfer<'a> {
 
     /// Shooters whose pairs reach receiver `r`, ascending, each with its entry in the
     /// shooter's table (see [`Transfer::index_receivers`]).
-    pub fn shooters_of(&self, r: usize) -> &[(u32, u32)] {
+    pub(crate) fn shooters_of(&self, r: usize) -> &[(u32, u32)] {
         &self.by_receiver[r]
     }
 }
@@ -902,14 +902,14 @@ fn separated_by_plane(n: DVec3, p0: DVec3, pts: &[DVec3], eps: f64) -> bool {
 }
 
 /// Power of a spot light summed over channels: 2 pi I (1 - cos^(f+1) alpha) / (f + 1).
-pub fn spot_power(s: &scene::SpotLight) -> f64 {
+pub(crate) fn spot_power(s: &scene::SpotLight) -> f64 {
     let p = spot_power3(s);
     p.x + p.y + p.z
 }
 
 /// A spot's power per channel (W): its intensity times the solid-angle integral of its
 /// `cos^falloff` profile over the cone; 0 if that is not finite.
-pub fn spot_power3(s: &scene::SpotLight) -> DVec3 {
+pub(crate) fn spot_power3(s: &scene::SpotLight) -> DVec3 {
     let f = s.falloff;
     let ca = s.half_angle.cos().max(0.0);
     let p = 2.0 * std::f64::consts::PI * (1.0 - ca.powf(f + 1.0)) / (f + 1.0);

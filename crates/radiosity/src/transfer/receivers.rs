@@ -47,7 +47,7 @@ impl Pairs {
         }
     }
     /// Number of occluder candidates of receiver polygon `r`.
-    pub fn cands_len(&self, r: usize) -> usize {
+    pub(crate) fn cands_len(&self, r: usize) -> usize {
         self.find(r).map_or(0, |i| self.range[i].1 as usize)
     }
     /// Every receiver that is not culled, ascending, with its class.
@@ -125,14 +125,14 @@ pub const PROBE_RAYS: usize = 2048;
 /// m / (e N) for m receivers; 4 rays per receiver bounds it by about 9 % in the worst case
 /// (every receiver equally lit) and, measured, keeps a gallery room cut into 1,200 quads within
 /// the solver's own noise.
-pub const PROBES_PER_HIT: usize = 4;
+pub(crate) const PROBES_PER_HIT: usize = 4;
 
 /// Most probe rays per shooter, over all rounds.
-pub const MAX_PROBE_RAYS: usize = 32 * PROBE_RAYS;
+pub(crate) const MAX_PROBE_RAYS: usize = 32 * PROBE_RAYS;
 
 /// Spots and emitters light the scene directly and are few: they cast this many times
 /// [`PROBE_RAYS`].
-pub const LIGHT_PROBE_FACTOR: usize = 4;
+pub(crate) const LIGHT_PROBE_FACTOR: usize = 4;
 
 impl Transfer<'_> {
     /// The polygons shooter `s`'s probe rays hit first, with every polygon sharing a corner

@@ -7,12 +7,12 @@
 //! down to 1 x 1, with the texels placed by a [`Placement`]:
 //!
 //! - [`Placement::Centre`] (default): texel i at u = `(i + 0.5) / N`, the filters map u to
-//!   x = u N - 0.5; the chain is box-filtered ([`mip_chain`]). The samples stop half a texel
+//!   x = u N - 0.5; the chain is box-filtered (`mip_chain`). The samples stop half a texel
 //!   short of the polygon's edges, where the filters clamp.
 //! - [`Placement::Corner`] (the lightmap convention): texel i at u = `i / (N - 1)` (0.5 for
 //!   N = 1), the filters map u to x = u (N - 1); the first and last texels lie on the edges, so
 //!   bilinear filtering reproduces a linear function on all of [0, 1]. Each coarser level is
-//!   resampled from the RRP at its own corner positions ([`corner_chain`]): box filtering would
+//!   resampled from the RRP at its own corner positions (`corner_chain`): box filtering would
 //!   not keep the corner alignment. The level of detail is still log2 of N texels per unit
 //!   (not N - 1), the same choice of level for both placements.
 //!
@@ -178,9 +178,9 @@ impl RadiosityTexture {
     /// placed by `placement`. `side` must be a power of two in `1..=MAX_TEXTURE_SIZE` (checked by
     /// the callers).
     ///
-    /// Centre: level 0 at the texel centres, the chain box-filtered ([`mip_chain`]); a coarse
+    /// Centre: level 0 at the texel centres, the chain box-filtered (`mip_chain`); a coarse
     /// texel's footprint is exactly the 2 x 2 fine texels it averages. Corner: every level is
-    /// resampled from the RRP at its own corner-aligned positions ([`corner_chain`]), because
+    /// resampled from the RRP at its own corner-aligned positions (`corner_chain`), because
     /// the corner positions i / (n - 1) of a level are not those of the finer level (for n = 8
     /// and 4: sevenths and thirds), so averaging fine texels would move the samples off the
     /// edges and corners.
@@ -485,7 +485,7 @@ fn bicubic(l: &MipLevel, p: Placement, u: f32, v: f32, k: &Cubic) -> Vec3 {
     acc
 }
 
-/// One level of a mip chain (see [`mip_chain`]).
+/// One level of a mip chain (see `mip_chain`).
 #[derive(Debug, Clone, PartialEq)]
 pub struct MipLevel {
     /// Texels per row.
@@ -550,7 +550,7 @@ impl MipLevel {
 /// weights (exact for odd sizes; for powers of two the plain 2 x 2 or 2 x 1 average). Box filtering
 /// keeps every level's mean equal to level 0's and averages sharp shadow edges instead of aliasing
 /// them, which point-resampling the RRP at 1 x 1 would do. Empty if level 0 is empty.
-pub fn mip_chain(level0: MipLevel) -> Vec<MipLevel> {
+pub(crate) fn mip_chain(level0: MipLevel) -> Vec<MipLevel> {
     if level0.width == 0 || level0.height == 0 {
         return Vec::new();
     }
@@ -566,7 +566,7 @@ pub fn mip_chain(level0: MipLevel) -> Vec<MipLevel> {
 /// `max(1, side >> l)`) is `sample(n)`, the n x n values at the corner positions i / (n - 1)
 /// (0.5 for n = 1) of that level. Point samples, not averages: a coarse corner-aligned texel
 /// stands for the value at its position, and no average of the finer level sits there.
-pub fn corner_chain(side: u32, mut sample: impl FnMut(u32) -> Vec<Vec3>) -> Vec<MipLevel> {
+pub(crate) fn corner_chain(side: u32, mut sample: impl FnMut(u32) -> Vec<Vec3>) -> Vec<MipLevel> {
     let mut levels = Vec::new();
     let mut n = side;
     while n >= 1 {
@@ -586,7 +586,7 @@ fn check_side(n: u32) -> Result<()> {
 
 /// Side chosen by [`SizePolicy::FromDepth`] for a quadtree of the given depth: the smallest power
 /// of two `>= 2^depth + 1`, clamped to [`MAX_TEXTURE_SIZE`].
-pub fn side_from_depth(depth: u32) -> u32 {
+pub(crate) fn side_from_depth(depth: u32) -> u32 {
     if depth >= MAX_TEXTURE_SIZE.ilog2() {
         return MAX_TEXTURE_SIZE;
     }
@@ -621,7 +621,7 @@ pub struct TextureMemory {
 }
 
 /// Bits per channel of [`TextureMemory::bytes`] entries, in order.
-pub const CHANNEL_BITS: [u64; 3] = [8, 12, 32];
+pub(crate) const CHANNEL_BITS: [u64; 3] = [8, 12, 32];
 
 impl TextureMemory {
     /// Memory of square textures with the given sides (each a power of two).
