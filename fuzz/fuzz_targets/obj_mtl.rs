@@ -1,5 +1,5 @@
 //! Fuzz target `obj_mtl`: the OBJ and MTL readers (tobj and the validation in
-//! `scene/obj.rs`).
+//! `crates/scene/src/obj.rs`).
 //!
 //! The input is `OBJ text` `0x00` `MTL text` (no `0x00`: no MTL file). A fixed scene includes
 //! the OBJ as `fuzz.obj`, with a default material for faces without `usemtl` and a spot light,

@@ -30,7 +30,7 @@
 use super::gbuffer::RegionGBuffer;
 use super::geometry::plane;
 use super::setup::{
-    clamp_uv, invert_bilinear, triangle_u, Edge, InverseKind, Prim, MAX_EDGES, ONE,
+    clamp_uv, invert_bilinear, triangle_u, BilinearInverse, Edge, InverseKind, Prim, MAX_EDGES, ONE,
 };
 use lanes::{Isa, Kernel, Portable, Simd, LANES};
 
@@ -394,6 +394,84 @@ impl<const PERSP: bool, const KIND: u8, const N: usize, T: EdgeLane> Kernel
 /// positive; the clamp only keeps a rounding accident from dividing by zero).
 const MIN_Q: f32 = 1e-30;
 
+/// A primitive's five screen-linear expressions (Q = 1/w, and the numerators and denominators of
+/// s and t) as (d/dx, d/dy, value at the region's origin), re-based in f64 at the region's pixel
+/// corner and then rounded to f32, so the kernel's per-lane arithmetic stays small in magnitude.
+struct LocalPlanes {
+    q: (f32, f32, f32),
+    sa: (f32, f32, f32),
+    sb: (f32, f32, f32),
+    ta: (f32, f32, f32),
+    tb: (f32, f32, f32),
+}
+
+/// The five expressions' values at x = 0 of one sample row.
+struct RowValues {
+    q: f32,
+    sa: f32,
+    sb: f32,
+    ta: f32,
+    tb: f32,
+}
+
+impl LocalPlanes {
+    fn new(prim: &Prim, x0: u32, y0: u32) -> Self {
+        let local = |k: usize| {
+            let p = prim.planes[k];
+            (p.a as f32, p.b as f32, p.at(x0 as f64, y0 as f64) as f32)
+        };
+        LocalPlanes {
+            q: local(plane::Q),
+            sa: local(plane::SA),
+            sb: local(plane::SB),
+            ta: local(plane::TA),
+            tb: local(plane::TB),
+        }
+    }
+
+    #[inline(always)]
+    fn row(&self, yf: f32) -> RowValues {
+        RowValues {
+            q: self.q.1 * yf + self.q.2,
+            sa: self.sa.1 * yf + self.sa.2,
+            sb: self.sb.1 * yf + self.sb.2,
+            ta: self.ta.1 * yf + self.ta.2,
+            tb: self.tb.1 * yf + self.tb.2,
+        }
+    }
+
+    /// The polygon's (u, v) at a block's lanes, from their x and w: s and t hold (u, v) for
+    /// LINEAR and (U, v) for TRIANGLE (folded at setup); GENERAL inverts the bilinear map.
+    #[inline(always)]
+    fn uv<const KIND: u8>(
+        &self,
+        row: &RowValues,
+        xs: &[f32; LANES],
+        w: &[f32; LANES],
+        inv: &BilinearInverse,
+    ) -> ([f32; LANES], [f32; LANES]) {
+        let mut s = [0.0f32; LANES];
+        let mut t = [0.0f32; LANES];
+        for l in 0..LANES {
+            let x = xs[l];
+            s[l] = self.sa.0 * x + row.sa + w[l] * (self.sb.0 * x + row.sb);
+            t[l] = self.ta.0 * x + row.ta + w[l] * (self.tb.0 * x + row.tb);
+        }
+        let mut u = [0.0f32; LANES];
+        let mut v = [0.0f32; LANES];
+        for l in 0..LANES {
+            let (a, b) = match KIND {
+                LINEAR => clamp_uv(s[l], t[l]),
+                TRIANGLE => clamp_uv(triangle_u(s[l], t[l]), t[l]),
+                _ => invert_bilinear(inv, s[l], t[l]),
+            };
+            u[l] = a;
+            v[l] = b;
+        }
+        (u, v)
+    }
+}
+
 #[inline(always)]
 fn raster_kernel<S: Simd, const PERSP: bool, const KIND: u8, const N: usize, T: EdgeLane>(
     simd: S,
@@ -405,22 +483,7 @@ fn raster_kernel<S: Simd, const PERSP: bool, const KIND: u8, const N: usize, T: 
     let rect = (gb.x0, gb.y0, gb.width, gb.height);
     let stride = gb.stride as usize;
     let plane_len = stride * gb.height as usize;
-    // Re-base each expression at the region's origin (pixel corner), in f64, then round to f32.
-    let local = |k: usize| {
-        let p = prim.planes[k];
-        (
-            p.a as f32,
-            p.b as f32,
-            p.at(gb.x0 as f64, gb.y0 as f64) as f32,
-        )
-    };
-    let (q, sa, sb, ta, tb) = (
-        local(plane::Q),
-        local(plane::SA),
-        local(plane::SB),
-        local(plane::TA),
-        local(plane::TB),
-    );
+    let planes = LocalPlanes::new(prim, gb.x0, gb.y0);
     let mut inv = prim.inverse;
     inv.triangle = false; // only the GENERAL kernel calls invert_bilinear
     let id = prim.id;
@@ -437,20 +500,14 @@ fn raster_kernel<S: Simd, const PERSP: bool, const KIND: u8, const N: usize, T: 
             #[inline(always)]
             |ly: u32, bx: u32, bits: u32| {
                 let yf = ly as f32 + fy;
-                let (qr, sar, sbr, tar, tbr) = (
-                    q.1 * yf + q.2,
-                    sa.1 * yf + sa.2,
-                    sb.1 * yf + sb.2,
-                    ta.1 * yf + ta.2,
-                    tb.1 * yf + tb.2,
-                );
+                let row = planes.row(yf);
                 // Depth first: w alone decides the depth test, so blocks hidden behind what the
                 // region already holds (overdraw) skip the (u, v) work and every store.
                 let mut xs = [0.0f32; LANES];
                 let mut w = [0.0f32; LANES];
                 for l in 0..LANES {
                     xs[l] = (bx + l as u32) as f32 + fx;
-                    let qv = q.0 * xs[l] + qr;
+                    let qv = planes.q.0 * xs[l] + row.q;
                     w[l] = if PERSP { 1.0 / qv.max(MIN_Q) } else { qv };
                 }
                 fragments += bits.count_ones() as u64;
@@ -467,25 +524,7 @@ fn raster_kernel<S: Simd, const PERSP: bool, const KIND: u8, const N: usize, T: 
                 if !simd.any(m) {
                     return;
                 }
-                let mut s = [0.0f32; LANES];
-                let mut t = [0.0f32; LANES];
-                for l in 0..LANES {
-                    let x = xs[l];
-                    s[l] = sa.0 * x + sar + w[l] * (sb.0 * x + sbr);
-                    t[l] = ta.0 * x + tar + w[l] * (tb.0 * x + tbr);
-                }
-                // s, t hold (u, v) for LINEAR and (U, v) for TRIANGLE (folded at setup).
-                let mut u = [0.0f32; LANES];
-                let mut v = [0.0f32; LANES];
-                for l in 0..LANES {
-                    let (a, b) = match KIND {
-                        LINEAR => clamp_uv(s[l], t[l]),
-                        TRIANGLE => clamp_uv(triangle_u(s[l], t[l]), t[l]),
-                        _ => invert_bilinear(&inv, s[l], t[l]),
-                    };
-                    u[l] = a;
-                    v[l] = b;
-                }
+                let (u, v) = planes.uv::<KIND>(&row, &xs, &w, &inv);
                 // Full-lane blends into region memory (no masked stores: see
                 // `Simd::blend_store`).
                 simd.blend_store(&mut gb.depth[i0..], wv, m);

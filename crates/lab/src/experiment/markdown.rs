@@ -723,7 +723,7 @@ fn frame_rate_finding(table1: &[ModelStats]) -> String {
     let mut t = format!(
         "- **Frame rates.** On this CPU emulator the direct method takes {:.2}-{:.2} of the \
          bilinear RAT frame time and {:.2}-{:.2} of the bicubic one: evaluating a broadcast \
-         patch in 8 lanes (48 multiply-adds per sample) is cheaper than gathering 4 or 16 \
+         patch in 8 or 16 lanes (48 multiply-adds per sample) is cheaper than gathering 4 or 16 \
          texels per sample, and needs no texture memory. The paper's hardware made the \
          opposite trade: texture filtering was fixed-function and nearly free at bilinear. \
          The mesh costs {:.1}-{:.1}x the direct frame and grows with its triangle count",
