@@ -11,10 +11,11 @@
 //! the edges' slopes, so thin and slanted primitives do not walk their empty bounding box), per
 //! block (interior blocks skip the per-lane edge test; blocks with no covered sample are skipped;
 //! blocks whose every covered sample fails the depth test skip the (u, v) work and the stores) and
-//! per primitive (perspective or orthographic, the form of the (u, v) inverse, up to 3, 4 or 9
-//! edges, 32- or 64-bit edge lanes), monomorphized out of the loop, each combination a kernel
-//! function of its own (so a small triangle pays only its own kernel's setup). None of them
-//! changes a result: the exact integer edge test and the depth test still decide every sample.
+//! per primitive (the form of the (u, v) inverse, up to 3, 4 or 9 edges, 32- or 64-bit edge
+//! lanes), monomorphized out of the loop, each combination a kernel function of its own (so a
+//! small triangle pays only its own kernel's setup); the projection (perspective or orthographic)
+//! is a per-lane select, not a kernel of its own, which keeps the variants to 12 per instruction
+//! set. None of them changes a result: the exact integer edge test and the depth test still decide every sample.
 //!
 //! The per-pixel linear expressions are re-based at each region's origin in f64 and only then
 //! rounded to f32, so their f32 evaluation works with small local coordinates and keeps its
@@ -325,13 +326,10 @@ fn offset_fixed(offsets: &[(f32, f32)], si: usize) -> (i64, i64) {
 /// on AVX-512 CPUs the kernels are compiled with AVX-512 enabled). Returns the number of covered
 /// samples (fragments, counted before the depth test). The result does not depend on `isa`.
 pub fn rasterize(isa: Isa, prim: &Prim, gb: &mut RegionGBuffer, offsets: &[(f32, f32)]) -> u64 {
-    match (prim.perspective, prim.kind) {
-        (true, InverseKind::Linear) => by_edges::<true, LINEAR>(isa, prim, gb, offsets),
-        (true, InverseKind::Triangle) => by_edges::<true, TRIANGLE>(isa, prim, gb, offsets),
-        (true, InverseKind::General) => by_edges::<true, GENERAL>(isa, prim, gb, offsets),
-        (false, InverseKind::Linear) => by_edges::<false, LINEAR>(isa, prim, gb, offsets),
-        (false, InverseKind::Triangle) => by_edges::<false, TRIANGLE>(isa, prim, gb, offsets),
-        (false, InverseKind::General) => by_edges::<false, GENERAL>(isa, prim, gb, offsets),
+    match prim.kind {
+        InverseKind::Linear => by_edges::<LINEAR>(isa, prim, gb, offsets),
+        InverseKind::Triangle => by_edges::<TRIANGLE>(isa, prim, gb, offsets),
+        InverseKind::General => by_edges::<GENERAL>(isa, prim, gb, offsets),
     }
 }
 
@@ -343,7 +341,7 @@ const GENERAL: u8 = 2;
 /// edge-lane width (as [`dispatch_edges`] does), each a function of its own: a small triangle
 /// then pays only its own kernel's setup, not a prologue preparing every variant's values.
 #[inline(always)]
-fn by_edges<const PERSP: bool, const KIND: u8>(
+fn by_edges<const KIND: u8>(
     isa: Isa,
     prim: &Prim,
     gb: &mut RegionGBuffer,
@@ -351,7 +349,7 @@ fn by_edges<const PERSP: bool, const KIND: u8>(
 ) -> u64 {
     macro_rules! kernel {
         ($n:expr, $t:ty) => {
-            isa.run8(RasterKernel::<PERSP, KIND, $n, $t> {
+            isa.run8(RasterKernel::<KIND, $n, $t> {
                 prim,
                 gb,
                 offsets,
@@ -373,20 +371,18 @@ fn by_edges<const PERSP: bool, const KIND: u8>(
 }
 
 /// One rasterizer kernel: projection, (u, v) inverse, edge count and edge-lane type fixed.
-struct RasterKernel<'a, const PERSP: bool, const KIND: u8, const N: usize, T> {
+struct RasterKernel<'a, const KIND: u8, const N: usize, T> {
     prim: &'a Prim,
     gb: &'a mut RegionGBuffer,
     offsets: &'a [(f32, f32)],
     edge_lane: std::marker::PhantomData<T>,
 }
 
-impl<const PERSP: bool, const KIND: u8, const N: usize, T: EdgeLane> Kernel
-    for RasterKernel<'_, PERSP, KIND, N, T>
-{
+impl<const KIND: u8, const N: usize, T: EdgeLane> Kernel for RasterKernel<'_, KIND, N, T> {
     type Output = u64;
     #[inline(always)]
     fn run<S: Simd>(self, simd: S) -> u64 {
-        raster_kernel::<S, PERSP, KIND, N, T>(simd, self.prim, self.gb, self.offsets)
+        raster_kernel::<S, KIND, N, T>(simd, self.prim, self.gb, self.offsets)
     }
 }
 
@@ -473,7 +469,7 @@ impl LocalPlanes {
 }
 
 #[inline(always)]
-fn raster_kernel<S: Simd, const PERSP: bool, const KIND: u8, const N: usize, T: EdgeLane>(
+fn raster_kernel<S: Simd, const KIND: u8, const N: usize, T: EdgeLane>(
     simd: S,
     prim: &Prim,
     gb: &mut RegionGBuffer,
@@ -487,6 +483,7 @@ fn raster_kernel<S: Simd, const PERSP: bool, const KIND: u8, const N: usize, T: 
     let mut inv = prim.inverse;
     inv.triangle = false; // only the GENERAL kernel calls invert_bilinear
     let id = prim.id;
+    let perspective = prim.perspective;
     let mut fragments = 0u64;
     for si in 0..offsets.len() {
         let off = offset_fixed(offsets, si);
@@ -508,7 +505,10 @@ fn raster_kernel<S: Simd, const PERSP: bool, const KIND: u8, const N: usize, T: 
                 for l in 0..LANES {
                     xs[l] = (bx + l as u32) as f32 + fx;
                     let qv = planes.q.0 * xs[l] + row.q;
-                    w[l] = if PERSP { 1.0 / qv.max(MIN_Q) } else { qv };
+                    // A select, not a branch: orthographic views are rare, and one kernel for
+                    // both projections halves the rasterizer's compiled variants.
+                    let inv_q = 1.0 / qv.max(MIN_Q);
+                    w[l] = if perspective { inv_q } else { qv };
                 }
                 fragments += bits.count_ones() as u64;
                 let i0 = base + ly as usize * stride + bx as usize;
