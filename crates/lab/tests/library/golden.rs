@@ -138,7 +138,7 @@ const SCENES: [&str; 6] = [
     "two-spots-narrow",
 ];
 
-/// The generated 10,048-polygon building (64 rooms; about 40 s to solve with sampled
+/// The generated 10,048-polygon building (64 rooms; about a minute to solve with sampled
 /// visibility): the large shipped scene, drawn by every method.
 #[test]
 fn golden_building() {
