@@ -36,7 +36,6 @@
 //! [`SolveOptions`], which receives the solve's progress (stage `STAGE`) and, when it asks for
 //! them, the solver's trace lines (phase times, shots, vertices, unshot fraction).
 
-mod bvh;
 pub mod file;
 mod formfactor;
 pub(crate) mod rng;

@@ -19,6 +19,7 @@ use glam::DVec3;
 
 use base::method::{Method, Placement};
 
+pub mod bvh;
 pub mod camera_path;
 pub mod format;
 pub mod load;

@@ -40,7 +40,7 @@ use std::sync::atomic::{AtomicU64, Ordering};
 
 use glam::DVec3;
 
-use super::bvh::{Aabb, Bvh};
+use scene::bvh::{Aabb, Bvh};
 use super::formfactor::{point_to_polygon, SmallPoly};
 use super::rng::{seed_of, Rng};
 use base::quadtree::Cell;

@@ -13,7 +13,7 @@
 use glam::DVec3;
 
 use super::{PairClass, ShooterGeom, ShooterKind, Transfer};
-use crate::bvh::Aabb;
+use scene::bvh::Aabb;
 use crate::rng::{seed_of, Rng};
 use scene::{Scene, Visibility};
 

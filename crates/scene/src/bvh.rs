@@ -1,6 +1,9 @@
-//! Ray casting over the scene's polygons: the visibility half of every form factor. A binned-SAH
-//! bounding volume hierarchy over the polygons answers "any hit" queries for shadow segments and
-//! box-overlap queries used to prove a receiver/shooter pair unoccluded without casting rays.
+//! Ray casting over the scene's polygons, shared by the stages that trace rays: the radiosity
+//! solver (the visibility half of every form factor) and the independent path tracer. A
+//! binned-SAH bounding volume hierarchy over the polygons answers "any hit" queries for shadow
+//! segments, "first hit" queries for paths, and box-overlap queries used to prove a
+//! receiver/shooter pair unoccluded without casting rays. It holds geometry only: nothing of
+//! either stage's light transport.
 //!
 //! Invariants: the tree is built once from the scene and never changes; leaves hold at most
 //! [`LEAF_SIZE`] polygons; the build is deterministic (stable sorts, ties by polygon index), and a
@@ -10,10 +13,10 @@
 
 use glam::DVec3;
 
-use scene::{Polygon, Shape};
+use crate::{Polygon, Shape};
 
 /// Most polygons in a leaf.
-pub(crate) const LEAF_SIZE: usize = 4;
+pub const LEAF_SIZE: usize = 4;
 /// SAH bins per axis.
 const BINS: usize = 12;
 
@@ -28,7 +31,7 @@ pub struct Aabb {
 
 impl Aabb {
     /// The empty box (union identity).
-    pub(crate) const EMPTY: Aabb = Aabb {
+    pub const EMPTY: Aabb = Aabb {
         lo: DVec3::splat(f64::INFINITY),
         hi: DVec3::splat(f64::NEG_INFINITY),
     };
@@ -76,7 +79,7 @@ struct Node {
 
 /// A bounding volume hierarchy over a scene's polygons.
 #[derive(Debug, Clone)]
-pub(crate) struct Bvh {
+pub struct Bvh {
     nodes: Vec<Node>,
     order: Vec<u32>,
     tris: Vec<[DVec3; 4]>,
@@ -178,7 +181,7 @@ impl Bvh {
 
     /// Calls `f` with the index of every polygon whose bounding box overlaps `b`, in a
     /// deterministic order.
-    pub(crate) fn for_each_overlapping(&self, b: &Aabb, mut f: impl FnMut(u32)) {
+    pub fn for_each_overlapping(&self, b: &Aabb, mut f: impl FnMut(u32)) {
         if self.nodes.is_empty() {
             return;
         }
@@ -214,7 +217,7 @@ impl Bvh {
     /// box whose every point has `n . (p - p0) < -tol` is skipped. Callers whose own per-polygon
     /// tests reject everything outside the same half-spaces see exactly the polygons they would
     /// have accepted from the plain box query, found with far fewer node visits.
-    pub(crate) fn for_each_in(
+    pub fn for_each_in(
         &self,
         b: &Aabb,
         planes: &[(DVec3, DVec3, f64)],
@@ -257,7 +260,7 @@ impl Bvh {
     /// The first polygon other than `skip` that the open segment a + t d, t in (`T_EPS`,
     /// 1 - `T_EPS`), hits, and its t; ties at equal t go to the smaller index, so the answer
     /// does not depend on the traversal.
-    pub(crate) fn first_hit(&self, a: DVec3, d: DVec3, skip: u32) -> Option<(u32, f64)> {
+    pub fn first_hit(&self, a: DVec3, d: DVec3, skip: u32) -> Option<(u32, f64)> {
         if self.nodes.is_empty() {
             return None;
         }
@@ -348,7 +351,7 @@ impl Bvh {
 /// Segment parameters closer than this to either end do not count as hits: the segment starts on a
 /// receiver and ends on a shooter, and polygons touching either end (a wall meeting the floor) must
 /// not shadow it.
-pub(crate) const T_EPS: f64 = 1e-7;
+pub const T_EPS: f64 = 1e-7;
 
 #[inline]
 fn slab_hit(b: &Aabb, a: DVec3, inv: DVec3) -> bool {
