@@ -15,6 +15,7 @@ pub mod progress;
 pub mod image;
 pub mod quadtree;
 pub mod method;
+pub mod rng;
 
 pub use error::{Error, Result};
 pub use method::Method;

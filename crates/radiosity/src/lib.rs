@@ -38,7 +38,6 @@
 
 pub mod file;
 mod formfactor;
-pub(crate) mod rng;
 mod shoot;
 #[cfg(test)]
 pub(crate) mod test_scenes;

@@ -217,12 +217,7 @@ impl Bvh {
     /// box whose every point has `n . (p - p0) < -tol` is skipped. Callers whose own per-polygon
     /// tests reject everything outside the same half-spaces see exactly the polygons they would
     /// have accepted from the plain box query, found with far fewer node visits.
-    pub fn for_each_in(
-        &self,
-        b: &Aabb,
-        planes: &[(DVec3, DVec3, f64)],
-        mut f: impl FnMut(u32),
-    ) {
+    pub fn for_each_in(&self, b: &Aabb, planes: &[(DVec3, DVec3, f64)], mut f: impl FnMut(u32)) {
         if self.nodes.is_empty() {
             return;
         }
@@ -497,7 +492,7 @@ mod tests {
     fn matches_brute_force() {
         let polys = grid(12);
         let bvh = Bvh::build(&polys);
-        let mut rng = crate::rng::Rng::new(7);
+        let mut rng = base::rng::Rng::new(7);
         for _ in 0..3000 {
             let a = DVec3::new(
                 rng.next_f64() * 13.0 - 0.5,
@@ -527,7 +522,7 @@ mod tests {
     fn first_hit_matches_brute_force() {
         let polys = grid(12);
         let bvh = Bvh::build(&polys);
-        let mut rng = crate::rng::Rng::new(11);
+        let mut rng = base::rng::Rng::new(11);
         let mut found = 0;
         for k in 0..3000 {
             let a = DVec3::new(rng.next_f64() * 13.0, rng.next_f64() * 13.0, -1.0);

@@ -54,7 +54,7 @@ impl UnshotQueue {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::rng::Rng;
+    use base::rng::Rng;
 
     /// The queue picks what a scan in id order picks (the largest positive key, ties to the
     /// smaller id, none when every key is 0) through random updates, with repeated keys so

@@ -40,12 +40,12 @@ use std::sync::atomic::{AtomicU64, Ordering};
 
 use glam::DVec3;
 
-use scene::bvh::{Aabb, Bvh};
 use super::formfactor::{point_to_polygon, SmallPoly};
-use super::rng::{seed_of, Rng};
 use base::quadtree::Cell;
+use base::rng::{seed_of, Rng};
 use receivers::corner_neighbours;
 pub use receivers::{pair_table_bound, sampled_visibility, Pairs, PAIR_BYTES};
+use scene::bvh::{Aabb, Bvh};
 use scene::{Polygon, Scene, Shape};
 
 /// Receiver points are evaluated at (u, v) clamped into [EDGE_INSET, 1 - EDGE_INSET]^2.

@@ -13,8 +13,8 @@
 use glam::DVec3;
 
 use super::{PairClass, ShooterGeom, ShooterKind, Transfer};
+use base::rng::{seed_of, Rng};
 use scene::bvh::Aabb;
-use crate::rng::{seed_of, Rng};
 use scene::{Scene, Visibility};
 
 /// Bytes of one shooter-receiver entry of a pair table (receiver id, candidate range), without

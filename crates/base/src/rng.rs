@@ -1,4 +1,4 @@
-//! Deterministic pseudo-random numbers for the solve: SplitMix64 streams seeded from a hash of
+//! Deterministic pseudo-random numbers for the solver and the path tracer: SplitMix64 streams seeded from a hash of
 //! *what* is being computed (the scene seed, the receiver point, the shooter), never from a thread
 //! or from the order of work, so every visibility estimate is reproducible bit for bit.
 
@@ -15,13 +15,13 @@ impl Rng {
     }
 
     /// Next 64 random bits.
-    pub(crate) fn next_u64(&mut self) -> u64 {
+    pub fn next_u64(&mut self) -> u64 {
         self.state = self.state.wrapping_add(0x9E37_79B9_7F4A_7C15);
         mix(self.state)
     }
 
     /// Uniform in [0, 1) with 53 bits.
-    pub(crate) fn next_f64(&mut self) -> f64 {
+    pub fn next_f64(&mut self) -> f64 {
         (self.next_u64() >> 11) as f64 * (1.0 / (1u64 << 53) as f64)
     }
 
@@ -40,7 +40,7 @@ pub fn mix(mut z: u64) -> u64 {
 }
 
 /// Combines words into one seed (order matters).
-pub(crate) fn seed_of(words: &[u64]) -> u64 {
+pub fn seed_of(words: &[u64]) -> u64 {
     words
         .iter()
         .fold(0x243F_6A88_85A3_08D3u64, |h, &w| mix(h ^ mix(w)))
