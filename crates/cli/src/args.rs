@@ -116,6 +116,15 @@ pub enum Command {
     /// writes a difference image, `--max-distance` bounds the perceptual distance; exit 1 when a
     /// check fails, 0 when all pass.
     Compare(CompareArgs),
+    /// Path-trace a scene: the physical reference the radiosity solution is measured against.
+    ///
+    /// An independent Monte Carlo path tracer of the scene (one-sided Lambertian polygons, area
+    /// emitters and spot lights; nothing of the solver). `-o out.exr` writes the mean radiosity
+    /// B of every pixel (what `render --exr` writes) and `out.stderr.exr` its standard error per
+    /// channel; `--json` writes every polygon's mean B over its area, its direct and indirect
+    /// parts and their standard errors, sampled over the polygon itself, and prints them as a
+    /// table. The same seed gives the same bytes for any `--threads` (docs/truth.md).
+    Truth(TruthArgs),
 }
 
 #[derive(Args, Debug)]
@@ -381,6 +390,62 @@ pub struct ResultsArgs {
     #[arg(short, long)]
     pub quiet: bool,
     /// Print the solver's trace lines.
+    #[arg(long)]
+    pub trace: bool,
+}
+
+#[derive(Args, Debug)]
+pub struct TruthArgs {
+    /// A scene file (`.toml`), or a solution file (its scene is traced).
+    pub input: PathBuf,
+    /// OpenEXR of the mean radiosity per pixel; the standard errors go to `<stem>.stderr.exr`
+    /// beside it.
+    #[arg(short, long)]
+    pub output: Option<PathBuf>,
+    /// JSON of every polygon's estimates (mean B, direct, indirect, standard errors, object,
+    /// material, area); also printed as a table.
+    #[arg(long)]
+    pub json: Option<PathBuf>,
+    /// Camera samples per pixel, at most (default 64).
+    #[arg(long)]
+    pub spp: Option<u32>,
+    /// Image width (default: the scene's).
+    #[arg(long)]
+    pub width: Option<u32>,
+    /// Image height (default: the scene's).
+    #[arg(long)]
+    pub height: Option<u32>,
+    /// Sample the renderer's `--aa` positions (1, 4 or 16) instead of the whole pixel box.
+    #[arg(long)]
+    pub aa: Option<u32>,
+    /// Seed of the random streams.
+    #[arg(long)]
+    pub seed: Option<u64>,
+    /// Samples per polygon, at most (default 4096).
+    #[arg(long, value_name = "N")]
+    pub polygon_samples: Option<u64>,
+    /// Strata per side of each polygon's (u, v) grid (default 4: 16 cells).
+    #[arg(long)]
+    pub strata: Option<u32>,
+    /// Stop once the relative standard error is at most this: every polygon's (against its
+    /// luminance), and the image's root-mean-square over the pixels (against its mean).
+    #[arg(long, value_name = "X")]
+    pub max_error: Option<f64>,
+    /// Most reflections a path follows (default: no limit; Russian roulette ends paths).
+    #[arg(long)]
+    pub max_bounces: Option<u32>,
+    /// Also solve the scene (or read the solution file given as input) and report each
+    /// polygon's solver mean beside the truth: ratio and distance in standard errors (JSON
+    /// `solver`, `solver_ratio`, `solver_z`; a column of the table). Needs --json.
+    #[arg(long)]
+    pub compare_solver: bool,
+    /// Worker threads (default: all cores). The results are identical for any count.
+    #[arg(long)]
+    pub threads: Option<usize>,
+    /// No progress bar, no "wrote" lines, no table.
+    #[arg(short, long)]
+    pub quiet: bool,
+    /// Print a line per pass (samples so far, error reached).
     #[arg(long)]
     pub trace: bool,
 }

@@ -15,10 +15,11 @@ use lab::jobs::render::{run_render, RenderEvent, RenderRequest};
 use lab::jobs::solve::solve_to_file;
 use lab::jobs::stats::{run_stats, StatsRequest};
 use lab::jobs::sweep;
+use lab::jobs::truth::{run_truth, TruthEvent, TruthRequest};
 
 use crate::args::{
     BenchArgs, BuildingArgs, CheckArgs, CompareArgs, ExperimentArgs, RenderArgs, ResultsArgs,
-    SolveArgs, StatsArgs, SweepArgs,
+    SolveArgs, StatsArgs, SweepArgs, TruthArgs,
 };
 use crate::terminal::Terminal;
 use crate::{json, note, out};
@@ -446,4 +447,57 @@ fn compare_perceptual(args: &CompareArgs) -> anyhow::Result<Option<String>> {
                 c.perceptual_distance
             )
         }))
+}
+
+/// `truth`: the path tracer's image and per-polygon estimates; "wrote" lines and a summary on
+/// stderr, the polygon table on stdout.
+pub fn truth(settings: &Settings, args: TruthArgs) -> anyhow::Result<()> {
+    let req = TruthRequest {
+        input: args.input,
+        output: args.output,
+        json: args.json,
+        spp: args.spp,
+        width: args.width,
+        height: args.height,
+        aa: args.aa,
+        seed: args.seed,
+        polygon_samples: args.polygon_samples,
+        strata: args.strata,
+        max_error: args.max_error,
+        max_bounces: args.max_bounces,
+        compare_solver: args.compare_solver,
+    };
+    let quiet = args.quiet;
+    let observer = Terminal::new(!quiet, args.trace);
+    let mut on_event = |event: TruthEvent| match event {
+        TruthEvent::Warning(w) => observer.note(&format!("warning: {w}")),
+        TruthEvent::Wrote(path) if !quiet => observer.note(&format!("wrote {}", path.display())),
+        _ => {}
+    };
+    let outcome = in_pool(args.threads, || {
+        run_truth(&settings.context(&observer), &req, &mut on_event)
+    })??;
+    if quiet {
+        return Ok(());
+    }
+    if let Some((img, seconds)) = &outcome.image {
+        note(&format!(
+            "truth image: {} x {}, {} samples per pixel, relative error {:.4} (rms over pixels), \
+             {} back-face samples, {seconds:.1} s",
+            img.mean.width,
+            img.mean.height,
+            img.samples_per_pixel,
+            img.relative_error,
+            img.back_face_samples
+        ));
+    }
+    if let Some((report, seconds)) = &outcome.polygons {
+        out(&report.table())?;
+        note(&format!(
+            "truth polygons: {} polygons, largest relative standard error {:.3} %, {seconds:.1} s",
+            report.polygons.len(),
+            100.0 * report.largest_relative_error()
+        ));
+    }
+    Ok(())
 }

@@ -69,6 +69,7 @@ fn run(cli: Cli, outputs: Outputs) -> anyhow::Result<()> {
         Command::Results(args) => commands::results(&settings, args),
         Command::Generate(Generate::Building(args)) => commands::generate_building(&settings, args),
         Command::Compare(args) => commands::compare(&settings, args),
+        Command::Truth(args) => commands::truth(&settings, args),
     }
 }
 

@@ -20,6 +20,7 @@ const CRATES: &[(&str, &str)] = &[
     ("base", "pixelflow-base"),
     ("scene", "pixelflow-scene"),
     ("radiosity", "pixelflow-radiosity"),
+    ("truth", "pixelflow-truth"),
     ("reconstruction", "pixelflow-reconstruction"),
     ("engine", "pixelflow-engine"),
     ("metric", "pixelflow-metric"),
@@ -31,7 +32,9 @@ const CRATES: &[(&str, &str)] = &[
 const MODULES: &[(&str, &[&str])] = &[
     (
         "base",
-        &["error", "output", "progress", "image", "quadtree", "method"],
+        &[
+            "error", "output", "progress", "image", "quadtree", "method", "rng",
+        ],
     ),
     ("engine", &["raster", "composition", "shading", "frame"]),
     (

@@ -20,3 +20,4 @@ mod hard_cases;
 mod interrupt;
 mod results;
 mod sweep;
+mod truth;

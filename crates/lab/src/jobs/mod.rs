@@ -15,10 +15,12 @@
 //!
 //! The jobs: [`solve`] (scene to solution file), [`render`] (one frame or a walkthrough to PNG,
 //! EXR and statistics), [`mod@bench`] (frame times, methods interleaved), [`stats`] (the paper's
-//! Table 1), [`sweep`] (speed against error over sampling densities and texture sizes);
-//! [`walkthrough`] summarizes a walkthrough's frames. Each runs in the caller's rayon pool, so the
-//! thread count is the caller's choice and the results do not depend on it. Progress reaches the
-//! caller through a [`base::progress::Observer`]; the library prints nothing.
+//! Table 1), [`sweep`] (speed against error over sampling densities and texture sizes),
+//! [`mod@truth`] (the independent path tracer's reference image and per-polygon estimates, no
+//! solve); [`walkthrough`] summarizes a walkthrough's frames. Each runs in the caller's rayon
+//! pool, so the thread count is the caller's choice and the results do not depend on it.
+//! Progress reaches the caller through a [`base::progress::Observer`]; the library prints
+//! nothing.
 
 pub mod bench;
 pub mod compare;
@@ -29,6 +31,7 @@ pub mod render;
 pub mod solve;
 pub mod stats;
 pub mod sweep;
+pub mod truth;
 pub mod walkthrough;
 
 use std::path::{Path, PathBuf};

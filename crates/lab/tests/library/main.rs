@@ -15,6 +15,7 @@ mod plan;
 mod reconstruction_scenes;
 mod render;
 mod sampled_visibility;
+mod truth_camera;
 mod solution_rrps;
 mod scene_loading;
 mod gallery_scene;

@@ -1,0 +1,144 @@
+//! `pixelflow-sim truth` as a user runs it: the image, its standard errors and the per-polygon
+//! JSON written, the same bytes for any thread count, and bad requests refused with exit 2
+//! before any sampling.
+
+use std::path::{Path, PathBuf};
+use std::process::Output;
+
+fn run(args: &[&str]) -> Output {
+    crate::bin().args(args).output().expect("the binary runs")
+}
+
+fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+fn tmp(name: &str) -> PathBuf {
+    let d = Path::new(env!("CARGO_TARGET_TMPDIR")).join("cli_truth");
+    std::fs::create_dir_all(&d).unwrap();
+    d.join(name)
+}
+
+/// `truth` on the two-spots plane with `threads` workers into files named after `tag`.
+fn truth_run(tag: &str, threads: &str) -> (PathBuf, PathBuf, PathBuf) {
+    let (exr, json) = (tmp(&format!("{tag}.exr")), tmp(&format!("{tag}.json")));
+    let o = run(&[
+        "truth",
+        "scenes/two-spots.toml",
+        "-o",
+        exr.to_str().unwrap(),
+        "--json",
+        json.to_str().unwrap(),
+        "--spp",
+        "4",
+        "--width",
+        "16",
+        "--height",
+        "12",
+        "--polygon-samples",
+        "256",
+        "--threads",
+        threads,
+        "--quiet",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    (exr.clone(), exr.with_extension("stderr.exr"), json)
+}
+
+#[test]
+fn truth_writes_the_image_its_errors_and_the_polygons() {
+    let (exr, se, json) = truth_run("a", "2");
+    let img = image::open(&exr).expect("EXR decodes").to_rgb32f();
+    assert_eq!(img.dimensions(), (16, 12));
+    // The plane fills the view and every point of it is lit by a spot.
+    assert!(img.pixels().all(|p| p[0] > 0.0 && p[0].is_finite()));
+    let err = image::open(&se).expect("EXR decodes").to_rgb32f();
+    assert_eq!(err.dimensions(), (16, 12));
+    assert!(err.pixels().all(|p| p[0] >= 0.0 && p[0].is_finite()));
+    let v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    let polygons = v["polygons"].as_array().unwrap();
+    assert_eq!(polygons.len(), 1);
+    let p = &polygons[0];
+    for key in [
+        "polygon",
+        "object",
+        "material",
+        "area",
+        "samples",
+        "emission",
+        "radiosity",
+        "radiosity_se",
+        "direct",
+        "direct_se",
+        "indirect",
+        "indirect_se",
+    ] {
+        assert!(p.get(key).is_some(), "{key} missing: {p}");
+    }
+    assert_eq!(p["object"], "plane");
+    assert_eq!(p["material"], "white");
+    assert_eq!(p["samples"], 256);
+    // A lone plane sees nothing it could reflect: all its light is direct.
+    assert_eq!(p["indirect"], serde_json::json!([0.0, 0.0, 0.0]));
+    assert_eq!(p["radiosity"], p["direct"]);
+    assert!(p["radiosity"][0].as_f64().unwrap() > 0.1);
+    assert_eq!(v["seed"], 1);
+}
+
+#[test]
+fn truth_writes_the_same_bytes_for_any_thread_count() {
+    let one = truth_run("one", "1");
+    let two = truth_run("two", "2");
+    for (a, b) in [(one.0, two.0), (one.1, two.1), (one.2, two.2)] {
+        assert_eq!(
+            std::fs::read(&a).unwrap(),
+            std::fs::read(&b).unwrap(),
+            "{a:?}"
+        );
+    }
+}
+
+#[test]
+fn truth_refuses_bad_requests_with_exit_2() {
+    let out = tmp("bad.exr");
+    let out = out.to_str().unwrap();
+    let json = tmp("bad.json");
+    let json = json.to_str().unwrap();
+    let scene = "scenes/two-spots.toml";
+    for (args, says) in [
+        (
+            vec!["truth", "no/such/scene.toml", "-o", out],
+            "no/such/scene.toml",
+        ),
+        (vec!["truth", scene], "-o / --json"),
+        (vec!["truth", scene, "-o", out, "--aa", "3"], "--aa 3"),
+        (vec!["truth", scene, "-o", out, "--spp", "1"], "--spp 1"),
+        (vec!["truth", scene, "-o", "x.png"], "name it .exr"),
+        (
+            vec!["truth", scene, "--json", json, "--strata", "0"],
+            "--strata 0",
+        ),
+        (
+            vec!["truth", scene, "--json", json, "--max-error", "0"],
+            "--max-error 0",
+        ),
+        (
+            vec!["truth", scene, "-o", out, "--compare-solver"],
+            "--compare-solver",
+        ),
+        (
+            vec!["truth", scene, "--json", scene],
+            "refusing to overwrite an input",
+        ),
+        (
+            vec!["truth", scene, "-o", out, "--width", "0"],
+            "image size",
+        ),
+    ] {
+        let o = run(&args);
+        assert_eq!(o.status.code(), Some(2), "{args:?}: {}", stderr(&o));
+        assert!(stderr(&o).contains(says), "{args:?}: {}", stderr(&o));
+        assert!(!stderr(&o).contains("panicked"), "{}", stderr(&o));
+    }
+}
