@@ -21,6 +21,7 @@ use base::method::{Method, Placement};
 
 pub mod bvh;
 pub mod camera_path;
+mod coincident;
 pub mod format;
 pub mod load;
 mod obj;

@@ -98,6 +98,7 @@ pub fn parse_scene_with(text: &str, path: &Path, read: ReadText<'_>) -> Result<S
         path,
         warnings: Vec::new(),
         inputs: vec![path.to_path_buf()],
+        origins: Vec::new(),
         newlines: std::cell::OnceCell::new(),
         read,
         next_suffix: BTreeMap::new(),
@@ -122,6 +123,8 @@ pub(crate) struct Cx<'a> {
     pub(crate) warnings: Vec<String>,
     /// Files read so far (the scene file first), for [`Scene::inputs`].
     pub(crate) inputs: Vec<std::path::PathBuf>,
+    /// Where each polygon added so far was defined (aligned with the surfaces' polygons).
+    pub(crate) origins: Vec<Location>,
     /// Byte offsets of the text's newlines, computed on first use by [`Cx::loc`].
     pub(crate) newlines: std::cell::OnceCell<Vec<usize>>,
     /// Reads the included OBJ and MTL files.
@@ -267,6 +270,8 @@ impl<'a> Cx<'a> {
             Some(cp) => Some(self.camera_path(cp)?),
             None => None,
         };
+        let merged = super::coincident::merge(&mut surfaces.polygons, &mut self.origins);
+        self.warnings.extend(merged);
         self.check_polygons_and_light(&surfaces, &spots)?;
         let Surfaces {
             materials,
@@ -390,6 +395,9 @@ impl<'a> Cx<'a> {
             .map_err(|msg| Error::input(location.clone(), msg))?;
         if let Some(w) = built.warning {
             self.warnings.push(format!("{location}: {w}"));
+        }
+        for _ in &built.polygons {
+            self.origins.push(location.clone());
         }
         polygons.extend(built.polygons);
         Ok(())

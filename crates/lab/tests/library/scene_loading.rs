@@ -186,21 +186,30 @@ fn two_spots_narrow_differs_only_in_the_bright_spot() {
 fn cornell_box_loads_with_its_quirks() {
     let s = load_scene(&scenes().join("cornell-box.toml")).unwrap();
     check_invariants(&s);
-    // 18 faces (the short box's "Bottom Face" repeats its right face), the left wall split.
-    assert_eq!(s.polygons.len(), 19);
+    // 18 faces, two of them repeats (the short box's "Bottom Face" repeats its right face, the
+    // tall box's last face its front), counted once; the left wall split in two.
+    assert_eq!(s.polygons.len(), 17);
     let tris = s
         .polygons
         .iter()
         .filter(|p| p.shape == Shape::Triangle)
         .count();
     assert_eq!(tris, 2);
-    assert_eq!(s.warnings.len(), 1);
+    assert_eq!(s.warnings.len(), 3);
     let w = &s.warnings[0];
     assert!(
         w.contains("CornellBox-Original.obj:62") && w.contains("leftWall"),
         "{w}"
     );
     assert!(w.contains("0.176%"), "{w}");
+    for (w, line, first) in [(&s.warnings[1], 107, 93), (&s.warnings[2], 155, 148)] {
+        assert!(
+            w.contains(&format!("CornellBox-Original.obj:{line}"))
+                && w.contains("repeats the one at")
+                && w.contains(&format!("CornellBox-Original.obj:{first}")),
+            "{w}"
+        );
+    }
     // Materials as in the MTL, exact to the decimal (the loader undoes tobj's f32).
     let m = |n: &str| s.materials.iter().find(|m| m.name == n).unwrap();
     assert_eq!(s.materials.len(), 8);
@@ -217,13 +226,13 @@ fn cornell_box_loads_with_its_quirks() {
     // 0.47 x 0.38 rectangle facing down.
     assert!((light.area - 0.47 * 0.38).abs() < 1e-12);
     assert!((light.normal - DVec3::NEG_Y).length() < 1e-12);
-    // The duplicated face: two polygons with identical corners.
+    // No two polygons with identical corners are left.
     let dup = s
         .polygons
         .iter()
         .enumerate()
         .any(|(i, a)| s.polygons[i + 1..].iter().any(|b| a.corners == b.corners));
-    assert!(dup);
+    assert!(!dup);
     // Camera converted from the official data: fov 2 atan(0.0125 / 0.035).
     let Projection::Perspective { fov_y_deg } = s.camera.projection else {
         panic!("perspective expected")
@@ -233,6 +242,37 @@ fn cornell_box_loads_with_its_quirks() {
     let s_mm = 1.99 / 548.8;
     assert!((s.camera.eye - DVec3::new(0.0, 273.0 * s_mm, 0.99 + 800.0 * s_mm)).length() < 1e-5);
     assert_eq!((s.width, s.height), (512, 512));
+}
+
+/// A surface listed twice reflects its light twice: the same wall twice put x2.05 of its light
+/// on the floor. The loader keeps the first copy (whatever corner the copy starts at) and names
+/// both lines; a polygon overlapping another in the same plane is kept with a warning; the
+/// two sides of a thin wall (back to back) are two surfaces.
+#[test]
+fn repeated_polygons_are_counted_once_and_overlaps_named() {
+    let copy = "[[polygons]]\nvertices = [[1, 1, 0], [0, 1, 0], [0, 0, 0], [1, 0, 0]]\nmaterial = \"white\"\n";
+    let text = format!("{BASE}\n{copy}");
+    let s = parse_scene(&text, Path::new("test.toml")).unwrap();
+    assert_eq!(s.polygons.len(), 2);
+    assert_eq!(s.warnings.len(), 1, "{:?}", s.warnings);
+    let (copy_line, first_line) = (
+        line_of(&text, "[[1, 1, 0], [0, 1, 0]"),
+        line_of(&text, "[[0, 0, 0], [1, 0, 0]"),
+    );
+    let w = &s.warnings[0];
+    assert!(
+        w.starts_with(&format!(
+            "test.toml:{copy_line}: polygons[2].vertices: this polygon repeats"
+        )) && w.contains(&format!("test.toml:{first_line}")),
+        "{w}"
+    );
+    let half = "[[polygons]]\nvertices = [[0.5, 0, 0], [1.5, 0, 0], [1.5, 1, 0], [0.5, 1, 0]]\nmaterial = \"white\"\n";
+    let s = parse_scene(&format!("{BASE}\n{half}"), Path::new("test.toml")).unwrap();
+    assert_eq!(s.polygons.len(), 3);
+    assert!(s.warnings[0].contains("overlaps the one at") && s.warnings[0].contains("50.0 %"));
+    let back = "[[polygons]]\nvertices = [[0, 0, 0], [0, 1, 0], [1, 1, 0], [1, 0, 0]]\nmaterial = \"white\"\n";
+    let s = parse_scene(&format!("{BASE}\n{back}"), Path::new("test.toml")).unwrap();
+    assert_eq!((s.polygons.len(), s.warnings.len()), (3, 0));
 }
 
 #[test]
@@ -795,7 +835,9 @@ fn many_includes_of_one_obj_are_named_in_linear_time() {
     let t = std::time::Instant::now();
     let s = load_scene(&scene).unwrap();
     assert_linear_time(t);
-    assert_eq!(s.polygons.len(), n);
+    // The same triangle 8000 times is one surface, and each repeat is named.
+    assert_eq!(s.polygons.len(), 1);
+    assert_eq!(s.warnings.len(), n - 1);
     let names: Vec<&str> = s.materials.iter().map(|m| m.name.as_str()).collect();
     assert_eq!(names[..4], ["grey", "lamp", "m/lamp", "m/lamp#2"]);
     assert_eq!(names.last(), Some(&format!("m/lamp#{}", n - 1).as_str()));

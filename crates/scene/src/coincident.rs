@@ -1,0 +1,280 @@
+//! Coincident polygons: a surface listed twice is counted once, and surfaces that overlap in one
+//! plane are named.
+//!
+//! A polygon reflects and receives on its front side, so two copies of one wall reflect its
+//! light twice: measured against a path tracer, a wall listed twice put x2.05 of its light on
+//! the floor, and real assets carry such copies (the public Cornell box OBJ repeats two faces).
+//! The loader therefore drops a polygon whose corners repeat an earlier polygon's (the same
+//! cycle of corners, the same facing, each corner within [`SAME_POINT`] of the polygon's size)
+//! with a warning naming both lines, and warns (keeping both) about polygons that lie in one
+//! plane, face the same way and overlap by more than [`OVERLAP_WARN`] of the smaller one's
+//! area: which one the author meant is not the loader's to guess.
+//!
+//! Invariants: the first polygon of a group of copies is kept, so polygon order, materials and
+//! objects of the rest are unchanged; the result depends only on the polygons (candidates come
+//! from a BVH box query, visited in index order); back-to-back polygons (a thin wall's two
+//! sides) are never merged: they face opposite ways.
+
+use glam::{DVec2, DVec3};
+
+use crate::bvh::{Aabb, Bvh};
+use crate::Polygon;
+use base::error::Location;
+
+/// Corners closer than this fraction of the polygon's diameter are the same point.
+pub const SAME_POINT: f64 = 1e-6;
+
+/// Coplanar, same-facing polygons overlapping by more than this fraction of the smaller one's
+/// area are reported. Neighbours that share an edge overlap by rounding only (~1e-12).
+pub const OVERLAP_WARN: f64 = 1e-4;
+
+/// Drops every polygon that repeats an earlier one (keeping `origins` aligned) and returns the
+/// warnings: one per polygon dropped, one per overlapping pair kept.
+pub(crate) fn merge(polygons: &mut Vec<Polygon>, origins: &mut Vec<Location>) -> Vec<String> {
+    let bvh = Bvh::build(polygons);
+    let mut dropped = vec![false; polygons.len()];
+    let mut warnings = Vec::new();
+    for j in 0..polygons.len() {
+        let pj = &polygons[j];
+        let tol = SAME_POINT * diameter(pj);
+        let b = Aabb::of(pj.vertices());
+        let b = Aabb {
+            lo: b.lo - DVec3::splat(tol),
+            hi: b.hi + DVec3::splat(tol),
+        };
+        let mut earlier = Vec::new();
+        bvh.for_each_overlapping(&b, |i| {
+            if (i as usize) < j && !dropped[i as usize] {
+                earlier.push(i as usize);
+            }
+        });
+        earlier.sort_unstable();
+        for i in earlier {
+            let pi = &polygons[i];
+            if same_corners(pi, pj, tol) {
+                dropped[j] = true;
+                let material = if pi.material == pj.material {
+                    ""
+                } else {
+                    ", with another material: the first one's is kept"
+                };
+                warnings.push(format!(
+                    "{}: this polygon repeats the one at {} (same corners, same side{material}): \
+                     counted once (a surface listed twice would reflect its light twice)",
+                    origins[j], origins[i]
+                ));
+                break;
+            }
+            if let Some(f) = coplanar_overlap(pi, pj) {
+                warnings.push(format!(
+                    "{}: this polygon overlaps the one at {} in the same plane, facing the \
+                     same way ({:.1} % of the smaller one's area): both are kept, so the \
+                     overlap reflects its light twice; remove one of them",
+                    origins[j],
+                    origins[i],
+                    100.0 * f
+                ));
+            }
+        }
+    }
+    let mut k = 0;
+    polygons.retain(|_| {
+        k += 1;
+        !dropped[k - 1]
+    });
+    let mut k = 0;
+    origins.retain(|_| {
+        k += 1;
+        !dropped[k - 1]
+    });
+    warnings
+}
+
+/// Largest distance between two corners of `p`.
+fn diameter(p: &Polygon) -> f64 {
+    let vs = p.vertices();
+    let mut d = 0.0f64;
+    for a in vs {
+        for b in vs {
+            d = d.max((*a - *b).length());
+        }
+    }
+    d
+}
+
+/// Whether `a` and `b` have the same corners in the same cyclic order (so the same facing),
+/// each pair within `tol`.
+fn same_corners(a: &Polygon, b: &Polygon, tol: f64) -> bool {
+    let (va, vb) = (a.vertices(), b.vertices());
+    if va.len() != vb.len() || a.normal.dot(b.normal) <= 0.0 {
+        return false;
+    }
+    let n = va.len();
+    (0..n).any(|shift| (0..n).all(|k| (va[k] - vb[(k + shift) % n]).length() <= tol))
+}
+
+/// The area both polygons cover over the smaller one's area, if they lie in one plane, face
+/// the same way and that fraction passes [`OVERLAP_WARN`].
+fn coplanar_overlap(a: &Polygon, b: &Polygon) -> Option<f64> {
+    let tol = SAME_POINT * diameter(a).max(diameter(b));
+    if a.normal.dot(b.normal) < 1.0 - 1e-9 {
+        return None;
+    }
+    let n = a.normal;
+    let o = a.corners[0];
+    if b.vertices().iter().any(|&p| n.dot(p - o).abs() > tol) {
+        return None;
+    }
+    // A frame in the plane; both outlines are counter-clockwise in it (same facing).
+    let e1 = (a.corners[1] - a.corners[0]).normalize();
+    let e2 = n.cross(e1);
+    let flat = |p: &Polygon| -> Vec<DVec2> {
+        p.vertices()
+            .iter()
+            .map(|&q| DVec2::new(e1.dot(q - o), e2.dot(q - o)))
+            .collect()
+    };
+    let common = area(&clip(&flat(a), &flat(b)));
+    let f = common / a.area.min(b.area);
+    (f > OVERLAP_WARN).then_some(f)
+}
+
+/// `subject` clipped to the convex, counter-clockwise `window` (Sutherland-Hodgman).
+fn clip(subject: &[DVec2], window: &[DVec2]) -> Vec<DVec2> {
+    let mut out = subject.to_vec();
+    for i in 0..window.len() {
+        let (p, q) = (window[i], window[(i + 1) % window.len()]);
+        let e = q - p;
+        let side = |x: DVec2| e.perp_dot(x - p);
+        let input = std::mem::take(&mut out);
+        for k in 0..input.len() {
+            let (s, t) = (input[k], input[(k + 1) % input.len()]);
+            let (ds, dt) = (side(s), side(t));
+            if ds >= 0.0 {
+                out.push(s);
+            }
+            if (ds >= 0.0) != (dt >= 0.0) {
+                out.push(s + (t - s) * (ds / (ds - dt)));
+            }
+        }
+        if out.is_empty() {
+            break;
+        }
+    }
+    out
+}
+
+/// Area of a simple polygon (shoelace; positive counter-clockwise).
+fn area(p: &[DVec2]) -> f64 {
+    let mut s = 0.0;
+    for i in 0..p.len() {
+        s += p[i].perp_dot(p[(i + 1) % p.len()]);
+    }
+    0.5 * s.max(0.0)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn quad(c: [[f64; 3]; 4]) -> Polygon {
+        Polygon::quad(c.map(DVec3::from), 0, 0).unwrap()
+    }
+
+    fn origins(n: usize) -> Vec<Location> {
+        (1..=n)
+            .map(|l| Location::file("s.obj").at_line(l))
+            .collect()
+    }
+
+    const FLOOR: [[f64; 3]; 4] = [
+        [0.0, 0.0, 0.0],
+        [1.0, 0.0, 0.0],
+        [1.0, 1.0, 0.0],
+        [0.0, 1.0, 0.0],
+    ];
+
+    #[test]
+    fn a_repeated_polygon_is_kept_once_whatever_its_first_corner() {
+        let shifted = [FLOOR[2], FLOOR[3], FLOOR[0], FLOOR[1]];
+        let other = [
+            [3.0, 0.0, 0.0],
+            [4.0, 0.0, 0.0],
+            [4.0, 1.0, 0.0],
+            [3.0, 1.0, 0.0],
+        ];
+        let mut ps = vec![quad(FLOOR), quad(other), quad(shifted)];
+        let mut o = origins(3);
+        let w = merge(&mut ps, &mut o);
+        assert_eq!(ps.len(), 2);
+        assert_eq!(o.len(), 2);
+        assert_eq!(
+            o[1].line,
+            Some(2),
+            "the first copy and the other polygon stay"
+        );
+        assert_eq!(w.len(), 1);
+        assert!(
+            w[0].starts_with("s.obj:3: this polygon repeats the one at s.obj:1"),
+            "{w:?}"
+        );
+    }
+
+    #[test]
+    fn back_to_back_polygons_are_two_surfaces() {
+        let back = [FLOOR[0], FLOOR[3], FLOOR[2], FLOOR[1]];
+        let mut ps = vec![quad(FLOOR), quad(back)];
+        let w = merge(&mut ps, &mut origins(2));
+        assert_eq!(ps.len(), 2);
+        assert!(w.is_empty(), "{w:?}");
+    }
+
+    #[test]
+    fn neighbours_sharing_an_edge_are_not_overlaps() {
+        let next = [
+            [1.0, 0.0, 0.0],
+            [2.0, 0.0, 0.0],
+            [2.0, 1.0, 0.0],
+            [1.0, 1.0, 0.0],
+        ];
+        let mut ps = vec![quad(FLOOR), quad(next)];
+        let w = merge(&mut ps, &mut origins(2));
+        assert!(w.is_empty(), "{w:?}");
+    }
+
+    #[test]
+    fn a_coplanar_overlap_is_reported_with_its_share() {
+        // The second square covers the right half of the first: 50 % of either.
+        let half = [
+            [0.5, 0.0, 0.0],
+            [1.5, 0.0, 0.0],
+            [1.5, 1.0, 0.0],
+            [0.5, 1.0, 0.0],
+        ];
+        let mut ps = vec![quad(FLOOR), quad(half)];
+        let w = merge(&mut ps, &mut origins(2));
+        assert_eq!(ps.len(), 2);
+        assert_eq!(w.len(), 1);
+        assert!(
+            w[0].contains("overlaps the one at s.obj:1") && w[0].contains("(50.0 %"),
+            "{w:?}"
+        );
+    }
+
+    #[test]
+    fn corners_within_the_tolerance_are_the_same_point() {
+        let nudged = FLOOR.map(|c| [c[0] + 1e-9, c[1] - 1e-9, c[2]]);
+        let mut ps = vec![quad(FLOOR), quad(nudged)];
+        merge(&mut ps, &mut origins(2));
+        assert_eq!(ps.len(), 1);
+        let moved = FLOOR.map(|c| [c[0] + 1e-3, c[1], c[2]]);
+        let mut ps = vec![quad(FLOOR), quad(moved)];
+        let w = merge(&mut ps, &mut origins(2));
+        assert_eq!(
+            ps.len(),
+            2,
+            "1e-3 of the size apart: an overlap, not a copy"
+        );
+        assert_eq!(w.len(), 1);
+    }
+}
