@@ -25,8 +25,9 @@ use std::path::Path;
 
 use glam::{DVec3, Vec3};
 
+use super::transfer::shape::MAX_SHAPE_LEVELS;
 use super::transfer::{build_shooters, ShooterKind};
-use super::{fill_tree_stats, scene_hash, Fnv, Shooter, Solution, SolveStats};
+use super::{fill_tree_stats, scene_hash, Fnv, PatchShape, Shooter, Solution, SolveStats};
 use base::error::{Error, Result, SolutionProblem};
 use base::quadtree::{Cell, Node, Quadtree, SampledQuadtree, VertexKey};
 use scene::Scene;
@@ -35,8 +36,11 @@ use scene::Scene;
 pub const MAGIC: &[u8; 8] = b"PFSOLN\r\n";
 /// Current format version. Version 2 added the compact RRPs after the statistics; version 3
 /// marks solutions of the local refinement criterion with per-channel convergence, their RRPs
-/// built with the Hyman estimator. Older files are refused (solve again).
-pub const FORMAT_VERSION: u32 = 3;
+/// built with the Hyman estimator; version 4 stores the shapes of the patches' light. Older
+/// files are refused (solve again).
+pub const FORMAT_VERSION: u32 = 4;
+/// Most nodes a stored patch shape may have: a full tree of [`MAX_SHAPE_LEVELS`] levels.
+const MAX_SHAPE_NODES: usize = ((1 << (2 * (MAX_SHAPE_LEVELS + 1))) - 1) / 3;
 const HEADER: usize = 8 + 4 + 4 + 8 + 8;
 
 /// Serializes a solution to bytes (the exact file content), naming no scene file and storing
@@ -271,7 +275,8 @@ impl W {
     }
 
     /// A shooter: kind tag (0 spot, 1 emitter, 2 patch), its spot or polygon, its cell (the
-    /// root but for a patch) and its RGB f64 total.
+    /// root but for a patch), its RGB f64 total, and its shape: a u8 tag (0: none, 1: a
+    /// shape, see [`W::shape`]).
     fn shooter(&mut self, s: &Shooter) {
         let (tag, a, cell) = match s.kind {
             ShooterKind::Spot { spot } => (0u8, spot, Cell::ROOT),
@@ -286,6 +291,31 @@ impl W {
         self.f64(s.total.x);
         self.f64(s.total.y);
         self.f64(s.total.z);
+        match &s.shape {
+            None => self.u8(0),
+            Some(shape) => {
+                self.u8(1);
+                self.shape(shape);
+            }
+        }
+    }
+
+    /// A patch's shape: its node count (u32), one bit per node in node order ("is split",
+    /// which rebuilds the tree, see [`Quadtree::grow`]), packed little-endian in bytes, then
+    /// every leaf's RGB f32 weight in node order.
+    fn shape(&mut self, shape: &PatchShape) {
+        let nodes = shape.tree.nodes();
+        self.u32(nodes.len() as u32);
+        let mut bits = vec![0u8; nodes.len().div_ceil(8)];
+        for (i, n) in nodes.iter().enumerate() {
+            if !n.is_leaf() {
+                bits[i / 8] |= 1 << (i % 8);
+            }
+        }
+        self.0.extend_from_slice(&bits);
+        for c in &shape.leaves {
+            c.iter().for_each(|&x| self.f32(x));
+        }
     }
 
     /// The statistics a solution file keeps (not those of its trees, recomputed when read).
@@ -298,6 +328,12 @@ impl W {
         }
         self.f64(st.emitted_power);
         self.f64(st.unshot_fraction);
+        let e = &st.energy;
+        for v in [e.emitted, e.absorbed, e.unshot, e.lost] {
+            self.f64(v.x);
+            self.f64(v.y);
+            self.f64(v.z);
+        }
         self.u32(st.unshot_history.len() as u32);
         for &x in &st.unshot_history {
             self.f64(x);
@@ -413,9 +449,47 @@ impl R<'_> {
             .ok_or_else(|| format!("corrupt payload: polygon {pi}: invalid quadtree"))
     }
 
+    /// A patch's shape (see [`W::shape`]): its tree replayed from the split bits, at most
+    /// [`MAX_SHAPE_LEVELS`] deep, with as many weights as leaves, finite and >= 0.
+    fn shape(&mut self, scene: &Scene, polygon: u32, patch: Cell) -> Decoded<PatchShape> {
+        let bad = |m: &str| format!("corrupt payload: a patch shape {m}");
+        let n = self.u32()? as usize;
+        if n == 0 || n > MAX_SHAPE_NODES || n.div_ceil(8) > self.b.len() - self.at {
+            return Err(bad("has an impossible node count"));
+        }
+        let bits = self.take(n.div_ceil(8))?.to_vec();
+        let mut ok = true;
+        let tree = Quadtree::grow((), |id, cell, ()| {
+            let i = id as usize;
+            let split = i < n && bits[i / 8] & (1 << (i % 8)) != 0;
+            if split && cell.level >= MAX_SHAPE_LEVELS {
+                ok = false;
+                return None;
+            }
+            split.then_some([(); 4])
+        });
+        if !ok || tree.nodes().len() != n {
+            return Err(bad("tree does not match its node count"));
+        }
+        let leaves = tree.nodes().iter().filter(|x| x.is_leaf()).count();
+        if leaves * 12 > self.b.len() - self.at {
+            return Err(bad("runs past the end of the data"));
+        }
+        let mut w = Vec::with_capacity(leaves);
+        for _ in 0..leaves {
+            let c = [self.f32()?, self.f32()?, self.f32()?];
+            if c.iter().any(|x| !x.is_finite() || *x < 0.0) {
+                return Err(bad("weight is negative or not finite"));
+            }
+            w.push(c);
+        }
+        PatchShape::new(&scene.polygons[polygon as usize], patch, tree, w)
+            .ok_or_else(|| bad("has as many weights as leaves"))
+    }
+
     /// A shooter (see [`W::shooter`]), which must be `expected` (the scene's shooter of its id)
-    /// and have a finite total >= 0.
-    fn shooter(&mut self, expected: ShooterKind) -> Decoded<Shooter> {
+    /// and have a finite total >= 0, and a shape only if it is a patch.
+    fn shooter(&mut self, expected: ShooterKind, scene: &Scene) -> Decoded<Shooter> {
         let tag = self.u8()?;
         let a = self.u32()?;
         let cell = Cell {
@@ -436,7 +510,12 @@ impl R<'_> {
         if !total.is_finite() || total.min_element() < 0.0 {
             return Err("corrupt payload: a shooter total is negative or not finite".to_string());
         }
-        Ok(Shooter { kind, total })
+        let shape = match (self.u8()?, kind) {
+            (0, _) => None,
+            (1, ShooterKind::Patch { polygon, cell }) => Some(self.shape(scene, polygon, cell)?),
+            (t, _) => return Err(format!("corrupt payload: shape tag {t} on a {kind:?}")),
+        };
+        Ok(Shooter { kind, total, shape })
     }
 
     /// The statistics (see [`W::stats`]); those of the trees are left to fill.
@@ -452,6 +531,19 @@ impl R<'_> {
         }
         stats.emitted_power = self.f64()?;
         stats.unshot_fraction = self.f64()?;
+        let mut v = [DVec3::ZERO; 4];
+        for x in v.iter_mut() {
+            *x = DVec3::new(self.f64()?, self.f64()?, self.f64()?);
+        }
+        if v.iter().any(|x| !x.is_finite()) {
+            return Err("corrupt payload: the energy account is not finite".to_string());
+        }
+        stats.energy = crate::EnergyAccount {
+            emitted: v[0],
+            absorbed: v[1],
+            unshot: v[2],
+            lost: v[3],
+        };
         let nh = self.count(8)?;
         for _ in 0..nh {
             stats.unshot_history.push(self.f64()?);
@@ -509,7 +601,7 @@ fn decode_payload(payload: &[u8], scene: &Scene, hash: u64) -> Decoded<(Solution
         .map(|pi| r.polygon(pi))
         .collect::<Decoded<Vec<_>>>()?;
     let (geoms, _, _) = build_shooters(scene);
-    let ns = r.count(29)?;
+    let ns = r.count(30)?;
     if ns != geoms.len() {
         return Err(format!(
             "corrupt payload: {ns} shooters, the scene has {}",
@@ -518,7 +610,7 @@ fn decode_payload(payload: &[u8], scene: &Scene, hash: u64) -> Decoded<(Solution
     }
     let shooters = geoms
         .iter()
-        .map(|g| r.shooter(g.kind))
+        .map(|g| r.shooter(g.kind, scene))
         .collect::<Decoded<Vec<_>>>()?;
     let mut stats = r.stats()?;
     let rrps = r.rrps()?;

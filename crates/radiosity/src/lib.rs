@@ -36,6 +36,7 @@
 //! [`SolveOptions`], which receives the solve's progress (stage `STAGE`) and, when it asks for
 //! them, the solver's trace lines (phase times, shots, vertices, unshot fraction).
 
+mod faces;
 pub mod file;
 mod formfactor;
 mod shoot;
@@ -58,7 +59,9 @@ use glam::{DVec3, Vec3};
 use base::error::{Error, Location, Result};
 use base::progress::{Observer, Stage, SILENT};
 use base::quadtree::{SampledQuadtree, MAX_DEPTH};
+pub use faces::{face_means, FaceMean};
 use scene::Scene;
+pub use transfer::shape::PatchShape;
 pub use transfer::ShooterKind;
 use transfer::Transfer;
 
@@ -104,6 +107,8 @@ pub struct Shooter {
     /// Total radiosity shot (W/m^2 per channel). For a spot light: 1 once it has shot (its
     /// intensity is in the scene), 0 otherwise.
     pub total: DVec3,
+    /// For a reflecting patch, how its light is distributed over it (`None`: uniform).
+    pub shape: Option<PatchShape>,
 }
 
 /// Statistics of a solve.
@@ -132,9 +137,37 @@ pub struct SolveStats {
     pub unshot_fraction: f64,
     /// Unshot fraction (largest channel) after every shot, in shot order.
     pub unshot_history: Vec<f64>,
+    /// Where the emitted power went (see [`EnergyAccount`]).
+    pub energy: EnergyAccount,
     /// Wall-clock solve time in milliseconds. Not saved in solution files (it would make two
     /// solves of one scene differ); 0 for a solution read from a file.
     pub solve_ms: f64,
+}
+
+/// Where a solve's emitted power went, per channel, in watts: emitted = absorbed + unshot +
+/// lost. `lost` is light that left an open scene plus the solve's own energy error (on a
+/// closed scene, only the latter).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct EnergyAccount {
+    /// Spots' and emitters' power.
+    pub emitted: DVec3,
+    /// Absorbed by the surfaces: (1 - rho) times the power arriving on each.
+    pub absorbed: DVec3,
+    /// Reflected light the solve stopped before shooting.
+    pub unshot: DVec3,
+    /// The rest: emitted - absorbed - unshot.
+    pub lost: DVec3,
+}
+
+impl EnergyAccount {
+    /// `lost` over `emitted` in the channel where its magnitude is largest (0 when nothing is
+    /// emitted).
+    pub fn lost_fraction(&self) -> f64 {
+        (0..3)
+            .filter(|&k| self.emitted[k] > 0.0)
+            .map(|k| self.lost[k] / self.emitted[k])
+            .fold(0.0f64, |a, b| if b.abs() > a.abs() { b } else { a })
+    }
 }
 
 /// A radiosity solution.
@@ -330,6 +363,7 @@ pub fn solve(scene: &Scene, opts: &SolveOptions<'_>) -> Result<Solution> {
         emitted_power: out.emitted,
         unshot_fraction: out.unshot,
         unshot_history: out.history,
+        energy: out.energy,
         ..SolveStats::default()
     };
     fill_tree_stats(&mut stats, &polygons);
@@ -338,9 +372,11 @@ pub fn solve(scene: &Scene, opts: &SolveOptions<'_>) -> Result<Solution> {
         .kinds
         .iter()
         .zip(&out.totals)
-        .map(|(k, t)| Shooter {
+        .zip(out.shapes)
+        .map(|((k, t), shape)| Shooter {
             kind: *k,
             total: *t,
+            shape,
         })
         .collect();
     Ok(Solution {
@@ -434,6 +470,7 @@ impl<'a> Oracle<'a> {
             if *t != DVec3::ZERO {
                 tr.ensure_pairs(s);
             }
+            tr.set_shape(s, sol.shooters[s].shape.clone());
         }
         tr.index_receivers();
         Ok(Oracle { tr, totals })
@@ -454,6 +491,12 @@ impl<'a> Oracle<'a> {
         }
         let g = self.tr.gather(&self.totals, polygon, u, v);
         radiosity_from_g(m, g)
+    }
+
+    /// Irradiance G of polygon `polygon` at (u, v) (radiosity is E + rho G), which must be a
+    /// valid index.
+    pub(crate) fn irradiance(&self, polygon: usize, u: f64, v: f64) -> DVec3 {
+        self.tr.gather(&self.totals, polygon, u, v)
     }
 }
 

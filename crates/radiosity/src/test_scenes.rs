@@ -352,3 +352,26 @@ pub fn cornell() -> Scene {
         vec![],
     )
 }
+
+/// A closed room 2 x 2 x 2 (z up, inward faces, rho 0.5 0.6 0.7) whose ceiling emits 3 2 1,
+/// with a closed box (outward faces, rho 0.8) floating 0.3 above the floor: no light can leave
+/// and no back face can be seen, so every emitted watt is absorbed or still unshot.
+pub(crate) fn closed_room_with_box() -> Scene {
+    let mut polys = box_faces(DVec3::ZERO, DVec3::splat(2.0), true);
+    // Face 1 is the ceiling (z = 2).
+    polys[1].material = 1;
+    let inner = box_faces(DVec3::new(0.5, 0.6, 0.3), DVec3::new(1.2, 1.3, 1.0), false);
+    polys.extend(inner.into_iter().map(|mut p| {
+        p.material = 2;
+        p
+    }));
+    scene(
+        polys,
+        vec![
+            mat("walls", [0.5, 0.6, 0.7], [0.0; 3]),
+            mat("ceiling", [0.5, 0.6, 0.7], [3.0, 2.0, 1.0]),
+            mat("box", [0.8; 3], [0.0; 3]),
+        ],
+        vec![],
+    )
+}

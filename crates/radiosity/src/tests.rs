@@ -301,9 +301,14 @@ fn adaptivity_follows_the_spots() {
             .iter()
             .map(|sp| ((c - sp.position) * DVec3::new(1.0, 1.0, 0.0)).length())
             .fold(f64::INFINITY, f64::min);
+        // Far from the spots and 1 m or more from every wall: the floor there gets only the
+        // walls' light, seen from afar, which is smooth. (Nearer a wall the floor sees the
+        // wall's light as distributed over it, bright where the spots' light reaches it: that
+        // varies, and is refined too.)
+        let inner = c.x.abs() < 2.0 && c.y.abs() < 2.0;
         if d < 1.3 {
             under.push(cell.level as f64);
-        } else if d > 2.0 {
+        } else if d > 2.0 && inner {
             flat.push(cell.level as f64);
         }
     }
@@ -398,7 +403,7 @@ fn solution_file_round_trip_and_errors() {
             k,
             P::Version {
                 found: old,
-                supported: 3
+                supported: file::FORMAT_VERSION
             }
         );
         assert!(m.contains("solve the scene again"), "{m}");
@@ -707,4 +712,37 @@ fn sampled_visibility_finds_a_wall_an_emitter_touches() {
     let (se, ss) = (solve_quiet(&exact), solve_quiet(&sampled));
     let d = polygon_difference(&sampled, &ss, &exact, &se);
     assert!(d < 1e-3, "sampled visibility moved the solution by {d}");
+}
+
+/// The energy account balances where no light can leave: on a closed room with an occluder,
+/// emitted = absorbed + unshot up to the solve's own energy error. Its parts: the quadrature
+/// of G over the leaves (Simpson's rule on elements refined to the tolerance, 1 %), the
+/// shadow-ray estimates of visibility around the box (their errors average over thousands of
+/// points), and the patches' shapes, which a far point takes as uniform and a near one
+/// resolves (each patch's error bounded by a fraction of the tolerance of what the point
+/// receives): twice the tolerance bounds their sum. (With visibility weighted by area instead
+/// of the kernel this room lost 1.4 % of its light; measured now, |lost| < 0.5 %.) On the
+/// open Cornell box (no front wall) a third of the light leaves, and the account says so.
+#[test]
+fn the_energy_account_balances_on_a_closed_scene() {
+    let s = test_scenes::closed_room_with_box();
+    let sol = solve_quiet(&s);
+    let e = sol.stats.energy;
+    for k in 0..3 {
+        let emitted = e.emitted[k];
+        // Ceiling: E times its area (4 m^2).
+        assert!((emitted - 4.0 * [3.0, 2.0, 1.0][k]).abs() < 1e-9, "{e:?}");
+        // Unshot light may be negative: a patch that shot more than it turned out to reflect.
+        assert!(e.absorbed[k] > 0.0, "{e:?}");
+        assert!(
+            e.unshot[k].abs() <= s.radiosity.convergence * emitted,
+            "{e:?}"
+        );
+        let bound = 2.0 * s.radiosity.tolerance * emitted;
+        assert!(e.lost[k].abs() < bound, "channel {k}: {e:?}");
+        assert_eq!(e.emitted[k], e.absorbed[k] + e.unshot[k] + e.lost[k]);
+    }
+    let (_, cornell) = cornell_solution();
+    let lost = cornell.stats.energy.lost_fraction();
+    assert!(lost > 0.2 && lost < 0.5, "the open box loses {lost}");
 }

@@ -11,6 +11,7 @@ mod golden;
 mod mesh;
 mod metric;
 mod mutations;
+mod physics;
 mod plan;
 mod reconstruction_scenes;
 mod render;

@@ -13,27 +13,36 @@
 //!    is below `max_depth` and its world-space size above [`min_element_size`] (see `refine`);
 //!    new vertices gather from the whole history; T-vertices stay, the tree is never balanced;
 //! 4. indirect pass: reflecting patches shoot their unshot radiosity (largest unshot power
-//!    first, each channel relative to that channel's emitted power; ties by id) until, in every
-//!    channel, the unshot power falls below `convergence` times the emitted power. These
-//!    shots go to a fixed coarse set of receiver points per polygon (the vertices of its uniform
+//!    in magnitude first, each channel relative to that channel's emitted power; ties by id)
+//!    until, in every channel, the unshot power falls below `convergence` times the emitted
+//!    power. These shots go to a fixed coarse set of receiver points per polygon (the vertices of its uniform
 //!    grid one level below its patch depth), not to every vertex: during shooting the receivers
 //!    only serve to estimate the patches' unshot power, which is smooth indirect light, and a
 //!    shot then costs O(coarse points) instead of O(vertices). Shooting goes on until the coarse
 //!    estimate is below [`SHOOT_MARGIN`] times the threshold (it runs low, and a round that ends
 //!    above the threshold costs another full gather). A patch's coarse transfers are computed
 //!    on its first shot and cached ([`CoarseCache`]), because patches shoot several times;
-//! 5. every vertex gathers G from the whole history (the oracle's computation), the trees are
-//!    refined again against it, and the unshot power is re-estimated from all vertices; if that
-//!    estimate is still above the threshold, shooting resumes (at most [`MAX_ROUNDS`] rounds);
-//! 6. a stored sample is therefore E + rho * G with G gathered from the final history, exactly
-//!    the oracle's answer, bit for bit, whatever order the shots came in.
+//! 5. the patches' unshot radiosity joins their totals (the full gather then carries it one
+//!    bounce on, instead of leaving it missing), every vertex gathers G from the whole history
+//!    (the oracle's computation), the trees are refined again against it, and the unshot power
+//!    is re-estimated from all vertices; the shape of each patch's light (`transfer::shape`:
+//!    how its radiosity varies over it) is measured from the new samples, and if that estimate
+//!    is still above the threshold or the shapes moved by more than `shapes::SHAPE_CHANGE`,
+//!    another round shoots and gathers with the new shapes (at most [`MAX_ROUNDS`] rounds);
+//! 6. a stored sample is therefore E + rho * G with G gathered from the final history and the
+//!    final shapes, exactly the oracle's answer, bit for bit, whatever order the shots came in.
 //!
-//! Unshot radiosity of a patch = rho * (integral of G over the patch) / area - total shot, with the
-//! integral taken by the trapezoid rule over the patch's leaves (the light at the fine vertices:
-//! the direct pass's, or the last full gather's) plus over its coarse cells (indirect light shot
-//! since then). It is clamped at zero
-//! per channel: a finer estimate can fall below what was already shot, and shooting negative
-//! light would create negative radiosity.
+//! Unshot radiosity of a patch = rho * (integral of G over the patch) / area - total, with the
+//! integral taken over the patch's leaves (Simpson's rule with the refinement's test points,
+//! the trapezoid rule on leaves it did not test) from the light at the fine vertices (the
+//! direct pass's, or the last full gather's), plus over its coarse cells (indirect light shot
+//! since then). It is signed: where a finer estimate falls below what a patch already shot,
+//! the patch shoots the difference back (with the estimate clamped at zero, a patch whose
+//! coarse estimate ran high kept its excess: a box's bottom 0.3 over a floor came out 9 % too
+//! bright). Totals stay >= 0: a negative shot takes a total down to the estimate, never below.
+//!
+//! An energy account (`energy`) says where the emitted power went: absorbed, unshot, and lost
+//! (left an open scene, or the discretization's own error).
 //!
 //! Progress and diagnostics go to the caller's [`Observer`](base::progress::Observer) through the
 //! solve's [`Stage`]: after every shot the distance to convergence on a log scale, and, only when
@@ -45,8 +54,8 @@
 //! the order above. What it holds per polygon (tree, vertices, G, coarse receivers, leaves) and
 //! where each polygon's patches are among the shooters is in `poly`; every shooter's unshot
 //! light, the next shooter and the unshot fraction in `unshot`; one shot and the coarse
-//! transfer cache in `shot`; the refinement passes in `refine`; the remaining-time estimate in
-//! `eta`.
+//! transfer cache in `shot`; the refinement passes in `refine`; the patches' shapes in
+//! `shapes`; the energy account in `energy`; the remaining-time estimate in `eta`.
 //!
 //! Scale: after a shot only the polygons it reached have new integrals and only their patches a
 //! new unshot power; the unshot powers live in a tournament tree (`UnshotQueue`) that gives
@@ -56,10 +65,12 @@
 //! Parallelism: rayon over receiver points (`par_iter` + `collect` in order); every float sum is
 //! done serially in a fixed order, so the result is the same for any number of threads.
 
+mod energy;
 mod eta;
 mod poly;
 mod queue;
 mod refine;
+mod shapes;
 mod shot;
 mod solver;
 mod unshot;
@@ -102,6 +113,10 @@ pub(crate) struct Outcome {
     pub totals: Vec<DVec3>,
     /// Shooter kinds in id order.
     pub kinds: Vec<ShooterKind>,
+    /// Where the emitted power went.
+    pub energy: crate::EnergyAccount,
+    /// Per shooter, the shape of its light the final gather used.
+    pub shapes: Vec<Option<crate::transfer::shape::PatchShape>>,
     /// Shots taken.
     pub shots: u64,
     /// Unshot fraction after every shot.

@@ -19,6 +19,9 @@ pub(super) struct Leaf {
     area: f64,
     /// The patch shooter it lies in (`u32::MAX` in a polygon that does not reflect).
     patch: u32,
+    /// Its cell of the polygon's domain, and its node in the tree.
+    cell: Cell,
+    node: u32,
 }
 
 /// Per-polygon solve state.
@@ -36,6 +39,10 @@ pub(super) struct Poly {
     cleaves: Vec<Leaf>,
     /// Reflectance.
     pub(super) rho: DVec3,
+    /// Leaves the last refinement pass judged and kept, sorted by cell, with G at their five
+    /// test points (centre, then the midpoints of the edges at v0, u1, v1, u0): with the
+    /// corners, the nine points of Simpson's rule on the leaf.
+    pub(super) tests: Vec<(Cell, [DVec3; 5])>,
 }
 
 /// Where each polygon's reflecting patches are among the shooters (see [`build_shooters`]):
@@ -101,6 +108,7 @@ impl Poly {
             ckeys,
             cleaves,
             rho: scene.material_of(i).reflectance,
+            tests: Vec::new(),
         }
     }
 
@@ -138,16 +146,71 @@ impl Poly {
             .max()
             .unwrap_or(first);
         out[first..=last].iter_mut().for_each(|x| *x = DVec3::ZERO);
+        let tests: &[(Cell, [DVec3; 5])] = if coarse { &[] } else { &self.tests };
         for l in leaves {
-            let avg = 0.25 * l.corners.iter().map(|&c| g[c as usize]).sum::<DVec3>();
-            out[l.patch as usize] += l.area * avg;
+            out[l.patch as usize] += leaf_integral(l, g, tests);
         }
+    }
+
+    /// The integral of G over every node of the tree: Simpson's rule (or the trapezoid rule) on
+    /// each leaf, the sum of its children's for an interior node. Indexed by node id.
+    pub(super) fn node_integrals(&self) -> Vec<DVec3> {
+        let nodes = self.tree.nodes();
+        let mut out = vec![DVec3::ZERO; nodes.len()];
+        for l in &self.leaves {
+            out[l.node as usize] = leaf_integral(l, &self.g, &self.tests);
+        }
+        // Children come after their parent in node order.
+        for i in (0..nodes.len()).rev() {
+            let n = nodes[i];
+            if !n.is_leaf() {
+                let f = n.first_child as usize;
+                out[i] = out[f] + out[f + 1] + out[f + 2] + out[f + 3];
+            }
+        }
+        out
+    }
+
+    /// The integral over the polygon of the values `g` (one per key), by the trapezoid rule on
+    /// its leaves.
+    pub(super) fn integral_of(&self, g: &[DVec3]) -> DVec3 {
+        self.leaves.iter().map(|l| leaf_integral(l, g, &[])).sum()
+    }
+
+    /// The integral of G over the polygon, Simpson's rule on the leaves the refinement kept.
+    pub(super) fn integral(&self) -> DVec3 {
+        self.leaves
+            .iter()
+            .map(|l| leaf_integral(l, &self.g, &self.tests))
+            .sum()
     }
 
     /// Forgets the light shot to the coarse receivers (a full gather has superseded it).
     pub(super) fn clear_coarse(&mut self) {
         self.cg.iter_mut().for_each(|g| *g = DVec3::ZERO);
     }
+}
+
+/// The integral over leaf `l` of the values `g` at its corners: Simpson's rule (corners 1/36,
+/// edge midpoints 4/36, centre 16/36 of the area) when `tests` holds G at its test points, the
+/// trapezoid rule otherwise. Simpson's rule is exact for a biquadratic light; the trapezoid
+/// rule misses a bump's curvature: under a lamp the light is concave at its top, and the
+/// trapezoid rule put 1-3 % less reflected light into the patches than there is.
+fn leaf_integral(l: &Leaf, g: &[DVec3], tests: &[(Cell, [DVec3; 5])]) -> DVec3 {
+    let corners = l.corners.iter().map(|&c| g[c as usize]).sum::<DVec3>();
+    match tests.binary_search_by(|(c, _)| cell_order(*c).cmp(&cell_order(l.cell))) {
+        Ok(i) => {
+            let t = &tests[i].1;
+            let mids = t[1] + t[2] + t[3] + t[4];
+            l.area * (corners + 4.0 * mids + 16.0 * t[0]) / 36.0
+        }
+        Err(_) => l.area * 0.25 * corners,
+    }
+}
+
+/// The order `Poly::tests` is sorted in.
+pub(super) fn cell_order(c: Cell) -> (u32, u32, u32) {
+    (c.level, c.y, c.x)
 }
 
 /// A quadtree split uniformly to `depth`.
@@ -183,6 +246,8 @@ fn leaves_of(
                 corners: cell.corners().map(idx),
                 area: sub_area(poly, cell),
                 patch: patches.patch_at(i, cell),
+                cell,
+                node: id,
             }
         })
         .collect()

@@ -5,7 +5,7 @@
 use glam::DVec3;
 use rayon::prelude::*;
 
-use super::poly::{PatchLayout, Poly};
+use super::poly::{cell_order, PatchLayout, Poly};
 use super::{lum, memory_error, state_bytes};
 use crate::transfer::{PairClass, ShooterKind, Transfer};
 use base::error::{human_bytes, Result};
@@ -51,14 +51,42 @@ pub(super) fn refine(
     let mut pass = Refinement::new(scene, tr, polys, totals, memory_limit);
     let mut pending = pass.splittable_leaves(polys);
     let mut splits = 0;
+    for p in polys.iter_mut() {
+        p.tests.clear();
+    }
     while !pending.is_empty() {
         let probes = pass.probe(polys, &pending);
         let split_now = pass.leaves_to_split(polys, &pending, &probes);
+        keep_tests(polys, &pending, &split_now, &probes);
         pass.memory.admit(scene, split_now.len() as u64)?;
         splits += split_now.len();
         pending = pass.split(polys, &split_now, &probes, patches);
     }
+    for p in polys.iter_mut() {
+        p.tests.sort_unstable_by_key(|(c, _)| cell_order(*c));
+    }
     Ok(splits)
+}
+
+/// Keeps G at the test points of the `pending` leaves that do not split (`split_now` is a
+/// subsequence of `pending`): the patches' integrals use them (Simpson's rule).
+fn keep_tests(
+    polys: &mut [Poly],
+    pending: &[(u32, u32)],
+    split_now: &[(u32, u32)],
+    probes: &Probes,
+) {
+    let mut k = 0;
+    for &(r, id) in pending {
+        if k < split_now.len() && split_now[k] == (r, id) {
+            k += 1;
+            continue;
+        }
+        let p = &polys[r as usize];
+        let cell = p.tree.node(id).cell;
+        let g = test_points(cell).map(|t| probes.g_at(p, r, t));
+        polys[r as usize].tests.push((cell, g));
+    }
 }
 
 /// One refinement pass: what judges the leaves, and the memory guard.

@@ -8,12 +8,15 @@ use std::time::Instant;
 use glam::DVec3;
 use rayon::prelude::*;
 
+use super::energy;
 use super::eta::Eta;
 use super::poly::{PatchLayout, Poly};
 use super::refine::refine;
+use super::shapes;
 use super::shot::{shoot, CoarseCache};
 use super::unshot::{self, Unshot};
 use super::{elapsed_ms, memory_error, state_bytes, Outcome, MAX_ROUNDS, SHOOT_MARGIN};
+use crate::transfer::shape::PatchShape;
 use crate::transfer::{PairClass, ShooterKind, Transfer};
 use base::error::{human_bytes, Result};
 use base::progress::Stage;
@@ -199,6 +202,7 @@ impl<'a, 't, 'o> Solver<'a, 't, 'o> {
             self.indirect_shot(s, target)?;
         }
         self.trace_shooting_done();
+        self.flush_unshot()?;
         self.gather();
         self.eta.phase_start();
         self.trace(|sv| format!("  gather done {:.0} ms", elapsed_ms(sv.clock.start)));
@@ -214,7 +218,28 @@ impl<'a, 't, 'o> Solver<'a, 't, 'o> {
                 sv.rays()
             )
         });
-        Ok(self.fraction < self.convergence || self.shots >= self.max_shots)
+        if self.shots >= self.max_shots {
+            return Ok(true);
+        }
+        // The shapes the samples imply; if they differ from those gathered with, another
+        // round gathers with them (the last round's shapes are the ones kept).
+        let new = shapes::measure(self.scene, self.tr, &self.polys, &self.patches);
+        let change = shapes::change(self.tr, &new, &self.totals);
+        self.trace(|_| format!("  shapes change {change:.4}"));
+        if self.fraction < self.convergence && change <= shapes::SHAPE_CHANGE {
+            return Ok(true);
+        }
+        if self.round < MAX_ROUNDS {
+            self.install_shapes(new);
+        }
+        Ok(false)
+    }
+
+    /// Gathers from now on distribute each patch's light by its shape in `new`.
+    fn install_shapes(&mut self, new: Vec<(usize, Option<PatchShape>)>) {
+        for (s, shape) in new {
+            self.tr.set_shape(s, shape);
+        }
     }
 
     /// Patch `s` shoots its unshot radiosity to the coarse receivers (building its pair table
@@ -383,8 +408,9 @@ impl<'a, 't, 'o> Solver<'a, 't, 'o> {
         }
     }
 
-    /// Unshot radiosity of patch `s`: rho * (fine + coarse integral) / area - total, clamped at
-    /// zero per channel (see the module doc).
+    /// Unshot radiosity of patch `s`: rho * (fine + coarse integral) / area - total, per
+    /// channel, negative where the patch has shot more than the latest estimate says it
+    /// reflects (see the module doc).
     fn patch_unshot(&self, s: usize) -> DVec3 {
         let sg = &self.tr.shooters[s];
         let ShooterKind::Patch { polygon, .. } = sg.kind else {
@@ -396,7 +422,29 @@ impl<'a, 't, 'o> Solver<'a, 't, 'o> {
         } else {
             DVec3::ZERO
         };
-        (b - self.totals[s]).max(DVec3::ZERO)
+        b.max(DVec3::ZERO) - self.totals[s]
+    }
+
+    /// Every patch's unshot radiosity joins its total, as if shot: the full gather that
+    /// follows then carries it one bounce to every vertex (a Jacobi step on the patches'
+    /// latest estimates, Gauss-Seidel shooting's remainder included), so a round ends with the
+    /// light the coarse shots left unshot one bounce further on instead of missing it. The
+    /// totals become the latest estimates of the patches' reflected radiosity, >= 0.
+    /// A patch that never shot gets its pair table here (with the memory guard).
+    fn flush_unshot(&mut self) -> Result<()> {
+        for s in 0..self.totals.len() {
+            if matches!(self.tr.shooters[s].kind, ShooterKind::Patch { .. }) {
+                let u = self.unshot.radiosity[s];
+                if u != DVec3::ZERO {
+                    if self.tr.pairs[s].is_none() {
+                        self.add_pair_table(s)?;
+                    }
+                    self.totals[s] = (self.totals[s] + u).max(DVec3::ZERO);
+                    self.unshot.set(self.tr, s, DVec3::ZERO);
+                }
+            }
+        }
+        Ok(())
     }
 
     /// Reports the distance to convergence of unshot fraction `fraction` on a log scale (the
@@ -454,7 +502,23 @@ impl<'a, 't, 'o> Solver<'a, 't, 'o> {
 
     /// The trees with their gathered G, and the history.
     fn into_outcome(self) -> Outcome {
+        let energy = energy::account(
+            self.tr,
+            &self.polys,
+            &self.totals,
+            self.unshot.emitted3,
+            self.unshot.power3(self.tr),
+        );
+        self.trace(|_| {
+            let e = &energy;
+            format!(
+                "energy (W, r g b): emitted {:.4} {:.4} {:.4}, absorbed {:.4} {:.4} {:.4}, unshot {:.4} {:.4} {:.4}, lost {:.4} {:.4} {:.4}",
+                e.emitted.x, e.emitted.y, e.emitted.z, e.absorbed.x, e.absorbed.y, e.absorbed.z,
+                e.unshot.x, e.unshot.y, e.unshot.z, e.lost.x, e.lost.y, e.lost.z
+            )
+        });
         Outcome {
+            energy,
             trees: self
                 .polys
                 .into_iter()
@@ -462,6 +526,9 @@ impl<'a, 't, 'o> Solver<'a, 't, 'o> {
                 .collect(),
             totals: self.totals,
             kinds: self.tr.shooters.iter().map(|s| s.kind).collect(),
+            shapes: (0..self.tr.shooters.len())
+                .map(|s| self.tr.shape(s).cloned())
+                .collect(),
             shots: self.shots,
             history: self.history,
             unshot: self.fraction,

@@ -20,6 +20,8 @@ pub(super) struct Unshot {
     /// Per channel: one over the emitted power, 0 for a channel nothing emits in (it needs no
     /// shooting).
     inv_emitted: [f64; 3],
+    /// Emitted power per channel (W).
+    pub(super) emitted3: DVec3,
 }
 
 impl Unshot {
@@ -54,6 +56,7 @@ impl Unshot {
             queue: UnshotQueue::new(ns),
             emitted,
             inv_emitted,
+            emitted3,
         };
         for s in 0..ns {
             unshot.enqueue(tr, s);
@@ -71,7 +74,7 @@ impl Unshot {
     /// that power relative to the channel's emitted power (so the channel furthest from
     /// convergence is served first).
     fn enqueue(&mut self, tr: &Transfer<'_>, s: usize) {
-        let p = power3(tr, s, self.radiosity[s]);
+        let p = power3(tr, s, self.radiosity[s]).abs();
         let f = self.fractions(p);
         self.queue.set(s, p, f.x + f.y + f.z);
     }
@@ -89,6 +92,13 @@ impl Unshot {
             return 0.0;
         }
         self.fractions(self.queue.total()).max_element()
+    }
+
+    /// Unshot power per channel (W), summed over shooters in id order.
+    pub(super) fn power3(&self, tr: &Transfer<'_>) -> DVec3 {
+        (0..self.radiosity.len())
+            .map(|s| power3(tr, s, self.radiosity[s]))
+            .sum()
     }
 
     /// The next shooter: the largest key (see `enqueue`), ties by the smaller id; none when

@@ -74,20 +74,37 @@ fn visibility_counts_only_shooter_points_in_front_of_the_receiver() {
                     if f <= 1e-9 {
                         continue;
                     }
-                    let behind = sg.samples.iter().any(|&(y, _)| n.dot(y - x) <= 0.0);
-                    let front = sg.samples.iter().any(|&(y, _)| n.dot(y - x) > 0.0);
+                    let first: Vec<(DVec3, f64)> = tr
+                        .targets(s, x, 0, false)
+                        .map(|(y, w, _, _)| (y, w))
+                        .collect();
+                    let behind = first.iter().any(|&(y, _)| n.dot(y - x) <= 0.0);
+                    let front = first.iter().any(|&(y, _)| n.dot(y - x) > 0.0);
                     straddling += usize::from(behind && front);
-                    let (mut seen, mut total) = (0.0, 0.0);
-                    for &(y, w) in &sg.samples {
-                        if n.dot(y - x) <= 0.0 {
-                            continue;
+                    let pass = |k: u64| {
+                        let (mut seen, mut total) = (0.0, 0.0);
+                        for (y, w, _, _) in tr.targets(s, x, k, false) {
+                            let w = w * kernel(x, n, y, sg.normal);
+                            if w <= 0.0 {
+                                continue;
+                            }
+                            total += w;
+                            if !tr.bvh.occluded(x, y, r as u32, sg.polygon) {
+                                seen += w;
+                            }
                         }
-                        total += w;
-                        if !tr.bvh.occluded(x, y, r as u32, sg.polygon) {
-                            seen += w;
+                        (seen, total)
+                    };
+                    let (mut seen, mut total) = pass(0);
+                    let emitter = matches!(sg.kind, ShooterKind::Emitter { .. });
+                    if emitter && seen > 0.0 && seen < total {
+                        for k in 1..PENUMBRA_PASSES {
+                            let (a, b) = pass(k);
+                            seen += a;
+                            total += b;
                         }
                     }
-                    let vis = if front { seen / total } else { 1.0 };
+                    let vis = if total > 0.0 { seen / total } else { 1.0 };
                     assert_eq!(
                         tr.transfer(s, r, u, v),
                         DVec3::splat(f * vis),
@@ -139,15 +156,101 @@ fn patches_cast_fewer_rays_than_emitters() {
     for sg in &tr.shooters {
         match sg.kind {
             ShooterKind::Emitter { .. } => {
-                assert_eq!(sg.samples.len(), n);
+                assert_eq!(sg.strata.len(), n);
                 kinds.0 += 1;
             }
             ShooterKind::Patch { .. } => {
-                assert_eq!(sg.samples.len(), patch_rays(n));
+                assert_eq!(sg.strata.len(), patch_rays(n));
                 kinds.1 += 1;
             }
-            ShooterKind::Spot { .. } => assert!(sg.samples.is_empty()),
+            ShooterKind::Spot { .. } => assert!(sg.strata.is_empty()),
         }
     }
     assert!(kinds.0 > 0 && kinds.1 > 0);
+}
+
+/// The exact kernel-weighted visible fraction of an axis-aligned box-shaped occluder between a
+/// floor point `x` (facing +z) and the ceiling square [0, 2]^2 at z = 2 (facing -z), by a
+/// 256 x 256 midpoint grid over the ceiling.
+fn exact_visible_fraction(x: DVec3, lo: DVec3, hi: DVec3) -> f64 {
+    let blocked = |y: DVec3| {
+        let d = y - x;
+        let (mut t0, mut t1) = (0.0f64, 1.0f64);
+        for k in 0..3 {
+            if d[k].abs() < 1e-15 {
+                if x[k] < lo[k] || x[k] > hi[k] {
+                    return false;
+                }
+                continue;
+            }
+            let (a, b) = ((lo[k] - x[k]) / d[k], (hi[k] - x[k]) / d[k]);
+            t0 = t0.max(a.min(b));
+            t1 = t1.min(a.max(b));
+        }
+        t0 <= t1
+    };
+    let m = 256;
+    let (mut seen, mut total) = (0.0, 0.0);
+    for i in 0..m {
+        for j in 0..m {
+            let y = DVec3::new(
+                2.0 * (i as f64 + 0.5) / m as f64,
+                2.0 * (j as f64 + 0.5) / m as f64,
+                2.0,
+            );
+            let k = kernel(x, DVec3::Z, y, -DVec3::Z);
+            total += k;
+            if !blocked(y) {
+                seen += k;
+            }
+        }
+    }
+    seen / total
+}
+
+/// Visibility is the kernel-weighted visible fraction of the light (what F x V needs), without
+/// banding: on the floor of a closed room lit by its ceiling, with a box floating over the
+/// floor, the solver's estimate at 200 points across the box's penumbra has no bias (mean
+/// error within 0.01: an area-weighted fraction was 0.07-0.12 low beside the box, the solver
+/// lost 1.5 % of the light) and an RMS error of at most 0.025 (16 stratified rays rotated per
+/// point, four times as many in a penumbra: measured 0.018; one fixed set of 16 rays for every
+/// point moved in steps of about 1/16 that lined up into bands: 0.031).
+#[test]
+fn visibility_is_kernel_weighted_and_not_banded() {
+    let scene = crate::test_scenes::closed_room_with_box();
+    let mut tr = Transfer::new(&scene);
+    let emitter = (0..tr.shooters.len())
+        .find(|&s| matches!(tr.shooters[s].kind, ShooterKind::Emitter { .. }))
+        .expect("the ceiling emits");
+    tr.ensure_pairs(emitter);
+    let floor = 0;
+    assert!(scene.polygons[floor].normal.z > 0.9);
+    let (lo, hi) = (DVec3::new(0.5, 0.6, 0.3), DVec3::new(1.2, 1.3, 1.0));
+    let (mut sum, mut sum2, mut n) = (0.0, 0.0, 0);
+    let mut penumbra = 0;
+    for k in 0..200 {
+        // A line across the floor at y = 0.95, from x = 0.05 to 1.95.
+        let x = DVec3::new(0.05 + 1.9 * k as f64 / 199.0, 0.95, 0.0);
+        let (u, v) = (x.x / 2.0, x.y / 2.0);
+        let (u, v) = if scene.polygons[floor].point(u, v).distance(x) < 1e-9 {
+            (u, v)
+        } else {
+            (v, u)
+        };
+        let p = tr.receiver(floor, u, v);
+        assert!(p.distance(x) < 1e-5, "{p} vs {x}");
+        let (_, vis) = tr.shadowed_with(emitter, floor, tr.pair_of(emitter, floor), u, v, false);
+        let exact = exact_visible_fraction(p, lo, hi);
+        if exact > 0.02 && exact < 0.98 {
+            penumbra += 1;
+        }
+        let e = vis - exact;
+        sum += e;
+        sum2 += e * e;
+        n += 1;
+    }
+    assert!(penumbra > 100, "the line crosses the penumbra: {penumbra}");
+    let (mean, rms) = (sum / n as f64, (sum2 / n as f64).sqrt());
+    assert!(mean.abs() < 0.01, "bias {mean}");
+    assert!(rms < 0.025, "rms {rms}");
 }

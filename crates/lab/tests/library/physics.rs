@@ -1,0 +1,225 @@
+//! The solver against physics: its per-polygon means (`radiosity::face_means`) against the
+//! independent path tracer's (`truth::polygons`), on scenes where the bias the solver used to
+//! have showed: one bounce between perpendicular surfaces, a box floating over a floor in a
+//! closed room, and the Cornell box. A check passes when the solver is within the stated
+//! fraction of the truth, plus three of the truth's standard errors (its noise).
+
+use std::path::Path;
+
+use glam::DVec3;
+
+use base::progress::SILENT;
+use radiosity::{face_means, solve, SolveOptions};
+use truth::TruthOptions;
+
+fn lum(c: DVec3) -> f64 {
+    0.2126 * c.x + 0.7152 * c.y + 0.0722 * c.z
+}
+
+/// A ratio solver / truth and the truth's relative standard error.
+type Ratio = (f64, f64);
+
+/// Per polygon: (solver total / truth total, the truth's relative standard error), and the
+/// same for the indirect part (reflected light that bounced before), in luminance.
+fn ratios(scene: &scene::Scene, samples: u64) -> Vec<(Ratio, Ratio)> {
+    let sol = solve(scene, &SolveOptions::default()).expect("solves");
+    let ours = face_means(&sol, scene).expect("means");
+    let mut opts = TruthOptions::new(scene);
+    opts.samples_per_polygon = samples;
+    let truth = truth::polygons(scene, &opts, &SILENT).expect("traces");
+    ours.iter()
+        .zip(&truth)
+        .map(|(o, t)| {
+            let total = (
+                lum(o.total) / lum(t.radiosity),
+                lum(t.radiosity_se) / lum(t.radiosity),
+            );
+            let ours_indirect = o.total - o.direct;
+            let ind = if lum(t.indirect) > 0.0 {
+                (
+                    lum(ours_indirect) / lum(t.indirect),
+                    lum(t.indirect_se) / lum(t.indirect),
+                )
+            } else {
+                (1.0, 0.0)
+            };
+            (total, ind)
+        })
+        .collect()
+}
+
+fn check(name: &str, r: &[(Ratio, Ratio)], total_tol: f64, indirect_tol: f64) {
+    for (i, ((t, tse), (ind, ise))) in r.iter().enumerate() {
+        assert!(
+            (t - 1.0).abs() <= total_tol + 3.0 * tse,
+            "{name}: polygon {i}: solver / truth {t:.4} (truth's relative SE {tse:.4})"
+        );
+        assert!(
+            (ind - 1.0).abs() <= indirect_tol + 3.0 * ise,
+            "{name}: polygon {i}: indirect solver / truth {ind:.4} (SE {ise:.4})"
+        );
+    }
+}
+
+/// A floor, a wall along one of its edges and a lamp above: the wall's light on the floor and
+/// the floor's on the wall are one bounce between perpendicular, adjacent surfaces. It was
+/// 2.6-2.9 % low (reflecting patches taken as uniform, the unshot remainder never shot);
+/// measured now within 0.3 %.
+#[test]
+fn one_bounce_between_a_floor_and_a_wall_matches_the_path_tracer() {
+    let scene = scene::parse_scene(ONE_BOUNCE, Path::new("one-bounce.toml")).expect("scene");
+    let r = ratios(&scene, 65_536);
+    check("one bounce", &r, 0.01, 0.015);
+}
+
+/// A closed room lit by its ceiling with a box floating 0.3 over the floor: the floor under
+/// the box and the box's bottom light each other. Visibility weighted by area instead of the
+/// kernel lost 1.5 % of the ceiling's light around the box; patches shooting more than they
+/// turned out to reflect (unshot light clamped at zero) made the box's bottom 9 % too bright.
+/// Measured now: every face within 0.8 %, but the box's bottom +4.5 % (its light depends on
+/// the floor right under it through a 0.3 gap, and the solve stops at a global 1 %
+/// convergence that leaves it; 1.9 % at convergence 0.001).
+#[test]
+fn a_box_over_a_floor_in_a_closed_room_matches_the_path_tracer() {
+    let scene = scene::parse_scene(&closed_room(), Path::new("closed-room.toml")).expect("scene");
+    let r = ratios(&scene, 16_384);
+    let (bottom, rest): (Vec<_>, Vec<_>) = r.iter().enumerate().partition(|(i, _)| *i == 6);
+    check(
+        "closed room",
+        &rest.into_iter().map(|(_, x)| *x).collect::<Vec<_>>(),
+        0.015,
+        0.02,
+    );
+    check("box bottom", &[*bottom[0].1], 0.06, 0.06);
+}
+
+/// The Cornell box as shipped (its two repeated faces counted once): every face within 4.5 %
+/// of the path tracer, the walls, floor and ceiling within 2 %. Measured at the scene's own
+/// settings: walls, floor and ceiling 0.986-1.004, the boxes' faces 0.961-1.028 (before the
+/// shapes, the kernel-weighted visibility and the duplicates' merge: 0.903-1.346).
+#[test]
+fn the_cornell_box_matches_the_path_tracer_face_by_face() {
+    let path = Path::new(crate::REPO).join("scenes/cornell-box.toml");
+    let scene = scene::load_scene(&path).expect("scene");
+    let r = ratios(&scene, 16_384);
+    let (boxes, room): (Vec<_>, Vec<_>) = r
+        .iter()
+        .enumerate()
+        .partition(|(i, _)| (6..=15).contains(i));
+    check(
+        "cornell room",
+        &room.into_iter().map(|(_, x)| *x).collect::<Vec<_>>(),
+        0.02,
+        0.04,
+    );
+    check(
+        "cornell boxes",
+        &boxes.into_iter().map(|(_, x)| *x).collect::<Vec<_>>(),
+        0.045,
+        0.06,
+    );
+}
+
+const ONE_BOUNCE: &str = r#"
+[camera]
+eye = [3.0, 1.0, 2.0]
+look_at = [1.0, 1.0, 0.5]
+up = [0.0, 0.0, 1.0]
+fov_y = 60.0
+
+[image]
+width = 32
+height = 32
+
+[[materials]]
+name = "floor"
+reflectance = [0.5, 0.5, 0.5]
+[[materials]]
+name = "wall"
+reflectance = [0.8, 0.8, 0.8]
+[[materials]]
+name = "lamp"
+reflectance = [0.0, 0.0, 0.0]
+emission = [10.0, 10.0, 10.0]
+
+[[polygons]]
+name = "floor"
+material = "floor"
+vertices = [[0.0, 0.0, 0.0], [2.0, 0.0, 0.0], [2.0, 2.0, 0.0], [0.0, 2.0, 0.0]]
+
+[[polygons]]
+name = "wall"
+material = "wall"
+vertices = [[0.0, 0.0, 0.0], [0.0, 2.0, 0.0], [0.0, 2.0, 2.0], [0.0, 0.0, 2.0]]
+
+[[polygons]]
+name = "lamp"
+material = "lamp"
+vertices = [[0.75, 0.75, 1.5], [0.75, 1.25, 1.5], [1.25, 1.25, 1.5], [1.25, 0.75, 1.5]]
+"#;
+
+/// The closed room: a 2 m cube (inward faces, rho 0.5 0.6 0.7) whose ceiling emits 3 2 1, and
+/// a box (outward faces, rho 0.8) from (0.5, 0.6, 0.3) to (1.2, 1.3, 1.0). Polygon 6 is the
+/// box's bottom.
+fn closed_room() -> String {
+    let mut s = String::from(
+        "[camera]\neye = [1.0, 1.0, 0.2]\nlook_at = [1.0, 1.0, 1.0]\nup = [0.0, 1.0, 0.0]\n\
+         fov_y = 60.0\n\n[image]\nwidth = 32\nheight = 32\n\n\
+         [[materials]]\nname = \"walls\"\nreflectance = [0.5, 0.6, 0.7]\n\
+         [[materials]]\nname = \"ceiling\"\nreflectance = [0.5, 0.6, 0.7]\nemission = [3.0, 2.0, 1.0]\n\
+         [[materials]]\nname = \"box\"\nreflectance = [0.8, 0.8, 0.8]\n\n",
+    );
+    let room = box_faces([0.0; 3], [2.0; 3], true);
+    for (k, f) in room.iter().enumerate() {
+        let m = if k == 1 { "ceiling" } else { "walls" };
+        s += &polygon(&format!("room{k}"), m, f);
+    }
+    for (k, f) in box_faces([0.5, 0.6, 0.3], [1.2, 1.3, 1.0], false)
+        .iter()
+        .enumerate()
+    {
+        s += &polygon(&format!("box{k}"), "box", f);
+    }
+    s
+}
+
+fn polygon(name: &str, material: &str, c: &[[f64; 3]; 4]) -> String {
+    let v: Vec<String> = c
+        .iter()
+        .map(|p| format!("[{}, {}, {}]", p[0], p[1], p[2]))
+        .collect();
+    format!(
+        "[[polygons]]\nname = \"{name}\"\nmaterial = \"{material}\"\nvertices = [{}]\n\n",
+        v.join(", ")
+    )
+}
+
+/// The box [lo, hi]'s faces in the order z = lo, z = hi, x = lo, x = hi, y = lo, y = hi, each
+/// wound to face inwards or outwards.
+fn box_faces(lo: [f64; 3], hi: [f64; 3], inward: bool) -> Vec<[[f64; 3]; 4]> {
+    let [x0, y0, z0] = lo;
+    let [x1, y1, z1] = hi;
+    let faces = [
+        [[x0, y0, z0], [x1, y0, z0], [x1, y1, z0], [x0, y1, z0]],
+        [[x0, y0, z1], [x1, y0, z1], [x1, y1, z1], [x0, y1, z1]],
+        [[x0, y0, z0], [x0, y1, z0], [x0, y1, z1], [x0, y0, z1]],
+        [[x1, y0, z0], [x1, y1, z0], [x1, y1, z1], [x1, y0, z1]],
+        [[x0, y0, z0], [x1, y0, z0], [x1, y0, z1], [x0, y0, z1]],
+        [[x0, y1, z0], [x1, y1, z0], [x1, y1, z1], [x0, y1, z1]],
+    ];
+    let c = DVec3::from(lo).lerp(DVec3::from(hi), 0.5);
+    faces
+        .into_iter()
+        .map(|f| {
+            let p = f.map(DVec3::from);
+            let n = (p[1] - p[0]).cross(p[2] - p[0]);
+            let centre = 0.25 * (p[0] + p[1] + p[2] + p[3]);
+            let want = if inward { c - centre } else { centre - c };
+            if n.dot(want) < 0.0 {
+                [f[3], f[2], f[1], f[0]]
+            } else {
+                f
+            }
+        })
+        .collect()
+}
