@@ -49,7 +49,7 @@ fn check_cornell_warns_on_stderr_and_exits_0() {
     assert!(stderr.contains("split into two triangles"), "{stderr}");
     let stdout = text(&out.stdout);
     assert!(
-        stdout.contains("polygons        19 (17 quads, 2 triangles)"),
+        stdout.contains("polygons        17 (15 quads, 2 triangles)"),
         "{stdout}"
     );
     assert!(stdout.contains("emitters        1 polygons"), "{stdout}");
@@ -200,7 +200,7 @@ fn memory_requests_over_the_limit_are_refused_with_the_estimate() {
         assert_eq!(out.status.code(), Some(2), "{cmd:?}: {}", text(&out.stderr));
         let stderr = text(&out.stderr);
         assert!(
-            stderr.contains("needs an estimated 1.2 TiB (quadtrees and samples"),
+            stderr.contains("needs an estimated 2.4 TiB (quadtrees and samples"),
             "{cmd:?}: {stderr}"
         );
     }

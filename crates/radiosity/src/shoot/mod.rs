@@ -156,10 +156,20 @@ pub(crate) fn run_with_cache(
     Solver::new(scene, tr, stage, cache_entries, memory_limit).solve()
 }
 
-/// Bytes the solve holds per quadtree node: the node and one leaf record (a leaf is counted
-/// with every node, an upper bound: a tree has about 3/4 as many leaves as nodes).
-pub(crate) const NODE_BYTES: u64 =
-    (std::mem::size_of::<base::quadtree::Node>() + std::mem::size_of::<poly::Leaf>()) as u64;
+/// Bytes the solve holds per quadtree node: the node, one leaf record with G at its five test
+/// points (a leaf is counted with every node, an upper bound: a tree has about 3/4 as many
+/// leaves as nodes), and the node's copy in its patch's shape (node, mean weight and area,
+/// leaf index, leaf weight: a shape is the polygon's tree under the patch).
+pub(crate) const NODE_BYTES: u64 = (std::mem::size_of::<base::quadtree::Node>()
+    + std::mem::size_of::<poly::Leaf>()
+    + std::mem::size_of::<(base::quadtree::Cell, [DVec3; 5])>()
+    + SHAPE_NODE_BYTES) as u64;
+
+/// Bytes a patch's shape holds per node of its tree (see [`NODE_BYTES`]).
+const SHAPE_NODE_BYTES: usize = std::mem::size_of::<base::quadtree::Node>()
+    + std::mem::size_of::<(DVec3, f64)>()
+    + std::mem::size_of::<u32>()
+    + 12;
 
 /// Bytes the solve holds per sample (vertex): its key, its gathered G (f64 RGB) and the RGB
 /// `f32` radiosity of the solution it becomes.

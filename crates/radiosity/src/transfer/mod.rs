@@ -14,9 +14,8 @@
 //!
 //! Invariants and why:
 //! - visibility depends only on (receiver point, shooter): the shadow-ray targets of a shooter are
-//!   a stratified set seeded by (scene seed, shooter id) (see [`shooter_strata`]), rotated by an
-//!   offset seeded by the receiver point ([`Transfer::targets`]), never by a thread or the order
-//!   of shots;
+//!   a stratified set seeded by (scene seed, shooter id) (see [`shooter_strata`]) and its fixed
+//!   rotations ([`Transfer::targets`]), never a thread or the order of shots;
 //! - receiver points are the polygon's parametric points pulled inside the domain by
 //!   [`EDGE_INSET`], so a point on an edge shared with a perpendicular wall sees that wall as the
 //!   limit from inside the polygon does (the exact edge point would see it edge-on, F = 0);
@@ -111,11 +110,14 @@ pub(crate) struct ShooterGeom {
 /// `n` stratified (Latin hypercube) positions in the unit square, from a stream seeded by
 /// (scene seed, shooter id) only: one per row and one per column of an n x n grid, jittered.
 ///
-/// A receiver point rotates the set toroidally by an offset of its own ([`Transfer::targets`];
-/// Cranley and Patterson 1976), which keeps it stratified. With one fixed set for every
-/// receiver, visibility moved in steps of 1/n across a penumbra, and the steps lined up into
-/// bands; rotated per point, the estimate is unbiased at every point and its error is
-/// stratified noise, not a pattern.
+/// Every receiver point uses the same set, so visibility is a coherent function of the point
+/// (it changes only where a target's shadow boundary is crossed): the refinement follows real
+/// shadow edges, not per-point noise, and the result is the same at any scale. Its steps are
+/// the price: with one set of 16, visibility moved in steps of 1/16 across a penumbra, which
+/// lined up into bands. An emitter therefore casts [`PENUMBRA_PASSES`] sets where the first
+/// is partly blocked, each rotated toroidally by an offset of its own (Cranley and Patterson
+/// 1976; a rotated Latin hypercube is still stratified): steps of 1/64 there, at four times
+/// the rays only where the visible fraction is between 0 and 1.
 pub(crate) fn shooter_strata(n: usize, seed: u64, id: usize) -> Vec<(f64, f64)> {
     let mut rng = Rng::new(seed_of(&[seed, id as u64]));
     let mut perm: Vec<u32> = (0..n as u32).collect();
@@ -149,12 +151,13 @@ pub(crate) fn target(p: &Polygon, bounds: (f64, f64, f64, f64), su: f64, sv: f64
 }
 
 /// An emitter's visibility from a point in its penumbra (some of its rays blocked, some not)
-/// is estimated from this many rotated passes of its sample set, so direct light, where shadows
-/// are sharp and seen, gets four times the rays where the visible fraction is between 0 and 1.
+/// is estimated from this many rotations of its sample set (see [`shooter_strata`]): direct
+/// light, where shadows are sharp and seen, gets four times the rays where the visible
+/// fraction is between 0 and 1.
 pub(crate) const PENUMBRA_PASSES: u64 = 4;
 
 /// How a visible fraction is sampled: the shape weighting the rays (a shaped patch's), and
-/// whether the rays are the shooter's fixed set ([`Transfer::shadowed`]).
+/// whether only the shooter's first set is cast ([`Transfer::shadowed`]).
 pub(crate) type Sampling<'s> = (Option<&'s PatchShape>, bool);
 
 /// Divisor of the shadow-ray count for reflecting patches, see [`patch_rays`].
@@ -579,10 +582,9 @@ impl<'a> Transfer<'a> {
     /// one ray). `transfer` is their product. Used by refinement to find elements that a shadow
     /// boundary crosses. Requires [`Transfer::ensure_pairs`] for `s`.
     ///
-    /// Its rays go to the shooter's fixed stratified set, not rotated per point: what the
-    /// refinement compares across a leaf's points is then a function of the shadow's geometry,
-    /// not of per-point sampling noise (which would split every leaf of a penumbra to the
-    /// depth limit).
+    /// It casts only the shooter's first set, without the penumbra's extra passes: what the
+    /// refinement compares across a leaf's points is then one coherent function of the
+    /// shadow's geometry.
     pub(crate) fn shadowed(&self, s: usize, r: usize, u: f64, v: f64) -> (DVec3, f64) {
         self.shadowed_with(s, r, self.pair_of(s, r), u, v, true)
     }
@@ -651,7 +653,7 @@ impl<'a> Transfer<'a> {
 
     /// The visible fraction of shooter `s` from point `x` given the pair's occluder candidates
     /// `cands` ([`Transfer::visible_fraction`]), sampled as `how` says (a shape weighting the
-    /// rays, the shooter's fixed set or rays rotated per point). Candidates that cannot meet
+    /// rays, and whether only the first set is cast). Candidates that cannot meet
     /// the pyramid from `x` over the shooter are dropped first (no ray can hit them); with none
     /// left, visibility is 1 without rays.
     pub(crate) fn visibility_weighted(
@@ -771,7 +773,7 @@ impl<'a> Transfer<'a> {
         let ns = self.shooters[s].normal;
         let pass = |k: u64| {
             let (mut seen, mut total) = (0.0, 0.0);
-            for (y, w, su, sv) in self.targets(s, x, k, coherent) {
+            for (y, w, su, sv) in self.targets(s, k) {
                 let w = w * kernel(x, n, y, ns) * shape::shape_weight(shape, su, sv);
                 if w <= 0.0 {
                     continue;
@@ -805,37 +807,22 @@ impl<'a> Transfer<'a> {
         }
     }
 
-    /// Shooter `s`'s shadow-ray targets for receiver point `x` in pass `k`, with their area
-    /// weights and unit-square positions on the shooter: its stratified set (as it is if
-    /// `coherent`, for [`Transfer::shadowed`]) rotated toroidally by an offset drawn from a
-    /// stream seeded by
-    /// (scene seed, shooter, the point's coordinates, pass). A function of what is computed,
-    /// never of a thread or the order of work.
+    /// Shooter `s`'s shadow-ray targets in pass `k`, with their area weights and unit-square
+    /// positions on the shooter: its stratified set, as it is in pass 0, rotated toroidally
+    /// in later passes by an offset seeded by (scene seed, shooter, pass). The same targets for
+    /// every receiver point: visibility is a coherent function of the point, which the
+    /// refinement can follow, and the same at any scale of the scene.
     pub(crate) fn targets(
         &self,
         s: usize,
-        x: DVec3,
         k: u64,
-        coherent: bool,
     ) -> impl Iterator<Item = (DVec3, f64, f64, f64)> + '_ {
         let sg = &self.shooters[s];
         let p = &self.scene.polygons[sg.polygon as usize];
-        let mut rng = Rng::new(seed_of(&[
-            self.scene.radiosity.seed,
-            s as u64,
-            x.x.to_bits(),
-            x.y.to_bits(),
-            x.z.to_bits(),
-            k,
-        ]));
-        // A reflecting patch's rays are never rotated per point: their indirect shadows are
-        // soft and summed over many patches, while per-point noise in them would make the
-        // refinement split every leaf those shadows touch (3 times the samples on the Cornell
-        // box).
-        let patch = matches!(sg.kind, ShooterKind::Patch { .. });
-        let (du, dv) = if coherent || patch {
+        let (du, dv) = if k == 0 {
             (0.0, 0.0)
         } else {
+            let mut rng = Rng::new(seed_of(&[self.scene.radiosity.seed, s as u64, k]));
             (rng.next_f64(), rng.next_f64())
         };
         let wrap = |a: f64| if a >= 1.0 { a - 1.0 } else { a };
