@@ -209,9 +209,9 @@ pub fn run_truth(
         super::budget::check_solve(scene, ctx.memory_limit)?;
         let policy = super::scene_texture_policy(scene);
         let placement = scene.render.texel_placement;
-        Some(solver_means(&super::prepare(
-            ctx, input, policy, placement,
-        )?)?)
+        let prepared = super::prepare(ctx, input, policy, placement)?;
+        let solution = radiosity::face_means(&prepared.solution, &prepared.scene)?;
+        Some((solver_means(&prepared)?, solution))
     } else {
         None
     };
@@ -235,8 +235,8 @@ pub fn run_truth(
         let est = truth::polygons(scene, &plan.options, ctx.observer)?;
         let seconds = t.elapsed().as_secs_f64();
         let mut report = PolygonReport::new(&req.input, scene, &plan.options, &est);
-        if let Some(means) = &solver {
-            report.add_solver(means);
+        if let Some((means, solution)) = &solver {
+            report.add_solver(means, solution);
         }
         let json = serde_json::to_string_pretty(&report)
             .map_err(|e| Error::internal(format!("truth report to JSON: {e}")))?;
@@ -307,6 +307,14 @@ pub struct PolygonRow {
     /// (with `--compare-solver`; 0 where the standard error is 0 and they agree).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub solver_z: Option<[f64; 3]>,
+    /// The solution's own mean over the polygon, before reconstruction: its samples integrated
+    /// over its quadtree's leaves (`radiosity::face_means`; with `--compare-solver`). Against
+    /// `radiosity` it is the solution's error; against `solver`, the reconstruction's.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub solution: Option<[f64; 3]>,
+    /// The part of `solution` that came straight from emitters and spots (emission included).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub solution_direct: Option<[f64; 3]>,
 }
 
 impl PolygonReport {
@@ -342,6 +350,8 @@ impl PolygonReport {
                     solver: None,
                     solver_ratio: None,
                     solver_z: None,
+                    solution: None,
+                    solution_direct: None,
                 }
             })
             .collect();
@@ -356,9 +366,13 @@ impl PolygonReport {
         }
     }
 
-    /// Adds the solver's means (one per polygon, in order), their ratios to the truth and their
-    /// distances in truth standard errors.
-    pub fn add_solver(&mut self, means: &[DVec3]) {
+    /// Adds the solver's means as rendered (one per polygon, in order), their ratios to the
+    /// truth and their distances in truth standard errors, and the solution's own means.
+    pub fn add_solver(&mut self, means: &[DVec3], solution: &[radiosity::FaceMean]) {
+        for (r, f) in self.polygons.iter_mut().zip(solution) {
+            r.solution = Some(f.total.to_array());
+            r.solution_direct = Some(f.direct.to_array());
+        }
         for (r, m) in self.polygons.iter_mut().zip(means) {
             let (mut ratio, mut z) = ([1.0; 3], [0.0; 3]);
             for c in 0..3 {
@@ -404,7 +418,11 @@ impl PolygonReport {
             "SE %",
             "direct",
             "indirect",
-            if solver { "  solver/truth" } else { "" }
+            if solver {
+                "  solver/truth  solution/truth"
+            } else {
+                ""
+            }
         );
         for r in &self.polygons {
             let rel = (0..3)
@@ -413,8 +431,11 @@ impl PolygonReport {
                 .fold(0.0, f64::max);
             let ratio = r
                 .solver
-                .map(|m| format!("  {:.4}", lum(m) / lum(r.radiosity)))
-                .unwrap_or_default();
+                .map(|m| format!("  {:>12.4}", lum(m) / lum(r.radiosity)))
+                .unwrap_or_default()
+                + &r.solution
+                    .map(|m| format!("  {:>14.4}", lum(m) / lum(r.radiosity)))
+                    .unwrap_or_default();
             s += &format!(
                 "{:>4}  {:<width$} {:<26} {:>6.3}  {:<26} {:<26}{ratio}\n",
                 r.polygon,
