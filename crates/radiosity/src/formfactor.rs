@@ -224,7 +224,7 @@ mod tests {
             48,
         );
         assert!((f - 0.19982).abs() / 0.19982 < 0.01, "{f}");
-        // And far tighter than the 1% the issue asks: the midpoint rule is second order here.
+        // And far tighter than 1 %: the midpoint rule is second order here.
         assert!((f - 0.19982).abs() < 2e-4, "{f}");
     }
 

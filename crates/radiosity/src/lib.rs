@@ -4,7 +4,9 @@
 //! reads these samples; nothing downstream ever sees an interpolated value.
 //!
 //! The solve is progressive refinement (`shoot`) with exact point-to-polygon form factors
-//! (`formfactor`) and shadow rays through a BVH (`bvh`); the light transfer itself lives in one
+//! (`formfactor`) and shadow rays through the scene's BVH, each weighted by the form-factor
+//! kernel; a reflecting patch's light is distributed over it by its shape, measured from the
+//! solution's own samples (`transfer::shape`); the light transfer itself lives in one
 //! function (`transfer`) shared with the [`Oracle`], which answers the radiosity at any point
 //! from the converged history (per-shooter totals). Because a vertex's stored value is computed by
 //! the oracle's own gather, `Solution::radiosity` at a vertex returns the stored sample bit for
