@@ -235,13 +235,7 @@ pub(crate) fn build_shooters(scene: &Scene) -> (Vec<ShooterGeom>, Vec<u32>, Vec<
             for x in 0..n {
                 let cell = Cell { level: d, x, y };
                 let (u0, v0, u1, v1) = cell.bounds();
-                let c = [
-                    p.point(u0, v0),
-                    p.point(u1, v0),
-                    p.point(u1, v1),
-                    p.point(u0, v1),
-                ];
-                let outline = SmallPoly::from_corners(&c);
+                let outline = SmallPoly::from_corners(&cell_corners(p, cell));
                 let area = sub_area(p, cell);
                 out.push(ShooterGeom {
                     kind: ShooterKind::Patch {
@@ -259,6 +253,19 @@ pub(crate) fn build_shooters(scene: &Scene) -> (Vec<ShooterGeom>, Vec<u32>, Vec<
         }
     }
     (out, base, depth)
+}
+
+/// The corners of cell `cell` of polygon `p`'s domain, in the order (0,0), (1,0), (1,1), (0,1)
+/// (for a collapsed quad, the two at v = 1 coincide in its last row of cells).
+#[inline]
+pub(crate) fn cell_corners(p: &Polygon, cell: Cell) -> [DVec3; 4] {
+    let (u0, v0, u1, v1) = cell.bounds();
+    [
+        p.point(u0, v0),
+        p.point(u1, v0),
+        p.point(u1, v1),
+        p.point(u0, v1),
+    ]
 }
 
 /// Area of a cell of a polygon's domain. The area element of a planar quad's bilinear map (and of
@@ -875,7 +882,7 @@ impl<'a> Transfer<'a> {
             match &self.shapes[s as usize] {
                 None => g += t * self.transfer_at(s as usize, r, i as usize, u, v),
                 Some(shape) => {
-                    let (uniform, error) =
+                    let (uniform, error, f) =
                         self.uniform_with_error(s as usize, r, i as usize, shape, u, v);
                     g += t * uniform;
                     if error > 0.0 {
@@ -884,6 +891,7 @@ impl<'a> Transfer<'a> {
                             i,
                             uniform,
                             error,
+                            f,
                         });
                     }
                 }
@@ -905,7 +913,8 @@ impl<'a> Transfer<'a> {
                 let shape = self.shapes[p.s as usize]
                     .as_ref()
                     .expect("pending is shaped");
-                let shaped = self.shaped_transfer(p.s as usize, r, p.i as usize, shape, (u, v));
+                let shaped =
+                    self.shaped_transfer(p.s as usize, r, p.i as usize, shape, (u, v), p.f);
                 g += a * t * (shaped - p.uniform);
             }
         }

@@ -33,7 +33,7 @@
 
 use glam::DVec3;
 
-use super::{kernel, sub_area, PairClass, ShooterKind, Transfer};
+use super::{cell_corners, kernel, sub_area, Candidates, PairClass, ShooterKind, Transfer};
 use crate::formfactor::{point_to_polygon, SmallPoly};
 use base::quadtree::{Cell, Quadtree};
 use scene::Polygon;
@@ -114,12 +114,6 @@ impl PatchShape {
         })
     }
 
-    /// Bytes the shape takes in memory.
-    pub fn bytes(&self) -> u64 {
-        let n = self.tree.nodes().len() as u64;
-        n * (16 + 32 + 4) + self.leaves.len() as u64 * 12
-    }
-
     /// The weight of the leaf at unit-square position (su, sv) of the patch.
     #[inline]
     pub(crate) fn weight_at(&self, su: f64, sv: f64) -> [f32; 3] {
@@ -191,18 +185,21 @@ pub(crate) fn shape_tolerance(tolerance: f64) -> f64 {
 }
 
 /// A shaped patch met by a gather's first pass: its pair entry, its uniform transfer and the
-/// error estimate of taking it whole, both per unit of its total.
+/// error estimate of taking it whole, both per unit of its total, and its unoccluded form
+/// factor (so the second pass does not compute it again).
 pub(crate) struct Pending {
     pub s: u32,
     pub i: u32,
     pub uniform: DVec3,
     pub error: f64,
+    pub f: f64,
 }
 
 impl Transfer<'_> {
     /// Shooter `s`'s uniform transfer to the receiver point of polygon `r` at (u, v) (as
-    /// [`Transfer::transfer_at`]) and the error estimate of taking its light as uniform:
-    /// spread x F x min(1, 2 size / distance) (0 when the patch is flat).
+    /// [`Transfer::transfer_at`] gives it for a patch), the error estimate of taking its light
+    /// as uniform, spread x F x min(1, 2 size / distance) (0 when the patch is flat or the
+    /// transfer is 0), and its unoccluded form factor F.
     pub(crate) fn uniform_with_error(
         &self,
         s: usize,
@@ -211,22 +208,24 @@ impl Transfer<'_> {
         shape: &PatchShape,
         u: f64,
         v: f64,
-    ) -> (DVec3, f64) {
-        let t = self.transfer_at(s, r, i, u, v);
+    ) -> (DVec3, f64, f64) {
+        let p = self.pairs[s].as_ref().expect("the pair's table exists");
+        let (c, l) = p.at(i);
+        let (open, vis) = self.shadowed_with(s, r, (c, Candidates::Table(l)), u, v, false);
+        let f = open.x;
+        let t = DVec3::splat(f * vis);
         if t == DVec3::ZERO || shape.spread <= 0.0 {
-            return (t, 0.0);
+            return (t, 0.0, f);
         }
         let x = self.receiver(r, u, v);
-        let n = self.scene.polygons[r].normal;
         let sg = &self.shooters[s];
-        let f = point_to_polygon(x, n, &sg.outline, sg.normal);
-        (t, error_estimate(shape.spread, f, &sg.outline, x))
+        (t, error_estimate(shape.spread, f, &sg.outline, x), f)
     }
 
     /// Shooter `s`'s transfer to the receiver point of polygon `r` at (u, v), per unit of the
     /// patch's total, with the patch's light distributed by `shape` (see the module doc):
-    /// `(F + sum_c d_c F_c) V_w`, at least 0 per channel. `i` is the pair's entry in `s`'s
-    /// table.
+    /// `(F + sum_c d_c F_c) V_w`, at least 0 per channel, given the patch's unoccluded form
+    /// factor `f` > 0 there. `i` is the pair's entry in `s`'s table.
     pub(crate) fn shaped_transfer(
         &self,
         s: usize,
@@ -234,19 +233,15 @@ impl Transfer<'_> {
         i: usize,
         shape: &PatchShape,
         (u, v): (f64, f64),
+        f: f64,
     ) -> DVec3 {
         let p = self.pairs[s].as_ref().expect("the pair's table exists");
         let (class, cands) = p.at(i);
-        let sg = &self.shooters[s];
-        let ShooterKind::Patch { polygon, cell } = sg.kind else {
+        let ShooterKind::Patch { polygon, cell } = self.shooters[s].kind else {
             return DVec3::ZERO;
         };
         let x = self.receiver(r, u, v);
         let n = self.scene.polygons[r].normal;
-        let f = point_to_polygon(x, n, &sg.outline, sg.normal);
-        if f <= 0.0 {
-            return DVec3::ZERO;
-        }
         let poly = &self.scene.polygons[polygon as usize];
         let corrected = (DVec3::splat(f) + correction(poly, cell, shape, x, n)).max(DVec3::ZERO);
         let vis = match class {
@@ -264,18 +259,15 @@ impl Transfer<'_> {
 fn correction(poly: &Polygon, patch: Cell, shape: &PatchShape, x: DVec3, n: DVec3) -> DVec3 {
     let nodes = shape.tree.nodes();
     let mut sum = DVec3::ZERO;
-    let mut stack = vec![0u32];
-    while let Some(id) = stack.pop() {
+    // Depth first, on the stack: an opened node leaves at most 3 siblings behind per level.
+    let mut stack = [0u32; 3 * MAX_SHAPE_LEVELS as usize + 4];
+    let mut len = 1;
+    while len > 0 {
+        len -= 1;
+        let id = stack[len];
         let node = nodes[id as usize];
         let (w, area) = shape.mean[id as usize];
-        let c = absolute(patch, node.cell);
-        let (u0, v0, u1, v1) = c.bounds();
-        let corners = [
-            poly.point(u0, v0),
-            poly.point(u1, v0),
-            poly.point(u1, v1),
-            poly.point(u0, v1),
-        ];
+        let corners = cell_corners(poly, absolute(patch, node.cell));
         let centre = 0.25 * (corners[0] + corners[1] + corners[2] + corners[3]);
         let size = (corners[2] - corners[0])
             .length()
@@ -283,7 +275,8 @@ fn correction(poly: &Polygon, patch: Cell, shape: &PatchShape, x: DVec3, n: DVec
         let far = (centre - x).length() >= 2.0 * size;
         if !far && !node.is_leaf() {
             let f = node.first_child;
-            stack.extend([f + 3, f + 2, f + 1, f]);
+            stack[len..len + 4].copy_from_slice(&[f + 3, f + 2, f + 1, f]);
+            len += 4;
             continue;
         }
         let d = w - DVec3::ONE;
