@@ -352,6 +352,10 @@ pub struct SweepArgs {
     /// Skip the equal-error memory search.
     #[arg(long)]
     pub no_equal_error: bool,
+    /// Samples per pixel of the path-traced truth image the error budget is measured against
+    /// (physics error, solution error, the truth's noise); 0: no truth image.
+    #[arg(long, default_value_t = lab::jobs::sweep::DEFAULT_TRUTH_SAMPLES)]
+    pub truth_samples: u32,
     /// Worker threads (default: all cores).
     #[arg(long)]
     pub threads: Option<usize>,
@@ -383,6 +387,9 @@ pub struct ResultsArgs {
     /// Sweep timing repeats.
     #[arg(long, default_value_t = 3)]
     pub repeats: u32,
+    /// Samples per pixel of each sweep's path-traced truth image (the error budget); 0: none.
+    #[arg(long, default_value_t = lab::jobs::sweep::DEFAULT_TRUTH_SAMPLES)]
+    pub truth_samples: u32,
     /// Worker threads (default: all cores).
     #[arg(long)]
     pub threads: Option<usize>,

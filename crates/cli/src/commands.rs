@@ -284,6 +284,7 @@ pub fn sweep(settings: &Settings, args: SweepArgs) -> anyhow::Result<()> {
             repeats: args.repeats,
             ppd: args.ppd,
             equal_error: !args.no_equal_error,
+            truth_samples: args.truth_samples,
         };
         let observer = Terminal::new(!args.quiet, args.trace);
         let report = sweep::run_sweep(&settings.context(&observer), &req)?;
@@ -344,6 +345,7 @@ pub fn results(settings: &Settings, args: ResultsArgs) -> anyhow::Result<()> {
         req.gallery_width = args.gallery_width;
         req.frames = args.frames;
         req.repeats = args.repeats;
+        req.truth_samples = args.truth_samples;
         let observer = Terminal::new(!args.quiet, args.trace);
         let report = results::run_results(&settings.context(&observer), &req, &mut |p| {
             wrote(p, args.quiet)

@@ -104,6 +104,14 @@ fn the_results_page_links_every_image_and_quotes_its_data() {
         // The page prints each distance to 3 decimals under its image.
         assert!(page.contains(&format!(" {e:.3} |")), "{g}");
     }
+    // The error budget quotes each density's solution error against the path tracer.
+    assert!(page.contains("**Error budget against physics**"));
+    assert!(page.contains("The solution error is the larger term at"));
+    for d in sc["sweep"]["densities"].as_array().unwrap() {
+        let e = d["solution"]["perceptual"].as_f64().unwrap();
+        assert!(e.is_finite() && e >= 0.0, "{d}");
+        assert!(page.contains(&format!(" | {e:.3} |")), "{d}");
+    }
     let direct = &sc["sweep"]["equal_error"]["direct_error"];
     assert!(page.contains(&format!(
         "reconstruction error {:.3}",

@@ -71,6 +71,8 @@ fn a_small_sweep_has_every_key_falling_errors_and_consistent_fronts() {
             "total",
             "pareto_time",
             "pareto_memory",
+            "error_physics",
+            "physics",
         ] {
             assert!(p.get(key).is_some(), "point lacks `{key}`: {p}");
         }
@@ -119,6 +121,39 @@ fn a_small_sweep_has_every_key_falling_errors_and_consistent_fronts() {
         assert!(points.iter().any(|p| p[flag].as_bool().unwrap()));
     }
     equal_error_is_consistent(&report);
+    budget_is_consistent(&report);
+}
+
+/// The error budget against the path tracer obeys the metric's own geometry. The perceptual
+/// distance is an L2 norm of the difference of two mean-normalised, filtered images, so the
+/// triangle inequality holds exactly between the measured distances: a method's image is no
+/// further from the truth than its distance to its solution's exact image plus that exact image's
+/// distance to the truth. Taking the truth's noise out in quadrature never raises a distance.
+fn budget_is_consistent(report: &Value) {
+    let truth = &report["truth"];
+    assert_eq!(truth["samples_per_pixel"], 1024, "{truth}");
+    // Two-spots is lit by point spots alone and nothing it reflects reaches the camera's
+    // surfaces back, so at the pixel centres the tracer is exact: its noise is 0 here.
+    let noise = truth["perceptual"].as_f64().unwrap();
+    assert!((0.0..1e-6).contains(&noise), "{truth}");
+    let f = |v: &Value, k: &str| v[k].as_f64().unwrap_or_else(|| panic!("no `{k}` in {v}"));
+    for p in report["points"].as_array().unwrap() {
+        let level = &report["densities"][p["density"].as_u64().unwrap() as usize];
+        let solution = &level["solution"];
+        let physics = &p["physics"];
+        assert_eq!(f(p, "error_physics"), f(physics, "perceptual"));
+        let bound = f(p, "error_reconstruction") + f(solution, "perceptual_measured");
+        assert!(
+            f(physics, "perceptual_measured") <= bound * (1.0 + 1e-9),
+            "triangle inequality: {p} {solution}"
+        );
+        for e in [physics, solution] {
+            assert!(f(e, "perceptual") <= f(e, "perceptual_measured"), "{e}");
+            assert!(f(e, "rmse") <= f(e, "rmse_measured"), "{e}");
+            let expected = (f(e, "perceptual_measured").powi(2) - noise * noise).max(0.0).sqrt();
+            assert!((f(e, "perceptual") - expected).abs() <= 1e-9 * (1.0 + expected), "{e}");
+        }
+    }
 }
 
 /// The equal-error search's record agrees with its own definition: measured at the scene's own
@@ -186,7 +221,12 @@ fn equal_error_is_consistent(report: &Value) {
 
 #[test]
 fn the_plots_are_png_and_svg_of_the_documented_size() {
-    let (report, _) = sweep("plots", &["--no-equal-error"]);
+    let (report, _) = sweep("plots", &["--no-equal-error", "--truth-samples", "0"]);
+    // No truth image: no budget, and no field pretends to one.
+    assert!(report["truth"].is_null(), "{}", report["truth"]);
+    for p in report["points"].as_array().unwrap() {
+        assert!(p["error_physics"].is_null() && p["physics"].is_null(), "{p}");
+    }
     assert!(report["equal_error"].is_null());
     for name in ["error-vs-time", "error-vs-memory"] {
         let png = tmp("plots", "plots").join(format!("{name}.png"));

@@ -63,6 +63,8 @@ pub struct ResultsRequest {
     pub frames: u32,
     /// Sweep timing repeats.
     pub repeats: u32,
+    /// Samples per pixel of each sweep's truth image (0: no error budget).
+    pub truth_samples: u32,
 }
 
 impl ResultsRequest {
@@ -76,6 +78,7 @@ impl ResultsRequest {
             gallery_width: 192,
             frames: 5,
             repeats: 3,
+            truth_samples: sweep::DEFAULT_TRUTH_SAMPLES,
         }
     }
 }
@@ -263,6 +266,7 @@ fn sweep_request(req: &ResultsRequest, scene: &Path) -> SweepRequest {
         height: req.sweep_size,
         frames: req.frames,
         repeats: req.repeats,
+        truth_samples: req.truth_samples,
         ..SweepRequest::new(scene.to_path_buf())
     }
 }
@@ -325,6 +329,9 @@ fn command_line(req: &ResultsRequest) -> String {
     }
     if req.repeats != defaults.repeats {
         c += &format!(" --repeats {}", req.repeats);
+    }
+    if req.truth_samples != defaults.truth_samples {
+        c += &format!(" --truth-samples {}", req.truth_samples);
     }
     c
 }
@@ -454,7 +461,7 @@ fn fronts(p: &SweepPoint) -> &'static str {
 
 fn point_row(p: &SweepPoint) -> String {
     format!(
-        "| {} | {} | {} | {:.2} ({:.2}-{:.2}) | {} | {:.3} | {:.3} | {} |\n",
+        "| {} | {} | {} | {:.2} ({:.2}-{:.2}) | {} | {:.3} | {:.3} | {} | {} |\n",
         p.method,
         p.density,
         texture_label(p),
@@ -464,20 +471,16 @@ fn point_row(p: &SweepPoint) -> String {
         mb(p.bytes),
         p.error_reconstruction,
         p.error_total,
+        p.error_physics.map_or("-".into(), |e| format!("{e:.3}")),
         fronts(p)
     )
 }
 
-const POINT_HEADER: &str = "| method | density | texture | frame ms (spread) | bytes | error recon. | error total | front |\n|---|---|---|---|---|---|---|---|\n";
+const POINT_HEADER: &str = "| method | density | texture | frame ms (spread) | bytes | error recon. | error total | error physics | front |\n|---|---|---|---|---|---|---|---|---|\n";
 
 /// Per method, how many of its points lie on the time and on the memory front.
 fn front_counts(r: &SweepReport) -> String {
-    let mut methods: Vec<&str> = Vec::new();
-    for p in &r.points {
-        if !methods.contains(&p.method.as_str()) {
-            methods.push(&p.method);
-        }
-    }
+    let methods = method_names(r);
     let count = |f: fn(&SweepPoint) -> bool| -> String {
         let parts: Vec<String> = methods
             .iter()
@@ -648,8 +651,13 @@ fn introduction(r: &ResultsReport) -> String {
           texture sizes (the quadtree-depth sides halved 0-3 times) and both texel placements. \
           **Error recon.** is the perceptual distance ([metrics.md](metrics.md)) to the same \
           solution's exact image (the method's own error), **error total** to a converged \
-          solution's (tolerance 1/4, one level deeper: what a user sees). Bytes: RRP patches and \
-          locate trees; 12-bit textures with mip chains; the mesh's vertices and indices.\n\n";
+          solution's (tolerance 1/4, one level deeper: the solver's convergence), **physics \
+          error** to the independent path tracer's image (`pixelflow-sim truth`, its noise taken \
+          out: what a user sees against the light), and **solution error** is the same \
+          solution's exact image against that path tracer's: the physics error splits into the \
+          solution error (the solver's) and the reconstruction error (the method's). Bytes: RRP \
+          patches and locate trees; 12-bit textures with mip chains; the mesh's vertices and \
+          indices.\n\n";
     s
 }
 
@@ -690,6 +698,7 @@ fn scene_section(sc: &SceneResults) -> String {
         sc.name
     );
     s += &format!("{}\n\n{}\n\n", front_counts(sw), best_at_finest(sw));
+    s += &budget_section(sw);
     s += &own_density_table(sw);
     s += "\nEvery point on a front, all densities:\n\n";
     s += POINT_HEADER;
@@ -701,6 +710,95 @@ fn scene_section(sc: &SceneResults) -> String {
         s += &point_row(p);
     }
     s + "\n"
+}
+
+/// The error budget against the path-traced truth: per density, the solution's error and every
+/// method's physics and reconstruction error (the textures at the quadtree-depth size, the
+/// placement nearer the truth), then which term dominates. Empty without a truth image.
+fn budget_section(sw: &SweepReport) -> String {
+    let Some(t) = &sw.truth else {
+        return String::new();
+    };
+    let methods = method_names(sw);
+    let mut s = format!(
+        "**Error budget against physics** (perceptual distance; truth: {} samples per pixel, its \
+         noise {:.3} taken out in quadrature, see [sweep.md](sweep.md#error-budget)). Each cell \
+         is *physics error (reconstruction error)*; the solution error is the same solution's \
+         exact image against the truth. Converged reference (tolerance {}): solution error {}.\n\n",
+        t.samples_per_pixel,
+        t.perceptual,
+        sw.reference.tolerance,
+        sw.reference
+            .solution
+            .map_or("-".into(), |e| format!("{:.3}", e.perceptual)),
+    );
+    s += &format!("| density | tolerance | solution error | {} |\n", methods.join(" | "));
+    s += &format!("|---|---|---|{}\n", "---|".repeat(methods.len()));
+    for (level, d) in sw.densities.iter().enumerate() {
+        let sol = d.solution.map_or("-".into(), |e| format!("{:.3}", e.perceptual));
+        s += &format!("| {level} | {} | {sol} |", d.tolerance);
+        for m in &methods {
+            let best = sw
+                .points
+                .iter()
+                .filter(|p| p.density == level && p.method == *m)
+                .filter(|p| p.texture.is_none_or(|l| l.halvings == 0))
+                .min_by(|a, b| physics_of(a).total_cmp(&physics_of(b)));
+            s += &match best {
+                Some(p) => format!(" {:.3} ({:.3}) |", physics_of(p), p.error_reconstruction),
+                None => " - |".into(),
+            };
+        }
+        s += "\n";
+    }
+    s + "\n" + &budget_finding(sw) + "\n\n"
+}
+
+/// A point's physics error (infinite without one, so it sorts last).
+fn physics_of(p: &SweepPoint) -> f64 {
+    p.error_physics.unwrap_or(f64::INFINITY)
+}
+
+/// The methods of a sweep, in the order of their first point.
+fn method_names(sw: &SweepReport) -> Vec<&str> {
+    let mut methods: Vec<&str> = Vec::new();
+    for p in &sw.points {
+        if !methods.contains(&p.method.as_str()) {
+            methods.push(&p.method);
+        }
+    }
+    methods
+}
+
+/// Which term of the budget dominates: at how many points (every method, density and texture
+/// size) the solution error exceeds the reconstruction error, and per method where it does not.
+fn budget_finding(sw: &SweepReport) -> String {
+    let solution = |p: &SweepPoint| {
+        sw.densities
+            .get(p.density)
+            .and_then(|d| d.solution)
+            .map(|e| e.perceptual)
+    };
+    let mut by_method = Vec::new();
+    let (mut sol_wins, mut all) = (0, 0);
+    for m in method_names(sw) {
+        let (mut w, mut n) = (0, 0);
+        for p in sw.points.iter().filter(|p| p.method == m) {
+            if let Some(e) = solution(p) {
+                n += 1;
+                w += (e > p.error_reconstruction) as usize;
+            }
+        }
+        by_method.push(format!("{m} {w} of {n}"));
+        sol_wins += w;
+        all += n;
+    }
+    format!(
+        "The solution error is the larger term at {sol_wins} of {all} points (every density and \
+         texture size); per method: {}. Where it is, a better reconstruction cannot bring the \
+         image nearer the light; only a better solution can.",
+        by_method.join(", ")
+    )
 }
 
 /// Every method at the scene's own density (the equal-error search's, else the middle one), the

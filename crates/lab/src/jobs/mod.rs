@@ -27,6 +27,7 @@ pub mod compare;
 pub mod equal_error;
 pub mod budget;
 pub mod memory;
+pub mod physics;
 pub mod render;
 pub mod solve;
 pub mod stats;

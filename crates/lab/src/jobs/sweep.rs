@@ -10,7 +10,13 @@
 //! - the error against two references, each as perceptual distance, RMSE, maximum error and the
 //!   Mach-band measure (`docs/metrics.md`): **reconstruction error**, against the same solution's
 //!   exact value at every pixel (the `reference` method: it isolates the method), and **total
-//!   error**, against a converged finer solution's exact value (what a user sees).
+//!   error**, against a converged finer solution's exact value (the solver's own convergence);
+//! - with a truth image ([`SweepRequest::truth_samples`]), the **error budget against physics**
+//!   ([`super::physics`]): each method's image against the independent path tracer's (**physics
+//!   error**), each solution's exact image against it (**solution error**), and the tracer's own
+//!   noise, taken out of both in quadrature. Physics error is what a user sees; it splits into
+//!   the solution error (what the solver got wrong) and the reconstruction error (what the method
+//!   added).
 //!
 //! Each point is flagged if it is on the Pareto front of total error against frame time, and of
 //! total error against bytes, over all points of the sweep.
@@ -25,6 +31,7 @@ use serde::Serialize;
 use super::bench::{median, min_max};
 use super::equal_error::{self, EqualError};
 use super::memory;
+use super::physics::{self, PhysicsErrors, TruthNoise, TruthReference};
 use super::Context;
 use super::{prepare, render_frame, render_frame_in, Input, Prepared};
 use crate::image::LinearImage;
@@ -75,11 +82,18 @@ pub struct SweepRequest {
     /// Also search the texture memory each texture method needs to reach the direct method's
     /// error ([`super::equal_error`]), at the density level whose factor is nearest 1.
     pub equal_error: bool,
+    /// Camera samples per pixel of the path-traced truth image the error budget is measured
+    /// against ([`super::physics`]); 0: no truth image, no budget.
+    pub truth_samples: u32,
 }
+
+/// Samples per pixel of a sweep's truth image by default: its noise is then well under the
+/// solution error it is measured against (`docs/sweep.md`).
+pub const DEFAULT_TRUTH_SAMPLES: u32 = 1024;
 
 impl SweepRequest {
     /// A request with the defaults: every method, 256 x 256, four densities, four texture sizes,
-    /// 5 frames x 3 repeats.
+    /// 5 frames x 3 repeats, a truth image of [`DEFAULT_TRUTH_SAMPLES`].
     pub fn new(input: PathBuf) -> SweepRequest {
         SweepRequest {
             input,
@@ -93,6 +107,7 @@ impl SweepRequest {
             repeats: 3,
             ppd: DEFAULT_PPD,
             equal_error: true,
+            truth_samples: DEFAULT_TRUTH_SAMPLES,
         }
     }
 }
@@ -161,6 +176,10 @@ pub struct SweepPoint {
     pub reconstruction: Errors,
     /// Every measure against the converged solution's exact image.
     pub total: Errors,
+    /// Perceptual distance to the truth image, its noise taken out (with a truth image).
+    pub error_physics: Option<f64>,
+    /// Perceptual distance and RMSE against the truth image (with a truth image).
+    pub physics: Option<PhysicsErrors>,
     /// On the Pareto front of total error against frame time.
     pub pareto_time: bool,
     /// On the Pareto front of total error against bytes.
@@ -176,15 +195,18 @@ pub struct SolutionLevel {
     pub max_depth: u32,
     /// Radiosity samples.
     pub samples: u64,
+    /// Its exact image against the truth image: the solution error (with a truth image).
+    pub solution: Option<PhysicsErrors>,
 }
 
 impl SolutionLevel {
-    fn of(p: &Prepared) -> SolutionLevel {
-        SolutionLevel {
+    fn of(p: &Prepared, exact: &LinearImage, truth: Option<&TruthReference>, ppd: f64) -> Result<SolutionLevel> {
+        Ok(SolutionLevel {
             tolerance: p.scene.radiosity.tolerance,
             max_depth: p.scene.radiosity.max_depth,
             samples: p.solution.stats.vertices,
-        }
+            solution: truth.map(|t| t.errors(exact, ppd)).transpose()?,
+        })
     }
 }
 
@@ -203,6 +225,8 @@ pub struct SweepReport {
     pub densities: Vec<SolutionLevel>,
     /// The converged reference solution.
     pub reference: SolutionLevel,
+    /// The truth image's samples and noise (with a truth image).
+    pub truth: Option<TruthNoise>,
     /// The points, density-major, then method, then texture size.
     pub points: Vec<SweepPoint>,
     /// The equal-error memory comparison (with texture methods and the search asked for).
@@ -221,6 +245,13 @@ pub(crate) fn pareto_front(points: &[(f64, f64)]) -> Vec<bool> {
                 .any(|&(c2, e2)| c2 <= c && e2 <= e && (c2 < c || e2 < e))
         })
         .collect()
+}
+
+/// One candidate's image measured against each reference.
+struct Measured {
+    recon: Comparison,
+    total: Comparison,
+    physics: Option<PhysicsErrors>,
 }
 
 /// One method at one texture size, at one density.
@@ -286,6 +317,13 @@ fn check(req: &SweepRequest) -> Result<Vec<Method>> {
             12,
         ));
     }
+    if req.truth_samples > truth::MAX_SAMPLES_PER_PIXEL {
+        return Err(Error::limit(
+            "--truth-samples",
+            req.truth_samples.into(),
+            truth::MAX_SAMPLES_PER_PIXEL.into(),
+        ));
+    }
     if !(req.ppd.is_finite() && req.ppd > 0.0) {
         return Err(Error::invalid_option(
             "--ppd",
@@ -322,7 +360,17 @@ fn solve_at(ctx: &Context<'_>, input: &Input, scene: Scene) -> Result<Prepared> 
 /// measure every method (and texture size) at each density.
 pub fn run_sweep(job: &Context<'_>, req: &SweepRequest) -> Result<SweepReport> {
     let sweep = Sweep::new(job, req)?;
-    let (total_ref, reference) = sweep.converged_reference()?;
+    let truth = match req.truth_samples {
+        0 => None,
+        n => Some(physics::trace(
+            job,
+            &sweep.input.scene,
+            &sweep.opts,
+            n,
+            req.ppd,
+        )?),
+    };
+    let (total_ref, reference) = sweep.converged_reference(truth.as_ref())?;
     // The equal-error search runs at the scene's own density (the factor nearest 1).
     let own = nearest_one(&req.densities);
     let mut equal = None;
@@ -330,7 +378,6 @@ pub fn run_sweep(job: &Context<'_>, req: &SweepRequest) -> Result<SweepReport> {
     let mut densities = Vec::new();
     for (level, &factor) in req.densities.iter().enumerate() {
         let p = solve_at(job, &sweep.input, at_density(&sweep.input.scene, factor, 0))?;
-        densities.push(SolutionLevel::of(&p));
         let at = AtDensity {
             sweep: &sweep,
             p: &p,
@@ -342,7 +389,13 @@ pub fn run_sweep(job: &Context<'_>, req: &SweepRequest) -> Result<SweepReport> {
                 &sweep.opts,
             )?)?,
         };
-        points.extend(at.measure(&total_ref)?);
+        densities.push(SolutionLevel::of(
+            &p,
+            &at.recon_ref,
+            truth.as_ref(),
+            req.ppd,
+        )?);
+        points.extend(at.measure(&total_ref, truth.as_ref())?);
         if req.equal_error && level == own {
             equal = at.equal_error()?;
         }
@@ -355,6 +408,7 @@ pub fn run_sweep(job: &Context<'_>, req: &SweepRequest) -> Result<SweepReport> {
         threads: rayon::current_num_threads(),
         densities,
         reference,
+        truth: truth.map(|t| t.noise),
         points,
         equal_error: equal,
     })
@@ -415,9 +469,13 @@ impl<'a> Sweep<'a> {
         })
     }
 
-    /// The converged solution's exact image (the total error's reference) and its level; the
-    /// solution itself is dropped before the densities are solved.
-    fn converged_reference(&self) -> Result<(LinearImage, SolutionLevel)> {
+    /// The converged solution's exact image (the total error's reference) and its level (its
+    /// exact image against `truth`); the solution itself is dropped before the densities are
+    /// solved.
+    fn converged_reference(
+        &self,
+        truth: Option<&TruthReference>,
+    ) -> Result<(LinearImage, SolutionLevel)> {
         let scene = at_density(&self.input.scene, self.req.reference_density, 1);
         let fine = solve_at(self.job, &self.input, scene)?;
         let exact = image(render_frame(
@@ -426,7 +484,8 @@ impl<'a> Sweep<'a> {
             &fine.scene.camera,
             &self.opts,
         )?)?;
-        Ok((exact, SolutionLevel::of(&fine)))
+        let level = SolutionLevel::of(&fine, &exact, truth, self.req.ppd)?;
+        Ok((exact, level))
     }
 }
 
@@ -440,19 +499,24 @@ struct AtDensity<'a> {
 }
 
 impl AtDensity<'_> {
-    /// Every candidate's point: errors against both references (deterministic, drawing each
-    /// once, which also warms it up), then the times, then the bytes.
-    fn measure(&self, total_ref: &LinearImage) -> Result<Vec<SweepPoint>> {
+    /// Every candidate's point: errors against both references and the truth (deterministic,
+    /// drawing each once, which also warms it up), then the times, then the bytes.
+    fn measure(
+        &self,
+        total_ref: &LinearImage,
+        truth: Option<&TruthReference>,
+    ) -> Result<Vec<SweepPoint>> {
         let sets = self.texture_sets()?;
         let candidates = candidates(&self.sweep.methods, &sets);
         let ppd = self.sweep.req.ppd;
         let mut errors = Vec::new();
         for c in &candidates {
             let img = self.image(c)?;
-            errors.push((
-                compare(&img, &self.recon_ref, ppd)?,
-                compare(&img, total_ref, ppd)?,
-            ));
+            errors.push(Measured {
+                recon: compare(&img, &self.recon_ref, ppd)?,
+                total: compare(&img, total_ref, ppd)?,
+                physics: truth.map(|t| t.errors(&img, ppd)).transpose()?,
+            });
         }
         let per_repeat = self.times(&candidates)?;
         candidates
@@ -541,13 +605,9 @@ impl AtDensity<'_> {
     }
 
     /// The point of `c` from its errors (against the same solution's and the converged exact
-    /// image) and its per-repeat times; on no front yet.
-    fn point(
-        &self,
-        c: &Candidate<'_>,
-        (rc, tc): &(Comparison, Comparison),
-        reps: Vec<f64>,
-    ) -> Result<SweepPoint> {
+    /// image, and the truth) and its per-repeat times; on no front yet.
+    fn point(&self, c: &Candidate<'_>, m: &Measured, reps: Vec<f64>) -> Result<SweepPoint> {
+        let (rc, tc) = (&m.recon, &m.total);
         let p = self.p;
         let bytes = match (c.method, c.texture) {
             (_, Some((level, _))) => level.bytes,
@@ -567,6 +627,8 @@ impl AtDensity<'_> {
             error_total: tc.perceptual_distance,
             reconstruction: Errors::from(rc),
             total: Errors::from(tc),
+            error_physics: m.physics.map(|e| e.perceptual),
+            physics: m.physics,
             pareto_time: false,
             pareto_memory: false,
         })
@@ -619,15 +681,17 @@ pub fn csv(report: &SweepReport) -> String {
         "method,density,tolerance,samples,texture_halvings,texture_placement,texture_texels,frame_ms,frame_ms_min,\
          frame_ms_max,bytes,error_reconstruction,error_total,rmse_reconstruction,rmse_total,\
          max_abs_reconstruction,max_abs_total,mach_band_reconstruction,mach_band_total,\
-         pareto_time,pareto_memory\n",
+         pareto_time,pareto_memory,error_physics,rmse_physics,error_solution,rmse_solution\n",
     );
+    let opt = |v: Option<f64>| v.map(|v| v.to_string()).unwrap_or_default();
     for p in &report.points {
+        let solution = report.densities.get(p.density).and_then(|d| d.solution);
         let (h, pl, t) = match p.texture {
             Some(l) => (l.halvings.to_string(), l.placement, l.texels.to_string()),
             None => (String::new(), "", String::new()),
         };
         s += &format!(
-            "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}\n",
+            "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}\n",
             p.method,
             p.density,
             p.tolerance,
@@ -648,24 +712,55 @@ pub fn csv(report: &SweepReport) -> String {
             p.reconstruction.mach_band,
             p.total.mach_band,
             p.pareto_time,
-            p.pareto_memory
+            p.pareto_memory,
+            opt(p.error_physics),
+            opt(p.physics.map(|e| e.rmse)),
+            opt(solution.map(|e| e.perceptual)),
+            opt(solution.map(|e| e.rmse)),
         );
     }
     s
+}
+
+/// The truth image's line of the table's header: its samples, noise and each solution's
+/// error against it; empty without a truth image.
+fn truth_line(report: &SweepReport) -> String {
+    let Some(t) = &report.truth else {
+        return String::new();
+    };
+    let per_level: Vec<String> = report
+        .densities
+        .iter()
+        .chain([&report.reference])
+        .map(|d| {
+            d.solution
+                .map_or("-".into(), |e| format!("{:.4}", e.perceptual))
+        })
+        .collect();
+    format!(
+        "truth: {} samples per pixel, noise {:.4} (perceptual), {:.3e} (rmse); \
+         solution error per density, then the converged reference: {}\n",
+        t.samples_per_pixel,
+        t.perceptual,
+        t.rmse,
+        per_level.join(", ")
+    )
 }
 
 /// The points as a fixed-width table.
 pub fn table(report: &SweepReport) -> String {
     let mut s = format!(
         "{}: {} x {}, {} threads; reference: tolerance {}, max depth {}, {} samples\n\
-         method            dens  samples  texture   frame_ms       bytes  err_recon  err_total  front\n",
+         {}\
+         method            dens  samples  texture   frame_ms       bytes  err_recon  err_total   err_phys  front\n",
         report.scene,
         report.width,
         report.height,
         report.threads,
         report.reference.tolerance,
         report.reference.max_depth,
-        report.reference.samples
+        report.reference.samples,
+        truth_line(report),
     );
     for p in &report.points {
         let tex = p
@@ -679,7 +774,7 @@ pub fn table(report: &SweepReport) -> String {
             (false, false) => "",
         };
         s += &format!(
-            "{:<17} {:>4} {:>8} {:>8} {:>10.3} {:>11} {:>10.4} {:>10.4}  {}\n",
+            "{:<17} {:>4} {:>8} {:>8} {:>10.3} {:>11} {:>10.4} {:>10.4} {:>10}  {}\n",
             p.method,
             p.density,
             p.samples,
@@ -688,6 +783,9 @@ pub fn table(report: &SweepReport) -> String {
             p.bytes,
             p.error_reconstruction,
             p.error_total,
+            p.error_physics
+                .map(|e| format!("{e:.4}"))
+                .unwrap_or_else(|| "-".into()),
             front
         );
     }
