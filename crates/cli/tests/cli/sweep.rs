@@ -150,8 +150,13 @@ fn budget_is_consistent(report: &Value) {
         for e in [physics, solution] {
             assert!(f(e, "perceptual") <= f(e, "perceptual_measured"), "{e}");
             assert!(f(e, "rmse") <= f(e, "rmse_measured"), "{e}");
-            let expected = (f(e, "perceptual_measured").powi(2) - noise * noise).max(0.0).sqrt();
-            assert!((f(e, "perceptual") - expected).abs() <= 1e-9 * (1.0 + expected), "{e}");
+            let expected = (f(e, "perceptual_measured").powi(2) - noise * noise)
+                .max(0.0)
+                .sqrt();
+            assert!(
+                (f(e, "perceptual") - expected).abs() <= 1e-9 * (1.0 + expected),
+                "{e}"
+            );
         }
     }
 }
@@ -225,7 +230,10 @@ fn the_plots_are_png_and_svg_of_the_documented_size() {
     // No truth image: no budget, and no field pretends to one.
     assert!(report["truth"].is_null(), "{}", report["truth"]);
     for p in report["points"].as_array().unwrap() {
-        assert!(p["error_physics"].is_null() && p["physics"].is_null(), "{p}");
+        assert!(
+            p["error_physics"].is_null() && p["physics"].is_null(),
+            "{p}"
+        );
     }
     assert!(report["equal_error"].is_null());
     for name in ["error-vs-time", "error-vs-memory"] {

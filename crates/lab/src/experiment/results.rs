@@ -732,10 +732,15 @@ fn budget_section(sw: &SweepReport) -> String {
             .solution
             .map_or("-".into(), |e| format!("{:.3}", e.perceptual)),
     );
-    s += &format!("| density | tolerance | solution error | {} |\n", methods.join(" | "));
+    s += &format!(
+        "| density | tolerance | solution error | {} |\n",
+        methods.join(" | ")
+    );
     s += &format!("|---|---|---|{}\n", "---|".repeat(methods.len()));
     for (level, d) in sw.densities.iter().enumerate() {
-        let sol = d.solution.map_or("-".into(), |e| format!("{:.3}", e.perceptual));
+        let sol = d
+            .solution
+            .map_or("-".into(), |e| format!("{:.3}", e.perceptual));
         s += &format!("| {level} | {} | {sol} |", d.tolerance);
         for m in &methods {
             let best = sw

@@ -210,6 +210,10 @@ mod tests {
         );
         // The clean image itself: what is left after the correction is a fraction of the noise.
         let own = t.errors(&x, ppd).unwrap();
-        assert!(own.perceptual <= 0.35 * t.noise.perceptual, "{own:?} {:?}", t.noise);
+        assert!(
+            own.perceptual <= 0.35 * t.noise.perceptual,
+            "{own:?} {:?}",
+            t.noise
+        );
     }
 }

@@ -200,7 +200,12 @@ pub struct SolutionLevel {
 }
 
 impl SolutionLevel {
-    fn of(p: &Prepared, exact: &LinearImage, truth: Option<&TruthReference>, ppd: f64) -> Result<SolutionLevel> {
+    fn of(
+        p: &Prepared,
+        exact: &LinearImage,
+        truth: Option<&TruthReference>,
+        ppd: f64,
+    ) -> Result<SolutionLevel> {
         Ok(SolutionLevel {
             tolerance: p.scene.radiosity.tolerance,
             max_depth: p.scene.radiosity.max_depth,

@@ -168,6 +168,7 @@ pub(crate) const NODE_BYTES: u64 = (std::mem::size_of::<base::quadtree::Node>()
 /// Bytes a patch's shape holds per node of its tree (see [`NODE_BYTES`]).
 const SHAPE_NODE_BYTES: usize = std::mem::size_of::<base::quadtree::Node>()
     + std::mem::size_of::<(DVec3, f64)>()
+    + std::mem::size_of::<[glam::Vec3; 3]>()
     + std::mem::size_of::<u32>()
     + 12;
 
