@@ -134,10 +134,12 @@ fn wall_lit_ceiling() -> String {
     s
 }
 
-/// The Cornell box as shipped (its two repeated faces counted once): every face within 4.5 %
-/// of the path tracer, the walls, floor and ceiling within 2 %. Measured at the scene's own
-/// settings: walls, floor and ceiling 0.986-1.004, the boxes' faces 0.961-1.028 (before the
-/// shapes, the kernel-weighted visibility and the duplicates' merge: 0.903-1.346).
+/// The Cornell box as shipped (its two repeated faces counted once): every face within 3 %
+/// of the path tracer, the walls, floor and ceiling within 2 % (each plus three of the truth's
+/// standard errors). Measured at the scene's own settings: walls, floor and ceiling
+/// 0.988-1.006, the boxes' faces 0.973-1.009 (before the shapes, the kernel-weighted
+/// visibility and the duplicates' merge: 0.903-1.346). Other seeds move the two box faces
+/// that face each other across the gap to 0.94-0.96 (docs/accuracy.md).
 #[test]
 fn the_cornell_box_matches_the_path_tracer_face_by_face() {
     let path = Path::new(crate::REPO).join("scenes/cornell-box.toml");
@@ -156,7 +158,7 @@ fn the_cornell_box_matches_the_path_tracer_face_by_face() {
     check(
         "cornell boxes",
         &boxes.into_iter().map(|(_, x)| *x).collect::<Vec<_>>(),
-        0.045,
+        0.03,
         0.06,
     );
 }
