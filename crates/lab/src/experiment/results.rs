@@ -798,10 +798,19 @@ fn budget_finding(sw: &SweepReport) -> String {
         sol_wins += w;
         all += n;
     }
+    let verdict = if sol_wins == 0 {
+        "The reconstruction error dominates everywhere: at this image size every method's \
+         distance from the light is mostly how it draws the solution, not the solution."
+    } else if sol_wins == all {
+        "The solution error dominates everywhere: a better reconstruction cannot bring these \
+         images nearer the light; only a better solution can."
+    } else {
+        "Where the solution error dominates, a better reconstruction cannot bring the image \
+         nearer the light; only a better solution can."
+    };
     format!(
         "The solution error is the larger term at {sol_wins} of {all} points (every density and \
-         texture size); per method: {}. Where it is, a better reconstruction cannot bring the \
-         image nearer the light; only a better solution can.",
+         texture size; per method: {}). {verdict}",
         by_method.join(", ")
     )
 }
