@@ -12,6 +12,14 @@
 //! leaves every target as it was; only a kill between two renames (microseconds) can leave some
 //! replaced and some not. Temporaries of a failed batch are removed.
 //!
+//! Temporaries are named `.pfs-<pid>-<random>.tmp` (short, so any legal target name has one;
+//! unpredictable, the random part from the standard library's per-process random hash keys) and
+//! created exclusively (`O_CREAT | O_EXCL`): a file or symbolic link planted at the name makes
+//! the creation fail and another name is drawn, so a write never follows a link or truncates a
+//! file it did not create. A replaced target keeps its permission bits. The first write into a
+//! directory removes the temporaries there whose process has died (a run killed by SIGKILL or a
+//! power cut), recognised by name and by `/proc/<pid>` being gone.
+//!
 //! Every write goes through an [`Outputs`] value, the registry of the temporaries that exist
 //! ([`Outputs::remove_temporaries`] deletes them): the caller owns it and hands a clone to
 //! whatever must clean up (the binary's SIGINT/SIGTERM handler, before exiting), so an
@@ -56,20 +64,73 @@ pub fn read_text(path: &Path) -> std::io::Result<String> {
         .map_err(|_| std::io::Error::new(std::io::ErrorKind::InvalidData, "not UTF-8 text"))
 }
 
-/// The directory and temporary path `path` is written through.
-fn temporary_of(path: &Path) -> Result<(PathBuf, PathBuf)> {
-    let dir = match path.parent() {
+/// The directory `path` is written in (its temporary goes there, so the rename stays on one
+/// file system).
+fn directory_of(path: &Path) -> Result<PathBuf> {
+    if path.file_name().is_none() {
+        return Err(Error::invalid_option(
+            "output",
+            path.display().to_string(),
+            "is not a file name",
+        ));
+    }
+    Ok(match path.parent() {
         Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
         _ => PathBuf::from("."),
+    })
+}
+
+/// Prefix and suffix of every temporary's name.
+const TEMPORARY_PREFIX: &str = ".pfs-";
+const TEMPORARY_SUFFIX: &str = ".tmp";
+
+/// Names tried before creating a temporary gives up (each collision is a planted file or a
+/// 2^-64 coincidence).
+const TEMPORARY_ATTEMPTS: u32 = 16;
+
+/// A fresh temporary name for this process: `.pfs-<pid>-<16 hex digits>.tmp`, the digits from
+/// a hash with the standard library's random per-process keys (not guessable from the pid or
+/// the time).
+fn temporary_name() -> String {
+    use std::hash::{BuildHasher, Hasher};
+    static COUNTER: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
+    let mut h = std::collections::hash_map::RandomState::new().build_hasher();
+    h.write_u64(COUNTER.fetch_add(1, std::sync::atomic::Ordering::Relaxed));
+    format!(
+        "{TEMPORARY_PREFIX}{}-{:016x}{TEMPORARY_SUFFIX}",
+        std::process::id(),
+        h.finish()
+    )
+}
+
+/// The process id in a temporary's file name, if it is one of ours.
+fn temporary_pid(name: &std::ffi::OsStr) -> Option<u32> {
+    let rest = name.to_str()?.strip_prefix(TEMPORARY_PREFIX)?;
+    let rest = rest.strip_suffix(TEMPORARY_SUFFIX)?;
+    let (pid, hex) = rest.split_once('-')?;
+    (hex.len() == 16 && hex.bytes().all(|b| b.is_ascii_hexdigit())).then_some(())?;
+    pid.parse().ok()
+}
+
+/// Removes the temporaries in `dir` left by processes that no longer exist (Linux: no
+/// `/proc/<pid>`; elsewhere nothing is removed). Only regular files named as ours are touched.
+fn remove_stale_temporaries(dir: &Path) {
+    let proc_root = Path::new("/proc");
+    if !proc_root.join("self").exists() {
+        return;
+    }
+    let Ok(entries) = std::fs::read_dir(dir) else {
+        return;
     };
-    let name = path.file_name().ok_or_else(|| {
-        Error::invalid_option("output", path.display().to_string(), "is not a file name")
-    })?;
-    let mut tmp_name = std::ffi::OsString::from(".");
-    tmp_name.push(name);
-    tmp_name.push(format!(".{}.tmp", std::process::id()));
-    let tmp = dir.join(tmp_name);
-    Ok((dir, tmp))
+    for e in entries.flatten() {
+        let Some(pid) = temporary_pid(&e.file_name()) else {
+            continue;
+        };
+        let regular = e.file_type().is_ok_and(|t| t.is_file());
+        if regular && pid != std::process::id() && !proc_root.join(pid.to_string()).exists() {
+            let _ = std::fs::remove_file(e.path());
+        }
+    }
 }
 
 /// The registry of the temporaries a set of writes has created and not yet renamed or removed,
@@ -87,6 +148,8 @@ struct Registry {
     live: Mutex<Vec<PathBuf>>,
     /// Held while a batch renames its temporaries, and by [`Outputs::remove_temporaries`].
     commit: Mutex<()>,
+    /// Directories already swept of dead runs' temporaries.
+    swept: Mutex<std::collections::HashSet<PathBuf>>,
 }
 
 impl Outputs {
@@ -118,22 +181,68 @@ impl Outputs {
         removed
     }
 
-    /// Writes `bytes` to the temporary `tmp` (created in `dir`, which is created if missing)
-    /// and flushes it to disk; removes it on failure.
-    fn write_temporary(&self, dir: &Path, tmp: &Path, path: &Path, bytes: &[u8]) -> Result<()> {
+    /// Writes `bytes` for target `path` to a new temporary in `dir` (created if missing), with
+    /// the target's permission bits if it exists, and flushes it to disk; returns the
+    /// temporary's path. Removes it on failure.
+    fn write_temporary(&self, dir: &Path, path: &Path, bytes: &[u8]) -> Result<PathBuf> {
         std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
-        self.live().push(tmp.to_path_buf());
+        let first = self
+            .shared
+            .swept
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .insert(dir.to_path_buf());
+        if first {
+            remove_stale_temporaries(dir);
+        }
+        let (tmp, mut f) = self.create_temporary(dir, path)?;
         let result = (|| {
-            let mut f = std::fs::File::create(tmp)?;
+            if let Ok(meta) = std::fs::symlink_metadata(path) {
+                if meta.is_file() {
+                    f.set_permissions(meta.permissions())?;
+                }
+            }
             f.write_all(bytes)?;
             f.sync_all()
         })();
         if let Err(e) = result {
-            let _ = std::fs::remove_file(tmp);
-            self.forget(tmp);
+            drop(f);
+            let _ = std::fs::remove_file(&tmp);
+            self.forget(&tmp);
             return Err(Error::io(path, e));
         }
-        Ok(())
+        Ok(tmp)
+    }
+
+    /// Creates a new temporary in `dir` exclusively (never opening an existing file or
+    /// following a link), registered before it exists; another name is drawn on a collision.
+    fn create_temporary(&self, dir: &Path, path: &Path) -> Result<(PathBuf, std::fs::File)> {
+        let mut last = None;
+        for _ in 0..TEMPORARY_ATTEMPTS {
+            let tmp = dir.join(temporary_name());
+            self.live().push(tmp.clone());
+            let mut o = std::fs::OpenOptions::new();
+            o.write(true).create_new(true);
+            #[cfg(unix)]
+            {
+                use std::os::unix::fs::OpenOptionsExt;
+                o.mode(0o666);
+            }
+            match o.open(&tmp) {
+                Ok(f) => return Ok((tmp, f)),
+                Err(e) => {
+                    self.forget(&tmp);
+                    if e.kind() != std::io::ErrorKind::AlreadyExists {
+                        return Err(Error::io(path, e));
+                    }
+                    last = Some(e);
+                }
+            }
+        }
+        Err(Error::io(
+            path,
+            last.unwrap_or_else(|| std::io::Error::other("no temporary name was free")),
+        ))
     }
 
     /// Writes `bytes` to `path` atomically. Creates missing parent directories.
@@ -163,8 +272,8 @@ pub struct Batch {
 impl Batch {
     /// Writes `bytes` to `path`'s temporary (flushed); `path` is replaced on commit.
     pub fn stage(&mut self, path: &Path, bytes: &[u8]) -> Result<()> {
-        let (dir, tmp) = temporary_of(path)?;
-        self.outputs.write_temporary(&dir, &tmp, path, bytes)?;
+        let dir = directory_of(path)?;
+        let tmp = self.outputs.write_temporary(&dir, path, bytes)?;
         self.staged.push((tmp, path.to_path_buf()));
         Ok(())
     }
@@ -244,6 +353,44 @@ fn resolved(p: &Path) -> PathBuf {
     out
 }
 
+/// Longest file name a file system takes (`NAME_MAX` on Linux, macOS and Windows).
+pub const MAX_NAME_BYTES: usize = 255;
+
+/// Longest path the system calls take (`PATH_MAX` on Linux, less its terminating zero).
+pub const MAX_PATH_BYTES: usize = 4095;
+
+/// Why `path` could never be written, found before any work: a file name or a path too long
+/// for the file system, or an existing ancestor that is not a directory.
+fn unwritable_name(path: &Path) -> Option<String> {
+    let name = path.file_name().map_or(0, |n| n.as_encoded_bytes().len());
+    if name > MAX_NAME_BYTES {
+        return Some(format!(
+            "has a file name of {name} bytes, over the {MAX_NAME_BYTES} a file system allows"
+        ));
+    }
+    let long = std::path::absolute(path).map_or(0, |p| p.as_os_str().as_encoded_bytes().len());
+    if long > MAX_PATH_BYTES {
+        return Some(format!(
+            "is {long} bytes long as an absolute path, over the {MAX_PATH_BYTES} the system allows"
+        ));
+    }
+    for a in path.ancestors().skip(1) {
+        if a.as_os_str().is_empty() {
+            break;
+        }
+        if let Ok(m) = std::fs::metadata(a) {
+            if !m.is_dir() {
+                return Some(format!(
+                    "cannot be created: {} is a file, not a directory",
+                    a.display()
+                ));
+            }
+            break;
+        }
+    }
+    None
+}
+
 /// Whether two existing files are the same file (same device and inode: hard links too).
 #[cfg(unix)]
 fn same_file(a: &std::fs::Metadata, b: &std::fs::Metadata) -> bool {
@@ -280,6 +427,9 @@ pub fn check_outputs(inputs: &[PathBuf], outputs: &[(&str, &Path)]) -> Result<()
         }
         if text.ends_with('/') || text.ends_with(std::path::MAIN_SEPARATOR) {
             return refuse(option, path, "names a directory; give a file name".into());
+        }
+        if let Some(why) = unwritable_name(path) {
+            return refuse(option, path, why);
         }
         let meta = std::fs::symlink_metadata(path).ok();
         if let Some(why) = meta.as_ref().and_then(not_regular) {
@@ -362,6 +512,75 @@ mod tests {
         std::fs::write(dir.join("old.png"), "old").unwrap();
         check_outputs(&ins, &[("-o", &a), ("--exr", &dir.join("old.png"))]).unwrap();
         check_outputs(&ins, &[("-o", &dir.join("new/dir/out.png"))]).unwrap();
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn names_that_can_never_be_written_are_refused_up_front() {
+        let dir = fresh_dir("names");
+        let refused = |path: &Path| check_outputs(&[], &[("-o", path)]).unwrap_err().to_string();
+        // The longest legal name is fine (its temporary's name is short); one byte more is not.
+        let legal = dir.join("a".repeat(MAX_NAME_BYTES));
+        check_outputs(&[], &[("-o", &legal)]).unwrap();
+        Outputs::new().write_atomic(&legal, b"x").unwrap();
+        assert_eq!(std::fs::read(&legal).unwrap(), b"x");
+        let e = refused(&dir.join("a".repeat(MAX_NAME_BYTES + 1)));
+        assert!(e.contains("256 bytes"), "{e}");
+        let deep = dir.join("d/".repeat(MAX_PATH_BYTES / 2)).join("x.png");
+        assert!(refused(&deep).contains("bytes long"));
+        // A directory component that is a file.
+        std::fs::write(dir.join("file"), "x").unwrap();
+        let e = refused(&dir.join("file/sub/x.toml"));
+        assert!(e.contains("is a file, not a directory"), "{e}");
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    /// What broke: the temporary of `out/x.png` had a predictable name and was opened
+    /// following links, so a link planted there let a render overwrite the link's target.
+    #[cfg(unix)]
+    #[test]
+    fn a_planted_link_is_never_followed_and_modes_are_kept() {
+        use std::os::unix::fs::PermissionsExt;
+        let dir = fresh_dir("planted");
+        let victim = dir.join("victim.txt");
+        std::fs::write(&victim, "precious").unwrap();
+        // A link at every name this process could draw next is impossible to plant; plant
+        // links at the old scheme's name and at names of ours, and check none is followed.
+        std::os::unix::fs::symlink(
+            &victim,
+            dir.join(format!(".x.png.{}.tmp", std::process::id())),
+        )
+        .unwrap();
+        for _ in 0..4 {
+            std::os::unix::fs::symlink(&victim, dir.join(temporary_name())).unwrap();
+        }
+        let out = dir.join("x.png");
+        std::fs::write(&out, "old").unwrap();
+        std::fs::set_permissions(&out, std::fs::Permissions::from_mode(0o600)).unwrap();
+        Outputs::new().write_atomic(&out, b"new").unwrap();
+        assert_eq!(std::fs::read(&victim).unwrap(), b"precious");
+        assert_eq!(std::fs::read(&out).unwrap(), b"new");
+        let mode = std::fs::metadata(&out).unwrap().permissions().mode() & 0o777;
+        assert_eq!(mode, 0o600);
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn a_dead_runs_temporaries_are_removed_and_a_live_ones_kept() {
+        let dir = fresh_dir("stale");
+        // No process has pid 4,194,304 + 1 (Linux's pid_max is at most 2^22).
+        let dead = dir.join(format!(".pfs-4194305-{:016x}.tmp", 7));
+        let live = dir.join(temporary_name());
+        let other = dir.join(".pfs-notes.tmp");
+        for p in [&dead, &live, &other] {
+            std::fs::write(p, "t").unwrap();
+        }
+        Outputs::new()
+            .write_atomic(&dir.join("out.txt"), b"x")
+            .unwrap();
+        let proc_fs = Path::new("/proc/self").exists();
+        assert_eq!(dead.exists(), !proc_fs);
+        assert!(live.exists() && other.exists());
         std::fs::remove_dir_all(&dir).unwrap();
     }
 

@@ -185,13 +185,14 @@ fn memory_requests_over_the_limit_are_refused_with_the_estimate() {
     )
     .unwrap();
     let deep = deep.to_str().unwrap();
+    let never = dir.join("never.pfsol");
     for cmd in [
         vec!["check", deep, "--memory-limit", "16G"],
         vec![
             "solve",
             deep,
             "-o",
-            "/dev/null/x.pfsol",
+            never.to_str().unwrap(),
             "--memory-limit",
             "16G",
         ],
@@ -204,6 +205,7 @@ fn memory_requests_over_the_limit_are_refused_with_the_estimate() {
             "{cmd:?}: {stderr}"
         );
     }
+    assert!(!never.exists(), "a refused solve wrote its output");
 
     // The solve's own guard: the Cornell box starts at 22 KiB but refines past 2 MiB.
     let out = run(&[

@@ -447,11 +447,29 @@ fn walkthrough_summarizes_the_frame_rates() {
 
 #[test]
 fn an_unwritable_output_is_a_runtime_failure_reported_once() {
-    // The output's parent is a regular file, so the directory cannot be created: a failure while
-    // running (exit 1), not bad input; the OS error appears once in the message.
+    // A parent that is a regular file is found before any work: bad input (exit 2).
     let file = tmp("not-a-dir");
     std::fs::write(&file, b"x").unwrap();
-    let out = file.join("frame.png");
+    let o = run(&[
+        "render",
+        scene("two-spots").to_str().unwrap(),
+        "-o",
+        file.join("frame.png").to_str().unwrap(),
+        "--quiet",
+    ]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("is a file, not a directory"),
+        "{}",
+        stderr(&o)
+    );
+    // A directory the file system refuses to create files in (Linux's /proc, even for root)
+    // fails only when written: a failure while running (exit 1), not bad input; the OS error
+    // appears once in the message.
+    if !Path::new("/proc/self").exists() {
+        return;
+    }
+    let out = Path::new("/proc/pixelflow-sim-not-a-dir/frame.png");
     let o = run(&[
         "render",
         scene("two-spots").to_str().unwrap(),
@@ -465,7 +483,7 @@ fn an_unwritable_output_is_a_runtime_failure_reported_once() {
     ]);
     assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
     let msg = stderr(&o);
-    assert!(msg.contains("not-a-dir"), "{msg}");
+    assert!(msg.contains("pixelflow-sim-not-a-dir"), "{msg}");
     assert_eq!(msg.matches("os error").count(), 1, "{msg}");
 }
 
@@ -555,6 +573,76 @@ fn outputs_never_replace_inputs_or_non_files() {
         ),
         (vec!["solve".into(), s(&v), "-o".into(), s(&v)], "input"),
         (vec!["solve".into(), s(&cb), "-o".into(), s(&obj)], "input"),
+        // The pages of `results` and `experiment all`, and the data beside them.
+        (
+            vec![
+                "results".into(),
+                "--scenes".into(),
+                s(&v),
+                "--doc".into(),
+                s(&v),
+            ],
+            "input",
+        ),
+        (
+            vec![
+                "results".into(),
+                "--scenes".into(),
+                s(&cb),
+                "--doc".into(),
+                s(&obj),
+            ],
+            "input",
+        ),
+        (
+            vec![
+                "experiment".into(),
+                "all".into(),
+                "--scene".into(),
+                s(&v),
+                "--out-dir".into(),
+                s(&dir.join("exp")),
+                "--doc".into(),
+                dotted.clone(),
+            ],
+            "input",
+        ),
+        (
+            vec![
+                "experiment".into(),
+                "all".into(),
+                "--scenes".into(),
+                s(&cb),
+                "--out-dir".into(),
+                s(&dir.join("exp")),
+                "--doc".into(),
+                s(&mtl),
+            ],
+            "input",
+        ),
+        // Names that could never be written, found before the work.
+        (
+            vec![
+                "render".into(),
+                s(&v),
+                "-o".into(),
+                s(&dir.join(format!("{}.png", "n".repeat(252)))),
+            ],
+            "256 bytes",
+        ),
+        (
+            vec![
+                "generate".into(),
+                "building".into(),
+                "--rooms-x".into(),
+                "1".into(),
+                "--rooms-z".into(),
+                "1".into(),
+                "-o".into(),
+                s(&v.join("b.toml")),
+            ],
+            "is a file, not a directory",
+        ),
         (
             vec![
                 "render".into(),

@@ -134,6 +134,7 @@ pub fn sweep_falloffs(own: Option<f64>) -> Vec<f64> {
 
 /// Runs `req`, calling `wrote` for every file written.
 pub fn run(job: &Context<'_>, req: &Request, wrote: &mut dyn FnMut(&Path)) -> Result<Results> {
+    check_doc(req)?;
     let mut r = Results::default();
     let figures = FigureOptions {
         isa: job.isa,
@@ -173,6 +174,23 @@ pub fn run(job: &Context<'_>, req: &Request, wrote: &mut dyn FnMut(&Path)) -> Re
         wrote(doc);
     }
     Ok(r)
+}
+
+/// Refuses (exit 2, before any work) a `--doc` page that is, or resolves to, one of the
+/// experiment's input files: the figures' scene and Table 1's scenes, with what they include.
+fn check_doc(req: &Request) -> Result<()> {
+    let Some(doc) = &req.doc else {
+        return Ok(());
+    };
+    let mut inputs = Vec::new();
+    for scene in std::iter::once(&req.figures.scene).chain(&req.scenes) {
+        match load_scene(scene) {
+            Ok(s) => inputs.extend(s.inputs),
+            // Still refuse the scene file itself; its own error comes when it is used.
+            Err(_) => inputs.push(scene.clone()),
+        }
+    }
+    base::output::check_outputs(&inputs, &[("--doc", doc)])
 }
 
 /// Every table of `r` as text.

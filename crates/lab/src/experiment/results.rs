@@ -234,12 +234,24 @@ pub fn run_results(
 ) -> Result<ResultsReport> {
     check(req)?;
     let start = Instant::now();
-    // Every option and every scene is checked before the first solve.
+    // Every option, every scene and every output is checked before the first solve.
+    let mut inputs = Vec::new();
     for scene in &req.scenes {
         sweep::check_request(&sweep_request(req, scene))?;
-        Input::load(scene)?;
+        inputs.extend(Input::load(scene)?.scene.inputs);
     }
     let root = data_dir(&req.doc);
+    let data = root.join("results.json");
+    let mut outputs: Vec<(&str, PathBuf)> =
+        vec![("--doc", req.doc.clone()), ("--doc (data)", data)];
+    for scene in &req.scenes {
+        let dir = root.join(stem(scene));
+        for f in ["sweep.json", "sweep.csv"] {
+            outputs.push(("--doc (data)", dir.join(f)));
+        }
+    }
+    let named: Vec<(&str, &Path)> = outputs.iter().map(|(o, p)| (*o, p.as_path())).collect();
+    base::output::check_outputs(&inputs, &named)?;
     let mut scenes = Vec::new();
     for scene in &req.scenes {
         scenes.push(scene_results(job, req, scene, &root, wrote)?);
