@@ -28,7 +28,8 @@ pub struct Cli {
     #[command(subcommand)]
     pub command: Command,
     /// Memory the job may use: bytes, or a number with K, M, G or T (binary units, `1.5G`), or
-    /// `none`. Default: three quarters of this machine's physical memory. A job whose estimate
+    /// `none`. Default: the smallest of three quarters of this machine's physical memory,
+    /// three quarters of its memory cgroup's limit and half of `ulimit -v`. A job whose estimate
     /// is over it is refused before it allocates (exit 2, the estimate in the message); `check`
     /// reports the estimate against it.
     #[arg(long, global = true, value_name = "SIZE", value_parser = parse_memory_limit)]

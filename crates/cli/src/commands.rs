@@ -383,6 +383,14 @@ pub fn generate_building(settings: &Settings, args: BuildingArgs) -> anyhow::Res
 /// `compare`: the pixel-by-pixel check (with `--tolerance`) and the perceptual measures
 /// (without it, or with `--max-distance`); an error naming every failed check.
 pub fn compare(settings: &Settings, args: CompareArgs) -> anyhow::Result<()> {
+    let perceptual = args.tolerance.is_none() || args.max_distance.is_some();
+    lab::jobs::compare::check_compare(
+        &args.a,
+        &args.b,
+        args.tolerance.is_some(),
+        perceptual,
+        settings.limit,
+    )?;
     let mut failed = Vec::new();
     if let Some(tolerance) = args.tolerance {
         failed.extend(compare_pixels(&settings.outputs, &args, tolerance)?);

@@ -273,3 +273,37 @@ fn memory_requests_over_the_limit_are_refused_with_the_estimate() {
     assert!(!png.exists());
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// What broke: the default memory limit read only the machine's RAM, so under `ulimit -v 4G`
+/// `check` called a solve that needed 9.9 GiB fitting (limit 17.7 GiB) and the solve aborted.
+/// The default is now at most half the address-space limit.
+#[test]
+fn the_default_limit_follows_ulimit_v() {
+    if !Path::new("/proc/self/limits").exists() || !Path::new("/bin/sh").exists() {
+        return;
+    }
+    let scene = Path::new(crate::REPO).join("scenes/two-spots.toml");
+    let o = std::process::Command::new("/bin/sh")
+        .arg("-c")
+        .arg("ulimit -v 4194304 && exec \"$0\" check \"$1\"")
+        .arg(env!("CARGO_BIN_EXE_pixelflow-sim"))
+        .arg(&scene)
+        .output()
+        .unwrap();
+    let out = String::from_utf8_lossy(&o.stdout).into_owned() + &String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{out}");
+    let line = out
+        .lines()
+        .find(|l| l.starts_with("memory limit"))
+        .unwrap_or_else(|| panic!("no limit line: {out}"));
+    // At most 2 GiB (less where the machine or its cgroup allows less).
+    let words: Vec<&str> = line.split_whitespace().collect();
+    let (value, unit) = (words[2].parse::<f64>().unwrap(), words[3]);
+    let gib = match unit {
+        "GiB" => value,
+        "MiB" => value / 1024.0,
+        "KiB" => value / (1024.0 * 1024.0),
+        _ => panic!("{line}"),
+    };
+    assert!(gib <= 2.0, "{line}");
+}

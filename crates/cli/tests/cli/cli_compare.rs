@@ -119,3 +119,118 @@ fn bad_inputs_exit_2_naming_the_file() {
         assert!(o.stdout.is_empty());
     }
 }
+
+/// CRC-32 (ISO-HDLC, as PNG chunks use it), bit by bit: a few bytes per test.
+fn crc32(bytes: &[u8]) -> u32 {
+    let mut c = !0u32;
+    for &b in bytes {
+        c ^= b as u32;
+        for _ in 0..8 {
+            c = if c & 1 != 0 {
+                0xEDB8_8320 ^ (c >> 1)
+            } else {
+                c >> 1
+            };
+        }
+    }
+    !c
+}
+
+/// A PNG of `side x side` 8-bit grey pixels whose data is a single empty chunk: a few dozen
+/// bytes on disk claiming an image of `side^2` bytes decoded (a decompression bomb's header).
+fn bomb_png(name: &str, side: u32) -> PathBuf {
+    let mut png = b"\x89PNG\r\n\x1a\n".to_vec();
+    let mut chunk = |kind: &[u8], data: &[u8]| {
+        png.extend_from_slice(&(data.len() as u32).to_be_bytes());
+        let mut body = kind.to_vec();
+        body.extend_from_slice(data);
+        png.extend_from_slice(&body);
+        png.extend_from_slice(&crc32(&body).to_be_bytes());
+    };
+    let mut ihdr = side.to_be_bytes().to_vec();
+    ihdr.extend_from_slice(&side.to_be_bytes());
+    ihdr.extend_from_slice(&[8, 0, 0, 0, 0]);
+    chunk(b"IHDR", &ihdr);
+    chunk(b"IDAT", &[]);
+    chunk(b"IEND", &[]);
+    let p = tmp(name);
+    std::fs::write(&p, png).unwrap();
+    p
+}
+
+/// What broke: two 16384^2 grey PNGs of a few hundred KiB each decoded to 7.3 GB and aborted
+/// the process (exit 134) after two minutes, `--memory-limit` ignored. The size is now read
+/// from the headers and the comparison's memory estimated before anything is decoded: refused
+/// with exit 2 and the estimate, at once, in both the perceptual and the pixel-by-pixel mode.
+#[test]
+fn a_decompression_bomb_is_refused_by_its_header() {
+    let (a, b) = (bomb_png("bomb-a.png", 16384), bomb_png("bomb-b.png", 16384));
+    for extra in [&[][..], &["--tolerance", "default"][..]] {
+        let mut args = vec!["compare", s(&a), s(&b), "--memory-limit", "4G"];
+        args.extend_from_slice(extra);
+        let start = std::time::Instant::now();
+        let o = run(&args);
+        assert_eq!(o.status.code(), Some(2), "{extra:?}: {}", stderr(&o));
+        let e = stderr(&o);
+        assert!(
+            e.contains("16384 x 16384 pixels") && e.contains("over the memory limit"),
+            "{e}"
+        );
+        assert!(start.elapsed().as_secs() < 20, "took {:?}", start.elapsed());
+    }
+    // Within the limit the header is read, and the missing pixels are the decoder's error.
+    let (c, d) = (bomb_png("small-a.png", 64), bomb_png("small-b.png", 64));
+    let o = run(&["compare", s(&c), s(&d)]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(stderr(&o).contains("small-a.png"), "{}", stderr(&o));
+}
+
+/// The memory estimate of a comparison is never below what it uses, and not far above: two
+/// 1024 x 1024 images, the estimate's refusal threshold found by bisection against the
+/// measured peak (`/usr/bin/time`, where present).
+#[test]
+fn the_compare_estimate_brackets_the_measured_peak() {
+    let a = write_pfm("peak-a.pfm", 1024, 1024, |x, y| {
+        0.1 + ((x ^ y) & 15) as f32 * 0.01
+    });
+    let b = write_pfm("peak-b.pfm", 1024, 1024, |x, _| 0.1 + (x & 7) as f32 * 0.01);
+    // The estimate: refused just under it, accepted at it.
+    let est = 1024 * 1024 * lab::jobs::compare::PERCEPTUAL_PIXEL_BYTES;
+    let refused = run(&[
+        "compare",
+        s(&a),
+        s(&b),
+        "--memory-limit",
+        &(est - 1).to_string(),
+    ]);
+    assert_eq!(refused.status.code(), Some(2), "{}", stderr(&refused));
+    if !Path::new("/usr/bin/time").exists() {
+        return;
+    }
+    let o = Command::new("/usr/bin/time")
+        .args(["-f", "%M"])
+        .arg(env!("CARGO_BIN_EXE_pixelflow-sim"))
+        .args(["compare", s(&a), s(&b), "--memory-limit", &est.to_string()])
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", stderr(&o));
+    let kib: u64 = stderr(&o)
+        .trim()
+        .lines()
+        .last()
+        .unwrap()
+        .trim()
+        .parse()
+        .unwrap();
+    // The peak includes the program itself (about 6 MB resident), which the estimate leaves
+    // out by design; the pixels' share must be within the estimate and above 2/3 of it.
+    let pixels = (kib * 1024).saturating_sub(8 << 20);
+    assert!(
+        pixels <= est,
+        "measured {pixels} bytes for the pixels, estimated {est}"
+    );
+    assert!(
+        pixels * 3 >= est * 2,
+        "measured {pixels}, estimated {est}: over 1.5x"
+    );
+}

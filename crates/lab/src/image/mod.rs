@@ -9,5 +9,7 @@ pub mod read;
 pub mod write;
 
 pub use base::image::*;
-pub use read::{decode_image, decode_pfm, read_image, srgb_decode, MAX_PFM_DIM};
+pub use read::{
+    decode_image, decode_pfm, read_image, read_image_header, srgb_decode, ImageHeader, MAX_PFM_DIM,
+};
 pub use write::{encode_exr, encode_png, srgb_encode, to_srgb8, write_exr, write_png};

@@ -49,6 +49,62 @@ pub fn read_image(path: &Path) -> Result<LinearImage> {
     decode_image(&bytes, path)
 }
 
+const UNKNOWN_FORMAT: &str = "unknown image format (expected OpenEXR, Radiance HDR, PFM or PNG; \
+     recognised by the file's first bytes)";
+
+/// What an image file holds, from its header alone: its size, and whether its values are floats
+/// (OpenEXR, Radiance HDR, PFM: decoded through 16 bytes a pixel) or 8/16-bit integers (PNG).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct ImageHeader {
+    /// Width in pixels.
+    pub width: u32,
+    /// Height in pixels.
+    pub height: u32,
+    /// Float samples (EXR, HDR, PFM) rather than PNG's integers.
+    pub float: bool,
+}
+
+/// Reads only the header of an image file (at most what the format's header takes, not the
+/// pixels): its size, known before anything is decoded, so a decompression bomb (a small
+/// file of a huge image) is refused by its size instead of exhausting memory. Errors name the
+/// file, as [`read_image`]'s do.
+pub fn read_image_header(path: &Path) -> Result<ImageHeader> {
+    use std::io::Read;
+    let err = |m: String| Error::input(Location::file(path), m);
+    let mut f =
+        std::fs::File::open(path).map_err(|e| err(format!("cannot read the image: {e}")))?;
+    let mut head = Vec::new();
+    (&mut f)
+        .take(256)
+        .read_to_end(&mut head)
+        .map_err(|e| err(format!("cannot read the image: {e}")))?;
+    if head.starts_with(b"PF") || head.starts_with(b"Pf") {
+        let h = pfm_header(&head, path)?;
+        return Ok(ImageHeader {
+            width: h.width,
+            height: h.height,
+            float: true,
+        });
+    }
+    let format = ::image::guess_format(&head).ok();
+    let (float, format) = match format {
+        Some(f @ ImageFormat::Png) => (false, f),
+        Some(f @ (ImageFormat::OpenExr | ImageFormat::Hdr)) => (true, f),
+        _ => return Err(err(UNKNOWN_FORMAT.into())),
+    };
+    let file = std::fs::File::open(path).map_err(|e| err(format!("cannot read the image: {e}")))?;
+    let mut reader = ::image::ImageReader::new(std::io::BufReader::new(file));
+    reader.set_format(format);
+    let (width, height) = reader
+        .into_dimensions()
+        .map_err(|e| err(format!("cannot read the image's header: {e}")))?;
+    Ok(ImageHeader {
+        width,
+        height,
+        float,
+    })
+}
+
 /// Decodes an image file's bytes; `source` names the file in errors.
 pub fn decode_image(bytes: &[u8], source: &Path) -> Result<LinearImage> {
     let err = |m: String| Error::input(Location::file(source), m);
@@ -65,13 +121,7 @@ pub fn decode_image(bytes: &[u8], source: &Path) -> Result<LinearImage> {
                 let pixels = rgb.pixels().map(|p| Vec3::from_array(p.0)).collect();
                 LinearImage::new(w, h, pixels).map_err(|e| err(e.to_string()))?
             }
-            _ => {
-                return Err(err(
-                    "unknown image format (expected OpenEXR, Radiance HDR, PFM or PNG; \
-                     recognised by the file's first bytes)"
-                        .into(),
-                ))
-            }
+            _ => return Err(err(UNKNOWN_FORMAT.into())),
         }
     };
     if let Some((x, y, p)) = img.first_non_finite() {
@@ -128,8 +178,17 @@ fn pfm_token<'a>(bytes: &'a [u8], pos: &mut usize) -> Option<&'a str> {
     std::str::from_utf8(&bytes[start..*pos]).ok()
 }
 
-/// Decodes a PFM file's bytes (see the module doc for the format); `source` names it in errors.
-pub fn decode_pfm(bytes: &[u8], source: &Path) -> Result<LinearImage> {
+/// A PFM header: channels, width, height, scale and where the data starts.
+struct PfmHeader {
+    channels: usize,
+    width: u32,
+    height: u32,
+    scale: f64,
+    data: usize,
+}
+
+/// Parses a PFM file's header; `source` names the file in errors.
+fn pfm_header(bytes: &[u8], source: &Path) -> Result<PfmHeader> {
     let err = |m: String| Error::input(Location::file(source), format!("PFM: {m}"));
     let channels = match bytes.get(..2) {
         Some(b"PF") => 3usize,
@@ -163,7 +222,25 @@ pub fn decode_pfm(bytes: &[u8], source: &Path) -> Result<LinearImage> {
     if !bytes.get(pos).is_some_and(|b| b.is_ascii_whitespace()) {
         return Err(err("header ends before the data".into()));
     }
-    pos += 1;
+    Ok(PfmHeader {
+        channels,
+        width,
+        height,
+        scale,
+        data: pos + 1,
+    })
+}
+
+/// Decodes a PFM file's bytes (see the module doc for the format); `source` names it in errors.
+pub fn decode_pfm(bytes: &[u8], source: &Path) -> Result<LinearImage> {
+    let err = |m: String| Error::input(Location::file(source), format!("PFM: {m}"));
+    let PfmHeader {
+        channels,
+        width,
+        height,
+        scale,
+        data: pos,
+    } = pfm_header(bytes, source)?;
     let little = scale < 0.0;
     let (w, h) = (width as usize, height as usize);
     let need = w * h * channels * 4;

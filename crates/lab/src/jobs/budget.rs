@@ -4,8 +4,12 @@
 //! until the allocator aborts the process.
 //!
 //! **The limit** travels in the job's [`super::Context`] (`memory_limit`): the binary sets it from
-//! `--memory-limit`, by default [`default_limit`] (three quarters of the machine's physical
-//! memory, read from `/proc/meminfo`; 8 GiB where that cannot be read); a library caller that
+//! `--memory-limit`, by default [`default_limit`]: the smallest of three quarters of the
+//! machine's physical memory (`/proc/meminfo`; 8 GiB where that cannot be read), three quarters
+//! of the memory cgroup's limit (`memory.max`, or `memory.limit_in_bytes` under cgroup v1), and
+//! half the process's address-space limit (`ulimit -v`: the address space also holds the
+//! program, thread stacks and the allocator's reserved arenas, so a heap cannot use all of it);
+//! a library caller that
 //! sets none has no limit. Every allocation site a job reaches (solve, textures, mesh, frame,
 //! outputs) checks its estimate against that one value.
 //!
@@ -60,10 +64,63 @@ pub(crate) fn machine_memory() -> Option<u64> {
 /// Used when the machine's memory cannot be read.
 pub(crate) const FALLBACK_LIMIT: u64 = 8 << 30;
 
-/// The default limit: three quarters of the machine's physical memory (the rest for the system
-/// and for what the estimates do not count), or `FALLBACK_LIMIT`.
+/// The default limit (module doc): the smallest of 3/4 of the physical memory (or
+/// `FALLBACK_LIMIT`), 3/4 of the memory cgroup's limit and 1/2 of the address-space limit.
 pub fn default_limit() -> u64 {
-    machine_memory().map_or(FALLBACK_LIMIT, |m| m / 4 * 3)
+    let mut limit = machine_memory().map_or(FALLBACK_LIMIT, |m| m / 4 * 3);
+    let read = |p: &str| std::fs::read_to_string(p).ok();
+    if let Some(c) = read("/proc/self/cgroup").and_then(|t| cgroup_limit(&t, read)) {
+        limit = limit.min(c / 4 * 3);
+    }
+    if let Some(a) = read("/proc/self/limits").and_then(|t| address_space_limit(&t)) {
+        limit = limit.min(a / 2);
+    }
+    limit.max(1)
+}
+
+/// Limits at or above this are "no limit" (cgroup v1 writes 2^63 rounded down to a page).
+const UNLIMITED: u64 = 1 << 62;
+
+/// The soft address-space limit in bytes from the text of `/proc/self/limits`; `None` when
+/// unlimited or unreadable.
+pub(crate) fn address_space_limit(limits: &str) -> Option<u64> {
+    let line = limits
+        .lines()
+        .find(|l| l.starts_with("Max address space"))?;
+    let soft = line["Max address space".len()..]
+        .split_whitespace()
+        .next()?;
+    soft.parse().ok().filter(|&b| b < UNLIMITED)
+}
+
+/// The memory limit of this process's cgroup, given the text of `/proc/self/cgroup` and a
+/// reader of files: cgroup v2 (`0::<path>`, `/sys/fs/cgroup<path>/memory.max`), else v1 (the
+/// `memory` controller's `memory.limit_in_bytes` under its path, or at the hierarchy's root as
+/// a container sees it). `None` when unlimited or unreadable.
+pub(crate) fn cgroup_limit(cgroups: &str, read: impl Fn(&str) -> Option<String>) -> Option<u64> {
+    let value =
+        |text: String| -> Option<u64> { text.trim().parse().ok().filter(|&b: &u64| b < UNLIMITED) };
+    for line in cgroups.lines() {
+        let mut parts = line.splitn(3, ':');
+        let (id, controllers, path) = (parts.next()?, parts.next()?, parts.next()?);
+        let path = path.trim_end_matches('/');
+        if id == "0" && controllers.is_empty() {
+            if let Some(v) = read(&format!("/sys/fs/cgroup{path}/memory.max")).and_then(value) {
+                return Some(v);
+            }
+        } else if controllers.split(',').any(|c| c == "memory") {
+            // The process's own cgroup if visible (its value, limited or not), else the root
+            // of the hierarchy as mounted (a container's own cgroup).
+            let own = read(&format!(
+                "/sys/fs/cgroup/memory{path}/memory.limit_in_bytes"
+            ));
+            let text = own.or_else(|| read("/sys/fs/cgroup/memory/memory.limit_in_bytes"));
+            if let Some(v) = text.and_then(value) {
+                return Some(v);
+            }
+        }
+    }
+    None
 }
 
 /// Parses a memory size: a number of bytes with an optional unit, `K`/`M`/`G`/`T` (binary,
@@ -454,6 +511,36 @@ pub fn scene_budget(scene: &Scene) -> Result<SceneBudget> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_address_space_and_cgroup_limits_are_read() {
+        let limits = "Limit                     Soft Limit           Hard Limit           Units\n\
+                      Max stack size            8388608              unlimited            bytes\n\
+                      Max address space         4294967296           unlimited            bytes\n";
+        assert_eq!(address_space_limit(limits), Some(4 << 30));
+        let open = limits.replace("4294967296", "unlimited");
+        assert_eq!(address_space_limit(&open), None);
+        // cgroup v2: the process's own cgroup's memory.max; "max" is no limit.
+        let files = |p: &str| match p {
+            "/sys/fs/cgroup/jobs/a/memory.max" => Some("1073741824\n".to_string()),
+            "/sys/fs/cgroup/jobs/b/memory.max" => Some("max\n".to_string()),
+            "/sys/fs/cgroup/memory/memory.limit_in_bytes" => Some("536870912\n".to_string()),
+            "/sys/fs/cgroup/memory/x/memory.limit_in_bytes" => {
+                Some("9223372036854771712\n".to_string())
+            }
+            _ => None,
+        };
+        assert_eq!(cgroup_limit("0::/jobs/a\n", files), Some(1 << 30));
+        assert_eq!(cgroup_limit("0::/jobs/b\n", files), None);
+        // cgroup v1: the memory controller's path, else the root a container sees; v1's
+        // "unlimited" (2^63 less a page) is no limit.
+        assert_eq!(
+            cgroup_limit("4:memory:/not/visible\n0::/\n", files),
+            Some(512 << 20)
+        );
+        assert_eq!(cgroup_limit("4:memory:/x\n", files), None);
+        assert_eq!(cgroup_limit("", files), None);
+    }
 
     #[test]
     fn sizes_parse_with_binary_units() {
