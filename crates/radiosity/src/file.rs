@@ -7,7 +7,7 @@
 //! path_len     u32      bytes of the scene path (0: none)
 //! payload_len  u64      bytes of payload
 //! scene_hash   u64      radiosity::scene_hash of the scene solved
-//! scene_path   path_len UTF-8 absolute path of the scene file (so `render <solution>` works)
+//! scene_path   path_len absolute path of the scene file, its bytes (so `render <solution>` works)
 //! payload      ...      trees, keys, values, shooters, stats, then the RRPs: a u64 length and
 //!                       that many bytes of the compact reconstruction's encoding (see
 //!                       `encode_payload`; empty when not stored)
@@ -51,20 +51,19 @@ pub fn encode(sol: &Solution) -> Vec<u8> {
 
 /// Serializes a solution to bytes, naming the scene file it solves (so `render <solution>` can
 /// load it) and storing `rrps`, the compact reconstruction's encoding (opaque here: this module
-/// comes before the reconstruction stage, which encodes and decodes it). The path is stored as
-/// UTF-8 between the header and the payload.
+/// comes before the reconstruction stage, which encodes and decodes it). The path is stored
+/// between the header and the payload as the system gives its bytes (on Unix any bytes but
+/// zero, so a path that is not UTF-8 still names its scene; elsewhere its UTF-8).
 pub fn encode_with_scene(sol: &Solution, scene_path: Option<&Path>, rrps: &[u8]) -> Vec<u8> {
     let payload = encode_payload(sol, rrps);
-    let path = scene_path
-        .map(|p| p.to_string_lossy().into_owned())
-        .unwrap_or_default();
+    let path: Vec<u8> = scene_path.map(path_bytes).unwrap_or_default();
     let mut out = Vec::with_capacity(HEADER + path.len() + payload.len() + 8);
     out.extend_from_slice(MAGIC);
     out.extend_from_slice(&FORMAT_VERSION.to_le_bytes());
     out.extend_from_slice(&(path.len() as u32).to_le_bytes());
     out.extend_from_slice(&(payload.len() as u64).to_le_bytes());
     out.extend_from_slice(&sol.scene_hash.to_le_bytes());
-    out.extend_from_slice(path.as_bytes());
+    out.extend_from_slice(&path);
     out.extend_from_slice(&payload);
     let mut h = Fnv::default();
     h.bytes(&out);
@@ -101,14 +100,45 @@ pub fn read_scene_path(path: &Path) -> Result<std::path::PathBuf> {
             "this solution file names no scene file; render the scene itself",
         ));
     }
-    let name = std::str::from_utf8(name).map_err(|_| {
+    path_of_bytes(name).ok_or_else(|| {
         Error::solution(
             path,
             SolutionProblem::Corrupt,
-            "corrupt solution file: scene path is not UTF-8",
+            "corrupt solution file: the scene path is not a path of this system",
         )
-    })?;
-    Ok(std::path::PathBuf::from(name))
+    })
+}
+
+/// A path's bytes as stored (see [`encode_with_scene`]).
+fn path_bytes(p: &Path) -> Vec<u8> {
+    #[cfg(unix)]
+    {
+        use std::os::unix::ffi::OsStrExt;
+        p.as_os_str().as_bytes().to_vec()
+    }
+    #[cfg(not(unix))]
+    {
+        p.to_string_lossy().into_owned().into_bytes()
+    }
+}
+
+/// The path stored as `bytes`; `None` if no path of this system has them (a zero byte; not
+/// UTF-8 outside Unix).
+fn path_of_bytes(bytes: &[u8]) -> Option<std::path::PathBuf> {
+    if bytes.contains(&0) {
+        return None;
+    }
+    #[cfg(unix)]
+    {
+        use std::os::unix::ffi::OsStrExt;
+        Some(std::path::PathBuf::from(std::ffi::OsStr::from_bytes(bytes)))
+    }
+    #[cfg(not(unix))]
+    {
+        std::str::from_utf8(bytes)
+            .ok()
+            .map(std::path::PathBuf::from)
+    }
 }
 
 /// Reads a solution of `scene` from `path`, with the stored RRP bytes (empty if none).

@@ -755,3 +755,34 @@ fn an_unknown_lane_build_is_bad_input() {
         "{e}"
     );
 }
+
+/// What broke: a scene whose path is not UTF-8 solved (exit 0) into a solution file that named
+/// its scene with the bytes replaced, so it could never be rendered. The path's bytes are now
+/// stored as the system gives them.
+#[cfg(unix)]
+#[test]
+fn a_scene_path_that_is_not_utf8_solves_and_renders() {
+    use std::os::unix::ffi::OsStrExt;
+    let dir = tmp("not-utf8").join(std::ffi::OsStr::from_bytes(b"sc\xffenes"));
+    std::fs::create_dir_all(&dir).unwrap();
+    let scene_path = dir.join("two-spots.toml");
+    std::fs::copy(scene("two-spots"), &scene_path).unwrap();
+    let sol = tmp("not-utf8.pfsol");
+    let o = bin()
+        .arg("solve")
+        .arg(&scene_path)
+        .arg("-o")
+        .arg(&sol)
+        .arg("--quiet")
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", stderr(&o));
+    let png = tmp("not-utf8.png");
+    let o = bin()
+        .args(["render", sol.to_str().unwrap(), "-o", png.to_str().unwrap()])
+        .args(["--width", "16", "--height", "16", "--quiet"])
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(png.is_file());
+}
