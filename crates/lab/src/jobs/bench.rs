@@ -129,8 +129,7 @@ pub fn run_bench(ctx: &Context<'_>, req: &BenchRequest) -> Result<BenchReport> {
     base.validate()?;
     for &size in &req.sizes {
         super::budget::check_frame(
-            size,
-            size,
+            (size, size, base.region),
             base.aa,
             base.renderers,
             (false, false),

@@ -471,12 +471,17 @@ mod tests {
 
     #[test]
     fn a_failing_walkthrough_still_finishes_its_stage() {
-        // The frames' directory is a regular file: the first PNG cannot be written.
+        // The frames' directory is one the file system refuses files in (Linux's /proc, even
+        // for root), which no check before the work can see: the first PNG cannot be written.
+        if !Path::new("/proc/self").exists() {
+            return;
+        }
         let dir = tmp("fail");
-        let blocker = dir.join("not-a-dir");
-        std::fs::write(&blocker, b"x").expect("file written");
         let r = Recorder::default();
-        let req = request(walk_scene(&dir, 3), blocker.join("w.png"));
+        let req = request(
+            walk_scene(&dir, 3),
+            Path::new("/proc/pixelflow-sim-walk/w.png").to_path_buf(),
+        );
         assert!(run_render(&Context::new(&r), &req, &mut |_| {}).is_err());
         let (fractions, finished) = walkthrough_events(&r);
         assert_eq!(fractions, [0.0]);
