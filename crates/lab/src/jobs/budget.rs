@@ -124,12 +124,18 @@ pub(crate) fn cgroup_limit(cgroups: &str, read: impl Fn(&str) -> Option<String>)
 
 /// Parses a memory size: a number of bytes with an optional unit, `K`/`M`/`G`/`T` (binary,
 /// also written `KiB` .. `TiB`, or with a `B`), case-insensitive, a decimal fraction allowed
-/// (`1.5G`); or `none` / `unlimited` for no limit (`u64::MAX`). Zero is refused.
+/// (`1.5G`); or `none` / `unlimited` for no limit (`u64::MAX`). Zero, negative sizes and
+/// sizes of 2^64 bytes or more are refused, each with its own message.
 pub fn parse_size(text: &str) -> std::result::Result<u64, String> {
     let t = text.trim();
     let lower = t.to_ascii_lowercase();
     if lower == "none" || lower == "unlimited" {
         return Ok(u64::MAX);
+    }
+    if lower.starts_with('-') {
+        return Err(format!(
+            "`{t}` is negative: a size is a number of bytes, at least 1"
+        ));
     }
     let split = lower
         .find(|c: char| !(c.is_ascii_digit() || c == '.'))
@@ -155,7 +161,10 @@ pub fn parse_size(text: &str) -> std::result::Result<u64, String> {
         return Err("must be at least 1 byte".into());
     }
     if bytes >= u64::MAX as f64 {
-        return Ok(u64::MAX);
+        return Err(format!(
+            "`{t}` is 2^64 bytes or more, more than any machine addresses; write `none` for no \
+             limit"
+        ));
     }
     Ok(bytes as u64)
 }
@@ -566,10 +575,14 @@ mod tests {
             Err("unknown unit `e300t`: write bytes, or a number with K, M, G or T".into())
         );
         assert!(parse_size("0").is_err());
-        assert!(parse_size("-5G").is_err());
+        assert!(parse_size("-5G").unwrap_err().contains("negative"));
         assert!(parse_size("").is_err());
         assert!(parse_size("5X").is_err());
-        assert_eq!(parse_size("99999999999999999999T"), Ok(u64::MAX));
+        // Overflow is refused, not taken as "no limit".
+        assert!(parse_size("99999999999999999999T")
+            .unwrap_err()
+            .contains("2^64 bytes or more"));
+        assert!(parse_size("16384P").is_err());
     }
 
     #[test]
