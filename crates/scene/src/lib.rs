@@ -254,6 +254,15 @@ pub struct CameraPath {
     pub frames: u32,
 }
 
+/// Smallest `radiosity.tolerance` accepted: the samples are `f32` (a relative precision of
+/// 6e-8), and the leaf test compares differences of samples, so a tolerance much below 1e-6
+/// cannot be met and would refine every polygon to `max_depth`.
+pub const MIN_TOLERANCE: f64 = 1e-6;
+
+/// Smallest `radiosity.convergence` accepted: the light left unshot below it is under what the
+/// `f32` samples hold.
+pub const MIN_CONVERGENCE: f64 = 1e-7;
+
 /// Settings of the radiosity solve (stage 2).
 #[derive(Debug, Clone, PartialEq)]
 pub struct RadiositySettings {

@@ -579,11 +579,16 @@ impl<'a> Cx<'a> {
         let r = r.get_ref();
         if let Some(t) = &r.tolerance {
             let x = self.num(t, "radiosity.tolerance")?;
-            if x <= 0.0 {
+            if x < crate::MIN_TOLERANCE {
                 return Err(self.err(
                     t.span(),
                     "radiosity.tolerance",
-                    format!("is {x}, must be > 0"),
+                    format!(
+                        "is {x}, must be at least {:e}: the samples are 32-bit floats (7 \
+                         digits), so a finer test cannot converge and would refine every \
+                         polygon to max_depth",
+                        crate::MIN_TOLERANCE
+                    ),
                 ));
             }
             s.tolerance = x;
@@ -606,11 +611,15 @@ impl<'a> Cx<'a> {
         }
         if let Some(c) = &r.convergence {
             let x = self.num(c, "radiosity.convergence")?;
-            if !(x > 0.0 && x < 1.0) {
+            if !(crate::MIN_CONVERGENCE..1.0).contains(&x) {
                 return Err(self.err(
                     c.span(),
                     "radiosity.convergence",
-                    format!("is {x}, must be in (0, 1)"),
+                    format!(
+                        "is {x}, must be in [{:e}, 1): below that the light left unshot is \
+                         under what the 32-bit samples hold, and shooting would not end",
+                        crate::MIN_CONVERGENCE
+                    ),
                 ));
             }
             s.convergence = x;

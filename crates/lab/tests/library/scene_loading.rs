@@ -563,7 +563,24 @@ fn bad_radiosity_depths_are_refused() {
         &["radiosity.max_depth", "is 17", "0..=16"],
     );
     let text = format!("{BASE}\n[radiosity]\nconvergence = 1.5\n");
-    assert_error(&text, "convergence", &["radiosity.convergence", "(0, 1)"]);
+    assert_error(
+        &text,
+        "convergence",
+        &["radiosity.convergence", "[1e-7, 1)"],
+    );
+    // Settings no 32-bit sample can meet: refused, not left to refine or shoot forever.
+    let text = format!("{BASE}\n[radiosity]\nconvergence = 1e-12\n");
+    assert_error(
+        &text,
+        "convergence",
+        &["radiosity.convergence", "is 0.000000000001"],
+    );
+    let text = format!("{BASE}\n[radiosity]\ntolerance = 1e-9\n");
+    assert_error(
+        &text,
+        "tolerance",
+        &["radiosity.tolerance", "at least 1e-6", "max_depth"],
+    );
     let text = format!("{BASE}\n[radiosity]\nseed = -1\n");
     assert_error(&text, "seed", &["radiosity.seed", "is -1"]);
     let text = format!("{BASE}\n[radiosity]\nvisibility = \"approximate\"\n");
