@@ -29,8 +29,10 @@
 //! or a power cut, which no handler sees, can split them).
 //!
 //! The other direction lives here too: every input file (scene, OBJ, MTL, solution, image) is
-//! read through [`read_limited`], so a path to an endless file (`/dev/zero`, a FIFO that never
-//! closes) ends in an error at [`MAX_INPUT_BYTES`] instead of growing memory until the allocator
+//! read through [`read_limited`] at [`input_limit`], so a path to an endless file (`/dev/zero`,
+//! a FIFO that never closes) ends in an error at [`MAX_INPUT_BYTES`], or at the smaller cap the
+//! binary sets from its memory limit ([`set_input_limit`]: the one process-wide setting here,
+//! as a resource limit of the process is), instead of growing memory until the allocator
 //! aborts.
 
 use std::io::{Read, Write};
@@ -43,6 +45,23 @@ use crate::error::{Error, Result};
 /// and what this machine reads in about a second.
 pub const MAX_INPUT_BYTES: u64 = 1 << 30;
 
+static INPUT_LIMIT: std::sync::atomic::AtomicU64 =
+    std::sync::atomic::AtomicU64::new(MAX_INPUT_BYTES);
+
+/// Caps every input read at `bytes` (at most [`MAX_INPUT_BYTES`], at least 1 KiB): the binary
+/// sets half its memory limit, so a read cannot pass the limit on its own.
+pub fn set_input_limit(bytes: u64) {
+    INPUT_LIMIT.store(
+        bytes.clamp(1024, MAX_INPUT_BYTES),
+        std::sync::atomic::Ordering::Relaxed,
+    );
+}
+
+/// The largest input file read (see [`set_input_limit`]).
+pub fn input_limit() -> u64 {
+    INPUT_LIMIT.load(std::sync::atomic::Ordering::Relaxed)
+}
+
 /// Reads the whole file at `path`, failing with [`std::io::ErrorKind::FileTooLarge`] once it
 /// holds more than `max` bytes (nothing beyond `max + 1` bytes is read or kept).
 pub fn read_limited(path: &Path, max: u64) -> std::io::Result<Vec<u8>> {
@@ -52,15 +71,18 @@ pub fn read_limited(path: &Path, max: u64) -> std::io::Result<Vec<u8>> {
     if out.len() as u64 > max {
         return Err(std::io::Error::new(
             std::io::ErrorKind::FileTooLarge,
-            format!("larger than {max} bytes, the largest input read"),
+            format!(
+                "larger than {max} bytes, the largest input read (1 GiB at most, and half of \
+                 --memory-limit)"
+            ),
         ));
     }
     Ok(out)
 }
 
-/// [`read_limited`] at [`MAX_INPUT_BYTES`], as UTF-8 text.
+/// [`read_limited`] at [`input_limit`], as UTF-8 text.
 pub fn read_text(path: &Path) -> std::io::Result<String> {
-    String::from_utf8(read_limited(path, MAX_INPUT_BYTES)?)
+    String::from_utf8(read_limited(path, input_limit())?)
         .map_err(|_| std::io::Error::new(std::io::ErrorKind::InvalidData, "not UTF-8 text"))
 }
 

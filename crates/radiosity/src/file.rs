@@ -148,7 +148,7 @@ pub fn read_solution(path: &Path, scene: &Scene) -> Result<(Solution, Vec<u8>)> 
 }
 
 fn read(path: &Path) -> Result<Vec<u8>> {
-    base::output::read_limited(path, base::output::MAX_INPUT_BYTES).map_err(|e| {
+    base::output::read_limited(path, base::output::input_limit()).map_err(|e| {
         Error::solution(
             path,
             SolutionProblem::NotASolution,

@@ -129,6 +129,15 @@ fn endless_inputs_and_absurd_counts_are_refused_with_exit_2() {
         err.contains("obj[0].file") && err.contains("larger than"),
         "{err}"
     );
+    // What broke: under a 64M limit an endless include was read to 1 GiB. Reads now stop at
+    // half the memory limit.
+    let out = run(&["check", scene.to_str().unwrap(), "--memory-limit", "64M"]);
+    assert_eq!(out.status.code(), Some(2), "{}", text(&out.stderr));
+    assert!(
+        text(&out.stderr).contains("larger than 33554432 bytes"),
+        "{}",
+        text(&out.stderr)
+    );
     // A scene file that never ends, and a compare input that never ends.
     let out = run(&["check", "/dev/zero"]);
     assert_eq!(out.status.code(), Some(2), "{}", text(&out.stderr));

@@ -44,7 +44,7 @@ pub fn srgb_decode(c: f64) -> f64 {
 
 /// Reads an image file (EXR, Radiance HDR, PFM or PNG) as linear RGB. Errors name the file.
 pub fn read_image(path: &Path) -> Result<LinearImage> {
-    let bytes = base::output::read_limited(path, base::output::MAX_INPUT_BYTES)
+    let bytes = base::output::read_limited(path, base::output::input_limit())
         .map_err(|e| Error::input(Location::file(path), format!("cannot read the image: {e}")))?;
     decode_image(&bytes, path)
 }

@@ -34,6 +34,11 @@ impl CoarseCache {
         }
     }
 
+    /// Bytes the cached transfers hold.
+    pub(super) fn bytes(&self) -> u64 {
+        4 * self.used as u64
+    }
+
     /// Whether shooter `s`'s transfers are cached (a shot of it then computes none).
     pub(super) fn holds(&self, s: usize) -> bool {
         self.per[s].is_some()

@@ -110,7 +110,9 @@ impl<'a, 't, 'o> Solver<'a, 't, 'o> {
             unshot,
             fine: vec![DVec3::ZERO; ns],
             coarse: vec![DVec3::ZERO; ns],
-            cache: CoarseCache::new(ns, cache_entries),
+            // The cache is a speed-up, not part of the result: it takes at most an eighth of
+            // the memory limit, and its bytes count against the limit in every refinement.
+            cache: CoarseCache::new(ns, cache_entries.min(cache_budget(memory_limit))),
             shots: 0,
             max_shots: 100 * ns as u64 + 100,
             round: 0,
@@ -372,7 +374,7 @@ impl<'a, 't, 'o> Solver<'a, 't, 'o> {
             &mut self.polys,
             &self.totals,
             &self.patches,
-            self.memory_limit,
+            self.memory_limit.saturating_sub(self.cache.bytes()),
         )?;
         let all = 0..self.polys.len();
         self.integrate(all.clone(), false);
@@ -567,4 +569,9 @@ impl PairCounts {
         }
         c
     }
+}
+
+/// Most coarse-cache entries (4 bytes each) under `memory_limit`: an eighth of it.
+fn cache_budget(memory_limit: u64) -> usize {
+    usize::try_from(memory_limit / 8 / 4).unwrap_or(usize::MAX)
 }
