@@ -48,11 +48,12 @@ pub const MAX_INPUT_BYTES: u64 = 1 << 30;
 static INPUT_LIMIT: std::sync::atomic::AtomicU64 =
     std::sync::atomic::AtomicU64::new(MAX_INPUT_BYTES);
 
-/// Caps every input read at `bytes` (at most [`MAX_INPUT_BYTES`], at least 1 KiB): the binary
-/// sets half its memory limit, so a read cannot pass the limit on its own.
+/// Caps every input read at `bytes` (at most [`MAX_INPUT_BYTES`], at least 1 MiB, so that a
+/// tiny limit still reads a scene file and refuses the job by its estimate): the binary sets
+/// half its memory limit, so a read cannot pass the limit on its own.
 pub fn set_input_limit(bytes: u64) {
     INPUT_LIMIT.store(
-        bytes.clamp(1024, MAX_INPUT_BYTES),
+        bytes.clamp(1 << 20, MAX_INPUT_BYTES),
         std::sync::atomic::Ordering::Relaxed,
     );
 }

@@ -158,12 +158,22 @@ pub(crate) fn run_with_cache(
 
 /// Bytes the solve holds per quadtree node: the node, one leaf record with G at its five test
 /// points (a leaf is counted with every node, an upper bound: a tree has about 3/4 as many
-/// leaves as nodes), and the node's copy in its patch's shape (node, mean weight and area,
-/// leaf index, leaf weight: a shape is the polygon's tree under the patch).
+/// leaves as nodes), the node's copy in its patch's shape, twice (node, mean weight and area,
+/// dipole, leaf index, leaf weight: a shape is the polygon's tree under the patch; the shapes
+/// in use and the newly measured ones are held together while they are compared), and
+/// [`AFTER_SOLVE_NODE_BYTES`], so that a solve the guard admits can also be reconstructed and
+/// written under the same limit (measured: gallery-fine under a 100 MiB limit peaked at 151 MB
+/// when the guard counted neither).
 pub(crate) const NODE_BYTES: u64 = (std::mem::size_of::<base::quadtree::Node>()
     + std::mem::size_of::<poly::Leaf>()
     + std::mem::size_of::<(base::quadtree::Cell, [DVec3; 5])>()
-    + SHAPE_NODE_BYTES) as u64;
+    + 2 * SHAPE_NODE_BYTES
+    + AFTER_SOLVE_NODE_BYTES) as u64;
+
+/// Bytes per node of what is built from the solution once the solve ends: its leaf's bicubic
+/// patch (16 `f32` coefficients per channel, 192 B) while the compact RRPs are made, and its
+/// share of the solution file's encoding (held twice: payload and file).
+const AFTER_SOLVE_NODE_BYTES: usize = 192 + 128;
 
 /// Bytes a patch's shape holds per node of its tree (see [`NODE_BYTES`]).
 const SHAPE_NODE_BYTES: usize = std::mem::size_of::<base::quadtree::Node>()
