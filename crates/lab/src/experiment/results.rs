@@ -238,6 +238,7 @@ pub fn run_results(
     let mut inputs = Vec::new();
     for scene in &req.scenes {
         sweep::check_request(&sweep_request(req, scene))?;
+        inputs.push(scene.clone());
         inputs.extend(Input::load(scene)?.scene.inputs);
     }
     let root = data_dir(&req.doc);
