@@ -317,3 +317,78 @@ fn the_default_limit_follows_ulimit_v() {
     };
     assert!(gib <= 2.0, "{line}");
 }
+
+/// The frame's memory estimate brackets what a render holds: the estimate (read from the
+/// refusal under a 1 KiB limit) is never below the measured peak less the program and the
+/// solution (8 MiB here), and not more than 1.5 times it. What broke: a whole-frame bound
+/// estimated 13.7 GiB for a render that peaked at 0.58 GiB, and refused it under 8G.
+#[test]
+fn the_frame_estimate_brackets_the_measured_peak() {
+    if !Path::new("/usr/bin/time").exists() {
+        return;
+    }
+    let dir = scratch("frame-peak");
+    let sol = dir.join("two-spots.pfsol");
+    let out = run(&[
+        "solve",
+        "scenes/two-spots.toml",
+        "-o",
+        sol.to_str().unwrap(),
+        "--quiet",
+    ]);
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    let (exr, png) = (dir.join("f.exr"), dir.join("f.png"));
+    for (side, aa) in [("1024", "16"), ("2048", "4")] {
+        let args = [
+            "render",
+            sol.to_str().unwrap(),
+            "--width",
+            side,
+            "--height",
+            side,
+            "--aa",
+            aa,
+            "--exr",
+            exr.to_str().unwrap(),
+            "-o",
+            png.to_str().unwrap(),
+            "--quiet",
+        ];
+        let mut refused = args.to_vec();
+        refused.extend(["--memory-limit", "1K"]);
+        let out = run(&refused);
+        assert_eq!(out.status.code(), Some(2), "{}", text(&out.stderr));
+        let e = text(&out.stderr);
+        let mib: f64 = e
+            .split("needs an estimated ")
+            .nth(1)
+            .and_then(|r| r.split(" MiB").next())
+            .and_then(|n| n.parse().ok())
+            .unwrap_or_else(|| panic!("no estimate in MiB: {e}"));
+        let o = std::process::Command::new("/usr/bin/time")
+            .args(["-f", "%M"])
+            .arg(env!("CARGO_BIN_EXE_pixelflow-sim"))
+            .current_dir(crate::REPO)
+            .args(args)
+            .output()
+            .unwrap();
+        assert!(o.status.success(), "{}", text(&o.stderr));
+        let kib: f64 = text(&o.stderr)
+            .trim()
+            .lines()
+            .last()
+            .unwrap()
+            .trim()
+            .parse()
+            .unwrap();
+        let held = (kib / 1024.0 - 8.0).max(0.0);
+        assert!(
+            held <= mib,
+            "{side}^2 aa {aa}: held {held:.1} MiB, estimated {mib}"
+        );
+        assert!(
+            held * 1.5 >= mib,
+            "{side}^2 aa {aa}: held {held:.1} MiB, estimated {mib}: over 1.5x"
+        );
+    }
+}
