@@ -244,14 +244,11 @@ impl Outputs {
         for _ in 0..TEMPORARY_ATTEMPTS {
             let tmp = dir.join(temporary_name());
             self.live().push(tmp.clone());
-            let mut o = std::fs::OpenOptions::new();
-            o.write(true).create_new(true);
-            #[cfg(unix)]
+            match std::fs::OpenOptions::new()
+                .write(true)
+                .create_new(true)
+                .open(&tmp)
             {
-                use std::os::unix::fs::OpenOptionsExt;
-                o.mode(0o666);
-            }
-            match o.open(&tmp) {
                 Ok(f) => return Ok((tmp, f)),
                 Err(e) => {
                     self.forget(&tmp);

@@ -365,23 +365,8 @@ fn the_frame_estimate_brackets_the_measured_peak() {
             .and_then(|r| r.split(" MiB").next())
             .and_then(|n| n.parse().ok())
             .unwrap_or_else(|| panic!("no estimate in MiB: {e}"));
-        let o = std::process::Command::new("/usr/bin/time")
-            .args(["-f", "%M"])
-            .arg(env!("CARGO_BIN_EXE_pixelflow-sim"))
-            .current_dir(crate::REPO)
-            .args(args)
-            .output()
-            .unwrap();
-        assert!(o.status.success(), "{}", text(&o.stderr));
-        let kib: f64 = text(&o.stderr)
-            .trim()
-            .lines()
-            .last()
-            .unwrap()
-            .trim()
-            .parse()
-            .unwrap();
-        let held = (kib / 1024.0 - 8.0).max(0.0);
+        let peak = crate::peak_bytes(&args).expect("/usr/bin/time is present");
+        let held = (peak as f64 / (1 << 20) as f64 - 8.0).max(0.0);
         assert!(
             held <= mib,
             "{side}^2 aa {aa}: held {held:.1} MiB, estimated {mib}"

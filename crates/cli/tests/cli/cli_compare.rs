@@ -204,27 +204,13 @@ fn the_compare_estimate_brackets_the_measured_peak() {
         &(est - 1).to_string(),
     ]);
     assert_eq!(refused.status.code(), Some(2), "{}", stderr(&refused));
-    if !Path::new("/usr/bin/time").exists() {
+    let limit = est.to_string();
+    let Some(peak) = crate::peak_bytes(&["compare", s(&a), s(&b), "--memory-limit", &limit]) else {
         return;
-    }
-    let o = Command::new("/usr/bin/time")
-        .args(["-f", "%M"])
-        .arg(env!("CARGO_BIN_EXE_pixelflow-sim"))
-        .args(["compare", s(&a), s(&b), "--memory-limit", &est.to_string()])
-        .output()
-        .unwrap();
-    assert!(o.status.success(), "{}", stderr(&o));
-    let kib: u64 = stderr(&o)
-        .trim()
-        .lines()
-        .last()
-        .unwrap()
-        .trim()
-        .parse()
-        .unwrap();
+    };
     // The peak includes the program itself (about 6 MB resident), which the estimate leaves
     // out by design; the pixels' share must be within the estimate and above 2/3 of it.
-    let pixels = (kib * 1024).saturating_sub(8 << 20);
+    let pixels = peak.saturating_sub(8 << 20);
     assert!(
         pixels <= est,
         "measured {pixels} bytes for the pixels, estimated {est}"

@@ -10,6 +10,30 @@ pub fn bin() -> std::process::Command {
     c
 }
 
+/// Peak resident bytes of the binary run with `args` from the repository root, measured by
+/// `/usr/bin/time -f %M` (the run must succeed); `None` where that tool is missing.
+pub fn peak_bytes(args: &[&str]) -> Option<u64> {
+    if !std::path::Path::new("/usr/bin/time").exists() {
+        return None;
+    }
+    let o = std::process::Command::new("/usr/bin/time")
+        .args(["-f", "%M"])
+        .arg(env!("CARGO_BIN_EXE_pixelflow-sim"))
+        .current_dir(REPO)
+        .args(args)
+        .output()
+        .expect("/usr/bin/time runs");
+    let err = String::from_utf8_lossy(&o.stderr).into_owned();
+    assert!(o.status.success(), "{args:?}: {err}");
+    let kib: u64 = err
+        .trim()
+        .lines()
+        .last()
+        .and_then(|l| l.trim().parse().ok())
+        .unwrap_or_else(|| panic!("no peak in {err}"));
+    Some(kib * 1024)
+}
+
 mod architecture;
 mod cli_check;
 mod cli_compare;

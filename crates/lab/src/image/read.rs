@@ -69,7 +69,7 @@ pub struct ImageHeader {
 /// file of a huge image) is refused by its size instead of exhausting memory. Errors name the
 /// file, as [`read_image`]'s do.
 pub fn read_image_header(path: &Path) -> Result<ImageHeader> {
-    use std::io::Read;
+    use std::io::{Read, Seek};
     let err = |m: String| Error::input(Location::file(path), m);
     let mut f =
         std::fs::File::open(path).map_err(|e| err(format!("cannot read the image: {e}")))?;
@@ -92,8 +92,9 @@ pub fn read_image_header(path: &Path) -> Result<ImageHeader> {
         Some(f @ (ImageFormat::OpenExr | ImageFormat::Hdr)) => (true, f),
         _ => return Err(err(UNKNOWN_FORMAT.into())),
     };
-    let file = std::fs::File::open(path).map_err(|e| err(format!("cannot read the image: {e}")))?;
-    let mut reader = ::image::ImageReader::new(std::io::BufReader::new(file));
+    f.rewind()
+        .map_err(|e| err(format!("cannot read the image: {e}")))?;
+    let mut reader = ::image::ImageReader::new(std::io::BufReader::new(f));
     reader.set_format(format);
     let (width, height) = reader
         .into_dimensions()

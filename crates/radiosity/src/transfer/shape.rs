@@ -33,7 +33,7 @@
 
 use glam::{DVec3, Vec3};
 
-use super::{cell_corners, kernel, sub_area, Candidates, PairClass, ShooterKind, Transfer};
+use super::{cell_corners, sub_area, Candidates, PairClass, ShooterKind, Transfer};
 use crate::formfactor::{point_to_polygon, SmallPoly};
 use base::quadtree::{Cell, Quadtree};
 use scene::Polygon;
@@ -171,19 +171,23 @@ fn moments(poly: &Polygon, patch: Cell, tree: &Quadtree, mean: &[(DVec3, f64)]) 
         .collect()
 }
 
-/// The gradient of [`kernel`] `cos_x cos_y / r^4` (times r^2: the unnormalised point-to-point
-/// kernel) with respect to the source point `y`, where both cosines are positive: with
-/// `d = y - x`, `c_x = n . d`, `c_y = -n_y . d`,
-/// `grad = (n c_y - n_y c_x - 4 c_x c_y d / |d|^2) / |d|^4`.
+/// [`kernel`](super::kernel) `c_x c_y / r^4` and its gradient with respect to the source point `y`, from one
+/// set of dot products: with `d = y - x`, `c_x = n . d`, `c_y = -n_y . d`,
+/// `grad = (n c_y - n_y c_x - 4 c_x c_y d / |d|^2) / |d|^4`. `None` where a cosine is not
+/// positive (the kernel is 0 there).
 #[inline]
-fn kernel_gradient(x: DVec3, n: DVec3, y: DVec3, ny: DVec3) -> DVec3 {
+fn kernel_and_gradient(x: DVec3, n: DVec3, y: DVec3, ny: DVec3) -> Option<(f64, DVec3)> {
     let d = y - x;
     let r2 = d.length_squared();
     let (cx, cy) = (n.dot(d), -ny.dot(d));
     if cx <= 0.0 || cy <= 0.0 || r2 <= 0.0 {
-        return DVec3::ZERO;
+        return None;
     }
-    (n * cy - ny * cx - d * (4.0 * cx * cy / r2)) / (r2 * r2)
+    let r4 = r2 * r2;
+    Some((
+        cx * cy / r4,
+        (n * cy - ny * cx - d * (4.0 * cx * cy / r2)) / r4,
+    ))
 }
 
 /// The cell of the polygon's domain that cell `rel` of a tree rooted at `patch` covers.
@@ -346,11 +350,9 @@ fn correction(poly: &Polygon, patch: Cell, shape: &PatchShape, x: DVec3, n: DVec
             }
             continue;
         }
-        let k = kernel(x, n, centre, poly.normal);
-        if k == 0.0 {
+        let Some((k, g)) = kernel_and_gradient(x, n, centre, poly.normal) else {
             continue;
-        }
-        let g = kernel_gradient(x, n, centre, poly.normal);
+        };
         let m = &shape.moment[id as usize];
         let dipole = DVec3::new(
             g.dot(m[0].as_dvec3()),
