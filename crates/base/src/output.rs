@@ -173,6 +173,9 @@ struct Registry {
     commit: Mutex<()>,
     /// Directories already swept of dead runs' temporaries.
     swept: Mutex<std::collections::HashSet<PathBuf>>,
+    /// While a [`Hold`] is open: the `(temporary, target)` pairs every write has staged, renamed
+    /// only when the hold commits.
+    held: Mutex<Option<Vec<(PathBuf, PathBuf)>>>,
 }
 
 impl Outputs {
@@ -265,11 +268,32 @@ impl Outputs {
         ))
     }
 
-    /// Writes `bytes` to `path` atomically. Creates missing parent directories.
+    fn held(&self) -> MutexGuard<'_, Option<Vec<(PathBuf, PathBuf)>>> {
+        self.shared.held.lock().unwrap_or_else(|e| e.into_inner())
+    }
+
+    /// Writes `bytes` to `path` atomically. Creates missing parent directories. While a
+    /// [`Hold`] is open the file is only staged: it appears when the hold commits.
     pub fn write_atomic(&self, path: &Path, bytes: &[u8]) -> Result<()> {
         let mut batch = self.batch();
         batch.stage(path, bytes)?;
         batch.commit()
+    }
+
+    /// Makes every later write of this registry (and its clones) part of one all-or-nothing
+    /// output, for commands that write many files over minutes (`results`, `experiment`,
+    /// `sweep`): nothing is replaced until [`Hold::commit`]; dropping the hold, or
+    /// [`Outputs::remove_temporaries`] after a signal, removes what was staged. Holds do not
+    /// nest: opening one while another is open is an internal error.
+    pub fn hold(&self) -> Result<Hold> {
+        let mut held = self.held();
+        if held.is_some() {
+            return Err(Error::internal("an output hold is already open"));
+        }
+        *held = Some(Vec::new());
+        Ok(Hold {
+            outputs: self.clone(),
+        })
     }
 
     /// An empty batch writing through this registry.
@@ -292,6 +316,11 @@ pub struct Batch {
 impl Batch {
     /// Writes `bytes` to `path`'s temporary (flushed); `path` is replaced on commit.
     pub fn stage(&mut self, path: &Path, bytes: &[u8]) -> Result<()> {
+        if let Ok(meta) = std::fs::symlink_metadata(path) {
+            if let Some(what) = not_regular(&meta) {
+                return Err(Error::io(path, std::io::Error::other(what)));
+            }
+        }
         let dir = directory_of(path)?;
         let tmp = self.outputs.write_temporary(&dir, path, bytes)?;
         self.staged.push((tmp, path.to_path_buf()));
@@ -299,8 +328,27 @@ impl Batch {
     }
 
     /// Renames every staged temporary over its target, in staging order. On a failed rename the
-    /// remaining temporaries are removed and the error names the target.
+    /// remaining temporaries are removed and the error names the target. While a [`Hold`] is
+    /// open the batch joins it instead, and is renamed with the rest when the hold commits.
     pub fn commit(mut self) -> Result<()> {
+        if let Some(held) = self.outputs.held().as_mut() {
+            held.append(&mut self.staged);
+            return Ok(());
+        }
+        self.rename_all()
+    }
+
+    fn rename_all(mut self) -> Result<()> {
+        // A target that became a directory, a link or a device since it was staged would fail
+        // its rename (or replace what it is not ours to replace) halfway through the batch:
+        // refuse before the first rename instead.
+        for (_, path) in &self.staged {
+            if let Ok(meta) = std::fs::symlink_metadata(path) {
+                if let Some(what) = not_regular(&meta) {
+                    return Err(Error::io(path, std::io::Error::other(what)));
+                }
+            }
+        }
         let staged = std::mem::take(&mut self.staged);
         let shared = Arc::clone(&self.outputs.shared);
         let _commit = shared.commit.lock().unwrap_or_else(|e| e.into_inner());
@@ -324,6 +372,43 @@ impl Drop for Batch {
             let _ = std::fs::remove_file(tmp);
             self.outputs.forget(tmp);
         }
+    }
+}
+
+/// The open all-or-nothing output of [`Outputs::hold`].
+#[derive(Debug)]
+pub struct Hold {
+    outputs: Outputs,
+}
+
+impl Hold {
+    /// Renames every file written since the hold opened over its target, in writing order
+    /// (a target written twice ends with its last bytes); returns the targets, each once.
+    pub fn commit(self) -> Result<Vec<PathBuf>> {
+        let staged = self.outputs.held().take().unwrap_or_default();
+        let mut targets: Vec<PathBuf> = Vec::new();
+        for (_, path) in &staged {
+            if !targets.contains(path) {
+                targets.push(path.clone());
+            }
+        }
+        Batch {
+            outputs: self.outputs.clone(),
+            staged,
+        }
+        .rename_all()?;
+        Ok(targets)
+    }
+}
+
+impl Drop for Hold {
+    fn drop(&mut self) {
+        // After a commit this is empty; otherwise the staged files are dropped with the batch.
+        let staged = self.outputs.held().take().unwrap_or_default();
+        drop(Batch {
+            outputs: self.outputs.clone(),
+            staged,
+        });
     }
 }
 
@@ -647,6 +732,53 @@ mod tests {
         assert_eq!(std::fs::read(&b).unwrap(), b"new b");
         assert_eq!(std::fs::read_dir(&dir).unwrap().count(), 2);
         std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn a_held_output_appears_whole_on_commit_and_not_at_all_on_failure() {
+        let dir = fresh_dir("hold");
+        let (a, b) = (dir.join("a.txt"), dir.join("sub/b.txt"));
+        std::fs::write(&a, "old").unwrap();
+        let outputs = Outputs::new();
+        {
+            let _hold = outputs.hold().unwrap();
+            outputs.write_atomic(&a, b"new").unwrap();
+            outputs.write_atomic(&b, b"b").unwrap();
+            assert_eq!(std::fs::read_to_string(&a).unwrap(), "old");
+            assert!(!b.exists());
+            // Dropped without commit: a job failed after staging both.
+        }
+        assert_eq!(std::fs::read_to_string(&a).unwrap(), "old");
+        assert!(!b.exists());
+        let hold = outputs.hold().unwrap();
+        assert!(outputs.hold().is_err(), "holds do not nest");
+        outputs.write_atomic(&a, b"first").unwrap();
+        outputs.write_atomic(&b, b"b").unwrap();
+        outputs.write_atomic(&a, b"last").unwrap();
+        assert_eq!(hold.commit().unwrap(), vec![a.clone(), b.clone()]);
+        assert_eq!(std::fs::read_to_string(&a).unwrap(), "last");
+        assert_eq!(std::fs::read_to_string(&b).unwrap(), "b");
+        // Nothing hidden is left, and writes after the commit are immediate again.
+        outputs.write_atomic(&a, b"now").unwrap();
+        assert_eq!(std::fs::read_to_string(&a).unwrap(), "now");
+        for d in [&dir, &dir.join("sub")] {
+            let names: Vec<_> = std::fs::read_dir(d)
+                .unwrap()
+                .flatten()
+                .map(|e| e.file_name())
+                .collect();
+            assert!(
+                names
+                    .iter()
+                    .all(|n| !n.to_string_lossy().starts_with(".pfs-")),
+                "{names:?}"
+            );
+        }
+        // A signal's cleanup removes what a hold has staged.
+        let _hold = outputs.hold().unwrap();
+        outputs.write_atomic(&dir.join("c.txt"), b"c").unwrap();
+        assert_eq!(outputs.remove_temporaries(), 1);
+        let _ = std::fs::remove_dir_all(&dir);
     }
 
     #[test]

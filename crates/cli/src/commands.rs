@@ -226,11 +226,16 @@ pub fn experiment(settings: &Settings, args: ExperimentArgs) -> anyhow::Result<(
             frames: args.frames,
             doc: args.doc,
         };
+        // Every figure and the page appear together, or none does.
+        let hold = settings.outputs.hold()?;
         let results = experiment::run(
             &settings.context(&base::progress::SILENT),
             &req,
-            &mut |path| wrote(path, false),
+            &mut |_| {},
         )?;
+        for path in hold.commit()? {
+            wrote(&path, false);
+        }
         if args.json {
             out(&json(&results)?)
         } else {
@@ -290,7 +295,11 @@ pub fn sweep(settings: &Settings, args: SweepArgs) -> anyhow::Result<()> {
         };
         let observer = Terminal::new(!args.quiet, args.trace);
         let report = sweep::run_sweep(&settings.context(&observer), &req)?;
+        let hold = settings.outputs.hold()?;
         write_sweep_outputs(&settings.outputs, &report, &args)?;
+        for path in hold.commit()? {
+            wrote(&path, args.quiet);
+        }
         out(&sweep::table(&report))
     })?
 }
@@ -309,11 +318,20 @@ fn check_sweep_outputs(args: &SweepArgs) -> anyhow::Result<()> {
         .into_iter()
         .chain(args.csv.as_deref().map(|p| ("--csv", p)))
         .collect();
+    let plots: Vec<PathBuf> = args
+        .plots
+        .iter()
+        .flat_map(|dir| lab::plot::sweep_plot_files(dir))
+        .collect();
+    let outputs: Vec<(&str, &Path)> = outputs
+        .into_iter()
+        .chain(plots.iter().map(|p| ("--plots", p.as_path())))
+        .collect();
     base::output::check_outputs(&inputs, &outputs)?;
     Ok(())
 }
 
-/// Writes the sweep's `--json`, `--csv` and `--plots` files.
+/// Writes the sweep's `--json`, `--csv` and `--plots` files (under the caller's hold).
 fn write_sweep_outputs(
     files: &Outputs,
     report: &sweep::SweepReport,
@@ -321,16 +339,12 @@ fn write_sweep_outputs(
 ) -> anyhow::Result<()> {
     if let Some(path) = &args.json {
         files.write_atomic(path, json(report)?.as_bytes())?;
-        wrote(path, args.quiet);
     }
     if let Some(path) = &args.csv {
         files.write_atomic(path, sweep::csv(report).as_bytes())?;
-        wrote(path, args.quiet);
     }
     if let Some(dir) = &args.plots {
-        for path in lab::plot::sweep_plots(files, report, dir)? {
-            wrote(&path, args.quiet);
-        }
+        lab::plot::sweep_plots(files, report, dir)?;
     }
     Ok(())
 }
@@ -349,9 +363,12 @@ pub fn results(settings: &Settings, args: ResultsArgs) -> anyhow::Result<()> {
         req.repeats = args.repeats;
         req.truth_samples = args.truth_samples;
         let observer = Terminal::new(!args.quiet, args.trace);
-        let report = results::run_results(&settings.context(&observer), &req, &mut |p| {
-            wrote(p, args.quiet)
-        })?;
+        // The page, its data, plots and images appear together, or none does.
+        let hold = settings.outputs.hold()?;
+        let report = results::run_results(&settings.context(&observer), &req, &mut |_| {})?;
+        for path in hold.commit()? {
+            wrote(&path, args.quiet);
+        }
         out(&format!(
             "{} scenes in {:.0} s on {}; wrote {}\n",
             report.scenes.len(),

@@ -216,6 +216,14 @@ where
     Ok(())
 }
 
+/// The files [`sweep_plots`] writes into `dir`, for checking them before the sweep runs.
+pub fn sweep_plot_files(dir: &Path) -> Vec<PathBuf> {
+    [Cost::Time, Cost::Bytes]
+        .into_iter()
+        .flat_map(|c| ["png", "svg"].map(|ext| dir.join(format!("{}.{ext}", c.file()))))
+        .collect()
+}
+
 /// Writes `error-vs-time.{png,svg}` and `error-vs-memory.{png,svg}` for `report` into `dir`
 /// (created if missing). Returns the files written.
 pub fn sweep_plots(outputs: &Outputs, report: &SweepReport, dir: &Path) -> Result<Vec<PathBuf>> {

@@ -119,6 +119,45 @@ fn the_results_page_links_every_image_and_quotes_its_data() {
     )));
 }
 
+/// A failure late in the run (here a directory where a gallery image goes, which only the
+/// image's own write finds) leaves none of the run's files: the data, plots and page appear
+/// together or not at all.
+#[test]
+fn a_results_run_that_fails_late_writes_nothing() {
+    let d = dir().join("held");
+    let _ = std::fs::remove_dir_all(&d);
+    let obstacle = d.join("results/two-spots/gallery-mesh.png");
+    std::fs::create_dir_all(&obstacle).unwrap();
+    let doc = d.join("page.md");
+    let o = crate::bin()
+        .current_dir(crate::REPO)
+        .args(["results", "--doc", doc.to_str().unwrap()])
+        .args(["--scenes", "scenes/two-spots.toml", "--size", "32"])
+        .args(["--gallery-width", "32", "--frames", "1", "--repeats", "1"])
+        .args(["--truth-samples", "0", "--quiet"])
+        .output()
+        .unwrap();
+    assert_eq!(
+        o.status.code(),
+        Some(1),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    assert!(String::from_utf8_lossy(&o.stderr).contains("gallery-mesh.png"));
+    let mut left = Vec::new();
+    let mut stack = vec![d.clone()];
+    while let Some(dir) = stack.pop() {
+        for e in std::fs::read_dir(&dir).unwrap().flatten() {
+            if e.file_type().unwrap().is_dir() {
+                stack.push(e.path());
+            } else {
+                left.push(e.path());
+            }
+        }
+    }
+    assert!(left.is_empty(), "files left by a failed run: {left:?}");
+}
+
 #[test]
 fn bad_options_are_refused_before_any_work() {
     let d = dir();

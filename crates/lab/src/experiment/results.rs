@@ -250,6 +250,9 @@ pub fn run_results(
         for f in ["sweep.json", "sweep.csv"] {
             outputs.push(("--doc (data)", dir.join(f)));
         }
+        for f in crate::plot::sweep_plot_files(&dir) {
+            outputs.push(("--doc (data)", f));
+        }
     }
     let named: Vec<(&str, &Path)> = outputs.iter().map(|(o, p)| (*o, p.as_path())).collect();
     base::output::check_outputs(&inputs, &named)?;
