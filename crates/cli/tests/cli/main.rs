@@ -10,28 +10,45 @@ pub fn bin() -> std::process::Command {
     c
 }
 
-/// Peak resident bytes of the binary run with `args` from the repository root, measured by
-/// `/usr/bin/time -f %M` (the run must succeed); `None` where that tool is missing.
-pub fn peak_bytes(args: &[&str]) -> Option<u64> {
-    if !std::path::Path::new("/usr/bin/time").exists() {
-        return None;
-    }
-    let o = std::process::Command::new("/usr/bin/time")
-        .args(["-f", "%M"])
-        .arg(env!("CARGO_BIN_EXE_pixelflow-sim"))
-        .current_dir(REPO)
+/// Peak resident bytes of the binary run with `args` from the repository root (the run must
+/// succeed), from the kernel's own count for that one child (`wait4`'s `ru_maxrss`), so tests
+/// running side by side do not see each other's memory.
+pub fn peak_bytes(args: &[&str]) -> u64 {
+    let (code, peak, err) = run_measured(args);
+    assert_eq!(code, Some(0), "{args:?}: {err}");
+    peak
+}
+
+/// Runs the binary with `args` from the repository root; returns its exit code, its peak
+/// resident bytes and its stderr.
+// The child is reaped by `wait4`, which the lint cannot see.
+#[allow(clippy::zombie_processes)]
+pub fn run_measured(args: &[&str]) -> (Option<i32>, u64, String) {
+    use std::io::Read;
+    let mut child = bin()
         .args(args)
-        .output()
-        .expect("/usr/bin/time runs");
-    let err = String::from_utf8_lossy(&o.stderr).into_owned();
-    assert!(o.status.success(), "{args:?}: {err}");
-    let kib: u64 = err
-        .trim()
-        .lines()
-        .last()
-        .and_then(|l| l.trim().parse().ok())
-        .unwrap_or_else(|| panic!("no peak in {err}"));
-    Some(kib * 1024)
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .expect("the binary starts");
+    let mut err = String::new();
+    child
+        .stderr
+        .take()
+        .expect("stderr is piped")
+        .read_to_string(&mut err)
+        .expect("stderr reads");
+    let mut status = 0;
+    // SAFETY: an all-zero rusage is a valid value of that plain C struct.
+    let mut usage: libc::rusage = unsafe { std::mem::zeroed() };
+    let pid = child.id() as libc::pid_t;
+    // SAFETY: `pid` is this process's own unwaited child; `status` and `usage` are valid for
+    // writes. The child is reaped here, so `child` is never waited on again.
+    let r = unsafe { libc::wait4(pid, &mut status, 0, &mut usage) };
+    assert_eq!(r, pid, "wait4 failed");
+    let code = libc::WIFEXITED(status).then(|| libc::WEXITSTATUS(status));
+    // Linux reports ru_maxrss in KiB.
+    (code, usage.ru_maxrss as u64 * 1024, err)
 }
 
 mod architecture;
