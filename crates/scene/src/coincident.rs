@@ -116,15 +116,22 @@ fn same_corners(a: &Polygon, b: &Polygon, tol: f64) -> bool {
 /// The area both polygons cover over the smaller one's area, if they lie in one plane, face
 /// the same way and that fraction passes [`OVERLAP_WARN`].
 fn coplanar_overlap(a: &Polygon, b: &Polygon) -> Option<f64> {
-    let tol = SAME_POINT * diameter(a).max(diameter(b));
+    // The smaller polygon's size sets the tolerance: a floor 1 unit above a 1e6-wide ground
+    // plane is 1e-6 of the ground's size away but a whole floor's width, not in its plane.
+    let tol = SAME_POINT * diameter(a).min(diameter(b));
     if a.normal.dot(b.normal) < 1.0 - 1e-9 {
+        return None;
+    }
+    let off_plane = |p: &Polygon, q: &Polygon| {
+        q.vertices()
+            .iter()
+            .any(|&v| p.normal.dot(v - p.corners[0]).abs() > tol)
+    };
+    if off_plane(a, b) || off_plane(b, a) {
         return None;
     }
     let n = a.normal;
     let o = a.corners[0];
-    if b.vertices().iter().any(|&p| n.dot(p - o).abs() > tol) {
-        return None;
-    }
     // A frame in the plane; both outlines are counter-clockwise in it (same facing).
     let e1 = (a.corners[1] - a.corners[0]).normalize();
     let e2 = n.cross(e1);
@@ -259,6 +266,29 @@ mod tests {
             w[0].contains("overlaps the one at s.obj:1") && w[0].contains("(50.0 %"),
             "{w:?}"
         );
+    }
+
+    /// What broke: a floor 1 unit above a ground plane 2e6 wide was reported as overlapping
+    /// it "in the same plane" (the tolerance followed the larger polygon's size).
+    #[test]
+    fn a_huge_plane_a_floor_width_away_is_not_the_floors_plane() {
+        let g = 1e6;
+        let ground = [[-g, -1.0, g], [g, -1.0, g], [g, -1.0, -g], [-g, -1.0, -g]];
+        let floor = [
+            [0.0, 0.0, 0.0],
+            [1.0, 0.0, 0.0],
+            [1.0, 0.0, -1.0],
+            [0.0, 0.0, -1.0],
+        ];
+        for pair in [[ground, floor], [floor, ground]] {
+            let mut ps = vec![quad(pair[0]), quad(pair[1])];
+            let w = merge(&mut ps, &mut origins(2));
+            assert!(w.is_empty(), "{w:?}");
+        }
+        // In its plane, the floor is reported, whichever comes first.
+        let lowered = floor.map(|[x, _, z]| [x, -1.0, z]);
+        let mut ps = vec![quad(ground), quad(lowered)];
+        assert_eq!(merge(&mut ps, &mut origins(2)).len(), 1);
     }
 
     #[test]
