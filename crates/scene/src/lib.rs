@@ -392,6 +392,15 @@ pub struct Scene {
     pub inputs: Vec<std::path::PathBuf>,
 }
 
+/// A polygon more than this many times the diagonal of the rest of the scene is a backdrop
+/// ([`Scene::core_diagonal`]): far beyond any room's largest wall (at most about its
+/// diagonal), well below the ground planes and sky boxes that dwarf a model.
+pub const BACKDROP_RATIO: f64 = 16.0;
+
+/// Most polygons [`Scene::core_diagonal`] sets aside as backdrops (a sky box's six faces and
+/// a ground plane, with room to spare).
+pub const MAX_BACKDROPS: usize = 16;
+
 impl Scene {
     /// A scene built in code (tests, benchmarks): the given camera, image size, materials and
     /// polygons, one object named "code", no spot lights, no source file, default settings.
@@ -439,6 +448,53 @@ impl Scene {
         self.bounds_with(lo, hi)
     }
 
+    /// The diagonal of the scene's core: [`Scene::bounds`] without its backdrops, the largest
+    /// polygons (at most [`MAX_BACKDROPS`]) each more than [`BACKDROP_RATIO`] times the
+    /// diagonal of everything else (spot lights included). A ground plane 1e6 wide beside a
+    /// room is not the room's scale: the lengths derived from the scene's size (the smallest
+    /// element the solver refines to, its plane tolerance) come from the room, so adding such
+    /// a polygon coarsens nothing else. 0 for a scene with no finite bound.
+    pub fn core_diagonal(&self) -> f64 {
+        let n = self.polygons.len();
+        let box_of = |p: &Polygon| {
+            let mut lo = DVec3::splat(f64::INFINITY);
+            let mut hi = DVec3::splat(f64::NEG_INFINITY);
+            for c in p.vertices() {
+                lo = lo.min(*c);
+                hi = hi.max(*c);
+            }
+            (lo, hi)
+        };
+        let boxes: Vec<(DVec3, DVec3)> = self.polygons.iter().map(box_of).collect();
+        let size = |(lo, hi): (DVec3, DVec3)| (hi - lo).length();
+        // Largest first; ties by index, so the result depends only on the scene.
+        let mut order: Vec<usize> = (0..n).collect();
+        order.sort_by(|&a, &b| size(boxes[b]).total_cmp(&size(boxes[a])).then(a.cmp(&b)));
+        // suffix[k]: the bounds of polygons order[k..] and the spots.
+        let mut suffix = vec![self.bounds_with(DVec3::INFINITY, DVec3::NEG_INFINITY); n + 1];
+        let (mut lo, mut hi) = (DVec3::INFINITY, DVec3::NEG_INFINITY);
+        for s in &self.spots {
+            (lo, hi) = (lo.min(s.position), hi.max(s.position));
+        }
+        for k in (0..n).rev() {
+            let (a, b) = boxes[order[k]];
+            (lo, hi) = (lo.min(a), hi.max(b));
+            suffix[k] = (lo, hi);
+        }
+        let diagonal = |(lo, hi): (DVec3, DVec3)| {
+            if lo.is_finite() && hi.is_finite() {
+                (hi - lo).length()
+            } else {
+                0.0
+            }
+        };
+        let backdrops = (1..=MAX_BACKDROPS.min(n.saturating_sub(1)))
+            .filter(|&k| size(boxes[order[k - 1]]) > BACKDROP_RATIO * diagonal(suffix[k]))
+            .max()
+            .unwrap_or(0);
+        diagonal(suffix[backdrops])
+    }
+
     /// [`Scene::bounds`] from the bounds (`lo`, `hi`) of the polygon corners, computed by the
     /// caller (the renderer's geometry stage does it in parallel): the spot lights added, and
     /// (0, 0) for a scene with no finite bound.
@@ -464,6 +520,64 @@ impl Scene {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A horizontal square of side `w` at height `y`, its lower corner at (`x`, `y`, `z`).
+    fn square(x: f64, y: f64, z: f64, w: f64) -> Polygon {
+        let c = |dx: f64, dz: f64| DVec3::new(x + dx, y, z + dz);
+        Polygon::quad([c(0.0, 0.0), c(w, 0.0), c(w, -w), c(0.0, -w)], 0, 0).unwrap()
+    }
+
+    fn scene_of(polygons: Vec<Polygon>) -> Scene {
+        let camera = Camera {
+            eye: DVec3::new(0.0, 1.0, 3.0),
+            look_at: DVec3::ZERO,
+            up: DVec3::Y,
+            projection: Projection::Perspective { fov_y_deg: 60.0 },
+        };
+        let grey = Material {
+            name: "grey".into(),
+            reflectance: DVec3::splat(0.5),
+            emission: DVec3::ZERO,
+        };
+        Scene::new(camera, 8, 8, vec![grey], polygons)
+    }
+
+    #[test]
+    fn the_core_leaves_out_backdrops_only() {
+        let floor = square(0.0, 0.0, 0.0, 1.0);
+        let lamp = square(0.4, 1.0, -0.4, 0.2);
+        let room = (DVec3::new(1.0, 1.0, 1.0)).length();
+        let core = |ps: Vec<Polygon>| scene_of(ps).core_diagonal();
+        assert!((core(vec![floor.clone(), lamp.clone()]) - room).abs() < 1e-12);
+        // A ground plane, a wall beside, and both: the room's size stays.
+        let ground = square(-1e6, -1.0, 1e6, 2e6);
+        let beside = square(5.0, 0.5, 0.0, 1e6);
+        for extra in [
+            vec![ground.clone()],
+            vec![beside.clone()],
+            vec![ground, beside],
+        ] {
+            let mut ps = vec![floor.clone(), lamp.clone()];
+            ps.extend(extra);
+            assert!((core(ps) - room).abs() < 1e-12);
+        }
+        // A room's largest surface is not a backdrop (a floor 10 wide under the lamp and a
+        // table: 14.1 is not 16 times the rest's 1.5), nor are two rooms far apart. Under a
+        // lone lamp (0.28) the same floor is one; its own max_depth still bounds its leaves.
+        let big_floor = square(-5.0, 0.0, 5.0, 10.0);
+        let table = square(0.0, 0.5, 0.0, 1.0);
+        let want = (DVec3::new(10.0, 1.0, 10.0)).length();
+        let furnished = core(vec![big_floor.clone(), lamp.clone(), table]);
+        assert!((furnished - want).abs() < 1e-9, "{furnished}");
+        let lone = core(vec![big_floor, lamp.clone()]);
+        assert!((lone - 0.08f64.sqrt()).abs() < 1e-9, "{lone}");
+        let far = square(1e6, 0.0, 0.0, 1.0);
+        let both = core(vec![floor.clone(), lamp, far]);
+        assert!(both > 1e6, "{both}");
+        // One polygon, or none: the bounds themselves.
+        assert!((core(vec![floor]) - 2f64.sqrt()).abs() < 1e-12);
+        assert_eq!(core(vec![]), 0.0);
+    }
 
     #[test]
     fn unit_square_parametric_map() {

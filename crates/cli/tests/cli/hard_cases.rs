@@ -20,10 +20,11 @@ use reconstruction::Estimator;
 use scene::{load_scene, parse_scene, Camera, Projection};
 
 /// Every scene of `scenes/hard/` has a test here: this list is checked against the directory.
-const HARD_SCENES: [&str; 13] = [
+const HARD_SCENES: [&str; 14] = [
     "behind-camera",
     "depth-12",
     "dynamic-range",
+    "huge-beside",
     "light-touching",
     "near-plane",
     "no-polygons",
@@ -366,6 +367,74 @@ fn scales() {
                 "{label}: differs from scale 1 by {worst} (peak {peak})"
             );
         }
+    }
+}
+
+/// A wall 2e6 wide behind a unit floor and lamp, facing away from them: the floor and lamp
+/// must come out as without the wall. What broke: such a polygon beside a normal scene was
+/// reported to leave every pixel one dim value, the floor and lamp gone; and the loader
+/// called a floor 1 unit above a 2e6-wide plane "in the same plane".
+#[test]
+fn huge_beside() {
+    let path = hard("huge-beside");
+    let p = prepared("huge-beside");
+    check_samples("huge-beside", &p);
+    assert!(p.scene.warnings.is_empty(), "{:?}", p.scene.warnings);
+    let text = std::fs::read_to_string(&path).unwrap();
+    let cut = text.find("[[polygons]]\nname = \"huge wall\"").unwrap();
+    let small = parse_scene(&text[..cut], &path).unwrap();
+    let small = prepare(
+        &Context::default(),
+        Input {
+            path: path.clone(),
+            scene: small,
+            solution_file: None,
+            estimator: Estimator::default(),
+        },
+        SizePolicy::FromDepth,
+        Placement::Centre,
+    )
+    .unwrap();
+    let cam = p.scene.camera;
+    for m in methods() {
+        let label = format!("huge-beside {}", m.name());
+        let f = render_in(&p, m, &cam, &opts(64, 64, 1), 2);
+        check_image(&label, &f, &|_, _| true);
+        let g = render_in(&small, m, &cam, &opts(64, 64, 1), 2);
+        // Same light on the floor and lamp: the wall faces away, so only rounding and the
+        // compact RRPs' quantization (1/65535 of a polygon's range) may differ; the lamp's
+        // exitance (1) is the scale.
+        let mut compared = 0;
+        for (a, b) in f.pixels.iter().zip(&g.pixels) {
+            if *b != BACKGROUND {
+                compared += 1;
+                let d = (*a - *b).abs().max_element();
+                assert!(d <= 1e-3, "{label}: {a} with the wall, {b} without");
+            }
+        }
+        assert!(
+            compared > 250,
+            "{label}: only {compared} floor and lamp pixels"
+        );
+    }
+}
+
+/// The shipped scenes have no backdrop: their core is their whole bounds, so the solver's
+/// lengths (smallest element, plane tolerance) are what they were before backdrops were set
+/// aside.
+#[test]
+fn shipped_scenes_have_no_backdrop() {
+    for name in [
+        "two-spots",
+        "two-spots-narrow",
+        "cornell-box",
+        "gallery",
+        "building",
+    ] {
+        let path = Path::new(crate::REPO).join(format!("scenes/{name}.toml"));
+        let s = load_scene(&path).unwrap();
+        let (lo, hi) = s.bounds();
+        assert_eq!(s.core_diagonal(), (hi - lo).length(), "{name}");
     }
 }
 

@@ -419,13 +419,14 @@ fn leaf_points(cell: Cell) -> impl Iterator<Item = VertexKey> {
     cell.corners().into_iter().chain(test_points(cell))
 }
 
-/// Smallest element edge worth splitting: the scene's bounding diagonal / 2^max_depth. Depth
-/// limits are per polygon, so without this a small polygon (a 1 m floor tile in a 15 m hall)
-/// would be refined to elements far smaller than a large one's at the same depth; with it,
-/// `max_depth` means "the scene resolved to 1 / 2^max_depth of its size" everywhere.
+/// Smallest element edge worth splitting: the diagonal of the scene's core (its bounds without
+/// backdrops, [`scene::Scene::core_diagonal`]) / 2^max_depth. Depth limits are per polygon,
+/// so without this a small polygon (a 1 m floor tile in a 15 m hall) would be refined to
+/// elements far smaller than a large one's at the same depth; with it, `max_depth` means "the
+/// scene resolved to 1 / 2^max_depth of its size" everywhere. The core, not the whole bounds:
+/// a ground plane 1e6 wide beside a room would otherwise forbid every split in the room.
 pub fn min_element_size(scene: &Scene) -> f64 {
-    let (lo, hi) = scene.bounds();
-    (hi - lo).length() / (1u64 << scene.radiosity.max_depth.min(63)) as f64
+    scene.core_diagonal() / (1u64 << scene.radiosity.max_depth.min(63)) as f64
 }
 
 /// Whether a leaf may split: below max_depth, and its longer world-space edge (at the cell's

@@ -1044,12 +1044,12 @@ fn hull_faces(a: &[DVec3], b: &[DVec3], eps: f64) -> Vec<(DVec3, DVec3)> {
     faces
 }
 
-/// The solver's plane tolerance: 1e-9 of the scene's diagonal. Points closer than this to a
-/// plane count as on it (occluder pruning; a spot this close to a receiver's plane lights
-/// nothing on it).
+/// The solver's plane tolerance: 1e-9 of the diagonal of the scene's core (its bounds without
+/// backdrops, [`Scene::core_diagonal`]: a 1e6-wide ground plane would make it 2 mm). Points
+/// closer than this to a plane count as on it (occluder pruning; a spot this close to a
+/// receiver's plane lights nothing on it).
 pub(crate) fn plane_tolerance(scene: &Scene) -> f64 {
-    let (lo, hi) = scene.bounds();
-    1e-9 * (hi - lo).length().max(1e-300)
+    1e-9 * scene.core_diagonal().max(1e-300)
 }
 
 /// The tolerance of the tests that decide whether an emitting polygon and a receiver face each
