@@ -295,6 +295,14 @@ pub(crate) struct Transfer<'a> {
     use_hull_faces: bool,
     /// Bytes of the pair tables built so far ([`Transfer::pair_bytes`]).
     pair_bytes: u64,
+    /// Shooters whose probe rays could not bound the light they miss, given every polygon
+    /// as a candidate receiver ([`receivers::MISSED_LIGHT`]).
+    exact_fallbacks: u64,
+    /// Sampled visibility: per patch shooter, the polygons its probe rays hit (computed when
+    /// it or a patch beside it first needs its receivers; see [`Transfer::probe`]).
+    probe_cache: Vec<Option<Vec<(u32, u32)>>>,
+    /// Per polygon, its patch shooters' ids, ascending.
+    patches_of: Vec<Vec<u32>>,
     /// Whether receivers are found by probe rays ([`Visibility::Sampled`](scene::Visibility::Sampled), or `Auto` on a
     /// scene past [`EXACT_PAIRS_LIMIT`]).
     sampled: bool,
@@ -320,6 +328,12 @@ impl<'a> Transfer<'a> {
     pub fn new(scene: &'a Scene) -> Self {
         let (shooters, _, _) = build_shooters(scene);
         let n = shooters.len();
+        let mut patches_of = vec![Vec::new(); scene.polygons.len()];
+        for (t, sg) in shooters.iter().enumerate() {
+            if let ShooterKind::Patch { polygon, .. } = sg.kind {
+                patches_of[polygon as usize].push(t as u32);
+            }
+        }
         let eps = plane_tolerance(scene);
         let sampled = sampled_visibility(scene, shooters.len() as u64);
         Transfer {
@@ -331,6 +345,9 @@ impl<'a> Transfer<'a> {
             rays: AtomicU64::new(0),
             use_hull_faces: true,
             pair_bytes: 0,
+            exact_fallbacks: 0,
+            probe_cache: vec![None; n],
+            patches_of,
             sampled,
             neighbours: if sampled {
                 corner_neighbours(scene)
@@ -371,6 +388,12 @@ impl<'a> Transfer<'a> {
         self.pair_bytes
     }
 
+    /// Shooters given every polygon as a candidate because their probe rays could not bound
+    /// the light they would miss (sampled visibility; 0 with exact).
+    pub(crate) fn exact_fallbacks(&self) -> u64 {
+        self.exact_fallbacks
+    }
+
     /// Computes the receivers of shooter `s` and their classes, if not done yet: every polygon
     /// (exact visibility) or the polygons its probe rays hit and their neighbours (sampled),
     /// classified in parallel; culled pairs are dropped.
@@ -379,12 +402,19 @@ impl<'a> Transfer<'a> {
             return;
         }
         use rayon::prelude::*;
-        let this = &*self;
-        let candidates: Vec<u32> = if self.sampled {
-            self.probe(s)
+        let found = if self.sampled {
+            let siblings = self.sibling_hits(s);
+            let found = self.probe(s, &siblings);
+            if found.is_none() {
+                self.exact_fallbacks += 1;
+            }
+            found
         } else {
-            (0..self.scene.polygons.len() as u32).collect()
+            None
         };
+        let this = &*self;
+        let candidates: Vec<u32> =
+            found.unwrap_or_else(|| (0..self.scene.polygons.len() as u32).collect());
         let per: Vec<(PairClass, Vec<u32>)> = candidates
             .par_iter()
             .map(|&r| this.classify(s, r as usize))
@@ -409,6 +439,54 @@ impl<'a> Transfer<'a> {
         }
         self.pair_bytes += pairs.bytes() + 8 * pairs.recv.len() as u64;
         self.pairs[s] = Some(pairs);
+    }
+
+    /// Sampled visibility, a reflecting patch `s`: the polygons the probe rays of `s` and of
+    /// the patches around it on its polygon (the 3 x 3 cells of its level centred on its own)
+    /// hit, ascending. Each patch's hits are probed once and kept (counted in
+    /// [`Transfer::pair_bytes`]). Empty for a light.
+    fn sibling_hits(&mut self, s: usize) -> Vec<(u32, u32)> {
+        use rayon::prelude::*;
+        let ShooterKind::Patch { polygon, cell } = self.shooters[s].kind else {
+            return Vec::new();
+        };
+        let around: Vec<usize> = self.patches_of[polygon as usize]
+            .iter()
+            .map(|&t| t as usize)
+            .filter(|&t| match self.shooters[t].kind {
+                ShooterKind::Patch { cell: c, .. } => {
+                    c.level == cell.level && c.x.abs_diff(cell.x) <= 1 && c.y.abs_diff(cell.y) <= 1
+                }
+                _ => false,
+            })
+            .collect();
+        let missing: Vec<usize> = around
+            .iter()
+            .copied()
+            .filter(|&t| self.probe_cache[t].is_none())
+            .collect();
+        let this = &*self;
+        let probed: Vec<Vec<(u32, u32)>> = missing
+            .par_iter()
+            .map(|&t| this.probe_hits(t).unwrap_or_default())
+            .collect();
+        for (t, h) in missing.into_iter().zip(probed) {
+            self.pair_bytes += 8 * h.len() as u64;
+            self.probe_cache[t] = Some(h);
+        }
+        let mut hits: Vec<(u32, u32)> = around
+            .iter()
+            .flat_map(|&t| self.probe_cache[t].iter().flatten().copied())
+            .collect();
+        hits.sort_unstable();
+        let mut merged: Vec<(u32, u32)> = Vec::with_capacity(hits.len());
+        for (h, c) in hits {
+            match merged.last_mut() {
+                Some((last, n)) if *last == h => *n += c,
+                _ => merged.push((h, c)),
+            }
+        }
+        merged
     }
 
     /// Sorts the per-receiver index after pair tables were added out of shooter order; the

@@ -120,65 +120,102 @@ pub fn pair_table_bound(scene: &Scene, shooters: u64, lights: u64) -> u64 {
 pub const PROBE_RAYS: usize = 2048;
 
 /// A shooter keeps casting rounds of probe rays until it has cast at least this many per
-/// distinct polygon hit. A polygon receiving a fraction f of the shooter's light is missed by
-/// N rays with probability about exp(-f N), so the light missed in expectation is at most
-/// m / (e N) for m receivers; 4 rays per receiver bounds it by about 9 % in the worst case
-/// (every receiver equally lit) and, measured, keeps a gallery room cut into 1,200 quads within
-/// the solver's own noise.
+/// distinct polygon hit, and until the light it has not found is bounded ([`MISSED_LIGHT`]).
 pub(crate) const PROBES_PER_HIT: usize = 4;
+
+/// Largest share of a light's power (a spot's or an emitter's) its probe rays may leave on
+/// polygons they never hit, and of a reflecting patch's ([`MISSED_LIGHT_PATCH`]), estimated
+/// by Good and Turing's unseen-species estimate: with N rays, the share of the shooter's light
+/// (its cosine-weighted directions, which the rays sample) going to polygons no ray hit is
+/// estimated, up to a bias below exp(-1) / N per such polygon, by N1 / N, N1 the polygons hit
+/// exactly once (Good 1953). Rounds go on until the estimate is at most this; a light whose
+/// rays reach [`MAX_PROBE_RAYS`] first takes every polygon as a candidate receiver (exact
+/// visibility for that light alone: lights are few). 1,600 quads 0.4 wide floating under a
+/// 40 x 40 area light were each missed with probability 0.55 by one round of rays, which the
+/// rule of 4 rays per polygon hit alone accepted (the quads got 44 % of their light).
+pub(crate) const MISSED_LIGHT: f64 = 1e-3;
+
+/// [`MISSED_LIGHT`] for a reflecting patch, which falls back to nothing at the cap: patches
+/// are many, and every patch of a polygon takes the receivers all its sibling patches found
+/// ([`Transfer::probe`]), so a receiver is missed only if every sibling's rays miss it.
+pub(crate) const MISSED_LIGHT_PATCH: f64 = 1e-2;
 
 /// Most probe rays per shooter, over all rounds.
 pub(crate) const MAX_PROBE_RAYS: usize = 32 * PROBE_RAYS;
+
+/// Good and Turing's estimate of the share of the light leaving a shooter that its `cast`
+/// probe rays have not found, from the polygons they hit with their counts (`hits`): the
+/// polygons hit exactly once over the rays cast ([`MISSED_LIGHT`]).
+pub(crate) fn unseen_share(hits: &[(u32, u32)], cast: usize) -> f64 {
+    let once = hits.iter().filter(|&&(_, c)| c == 1).count();
+    once as f64 / cast.max(1) as f64
+}
+
+/// The distinct polygons of the sorted list `all`, each with how often it occurs.
+pub(crate) fn counted(all: &[u32]) -> Vec<(u32, u32)> {
+    let mut out: Vec<(u32, u32)> = Vec::new();
+    for &h in all {
+        match out.last_mut() {
+            Some((last, c)) if *last == h => *c += 1,
+            _ => out.push((h, 1)),
+        }
+    }
+    out
+}
 
 /// Spots and emitters light the scene directly and are few: they cast this many times
 /// [`PROBE_RAYS`].
 pub(crate) const LIGHT_PROBE_FACTOR: usize = 4;
 
 impl Transfer<'_> {
-    /// The polygons shooter `s`'s probe rays hit first, with every polygon sharing a corner
-    /// with one of them or with the shooter's own polygon, and every polygon near the shooter
-    /// (see below), ascending.
+    /// The candidate receivers of shooter `s`, ascending: the polygons its probe rays hit
+    /// first (a reflecting patch: the rays of every patch of its polygon), every polygon
+    /// sharing a corner with one of them or with the shooter's own polygon, and every polygon
+    /// near the shooter (see below); `None` for a light whose rays could not bound the light
+    /// they miss ([`MISSED_LIGHT`]): every polygon is then a candidate.
     ///
     /// Rays: rounds of [`PROBE_RAYS`] ([`LIGHT_PROBE_FACTOR`] times as many for a light),
     /// each from stratified points of the shooter (its cell's domain split into a grid, one
     /// jittered point per stratum) in cosine-distributed directions about its normal,
     /// stratified too and paired through a permutation (Latin hypercube); a spot casts from
     /// its position, uniformly over its cone. Rounds go on while fewer than
-    /// [`PROBES_PER_HIT`] rays per distinct polygon hit have been cast (at most
-    /// [`MAX_PROBE_RAYS`]). All from streams seeded by (scene seed, shooter id, round), so the
-    /// set depends only on the scene.
+    /// [`PROBES_PER_HIT`] rays per distinct polygon hit have been cast or while the light
+    /// still unseen is estimated above [`MISSED_LIGHT`] ([`MISSED_LIGHT_PATCH`] for a patch),
+    /// at most [`MAX_PROBE_RAYS`]. All from streams seeded by (scene seed, shooter id, round),
+    /// so the set depends only on the scene.
     ///
     /// Why this is enough: a polygon that receives a fraction f of the shooter's light (its
-    /// cosine-weighted solid angle) is hit on average by f times the rays, so whatever the
-    /// probes miss receives little, the more so as rays grow with the receivers; and since
-    /// light a missed polygon would receive is shared with its neighbours' (a wall cut into
-    /// pieces), adding the neighbours of every hit recovers most small pieces among visible
-    /// ones. What is still missed is lost light, measured in `docs/performance.md` against
-    /// exact visibility.
-    pub fn probe(&self, s: usize) -> Vec<u32> {
+    /// cosine-weighted solid angle) is hit on average by f times the rays, and the share of
+    /// light on polygons not yet hit is estimated from the rays themselves ([`unseen_share`]).
+    /// A patch's siblings see nearly what it sees, so their union multiplies its rays by the
+    /// patches of its polygon; and since light a missed polygon would receive is shared with
+    /// its neighbours' (a wall cut into pieces), adding the neighbours of every hit recovers
+    /// small pieces among visible ones.
+    pub fn probe(&self, s: usize, found: &[(u32, u32)]) -> Option<Vec<u32>> {
         let sg = &self.shooters[s];
-        let is_light = !matches!(sg.kind, ShooterKind::Patch { .. });
-        let n = if is_light {
-            PROBE_RAYS * LIGHT_PROBE_FACTOR
-        } else {
-            PROBE_RAYS
+        let hits = match sg.kind {
+            ShooterKind::Patch { .. } => found.to_vec(),
+            _ => self.probe_hits(s)?,
         };
-        // Rounds of `n` rays, each its own stratified set, until the rays cast are at least
-        // PROBES_PER_HIT times the distinct polygons hit (or MAX_PROBE_RAYS): a shooter that
-        // sees many polygons gets more rays (see below).
-        let mut hits: Vec<u32> = Vec::new();
-        let mut cast = 0usize;
-        let mut round = 0u64;
-        while cast == 0 || (cast < PROBES_PER_HIT * hits.len() && cast + n <= MAX_PROBE_RAYS) {
-            hits.extend(self.probe_round(s, n, round));
-            hits.sort_unstable();
-            hits.dedup();
-            cast += n;
-            round += 1;
-        }
-        let mut out = hits.clone();
-        for &h in &hits {
+        let mut out: Vec<u32> = hits.iter().map(|&(h, _)| h).collect();
+        for &(h, _) in &hits {
             out.extend_from_slice(&self.neighbours[h as usize]);
+        }
+        if !matches!(sg.kind, ShooterKind::Patch { .. }) {
+            // A light's rays hit each of many small receivers (a grid of tiles, foliage) only
+            // a few times; one they all missed has its neighbours hit: every polygon within
+            // half its own size of a hit joins (a missed tile is lost only if the tiles around
+            // it are missed too). Lights are few, so this costs little; a patch has its
+            // siblings' rays instead.
+            for &(h, _) in &hits {
+                let b = Aabb::of(self.scene.polygons[h as usize].vertices());
+                let grow = DVec3::splat(0.5 * (b.hi - b.lo).max_element());
+                let around = Aabb {
+                    lo: b.lo - grow,
+                    hi: b.hi + grow,
+                };
+                self.bvh.for_each_overlapping(&around, |q| out.push(q));
+            }
         }
         // Polygons at the shooter: a probe ray ignores hits closer than the BVH's end
         // tolerance (`T_EPS` of its length), so an emitter a hair in front of a wall would never
@@ -204,7 +241,36 @@ impl Transfer<'_> {
         out.sort_unstable();
         out.dedup();
         out.retain(|&r| r != sg.polygon);
-        out
+        Some(out)
+    }
+
+    /// The distinct polygons shooter `s`'s probe rays hit, ascending, after the rounds the
+    /// stopping rule asks for (see [`Transfer::probe`]); `None` for a light that reached
+    /// [`MAX_PROBE_RAYS`] with the unseen light still above [`MISSED_LIGHT`]. A patch stops at
+    /// the cap whatever the estimate.
+    pub(crate) fn probe_hits(&self, s: usize) -> Option<Vec<(u32, u32)>> {
+        let is_light = !matches!(self.shooters[s].kind, ShooterKind::Patch { .. });
+        let (n, bound) = if is_light {
+            (PROBE_RAYS * LIGHT_PROBE_FACTOR, MISSED_LIGHT)
+        } else {
+            (PROBE_RAYS, MISSED_LIGHT_PATCH)
+        };
+        let mut all: Vec<u32> = Vec::new();
+        let mut cast = 0usize;
+        let mut round = 0u64;
+        loop {
+            all.extend(self.probe_round(s, n, round));
+            all.sort_unstable();
+            cast += n;
+            round += 1;
+            let hits = counted(&all);
+            if cast >= PROBES_PER_HIT * hits.len() && unseen_share(&hits, cast) <= bound {
+                return Some(hits);
+            }
+            if cast + n > MAX_PROBE_RAYS {
+                return (!is_light).then_some(hits);
+            }
+        }
     }
 
     /// The first polygons hit by round `round` of `n` probe rays of shooter `s` (with
