@@ -127,6 +127,16 @@ pub fn solve(settings: &Settings, args: SolveArgs) -> anyhow::Result<()> {
     let sol = in_pool(args.threads, || {
         solve_to_file(&settings.context(&observer), &args.scene, &args.output)
     })??;
+    if sol.stats.guard_stops.leaves > 0 {
+        // The scene again, for the polygon's file and line (a guard stop is the rare case).
+        if let Some(w) = sol
+            .stats
+            .guard_stops
+            .warning(&scene::load_scene(&args.scene)?)
+        {
+            note(&format!("warning: {w}"));
+        }
+    }
     if !args.quiet {
         let s = &sol.stats;
         note(&format!(

@@ -38,7 +38,7 @@ pub const MAGIC: &[u8; 8] = b"PFSOLN\r\n";
 /// marks solutions of the local refinement criterion with per-channel convergence, their RRPs
 /// built with the Hyman estimator; version 4 stores the shapes of the patches' light. Older
 /// files are refused (solve again).
-pub const FORMAT_VERSION: u32 = 4;
+pub const FORMAT_VERSION: u32 = 5;
 /// Most nodes a stored patch shape may have: a full tree of [`MAX_SHAPE_LEVELS`] levels.
 const MAX_SHAPE_NODES: usize = ((1 << (2 * (MAX_SHAPE_LEVELS + 1))) - 1) / 3;
 const HEADER: usize = 8 + 4 + 4 + 8 + 8;
@@ -358,6 +358,10 @@ impl W {
         }
         self.f64(st.emitted_power);
         self.f64(st.unshot_fraction);
+        self.u64(st.guard_stops.leaves);
+        self.u32(st.guard_stops.worst_polygon);
+        self.f64(st.guard_stops.worst_excess);
+        self.u64(st.guard_stops.shadow_leaves);
         let e = &st.energy;
         for v in [e.emitted, e.absorbed, e.unshot, e.lost] {
             self.f64(v.x);
@@ -561,6 +565,12 @@ impl R<'_> {
         }
         stats.emitted_power = self.f64()?;
         stats.unshot_fraction = self.f64()?;
+        stats.guard_stops = crate::GuardStops {
+            leaves: self.u64()?,
+            worst_polygon: self.u32()?,
+            worst_excess: self.f64()?,
+            shadow_leaves: self.u64()?,
+        };
         let mut v = [DVec3::ZERO; 4];
         for x in v.iter_mut() {
             *x = DVec3::new(self.f64()?, self.f64()?, self.f64()?);

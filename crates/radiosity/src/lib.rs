@@ -141,9 +141,68 @@ pub struct SolveStats {
     pub unshot_history: Vec<f64>,
     /// Where the emitted power went (see [`EnergyAccount`]).
     pub energy: EnergyAccount,
+    /// Leaves the refinement split to the depth or size guard while the error test still
+    /// failed at them (see [`GuardStops`]).
+    pub guard_stops: GuardStops,
     /// Wall-clock solve time in milliseconds. Not saved in solution files (it would make two
     /// solves of one scene differ); 0 for a solution read from a file.
     pub solve_ms: f64,
+}
+
+/// Where refinement stopped at a guard (`radiosity.max_depth`, or the smallest element the
+/// scene's size allows, [`shoot::min_element_size`]) while the error test still failed: each
+/// leaf that split although its children may not split again counts once. A leaf whose light
+/// deviates from the bilinear prediction counts in `leaves`, with that deviation over the
+/// leaf's level as its excess: an estimate of the relative error its children keep (about a
+/// quarter of it where the light is smooth, all of it at a spot's cone edge). A leaf failing
+/// only because a shadow boundary crosses it counts in `shadow_leaves`: a boundary is a step at
+/// any depth, so those leaves reach the guard by design.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct GuardStops {
+    /// Leaves split to the guard with their light off the bilinear prediction.
+    pub leaves: u64,
+    /// The polygon with the largest excess.
+    pub worst_polygon: u32,
+    /// That excess (relative to the leaf's level; above `radiosity.tolerance`).
+    pub worst_excess: f64,
+    /// Leaves split to the guard only for a shadow boundary crossing them.
+    pub shadow_leaves: u64,
+}
+
+impl GuardStops {
+    /// The warning a solve of `scene` that stopped at a guard where its light is still off
+    /// the bilinear prediction gives (`None` if none did; shadow boundaries alone give none).
+    pub fn warning(&self, scene: &Scene) -> Option<String> {
+        if self.leaves == 0 {
+            return None;
+        }
+        let r = self.worst_polygon as usize;
+        let at = if r < scene.polygons.len() {
+            scene.origin(r)
+        } else {
+            format!("polygon {r}")
+        };
+        Some(format!(
+            "refinement stopped at radiosity.max_depth = {} (or the smallest element, the \
+             scene's size / 2^max_depth) on {} leaves whose light is still off the bilinear \
+             prediction; worst at {at}: {:.1} % of its level (tolerance {:.1} %); raise \
+             radiosity.max_depth where memory allows",
+            scene.radiosity.max_depth,
+            self.leaves,
+            100.0 * self.worst_excess,
+            100.0 * scene.radiosity.tolerance
+        ))
+    }
+
+    /// Counts one leaf of polygon `r` split to the guard with its light off the bilinear
+    /// prediction by `excess` of its level.
+    pub(crate) fn record(&mut self, r: u32, excess: f64) {
+        self.leaves += 1;
+        if excess > self.worst_excess {
+            self.worst_excess = excess;
+            self.worst_polygon = r;
+        }
+    }
 }
 
 /// Where a solve's emitted power went, per channel, in watts: emitted = absorbed + unshot +
@@ -362,6 +421,7 @@ pub fn solve(scene: &Scene, opts: &SolveOptions<'_>) -> Result<Solution> {
         shots: out.shots,
         rays_cast: tr.rays.load(std::sync::atomic::Ordering::Relaxed),
         refined_after: out.refined_after,
+        guard_stops: out.guard_stops,
         emitted_power: out.emitted,
         unshot_fraction: out.unshot,
         unshot_history: out.history,

@@ -390,6 +390,9 @@ pub struct Scene {
     /// order (empty for scenes built in code). Outputs are checked against these, so that no
     /// job overwrites its own input.
     pub inputs: Vec<std::path::PathBuf>,
+    /// Per polygon, where it was written (file, line, key or OBJ face), for messages about
+    /// it; empty for scenes built in code.
+    pub origins: Vec<base::error::Location>,
 }
 
 /// A polygon more than this many times the diagonal of the rest of the scene is a backdrop
@@ -427,7 +430,16 @@ impl Scene {
             camera_path: None,
             warnings: Vec::new(),
             inputs: Vec::new(),
+            origins: Vec::new(),
         }
+    }
+
+    /// Where polygon `i` was written (`file:line: key`), or `polygon i` for a scene built in
+    /// code.
+    pub fn origin(&self, i: usize) -> String {
+        self.origins
+            .get(i)
+            .map_or_else(|| format!("polygon {i}"), |l| l.to_string())
     }
 
     /// The material of polygon `i`.

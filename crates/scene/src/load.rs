@@ -294,6 +294,7 @@ impl<'a> Cx<'a> {
             camera_path,
             warnings: std::mem::take(&mut self.warnings),
             inputs: std::mem::take(&mut self.inputs),
+            origins: std::mem::take(&mut self.origins),
         })
     }
 

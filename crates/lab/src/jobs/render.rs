@@ -199,6 +199,9 @@ pub fn run_render(
         on(RenderEvent::Warning(w));
     }
     let p = prepare(ctx, input, plan.texture_policy, plan.texture_placement)?;
+    if let Some(w) = p.solution.stats.guard_stops.warning(&p.scene) {
+        on(RenderEvent::Warning(&w));
+    }
     let exposure = p.scene.display.exposure;
     let n = plan.frames.len();
     // The walkthrough's own stage, after the solve's: it ends (also on an error) when dropped.

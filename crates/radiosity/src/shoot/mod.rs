@@ -127,6 +127,8 @@ pub(crate) struct Outcome {
     pub emitted: f64,
     /// Number of shots taken before each refinement pass.
     pub refined_after: Vec<u64>,
+    /// Leaves refined to a guard with the error test failing.
+    pub guard_stops: crate::GuardStops,
 }
 
 /// Runs the whole solve and returns trees and the shooting history. `tr` must be built on `scene`.

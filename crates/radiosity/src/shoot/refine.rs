@@ -8,6 +8,7 @@ use rayon::prelude::*;
 use super::poly::{cell_order, PatchLayout, Poly};
 use super::{lum, memory_error, state_bytes};
 use crate::transfer::{PairClass, ShooterKind, Transfer};
+use crate::GuardStops;
 use base::error::{human_bytes, Result};
 use base::quadtree::{Cell, VertexKey};
 use scene::Scene;
@@ -43,12 +44,14 @@ pub(super) fn refine(
     totals: &[DVec3],
     patches: &PatchLayout,
     memory_limit: u64,
+    guarded: &mut GuardStops,
 ) -> Result<usize> {
     let tolerance = scene.radiosity.tolerance;
     if tolerance <= 0.0 || !tolerance.is_finite() {
         return Ok(0);
     }
     let mut pass = Refinement::new(scene, tr, polys, totals, memory_limit);
+
     let mut pending = pass.splittable_leaves(polys);
     let mut splits = 0;
     for p in polys.iter_mut() {
@@ -56,7 +59,7 @@ pub(super) fn refine(
     }
     while !pending.is_empty() {
         let probes = pass.probe(polys, &pending);
-        let split_now = pass.leaves_to_split(polys, &pending, &probes);
+        let split_now = pass.leaves_to_split(polys, &pending, &probes, guarded);
         keep_tests(polys, &pending, &split_now, &probes);
         pass.memory.admit(scene, split_now.len() as u64)?;
         splits += split_now.len();
@@ -137,6 +140,15 @@ impl MemoryGuard {
         (self.nodes, self.vertices) = (nodes, vertices);
         Ok(())
     }
+}
+
+/// How far a leaf fails the error test, relative to its level: by its light's deviation from
+/// the bilinear prediction (`smooth`; a cone's edge counts here too), and by the step of a
+/// shadow boundary crossing it (`shadow`).
+#[derive(Debug, Clone, Copy)]
+struct Excess {
+    smooth: f64,
+    shadow: f64,
 }
 
 /// What a generation of pending leaves is judged on.
@@ -274,28 +286,55 @@ impl<'r, 't> Refinement<'r, 't> {
             .collect()
     }
 
-    /// The `pending` leaves that split (see [`refine`]), in order.
+    /// The `pending` leaves that split (see [`refine`]), in order. A leaf that splits while its
+    /// children may not (the depth or size guard) is counted in `guarded`: the error test still
+    /// fails there.
     fn leaves_to_split(
         &self,
         polys: &[Poly],
         pending: &[(u32, u32)],
         probes: &Probes,
+        guarded: &mut GuardStops,
     ) -> Vec<(u32, u32)> {
         let floor = REFINE_FLOOR * self.peak;
-        pending
-            .iter()
-            .copied()
-            .filter(|&(r, id)| {
+        let judged: Vec<(u32, u32, Excess)> = pending
+            .par_iter()
+            .map(|&(r, id)| {
                 let p = &polys[r as usize];
-                self.should_split(p, r, p.tree.node(id).cell, probes, floor)
+                (
+                    r,
+                    id,
+                    self.excess(p, r, p.tree.node(id).cell, probes, floor),
+                )
             })
-            .collect()
+            .collect();
+        let mut split = Vec::new();
+        for (r, id, excess) in judged {
+            if excess.smooth.max(excess.shadow) <= self.tolerance {
+                continue;
+            }
+            split.push((r, id));
+            let cell = polys[r as usize].tree.node(id).cell;
+            let child = Cell {
+                level: cell.level + 1,
+                x: 2 * cell.x,
+                y: 2 * cell.y,
+            };
+            if !can_split(self.scene, r as usize, child, self.min_size) {
+                if excess.smooth > self.tolerance {
+                    guarded.record(r, excess.smooth);
+                } else {
+                    guarded.shadow_leaves += 1;
+                }
+            }
+        }
+        split
     }
 
-    /// Whether leaf `cell` of polygon `r` (`p`) splits: its light varies from the bilinear
-    /// prediction, or a shadow boundary crosses it, by more than the tolerance times its level
-    /// (at least `floor`).
-    fn should_split(&self, p: &Poly, r: u32, cell: Cell, probes: &Probes, floor: f64) -> bool {
+    /// How far leaf `cell` of polygon `r` (`p`) fails the error test, relative to its level (at
+    /// least `floor`): its light's deviation from the bilinear prediction, and the step of a
+    /// shadow boundary crossing it. It splits when either passes the tolerance.
+    fn excess(&self, p: &Poly, r: u32, cell: Cell, probes: &Probes, floor: f64) -> Excess {
         let corners = cell.corners().map(|k| probes.g_at(p, r, k));
         let tests = test_points(cell).map(|k| probes.g_at(p, r, k));
         let level = corners
@@ -304,10 +343,14 @@ impl<'r, 't> Refinement<'r, 't> {
             .map(|g| lum(p.rho * *g))
             .sum::<f64>()
             / 9.0;
-        let threshold = self.tolerance * level.max(floor);
-        varies(p.rho, &corners, &tests, threshold)
-            || (!self.shadow_lights[r as usize].is_empty()
-                && crosses_shadow(probes, r, cell, threshold))
+        let scale = level.max(floor).max(f64::MIN_POSITIVE);
+        let smooth = deviation(p.rho, &corners, &tests) / scale;
+        let shadow = if self.shadow_lights[r as usize].is_empty() {
+            0.0
+        } else {
+            shadow_step(probes, r, cell) / scale
+        };
+        Excess { smooth, shadow }
     }
 
     /// Splits the leaves `split_now`, gives the polygons that changed their new vertices (G
@@ -381,7 +424,7 @@ fn shadow_lights(tr: &Transfer<'_>, totals: &[DVec3], polygons: usize) -> Vec<Ve
 /// Whether rho * G at the test points `tests` (centre, edge midpoints) differs from the
 /// bilinear prediction of the `corners` by more than `threshold` (luminance of the per-channel
 /// difference) at any of them.
-fn varies(rho: DVec3, corners: &[DVec3; 4], tests: &[DVec3; 5], threshold: f64) -> bool {
+fn deviation(rho: DVec3, corners: &[DVec3; 4], tests: &[DVec3; 5]) -> f64 {
     let c = corners;
     let predicted = [
         0.25 * (c[0] + c[1] + c[2] + c[3]),
@@ -390,28 +433,35 @@ fn varies(rho: DVec3, corners: &[DVec3; 4], tests: &[DVec3; 5], threshold: f64) 
         0.5 * (c[2] + c[3]),
         0.5 * (c[3] + c[0]),
     ];
-    tests.iter().zip(predicted).any(|(g, pr)| {
-        let d = rho * (*g - pr);
-        lum(d.abs()) > threshold
-    })
+    tests
+        .iter()
+        .zip(predicted)
+        .map(|(g, pr)| lum((rho * (*g - pr)).abs()))
+        .fold(0.0, f64::max)
 }
 
-/// Whether a shadow boundary crosses leaf `cell` of polygon `r`: for some shadow light the
-/// visible fraction differs across the leaf's points, and the light's largest unshadowed
-/// contribution there times that difference exceeds `threshold`.
-fn crosses_shadow(probes: &Probes, r: u32, cell: Cell, threshold: f64) -> bool {
+/// The largest step a shadow boundary makes across leaf `cell` of polygon `r`: over its shadow
+/// lights, the light's largest unshadowed contribution at the leaf's points times the spread of
+/// its visible fraction there (0 where no boundary crosses).
+fn shadow_step(probes: &Probes, r: u32, cell: Cell) -> f64 {
     let points: Vec<&[(f64, f64)]> = leaf_points(cell).map(|k| probes.shadows_at(r, k)).collect();
     let lights = points.first().map_or(0, |v| v.len());
-    (0..lights).any(|j| {
-        let (mut lo, mut hi, mut open) = (f64::INFINITY, f64::NEG_INFINITY, 0f64);
-        for q in &points {
-            let (a, v) = q[j];
-            lo = lo.min(v);
-            hi = hi.max(v);
-            open = open.max(a);
-        }
-        hi > lo && open * (hi - lo) > threshold
-    })
+    (0..lights)
+        .map(|j| {
+            let (mut lo, mut hi, mut open) = (f64::INFINITY, f64::NEG_INFINITY, 0f64);
+            for q in &points {
+                let (a, v) = q[j];
+                lo = lo.min(v);
+                hi = hi.max(v);
+                open = open.max(a);
+            }
+            if hi > lo {
+                open * (hi - lo)
+            } else {
+                0.0
+            }
+        })
+        .fold(0.0, f64::max)
 }
 
 /// The corners, then the test points, of a cell.

@@ -67,6 +67,8 @@ pub(super) struct Solver<'a, 't, 'o> {
     history: Vec<f64>,
     /// Shots taken before each refinement pass.
     refined_after: Vec<u64>,
+    /// Leaves refined to a guard with the error test failing, over all passes.
+    guard_stops: crate::GuardStops,
     /// Wall-clock times of the trace lines.
     clock: Clock,
     /// The remaining-time estimate while shooting.
@@ -119,6 +121,7 @@ impl<'a, 't, 'o> Solver<'a, 't, 'o> {
             fraction: 0.0,
             history: Vec::new(),
             refined_after: Vec::new(),
+            guard_stops: crate::GuardStops::default(),
             clock: Clock {
                 start: Instant::now(),
                 pairs: 0.0,
@@ -375,6 +378,7 @@ impl<'a, 't, 'o> Solver<'a, 't, 'o> {
             &self.totals,
             &self.patches,
             self.memory_limit.saturating_sub(self.cache.bytes()),
+            &mut self.guard_stops,
         )?;
         let all = 0..self.polys.len();
         self.integrate(all.clone(), false);
@@ -474,7 +478,7 @@ impl<'a, 't, 'o> Solver<'a, 't, 'o> {
         self.trace(|sv| {
             let pairs = PairCounts::of(sv.tr);
             format!(
-                "  shooting done {:.0} ms (pairs {:.0} ms, shots {:.0} ms), shots {}, pairs open {} occluded {} (mean cands {:.1}), shooters with total {}",
+                "  shooting done {:.0} ms (pairs {:.0} ms, shots {:.0} ms), shots {}, pairs open {} occluded {} (mean cands {:.1}), shooters with total {}, lights given every polygon {}",
                 elapsed_ms(sv.clock.start),
                 sv.clock.pairs * 1e3,
                 sv.clock.shots * 1e3,
@@ -482,7 +486,8 @@ impl<'a, 't, 'o> Solver<'a, 't, 'o> {
                 pairs.open,
                 pairs.occluded,
                 pairs.candidates as f64 / pairs.occluded.max(1) as f64,
-                sv.totals.iter().filter(|t| **t != DVec3::ZERO).count()
+                sv.totals.iter().filter(|t| **t != DVec3::ZERO).count(),
+                sv.tr.exact_fallbacks()
             )
         });
     }
@@ -536,6 +541,7 @@ impl<'a, 't, 'o> Solver<'a, 't, 'o> {
             unshot: self.fraction,
             emitted: self.unshot.emitted,
             refined_after: self.refined_after,
+            guard_stops: self.guard_stops,
         }
     }
 }
