@@ -829,12 +829,22 @@ fn sampled_visibility_finds_every_quad_of_a_floating_grid() {
 fn a_guard_that_stops_refinement_is_reported() {
     let c = |x: f64, y: f64, z: f64| DVec3::new(x, y, z);
     let floor = test_scenes::quad_facing(
-        [c(0.0, 0.0, 0.0), c(1.0, 0.0, 0.0), c(1.0, 1.0, 0.0), c(0.0, 1.0, 0.0)],
+        [
+            c(0.0, 0.0, 0.0),
+            c(1.0, 0.0, 0.0),
+            c(1.0, 1.0, 0.0),
+            c(0.0, 1.0, 0.0),
+        ],
         c(0.5, 0.5, 1.0),
         0,
     );
     let lamp = test_scenes::quad_facing(
-        [c(0.495, 0.495, 0.02), c(0.505, 0.495, 0.02), c(0.505, 0.505, 0.02), c(0.495, 0.505, 0.02)],
+        [
+            c(0.495, 0.495, 0.02),
+            c(0.505, 0.495, 0.02),
+            c(0.505, 0.505, 0.02),
+            c(0.495, 0.505, 0.02),
+        ],
         c(0.5, 0.5, -1.0),
         1,
     );
@@ -848,7 +858,10 @@ fn a_guard_that_stops_refinement_is_reported() {
     assert!(g.leaves > 0 && g.worst_polygon == 0, "{g:?}");
     assert!(g.worst_excess > 10.0 * s.radiosity.tolerance, "{g:?}");
     let w = g.warning(&s).expect("a warning");
-    assert!(w.contains("polygon 0") && w.contains("max_depth = 3"), "{w}");
+    assert!(
+        w.contains("polygon 0") && w.contains("max_depth = 3"),
+        "{w}"
+    );
     s.radiosity.max_depth = 10;
     let deep = solve_quiet(&s).stats.guard_stops;
     eprintln!("depth 3: {g:?}; depth 10: {deep:?}");

@@ -779,9 +779,16 @@ fn behind_camera_render_warns_and_writes_the_image() {
     })
     .unwrap();
     assert!(png.is_file());
-    assert_eq!(warnings.len(), 1, "{warnings:?}");
+    // The empty view, once (the solve's guard report may come beside it: the scene's floor is
+    // refined to depth 3 only).
+    let empty: Vec<&String> = warnings
+        .iter()
+        .filter(|w| w.contains("no polygon is in view"))
+        .collect();
+    assert_eq!(empty.len(), 1, "{warnings:?}");
+    assert!(empty[0].contains("behind-camera.toml"), "{warnings:?}");
     assert!(
-        warnings[0].contains("behind-camera.toml") && warnings[0].contains("no polygon is in view"),
+        warnings.len() == 1 || warnings.iter().any(|w| w.contains("refinement stopped")),
         "{warnings:?}"
     );
     // A scene with something in view draws without that warning.
