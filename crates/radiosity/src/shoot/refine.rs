@@ -101,6 +101,9 @@ struct Refinement<'r, 't> {
     tolerance: f64,
     /// [`min_element_size`] of the scene.
     min_size: f64,
+    /// The lights (emitters and spots) as spheres: where a light is small and close, its
+    /// light varies over less than the guards' smallest element ([`Refinement::may_split`]).
+    lights: Vec<(DVec3, f64)>,
     /// The brightest reflected luminance sampled so far (the criterion's floor follows it).
     peak: f64,
     /// Per polygon: the lights that have shot and whose pairs with it may be occluded,
@@ -204,6 +207,7 @@ impl<'r, 't> Refinement<'r, 't> {
             totals,
             tolerance: scene.radiosity.tolerance,
             min_size: min_element_size(scene),
+            lights: light_spheres(scene),
             peak: peak_reflected(polys),
             shadow_lights: shadow_lights(tr, totals, polys.len()),
             memory: MemoryGuard {
@@ -224,7 +228,7 @@ impl<'r, 't> Refinement<'r, 't> {
                 continue;
             }
             for id in p.tree.leaves() {
-                if can_split(self.scene, r, p.tree.node(id).cell, self.min_size) {
+                if self.may_split(r, p.tree.node(id).cell) {
                     pending.push((r as u32, id));
                 }
             }
@@ -320,7 +324,7 @@ impl<'r, 't> Refinement<'r, 't> {
                 x: 2 * cell.x,
                 y: 2 * cell.y,
             };
-            if !can_split(self.scene, r as usize, child, self.min_size) {
+            if !self.may_split(r as usize, child) {
                 if excess.smooth > self.tolerance {
                     guarded.record(r, excess.smooth);
                 } else {
@@ -368,7 +372,7 @@ impl<'r, 't> Refinement<'r, 't> {
             let p = &mut polys[r as usize];
             let f = p.tree.split(id);
             for c in f..f + 4 {
-                if can_split(self.scene, r as usize, p.tree.node(c).cell, self.min_size) {
+                if self.may_split(r as usize, p.tree.node(c).cell) {
                     next.push((r, c));
                 }
             }
@@ -477,6 +481,57 @@ fn leaf_points(cell: Cell) -> impl Iterator<Item = VertexKey> {
 /// a ground plane 1e6 wide beside a room would otherwise forbid every split in the room.
 pub fn min_element_size(scene: &Scene) -> f64 {
     scene.core_diagonal() / (1u64 << scene.radiosity.max_depth.min(63)) as f64
+}
+
+/// How many times finer than the distance to a light (from its centre, plus its radius) a leaf
+/// may be split past the guards ([`Refinement::may_split`]): the light of a small source at
+/// distance h varies over about h (its irradiance has curvature about 3 / h^2 relative), so
+/// bilinear interpolation holds it to a percent with elements below about h / 6.
+pub const LIGHT_DEPTH_FACTOR: f64 = 8.0;
+
+/// Every emitter as (centroid, largest distance of a corner from it) and every spot as
+/// (position, 0).
+fn light_spheres(scene: &Scene) -> Vec<(DVec3, f64)> {
+    let mut out: Vec<(DVec3, f64)> = scene.spots.iter().map(|s| (s.position, 0.0)).collect();
+    for (i, p) in scene.polygons.iter().enumerate() {
+        if scene.material_of(i).is_emitter() {
+            let c = p.centroid();
+            let r = p
+                .vertices()
+                .iter()
+                .map(|v| (*v - c).length())
+                .fold(0.0, f64::max);
+            out.push((c, r));
+        }
+    }
+    out
+}
+
+impl Refinement<'_, '_> {
+    /// Whether leaf `cell` of polygon `r` may split: within the guards (`max_depth` and the
+    /// smallest element, [`can_split`]), or, up to the quadtree's deepest level, while its
+    /// longer edge is more than 1 / [`LIGHT_DEPTH_FACTOR`] of the distance from its centre to
+    /// some light plus that light's radius. So the depth under a small or close light comes
+    /// from the light's size and distance (an emitter 1/1000 of a floor's width 2 cm above it
+    /// is resolved at the default `max_depth`), and the error test still decides each split;
+    /// the memory guard bounds it all.
+    fn may_split(&self, r: usize, cell: Cell) -> bool {
+        if can_split(self.scene, r, cell, self.min_size) {
+            return true;
+        }
+        if cell.level >= base::quadtree::MAX_DEPTH || self.lights.is_empty() {
+            return false;
+        }
+        let (u0, v0, u1, v1) = cell.bounds();
+        let (u, v) = (0.5 * (u0 + u1), 0.5 * (v0 + v1));
+        let p = &self.scene.polygons[r];
+        let (du, dv) = p.tangents(u, v);
+        let edge = (du.length() * (u1 - u0)).max(dv.length() * (v1 - v0));
+        let centre = p.point(u, v);
+        self.lights
+            .iter()
+            .any(|&(c, radius)| LIGHT_DEPTH_FACTOR * edge > (c - centre).length() + radius)
+    }
 }
 
 /// Whether a leaf may split: below max_depth, and its longer world-space edge (at the cell's
