@@ -514,12 +514,15 @@ impl Refinement<'_, '_> {
     /// some light plus that light's radius. So the depth under a small or close light comes
     /// from the light's size and distance (an emitter 1/1000 of a floor's width 2 cm above it
     /// is resolved at the default `max_depth`), and the error test still decides each split;
-    /// the memory guard bounds it all.
+    /// the memory guard bounds it all. A scene with `min_depth = max_depth` (uniform trees)
+    /// keeps its depth.
     fn may_split(&self, r: usize, cell: Cell) -> bool {
         if can_split(self.scene, r, cell, self.min_size) {
             return true;
         }
-        if cell.level >= base::quadtree::MAX_DEPTH || self.lights.is_empty() {
+        // `min_depth = max_depth` asks for uniform trees: no leaf passes that depth.
+        let uniform = self.scene.radiosity.min_depth >= self.scene.radiosity.max_depth;
+        if uniform || cell.level >= base::quadtree::MAX_DEPTH || self.lights.is_empty() {
             return false;
         }
         let (u0, v0, u1, v1) = cell.bounds();
