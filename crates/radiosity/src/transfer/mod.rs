@@ -22,7 +22,8 @@
 //! - each shooter's receivers are found once ([`Transfer::ensure_pairs`]): every polygon with
 //!   exact visibility, or the polygons its probe rays hit, their corner neighbours and the
 //!   polygons near it with sampled visibility ([`Transfer::probe`], chosen by
-//!   `radiosity.visibility`). A polygon not found receives nothing from that shooter;
+//!   `radiosity.visibility`). A polygon not found receives nothing from that shooter; the
+//!   rays go on until the light such polygons would get is estimated below a bound;
 //! - each (shooter, receiver) pair found is classified once: culled (no transfer possible,
 //!   dropped), open (no polygon can intersect the convex hull of the two, so V = 1 without
 //!   rays), or occluded (cast rays, testing only the pair's candidates). A candidate must

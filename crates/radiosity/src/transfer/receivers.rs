@@ -1,13 +1,17 @@
 //! The receivers of each shooter: which polygons it can light, found once per shooter and
 //! kept as a sparse pair table ([`Pairs`]), and the two ways of finding them. `exact` tests
 //! every polygon, so its cost is shooters x polygons; `sampled` casts probe rays from the
-//! shooter and keeps what they hit, their corner neighbours and the polygons near the shooter,
-//! so its cost grows with what the shooter sees ([`Transfer::probe`]). Which one a scene uses
+//! shooter until the light on polygons they have not hit is estimated below a bound, and keeps
+//! what they (and, for a patch, the patches around it) hit, their corner neighbours and the
+//! polygons near the shooter, so its cost grows with what the shooter sees
+//! ([`Transfer::probe`]); a light whose rays cannot bound what they miss takes every polygon.
+//! Which one a scene uses
 //! is [`sampled_visibility`]; the memory either may take before it runs is
 //! [`pair_table_bound`].
 //!
 //! Invariants: a table lists receivers ascending, culled pairs left out; the probe set
-//! depends only on the scene (streams seeded by scene seed, shooter id and round), never on
+//! depends only on the scene (streams seeded by scene seed, shooter id and round; a patch's
+//! neighbourhood is fixed by its cell, its neighbours' hits are kept once probed), never on
 //! threads or the order in which shooters ask for it.
 
 use glam::DVec3;
