@@ -827,32 +827,7 @@ fn sampled_visibility_finds_every_quad_of_a_floating_grid() {
 /// test before the guard and nothing is reported.
 #[test]
 fn a_guard_that_stops_refinement_is_reported() {
-    let c = |x: f64, y: f64, z: f64| DVec3::new(x, y, z);
-    let floor = test_scenes::quad_facing(
-        [
-            c(0.0, 0.0, 0.0),
-            c(1.0, 0.0, 0.0),
-            c(1.0, 1.0, 0.0),
-            c(0.0, 1.0, 0.0),
-        ],
-        c(0.5, 0.5, 1.0),
-        0,
-    );
-    let lamp = test_scenes::quad_facing(
-        [
-            c(0.495, 0.495, 0.02),
-            c(0.505, 0.495, 0.02),
-            c(0.505, 0.505, 0.02),
-            c(0.495, 0.505, 0.02),
-        ],
-        c(0.5, 0.5, -1.0),
-        1,
-    );
-    let mats = vec![
-        test_scenes::mat("grey", [0.5; 3], [0.0; 3]),
-        test_scenes::mat("lamp", [0.0; 3], [100.0; 3]),
-    ];
-    let mut s = test_scenes::scene(vec![floor, lamp], mats, Vec::new());
+    let mut s = small_emitter(0.01, 0.02, 0.5, 0.5);
     s.radiosity.max_depth = 3;
     let g = solve_quiet(&s).stats.guard_stops;
     assert!(g.leaves > 0 && g.worst_polygon == 0, "{g:?}");

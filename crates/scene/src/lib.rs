@@ -132,6 +132,17 @@ impl Polygon {
         let vs = self.vertices();
         vs.iter().copied().sum::<DVec3>() / vs.len() as f64
     }
+
+    /// A sphere holding the polygon: its centroid and the largest distance of a corner from it.
+    pub fn bounding_sphere(&self) -> (DVec3, f64) {
+        let c = self.centroid();
+        let r = self
+            .vertices()
+            .iter()
+            .map(|v| (*v - c).length())
+            .fold(0.0, f64::max);
+        (c, r)
+    }
 }
 
 impl Shape {
@@ -467,44 +478,37 @@ impl Scene {
     /// element the solver refines to, its plane tolerance) come from the room, so adding such
     /// a polygon coarsens nothing else. 0 for a scene with no finite bound.
     pub fn core_diagonal(&self) -> f64 {
+        use crate::bvh::Aabb;
         let n = self.polygons.len();
-        let box_of = |p: &Polygon| {
-            let mut lo = DVec3::splat(f64::INFINITY);
-            let mut hi = DVec3::splat(f64::NEG_INFINITY);
-            for c in p.vertices() {
-                lo = lo.min(*c);
-                hi = hi.max(*c);
-            }
-            (lo, hi)
-        };
-        let boxes: Vec<(DVec3, DVec3)> = self.polygons.iter().map(box_of).collect();
-        let size = |(lo, hi): (DVec3, DVec3)| (hi - lo).length();
-        // Largest first; ties by index, so the result depends only on the scene.
-        let mut order: Vec<usize> = (0..n).collect();
-        order.sort_by(|&a, &b| size(boxes[b]).total_cmp(&size(boxes[a])).then(a.cmp(&b)));
-        // suffix[k]: the bounds of polygons order[k..] and the spots.
-        let mut suffix = vec![self.bounds_with(DVec3::INFINITY, DVec3::NEG_INFINITY); n + 1];
-        let (mut lo, mut hi) = (DVec3::INFINITY, DVec3::NEG_INFINITY);
-        for s in &self.spots {
-            (lo, hi) = (lo.min(s.position), hi.max(s.position));
-        }
-        for k in (0..n).rev() {
-            let (a, b) = boxes[order[k]];
-            (lo, hi) = (lo.min(a), hi.max(b));
-            suffix[k] = (lo, hi);
-        }
-        let diagonal = |(lo, hi): (DVec3, DVec3)| {
-            if lo.is_finite() && hi.is_finite() {
-                (hi - lo).length()
+        let boxes: Vec<Aabb> = self
+            .polygons
+            .iter()
+            .map(|p| Aabb::of(p.vertices()))
+            .collect();
+        let size = |b: Aabb| {
+            if b.lo.is_finite() {
+                (b.hi - b.lo).length()
             } else {
                 0.0
             }
         };
+        // Largest first; ties by index, so the result depends only on the scene.
+        let mut order: Vec<usize> = (0..n).collect();
+        order.sort_by(|&a, &b| size(boxes[b]).total_cmp(&size(boxes[a])).then(a.cmp(&b)));
+        // suffix[k]: the bounds of polygons order[k..] and the spots.
+        let spots = self
+            .spots
+            .iter()
+            .fold(Aabb::EMPTY, |b, s| b.grow(s.position));
+        let mut suffix = vec![spots; n + 1];
+        for k in (0..n).rev() {
+            suffix[k] = suffix[k + 1].union(boxes[order[k]]);
+        }
         let backdrops = (1..=MAX_BACKDROPS.min(n.saturating_sub(1)))
-            .filter(|&k| size(boxes[order[k - 1]]) > BACKDROP_RATIO * diagonal(suffix[k]))
+            .filter(|&k| size(boxes[order[k - 1]]) > BACKDROP_RATIO * size(suffix[k]))
             .max()
             .unwrap_or(0);
-        diagonal(suffix[backdrops])
+        size(suffix[backdrops])
     }
 
     /// [`Scene::bounds`] from the bounds (`lo`, `hi`) of the polygon corners, computed by the

@@ -56,12 +56,7 @@ pub fn near_plane(extent: f64, nearest: f64) -> f64 {
 /// A lower bound of the distance from `eye` to polygon `p`: the larger of the distance to its
 /// plane and the distance to its bounding sphere (about its centroid).
 pub(crate) fn distance_lower_bound(p: &Polygon, eye: DVec3) -> f64 {
-    let c = p.centroid();
-    let radius = p
-        .vertices()
-        .iter()
-        .map(|v| (*v - c).length())
-        .fold(0.0, f64::max);
+    let (c, radius) = p.bounding_sphere();
     let sphere = ((eye - c).length() - radius).max(0.0);
     let plane = p.normal.dot(eye - p.corners[0]).abs();
     sphere.max(plane)

@@ -497,13 +497,7 @@ fn light_spheres(scene: &Scene) -> Vec<(DVec3, f64)> {
     let mut out: Vec<(DVec3, f64)> = scene.spots.iter().map(|s| (s.position, 0.0)).collect();
     for (i, p) in scene.polygons.iter().enumerate() {
         if scene.material_of(i).is_emitter() {
-            let c = p.centroid();
-            let r = p
-                .vertices()
-                .iter()
-                .map(|v| (*v - c).length())
-                .fold(0.0, f64::max);
-            out.push((c, r));
+            out.push(p.bounding_sphere());
         }
     }
     out
