@@ -15,7 +15,8 @@
 //! What is stored: the power-basis patches and a 4-byte-per-node tree for [`Reconstruction::locate`];
 //! the per-vertex Hermite data are derived, used during construction and dropped
 //! ([`ReconstructionStats`] reports what storing them instead would cost). [`compact`] holds the
-//! same patches as the trees plus 16-bit quantized vertex data and expands them on demand.
+//! same patches as the trees plus the vertex data (stored as 16-bit mantissas with a per-vertex
+//! shift, T-vertices derived from their larger leaf) and expands them on demand.
 //!
 //! Invariants: every original sample is reproduced at its vertex (to f32 rounding, or to the merge
 //! tolerance of 1e-7 of the polygon's largest value); linear functions are reproduced exactly on any
