@@ -14,6 +14,17 @@
 //! At the domain border the difference is one-sided. The monotone estimator replaces each axis'
 //! central difference by the Fritsch-Butland harmonic mean of the two secants (0 when they differ
 //! in sign), and sets the twist to 0 where either axis was limited (see [`limited`]).
+//!
+//! **Every leaf edge at a vertex.** The step `h` is the smallest leaf's, but the slope is also
+//! used by every larger leaf that has the vertex as a corner, across that leaf's whole edge. An
+//! unrestricted tree puts a level-2 leaf beside a level-9 band along a spot's cone edge: a slope
+//! that is monotone over the band's tiny secants is many times the large leaf's own secant, and
+//! the large patch overshot its corners by 6x the polygon's range. So the limited estimators then
+//! clip each slope into Fritsch and Carlson's monotone region of *every* leaf edge it starts:
+//! between 0 and 3 times that edge's secant ([`EdgeSecants`]; 0 where the secants differ in
+//! sign), which keeps each edge cubic monotone between its corners (Fritsch & Carlson 1980: slopes
+//! in [0, 3] times the secant at both ends suffice). On a uniform grid every edge at a vertex is
+//! one of its two `h`-secants and the clip never acts.
 
 use super::hermite::HermiteData;
 use super::Estimator;
@@ -134,9 +145,59 @@ pub(crate) fn hyman(d0: f64, d1: f64) -> (f64, bool) {
     }
 }
 
+/// Per vertex, axis (u, v) and channel: the smallest and largest secant of the leaf edges that
+/// start at the vertex along that axis (either direction), over every leaf having the vertex as
+/// a corner.
+struct EdgeSecants(Vec<[[(f64, f64); 3]; 2]>);
+
+impl EdgeSecants {
+    fn of(s: &Samples<'_>) -> Self {
+        let mut out = vec![[[(f64::INFINITY, f64::NEG_INFINITY); 3]; 2]; s.keys.len()];
+        let l = LATTICE as f64;
+        for n in s.tree.nodes().iter().filter(|n| n.is_leaf()) {
+            let [c00, c10, c11, c01] = n.cell.corners().map(|c| s.index(c));
+            let w = n.cell.size() as f64 / l;
+            // Each edge once, along its axis; its secant is the same from either end.
+            for (a, b, axis) in [(c00, c10, 0), (c01, c11, 0), (c00, c01, 1), (c10, c11, 1)] {
+                let (Some(a), Some(b)) = (a, b) else { continue };
+                let (va, vb) = (s.values[a], s.values[b]);
+                let secants: [f64; 3] = std::array::from_fn(|ch| (vb[ch] - va[ch]) / w);
+                for x in [a, b] {
+                    for (range, sec) in out[x][axis].iter_mut().zip(secants) {
+                        range.0 = range.0.min(sec);
+                        range.1 = range.1.max(sec);
+                    }
+                }
+            }
+        }
+        EdgeSecants(out)
+    }
+
+    /// Clips slope `d` of vertex `x` on `axis`, channel `ch`, into the monotone region of every
+    /// leaf edge it starts; returns the slope and whether the clip changed it.
+    fn clip(&self, x: usize, axis: usize, ch: usize, d: f64) -> (f64, bool) {
+        let (lo, hi) = self.0[x][axis][ch];
+        let c = if lo > 0.0 {
+            d.clamp(0.0, 3.0 * lo)
+        } else if hi < 0.0 {
+            d.clamp(3.0 * hi, 0.0)
+        } else if lo > hi {
+            // No leaf edge along this axis (never for a validated tree): nothing to clip to.
+            d
+        } else {
+            0.0
+        };
+        (c, c != d)
+    }
+}
+
 /// Hermite data of every sample, in key order.
 pub(crate) fn estimate(s: &Samples<'_>, estimator: Estimator) -> Vec<HermiteData> {
     let h_of = s.min_leaf_sizes();
+    let secants = match estimator {
+        Estimator::Plain => None,
+        Estimator::Monotone | Estimator::Hyman => Some(EdgeSecants::of(s)),
+    };
     let l = LATTICE as f64;
     s.keys
         .iter()
@@ -186,9 +247,12 @@ pub(crate) fn estimate(s: &Samples<'_>, estimator: Estimator) -> Vec<HermiteData
                         };
                         let (fu, lu) = axis(gi_m[ch], gi_p[ch], im == k.i, ip == k.i, du);
                         let (fv, lv) = axis(gj_m[ch], gj_p[ch], jm == k.j, jp == k.j, dv);
+                        let edges = secants.as_ref().expect("limited estimators have secants");
+                        let (fu, cu) = edges.clip(x, 0, ch, fu);
+                        let (fv, cv) = edges.clip(x, 1, ch, fv);
                         d.fu[ch] = fu;
                         d.fv[ch] = fv;
-                        d.fuv[ch] = if lu || lv { 0.0 } else { twist };
+                        d.fuv[ch] = if lu || lv || cu || cv { 0.0 } else { twist };
                     }
                 }
             }
