@@ -159,34 +159,40 @@ pub struct SolveStats {
 /// any depth, so those leaves reach the guard by design.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct GuardStops {
-    /// Leaves split to the guard with their light off the bilinear prediction.
+    /// Leaves split to the guard with their light still failing the error test (off the
+    /// bilinear prediction, or an extremum between their samples).
     pub leaves: u64,
     /// The polygon with the largest excess.
     pub worst_polygon: u32,
-    /// That excess (relative to the leaf's level; above `radiosity.tolerance`).
+    /// That excess: the estimated error relative to the leaf's level.
     pub worst_excess: f64,
     /// Leaves split to the guard only for a shadow boundary crossing them.
     pub shadow_leaves: u64,
 }
 
 impl GuardStops {
+    /// Where the worst leaf is: its polygon's file and line in `scene` (or its index).
+    pub fn worst_origin(&self, scene: &Scene) -> String {
+        let r = self.worst_polygon as usize;
+        if r < scene.polygons.len() {
+            scene.origin(r)
+        } else {
+            format!("polygon {r}")
+        }
+    }
+
     /// The warning a solve of `scene` that stopped at a guard where its light is still off
     /// the bilinear prediction gives (`None` if none did; shadow boundaries alone give none).
     pub fn warning(&self, scene: &Scene) -> Option<String> {
         if self.leaves == 0 {
             return None;
         }
-        let r = self.worst_polygon as usize;
-        let at = if r < scene.polygons.len() {
-            scene.origin(r)
-        } else {
-            format!("polygon {r}")
-        };
+        let at = self.worst_origin(scene);
         Some(format!(
             "refinement stopped at radiosity.max_depth = {} (or the smallest element, the \
-             scene's size / 2^max_depth) on {} leaves whose light is still off the bilinear \
-             prediction; worst at {at}: {:.1} % of its level (tolerance {:.1} %); raise \
-             radiosity.max_depth where memory allows",
+             scene's size / 2^max_depth) on {} leaves whose light still fails the error test \
+             (off the bilinear prediction, or peaking between samples); worst at {at}: {:.1} % \
+             of its level (tolerance {:.1} %); raise radiosity.max_depth where memory allows",
             scene.radiosity.max_depth,
             self.leaves,
             100.0 * self.worst_excess,

@@ -21,84 +21,14 @@ use lab::jobs::Context;
 use base::method::{Method, Placement};
 use base::quadtree::SampledQuadtree;
 use engine::frame::FrameOptions;
+use lab::closed_form::{
+    camera, drawn_mean, lambert, lit_receiver, material, point_view_factor, quad, rect,
+};
 use lab::jobs::{prepare, render_frame, Input};
 use radiosity::{solve, Solution, SolveOptions};
 use reconstruction::texture::SizePolicy;
 use reconstruction::{Estimator, Reconstruction};
-use scene::{Camera, Material, Polygon, Projection, Scene, SpotLight};
-
-fn material(name: &str, rho: [f64; 3], e: [f64; 3]) -> Material {
-    Material {
-        name: name.into(),
-        reflectance: DVec3::from_array(rho),
-        emission: DVec3::from_array(e),
-    }
-}
-
-fn camera() -> Camera {
-    Camera {
-        eye: DVec3::new(0.0, -3.0, 3.0),
-        look_at: DVec3::ZERO,
-        up: DVec3::Z,
-        projection: Projection::Perspective { fov_y_deg: 50.0 },
-    }
-}
-
-/// A quad whose normal points along `facing` (its winding reversed if needed).
-fn quad(mut c: [DVec3; 4], facing: DVec3, material: u32) -> Polygon {
-    let p = Polygon::quad(c, material, 0).unwrap();
-    if p.normal.dot(facing) > 0.0 {
-        return p;
-    }
-    c.reverse();
-    let p = Polygon::quad(c, material, 0).unwrap();
-    assert!(p.normal.dot(facing) > 0.0);
-    p
-}
-
-/// Axis-aligned rectangle [x0, x1] x [y0, y1] at height z, facing `facing`.
-fn rect(x0: f64, x1: f64, y0: f64, y1: f64, z: f64, facing: DVec3, m: u32) -> Polygon {
-    quad(
-        [
-            DVec3::new(x0, y0, z),
-            DVec3::new(x1, y0, z),
-            DVec3::new(x1, y1, z),
-            DVec3::new(x0, y1, z),
-        ],
-        facing,
-        m,
-    )
-}
-
-/// Lambert's form factor from a point `x` with normal `n` to the polygon `v` (any winding).
-fn lambert(x: DVec3, n: DVec3, v: &[DVec3]) -> f64 {
-    let mut sum = 0.0;
-    for i in 0..v.len() {
-        let a = v[i] - x;
-        let b = v[(i + 1) % v.len()] - x;
-        let c = a.cross(b);
-        let theta = (a.dot(b) / (a.length() * b.length()))
-            .clamp(-1.0, 1.0)
-            .acos();
-        sum += theta * n.dot(c) / c.length();
-    }
-    (sum / (2.0 * std::f64::consts::PI)).abs()
-}
-
-/// A grey receiver (material 0, reflectance `rho`) and a black emitter (material 1, emission
-/// `e`): the light's is the only light the receiver gets, and nothing reflects back.
-fn lit_receiver(receiver: Polygon, rho: f64, light: Polygon, e: f64) -> Scene {
-    Scene::new(
-        camera(),
-        64,
-        64,
-        vec![
-            material("receiver", [rho; 3], [0.0; 3]),
-            material("light", [0.0; 3], [e; 3]),
-        ],
-        vec![receiver, light],
-    )
-}
+use scene::{Camera, Projection, Scene, SpotLight};
 
 fn solved(scene: &Scene) -> Solution {
     solve(scene, &SolveOptions::default()).unwrap()
@@ -159,6 +89,126 @@ fn emitter_square_over_a_floor_matches_lamberts_formula() {
     eprintln!("emitter over floor: peak {peak:.5}, max error {abs:.2e} of the peak, max relative error {rel:.2e}, {} samples", sol.polygons[0].values.len());
     assert!(abs <= 1e-3, "max error {abs} of the peak");
     assert!(rel <= 0.02, "max relative error {rel}");
+}
+
+/// Regression: an emitter whose peak falls between quadtree vertices had 2.2-4.2e-3 of the
+/// peak missing at the peak (centred on a vertex, 2.9e-4): the samples never saw its top and
+/// the limited reconstruction does not rise above them. Refinement also tests where each
+/// light peaks. Positions off every dyadic point; the peak of a square emitter parallel to the
+/// floor lies under its centre. The aim, 1e-3 of the peak there, is the accuracy the default
+/// tolerance buys elsewhere (module docs).
+#[test]
+// Positions off every dyadic point; their digits are not meant as 1 / sqrt(2).
+#[allow(clippy::approx_constant)]
+fn an_emitter_peak_between_vertices_is_resolved() {
+    for &(cx, cy, h) in &[(0.3137, -0.2179, 0.5), (-0.7071, 0.4142, 0.3)] {
+        let floor = rect(-2.0, 2.0, -2.0, 2.0, 0.0, DVec3::Z, 0);
+        let light = rect(cx - 0.2, cx + 0.2, cy - 0.2, cy + 0.2, h, -DVec3::Z, 1);
+        let corners = light.vertices().to_vec();
+        let scene = lit_receiver(floor, 0.5, light, 1.0);
+        let sol = solved(&scene);
+        let rec = Reconstruction::build(&sol.polygons, Estimator::default()).unwrap();
+        let at = DVec3::new(cx, cy, 0.0);
+        let want = 0.5 * lambert(at, DVec3::Z, &corners);
+        let (u, v) = ((cx + 2.0) / 4.0, (cy + 2.0) / 4.0);
+        let got = rec.eval(0, u as f32, v as f32).x as f64;
+        let (_, abs, _) = errors(&scene, &sol, 0, 200, |x| {
+            0.5 * lambert(x, DVec3::Z, &corners)
+        });
+        eprintln!(
+            "emitter at ({cx}, {cy}, {h}): at its peak {got:.6} of {want:.6} ({:.2e}), largest \
+             error {abs:.2e} of the peak, {} samples",
+            (got - want).abs() / want,
+            sol.polygons[0].values.len()
+        );
+        // The peak test's own allowance: a tenth of the default tolerance (0.01) of the level.
+        assert!((got - want).abs() <= 1e-3 * want, "peak {got} of {want}");
+        // Elsewhere the ordinary test (0.01 of the level at the bilinear test points) holds,
+        // and the bicubic patches recover most of it: the centred, higher light above is
+        // within 3e-4; the light 0.3 up curves more sharply under its edges.
+        assert!(abs <= 2e-3, "max error {abs} of the peak");
+    }
+}
+
+/// Regression: a spot 1 cm from a wall, its cone's footprint (a disc about 1 cm across) off
+/// every initial vertex, was drawn at 0.72 of its peak. Closed form: the wall gets
+/// rho I cos^falloff(theta) cos(theta) / r^2, at the foot of the spot's axis (normal to the wall)
+/// rho I / h^2; the power reaching the wall is the whole cone's, 2 pi I (1 - cos^(falloff+1)
+/// alpha) / (falloff + 1) (the footprint lies inside the wall), and the wall reflects rho of it.
+#[test]
+fn a_spot_one_centimetre_from_a_wall_peaks_within_two_percent() {
+    let wall = quad(
+        [
+            DVec3::new(0.0, -1.0, 0.0),
+            DVec3::new(0.0, 1.0, 0.0),
+            DVec3::new(0.0, 1.0, 2.0),
+            DVec3::new(0.0, -1.0, 2.0),
+        ],
+        DVec3::X,
+        0,
+    );
+    let (h, y, z, rho, i0, falloff) = (0.01, 0.3137, 1.2179, 0.6, 2.0, 2.0);
+    let alpha = 30f64.to_radians();
+    let mut scene = Scene::new(
+        camera(),
+        64,
+        64,
+        vec![material("wall", [rho; 3], [0.0; 3])],
+        vec![wall],
+    );
+    scene.spots.push(SpotLight {
+        position: DVec3::new(h, y, z),
+        direction: -DVec3::X,
+        intensity: DVec3::splat(i0),
+        half_angle: alpha,
+        falloff,
+    });
+    let sol = solved(&scene);
+    let rec = Reconstruction::build(&sol.polygons, Estimator::default()).unwrap();
+    let p = &scene.polygons[0];
+    // (u, v) of the foot (0, y, z): the wall's u runs along y from -1, v along z from 0 (or
+    // the reverse, if the winding was flipped).
+    let (mut best, mut at) = (f64::INFINITY, (0.0, 0.0));
+    for j in 0..=400 {
+        for i in 0..=400 {
+            let (u, v) = (i as f64 / 400.0, j as f64 / 400.0);
+            let d = (p.point(u, v) - DVec3::new(0.0, y, z)).length();
+            if d < best {
+                (best, at) = (d, (u, v));
+            }
+        }
+    }
+    // Refine the parameters of the foot by the wall's affine map (a rectangle).
+    let (du, dv) = p.tangents(0.5, 0.5);
+    let off = DVec3::new(0.0, y, z) - p.point(at.0, at.1);
+    let (u, v) = (
+        at.0 + off.dot(du) / du.length_squared(),
+        at.1 + off.dot(dv) / dv.length_squared(),
+    );
+    let want = rho * i0 / (h * h);
+    let got = rec.eval(0, u as f32, v as f32).x as f64;
+    let power =
+        2.0 * std::f64::consts::PI * i0 * (1.0 - alpha.cos().powf(falloff + 1.0)) / (falloff + 1.0);
+    // What is drawn, integrated over a 4 cm square around the foot (the footprint is 1.2 cm
+    // across) by a 2000 x 2000 midpoint rule.
+    let (n, half) = (2000, 0.02);
+    let (lu, lv) = (du.length(), dv.length());
+    let mut sum = 0.0;
+    for j in 0..n {
+        for i in 0..n {
+            let a = u + half / lu * (2.0 * (i as f64 + 0.5) / n as f64 - 1.0);
+            let b = v + half / lv * (2.0 * (j as f64 + 0.5) / n as f64 - 1.0);
+            sum += rec.eval(0, a as f32, b as f32).x as f64;
+        }
+    }
+    let energy = sum / (n * n) as f64 * (2.0 * half) * (2.0 * half) / (rho * power);
+    eprintln!(
+        "spot 1 cm from a wall: peak {got:.2} of {want:.2} ({:.4}), drawn energy {energy:.4}, {} samples",
+        got / want,
+        sol.polygons[0].values.len()
+    );
+    assert!((got / want - 1.0).abs() <= 0.02, "peak {got} of {want}");
+    assert!((energy - 1.0).abs() <= 0.01, "energy {energy}");
 }
 
 #[test]
@@ -318,6 +368,35 @@ fn a_sharp_shadow_is_refined_to_the_depth_limit_and_never_negative() {
                 .iter()
                 .all(|c| c.is_finite() && c.min_element() >= 0.0 && c.x.is_sign_positive()),
             "{name}: lowest pixel {low}"
+        );
+    }
+}
+
+/// Regression: an emitter 1/1000 of a floor's width 1-2 cm above it lost 10 % of its energy at
+/// the default depth. What every method draws, the reconstruction, integrated over the floor
+/// (a 4000 x 4000 midpoint rule, far finer than the leaves near the light), holds rho M A F
+/// within 1 %: F is the view factor from the source (small enough to be a point: its
+/// size is 1/10 to 1/20 of its height) to the floor.
+#[test]
+fn a_small_close_emitter_keeps_its_energy_where_it_is_drawn() {
+    for &(side, h, u, v) in &[(1e-3, 0.02, 0.4137, 0.5821), (2e-3, 0.01, 0.3, 0.7)] {
+        let floor = rect(0.0, 1.0, 0.0, 1.0, 0.0, DVec3::Z, 0);
+        let hs = 0.5 * side;
+        let light = rect(u - hs, u + hs, v - hs, v + hs, h, -DVec3::Z, 1);
+        let scene = lit_receiver(floor, 0.5, light, 1000.0);
+        let sol = solved(&scene);
+        let rec = Reconstruction::build(&sol.polygons, Estimator::default()).unwrap();
+        let drawn = drawn_mean(&rec, 0, 4000);
+        let want = 0.5 * 1000.0 * side * side * point_view_factor(h, -u, 1.0 - u, -v, 1.0 - v);
+        eprintln!(
+            "small emitter at ({u}, {v}, {h}): drawn energy {:.5} of the closed form, {} samples",
+            drawn / want,
+            sol.polygons[0].values.len()
+        );
+        assert!(
+            (drawn / want - 1.0).abs() <= 0.01,
+            "energy {}",
+            drawn / want
         );
     }
 }

@@ -8,9 +8,13 @@
 //!    first), to every vertex;
 //! 3. refine: a leaf splits when the true reflected radiosity at its centre or an edge midpoint
 //!    differs from the bilinear prediction of its corners by more than `tolerance` times its own
-//!    level (floored at [`REFINE_FLOOR`] of the brightest sample), or when a shadow boundary of a
-//!    light crosses it (the light's visible fraction differs across its points), while its depth
-//!    is below `max_depth` and its world-space size above [`min_element_size`] (see `refine`);
+//!    level (floored at [`REFINE_FLOOR`] of the brightest sample), when a parabola through three
+//!    samples on one of its lines peaks beyond its ends (an extremum between samples), when the
+//!    point where a light's direct contribution peaks on the polygon (`peaks`) lies in it with
+//!    more light than its corners, or when a shadow boundary of a light crosses it (the light's
+//!    visible fraction differs across its points), while its depth is below `max_depth` and its
+//!    world-space size above [`min_element_size`]; near a small or close light or a spot's cone
+//!    edge those guards give way to a depth set by the light's size and distance (see `refine`);
 //!    new vertices gather from the whole history; T-vertices stay, the tree is never balanced;
 //! 4. indirect pass: reflecting patches shoot their unshot radiosity (largest unshot power
 //!    in magnitude first, each channel relative to that channel's emitted power; ties by id)
@@ -55,7 +59,8 @@
 //! where each polygon's patches are among the shooters is in `poly`; every shooter's unshot
 //! light, the next shooter and the unshot fraction in `unshot`; one shot and the coarse
 //! transfer cache in `shot`; the refinement passes in `refine`; the patches' shapes in
-//! `shapes`; the energy account in `energy`; the remaining-time estimate in `eta`.
+//! `shapes`; where each light's direct contribution peaks on each polygon in `peaks`; the
+//! energy account in `energy`; the remaining-time estimate in `eta`.
 //!
 //! Scale: after a shot only the polygons it reached have new integrals and only their patches a
 //! new unshot power; the unshot powers live in a tournament tree (`UnshotQueue`) that gives
@@ -69,6 +74,7 @@ mod energy;
 mod eta;
 mod poly;
 mod queue;
+mod peaks;
 mod refine;
 mod shapes;
 mod shot;

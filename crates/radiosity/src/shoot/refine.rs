@@ -2,15 +2,18 @@
 //! 5, see the parent module): which leaves split, the depth and size limits, and the memory
 //! guard of each refinement pass.
 
+use std::collections::HashSet;
+
 use glam::DVec3;
 use rayon::prelude::*;
 
+use super::peaks::{light_peaks, PEAK_SHARE};
 use super::poly::{cell_order, PatchLayout, Poly};
 use super::{lum, memory_error, state_bytes};
 use crate::transfer::{PairClass, ShooterKind, Transfer};
 use crate::GuardStops;
 use base::error::{human_bytes, Result};
-use base::quadtree::{Cell, VertexKey};
+use base::quadtree::{Cell, VertexKey, MAX_DEPTH};
 use scene::Scene;
 
 /// Floor of the refinement criterion, as a fraction of the brightest reflected radiosity
@@ -28,11 +31,20 @@ pub const REFINE_FLOOR: f64 = 0.01;
 ///   luminance of rho * G over its corners and test points) and [`REFINE_FLOOR`] times the
 ///   peak; nothing in this test depends on the polygon's area or shape, so thin and small
 ///   polygons refine like large ones; or
+/// - **extremum**: along one of its edges or its two centre lines, the parabola through the
+///   line's three points peaks (or dips) beyond the line's ends by more than [`PEAK_SHARE`]
+///   times `tolerance * level` ([`extremum_between`]): the reconstruction draws such a leaf no
+///   higher than its corners, so a maximum between them would be clipped; or
 /// - **visibility**: for a light (spot or emitter) with occluders between it and the polygon,
 ///   the visible fraction of the light differs across the leaf's corners and test points (a
 ///   shadow boundary crosses it) and the light's unshadowed contribution times that difference
 ///   exceeds the same `tolerance * level`: the leaf is split toward the boundary, down to the
-///   depth limit, even where the bilinear prediction happens to agree at the test points.
+///   depth limit, even where the bilinear prediction happens to agree at the test points; or
+/// - **peak**: the leaf holds (on its closed cell, not at a corner) the point where a light's
+///   unoccluded contribution to the polygon peaks (`peaks`), and the radiosity there stands
+///   above the largest at the leaf's corners by more than [`PEAK_SHARE`] times
+///   `tolerance * level`. Such a leaf splits past the guards, down to the quadtree's deepest
+///   level: only the few leaves around each peak do, and the peak is otherwise lost.
 ///
 /// The leaves are judged a generation at a time: the splittable leaves, then the children of
 /// those that split, until none splits. Every G the pass computes is the oracle's gather from
@@ -101,14 +113,20 @@ struct Refinement<'r, 't> {
     tolerance: f64,
     /// [`min_element_size`] of the scene.
     min_size: f64,
-    /// The lights (emitters and spots) as spheres: where a light is small and close, its
-    /// light varies over less than the guards' smallest element ([`Refinement::may_split`]).
-    lights: Vec<(DVec3, f64)>,
+    /// The lights (emitters and spots) as spheres with the share of their distance a leaf may
+    /// be refined to: where a light is small and close, its light varies over less than the
+    /// guards' smallest element ([`Refinement::may_split`]).
+    lights: Vec<LightReach>,
     /// The brightest reflected luminance sampled so far (the criterion's floor follows it).
     peak: f64,
     /// Per polygon: the lights that have shot and whose pairs with it may be occluded,
     /// ascending (their shadows drive the visibility test).
     shadow_lights: Vec<Vec<usize>>,
+    /// Per polygon: the lattice points where a light's contribution peaks (sorted).
+    peaks: Vec<Vec<VertexKey>>,
+    /// Leaves of the next generation that split whatever their test says, to keep the tree
+    /// graded around a split the guards would have refused ([`Refinement::grade`]).
+    forced: HashSet<(u32, u32)>,
     memory: MemoryGuard,
 }
 
@@ -146,12 +164,22 @@ impl MemoryGuard {
 }
 
 /// How far a leaf fails the error test, relative to its level: by its light's deviation from
-/// the bilinear prediction (`smooth`; a cone's edge counts here too), and by the step of a
-/// shadow boundary crossing it (`shadow`).
+/// the bilinear prediction (`smooth`; a cone's edge counts here too), by an extremum between
+/// its samples (`between`, [`extremum_between`]), by the step of a shadow boundary crossing it
+/// (`shadow`), and by how far a light's peak inside it stands above its corners (`peak`).
 #[derive(Debug, Clone, Copy)]
 struct Excess {
     smooth: f64,
+    between: f64,
     shadow: f64,
+    peak: f64,
+}
+
+impl Excess {
+    /// Whether the leaf fails the tests the guards bound (variation, extremum, shadow).
+    fn fails(&self, tolerance: f64) -> bool {
+        self.smooth.max(self.shadow) > tolerance || self.between > PEAK_SHARE * tolerance
+    }
 }
 
 /// What a generation of pending leaves is judged on.
@@ -201,15 +229,21 @@ impl<'r, 't> Refinement<'r, 't> {
         totals: &'r [DVec3],
         memory_limit: u64,
     ) -> Self {
+        let tolerance = scene.radiosity.tolerance;
+        let peak = peak_reflected(polys);
+        // The smallest excess the peak test acts on, at the floor's level.
+        let threshold = PEAK_SHARE * tolerance * REFINE_FLOOR * peak;
         Refinement {
             scene,
             tr,
             totals,
-            tolerance: scene.radiosity.tolerance,
+            tolerance,
             min_size: min_element_size(scene),
-            lights: light_spheres(scene),
-            peak: peak_reflected(polys),
+            lights: light_reaches(scene),
+            peak,
             shadow_lights: shadow_lights(tr, totals, polys.len()),
+            peaks: light_peaks(scene, tr, totals, polys, threshold),
+            forced: HashSet::new(),
             memory: MemoryGuard {
                 nodes: polys.iter().map(|p| p.tree.nodes().len() as u64).sum(),
                 vertices: polys.iter().map(|p| p.keys.len() as u64).sum(),
@@ -228,7 +262,8 @@ impl<'r, 't> Refinement<'r, 't> {
                 continue;
             }
             for id in p.tree.leaves() {
-                if self.may_split(r, p.tree.node(id).cell) {
+                let cell = p.tree.node(id).cell;
+                if self.may_split(r, cell) || self.holds_peak(r, cell) {
                     pending.push((r as u32, id));
                 }
             }
@@ -245,7 +280,10 @@ impl<'r, 't> Refinement<'r, 't> {
         for &(r, id) in pending {
             let p = &polys[r as usize];
             let cell = p.tree.node(id).cell;
-            for k in test_points(cell) {
+            for k in test_points(cell)
+                .into_iter()
+                .chain(self.peaks_in(r as usize, cell))
+            {
                 if p.keys.binary_search(&k).is_err() {
                     keys.push((r, k));
                 }
@@ -314,19 +352,27 @@ impl<'r, 't> Refinement<'r, 't> {
             .collect();
         let mut split = Vec::new();
         for (r, id, excess) in judged {
-            if excess.smooth.max(excess.shadow) <= self.tolerance {
+            let cell = polys[r as usize].tree.node(id).cell;
+            if self.forced.contains(&(r, id)) {
+                split.push((r, id));
+                continue;
+            }
+            let fails = excess.fails(self.tolerance) && self.may_split(r as usize, cell);
+            if !fails {
+                if excess.peak > PEAK_SHARE * self.tolerance {
+                    split.push((r, id));
+                }
                 continue;
             }
             split.push((r, id));
-            let cell = polys[r as usize].tree.node(id).cell;
             let child = Cell {
                 level: cell.level + 1,
                 x: 2 * cell.x,
                 y: 2 * cell.y,
             };
             if !self.may_split(r as usize, child) {
-                if excess.smooth > self.tolerance {
-                    guarded.record(r, excess.smooth);
+                if excess.smooth > self.tolerance || excess.between > PEAK_SHARE * self.tolerance {
+                    guarded.record(r, excess.smooth.max(excess.between));
                 } else {
                     guarded.shadow_leaves += 1;
                 }
@@ -348,19 +394,58 @@ impl<'r, 't> Refinement<'r, 't> {
             .sum::<f64>()
             / 9.0;
         let scale = level.max(floor).max(f64::MIN_POSITIVE);
+        let lums = |g: &[DVec3]| g.iter().map(|g| lum(p.rho * *g)).collect::<Vec<_>>();
+        let between = extremum_between(&lums(&corners), &lums(&tests)) / scale;
         let smooth = deviation(p.rho, &corners, &tests) / scale;
         let shadow = if self.shadow_lights[r as usize].is_empty() {
             0.0
         } else {
             shadow_step(probes, r, cell) / scale
         };
-        Excess { smooth, shadow }
+        // The corners are what stays sampled if the leaf does not split.
+        let highest = corners
+            .iter()
+            .map(|g| lum(p.rho * *g))
+            .fold(f64::NEG_INFINITY, f64::max);
+        let peak = self
+            .peaks_in(r as usize, cell)
+            .map(|k| (lum(p.rho * probes.g_at(p, r, k)) - highest) / scale)
+            .fold(0.0, f64::max);
+        Excess {
+            smooth,
+            between,
+            shadow,
+            peak,
+        }
+    }
+
+    /// The light peaks of polygon `r` on leaf `cell`'s closed cell other than its corners.
+    fn peaks_in(&self, r: usize, cell: Cell) -> impl Iterator<Item = VertexKey> + '_ {
+        let o = cell.origin();
+        let s = cell.size();
+        self.peaks[r].iter().copied().filter(move |k| {
+            let inside = (o.i..=o.i + s).contains(&k.i) && (o.j..=o.j + s).contains(&k.j);
+            let corner = (k.i == o.i || k.i == o.i + s) && (k.j == o.j || k.j == o.j + s);
+            inside && !corner
+        })
+    }
+
+    /// Whether leaf `cell` of polygon `r` holds a light's peak and may still split for it (the
+    /// quadtree's deepest level is the only limit).
+    fn holds_peak(&self, r: usize, cell: Cell) -> bool {
+        !self.uniform() && cell.level < MAX_DEPTH && self.peaks_in(r, cell).next().is_some()
+    }
+
+    /// Whether the scene asks for uniform trees (`min_depth = max_depth`): then no leaf passes
+    /// that depth, for a light's reach or its peak.
+    fn uniform(&self) -> bool {
+        self.scene.radiosity.min_depth >= self.scene.radiosity.max_depth
     }
 
     /// Splits the leaves `split_now`, gives the polygons that changed their new vertices (G
     /// from the probes) and leaves; returns the children that may split in turn.
     fn split(
-        &self,
+        &mut self,
         polys: &mut [Poly],
         split_now: &[(u32, u32)],
         probes: &Probes,
@@ -368,16 +453,33 @@ impl<'r, 't> Refinement<'r, 't> {
     ) -> Vec<(u32, u32)> {
         let mut next = Vec::new();
         let mut touched: Vec<u32> = Vec::new();
+        self.forced.clear();
         for &(r, id) in split_now {
             let p = &mut polys[r as usize];
+            let cell = p.tree.node(id).cell;
             let f = p.tree.split(id);
             for c in f..f + 4 {
-                if self.may_split(r as usize, p.tree.node(c).cell) {
+                let cell = p.tree.node(c).cell;
+                if self.may_split(r as usize, cell) || self.holds_peak(r as usize, cell) {
                     next.push((r, c));
+                }
+            }
+            if !can_split(self.scene, r as usize, cell, self.min_size) {
+                for n in coarse_neighbours(&polys[r as usize].tree, cell) {
+                    if self.forced.insert((r, n)) {
+                        next.push((r, n));
+                    }
                 }
             }
             touched.push(r);
         }
+        // A neighbour forced early in the loop may have split later in it, and a child made in
+        // it may also be forced as a later split's neighbour.
+        next.retain(|&(r, id)| polys[r as usize].tree.node(id).is_leaf());
+        next.sort_unstable();
+        next.dedup();
+        self.forced
+            .retain(|&(r, id)| polys[r as usize].tree.node(id).is_leaf());
         touched.dedup();
         for &r in &touched {
             let p = &mut polys[r as usize];
@@ -389,6 +491,35 @@ impl<'r, 't> Refinement<'r, 't> {
         }
         next
     }
+}
+
+/// The leaves across the four edges of `cell` (just split) that are more than one level
+/// coarser than its children. A split the guards would have refused (around a light's peak or
+/// close to a light) is graded: such neighbours split too, in the next generation, whatever
+/// their test says, and their own neighbours after them if they in turn are past the guards.
+/// Without it a guard-stopped leaf of a quarter of a 1 m floor tile sat beside a peak refined
+/// to 1/64 of it; the T-vertices on its edge carried light far off its own patch, and the
+/// reconstruction's refinement of it overshot its corners by 1.5 times the tile's range.
+fn coarse_neighbours(tree: &base::quadtree::Quadtree, cell: Cell) -> Vec<u32> {
+    let (u0, v0, u1, v1) = cell.bounds();
+    let (um, vm) = (0.5 * (u0 + u1), 0.5 * (v0 + v1));
+    // A quarter of a lattice step outside the lower edges (find_leaf floors); the upper edges
+    // themselves belong to the cell above.
+    let eps = 0.25 / base::quadtree::LATTICE as f64;
+    let mut out: Vec<u32> = [
+        (u0 > 0.0).then_some((u0 - eps, vm)),
+        (u1 < 1.0).then_some((u1, vm)),
+        (v0 > 0.0).then_some((um, v0 - eps)),
+        (v1 < 1.0).then_some((um, v1)),
+    ]
+    .into_iter()
+    .flatten()
+    .map(|(u, v)| tree.find_leaf(u, v))
+    .filter(|&n| tree.node(n).cell.level < cell.level)
+    .collect();
+    out.sort_unstable();
+    out.dedup();
+    out
 }
 
 /// The brightest reflected radiosity rho * G (luminance) at any vertex of a reflecting polygon.
@@ -444,6 +575,41 @@ fn deviation(rho: DVec3, corners: &[DVec3; 4], tests: &[DVec3; 5]) -> f64 {
         .fold(0.0, f64::max)
 }
 
+/// How far an extremum inside a leaf stands beyond the samples its corners give, estimated
+/// from the parabola through the three points of each of its six lines (the four edges and the
+/// two lines through the centre; `corners` and `tests` are luminances in [`leaf_points`]
+/// order): 0 where each line's middle value lies between its ends. The reconstruction's
+/// limiter sets the slope to zero at a sample whose neighbours both lie below it (or both
+/// above), so such a leaf is drawn no higher than its highest corner: a maximum or a minimum
+/// between the samples (a light's peak or the ridge through it, off the lattice) would be
+/// clipped by this much. With ends a, b and middle m at t = -1, 1, 0, the parabola's extremum
+/// is m + (b - a)^2 / (8 (2m - a - b)), and the excess is its distance beyond a and b.
+fn extremum_between(corners: &[f64], tests: &[f64]) -> f64 {
+    let (c, t) = (corners, tests);
+    let lines = [
+        (c[0], t[1], c[1]),
+        (c[3], t[3], c[2]),
+        (c[0], t[4], c[3]),
+        (c[1], t[2], c[2]),
+        (t[4], t[0], t[2]),
+        (t[1], t[0], t[3]),
+    ];
+    lines
+        .iter()
+        .map(|&(a, m, b)| {
+            let (lo, hi) = (a.min(b), a.max(b));
+            let curve = 2.0 * m - a - b;
+            if m > hi {
+                m - hi + (b - a) * (b - a) / (8.0 * curve)
+            } else if m < lo {
+                lo - m + (b - a) * (b - a) / (8.0 * -curve)
+            } else {
+                0.0
+            }
+        })
+        .fold(0.0, f64::max)
+}
+
 /// The largest step a shadow boundary makes across leaf `cell` of polygon `r`: over its shadow
 /// lights, the light's largest unshadowed contribution at the leaf's points times the spread of
 /// its visible fraction there (0 where no boundary crosses).
@@ -491,23 +657,82 @@ pub fn min_element_size(scene: &Scene) -> f64 {
 /// the walls beside them).
 pub const LIGHT_DEPTH_FACTOR: f64 = 4.0;
 
-/// Every emitter as (centroid, largest distance of a corner from it) and every spot as
-/// (position, 0).
-fn light_spheres(scene: &Scene) -> Vec<(DVec3, f64)> {
-    let mut out: Vec<(DVec3, f64)> = scene.spots.iter().map(|s| (s.position, 0.0)).collect();
+/// How many times finer than the radius of its footprint (its distance times the tangent of
+/// its cone's half-angle, at most the distance) a leaf that a spot's cone edge crosses may be
+/// split past the guards. The edge is a step the bicubic patches smear over about one element,
+/// moving the footprint's light by roughly a sixth of the element over the radius: a spot 1 cm
+/// from a wall (footprint 5.8 mm across) drew 3.9 % too much light at elements of a quarter of
+/// its distance, within 0.1 % at a sixteenth of the footprint
+/// (`a_spot_one_centimetre_from_a_wall_peaks_within_two_percent`).
+pub const SPOT_EDGE_FACTOR: f64 = 16.0;
+
+/// A light as the refinement's depth rule sees it: a sphere, and for a spot its cone.
+struct LightReach {
+    centre: DVec3,
+    radius: f64,
+    /// A spot's axis, the cosine of its half-angle and the tangent of the half-angle (at
+    /// most 1).
+    cone: Option<(DVec3, f64, f64)>,
+}
+
+/// Every emitter as its bounding sphere, every spot as its position with its cone.
+fn light_reaches(scene: &Scene) -> Vec<LightReach> {
+    let mut out: Vec<LightReach> = scene
+        .spots
+        .iter()
+        .map(|s| LightReach {
+            centre: s.position,
+            radius: 0.0,
+            cone: Some((
+                s.direction,
+                s.half_angle.cos(),
+                s.half_angle.tan().clamp(1e-6, 1.0),
+            )),
+        })
+        .collect();
     for (i, p) in scene.polygons.iter().enumerate() {
         if scene.material_of(i).is_emitter() {
-            out.push(p.bounding_sphere());
+            let (centre, radius) = p.bounding_sphere();
+            out.push(LightReach {
+                centre,
+                radius,
+                cone: None,
+            });
         }
     }
     out
+}
+
+impl LightReach {
+    /// Whether a leaf whose longer edge is `edge`, centred at `centre`, with world corners
+    /// `corners`, may split for this light: its edge is more than 1 / [`LIGHT_DEPTH_FACTOR`]
+    /// of the distance to the light plus its radius, or, for a spot whose cone's edge crosses
+    /// the leaf (its corners lie on both sides), more than 1 / [`SPOT_EDGE_FACTOR`] of the
+    /// footprint's radius.
+    fn reaches(&self, edge: f64, centre: DVec3, corners: &[DVec3; 4]) -> bool {
+        let dist = (self.centre - centre).length();
+        if LIGHT_DEPTH_FACTOR * edge > dist + self.radius {
+            return true;
+        }
+        let Some((axis, cos, spread)) = self.cone else {
+            return false;
+        };
+        if SPOT_EDGE_FACTOR * edge <= dist * spread {
+            return false;
+        }
+        let inside = |x: &DVec3| (*x - self.centre).normalize_or_zero().dot(axis) >= cos;
+        let first = inside(&corners[0]);
+        corners[1..].iter().any(|x| inside(x) != first)
+    }
 }
 
 impl Refinement<'_, '_> {
     /// Whether leaf `cell` of polygon `r` may split: within the guards (`max_depth` and the
     /// smallest element, [`can_split`]), or, up to the quadtree's deepest level, while its
     /// longer edge is more than 1 / [`LIGHT_DEPTH_FACTOR`] of the distance from its centre to
-    /// some light plus that light's radius. So the depth under a small or close light comes
+    /// some light plus that light's radius, or a spot's cone edge crosses it and it is more
+    /// than 1 / [`SPOT_EDGE_FACTOR`] of the footprint's radius ([`LightReach::reaches`]).
+    /// So the depth under a small or close light comes
     /// from the light's size and distance (an emitter 1/1000 of a floor's width 2 cm above it
     /// is resolved at the default `max_depth`), and the error test still decides each split;
     /// the memory guard bounds it all. A scene with `min_depth = max_depth` (uniform trees)
@@ -516,9 +741,7 @@ impl Refinement<'_, '_> {
         if can_split(self.scene, r, cell, self.min_size) {
             return true;
         }
-        // `min_depth = max_depth` asks for uniform trees: no leaf passes that depth.
-        let uniform = self.scene.radiosity.min_depth >= self.scene.radiosity.max_depth;
-        if uniform || cell.level >= base::quadtree::MAX_DEPTH || self.lights.is_empty() {
+        if self.uniform() || cell.level >= base::quadtree::MAX_DEPTH || self.lights.is_empty() {
             return false;
         }
         let (u0, v0, u1, v1) = cell.bounds();
@@ -527,9 +750,10 @@ impl Refinement<'_, '_> {
         let (du, dv) = p.tangents(u, v);
         let edge = (du.length() * (u1 - u0)).max(dv.length() * (v1 - v0));
         let centre = p.point(u, v);
+        let corners = [(u0, v0), (u1, v0), (u1, v1), (u0, v1)].map(|(a, b)| p.point(a, b));
         self.lights
             .iter()
-            .any(|&(c, radius)| LIGHT_DEPTH_FACTOR * edge > (c - centre).length() + radius)
+            .any(|l| l.reaches(edge, centre, &corners))
     }
 }
 

@@ -692,8 +692,35 @@ impl<'a> Transfer<'a> {
             return (DVec3::ZERO, 1.0);
         }
         let x = self.receiver(r, u, v);
-        let rp = &self.scene.polygons[r];
-        let n = rp.normal;
+        let open = self.unoccluded_at(s, x, self.scene.polygons[r].normal);
+        if open == DVec3::ZERO || class != PairClass::Occluded {
+            return (open, 1.0);
+        }
+        let vis = match self.shooters[s].kind {
+            ShooterKind::Spot { spot } => {
+                self.rays.fetch_add(1, Ordering::Relaxed);
+                let d = self.scene.spots[spot as usize].position - x;
+                if cands.iter().any(|&q| self.bvh.hits(q as usize, x, d)) {
+                    0.0
+                } else {
+                    1.0
+                }
+            }
+            _ => self.visibility_weighted(s, r, cands, x, (None, coherent)),
+        };
+        (open, vis)
+    }
+
+    /// What shooter `s` sends to polygon `r` at (u, v) with nothing in between: irradiance
+    /// per unit radiosity (per unit intensity scale for a spot), 0 where either faces away or
+    /// outside a spot's cone. No pair table needed.
+    pub(crate) fn unoccluded(&self, s: usize, r: usize, u: f64, v: f64) -> DVec3 {
+        let x = self.receiver(r, u, v);
+        self.unoccluded_at(s, x, self.scene.polygons[r].normal)
+    }
+
+    /// [`Transfer::unoccluded`] at point `x` with normal `n`.
+    fn unoccluded_at(&self, s: usize, x: DVec3, n: DVec3) -> DVec3 {
         let sg = &self.shooters[s];
         match sg.kind {
             ShooterKind::Spot { spot } => {
@@ -701,39 +728,16 @@ impl<'a> Transfer<'a> {
                 let d = spot.position - x;
                 let r2 = d.length_squared();
                 if r2 <= 0.0 {
-                    return (DVec3::ZERO, 1.0);
+                    return DVec3::ZERO;
                 }
                 let dist = r2.sqrt();
                 let cos = n.dot(d) / dist;
                 if cos <= 0.0 {
-                    return (DVec3::ZERO, 1.0);
+                    return DVec3::ZERO;
                 }
-                let i = spot.intensity_towards(-d / dist);
-                if i == DVec3::ZERO {
-                    return (DVec3::ZERO, 1.0);
-                }
-                let mut vis = 1.0;
-                if class == PairClass::Occluded {
-                    self.rays.fetch_add(1, Ordering::Relaxed);
-                    let d = spot.position - x;
-                    if cands.iter().any(|&q| self.bvh.hits(q as usize, x, d)) {
-                        vis = 0.0;
-                    }
-                }
-                (i * (cos / r2), vis)
+                spot.intensity_towards(-d / dist) * (cos / r2)
             }
-            _ => {
-                let f = point_to_polygon(x, n, &sg.outline, sg.normal);
-                if f <= 0.0 {
-                    return (DVec3::ZERO, 1.0);
-                }
-                let vis = if class == PairClass::Occluded {
-                    self.visibility_weighted(s, r, cands, x, (None, coherent))
-                } else {
-                    1.0
-                };
-                (DVec3::splat(f), vis)
-            }
+            _ => DVec3::splat(point_to_polygon(x, n, &sg.outline, sg.normal).max(0.0)),
         }
     }
 
