@@ -130,7 +130,8 @@ pub enum Command {
 
 #[derive(Args, Debug)]
 pub struct CheckArgs {
-    /// The scene file (`scenes/cornell-box.toml`).
+    /// The scene file (`scenes/cornell-box.toml`), or a solution file (`.pfsol`): then also
+    /// where its solve's guards stopped refinement with the error test still failing.
     pub scene: PathBuf,
 }
 

@@ -108,14 +108,25 @@ fn wrote(path: &Path, quiet: bool) {
 
 /// `check`: the scene's warnings, summary and memory estimate against the limit.
 pub fn check(settings: &Settings, args: CheckArgs) -> anyhow::Result<()> {
-    let s = scene::load_scene(&args.scene)?;
+    let input = lab::jobs::Input::load(&args.scene)?;
+    let s = &input.scene;
     for w in &s.warnings {
         note(&format!("warning: {w}"));
     }
-    let summary = lab::report::summarize(&s);
-    let b = budget::scene_budget(&s)?;
-    let text = lab::report::budget_text(&s, &b, settings.limit);
+    let summary = lab::report::summarize(s);
+    let b = budget::scene_budget(s)?;
+    let text = lab::report::budget_text(s, &b, settings.limit);
     out(&format!("{summary}{text}"))?;
+    if let Some(g) = lab::jobs::stats::solution_guards(&input)? {
+        match &g.warning {
+            Some(w) => note(&format!("warning: {w}")),
+            None => out(&format!(
+                "guard stops: none with the error test failing ({} leaves only for a shadow \
+                 boundary)\n",
+                g.shadow_leaves
+            ))?,
+        }
+    }
     // Over the limit: the same refusal a solve or render of this scene would give.
     b.check(settings.limit)?;
     Ok(())

@@ -261,6 +261,21 @@ pub fn model_stats_text(s: &crate::jobs::stats::ModelStats) -> String {
         mb(s.rrp_expanded_bytes),
         mb(s.rrp_cache_bytes)
     );
+    let g = &s.guard_stops;
+    t += &match &g.worst {
+        Some(at) => format!(
+            "guard stops: {} leaves split to max_depth with the error test still failing, worst \
+             at {at} ({:.1} % of its level); {} more only for a shadow boundary\n",
+            grouped(g.leaves),
+            100.0 * g.worst_excess,
+            grouped(g.shadow_leaves)
+        ),
+        None => format!(
+            "guard stops: none with the error test failing; {} leaves only for a shadow \
+             boundary\n",
+            grouped(g.shadow_leaves)
+        ),
+    };
     if let Some(r0) = s.frames.first() {
         t += &format!(
             "frame times at {} x {}, AA {}, median of {} frames:\n",

@@ -485,3 +485,88 @@ fn the_solve_guard_brackets_the_measured_peak() {
         }
     }
 }
+
+/// A scene whose light is too small and close for its `max_depth` (an emitter 1 mm wide 2 cm
+/// over a 1 m floor; the light-driven depth gives way at `max_depth = 2`, so the guard stops
+/// refinement where the light still varies): `solve`, `check` on the solution, `stats` and
+/// `render --stats` all say so, naming the floor's file and line.
+#[test]
+fn a_guard_stop_is_reported_by_solve_check_stats_and_render() {
+    let dir = scratch("guard");
+    let scene = dir.join("guard.toml");
+    std::fs::write(
+        &scene,
+        "[camera]\neye = [0.5, -1.0, 1.0]\nlook_at = [0.5, 0.5, 0.0]\nfov_y = 50.0\n\n\
+         [image]\nwidth = 32\nheight = 32\n\n\
+         [[materials]]\nname = \"grey\"\nreflectance = [0.5, 0.5, 0.5]\n\n\
+         [[materials]]\nname = \"lamp\"\nreflectance = [0.0, 0.0, 0.0]\nemission = [1000.0, 1000.0, 1000.0]\n\n\
+         [[polygons]]\nname = \"floor\"\nvertices = [[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]]\nmaterial = \"grey\"\n\n\
+         [[polygons]]\nname = \"lamp\"\nvertices = [[0.4132, 0.5816, 0.02], [0.4132, 0.5826, 0.02], [0.4142, 0.5826, 0.02], [0.4142, 0.5816, 0.02]]\nmaterial = \"lamp\"\n\n\
+         [radiosity]\nmin_depth = 0\nmax_depth = 2\n",
+    )
+    .unwrap();
+    let sol = dir.join("guard.pfsol");
+    let (scene_s, sol_s) = (scene.to_str().unwrap(), sol.to_str().unwrap());
+    let solved = run(&["solve", scene_s, "-o", sol_s, "--quiet"]);
+    assert_eq!(solved.status.code(), Some(0), "{}", text(&solved.stderr));
+    // The floor's `vertices` line.
+    let floor_at = format!("{scene_s}:21: polygons[0].vertices");
+    let warned = |stderr: &str| {
+        stderr.contains("warning: refinement stopped at radiosity.max_depth = 2")
+            && stderr.contains(&floor_at)
+    };
+    assert!(warned(&text(&solved.stderr)), "{}", text(&solved.stderr));
+    let checked = run(&["check", sol_s]);
+    assert_eq!(checked.status.code(), Some(0), "{}", text(&checked.stderr));
+    assert!(warned(&text(&checked.stderr)), "{}", text(&checked.stderr));
+    let stats = run(&["stats", sol_s, "--frames", "0", "--json"]);
+    assert_eq!(stats.status.code(), Some(0), "{}", text(&stats.stderr));
+    let json: serde_json::Value = serde_json::from_slice(&stats.stdout).unwrap();
+    let g = &json["guard_stops"];
+    assert!(g["leaves"].as_u64().unwrap() > 0, "{g}");
+    assert_eq!(g["worst"].as_str(), Some(floor_at.as_str()), "{g}");
+    assert!(g["worst_excess"].as_f64().unwrap() > 0.01, "{g}");
+    let report = dir.join("frame.json");
+    let png = dir.join("frame.png");
+    let rendered = run(&[
+        "render",
+        sol_s,
+        "-o",
+        png.to_str().unwrap(),
+        "--stats",
+        report.to_str().unwrap(),
+    ]);
+    assert_eq!(
+        rendered.status.code(),
+        Some(0),
+        "{}",
+        text(&rendered.stderr)
+    );
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
+    assert_eq!(json["guard_stops"]["leaves"], g["leaves"], "{json}");
+    // Deep enough, the light is resolved: nothing to report.
+    let deep = dir.join("deep.toml");
+    let text_in = std::fs::read_to_string(&scene).unwrap();
+    std::fs::write(&deep, text_in.replace("max_depth = 2", "max_depth = 10")).unwrap();
+    let sol2 = dir.join("deep.pfsol");
+    let solved = run(&[
+        "solve",
+        deep.to_str().unwrap(),
+        "-o",
+        sol2.to_str().unwrap(),
+        "--quiet",
+    ]);
+    assert_eq!(solved.status.code(), Some(0), "{}", text(&solved.stderr));
+    assert!(
+        !text(&solved.stderr).contains("refinement stopped"),
+        "{}",
+        text(&solved.stderr)
+    );
+    let checked = run(&["check", sol2.to_str().unwrap()]);
+    assert!(
+        text(&checked.stdout).contains("guard stops: none"),
+        "{}",
+        text(&checked.stdout)
+    );
+}

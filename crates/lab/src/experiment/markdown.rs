@@ -760,8 +760,8 @@ fn compactness_finding(table1: &[ModelStats]) -> String {
     };
     let mut t = String::from(
         "- **Compactness.** The paper claims (sec. 5) RRPs are more compact than textures. \
-         Held as the direct method holds them (compact: 16-bit vertex Hermite data, each \
-         patch expanded when a region needs it) ",
+         Held as the direct method holds them (compact: the vertices' Hermite data as f32, \
+         each patch expanded when a region needs it) ",
     );
     t += &match (smaller.is_empty(), larger.is_empty()) {
         (true, _) => "they are not, on our scenes".to_string(),

@@ -2,7 +2,8 @@
 //! rules that `stats`, `sweep`, the equal-error search and the docs all use.
 //!
 //! - **RRPs, compact** (what the direct method holds): [`CompactStats::total_bytes`], the locate
-//!   trees, leaf records and 16-bit vertex data; **encoded** (what a solution file stores):
+//!   trees, leaf records and the vertices' Hermite data held as f32; **encoded** (what a
+//!   solution file stores: 16-bit mantissas with 4-bit shifts of per-polygon scales):
 //!   [`CompactStats::encoded_bytes`]; **samples alone** (measured, not stored: the solution's
 //!   trees and 16-bit samples, derivatives re-estimated on load): [`samples_form::encoded_len`];
 //!   **patch caches**: the direct method's caches of expanded patches, one per worker

@@ -309,6 +309,8 @@ pub struct RenderReport {
     pub patches: u64,
     /// Radiosity samples in the solution.
     pub samples: u64,
+    /// Where the solve's guards stopped refinement with the error test still failing.
+    pub guard_stops: super::stats::GuardReport,
     /// Texture memory and count (texture methods only).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub texture_memory: Option<TextureMemory>,
@@ -346,6 +348,7 @@ impl RenderReport {
             reserve_ms: 0.0,
             patches: p.compact.leaf_count() as u64,
             samples: p.solution.stats.vertices,
+            guard_stops: super::stats::GuardReport::of(&p.solution.stats.guard_stops, &p.scene),
         }
     }
 

@@ -66,7 +66,7 @@ pub struct ModelStats {
     /// Texture memory and texture count under the job's size policy.
     pub texture_memory: TextureMemory,
     /// RRP memory as the direct method holds it, bytes: the compact form (locate trees, leaf
-    /// records, 16-bit vertex data; [`reconstruction::compact::CompactStats`]).
+    /// records, vertex Hermite data held as f32; [`reconstruction::compact::CompactStats`]).
     pub rrp_bytes: u64,
     /// The compact RRPs as encoded for storage, bytes.
     pub rrp_encoded_bytes: u64,
@@ -83,9 +83,50 @@ pub struct ModelStats {
     pub rrp_patches: u64,
     /// Radiosity samples of the solution.
     pub samples: u64,
+    /// Where the solve's guards stopped refinement with the error test still failing.
+    pub guard_stops: GuardReport,
     /// Frame times per method (medians), if frames were measured.
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub frames: Vec<BenchRow>,
+}
+
+/// Where the solve's guards (`max_depth`, the smallest element) stopped refinement while the
+/// error test still failed ([`radiosity::GuardStops`]), as `--stats` and `stats` report it.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct GuardReport {
+    /// Leaves split to a guard with their light still failing the error test.
+    pub leaves: u64,
+    /// Leaves split to a guard only because a shadow boundary crosses them (not warned about).
+    pub shadow_leaves: u64,
+    /// The worst leaf's polygon, as file:line (`None` when no leaf stopped).
+    pub worst: Option<String>,
+    /// Its estimated error relative to the leaf's level.
+    pub worst_excess: f64,
+    /// The warning `solve` and `render` print (`None` when no leaf stopped).
+    pub warning: Option<String>,
+}
+
+impl GuardReport {
+    /// The report of `g`, a solve of `scene`.
+    pub fn of(g: &radiosity::GuardStops, scene: &scene::Scene) -> GuardReport {
+        GuardReport {
+            leaves: g.leaves,
+            shadow_leaves: g.shadow_leaves,
+            worst: (g.leaves > 0).then(|| g.worst_origin(scene)),
+            worst_excess: g.worst_excess,
+            warning: g.warning(scene),
+        }
+    }
+}
+
+/// For a solution file, where its solve's guards stopped refinement (`None` for a scene file,
+/// which has not been solved).
+pub fn solution_guards(input: &Input) -> Result<Option<GuardReport>> {
+    let Some(path) = &input.solution_file else {
+        return Ok(None);
+    };
+    let (sol, _) = radiosity::file::read_solution(path, &input.scene)?;
+    Ok(Some(GuardReport::of(&sol.stats.guard_stops, &input.scene)))
 }
 
 /// Bytes per RAT vertex in [`ModelStats::rat_bytes`]: position (3 x f32) + (u, v) (2 x f32).
@@ -150,6 +191,7 @@ pub(crate) fn model_stats(
         rrp_expanded_bytes: memory.rrp_expanded,
         rrp_patches: p.compact.leaf_count() as u64,
         samples: p.solution.stats.vertices,
+        guard_stops: GuardReport::of(&p.solution.stats.guard_stops, &p.scene),
         frames: rows,
     })
 }
