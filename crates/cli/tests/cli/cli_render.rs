@@ -704,7 +704,16 @@ fn outputs_never_replace_inputs_or_non_files() {
 fn every_lane_build_renders_the_same_bytes() {
     // The cornell box, direct and mesh (the two patch-shader methods), at AA 1 and 4, under
     // each cap of the lane build: the same PNG and EXR bytes (on a CPU without AVX2 or AVX-512
-    // the caps fall back to what it has, and the comparison still holds).
+    // the caps fall back to what it has, and the comparison still holds). Drawn from one solve
+    // (solution files are checked equal to solving by their own test).
+    let solution = tmp("lanes-cornell-box.pfsol");
+    let o = bin()
+        .args(["solve", scene("cornell-box").to_str().unwrap(), "-o"])
+        .arg(&solution)
+        .arg("--quiet")
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "solve: {}", stderr(&o));
     for (method, aa) in [("direct", "1"), ("mesh", "1"), ("direct", "4")] {
         let mut first: Option<(Vec<u8>, Vec<u8>)> = None;
         for build in ["portable", "avx2", "avx512", "auto"] {
@@ -714,7 +723,7 @@ fn every_lane_build_renders_the_same_bytes() {
                 .env("PIXELFLOW_SIM_LANES", build)
                 .args([
                     "render",
-                    scene("cornell-box").to_str().unwrap(),
+                    solution.to_str().unwrap(),
                     "--method",
                     method,
                     "--aa",

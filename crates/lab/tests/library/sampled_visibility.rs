@@ -36,33 +36,6 @@ fn polygon_difference(scene_a: &Scene, a: &Solution, scene_b: &Scene, b: &Soluti
     diff / level
 }
 
-/// A generated building of `rooms_x` x `rooms_z` rooms (shell cut `cut` x `cut`), loaded
-/// through the scene loader from memory: closed rooms joined by doorways, the case sampled
-/// visibility is for.
-fn building(rooms_x: u32, rooms_z: u32, cut: u32) -> Scene {
-    use lab::generate::{generate_building, BuildingOptions, BuildingPaths};
-    use std::path::Path;
-    let o = BuildingOptions {
-        cut,
-        ..BuildingOptions::new(rooms_x, rooms_z)
-    };
-    let paths = BuildingPaths::for_output(Path::new("/virtual/b.toml")).expect("paths");
-    let b = generate_building(&o, &paths).expect("building");
-    let read = |p: &Path| -> std::io::Result<String> {
-        if p == paths.obj {
-            Ok(b.obj.clone())
-        } else if p == paths.mtl {
-            Ok(b.mtl.clone())
-        } else {
-            Err(std::io::Error::new(
-                std::io::ErrorKind::NotFound,
-                "no such file",
-            ))
-        }
-    };
-    scene::parse_scene_with(&b.toml, &paths.scene, &read).expect("scene")
-}
-
 /// Sampled visibility (receivers found by probe rays) moves a building's solution less than
 /// the solver's own sampling does: on 2 x 2 rooms joined by doorways, the sampled solve differs
 /// from the exact one by less than an exact solve with another seed (other shadow-ray sample
@@ -71,7 +44,7 @@ fn building(rooms_x: u32, rooms_z: u32, cut: u32) -> Scene {
 /// 0.09 %, a new seed by 0.76 %, and 16 rays per round (so at most 512) by 2.4 %.
 #[test]
 fn sampled_visibility_moves_less_than_a_new_seed() {
-    let mut exact = building(2, 2, 1);
+    let mut exact = crate::building(2, 2, 1);
     exact.radiosity.max_depth = 4;
     exact.radiosity.visibility = scene::Visibility::Exact;
     let mut sampled = exact.clone();
@@ -99,7 +72,7 @@ fn sampled_visibility_moves_less_than_a_new_seed() {
 /// Sampled visibility keeps determinism: the same file from pools of 1 and 2 threads.
 #[test]
 fn sampled_visibility_is_deterministic() {
-    let mut s = building(2, 1, 1);
+    let mut s = crate::building(2, 1, 1);
     s.radiosity.max_depth = 3;
     s.radiosity.visibility = scene::Visibility::Sampled;
     let bytes = |threads: usize| {
