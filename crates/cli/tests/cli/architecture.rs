@@ -39,7 +39,15 @@ const MODULES: &[(&str, &[&str])] = &[
     ("engine", &["raster", "composition", "shading", "frame"]),
     (
         "lab",
-        &["image", "jobs", "report", "plot", "experiment", "generate"],
+        &[
+            "image",
+            "jobs",
+            "report",
+            "plot",
+            "experiment",
+            "generate",
+            "closed_form",
+        ],
     ),
 ];
 
