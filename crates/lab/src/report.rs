@@ -50,6 +50,11 @@ pub struct SceneSummary {
     pub memory_min: u64,
     /// The same with every quadtree uniformly at `max_depth`.
     pub memory_max: u64,
+    /// Shared polygon edges ([`scene::adjacency`]).
+    pub adjacency: scene::adjacency::AdjacencySummary,
+    /// Seams the reconstruction joins, and those it leaves apart because a polygon stands on
+    /// them or because their lattices or shapes do not line up ([`reconstruction::seam`]).
+    pub seams: (usize, usize, usize),
     /// Warnings the loader emitted.
     pub warnings: usize,
 }
@@ -77,6 +82,8 @@ pub fn summarize(scene: &Scene) -> SceneSummary {
         }
     };
     let (start, worst) = crate::jobs::budget::solve_estimate(scene);
+    let adjacency = scene::adjacency::Adjacency::of(&scene.polygons);
+    let seams = reconstruction::Seams::of(&scene.polygons, &scene.materials, &adjacency);
     SceneSummary {
         source: scene.source.display().to_string(),
         image: (scene.width, scene.height),
@@ -94,6 +101,8 @@ pub fn summarize(scene: &Scene) -> SceneSummary {
         depths: (scene.radiosity.min_depth, scene.radiosity.max_depth),
         memory_min: start.total(),
         memory_max: worst,
+        adjacency: adjacency.summary(&scene.polygons, &scene.materials),
+        seams: (seams.joined(), seams.standing(), seams.unjoined()),
         warnings: scene.warnings.len(),
     }
 }
@@ -137,6 +146,15 @@ impl fmt::Display for SceneSummary {
                     human_bytes(self.memory_max)
                 ),
             ),
+            ("shared edges", adjacency_text(&self.adjacency)),
+            (
+                "seams",
+                format!(
+                    "{} joined C1 (unless their samples disagree), apart: {} with a polygon \
+                     standing on them, {} whose lattices or shapes do not line up",
+                    self.seams.0, self.seams.1, self.seams.2
+                ),
+            ),
             ("warnings", self.warnings.to_string()),
         ];
         for (k, v) in rows {
@@ -144,6 +162,25 @@ impl fmt::Display for SceneSummary {
         }
         Ok(())
     }
+}
+
+/// The `shared edges` line: how polygons meet, and what the reconstruction joins.
+fn adjacency_text(a: &scene::adjacency::AdjacencySummary) -> String {
+    let mut t = format!(
+        "{} ({} coplanar, {} of them one material; {} creases, {} folded; {} T-junctions)",
+        a.shared, a.coplanar, a.continuous, a.creases, a.folded, a.partial
+    );
+    if a.largest_gap > 0.0 {
+        t += &format!(", largest gap {:.1e} of an edge", a.largest_gap);
+    }
+    if a.near_misses > 0 {
+        t += &format!(
+            "; {} near misses (sides within {} of an edge's length, not joined)",
+            a.near_misses,
+            scene::adjacency::NEAR_EDGE
+        );
+    }
+    t
 }
 
 /// The memory estimate of a scene ([`crate::jobs::budget::scene_budget`]) against `limit`, for
@@ -392,7 +429,12 @@ mod tests {
             table.contains("camera          perspective, fov_y 40.00 deg\n"),
             "{table}"
         );
-        assert_eq!(table.lines().count(), 15);
+        assert!(table.contains("shared edges    "), "{table}");
+        assert_eq!(
+            s.adjacency.shared,
+            s.adjacency.coplanar + s.adjacency.creases + s.adjacency.folded
+        );
+        assert_eq!(table.lines().count(), 17);
     }
 
     #[test]

@@ -125,6 +125,8 @@
 
 use rayon::prelude::*;
 
+use crate::Seams;
+
 use super::hermite::{HermiteData, PatchPoly};
 use super::{
     build_polygons, lattice_f32, leaf_patch, locate_in, Estimator, PatchCoeffs, PatchSource,
@@ -699,12 +701,28 @@ impl CompactReconstruction {
         polygons: &[SampledQuadtree],
         estimator: Estimator,
     ) -> Result<CompactReconstruction> {
+        CompactReconstruction::build_with(polygons, estimator, &Seams::none())
+    }
+
+    /// [`CompactReconstruction::build`], joining the polygons along `seams` (the same patches as
+    /// [`Reconstruction::build_with`]).
+    pub fn build_with(
+        polygons: &[SampledQuadtree],
+        estimator: Estimator,
+        seams: &Seams,
+    ) -> Result<CompactReconstruction> {
+        if !seams.fits(polygons.len()) {
+            return Err(Error::Inconsistent(format!(
+                "compact reconstruction: seams built for another scene than these {} polygons",
+                polygons.len()
+            )));
+        }
         if polygons.len() > MAX_POLYGONS {
             return Err(Error::Inconsistent(
                 "compact reconstruction: more than 2^27 polygons".into(),
             ));
         }
-        let parts: Vec<Result<Part>> = build_polygons(polygons, estimator)
+        let parts: Vec<Result<Part>> = build_polygons(polygons, estimator, seams)
             .into_par_iter()
             .enumerate()
             .map(|(index, b)| {

@@ -50,17 +50,7 @@ impl<'a> Samples<'a> {
     /// The leaf cell containing lattice point (i, j); on shared edges the upper cell, at the
     /// domain's upper border the last cell (the convention of `Quadtree::find_leaf`).
     pub(crate) fn leaf_cell(&self, i: u32, j: u32) -> Cell {
-        let (i, j) = (i.min(LATTICE - 1), j.min(LATTICE - 1));
-        let nodes = self.tree.nodes();
-        let mut id = 0usize;
-        loop {
-            let n = nodes[id];
-            if n.is_leaf() {
-                return n.cell;
-            }
-            let sh = MAX_DEPTH - 1 - n.cell.level;
-            id = n.first_child as usize + ((i >> sh) & 1) as usize + 2 * ((j >> sh) & 1) as usize;
-        }
+        leaf_cell(self.tree, i, j)
     }
 
     fn value(&self, k: VertexKey) -> [f64; 3] {
@@ -100,6 +90,22 @@ impl<'a> Samples<'a> {
             }
         }
         h
+    }
+}
+
+/// The leaf cell of `tree` containing lattice point (i, j); on shared edges the upper cell, at
+/// the domain's upper border the last cell (the convention of `Quadtree::find_leaf`).
+pub(crate) fn leaf_cell(tree: &Quadtree, i: u32, j: u32) -> Cell {
+    let (i, j) = (i.min(LATTICE - 1), j.min(LATTICE - 1));
+    let nodes = tree.nodes();
+    let mut id = 0usize;
+    loop {
+        let n = nodes[id];
+        if n.is_leaf() {
+            return n.cell;
+        }
+        let sh = MAX_DEPTH - 1 - n.cell.level;
+        id = n.first_child as usize + ((i >> sh) & 1) as usize + 2 * ((j >> sh) & 1) as usize;
     }
 }
 

@@ -6,10 +6,14 @@
 //! Pipeline per polygon, all in f64:
 //! 1. `estimate`: Hermite data (value, f_u, f_v, twist f_uv) at every original sample, in global
 //!    parameter units, one set per vertex shared by every patch touching it ([`Estimator`]);
-//! 2. `refine`: leaves with a T-vertex inside an edge are midpoint-subdivided, new points take
+//! 2. [`seam`] (with [`Reconstruction::build_with`]): border points shared with coplanar
+//!    neighbours of one material get one set of data, computed once across the polygons, so the
+//!    neighbours are one C1 function (every polygon's estimate first, then this one ordered
+//!    pass, then refinement in parallel again);
+//! 3. `refine`: leaves with a T-vertex inside an edge are midpoint-subdivided, new points take
 //!    their data from the parent polynomial (C1 argument in that module), and subtrees whose data
 //!    equal their parent polynomial are merged back, so flat regions cost one patch;
-//! 3. each final leaf becomes a [`PatchCoeffs`]: the bicubic in power basis over local (s, t),
+//! 4. each final leaf becomes a [`PatchCoeffs`]: the bicubic in power basis over local (s, t),
 //!    stored as f32 (3 x 16 coefficients + origin and inverse width, 208 bytes).
 //!
 //! What is stored: the power-basis patches and a 4-byte-per-node tree for [`Reconstruction::locate`];
@@ -19,11 +23,12 @@
 //! shift, T-vertices derived from their larger leaf) and expands them on demand.
 //!
 //! Invariants: every original sample is reproduced at its vertex (to f32 rounding, or to the merge
-//! tolerance of 1e-7 of the polygon's largest value); linear functions are reproduced exactly on any
-//! tree; an undivided polygon is the bilinear interpolant of its corners (every estimator); no
-//! coefficient is NaN or infinite (checked; construction fails otherwise). Evaluation clamps (u, v)
-//! into [0, 1]^2 (NaN to 0) and local (s, t) into [0, 1]^2, so border values are the patch's edge
-//! values. Nothing is clamped in value: the plain estimator can overshoot (ring below zero) near
+//! tolerance of 1e-7 of the polygon's largest value; on a joined seam, the mean of the two
+//! polygons' samples there, which agree within [`seam::SAMPLE_AGREEMENT`]); linear functions are
+//! reproduced exactly on any tree; an undivided polygon is the bilinear interpolant of its
+//! corners (every estimator); no coefficient is NaN or infinite (checked; construction fails
+//! otherwise). Evaluation clamps (u, v) into [0, 1]^2 (NaN to 0) and local (s, t) into
+//! [0, 1]^2, so border values are the patch's edge values. Nothing is clamped in value: the plain estimator can overshoot (ring below zero) near
 //! sharp shadow edges, the limited ones far less; the one clamp of an image (negative to 0) sits
 //! in the shading stage's pixel resolve.
 //!
@@ -73,9 +78,11 @@ mod hermite;
 pub mod mesh;
 mod refine;
 pub mod samples_form;
+pub mod seam;
 pub mod texture;
 
 pub use compact::PatchCache;
+pub use seam::Seams;
 #[cfg(test)]
 mod tests;
 
@@ -86,7 +93,7 @@ use base::error::{Error, Result};
 use base::method::Placement;
 use base::quadtree::{SampledQuadtree, LATTICE, MAX_DEPTH};
 use estimate::Samples;
-use hermite::PatchPoly;
+use hermite::{HermiteData, PatchPoly};
 use refine::Refined;
 
 /// How vertex derivatives are estimated from the samples. [`Estimator::Monotone`] is the
@@ -358,12 +365,16 @@ impl PolygonRrp {
     }
 }
 
-/// Builds one polygon's RRP in f64. `index` only labels errors.
-pub(crate) fn build_polygon(
-    index: usize,
-    sq: &SampledQuadtree,
-    estimator: Estimator,
-) -> Result<PolygonRrp> {
+/// One polygon's samples checked and converted, with their estimated Hermite data: what the
+/// seams need from every polygon before any polygon is refined.
+pub(crate) struct Estimated {
+    data: Vec<HermiteData>,
+    /// Largest |value| of the samples.
+    scale: f64,
+}
+
+/// Checks one polygon's samples and estimates their Hermite data. `index` only labels errors.
+fn estimate_polygon(index: usize, sq: &SampledQuadtree, estimator: Estimator) -> Result<Estimated> {
     let bad =
         |msg: String| Error::Inconsistent(format!("reconstruction of polygon {index}: {msg}"));
     if sq.keys.len() != sq.values.len() {
@@ -394,26 +405,97 @@ pub(crate) fn build_polygon(
     }
     let samples = Samples::new(&sq.tree, &sq.keys, values);
     let data = estimate::estimate(&samples, estimator);
-    let refined = refine::refine(&sq.tree, &sq.keys, &data, scale);
-    Ok(PolygonRrp {
+    Ok(Estimated { data, scale })
+}
+
+/// Builds one polygon's RRP in f64 from its own samples alone. `index` only labels errors.
+#[cfg(test)]
+pub(crate) fn build_polygon(
+    index: usize,
+    sq: &SampledQuadtree,
+    estimator: Estimator,
+) -> Result<PolygonRrp> {
+    let e = estimate_polygon(index, sq, estimator)?;
+    Ok(finish_polygon(sq, &e, &[]))
+}
+
+/// Refines one polygon with its seam points' data.
+fn finish_polygon(
+    sq: &SampledQuadtree,
+    e: &Estimated,
+    forced: &[(base::quadtree::VertexKey, HermiteData)],
+) -> PolygonRrp {
+    let refined = refine::refine(&sq.tree, &sq.keys, &e.data, forced, e.scale);
+    PolygonRrp {
         refined,
         input_depth: sq.tree.depth(),
         input_leaves: sq.tree.leaf_count(),
         samples: sq.keys.len(),
-    })
+    }
 }
 
-/// Every polygon's f64 reconstruction, in parallel (each polygon's result depends on that polygon
-/// alone, so on no thread count), in polygon order. Shared by [`Reconstruction::build`] and
-/// [`compact::CompactReconstruction::build`].
+/// The patch of the unrefined tree's leaf holding `k`, through its corners' estimated data.
+fn estimated_patch(
+    sq: &SampledQuadtree,
+    data: &[HermiteData],
+    k: base::quadtree::VertexKey,
+) -> PatchPoly {
+    let cell = estimate::leaf_cell(&sq.tree, k.i, k.j);
+    let [c00, c10, c11, c01] = cell.corners();
+    let at = |c| {
+        sq.keys
+            .binary_search(&c)
+            .map_or(HermiteData::default(), |x| data[x])
+    };
+    PatchPoly::from_corners(cell, &[at(c00), at(c10), at(c01), at(c11)])
+}
+
+/// Every polygon's f64 reconstruction, in polygon order: estimates in parallel, the seams'
+/// joint data in one ordered pass, refinement in parallel (each step's result depends on no
+/// thread count). Shared by [`Reconstruction::build_with`] and
+/// [`compact::CompactReconstruction::build_with`].
 pub(crate) fn build_polygons(
     polygons: &[SampledQuadtree],
     estimator: Estimator,
+    seams: &Seams,
 ) -> Vec<Result<PolygonRrp>> {
-    polygons
+    let estimated: Vec<Result<Estimated>> = polygons
         .par_iter()
         .enumerate()
-        .map(|(i, sq)| build_polygon(i, sq, estimator))
+        .map(|(i, sq)| estimate_polygon(i, sq, estimator))
+        .collect();
+    let forced = if seams.is_empty()
+        || !seams.fits(polygons.len())
+        || estimated.iter().any(|e| e.is_err())
+    {
+        vec![Vec::new(); polygons.len()]
+    } else {
+        let patch_fns: Vec<Box<dyn Fn(base::quadtree::VertexKey) -> PatchPoly + Sync + '_>> =
+            polygons
+                .iter()
+                .zip(&estimated)
+                .map(|(sq, e)| {
+                    let data = &e.as_ref().expect("checked above").data;
+                    Box::new(move |k| estimated_patch(sq, data, k)) as Box<dyn Fn(_) -> _ + Sync>
+                })
+                .collect();
+        let own: Vec<seam::Own<'_>> = polygons
+            .iter()
+            .zip(&estimated)
+            .zip(&patch_fns)
+            .map(|((sq, e), f)| seam::Own {
+                keys: &sq.keys,
+                data: &e.as_ref().expect("checked above").data,
+                patch_at: f.as_ref(),
+            })
+            .collect();
+        seam::force(seams, &own, estimator)
+    };
+    polygons
+        .par_iter()
+        .zip(estimated)
+        .zip(forced)
+        .map(|((sq, e), f)| Ok(finish_polygon(sq, &e?, &f)))
         .collect()
 }
 
@@ -476,7 +558,24 @@ impl Reconstruction {
     /// not the tree's vertices, non-finite samples, or values so large that a coefficient
     /// overflows f32.
     pub fn build(polygons: &[SampledQuadtree], estimator: Estimator) -> Result<Reconstruction> {
-        let built = build_polygons(polygons, estimator);
+        Reconstruction::build_with(polygons, estimator, &Seams::none())
+    }
+
+    /// [`Reconstruction::build`], joining the polygons along `seams` ([`seam`]): one C1 function
+    /// across the borders of coplanar neighbours of one material. Seams that do not fit the
+    /// polygons (built for another scene) are an [`Error::Inconsistent`].
+    pub fn build_with(
+        polygons: &[SampledQuadtree],
+        estimator: Estimator,
+        seams: &Seams,
+    ) -> Result<Reconstruction> {
+        if !seams.fits(polygons.len()) {
+            return Err(Error::Inconsistent(format!(
+                "reconstruction: seams built for another scene than these {} polygons",
+                polygons.len()
+            )));
+        }
+        let built = build_polygons(polygons, estimator, seams);
         let mut patches = Vec::new();
         let mut nodes: Vec<u32> = Vec::new();
         let mut roots = Vec::with_capacity(polygons.len());

@@ -110,16 +110,43 @@ fn edge_midpoints(cell: Cell) -> [VertexKey; 4] {
     ]
 }
 
+/// Whether a border point of `forced` (sorted by key) lies strictly inside a side of `cell`
+/// that is on the domain's border.
+fn forced_inside(cell: Cell, forced: &[(VertexKey, HermiteData)]) -> bool {
+    if forced.is_empty() {
+        return false;
+    }
+    let o = cell.origin();
+    let s = cell.size();
+    let l = base::quadtree::LATTICE;
+    let inside = |a: VertexKey, b: VertexKey| {
+        // Keys are ordered by (j, i): on a row the run between a and b; on a column each key.
+        let lo = forced.partition_point(|e| e.0 <= a);
+        let hi = forced.partition_point(|e| e.0 < b);
+        forced[lo..hi.max(lo)]
+            .iter()
+            .any(|e| (a.i == b.i && e.0.i == a.i) || (a.j == b.j && e.0.j == a.j))
+    };
+    (o.j == 0 && inside(VertexKey::new(o.i, 0), VertexKey::new(o.i + s, 0)))
+        || (o.j + s == l && inside(VertexKey::new(o.i, l), VertexKey::new(o.i + s, l)))
+        || (o.i == 0 && inside(VertexKey::new(0, o.j), VertexKey::new(0, o.j + s)))
+        || (o.i + s == l && inside(VertexKey::new(l, o.j), VertexKey::new(l, o.j + s)))
+}
+
 /// Refines and merges one polygon. `keys` (sorted) and `data` are the original samples and their
-/// estimated Hermite data; `scale` is the largest |value| of the polygon (for the merge test).
+/// estimated Hermite data; `forced` (sorted) are seam points on the domain's border with the
+/// data they must carry (replacing a sample's, or new points the tree is split down to, as
+/// original samples are); `scale` is the largest |value| of the polygon (for the merge test).
 pub(crate) fn refine(
     tree: &Quadtree,
     keys: &[VertexKey],
     data: &[HermiteData],
+    forced: &[(VertexKey, HermiteData)],
     scale: f64,
 ) -> Refined {
     let mut t = tree.clone();
     let mut map: KeyMap<HermiteData> = keys.iter().copied().zip(data.iter().copied()).collect();
+    map.extend(forced.iter().copied());
     let is_original = |k: VertexKey| keys.binary_search(&k).is_ok();
 
     // Depth-first over the leaves (a stack: deterministic order).
@@ -127,7 +154,9 @@ pub(crate) fn refine(
     stack.reverse();
     while let Some(id) = stack.pop() {
         let cell = t.node(id).cell;
-        if cell.size() < 2 || !edge_midpoints(cell).into_iter().any(is_original) {
+        if cell.size() < 2
+            || !(edge_midpoints(cell).into_iter().any(is_original) || forced_inside(cell, forced))
+        {
             continue;
         }
         let poly = PatchPoly::from_corners(cell, &corner_data(&map, cell));

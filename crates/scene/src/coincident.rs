@@ -91,7 +91,7 @@ pub(crate) fn merge(polygons: &mut Vec<Polygon>, origins: &mut Vec<Location>) ->
 }
 
 /// Largest distance between two corners of `p`.
-fn diameter(p: &Polygon) -> f64 {
+pub(crate) fn diameter(p: &Polygon) -> f64 {
     let vs = p.vertices();
     let mut d = 0.0f64;
     for a in vs {

@@ -19,6 +19,7 @@ use glam::DVec3;
 
 use base::method::{Method, Placement};
 
+pub mod adjacency;
 pub mod bvh;
 pub mod camera_path;
 mod coincident;

@@ -49,7 +49,7 @@ use radiosity::{self, file as solution_file, Solution, SolveOptions};
 use reconstruction::compact::CompactReconstruction;
 use reconstruction::mesh::MeshModel;
 use reconstruction::texture::{SizePolicy, TextureSet};
-use reconstruction::{Estimator, Reconstruction};
+use reconstruction::{Estimator, Reconstruction, Seams};
 use scene::{load_scene, Scene};
 
 /// What a job may use, given by its caller and passed down explicitly (the library holds no
@@ -265,6 +265,8 @@ pub struct Prepared {
     pub reconstruction_ms: f64,
     /// The derivative estimator the RRPs (compact and expanded) are built with.
     pub estimator: Estimator,
+    /// The polygon borders the RRPs (compact and expanded) are joined along ([`seams_of`]).
+    pub seams: Seams,
     /// How the texture methods size their textures (fixed by [`prepare`]).
     texture_policy: SizePolicy,
     /// Where the texture methods place their texels (fixed by [`prepare`]).
@@ -328,8 +330,9 @@ impl Prepared {
     pub fn expanded(&self) -> Result<(&Reconstruction, f64)> {
         if self.expanded.get().is_none() {
             let t = Instant::now();
-            let r = Reconstruction::build(&self.solution.polygons, self.estimator)
-                .map_err(|e| self.file_error(e))?;
+            let r =
+                Reconstruction::build_with(&self.solution.polygons, self.estimator, &self.seams)
+                    .map_err(|e| self.file_error(e))?;
             let _ = self.expanded.set((r, t.elapsed().as_secs_f64() * 1e3));
         }
         let (r, ms) = self
@@ -443,6 +446,7 @@ pub fn prepare(
         }
     };
     let t = Instant::now();
+    let seams = seams_of(&scene);
     // A solution file stores the compact RRPs its solve built with the default estimator:
     // decode them (checked) instead of building again; a file without them, another estimator
     // or a fresh solve builds them from the samples.
@@ -468,24 +472,23 @@ pub fn prepare(
         // Samples read from a file that cannot be reconstructed (values so large the patches
         // overflow f32) are a bad file, exit 2, like any other inconsistency behind a valid
         // checksum; from a fresh solve they are a failure of this program.
-        Some((path, _)) => {
-            CompactReconstruction::build(&solution.polygons, estimator).map_err(|e| match e {
+        Some((path, _)) => CompactReconstruction::build_with(&solution.polygons, estimator, &seams)
+            .map_err(|e| match e {
                 Error::Inconsistent(m) => Error::solution(
                     path,
                     base::error::SolutionProblem::Corrupt,
                     format!("corrupt solution file: its samples cannot be reconstructed: {m}"),
                 ),
                 e => e,
-            })?
-        }
-        None => {
-            CompactReconstruction::build(&solution.polygons, estimator).map_err(|e| match e {
+            })?,
+        None => CompactReconstruction::build_with(&solution.polygons, estimator, &seams).map_err(
+            |e| match e {
                 Error::Inconsistent(m) => {
                     Error::internal(format!("this run's own solution is inconsistent: {m}"))
                 }
                 e => e,
-            })?
-        }
+            },
+        )?,
     };
     let reconstruction_ms = t.elapsed().as_secs_f64() * 1e3;
     Ok(Prepared {
@@ -499,10 +502,18 @@ pub fn prepare(
         solve_ms,
         reconstruction_ms,
         estimator,
+        seams,
         expanded: OnceLock::new(),
         textures: OnceLock::new(),
         mesh: OnceLock::new(),
     })
+}
+
+/// The seams every reconstruction of `scene` joins: the shared edges of coplanar polygons of one
+/// material ([`scene::adjacency`], [`reconstruction::seam`]).
+pub fn seams_of(scene: &Scene) -> Seams {
+    let adjacency = scene::adjacency::Adjacency::of(&scene.polygons);
+    Seams::of(&scene.polygons, &scene.materials, &adjacency)
 }
 
 /// Loads `path`, checks `texture`'s options against its scene, then solves and reconstructs:

@@ -25,7 +25,11 @@ pub fn solve_to_file(ctx: &Context<'_>, scene_path: &Path, out: &Path) -> Result
             memory_limit: limit,
         },
     )?;
-    let rrps = CompactReconstruction::build(&solution.polygons, Estimator::default())?;
+    let rrps = CompactReconstruction::build_with(
+        &solution.polygons,
+        Estimator::default(),
+        &super::seams_of(&scene),
+    )?;
     solution_file::write_solution(
         &ctx.outputs,
         out,

@@ -763,3 +763,4 @@ fn eval_grad_matches_finite_differences() {
 }
 
 mod compact;
+mod seam;

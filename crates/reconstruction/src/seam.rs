@@ -1,0 +1,599 @@
+//! Seams: one C1 function across the borders of coplanar neighbours of one material.
+//!
+//! Each polygon's estimate sees only its own samples, so at its border the slope across is
+//! one-sided and the two neighbours of a shared edge disagree: a kink at every polygon border of
+//! a flat surface, as large as Gouraud's. A [`Seams`] lists the shared sides the scene's
+//! adjacency found between coplanar polygons of equal material, and the reconstruction then:
+//!
+//! 1. **puts the same points on both sides**: every border vertex of one side becomes a vertex of
+//!    the other (a *seam point*; the other polygon's leaves along its border are split down to it,
+//!    as at a T-vertex inside a polygon), so both edges are cut at the same places;
+//! 2. **gives every seam point one set of data**, computed once in world terms and handed to each
+//!    polygon in its own (u, v) units. The value is the mean of the polygons' samples there (they
+//!    differ by the solver's visibility noise only). The slope along the seam is the mean of the
+//!    polygons' (each estimated from the seam's own points). The slope across is the estimator's
+//!    rule applied to the two one-sided slopes, one from each polygon, which is the centred
+//!    estimate an undivided surface would have had there (Hyman's filter keeps it monotone at a
+//!    shadow edge lying on the seam). At a point where more than two polygons meet (a corner of
+//!    a tiling) the world gradients are averaged. The twist is converted and averaged between
+//!    polygons whose parameter axes are parallel or perpendicular in the plane (grids of
+//!    rectangles, the common case), and zero where a filter limited the slope across;
+//! 3. leaves everything else to refinement: a seam point is data the polygon's tree must have
+//!    as a vertex, like an original sample.
+//!
+//! **Why the result is C1 across the seam.** Both edges are cut at the same points and carry the
+//! same value and along-edge slope there, so their edge cubics are the same curve. The slope
+//! across an edge is the cubic Hermite interpolant of the cross derivative and the twist at the
+//! edge's ends; with the same world data at both ends and cross axes perpendicular to the seam,
+//! both polygons' cross slopes are the same cubic in world units. Where a cross axis is not
+//! perpendicular to the seam (a skewed quad, a triangle) the data still agree at every seam point,
+//! and between them the slope across differs by the twists' disagreement only.
+//!
+//! Only sides whose lattices line up are joined: the shared segment's ends are lattice points of
+//! both sides and one side's parameter is a power of two times the other's, so every seam point
+//! is a lattice point of both (always true for whole shared edges). A seam point that would need
+//! more than the lattice's 2^16 intervals is dropped (the curves then agree to that depth's
+//! cubic only). Other T-junctions are counted in [`Seams::unjoined`] and left as they are.
+
+use std::collections::{BTreeMap, HashMap};
+
+use glam::DVec3;
+
+use super::estimate::{fritsch_butland, hyman, limited};
+use super::hermite::{HermiteData, PatchPoly};
+use super::Estimator;
+use base::quadtree::{VertexKey, LATTICE};
+use scene::adjacency::{Adjacency, Junction, SharedEdge, Side};
+use scene::{Material, Polygon, Shape};
+
+/// A shared side joined by the reconstruction, in lattice units.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Link {
+    a: Side,
+    b: Side,
+    /// Lattice indices along `a` of the shared segment's ends (increasing).
+    ka: [i64; 2],
+    /// Lattice indices along `b` of the same ends (in `a`'s order).
+    kb: [i64; 2],
+}
+
+/// The seams a reconstruction joins, and the geometry it needs to convert derivatives.
+#[derive(Debug, Clone, Default)]
+pub struct Seams {
+    links: Vec<Link>,
+    /// Every polygon's corners and shape, indexed like the scene (empty without links).
+    geometry: Vec<([DVec3; 4], Shape)>,
+    unjoined: usize,
+    standing: usize,
+}
+
+impl Seams {
+    /// No seams: every polygon reconstructed from its own samples alone.
+    pub fn none() -> Seams {
+        Seams::default()
+    }
+
+    /// The seams of a scene: every shared edge between coplanar polygons of equal material whose
+    /// lattices line up ([`Adjacency::continuous`]).
+    pub fn of(polygons: &[Polygon], materials: &[Material], adjacency: &Adjacency) -> Seams {
+        let mut links = Vec::new();
+        let mut unjoined = 0;
+        let mut standing = 0;
+        for e in &adjacency.edges {
+            if !Adjacency::continuous(e, polygons, materials) {
+                continue;
+            }
+            if stands_on(adjacency, e) {
+                standing += 1;
+                continue;
+            }
+            if !conditioned(&polygons[e.a.polygon as usize], e.a.side, e.a_range)
+                || !conditioned(&polygons[e.b.polygon as usize], e.b.side, e.b_range)
+            {
+                unjoined += 1;
+                continue;
+            }
+            match link(e) {
+                Some(l) => links.push(l),
+                None => unjoined += 1,
+            }
+        }
+        let geometry = if links.is_empty() {
+            Vec::new()
+        } else {
+            polygons.iter().map(|p| (p.corners, p.shape)).collect()
+        };
+        Seams {
+            links,
+            geometry,
+            unjoined,
+            standing,
+        }
+    }
+
+    /// Continuous shared sides left unjoined because another polygon stands on them at an angle
+    /// (a wall on the line where two floor polygons meet: the light is discontinuous there).
+    pub fn standing(&self) -> usize {
+        self.standing
+    }
+
+    /// Number of joined shared sides.
+    pub fn joined(&self) -> usize {
+        self.links.len()
+    }
+
+    /// Continuous shared sides left unjoined because their lattices do not line up.
+    pub fn unjoined(&self) -> usize {
+        self.unjoined
+    }
+
+    /// Whether there is nothing to join.
+    pub fn is_empty(&self) -> bool {
+        self.links.is_empty()
+    }
+
+    /// Whether the seams refer only to polygons below `count`.
+    pub(crate) fn fits(&self, count: usize) -> bool {
+        self.links.is_empty()
+            || (self.geometry.len() == count
+                && self
+                    .links
+                    .iter()
+                    .all(|l| (l.a.polygon as usize) < count && (l.b.polygon as usize) < count))
+    }
+}
+
+/// Largest |cos| between a polygon's cross axis and the seam at a seam's end (30 degrees from
+/// perpendicular): the slope across is converted between the two polygons through these axes.
+pub const MAX_CROSS_TILT: f64 = 0.5;
+
+/// Smallest length of the cross axis relative to the side's own length (a 100:1 strip): below
+/// it the one-sided slope across is taken over a sliver and the conversion divides by its
+/// height.
+pub const MIN_CROSS_RATIO: f64 = 1e-2;
+
+/// Whether `side` of `p` is a well-conditioned seam over `range`: at both ends the cross axis is
+/// within [`MAX_CROSS_TILT`] of perpendicular to the side and at least [`MIN_CROSS_RATIO`] of
+/// its length. Slivers, needles and the slanted sides of most triangles are left unjoined.
+fn conditioned(p: &Polygon, side: u8, range: [f64; 2]) -> bool {
+    let [c0, c1, c2, c3] = p.corners;
+    range.iter().all(|&s| {
+        let (u, v) = scene::adjacency::side_uv(side, s);
+        let xu = (1.0 - v) * (c1 - c0) + v * (c2 - c3);
+        let xv = (1.0 - u) * (c3 - c0) + u * (c2 - c1);
+        let (along, cross) = if side.is_multiple_of(2) { (xu, xv) } else { (xv, xu) };
+        let (la, lc) = (along.length(), cross.length());
+        la > 0.0 && lc >= MIN_CROSS_RATIO * la && along.dot(cross).abs() <= MAX_CROSS_TILT * la * lc
+    })
+}
+
+/// Whether a third polygon meets either side of `e` at an angle over part of `e`'s segment:
+/// a wall standing on the seam, whose two sides see different light.
+fn stands_on(adjacency: &Adjacency, e: &SharedEdge) -> bool {
+    let overlaps = |r: [f64; 2], q: [f64; 2]| {
+        let (lo, hi) = (r[0].min(r[1]), r[0].max(r[1]));
+        let (ql, qh) = (q[0].min(q[1]), q[0].max(q[1]));
+        qh.min(hi) - ql.max(lo) > 1e-9
+    };
+    adjacency.edges.iter().any(|o| {
+        if matches!(o.junction, Junction::Coplanar) {
+            return false;
+        }
+        // The part of `o` on e's a side or b side, in that side's parameter.
+        let on = |side: Side, range: [f64; 2]| {
+            (o.a == side && overlaps(range, o.a_range))
+                || (o.b == side && overlaps(range, o.b_range))
+        };
+        on(e.a, e.a_range) || on(e.b, e.b_range)
+    })
+}
+
+/// The lattice index of parameter `x` in [0, 1], if it is one (within rounding).
+fn lattice_index(x: f64) -> Option<i64> {
+    let y = x * LATTICE as f64;
+    let r = y.round();
+    ((y - r).abs() <= 1e-6 && (0.0..=LATTICE as f64).contains(&r)).then_some(r as i64)
+}
+
+/// The link of shared edge `e`, if its two lattices line up.
+fn link(e: &SharedEdge) -> Option<Link> {
+    let ka = [lattice_index(e.a_range[0])?, lattice_index(e.a_range[1])?];
+    let kb = [lattice_index(e.b_range[0])?, lattice_index(e.b_range[1])?];
+    let (la, lb) = ((ka[1] - ka[0]).abs(), (kb[1] - kb[0]).abs());
+    if la == 0 || lb == 0 {
+        return None;
+    }
+    let ratio_ok = |x: i64, y: i64| x % y == 0 && (x / y).count_ones() == 1;
+    (ratio_ok(la, lb) || ratio_ok(lb, la)).then_some(Link {
+        a: e.a,
+        b: e.b,
+        ka,
+        kb,
+    })
+}
+
+/// The vertex key at lattice index `k` along `side`.
+fn side_key(side: u8, k: u32) -> VertexKey {
+    match side {
+        0 => VertexKey::new(k, 0),
+        1 => VertexKey::new(LATTICE, k),
+        2 => VertexKey::new(k, LATTICE),
+        _ => VertexKey::new(0, k),
+    }
+}
+
+/// The lattice index along `side` of a key on it.
+fn side_index(side: u8, k: VertexKey) -> Option<u32> {
+    match side {
+        0 if k.j == 0 => Some(k.i),
+        1 if k.i == LATTICE => Some(k.j),
+        2 if k.j == LATTICE => Some(k.i),
+        3 if k.i == 0 => Some(k.j),
+        _ => None,
+    }
+}
+
+/// `x` mapped from one side's lattice interval to the other's, if it lands on a lattice point.
+fn map_index(x: i64, from: [i64; 2], to: [i64; 2]) -> Option<u32> {
+    let num = (x - from[0]) * (to[1] - to[0]);
+    let den = from[1] - from[0];
+    (num % den == 0).then(|| (to[0] + num / den) as u32)
+}
+
+/// What the reconstruction knows of one polygon before seams: its sample keys (sorted), their
+/// estimated data, and a patch of its unrefined tree at any point.
+pub(crate) struct Own<'a> {
+    pub keys: &'a [VertexKey],
+    pub data: &'a [HermiteData],
+    /// The leaf cell's patch through its corners' estimated data at a key's point.
+    pub patch_at: &'a dyn Fn(VertexKey) -> PatchPoly,
+}
+
+impl Own<'_> {
+    /// The polygon's data at `k`: its estimate at a sample, its own patch elsewhere.
+    fn at(&self, k: VertexKey) -> (HermiteData, bool) {
+        match self.keys.binary_search(&k) {
+            Ok(x) => (self.data[x], true),
+            Err(_) => ((self.patch_at)(k).hermite_at(k.u(), k.v()), false),
+        }
+    }
+}
+
+/// Per polygon, the seam points' data in its own units (sorted by key): samples' data replaced,
+/// new points added.
+pub(crate) type Forced = Vec<Vec<(VertexKey, HermiteData)>>;
+
+/// One polygon's parameter map at a point: the partials X_u, X_v.
+fn jacobian(geometry: &([DVec3; 4], Shape), k: VertexKey) -> (DVec3, DVec3) {
+    let [c0, c1, c2, c3] = geometry.0;
+    let (u, v) = (k.u(), k.v());
+    let xu = (1.0 - v) * (c1 - c0) + v * (c2 - c3);
+    let xv = (1.0 - u) * (c3 - c0) + u * (c2 - c1);
+    (xu, xv)
+}
+
+/// A member of a seam point: a polygon and its key there.
+type Member = (u32, VertexKey);
+
+/// World-frame data of one member: value, gradient (in the plane), twist against the member's
+/// unit axes, those axes, and whether the point is a corner of the member's domain.
+struct World {
+    f: [f64; 3],
+    grad: [DVec3; 3],
+    twist: [f64; 3],
+    axes: (DVec3, DVec3),
+    lengths: (f64, f64),
+    sampled: bool,
+}
+
+/// The world data of `d` for a polygon with partials (xu, xv); `None` where the map is singular
+/// (a triangle's apex).
+fn to_world(d: &HermiteData, xu: DVec3, xv: DVec3, sampled: bool) -> Option<World> {
+    let (a, b, c) = (xu.dot(xu), xu.dot(xv), xv.dot(xv));
+    let det = a * c - b * b;
+    // Singular (or NaN) when det is not clearly positive.
+    if det.is_nan() || det <= 1e-18 * a * c {
+        return None;
+    }
+    let (lu, lv) = (a.sqrt(), c.sqrt());
+    let grad = std::array::from_fn(|ch| {
+        // G = J (J^T J)^-1 [f_u, f_v]: the in-plane gradient with these two directional slopes.
+        let (fu, fv) = (d.fu[ch], d.fv[ch]);
+        let p = (c * fu - b * fv) / det;
+        let q = (a * fv - b * fu) / det;
+        p * xu + q * xv
+    });
+    Some(World {
+        f: d.f,
+        grad,
+        twist: std::array::from_fn(|ch| d.fuv[ch] / (lu * lv)),
+        axes: (xu / lu, xv / lv),
+        lengths: (lu, lv),
+        sampled,
+    })
+}
+
+/// How member `m`'s axes relate to `r`'s: the factor turning `r`'s unit twist into `m`'s, if
+/// the axes are parallel or perpendicular (within 1e-6).
+fn twist_factor(m: &World, r: &World) -> Option<f64> {
+    let (mu, mv) = m.axes;
+    let (ru, rv) = r.axes;
+    let near = |x: f64, y: f64| (x.abs() - y).abs() <= 1e-6;
+    let ortho = |a: DVec3, b: DVec3| a.dot(b).abs() <= 1e-6;
+    if !ortho(mu, mv) || !ortho(ru, rv) {
+        return None;
+    }
+    let (uu, uv, vu, vv) = (mu.dot(ru), mu.dot(rv), mv.dot(ru), mv.dot(rv));
+    if near(uu, 1.0) && near(vv, 1.0) {
+        Some(uu.signum() * vv.signum())
+    } else if near(uv, 1.0) && near(vu, 1.0) {
+        Some(uv.signum() * vu.signum())
+    } else {
+        None
+    }
+}
+
+/// The seam points of every link, grouped: members that are one point of the surface.
+fn seam_points(seams: &Seams, own: &[Own<'_>]) -> Vec<Vec<Member>> {
+    // Union-find over members.
+    let mut id: HashMap<Member, usize> = HashMap::new();
+    let mut members: Vec<Member> = Vec::new();
+    let mut parent: Vec<usize> = Vec::new();
+    fn find(parent: &mut [usize], mut x: usize) -> usize {
+        while parent[x] != x {
+            parent[x] = parent[parent[x]];
+            x = parent[x];
+        }
+        x
+    }
+    let mut node = |m: Member, members: &mut Vec<Member>, parent: &mut Vec<usize>| {
+        *id.entry(m).or_insert_with(|| {
+            members.push(m);
+            parent.push(parent.len());
+            parent.len() - 1
+        })
+    };
+    for l in &seams.links {
+        let mut pairs = Vec::new();
+        // Points of a's side mapped to b's, and of b's side mapped to a's.
+        for (from, to, kf, kt) in [(l.a, l.b, l.ka, l.kb), (l.b, l.a, l.kb, l.ka)] {
+            let (lo, hi) = (kf[0].min(kf[1]), kf[0].max(kf[1]));
+            for &k in own[from.polygon as usize].keys {
+                let Some(x) = side_index(from.side, k) else {
+                    continue;
+                };
+                if (x as i64) < lo || (x as i64) > hi {
+                    continue;
+                }
+                let Some(y) = map_index(x as i64, kf, kt) else {
+                    continue;
+                };
+                if apex(seams, from.polygon, k) || apex(seams, to.polygon, side_key(to.side, y)) {
+                    continue;
+                }
+                pairs.push(((from.polygon, k), (to.polygon, side_key(to.side, y))));
+            }
+        }
+        if !agree(own, &pairs) {
+            continue;
+        }
+        for (p, q) in pairs {
+            let (x, y) = (
+                node(p, &mut members, &mut parent),
+                node(q, &mut members, &mut parent),
+            );
+            let (rx, ry) = (find(&mut parent, x), find(&mut parent, y));
+            if rx != ry {
+                parent[rx.max(ry)] = rx.min(ry);
+            }
+        }
+    }
+    let mut groups: BTreeMap<usize, Vec<Member>> = BTreeMap::new();
+    for (x, &m) in members.iter().enumerate() {
+        let r = find(&mut parent, x);
+        groups.entry(r).or_default().push(m);
+    }
+    groups
+        .into_values()
+        .map(|mut g| {
+            g.sort_unstable();
+            g
+        })
+        .collect()
+}
+
+/// Largest difference, relative to the larger value, that two polygons' samples of one seam
+/// point may have and still be one continuous light. Both sample the same point with the same
+/// normal; they differ by the visibility estimate (sampled shadow rays) only.
+pub const SAMPLE_AGREEMENT: f64 = 0.02;
+
+/// Whether both polygons' samples at every seam point both have agree within
+/// [`SAMPLE_AGREEMENT`] (of the larger value, and of a 1e-3 floor of the larger polygon's peak
+/// for dark points): otherwise the light is discontinuous along the seam (a shadow line, an
+/// occluder standing on it) and the polygons are left apart.
+fn agree(own: &[Own<'_>], pairs: &[(Member, Member)]) -> bool {
+    let value = |(p, k): Member| {
+        let o = &own[p as usize];
+        o.keys.binary_search(&k).ok().map(|x| o.data[x].f)
+    };
+    let peak = |p: u32| {
+        own[p as usize]
+            .data
+            .iter()
+            .flat_map(|d| d.f)
+            .fold(0.0f64, |m, x| m.max(x.abs()))
+    };
+    let Some(&((pa, _), (pb, _))) = pairs.first() else {
+        return true;
+    };
+    let floor = 1e-3 * peak(pa).max(peak(pb));
+    pairs.iter().all(|&(m, n)| {
+        let (Some(a), Some(b)) = (value(m), value(n)) else {
+            return true;
+        };
+        (0..3).all(|ch| {
+            let d = (a[ch] - b[ch]).abs();
+            let scale = a[ch].abs().max(b[ch].abs()).max(floor);
+            d <= SAMPLE_AGREEMENT * scale
+        })
+    })
+}
+
+/// Whether `k` is the apex of a triangle (its v = 1 side collapsed), where (u, v) is singular.
+fn apex(seams: &Seams, polygon: u32, k: VertexKey) -> bool {
+    seams.geometry[polygon as usize].1 == Shape::Triangle && k.j == LATTICE
+}
+
+/// Whether `k` is a corner of the domain.
+fn domain_corner(k: VertexKey) -> bool {
+    (k.i == 0 || k.i == LATTICE) && (k.j == 0 || k.j == LATTICE)
+}
+
+/// The joint data of every seam point, handed to each member polygon in its own units.
+pub(crate) fn force(seams: &Seams, own: &[Own<'_>], estimator: Estimator) -> Forced {
+    let mut out: Forced = vec![Vec::new(); own.len()];
+    if seams.is_empty() {
+        return out;
+    }
+    for group in seam_points(seams, own) {
+        let worlds: Vec<Option<World>> = group
+            .iter()
+            .map(|&(p, k)| {
+                let (d, sampled) = own[p as usize].at(k);
+                let (xu, xv) = jacobian(&seams.geometry[p as usize], k);
+                to_world(&d, xu, xv, sampled)
+            })
+            .collect();
+        let Some(joint) = joint(seams, &group, &worlds, estimator) else {
+            continue;
+        };
+        for (&(p, k), w) in group.iter().zip(&worlds) {
+            let Some(w) = w else { continue };
+            let (xu, xv) = jacobian(&seams.geometry[p as usize], k);
+            let own_twist = own[p as usize].at(k).0.fuv;
+            let mut d = HermiteData {
+                f: joint.f,
+                ..HermiteData::default()
+            };
+            for ch in 0..3 {
+                d.fu[ch] = joint.grad[ch].dot(xu);
+                d.fv[ch] = joint.grad[ch].dot(xv);
+                d.fuv[ch] = match (
+                    joint.twist,
+                    joint.reference.and_then(|r| twist_factor(w, r)),
+                ) {
+                    (Some(t), Some(factor)) => t[ch] * factor * w.lengths.0 * w.lengths.1,
+                    _ => own_twist[ch],
+                };
+            }
+            out[p as usize].push((k, d));
+        }
+    }
+    for f in &mut out {
+        f.sort_unstable_by_key(|e| e.0);
+        f.dedup_by_key(|e| e.0);
+    }
+    out
+}
+
+/// A seam point's data in world terms.
+struct Joint<'w> {
+    f: [f64; 3],
+    grad: [DVec3; 3],
+    /// Unit twist against `reference`'s axes, if one applies to every aligned member.
+    twist: Option<[f64; 3]>,
+    reference: Option<&'w World>,
+}
+
+/// The joint data of one seam point from its members' world data.
+fn joint<'w>(
+    seams: &Seams,
+    group: &[Member],
+    worlds: &'w [Option<World>],
+    estimator: Estimator,
+) -> Option<Joint<'w>> {
+    let live: Vec<&World> = worlds.iter().flatten().collect();
+    let sampled: Vec<&World> = live.iter().copied().filter(|w| w.sampled).collect();
+    let from = if sampled.is_empty() { &live } else { &sampled };
+    if from.is_empty() {
+        return None;
+    }
+    let n = from.len() as f64;
+    let f = std::array::from_fn(|ch| from.iter().map(|w| w.f[ch]).sum::<f64>() / n);
+    let nl = live.len() as f64;
+    let mut grad: [DVec3; 3] =
+        std::array::from_fn(|ch| live.iter().map(|w| w.grad[ch]).sum::<DVec3>() / nl);
+    let reference = live.first().copied();
+    let mut limited_across = [false; 3];
+    // Two polygons meeting inside their sides: the slope across from the estimator's rule.
+    if live.len() == 2 && group.len() == 2 && !group.iter().any(|&(_, k)| domain_corner(k)) {
+        let (pa, ka) = group[0];
+        let (wa, wb) = (live[0], live[1]);
+        let (p0, p1) = side_endpoints_of(seams, pa, ka);
+        let t = (p1 - p0).normalize_or_zero();
+        // Across, pointing into a's polygon: a's inward axis minus its part along the seam.
+        let inward = inward_axis(wa, ka);
+        let across = (inward - inward.dot(t) * t).normalize_or_zero();
+        for ch in 0..3 {
+            let along = 0.5 * (wa.grad[ch].dot(t) + wb.grad[ch].dot(t));
+            // Secant on b's side (arriving at the seam) and on a's side (leaving it).
+            let (d0, d1) = (wb.grad[ch].dot(across), wa.grad[ch].dot(across));
+            let (slope, lim) = match estimator {
+                Estimator::Plain => (0.5 * d0 + 0.5 * d1, false),
+                Estimator::Monotone => (fritsch_butland(d0, d1), limited(d0, d1)),
+                Estimator::Hyman => (hyman(d0, d1).0, limited(d0, d1)),
+            };
+            grad[ch] = along * t + slope * across;
+            limited_across[ch] = lim;
+        }
+    }
+    let twist = reference.and_then(|r| {
+        let mut sum = [0.0f64; 3];
+        let mut count = 0.0;
+        for w in &live {
+            let factor = twist_factor(w, r)?;
+            for (acc, t) in sum.iter_mut().zip(w.twist) {
+                *acc += t * factor;
+            }
+            count += 1.0;
+        }
+        Some(std::array::from_fn(|ch| {
+            if limited_across[ch] {
+                0.0
+            } else {
+                sum[ch] / count
+            }
+        }))
+    });
+    Some(Joint {
+        f,
+        grad,
+        twist,
+        reference,
+    })
+}
+
+/// The unit axis pointing from the border at `k` into the domain (k lies inside a side).
+fn inward_axis(w: &World, k: VertexKey) -> DVec3 {
+    if k.j == 0 {
+        w.axes.1
+    } else if k.j == LATTICE {
+        -w.axes.1
+    } else if k.i == 0 {
+        w.axes.0
+    } else {
+        -w.axes.0
+    }
+}
+
+/// The 3D endpoints of the side of `polygon` that `k` lies inside.
+fn side_endpoints_of(seams: &Seams, polygon: u32, k: VertexKey) -> (DVec3, DVec3) {
+    let side = (0..4u8).find(|&s| side_index(s, k).is_some()).unwrap_or(0);
+    let [c0, c1, c2, c3] = seams.geometry[polygon as usize].0;
+    match side {
+        0 => (c0, c1),
+        1 => (c1, c2),
+        2 => (c3, c2),
+        _ => (c0, c3),
+    }
+}

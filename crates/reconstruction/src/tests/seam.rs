@@ -1,0 +1,333 @@
+//! Seams: one C1 function across the shared edges of coplanar polygons of one material.
+//!
+//! The polygons are floor rectangles (y = 0) sampling one world function, each with its own
+//! adaptive tree, so their lattices along the shared edge differ. Jumps are measured in f64 from
+//! the stored f32 patches: value against the function's peak, slopes across against its largest
+//! slope. The tolerances are f32 coefficient rounding: about 2^-24 of a value times the patch's
+//! inverse width (up to 2^7 here) and the few terms of a derivative, a few 1e-6 of the largest
+//! slope; without seams the slope jumps by percents (one-sided estimates on each side).
+
+use super::*;
+use glam::DVec3;
+use scene::adjacency::Adjacency;
+use scene::{Material, Polygon};
+
+/// A floor rectangle x0..x0+w, z0..z0+h facing up: c0 at (x0, z0+h), u along +x, v along -z.
+fn floor(x0: f64, z0: f64, w: f64, h: f64, material: u32) -> Polygon {
+    Polygon::quad(
+        [
+            DVec3::new(x0, 0.0, z0 + h),
+            DVec3::new(x0 + w, 0.0, z0 + h),
+            DVec3::new(x0 + w, 0.0, z0),
+            DVec3::new(x0, 0.0, z0),
+        ],
+        material,
+        0,
+    )
+    .expect("valid quad")
+}
+
+fn materials(n: usize) -> Vec<Material> {
+    (0..n)
+        .map(|k| Material {
+            name: format!("m{k}"),
+            reflectance: DVec3::splat(0.5 + 0.1 * k as f64),
+            emission: DVec3::ZERO,
+        })
+        .collect()
+}
+
+/// A bright spot near the shared edges of the layouts below.
+fn light(p: DVec3) -> f64 {
+    let d2 = (p.x - 0.8).powi(2) + (p.z - 0.2).powi(2);
+    0.05 + (-d2 / (2.0 * 0.15 * 0.15)).exp()
+}
+
+/// Largest |gradient| of [`light`]: e^(-1/2) / sigma.
+const MAX_SLOPE: f64 = 4.043_653_6;
+
+/// Samples `light` on each polygon with its own criterion tree (tolerance `tols[k]`).
+fn sampled(polys: &[Polygon], tols: &[f64]) -> Vec<SampledQuadtree> {
+    polys
+        .iter()
+        .zip(tols)
+        .map(|(p, &tol)| {
+            let f = |u: f64, v: f64| light(p.point(u, v));
+            let tree = criterion_tree(&f, 1, 7, tol);
+            SampledQuadtree::from_fn(tree, |u, v| Vec3::splat(f(u, v) as f32))
+        })
+        .collect()
+}
+
+/// Largest value jump and cross-slope jump (world units) between two polygons along a shared
+/// line, at `n` points: `at(s)` gives each polygon's (u, v) at parameter s, `across` each one's
+/// world length per unit of its parameter across the line (signed) and which parameter it is.
+/// A polygon and its (u, v) at each parameter along the line.
+type OnLine = (u32, fn(f64) -> (f64, f64));
+
+struct Line {
+    a: OnLine,
+    b: OnLine,
+    /// Per polygon: (index of the cross parameter: 0 = u, 1 = v; world length per unit).
+    across: [(usize, f64); 2],
+}
+
+fn jumps(rec: &Reconstruction, line: &Line, n: usize) -> (f64, f64) {
+    let (mut jv, mut jd) = (0.0f64, 0.0f64);
+    for k in 1..n {
+        let s = k as f64 / n as f64;
+        let mut vals = [0.0f64; 2];
+        let mut slopes = [0.0f64; 2];
+        for (x, ((poly, at), (axis, len))) in
+            [line.a, line.b].into_iter().zip(line.across).enumerate()
+        {
+            let (u, v) = at(s);
+            let (f, fu, fv) = rec.eval_grad(poly, u, v);
+            vals[x] = f.x as f64;
+            slopes[x] = [fu.x, fv.x][axis] as f64 / len;
+        }
+        jv = jv.max((vals[0] - vals[1]).abs());
+        jd = jd.max((slopes[0] - slopes[1]).abs());
+    }
+    (jv, jd / MAX_SLOPE)
+}
+
+fn build(sq: &[SampledQuadtree], seams: &Seams) -> Reconstruction {
+    Reconstruction::build_with(sq, Estimator::default(), seams).expect("valid input")
+}
+
+#[test]
+fn a_split_floor_is_c1_across_its_seam() {
+    // Two unit squares side by side at x = 1; the right one sampled five times finer.
+    let polys = [floor(0.0, 0.0, 1.0, 1.0, 0), floor(1.0, 0.0, 1.0, 1.0, 0)];
+    let mats = materials(1);
+    let sq = sampled(&polys, &[1e-3, 2e-4]);
+    let seams = Seams::of(&polys, &mats, &Adjacency::of(&polys));
+    assert_eq!((seams.joined(), seams.unjoined()), (1, 0));
+    // Polygon 0's u = 1 side and polygon 1's u = 0 side, both with v from z = 1 to z = 0; the
+    // slope across is d/du = d/dx on both.
+    let line = Line {
+        a: (0, |s| (1.0, s)),
+        b: (1, |s| (0.0, s)),
+        across: [(0, 1.0), (0, 1.0)],
+    };
+    let (jv, jd) = jumps(&build(&sq, &seams), &line, 997);
+    assert!(jv <= 1e-6, "value jump {jv:.2e} of the peak");
+    assert!(jd <= 2e-5, "slope jump {jd:.2e} of the largest slope");
+    // Each polygon alone: the one-sided slopes disagree by percents.
+    let (alone_v, alone) = jumps(&build(&sq, &Seams::none()), &line, 997);
+    eprintln!("split floor: joined value {jv:.2e} slope {jd:.2e}; alone value {alone_v:.2e} slope {alone:.2e}");
+    assert!(
+        alone > 1e-3,
+        "without seams the slope jump is only {alone:.2e}"
+    );
+    // And it is no further from the function near the seam than each polygon alone.
+    let near = |rec: &Reconstruction| {
+        let mut worst = 0.0f64;
+        for k in 0..=200 {
+            for (p, u) in [(0u32, 0.97), (0, 1.0), (1, 0.0), (1, 0.03)] {
+                let v = k as f64 / 200.0;
+                let x = polys[p as usize].point(u, v);
+                worst = worst.max((rec.eval(p, u as f32, v as f32).x as f64 - light(x)).abs());
+            }
+        }
+        worst
+    };
+    let (e_joined, e_alone) = (near(&build(&sq, &seams)), near(&build(&sq, &Seams::none())));
+    eprintln!("split floor: error near the seam joined {e_joined:.2e}, alone {e_alone:.2e}");
+    assert!(
+        e_joined <= e_alone,
+        "joined {e_joined:.2e}, alone {e_alone:.2e}"
+    );
+}
+
+#[test]
+fn an_l_corner_joins_a_half_edge() {
+    // A 2 x 1 strip (z in 0..1) and a unit square below its first half (z in -1..0).
+    let polys = [floor(0.0, 0.0, 2.0, 1.0, 0), floor(0.0, -1.0, 1.0, 1.0, 0)];
+    let mats = materials(1);
+    let sq = sampled(&polys, &[3e-4, 1e-3]);
+    let seams = Seams::of(&polys, &mats, &Adjacency::of(&polys));
+    assert_eq!((seams.joined(), seams.unjoined()), (1, 0));
+    // World x in 0..1 along z = 0: the strip's v = 1 side at u = x / 2, the square's v = 0 side
+    // at u = x; the slope across is d/dv = -d/dz on both (v along -z, unit length).
+    let line = Line {
+        a: (0, |s| (0.5 * s, 1.0)),
+        b: (1, |s| (s, 0.0)),
+        across: [(1, 1.0), (1, 1.0)],
+    };
+    let (jv, jd) = jumps(&build(&sq, &seams), &line, 997);
+    assert!(jv <= 1e-6, "value jump {jv:.2e} of the peak");
+    assert!(jd <= 2e-5, "slope jump {jd:.2e} of the largest slope");
+    let (alone_v, alone_d) = jumps(&build(&sq, &Seams::none()), &line, 997);
+    eprintln!("L corner: joined value {jv:.2e} slope {jd:.2e}; alone value {alone_v:.2e} slope {alone_d:.2e}");
+    assert!(
+        alone_d > 1e-3,
+        "without seams the slope jump is only {alone_d:.2e}"
+    );
+    assert!(
+        alone_v > jv,
+        "without seams the value step is {alone_v:.2e}"
+    );
+}
+
+#[test]
+fn a_tiled_floor_is_c1_at_its_four_way_corner() {
+    // Four tiles of width 1 and depth 0.5 meeting at x = 1, z = 0.5.
+    let polys = [
+        floor(0.0, 0.5, 1.0, 0.5, 0),
+        floor(1.0, 0.5, 1.0, 0.5, 0),
+        floor(0.0, 0.0, 1.0, 0.5, 0),
+        floor(1.0, 0.0, 1.0, 0.5, 0),
+    ];
+    let mats = materials(1);
+    let sq = sampled(&polys, &[1e-3, 3e-4, 5e-4, 2e-4]);
+    let seams = Seams::of(&polys, &mats, &Adjacency::of(&polys));
+    assert_eq!(seams.joined(), 4);
+    let rec = build(&sq, &seams);
+    // The vertical seam x = 1 between the lower tiles and between the upper tiles, and the
+    // horizontal seam z = 0.5 (v across, world length 0.5 per unit of v).
+    let lines = [
+        Line {
+            a: (0, |s| (1.0, s)),
+            b: (1, |s| (0.0, s)),
+            across: [(0, 1.0), (0, 1.0)],
+        },
+        Line {
+            a: (2, |s| (1.0, s)),
+            b: (3, |s| (0.0, s)),
+            across: [(0, 1.0), (0, 1.0)],
+        },
+        Line {
+            a: (0, |s| (s, 1.0)),
+            b: (2, |s| (s, 0.0)),
+            across: [(1, 0.5), (1, 0.5)],
+        },
+    ];
+    for line in &lines {
+        let (jv, jd) = jumps(&rec, line, 499);
+        assert!(jv <= 1e-6, "value jump {jv:.2e} of the peak");
+        assert!(jd <= 2e-5, "slope jump {jd:.2e} of the largest slope");
+    }
+    // The corner itself: one value from all four.
+    let at = [(0, 1.0, 1.0), (1, 0.0, 1.0), (2, 1.0, 0.0), (3, 0.0, 0.0)];
+    let vals: Vec<f64> = at
+        .iter()
+        .map(|&(p, u, v)| rec.eval(p, u, v).x as f64)
+        .collect();
+    let spread = vals.iter().cloned().fold(f64::MIN, f64::max)
+        - vals.iter().cloned().fold(f64::MAX, f64::min);
+    assert!(spread <= 1e-6, "corner values {vals:?}");
+}
+
+#[test]
+fn different_materials_are_not_joined() {
+    let polys = [floor(0.0, 0.0, 1.0, 1.0, 0), floor(1.0, 0.0, 1.0, 1.0, 1)];
+    let mats = materials(2);
+    let seams = Seams::of(&polys, &mats, &Adjacency::of(&polys));
+    assert_eq!((seams.joined(), seams.unjoined()), (0, 0));
+    assert!(seams.is_empty());
+}
+
+#[test]
+fn a_non_dyadic_t_junction_is_counted_not_joined() {
+    // A 3 x 1 strip and a unit square under its first third.
+    let polys = [floor(0.0, 0.0, 3.0, 1.0, 0), floor(0.0, -1.0, 1.0, 1.0, 0)];
+    let seams = Seams::of(&polys, &materials(1), &Adjacency::of(&polys));
+    assert_eq!((seams.joined(), seams.unjoined()), (0, 1));
+}
+
+#[test]
+fn compact_and_expanded_rrps_join_alike() {
+    let polys = [floor(0.0, 0.0, 1.0, 1.0, 0), floor(1.0, 0.0, 1.0, 1.0, 0)];
+    let sq = sampled(&polys, &[1e-3, 2e-4]);
+    let seams = Seams::of(&polys, &materials(1), &Adjacency::of(&polys));
+    let rec = build(&sq, &seams);
+    let c = crate::compact::CompactReconstruction::build_with(&sq, Estimator::default(), &seams)
+        .expect("valid input");
+    let mut worst = 0.0f64;
+    for p in 0..2u32 {
+        for k in 0..=64 {
+            let v = k as f32 / 64.0;
+            let u = if p == 0 { 1.0 } else { 0.0 };
+            let id = c.locate(p, u, v);
+            let a = c.expand(id).eval(u, v).x as f64;
+            worst = worst.max((a - rec.eval(p, u, v).x as f64).abs());
+        }
+    }
+    // Quantized vertex data: at most 2^-15 of each quantity (compact.rs's bound), here well
+    // below 1e-4 of the peak.
+    assert!(
+        worst <= 1e-4,
+        "compact differs from expanded by {worst:.2e}"
+    );
+}
+
+#[test]
+fn slivers_and_needles_are_left_apart() {
+    // A 1 x 1e-6 strip under a unit square, and a needle triangle beside the square.
+    let polys = [
+        floor(0.0, 0.0, 1.0, 1.0, 0),
+        floor(0.0, 1.0, 1.0, 1e-6, 0),
+        Polygon::triangle(
+            [
+                DVec3::new(1.0, 0.0, 1.0),
+                DVec3::new(1.0 + 1e-6, 0.0, 0.5),
+                DVec3::new(1.0, 0.0, 0.0),
+            ],
+            0,
+            0,
+        )
+        .expect("valid triangle"),
+    ];
+    let adj = Adjacency::of(&polys);
+    assert!(adj.edges.len() >= 2, "{adj:?}");
+    let seams = Seams::of(&polys, &materials(1), &adj);
+    assert_eq!(seams.joined(), 0);
+    assert!(seams.unjoined() >= 2);
+}
+
+#[test]
+fn a_wall_standing_on_the_seam_keeps_the_floors_apart() {
+    let wall = Polygon::quad(
+        [
+            DVec3::new(1.0, 0.0, 1.0),
+            DVec3::new(1.0, 0.0, 0.0),
+            DVec3::new(1.0, 1.0, 0.0),
+            DVec3::new(1.0, 1.0, 1.0),
+        ],
+        0,
+        0,
+    )
+    .expect("valid quad");
+    let polys = [
+        floor(0.0, 0.0, 1.0, 1.0, 0),
+        floor(1.0, 0.0, 1.0, 1.0, 0),
+        wall,
+    ];
+    let seams = Seams::of(&polys, &materials(1), &Adjacency::of(&polys));
+    assert_eq!((seams.joined(), seams.standing()), (0, 1));
+}
+
+#[test]
+fn a_shadow_line_on_the_seam_keeps_the_floors_apart() {
+    // Lit left of x = 1, a tenth as bright right of it: the samples on the seam disagree, so
+    // the light is discontinuous there and each polygon keeps its own reconstruction.
+    let polys = [floor(0.0, 0.0, 1.0, 1.0, 0), floor(1.0, 0.0, 1.0, 1.0, 0)];
+    let sq: Vec<SampledQuadtree> = polys
+        .iter()
+        .enumerate()
+        .map(|(k, p)| {
+            let level = if k == 0 { 1.0 } else { 0.1 };
+            let f = |u: f64, v: f64| level * light(p.point(u, v));
+            SampledQuadtree::from_fn(criterion_tree(&f, 2, 6, 1e-3), |u, v| {
+                Vec3::splat(f(u, v) as f32)
+            })
+        })
+        .collect();
+    let seams = Seams::of(&polys, &materials(1), &Adjacency::of(&polys));
+    assert_eq!(seams.joined(), 1);
+    let joined = build(&sq, &seams);
+    let apart = build(&sq, &Seams::none());
+    assert_eq!(joined.patches(), apart.patches());
+}
