@@ -30,7 +30,7 @@ use base::output::Outputs;
 use base::Method;
 use engine::frame::FrameOptions;
 use lab::image::{read_image, write_exr, write_png, LinearImage};
-use lab::jobs::{prepare, prepare_path, render_frame, Input, Prepared, TextureOptions};
+use lab::jobs::{prepare, render_frame, Input, Prepared, TextureOptions};
 use metric::pixels::{self, DEFAULT_FLOOR, DEFAULT_TOLERANCE};
 
 const SIZE: u32 = 64;
@@ -56,10 +56,7 @@ fn updating() -> bool {
 /// Renders `scene` (a stem under `scenes/`) by every method and checks (or, when updating,
 /// writes) its golden images; panics listing every method whose image moved.
 fn check_scene(scene: &str) {
-    let path = root().join("scenes").join(format!("{scene}.toml"));
-    let p = prepare_path(&Context::default(), &path, &TextureOptions::default())
-        .expect("scene prepares");
-    check_prepared(scene, &p);
+    check_prepared(scene, crate::shipped(scene));
 }
 
 /// Checks (or writes) the golden images of prepared scene `p` under the name `scene`.

@@ -3,6 +3,36 @@
 /// The repository root (scenes, docs), from this crate's directory.
 pub const REPO: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../..");
 
+/// The prepared solve of shipped scene `name` (a stem under `scenes/`) with the default options,
+/// one per scene for the whole test binary: golden images, renders, meshes and reconstructions
+/// of the shipped scenes share it instead of each solving again. A second test asking for a
+/// scene being solved waits for it.
+pub fn shipped(name: &str) -> &'static lab::jobs::Prepared {
+    use std::collections::HashMap;
+    use std::sync::{Arc, Mutex, OnceLock};
+    type Cell = Arc<OnceLock<&'static lab::jobs::Prepared>>;
+    static CELLS: OnceLock<Mutex<HashMap<String, Cell>>> = OnceLock::new();
+    let cell = {
+        let mut map = CELLS
+            .get_or_init(Default::default)
+            .lock()
+            .unwrap_or_else(|e| e.into_inner());
+        map.entry(name.to_string()).or_default().clone()
+    };
+    cell.get_or_init(|| {
+        let path = std::path::Path::new(REPO)
+            .join("scenes")
+            .join(format!("{name}.toml"));
+        let p = lab::jobs::prepare_path(
+            &lab::jobs::Context::default(),
+            &path,
+            &lab::jobs::TextureOptions::default(),
+        )
+        .expect("shipped scene prepares");
+        Box::leak(Box::new(p))
+    })
+}
+
 /// A generated building of `rooms_x` x `rooms_z` rooms (shell cut `cut` x `cut`), loaded
 /// through the scene loader from memory: closed rooms joined by doorways, the case sampled
 /// visibility is for.

@@ -2,24 +2,19 @@
 //! original polygons (no T-junction cracks, no double cover), and renders through the shared
 //! rasterizer. Run with `--nocapture` for the counts and build times.
 
-use std::path::Path;
 use std::time::Instant;
 
 use engine::frame::{render_patches as render_frame, FrameOptions};
 use engine::raster::build_primitives;
 use engine::raster::region::coverage_counts;
 use engine::raster::setup::{Prim, ONE};
-use radiosity::{solve, SolveOptions};
 use reconstruction::mesh::{MeshModel, MeshStats};
-use scene::{load_scene, Scene};
+use scene::Scene;
 
 /// The scene, its mesh and the solution's leaf count.
 fn solved(name: &str) -> (Scene, MeshModel, u64) {
-    let path = Path::new(crate::REPO)
-        .join("scenes")
-        .join(format!("{name}.toml"));
-    let scene = load_scene(&path).unwrap();
-    let sol = solve(&scene, &SolveOptions::default()).unwrap();
+    let p = crate::shipped(name);
+    let (scene, sol) = (p.scene.clone(), &p.solution);
     let t = Instant::now();
     let mesh = MeshModel::build(&scene, &sol.polygons).unwrap();
     println!(

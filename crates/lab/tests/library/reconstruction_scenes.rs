@@ -2,12 +2,9 @@
 //! textures of equal sampling, and the overshoot of each derivative estimator. Run with
 //! `--nocapture` to see the numbers quoted in docs/performance.md.
 
-use std::path::Path;
 use std::time::Instant;
 
-use radiosity::{solve, SolveOptions};
 use reconstruction::{Estimator, Reconstruction};
-use scene::load_scene;
 
 /// Largest excursion of the reconstruction beyond the per-polygon, per-channel range of its
 /// samples, over a 65 x 65 grid of every polygon, relative to that polygon's sample range.
@@ -36,11 +33,7 @@ fn overshoot(r: &Reconstruction, sol: &[base::quadtree::SampledQuadtree]) -> f64
 #[test]
 fn shipped_scene_rrps_are_compact_and_the_limited_estimators_do_not_ring() {
     for name in ["two-spots", "cornell-box", "gallery"] {
-        let path = Path::new(crate::REPO)
-            .join("scenes")
-            .join(format!("{name}.toml"));
-        let scene = load_scene(&path).unwrap();
-        let sol = solve(&scene, &SolveOptions::default()).unwrap();
+        let sol = &crate::shipped(name).solution;
         let t = Instant::now();
         let mono = Reconstruction::build(&sol.polygons, Estimator::Monotone).unwrap();
         let build_ms = t.elapsed().as_secs_f64() * 1e3;

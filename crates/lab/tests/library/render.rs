@@ -1,31 +1,12 @@
 //! The direct method end to end on the shipped scenes: scene file -> solve -> RRPs -> rasterizer
 //! -> composition -> deferred shading. Each scene is solved once per test binary.
 
-use lab::jobs::Context;
-use std::path::Path;
-use std::sync::OnceLock;
-
 use base::method::Method;
 use engine::frame::{Frame, FrameOptions};
-use lab::jobs::{prepare_path, render_frame, Prepared, TextureOptions};
+use lab::jobs::{render_frame, Prepared};
 
 fn prepared(name: &str) -> &'static Prepared {
-    static TWO_SPOTS: OnceLock<Prepared> = OnceLock::new();
-    static CORNELL: OnceLock<Prepared> = OnceLock::new();
-    static GALLERY: OnceLock<Prepared> = OnceLock::new();
-    let cell = match name {
-        "two-spots" => &TWO_SPOTS,
-        "cornell-box" => &CORNELL,
-        "gallery" => &GALLERY,
-        _ => panic!("no such scene in this test: {name}"),
-    };
-    cell.get_or_init(|| {
-        let path = Path::new(crate::REPO)
-            .join("scenes")
-            .join(format!("{name}.toml"));
-        prepare_path(&Context::default(), &path, &TextureOptions::default())
-            .expect("shipped scene prepares")
-    })
+    crate::shipped(name)
 }
 
 fn render_with(p: &Prepared, opts: &FrameOptions, threads: usize) -> Frame {
