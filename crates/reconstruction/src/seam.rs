@@ -161,7 +161,11 @@ fn conditioned(p: &Polygon, side: u8, range: [f64; 2]) -> bool {
         let (u, v) = scene::adjacency::side_uv(side, s);
         let xu = (1.0 - v) * (c1 - c0) + v * (c2 - c3);
         let xv = (1.0 - u) * (c3 - c0) + u * (c2 - c1);
-        let (along, cross) = if side.is_multiple_of(2) { (xu, xv) } else { (xv, xu) };
+        let (along, cross) = if side.is_multiple_of(2) {
+            (xu, xv)
+        } else {
+            (xv, xu)
+        };
         let (la, lc) = (along.length(), cross.length());
         la > 0.0 && lc >= MIN_CROSS_RATIO * la && along.dot(cross).abs() <= MAX_CROSS_TILT * la * lc
     })
