@@ -3,7 +3,7 @@
 //! against polygon count at 1024, and the deferred pass alone in Mpixel/s: RRPs (direct) and the
 //! texture filters on the same G-buffers.
 //!
-//! Run briefly: `cargo bench --bench frame -- --warm-up-time 1 --measurement-time 3`.
+//! Run briefly: `cargo bench -p pixelflow-bench --bench frame -- --warm-up-time 1 --measurement-time 3`.
 
 use base::method::Method;
 use criterion::{criterion_group, criterion_main, BatchSize, BenchmarkId, Criterion, Throughput};
