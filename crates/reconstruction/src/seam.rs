@@ -453,6 +453,69 @@ fn domain_corner(k: VertexKey) -> bool {
     (k.i == 0 || k.i == LATTICE) && (k.j == 0 || k.j == LATTICE)
 }
 
+/// Per polygon (sorted by key), the seam points its Gouraud mesh must carry for the mesh to be
+/// one continuous surface across every joined seam: each seam point with the mean of the
+/// samples there. Points that are not samples of the polygon become extra vertices on its
+/// border; at its own samples the colour is that mean.
+pub(crate) fn mesh_points(
+    seams: &Seams,
+    polygons: &[base::quadtree::SampledQuadtree],
+) -> Vec<Vec<(VertexKey, glam::Vec3)>> {
+    let mut out = vec![Vec::new(); polygons.len()];
+    if seams.is_empty() || !seams.fits(polygons.len()) {
+        return out;
+    }
+    let data: Vec<Vec<HermiteData>> = polygons
+        .iter()
+        .map(|sq| {
+            sq.values
+                .iter()
+                .map(|v| HermiteData {
+                    f: [v.x as f64, v.y as f64, v.z as f64],
+                    ..HermiteData::default()
+                })
+                .collect()
+        })
+        .collect();
+    // Only sample points are looked up below, so no patch is ever asked for.
+    let no_patch = |_: VertexKey| {
+        PatchPoly::from_corners(base::quadtree::Cell::ROOT, &[HermiteData::default(); 4])
+    };
+    let own: Vec<Own<'_>> = polygons
+        .iter()
+        .zip(&data)
+        .map(|(sq, d)| Own {
+            keys: &sq.keys,
+            data: d,
+            patch_at: &no_patch,
+        })
+        .collect();
+    for group in seam_points(seams, &own) {
+        let sampled: Vec<[f64; 3]> = group
+            .iter()
+            .filter_map(|&(p, k)| {
+                let o = &own[p as usize];
+                o.keys.binary_search(&k).ok().map(|x| o.data[x].f)
+            })
+            .collect();
+        if sampled.is_empty() {
+            continue;
+        }
+        let n = sampled.len() as f64;
+        let mean: [f64; 3] =
+            std::array::from_fn(|ch| sampled.iter().map(|f| f[ch]).sum::<f64>() / n);
+        let colour = glam::Vec3::new(mean[0] as f32, mean[1] as f32, mean[2] as f32);
+        for &(p, k) in &group {
+            out[p as usize].push((k, colour));
+        }
+    }
+    for f in &mut out {
+        f.sort_unstable_by_key(|e| e.0);
+        f.dedup_by_key(|e| e.0);
+    }
+    out
+}
+
 /// The joint data of every seam point, handed to each member polygon in its own units.
 pub(crate) fn force(seams: &Seams, own: &[Own<'_>], estimator: Estimator) -> Forced {
     let mut out: Forced = vec![Vec::new(); own.len()];

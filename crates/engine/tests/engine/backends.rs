@@ -77,7 +77,7 @@ impl Backends {
     }
 
     fn texture(&self, opts: &FrameOptions, side: u32, filter: Filter) -> Frame {
-        let depths = TextureSet::depths(&self.trees);
+        let depths = TextureSet::depths(&self.trees, self.scene.radiosity.max_depth);
         let set = TextureSet::build(
             &self.recon,
             &depths,

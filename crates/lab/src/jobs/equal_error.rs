@@ -213,7 +213,8 @@ impl Search<'_> {
     /// Tries the scales from [`MIN_SCALE`] up until one of the stops, filling `rows`; returns
     /// why it stopped.
     fn run(&self, rows: &mut [EqualErrorRow], stage: &mut Stage<'_>) -> Result<String> {
-        let depths = TextureSet::depths(&self.p.solution.polygons);
+        let depths =
+            TextureSet::depths(&self.p.solution.polygons, self.p.scene.radiosity.max_depth);
         let mut previous: Option<Vec<u32>> = None;
         for k in MIN_SCALE..=MAX_SCALE {
             let sides = TextureSet::sides(&depths, SizePolicy::Scaled(k))?;

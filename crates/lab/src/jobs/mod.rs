@@ -349,7 +349,8 @@ impl Prepared {
     /// ([`budget::texture_bytes`]) and what is held already pass the job's memory limit.
     pub fn textures(&self) -> Result<(&TextureSet, f64)> {
         if self.textures.get().is_none() {
-            let depths = TextureSet::depths(&self.solution.polygons);
+            let depths =
+                TextureSet::depths(&self.solution.polygons, self.scene.radiosity.max_depth);
             let cs = self.compact.stats();
             let mut e = budget::Estimate::new(
                 "the radiosity textures",
@@ -399,7 +400,7 @@ impl Prepared {
                 .add("mesh", budget::mesh_bytes(st.elements, st.t_vertices));
             e.check(self.memory_limit)?;
             let t = Instant::now();
-            let mesh = MeshModel::build(&self.scene, &self.solution.polygons)
+            let mesh = MeshModel::build_with(&self.scene, &self.solution.polygons, &self.seams)
                 .map_err(|e| self.file_error(e))?;
             let _ = self.mesh.set((mesh, t.elapsed().as_secs_f64() * 1e3));
         }

@@ -536,7 +536,7 @@ impl AtDensity<'_> {
     /// equal to that memory selects exactly that scale); none without a texture method.
     fn texture_sets(&self) -> Result<Vec<(TextureLevel, TextureSet)>> {
         let p = self.p;
-        let depths = TextureSet::depths(&p.solution.polygons);
+        let depths = TextureSet::depths(&p.solution.polygons, p.scene.radiosity.max_depth);
         let full = TextureSet::sides(&depths, SizePolicy::FromDepth)?;
         let mut sets = Vec::new();
         if !self

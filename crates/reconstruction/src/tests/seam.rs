@@ -331,3 +331,61 @@ fn a_shadow_line_on_the_seam_keeps_the_floors_apart() {
     let apart = build(&sq, &Seams::none());
     assert_eq!(joined.patches(), apart.patches());
 }
+
+/// Vertices (z, colour) of polygon `p`'s mesh triangles lying on the line x = 1, in z order.
+fn mesh_seam_vertices(mesh: &mesh::MeshModel, p: u32) -> Vec<(f64, f32)> {
+    let mut out = Vec::new();
+    for (k, tri) in mesh.scene.polygons.iter().enumerate() {
+        if mesh.source_polygon[k] != p {
+            continue;
+        }
+        let c = mesh.patches[k].c[0];
+        let colours = [c[0], c[0] + c[1], c[0] + c[4]];
+        for (corner, colour) in tri.corners[..3].iter().zip(colours) {
+            if (corner.x - 1.0).abs() < 1e-12 {
+                out.push((corner.z, colour));
+            }
+        }
+    }
+    out.sort_by(|a, b| a.0.total_cmp(&b.0));
+    out.dedup_by(|a, b| (a.0 - b.0).abs() < 1e-12);
+    out
+}
+
+#[test]
+fn the_mesh_shares_its_vertices_across_a_seam() {
+    let polys = [floor(0.0, 0.0, 1.0, 1.0, 0), floor(1.0, 0.0, 1.0, 1.0, 0)];
+    let sq = sampled(&polys, &[1e-3, 2e-4]);
+    let camera = scene::Camera {
+        eye: DVec3::new(1.0, 2.0, 0.5),
+        look_at: DVec3::new(1.0, 0.0, 0.5),
+        up: DVec3::Z,
+        projection: scene::Projection::Orthographic {
+            width: 2.0,
+            height: 1.0,
+        },
+    };
+    let scene = scene::Scene::new(camera, 64, 32, materials(1), polys.to_vec());
+    let seams = Seams::of(&polys, &materials(1), &Adjacency::of(&polys));
+    let joined = mesh::MeshModel::build_with(&scene, &sq, &seams).expect("mesh");
+    let (a, b) = (
+        mesh_seam_vertices(&joined, 0),
+        mesh_seam_vertices(&joined, 1),
+    );
+    assert!(a.len() > 8, "{a:?}");
+    assert_eq!(a.len(), b.len(), "both sides carry every seam point");
+    for ((za, ca), (zb, cb)) in a.iter().zip(&b) {
+        assert!((za - zb).abs() < 1e-12);
+        // Gouraud colours recovered from f32 power coefficients: a few ulps.
+        assert!(
+            (ca - cb).abs() <= 4e-7 * ca.abs().max(1e-3),
+            "{za}: {ca} vs {cb}"
+        );
+    }
+    // Apart, the finer side has points the coarser lacks: T-junctions across the seam.
+    let apart = mesh::MeshModel::build(&scene, &sq).expect("mesh");
+    assert_ne!(
+        mesh_seam_vertices(&apart, 0).len(),
+        mesh_seam_vertices(&apart, 1).len()
+    );
+}

@@ -673,9 +673,17 @@ impl TextureSet {
         }
     }
 
-    /// Quadtree depth of each polygon of a solution, the input of [`TextureSet::build`].
-    pub fn depths(polygons: &[SampledQuadtree]) -> Vec<u32> {
-        polygons.iter().map(|p| p.tree.depth()).collect()
+    /// Quadtree depth of each polygon of a solution, capped at `max_depth` (the scene's
+    /// `radiosity.max_depth`): the input of [`TextureSet::build`]. Leaves past the cap are the
+    /// solver's dives to a light's peak or a spot's cone edge over a small area; a texture as
+    /// fine as them would hold the whole polygon at that resolution (the gallery's textures
+    /// grew from 0.2 MB to 142 MB that way), while the texture methods' error is set by the
+    /// bulk of the polygon.
+    pub fn depths(polygons: &[SampledQuadtree], max_depth: u32) -> Vec<u32> {
+        polygons
+            .iter()
+            .map(|p| p.tree.depth().min(max_depth))
+            .collect()
     }
 
     /// The per-polygon sides `policy` chooses for quadtrees of the given depths.

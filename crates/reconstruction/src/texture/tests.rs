@@ -257,7 +257,7 @@ fn texture_from_a_linear_rrp_reproduces_it_bilinearly() {
     };
     let sq = SampledQuadtree::from_fn(tree, f);
     let recon = Reconstruction::build(std::slice::from_ref(&sq), Estimator::default()).unwrap();
-    let depths = TextureSet::depths(std::slice::from_ref(&sq));
+    let depths = TextureSet::depths(std::slice::from_ref(&sq), base::quadtree::MAX_DEPTH);
     assert_eq!(depths, [2]);
     let set = TextureSet::build(&recon, &depths, SizePolicy::FromDepth, Placement::Centre).unwrap();
     let t = &set.textures[0];
@@ -308,7 +308,7 @@ fn from_depth_memory_matches_the_reconstruction_stats() {
     let recon = Reconstruction::build(&trees, Estimator::default()).unwrap();
     let set = TextureSet::build(
         &recon,
-        &TextureSet::depths(&trees),
+        &TextureSet::depths(&trees, base::quadtree::MAX_DEPTH),
         SizePolicy::FromDepth,
         Placement::Centre,
     )
