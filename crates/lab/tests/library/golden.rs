@@ -2,7 +2,7 @@
 //! [`every_shipped_scene_has_a_golden_test`]) rendered at 64 x 64 by every method (the
 //! building's `reference` at 16 x 16), compared pixel by pixel with the EXR committed under
 //! `crates/lab/tests/golden/<scene>/<method>.exr`. The building is drawn from the generator
-//! that wrote `scenes/building.toml`, with its options but 3 x 3 rooms instead of 8 x 8 (see
+//! that wrote `scenes/building.toml`, with its options but 2 x 2 rooms instead of 8 x 8 (see
 //! [`golden_building`]).
 //!
 //! The tolerance ([`pixels::DEFAULT_TOLERANCE`], 16 `f32` rounding steps relative to the pixel,
