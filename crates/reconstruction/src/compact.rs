@@ -711,12 +711,7 @@ impl CompactReconstruction {
         estimator: Estimator,
         seams: &Seams,
     ) -> Result<CompactReconstruction> {
-        if !seams.fits(polygons.len()) {
-            return Err(Error::Inconsistent(format!(
-                "compact reconstruction: seams built for another scene than these {} polygons",
-                polygons.len()
-            )));
-        }
+        seams.check_fits(polygons.len(), "compact reconstruction")?;
         if polygons.len() > MAX_POLYGONS {
             return Err(Error::Inconsistent(
                 "compact reconstruction: more than 2^27 polygons".into(),

@@ -434,22 +434,6 @@ fn finish_polygon(
     }
 }
 
-/// The patch of the unrefined tree's leaf holding `k`, through its corners' estimated data.
-fn estimated_patch(
-    sq: &SampledQuadtree,
-    data: &[HermiteData],
-    k: base::quadtree::VertexKey,
-) -> PatchPoly {
-    let cell = estimate::leaf_cell(&sq.tree, k.i, k.j);
-    let [c00, c10, c11, c01] = cell.corners();
-    let at = |c| {
-        sq.keys
-            .binary_search(&c)
-            .map_or(HermiteData::default(), |x| data[x])
-    };
-    PatchPoly::from_corners(cell, &[at(c00), at(c10), at(c01), at(c11)])
-}
-
 /// Every polygon's f64 reconstruction, in polygon order: estimates in parallel, the seams'
 /// joint data in one ordered pass, refinement in parallel (each step's result depends on no
 /// thread count). Shared by [`Reconstruction::build_with`] and
@@ -470,23 +454,12 @@ pub(crate) fn build_polygons(
     {
         vec![Vec::new(); polygons.len()]
     } else {
-        let patch_fns: Vec<Box<dyn Fn(base::quadtree::VertexKey) -> PatchPoly + Sync + '_>> =
-            polygons
-                .iter()
-                .zip(&estimated)
-                .map(|(sq, e)| {
-                    let data = &e.as_ref().expect("checked above").data;
-                    Box::new(move |k| estimated_patch(sq, data, k)) as Box<dyn Fn(_) -> _ + Sync>
-                })
-                .collect();
         let own: Vec<seam::Own<'_>> = polygons
             .iter()
             .zip(&estimated)
-            .zip(&patch_fns)
-            .map(|((sq, e), f)| seam::Own {
-                keys: &sq.keys,
+            .map(|(sq, e)| seam::Own {
+                sq,
                 data: &e.as_ref().expect("checked above").data,
-                patch_at: f.as_ref(),
             })
             .collect();
         seam::force(seams, &own, estimator)
@@ -569,12 +542,7 @@ impl Reconstruction {
         estimator: Estimator,
         seams: &Seams,
     ) -> Result<Reconstruction> {
-        if !seams.fits(polygons.len()) {
-            return Err(Error::Inconsistent(format!(
-                "reconstruction: seams built for another scene than these {} polygons",
-                polygons.len()
-            )));
-        }
+        seams.check_fits(polygons.len(), "reconstruction")?;
         let built = build_polygons(polygons, estimator, seams);
         let mut patches = Vec::new();
         let mut nodes: Vec<u32> = Vec::new();

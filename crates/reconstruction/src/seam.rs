@@ -42,8 +42,8 @@ use glam::DVec3;
 use super::estimate::{fritsch_butland, hyman, limited};
 use super::hermite::{HermiteData, PatchPoly};
 use super::Estimator;
-use base::quadtree::{VertexKey, LATTICE};
-use scene::adjacency::{Adjacency, Junction, SharedEdge, Side};
+use base::quadtree::{SampledQuadtree, VertexKey, LATTICE};
+use scene::adjacency::{side_endpoints, Adjacency, Junction, SharedEdge, Side};
 use scene::{Material, Polygon, Shape};
 
 /// A shared side joined by the reconstruction, in lattice units.
@@ -61,8 +61,9 @@ struct Link {
 #[derive(Debug, Clone, Default)]
 pub struct Seams {
     links: Vec<Link>,
-    /// Every polygon's corners and shape, indexed like the scene (empty without links).
-    geometry: Vec<([DVec3; 4], Shape)>,
+    /// Every polygon, indexed like the scene (empty without links): its parameter map converts
+    /// derivatives.
+    geometry: Vec<Polygon>,
     unjoined: usize,
     standing: usize,
 }
@@ -101,7 +102,7 @@ impl Seams {
         let geometry = if links.is_empty() {
             Vec::new()
         } else {
-            polygons.iter().map(|p| (p.corners, p.shape)).collect()
+            polygons.to_vec()
         };
         Seams {
             links,
@@ -132,6 +133,18 @@ impl Seams {
         self.links.is_empty()
     }
 
+    /// [`Error::Inconsistent`] (naming `what`, the thing being built) unless the seams fit `count` polygons:
+    /// seams made for another scene.
+    pub(crate) fn check_fits(&self, count: usize, what: &str) -> base::error::Result<()> {
+        if self.fits(count) {
+            Ok(())
+        } else {
+            Err(base::error::Error::Inconsistent(format!(
+                "{what}: seams built for another scene than these {count} polygons"
+            )))
+        }
+    }
+
     /// Whether the seams refer only to polygons below `count`.
     pub(crate) fn fits(&self, count: usize) -> bool {
         self.links.is_empty()
@@ -156,11 +169,9 @@ pub const MIN_CROSS_RATIO: f64 = 1e-2;
 /// within [`MAX_CROSS_TILT`] of perpendicular to the side and at least [`MIN_CROSS_RATIO`] of
 /// its length. Slivers, needles and the slanted sides of most triangles are left unjoined.
 fn conditioned(p: &Polygon, side: u8, range: [f64; 2]) -> bool {
-    let [c0, c1, c2, c3] = p.corners;
     range.iter().all(|&s| {
         let (u, v) = scene::adjacency::side_uv(side, s);
-        let xu = (1.0 - v) * (c1 - c0) + v * (c2 - c3);
-        let xv = (1.0 - u) * (c3 - c0) + u * (c2 - c1);
+        let (xu, xv) = p.tangents(u, v);
         let (along, cross) = if side.is_multiple_of(2) {
             (xu, xv)
         } else {
@@ -244,22 +255,35 @@ fn map_index(x: i64, from: [i64; 2], to: [i64; 2]) -> Option<u32> {
     (num % den == 0).then(|| (to[0] + num / den) as u32)
 }
 
-/// What the reconstruction knows of one polygon before seams: its sample keys (sorted), their
-/// estimated data, and a patch of its unrefined tree at any point.
+/// What the reconstruction knows of one polygon before seams: its samples and their estimated
+/// data (in key order).
 pub(crate) struct Own<'a> {
-    pub keys: &'a [VertexKey],
+    pub sq: &'a SampledQuadtree,
     pub data: &'a [HermiteData],
-    /// The leaf cell's patch through its corners' estimated data at a key's point.
-    pub patch_at: &'a dyn Fn(VertexKey) -> PatchPoly,
 }
 
 impl Own<'_> {
-    /// The polygon's data at `k`: its estimate at a sample, its own patch elsewhere.
+    fn keys(&self) -> &[VertexKey] {
+        &self.sq.keys
+    }
+
+    /// The polygon's data at `k`: its estimate at a sample; elsewhere the patch of its
+    /// unrefined tree's leaf holding `k`, through that leaf's corners' estimates.
     fn at(&self, k: VertexKey) -> (HermiteData, bool) {
-        match self.keys.binary_search(&k) {
-            Ok(x) => (self.data[x], true),
-            Err(_) => ((self.patch_at)(k).hermite_at(k.u(), k.v()), false),
+        if let Ok(x) = self.sq.keys.binary_search(&k) {
+            return (self.data[x], true);
         }
+        let cell = super::estimate::leaf_cell(&self.sq.tree, k.i, k.j);
+        let [c00, c10, c11, c01] = cell.corners();
+        let corner = |c| {
+            self.sq
+                .keys
+                .binary_search(&c)
+                .map_or(HermiteData::default(), |x| self.data[x])
+        };
+        let patch =
+            PatchPoly::from_corners(cell, &[corner(c00), corner(c10), corner(c01), corner(c11)]);
+        (patch.hermite_at(k.u(), k.v()), false)
     }
 }
 
@@ -267,21 +291,16 @@ impl Own<'_> {
 /// new points added.
 pub(crate) type Forced = Vec<Vec<(VertexKey, HermiteData)>>;
 
-/// One polygon's parameter map at a point: the partials X_u, X_v.
-fn jacobian(geometry: &([DVec3; 4], Shape), k: VertexKey) -> (DVec3, DVec3) {
-    let [c0, c1, c2, c3] = geometry.0;
-    let (u, v) = (k.u(), k.v());
-    let xu = (1.0 - v) * (c1 - c0) + v * (c2 - c3);
-    let xv = (1.0 - u) * (c3 - c0) + u * (c2 - c1);
-    (xu, xv)
-}
-
 /// A member of a seam point: a polygon and its key there.
 type Member = (u32, VertexKey);
 
 /// World-frame data of one member: value, gradient (in the plane), twist against the member's
 /// unit axes, those axes, and whether the point is a corner of the member's domain.
 struct World {
+    /// The member's partials X_u, X_v at the point.
+    partials: (DVec3, DVec3),
+    /// The member's own twist, kept where no joint twist applies.
+    own_twist: [f64; 3],
     f: [f64; 3],
     grad: [DVec3; 3],
     twist: [f64; 3],
@@ -308,6 +327,8 @@ fn to_world(d: &HermiteData, xu: DVec3, xv: DVec3, sampled: bool) -> Option<Worl
         p * xu + q * xv
     });
     Some(World {
+        partials: (xu, xv),
+        own_twist: d.fuv,
         f: d.f,
         grad,
         twist: std::array::from_fn(|ch| d.fuv[ch] / (lu * lv)),
@@ -362,7 +383,7 @@ fn seam_points(seams: &Seams, own: &[Own<'_>]) -> Vec<Vec<Member>> {
         // Points of a's side mapped to b's, and of b's side mapped to a's.
         for (from, to, kf, kt) in [(l.a, l.b, l.ka, l.kb), (l.b, l.a, l.kb, l.ka)] {
             let (lo, hi) = (kf[0].min(kf[1]), kf[0].max(kf[1]));
-            for &k in own[from.polygon as usize].keys {
+            for &k in own[from.polygon as usize].keys() {
                 let Some(x) = side_index(from.side, k) else {
                     continue;
                 };
@@ -418,7 +439,7 @@ pub const SAMPLE_AGREEMENT: f64 = 0.02;
 fn agree(own: &[Own<'_>], pairs: &[(Member, Member)]) -> bool {
     let value = |(p, k): Member| {
         let o = &own[p as usize];
-        o.keys.binary_search(&k).ok().map(|x| o.data[x].f)
+        o.keys().binary_search(&k).ok().map(|x| o.data[x].f)
     };
     let peak = |p: u32| {
         own[p as usize]
@@ -445,7 +466,7 @@ fn agree(own: &[Own<'_>], pairs: &[(Member, Member)]) -> bool {
 
 /// Whether `k` is the apex of a triangle (its v = 1 side collapsed), where (u, v) is singular.
 fn apex(seams: &Seams, polygon: u32, k: VertexKey) -> bool {
-    seams.geometry[polygon as usize].1 == Shape::Triangle && k.j == LATTICE
+    seams.geometry[polygon as usize].shape == Shape::Triangle && k.j == LATTICE
 }
 
 /// Whether `k` is a corner of the domain.
@@ -459,7 +480,7 @@ fn domain_corner(k: VertexKey) -> bool {
 /// border; at its own samples the colour is that mean.
 pub(crate) fn mesh_points(
     seams: &Seams,
-    polygons: &[base::quadtree::SampledQuadtree],
+    polygons: &[SampledQuadtree],
 ) -> Vec<Vec<(VertexKey, glam::Vec3)>> {
     let mut out = vec![Vec::new(); polygons.len()];
     if seams.is_empty() || !seams.fits(polygons.len()) {
@@ -477,25 +498,17 @@ pub(crate) fn mesh_points(
                 .collect()
         })
         .collect();
-    // Only sample points are looked up below, so no patch is ever asked for.
-    let no_patch = |_: VertexKey| {
-        PatchPoly::from_corners(base::quadtree::Cell::ROOT, &[HermiteData::default(); 4])
-    };
     let own: Vec<Own<'_>> = polygons
         .iter()
         .zip(&data)
-        .map(|(sq, d)| Own {
-            keys: &sq.keys,
-            data: d,
-            patch_at: &no_patch,
-        })
+        .map(|(sq, d)| Own { sq, data: d })
         .collect();
     for group in seam_points(seams, &own) {
         let sampled: Vec<[f64; 3]> = group
             .iter()
             .filter_map(|&(p, k)| {
                 let o = &own[p as usize];
-                o.keys.binary_search(&k).ok().map(|x| o.data[x].f)
+                o.keys().binary_search(&k).ok().map(|x| o.data[x].f)
             })
             .collect();
         if sampled.is_empty() {
@@ -527,7 +540,7 @@ pub(crate) fn force(seams: &Seams, own: &[Own<'_>], estimator: Estimator) -> For
             .iter()
             .map(|&(p, k)| {
                 let (d, sampled) = own[p as usize].at(k);
-                let (xu, xv) = jacobian(&seams.geometry[p as usize], k);
+                let (xu, xv) = seams.geometry[p as usize].tangents(k.u(), k.v());
                 to_world(&d, xu, xv, sampled)
             })
             .collect();
@@ -536,8 +549,7 @@ pub(crate) fn force(seams: &Seams, own: &[Own<'_>], estimator: Estimator) -> For
         };
         for (&(p, k), w) in group.iter().zip(&worlds) {
             let Some(w) = w else { continue };
-            let (xu, xv) = jacobian(&seams.geometry[p as usize], k);
-            let own_twist = own[p as usize].at(k).0.fuv;
+            let (xu, xv) = w.partials;
             let mut d = HermiteData {
                 f: joint.f,
                 ..HermiteData::default()
@@ -550,7 +562,7 @@ pub(crate) fn force(seams: &Seams, own: &[Own<'_>], estimator: Estimator) -> For
                     joint.reference.and_then(|r| twist_factor(w, r)),
                 ) {
                     (Some(t), Some(factor)) => t[ch] * factor * w.lengths.0 * w.lengths.1,
-                    _ => own_twist[ch],
+                    _ => w.own_twist[ch],
                 };
             }
             out[p as usize].push((k, d));
@@ -656,11 +668,5 @@ fn inward_axis(w: &World, k: VertexKey) -> DVec3 {
 /// The 3D endpoints of the side of `polygon` that `k` lies inside.
 fn side_endpoints_of(seams: &Seams, polygon: u32, k: VertexKey) -> (DVec3, DVec3) {
     let side = (0..4u8).find(|&s| side_index(s, k).is_some()).unwrap_or(0);
-    let [c0, c1, c2, c3] = seams.geometry[polygon as usize].0;
-    match side {
-        0 => (c0, c1),
-        1 => (c1, c2),
-        2 => (c3, c2),
-        _ => (c0, c3),
-    }
+    side_endpoints(&seams.geometry[polygon as usize], side)
 }
