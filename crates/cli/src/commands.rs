@@ -181,6 +181,7 @@ pub fn render(settings: &Settings, args: RenderArgs) -> anyhow::Result<()> {
         walkthrough: args.walkthrough,
         texture: args.texture.options(),
         estimator: args.estimator,
+        sharp_levels: args.sharp_levels,
     };
     let (verbose, quiet) = (args.verbose, args.quiet);
     let observer = Terminal::new(!quiet, args.trace);

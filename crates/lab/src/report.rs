@@ -52,9 +52,10 @@ pub struct SceneSummary {
     pub memory_max: u64,
     /// Shared polygon edges ([`scene::adjacency`]).
     pub adjacency: scene::adjacency::AdjacencySummary,
-    /// Seams the reconstruction joins, and those it leaves apart because a polygon stands on
-    /// them or because their lattices or shapes do not line up ([`reconstruction::seam`]).
-    pub seams: (usize, usize, usize),
+    /// Seams the reconstruction joins C1 (coplanar) and C0 (gentle folds), and those it leaves
+    /// apart because a polygon stands on them or because their lattices or shapes do not line
+    /// up ([`reconstruction::seam`]).
+    pub seams: (usize, usize, usize, usize),
     /// Warnings the loader emitted.
     pub warnings: usize,
 }
@@ -102,7 +103,12 @@ pub fn summarize(scene: &Scene) -> SceneSummary {
         memory_min: start.total(),
         memory_max: worst,
         adjacency: adjacency.summary(&scene.polygons, &scene.materials),
-        seams: (seams.joined(), seams.standing(), seams.unjoined()),
+        seams: (
+            seams.joined() - seams.folds(),
+            seams.folds(),
+            seams.standing(),
+            seams.unjoined(),
+        ),
         warnings: scene.warnings.len(),
     }
 }
@@ -150,9 +156,10 @@ impl fmt::Display for SceneSummary {
             (
                 "seams",
                 format!(
-                    "{} joined C1 (unless their samples disagree), apart: {} with a polygon \
-                     standing on them, {} whose lattices or shapes do not line up",
-                    self.seams.0, self.seams.1, self.seams.2
+                    "{} joined C1 and {} gentle folds joined C0 (unless their samples \
+                     disagree), apart: {} with a polygon standing on them, {} whose lattices or \
+                     shapes do not line up",
+                    self.seams.0, self.seams.1, self.seams.2, self.seams.3
                 ),
             ),
             ("warnings", self.warnings.to_string()),

@@ -14,6 +14,8 @@
 //!   mean-normalised luminance difference. Derivative discontinuities at element and texel
 //!   boundaries (what C0 reconstructions leave and the paper's C1 bicubic ones remove) show up as
 //!   spikes of the second difference, which this sums.
+//! - [`edges`]: the share of the error within 2 px of the reference's sharp edges (where the
+//!   light jumps), and the RMSE on each side.
 //! - [`pixels`]: the pixel-by-pixel check against a golden image (which pixels moved, a
 //!   difference image), for regression tests.
 //! - Here: the plain error measures and [`compare`], which computes all of them.
@@ -30,6 +32,7 @@
 //! divide by 0) are errors. No output is NaN or infinite; the one number that would be infinite,
 //! the PSNR of identical images, is `None` (JSON `null`).
 
+pub mod edges;
 pub mod mach;
 pub mod perceptual;
 pub mod pixels;
@@ -71,6 +74,8 @@ pub struct Comparison {
     /// The Mach-band measure (see [`mach`]): mean squared second difference of the
     /// mean-normalised luminance difference (dimensionless; 0 for equal images).
     pub mach_band: f64,
+    /// The error split at the reference's sharp edges ([`edges`]).
+    pub edges: edges::EdgeSplit,
     /// Mean luminance of `a`.
     pub mean_luminance_a: f64,
     /// Mean luminance of `b`.
@@ -85,7 +90,8 @@ impl Comparison {
             Some(p) => format!("{p:.4} dB (peak {:.6})", self.psnr_peak),
             None => format!("inf (equal images; peak {:.6})", self.psnr_peak),
         };
-        let rows: [(&str, String); 8] = [
+        let e = &self.edges;
+        let rows: [(&str, String); 9] = [
             ("size", format!("{} x {}", self.width, self.height)),
             (
                 "perceptual distance",
@@ -99,6 +105,16 @@ impl Comparison {
                 format!("{:.6e}", self.relative_luminance_error),
             ),
             ("mach-band energy", format!("{:.6e}", self.mach_band)),
+            (
+                "near sharp edges",
+                format!(
+                    "{:.1} % of squared error on {} px (rmse {:.6e} near, {:.6e} away)",
+                    100.0 * e.near_share,
+                    e.near_pixels,
+                    e.rmse_near,
+                    e.rmse_far
+                ),
+            ),
             (
                 "mean luminance a / b",
                 format!(
@@ -210,6 +226,7 @@ pub fn compare(a: &LinearImage, b: &LinearImage, ppd: f64) -> Result<Comparison>
         max_abs_error: max_abs,
         relative_luminance_error: abs / n / mean_b,
         mach_band: mach::mach_band_of_luminances(&ya, &yb, w, h),
+        edges: edges::edge_split(&ya, &yb, w, h),
         mean_luminance_a: mean_a,
         mean_luminance_b: mean_b,
     })

@@ -38,8 +38,10 @@ pub const MAGIC: &[u8; 8] = b"PFSOLN\r\n";
 /// marks solutions of the local refinement criterion with per-channel convergence, their RRPs
 /// built with the Hyman estimator; version 4 stores the shapes of the patches' light; version 6
 /// stores the compact RRPs with a per-vertex shift per quantity (relative precision) and without
-/// the T-vertices' data (`PFRRPC02`). Older files are refused (solve again).
-pub const FORMAT_VERSION: u32 = 6;
+/// the T-vertices' data (`PFRRPC02`); version 7 stores RRPs that follow the spot lights' edges
+/// (split three levels deeper where a spot's rim or hard shadow crosses a leaf), so an older
+/// file's RRPs would be silently smoother there. Older files are refused (solve again).
+pub const FORMAT_VERSION: u32 = 7;
 /// Most nodes a stored patch shape may have: a full tree of [`MAX_SHAPE_LEVELS`] levels.
 const MAX_SHAPE_NODES: usize = ((1 << (2 * (MAX_SHAPE_LEVELS + 1))) - 1) / 3;
 const HEADER: usize = 8 + 4 + 4 + 8 + 8;

@@ -42,6 +42,7 @@ mod faces;
 pub mod file;
 mod formfactor;
 mod shoot;
+mod spots;
 #[cfg(test)]
 pub(crate) mod test_scenes;
 mod transfer;
@@ -63,6 +64,7 @@ use base::progress::{Observer, Stage, SILENT};
 use base::quadtree::{SampledQuadtree, MAX_DEPTH};
 pub use faces::{face_means, FaceMean};
 use scene::Scene;
+pub use spots::SpotParts;
 pub use transfer::shape::PatchShape;
 pub use transfer::ShooterKind;
 use transfer::Transfer;

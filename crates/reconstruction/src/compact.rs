@@ -125,7 +125,7 @@
 
 use rayon::prelude::*;
 
-use crate::Seams;
+use crate::{Seams, Sharp};
 
 use super::hermite::{HermiteData, PatchPoly};
 use super::{
@@ -278,20 +278,20 @@ impl Leaf {
 
 /// What one polygon's tree alone determines: its vertices, its leaves and which vertices are
 /// derived, from which leaf, in which order (module docs).
-struct Layout {
+pub(crate) struct Layout {
     /// Vertex keys, sorted.
-    keys: Vec<VertexKey>,
+    pub(crate) keys: Vec<VertexKey>,
     /// Per leaf in node order: its cell and corner vertex indices in patch corner order.
-    leaves: Vec<(Cell, [u32; 4])>,
+    pub(crate) leaves: Vec<(Cell, [u32; 4])>,
     /// Derived vertices in derivation order, each with the leaf (index in `leaves`) inside whose
     /// edge it lies; one leaf's entries are consecutive, leaves in ascending level.
     derived: Vec<(u32, u32)>,
     /// Per vertex: whether it is derived.
-    is_derived: Vec<bool>,
+    pub(crate) is_derived: Vec<bool>,
 }
 
 impl Layout {
-    fn of(tree: &Quadtree) -> Layout {
+    pub(crate) fn of(tree: &Quadtree) -> Layout {
         let keys = tree.vertex_keys();
         // Every corner of a leaf is a vertex: the default never shows up.
         let rank = |k: VertexKey| keys.binary_search(&k).unwrap_or_default() as u32;
@@ -347,7 +347,11 @@ impl Layout {
 
     /// Fills the derived vertices of `data` (every vertex, stored ones given) from their leaves'
     /// patches, in derivation order, passing each through `round` before it is used further.
-    fn derive(&self, data: &mut [HermiteData], round: impl Fn(HermiteData) -> HermiteData) {
+    pub(crate) fn derive(
+        &self,
+        data: &mut [HermiteData],
+        round: impl Fn(HermiteData) -> HermiteData,
+    ) {
         let mut current: Option<(u32, PatchPoly)> = None;
         for &(l, v) in &self.derived {
             let poly = match current {
@@ -701,15 +705,16 @@ impl CompactReconstruction {
         polygons: &[SampledQuadtree],
         estimator: Estimator,
     ) -> Result<CompactReconstruction> {
-        CompactReconstruction::build_with(polygons, estimator, &Seams::none())
+        CompactReconstruction::build_with(polygons, estimator, &Seams::none(), None)
     }
 
-    /// [`CompactReconstruction::build`], joining the polygons along `seams` (the same patches as
-    /// [`Reconstruction::build_with`]).
+    /// [`CompactReconstruction::build`], joining the polygons along `seams` and following the
+    /// edges of `sharp` light (the same patches as [`Reconstruction::build_with`]).
     pub fn build_with(
         polygons: &[SampledQuadtree],
         estimator: Estimator,
         seams: &Seams,
+        sharp: Option<Sharp<'_>>,
     ) -> Result<CompactReconstruction> {
         seams.check_fits(polygons.len(), "compact reconstruction")?;
         if polygons.len() > MAX_POLYGONS {
@@ -717,7 +722,7 @@ impl CompactReconstruction {
                 "compact reconstruction: more than 2^27 polygons".into(),
             ));
         }
-        let parts: Vec<Result<Part>> = build_polygons(polygons, estimator, seams)
+        let parts: Vec<Result<Part>> = build_polygons(polygons, estimator, seams, sharp)
             .into_par_iter()
             .enumerate()
             .map(|(index, b)| {

@@ -12,7 +12,10 @@
 //!    pass, then refinement in parallel again);
 //! 3. `refine`: leaves with a T-vertex inside an edge are midpoint-subdivided, new points take
 //!    their data from the parent polynomial (C1 argument in that module), and subtrees whose data
-//!    equal their parent polynomial are merged back, so flat regions cost one patch;
+//!    equal their parent polynomial are merged back, so flat regions cost one patch. With
+//!    [`Sharp`] light (spots, known exactly at any point), steps 1-3 run on the samples minus
+//!    that light, and [`sharp`] adds it back before merging, splitting the leaves that straddle
+//!    its edges (a cone's rim, hard shadows) a few levels deeper;
 //! 4. each final leaf becomes a [`PatchCoeffs`]: the bicubic in power basis over local (s, t),
 //!    stored as f32 (3 x 16 coefficients + origin and inverse width, 208 bytes).
 //!
@@ -79,10 +82,12 @@ pub mod mesh;
 mod refine;
 pub mod samples_form;
 pub mod seam;
+pub mod sharp;
 pub mod texture;
 
 pub use compact::PatchCache;
 pub use seam::Seams;
+pub use sharp::{Sharp, SharpLight};
 #[cfg(test)]
 mod tests;
 
@@ -301,8 +306,12 @@ pub struct ReconstructionStats {
     pub vertices: usize,
     /// Samples given (vertices of the input trees).
     pub original_samples: usize,
-    /// Final vertices made by T-vertex refinement (not samples).
+    /// Final vertices made by T-vertex refinement or by splitting along sharp light (not
+    /// samples).
     pub derived_points: usize,
+    /// Points where sharp light ([`sharp`]) was evaluated beyond the samples (one shadow ray
+    /// per term each).
+    pub sharp_points: usize,
     /// Tree nodes turned back into leaves because their children reproduced them.
     pub merged_nodes: usize,
     /// Leaves of the input trees.
@@ -355,6 +364,8 @@ pub(crate) struct PolygonRrp {
     input_depth: u32,
     input_leaves: usize,
     samples: usize,
+    /// Points where the sharp light was evaluated beyond the samples.
+    sharp_points: usize,
 }
 
 impl PolygonRrp {
@@ -416,37 +427,66 @@ pub(crate) fn build_polygon(
     estimator: Estimator,
 ) -> Result<PolygonRrp> {
     let e = estimate_polygon(index, sq, estimator)?;
-    Ok(finish_polygon(sq, &e, &[]))
+    Ok(finish_polygon(sq, &e, &[], None))
 }
 
-/// Refines one polygon with its seam points' data.
+/// Refines one polygon with its seam points' data; with sharp light, `sq` holds the rest of
+/// the light and the sharp terms are added back along their edges ([`sharp`]).
 fn finish_polygon(
     sq: &SampledQuadtree,
     e: &Estimated,
     forced: &[(base::quadtree::VertexKey, HermiteData)],
+    light: Option<(sharp::PolygonLight<'_>, refine::KeyMap<sharp::Lit>)>,
 ) -> PolygonRrp {
-    let refined = refine::refine(&sq.tree, &sq.keys, &e.data, forced, e.scale);
+    let (refined, sharp_points) = match light {
+        Some((light, lit)) => {
+            let (tree, rest) = refine::split(&sq.tree, &sq.keys, &e.data, forced);
+            sharp::sharpen(tree, rest, &light, lit, &sq.keys)
+        }
+        None => (
+            refine::refine(&sq.tree, &sq.keys, &e.data, forced, e.scale),
+            0,
+        ),
+    };
     PolygonRrp {
         refined,
         input_depth: sq.tree.depth(),
         input_leaves: sq.tree.leaf_count(),
         samples: sq.keys.len(),
+        sharp_points,
     }
 }
 
+/// One polygon's sharp terms, its samples without them and which terms light each sample.
+struct SharpPolygon<'a> {
+    light: sharp::PolygonLight<'a>,
+    rest: SampledQuadtree,
+    lit: refine::KeyMap<sharp::Lit>,
+}
+
 /// Every polygon's f64 reconstruction, in polygon order: estimates in parallel, the seams'
-/// joint data in one ordered pass, refinement in parallel (each step's result depends on no
-/// thread count). Shared by [`Reconstruction::build_with`] and
+/// joint data in one ordered pass, refinement (and sharpening) in parallel (each step's result
+/// depends on no thread count). Shared by [`Reconstruction::build_with`] and
 /// [`compact::CompactReconstruction::build_with`].
 pub(crate) fn build_polygons(
     polygons: &[SampledQuadtree],
     estimator: Estimator,
     seams: &Seams,
+    sharp: Option<Sharp<'_>>,
 ) -> Vec<Result<PolygonRrp>> {
-    let estimated: Vec<Result<Estimated>> = polygons
+    let lights: Vec<Option<SharpPolygon<'_>>> = polygons
         .par_iter()
         .enumerate()
-        .map(|(i, sq)| estimate_polygon(i, sq, estimator))
+        .map(|(i, sq)| {
+            let light = sharp::PolygonLight::of(sharp?, i)?;
+            let (rest, lit) = sharp::residual(sq, &light);
+            Some(SharpPolygon { light, rest, lit })
+        })
+        .collect();
+    let input = |i: usize| lights[i].as_ref().map_or(&polygons[i], |l| &l.rest);
+    let estimated: Vec<Result<Estimated>> = (0..polygons.len())
+        .into_par_iter()
+        .map(|i| estimate_polygon(i, input(i), estimator))
         .collect();
     let forced = if seams.is_empty()
         || !seams.fits(polygons.len())
@@ -454,11 +494,10 @@ pub(crate) fn build_polygons(
     {
         vec![Vec::new(); polygons.len()]
     } else {
-        let own: Vec<seam::Own<'_>> = polygons
-            .iter()
+        let own: Vec<seam::Own<'_>> = (0..polygons.len())
             .zip(&estimated)
-            .map(|(sq, e)| seam::Own {
-                sq,
+            .map(|(i, e)| seam::Own {
+                sq: input(i),
                 data: &e.as_ref().expect("checked above").data,
             })
             .collect();
@@ -468,7 +507,16 @@ pub(crate) fn build_polygons(
         .par_iter()
         .zip(estimated)
         .zip(forced)
-        .map(|((sq, e), f)| Ok(finish_polygon(sq, &e?, &f)))
+        .zip(lights)
+        .map(|(((sq, e), f), light)| {
+            let e = e?;
+            Ok(match light {
+                Some(SharpPolygon { light, rest, lit }) => {
+                    finish_polygon(&rest, &e, &f, Some((light, lit)))
+                }
+                None => finish_polygon(sq, &e, &f, None),
+            })
+        })
         .collect()
 }
 
@@ -531,19 +579,21 @@ impl Reconstruction {
     /// not the tree's vertices, non-finite samples, or values so large that a coefficient
     /// overflows f32.
     pub fn build(polygons: &[SampledQuadtree], estimator: Estimator) -> Result<Reconstruction> {
-        Reconstruction::build_with(polygons, estimator, &Seams::none())
+        Reconstruction::build_with(polygons, estimator, &Seams::none(), None)
     }
 
     /// [`Reconstruction::build`], joining the polygons along `seams` ([`seam`]): one C1 function
-    /// across the borders of coplanar neighbours of one material. Seams that do not fit the
+    /// across the borders of coplanar neighbours of one material; and following the edges of
+    /// `sharp` light ([`sharp`]), which the samples must hold. Seams that do not fit the
     /// polygons (built for another scene) are an [`Error::Inconsistent`].
     pub fn build_with(
         polygons: &[SampledQuadtree],
         estimator: Estimator,
         seams: &Seams,
+        sharp: Option<Sharp<'_>>,
     ) -> Result<Reconstruction> {
         seams.check_fits(polygons.len(), "reconstruction")?;
-        let built = build_polygons(polygons, estimator, seams);
+        let built = build_polygons(polygons, estimator, seams, sharp);
         let mut patches = Vec::new();
         let mut nodes: Vec<u32> = Vec::new();
         let mut roots = Vec::with_capacity(polygons.len());
@@ -574,6 +624,7 @@ impl Reconstruction {
             st.vertices += p.refined.data.len();
             st.original_samples += p.samples;
             st.derived_points += p.refined.derived_points;
+            st.sharp_points += p.sharp_points;
             st.merged_nodes += p.refined.merged_nodes;
             st.input_leaves += p.input_leaves;
             st.full_grid_patches += 1usize << (2 * p.input_depth);

@@ -144,6 +144,17 @@ pub(crate) fn refine(
     forced: &[(VertexKey, HermiteData)],
     scale: f64,
 ) -> Refined {
+    let (t, map) = split(tree, keys, data, forced);
+    merge(&t, map, keys, scale)
+}
+
+/// The refinement half of [`refine`]: the split tree and the data of every leaf corner.
+pub(crate) fn split(
+    tree: &Quadtree,
+    keys: &[VertexKey],
+    data: &[HermiteData],
+    forced: &[(VertexKey, HermiteData)],
+) -> (Quadtree, KeyMap<HermiteData>) {
     let mut t = tree.clone();
     let mut map: KeyMap<HermiteData> = keys.iter().copied().zip(data.iter().copied()).collect();
     map.extend(forced.iter().copied());
@@ -171,7 +182,18 @@ pub(crate) fn refine(
             stack.push(first + q);
         }
     }
+    (t, map)
+}
 
+/// The merging half of [`refine`] on any tree whose leaf corners all carry data in `map`
+/// (`keys`: the original samples, sorted, for the count of derived points).
+pub(crate) fn merge(
+    t: &Quadtree,
+    map: KeyMap<HermiteData>,
+    keys: &[VertexKey],
+    scale: f64,
+) -> Refined {
+    let is_original = |k: VertexKey| keys.binary_search(&k).is_ok();
     // Merge bottom-up: children always have larger indices than their parent.
     let tol = MERGE_TOL * scale.max(f64::MIN_POSITIVE);
     let nodes = t.nodes();

@@ -1,4 +1,5 @@
-//! Seams: one C1 function across the borders of coplanar neighbours of one material.
+//! Seams: one C1 function across the borders of coplanar neighbours of one material, and one
+//! C0 function across gentle folds ([`MAX_FOLD_DEGREES`]; `force_folds`).
 //!
 //! Each polygon's estimate sees only its own samples, so at its border the slope across is
 //! one-sided and the two neighbours of a shared edge disagree: a kink at every polygon border of
@@ -35,7 +36,7 @@
 //! more than the lattice's 2^16 intervals is dropped (the curves then agree to that depth's
 //! cubic only). Other T-junctions are counted in [`Seams::unjoined`] and left as they are.
 
-use std::collections::{BTreeMap, HashMap};
+use std::collections::{BTreeMap, HashMap, HashSet};
 
 use glam::DVec3;
 
@@ -55,6 +56,9 @@ struct Link {
     ka: [i64; 2],
     /// Lattice indices along `b` of the same ends (in `a`'s order).
     kb: [i64; 2],
+    /// A gentle fold (a crease of at most [`MAX_FOLD_DEGREES`]): joined in value and slope
+    /// along the edge only (C0), not across.
+    fold: bool,
 }
 
 /// The seams a reconstruction joins, and the geometry it needs to convert derivatives.
@@ -66,6 +70,7 @@ pub struct Seams {
     geometry: Vec<Polygon>,
     unjoined: usize,
     standing: usize,
+    folds: usize,
 }
 
 impl Seams {
@@ -75,13 +80,16 @@ impl Seams {
     }
 
     /// The seams of a scene: every shared edge between coplanar polygons of equal material whose
-    /// lattices line up ([`Adjacency::continuous`]).
+    /// lattices line up ([`Adjacency::continuous`]), and the gentle folds between polygons of
+    /// equal material (creases of at most [`MAX_FOLD_DEGREES`]), joined in value only.
     pub fn of(polygons: &[Polygon], materials: &[Material], adjacency: &Adjacency) -> Seams {
         let mut links = Vec::new();
         let mut unjoined = 0;
         let mut standing = 0;
+        let mut folds = 0;
         for e in &adjacency.edges {
-            if !Adjacency::continuous(e, polygons, materials) {
+            let fold = is_fold(e, polygons, materials);
+            if !fold && !Adjacency::continuous(e, polygons, materials) {
                 continue;
             }
             if stands_on(adjacency, e) {
@@ -95,7 +103,10 @@ impl Seams {
                 continue;
             }
             match link(e) {
-                Some(l) => links.push(l),
+                Some(l) => {
+                    folds += usize::from(fold);
+                    links.push(Link { fold, ..l });
+                }
                 None => unjoined += 1,
             }
         }
@@ -109,7 +120,13 @@ impl Seams {
             geometry,
             unjoined,
             standing,
+            folds,
         }
+    }
+
+    /// Joined shared sides that are gentle folds (joined in value only, [`MAX_FOLD_DEGREES`]).
+    pub fn folds(&self) -> usize {
+        self.folds
     }
 
     /// Continuous shared sides left unjoined because another polygon stands on them at an angle
@@ -182,6 +199,23 @@ fn conditioned(p: &Polygon, side: u8, range: [f64; 2]) -> bool {
     })
 }
 
+/// Largest angle between two polygons' normals, in degrees, at which a crease between polygons
+/// of one material is joined in value ([`Seams::folds`]): a tessellated curve or a shallow ramp,
+/// where the light turns with the surface but does not step. Sharper creases (a floor meeting a
+/// wall) keep their step: the two sides see different hemispheres, and the light there does
+/// step. A fold whose two sides' samples disagree (beyond [`SAMPLE_AGREEMENT`]) stays apart too.
+pub const MAX_FOLD_DEGREES: f64 = 30.0;
+
+/// Whether `e` is a gentle fold between polygons of one material.
+fn is_fold(e: &SharedEdge, polygons: &[Polygon], materials: &[Material]) -> bool {
+    let Junction::Crease { degrees } = e.junction else {
+        return false;
+    };
+    let ma = &materials[polygons[e.a.polygon as usize].material as usize];
+    let mb = &materials[polygons[e.b.polygon as usize].material as usize];
+    degrees <= MAX_FOLD_DEGREES && ma.reflectance == mb.reflectance && ma.emission == mb.emission
+}
+
 /// Whether a third polygon meets either side of `e` at an angle over part of `e`'s segment:
 /// a wall standing on the seam, whose two sides see different light.
 fn stands_on(adjacency: &Adjacency, e: &SharedEdge) -> bool {
@@ -191,7 +225,7 @@ fn stands_on(adjacency: &Adjacency, e: &SharedEdge) -> bool {
         qh.min(hi) - ql.max(lo) > 1e-9
     };
     adjacency.edges.iter().any(|o| {
-        if matches!(o.junction, Junction::Coplanar) {
+        if matches!(o.junction, Junction::Coplanar) || std::ptr::eq(o, e) {
             return false;
         }
         // The part of `o` on e's a side or b side, in that side's parameter.
@@ -224,6 +258,7 @@ fn link(e: &SharedEdge) -> Option<Link> {
         b: e.b,
         ka,
         kb,
+        fold: false,
     })
 }
 
@@ -358,8 +393,16 @@ fn twist_factor(m: &World, r: &World) -> Option<f64> {
     }
 }
 
-/// The seam points of every link, grouped: members that are one point of the surface.
-fn seam_points(seams: &Seams, own: &[Own<'_>]) -> Vec<Vec<Member>> {
+/// Two members joined by one link (its index in [`Seams::links`]).
+type Joined = (Member, Member, usize);
+
+/// The seam points of the links `take` accepts, grouped (members that are one point of the
+/// surface), and every joined pair.
+fn seam_points(
+    seams: &Seams,
+    own: &[Own<'_>],
+    take: impl Fn(&Link) -> bool,
+) -> (Vec<Vec<Member>>, Vec<Joined>) {
     // Union-find over members.
     let mut id: HashMap<Member, usize> = HashMap::new();
     let mut members: Vec<Member> = Vec::new();
@@ -378,7 +421,11 @@ fn seam_points(seams: &Seams, own: &[Own<'_>]) -> Vec<Vec<Member>> {
             parent.len() - 1
         })
     };
-    for l in &seams.links {
+    let mut joined = Vec::new();
+    for (li, l) in seams.links.iter().enumerate() {
+        if !take(l) {
+            continue;
+        }
         let mut pairs = Vec::new();
         // Points of a's side mapped to b's, and of b's side mapped to a's.
         for (from, to, kf, kt) in [(l.a, l.b, l.ka, l.kb), (l.b, l.a, l.kb, l.ka)] {
@@ -403,6 +450,7 @@ fn seam_points(seams: &Seams, own: &[Own<'_>]) -> Vec<Vec<Member>> {
             continue;
         }
         for (p, q) in pairs {
+            joined.push((p, q, li));
             let (x, y) = (
                 node(p, &mut members, &mut parent),
                 node(q, &mut members, &mut parent),
@@ -418,13 +466,14 @@ fn seam_points(seams: &Seams, own: &[Own<'_>]) -> Vec<Vec<Member>> {
         let r = find(&mut parent, x);
         groups.entry(r).or_default().push(m);
     }
-    groups
+    let groups = groups
         .into_values()
         .map(|mut g| {
             g.sort_unstable();
             g
         })
-        .collect()
+        .collect();
+    (groups, joined)
 }
 
 /// Largest difference, relative to the larger value, that two polygons' samples of one seam
@@ -503,7 +552,7 @@ pub(crate) fn mesh_points(
         .zip(&data)
         .map(|(sq, d)| Own { sq, data: d })
         .collect();
-    for group in seam_points(seams, &own) {
+    for group in seam_points(seams, &own, |_| true).0 {
         let sampled: Vec<[f64; 3]> = group
             .iter()
             .filter_map(|&(p, k)| {
@@ -529,21 +578,25 @@ pub(crate) fn mesh_points(
     out
 }
 
+/// Member `(p, k)`'s own data at its seam point in world terms (`None` where its map is
+/// singular).
+fn member_world(seams: &Seams, own: &[Own<'_>], (p, k): Member) -> Option<World> {
+    let (d, sampled) = own[p as usize].at(k);
+    let (xu, xv) = seams.geometry[p as usize].tangents(k.u(), k.v());
+    to_world(&d, xu, xv, sampled)
+}
+
 /// The joint data of every seam point, handed to each member polygon in its own units.
 pub(crate) fn force(seams: &Seams, own: &[Own<'_>], estimator: Estimator) -> Forced {
     let mut out: Forced = vec![Vec::new(); own.len()];
     if seams.is_empty() {
         return out;
     }
-    for group in seam_points(seams, own) {
-        let worlds: Vec<Option<World>> = group
-            .iter()
-            .map(|&(p, k)| {
-                let (d, sampled) = own[p as usize].at(k);
-                let (xu, xv) = seams.geometry[p as usize].tangents(k.u(), k.v());
-                to_world(&d, xu, xv, sampled)
-            })
-            .collect();
+    let mut smooth = HashSet::new();
+    for group in seam_points(seams, own, |l| !l.fold).0 {
+        smooth.extend(group.iter().copied());
+        let worlds: Vec<Option<World>> =
+            group.iter().map(|&m| member_world(seams, own, m)).collect();
         let Some(joint) = joint(seams, &group, &worlds, estimator) else {
             continue;
         };
@@ -568,11 +621,98 @@ pub(crate) fn force(seams: &Seams, own: &[Own<'_>], estimator: Estimator) -> For
             out[p as usize].push((k, d));
         }
     }
+    force_folds(seams, own, &smooth, &mut out);
     for f in &mut out {
         f.sort_unstable_by_key(|e| e.0);
         f.dedup_by_key(|e| e.0);
     }
     out
+}
+
+/// The joint data of the folds' seam points ([`MAX_FOLD_DEGREES`]): one value (the mean of the
+/// members' samples) and, along each folded edge, one slope (the mean of the two members'),
+/// each member keeping its own slope across and twist: the two edge cubics are then one curve
+/// (C0), while the light may turn with the surface. A point also on a coplanar seam (where the
+/// coplanar joint already fixed the data) is left as that seam made it.
+fn force_folds(seams: &Seams, own: &[Own<'_>], smooth: &HashSet<Member>, out: &mut Forced) {
+    let (groups, joined) = seam_points(seams, own, |l| l.fold);
+    let mut world: HashMap<Member, (World, [f64; 3])> = HashMap::new();
+    for group in groups {
+        if group.iter().any(|m| smooth.contains(m)) {
+            continue;
+        }
+        let worlds: Option<Vec<World>> =
+            group.iter().map(|&m| member_world(seams, own, m)).collect();
+        let Some(worlds) = worlds else { continue };
+        let sampled: Vec<&World> = worlds.iter().filter(|w| w.sampled).collect();
+        let from: Vec<&World> = if sampled.is_empty() {
+            worlds.iter().collect()
+        } else {
+            sampled
+        };
+        let n = from.len() as f64;
+        let f: [f64; 3] = std::array::from_fn(|ch| from.iter().map(|w| w.f[ch]).sum::<f64>() / n);
+        for (m, w) in group.into_iter().zip(worlds) {
+            world.insert(m, (w, f));
+        }
+    }
+    // Per member, the slopes along its folded edges: (unit direction, slope per channel).
+    let mut along: HashMap<Member, Vec<(DVec3, [f64; 3])>> = HashMap::new();
+    for (m, n, li) in joined {
+        let (Some((wm, _)), Some((wn, _))) = (world.get(&m), world.get(&n)) else {
+            continue;
+        };
+        let l = &seams.links[li];
+        let (p0, p1) = side_endpoints(&seams.geometry[l.a.polygon as usize], l.a.side);
+        let t = (p1 - p0).normalize_or_zero();
+        let slope = std::array::from_fn(|ch| 0.5 * (wm.grad[ch].dot(t) + wn.grad[ch].dot(t)));
+        along.entry(m).or_default().push((t, slope));
+        along.entry(n).or_default().push((t, slope));
+    }
+    for (m, (w, f)) in world {
+        let (p, k) = m;
+        let constraints = along.remove(&m).unwrap_or_default();
+        let (xu, xv) = w.partials;
+        let mut d = HermiteData {
+            f,
+            fuv: w.own_twist,
+            ..HermiteData::default()
+        };
+        for ch in 0..3 {
+            let g = with_slopes(w.grad[ch], &constraints, ch);
+            d.fu[ch] = g.dot(xu);
+            d.fv[ch] = g.dot(xv);
+        }
+        out[p as usize].push((k, d));
+    }
+}
+
+/// The in-plane gradient `g` changed as little as possible (within the span of the directions)
+/// to have the given slopes along at most two independent directions of the plane (channel
+/// `ch` of each constraint). Parallel repeats are skipped.
+fn with_slopes(g: DVec3, constraints: &[(DVec3, [f64; 3])], ch: usize) -> DVec3 {
+    let mut picked: Vec<(DVec3, f64)> = Vec::new();
+    for &(t, s) in constraints {
+        if picked.len() < 2 && picked.iter().all(|(q, _)| q.cross(t).length() > 1e-6) {
+            picked.push((t, s[ch]));
+        }
+    }
+    match picked.as_slice() {
+        [] => g,
+        [(t, a)] => g + (a - g.dot(*t)) * *t,
+        [(t1, a1), (t2, a2), ..] => {
+            // g + x t1 + y t2 with (g + x t1 + y t2) . t_i = a_i.
+            let (r1, r2) = (a1 - g.dot(*t1), a2 - g.dot(*t2));
+            let (m11, m12, m22) = (t1.dot(*t1), t1.dot(*t2), t2.dot(*t2));
+            let det = m11 * m22 - m12 * m12;
+            if det.abs() <= 1e-12 {
+                return g + (a1 - g.dot(*t1)) * *t1;
+            }
+            let x = (r1 * m22 - r2 * m12) / det;
+            let y = (m11 * r2 - m12 * r1) / det;
+            g + x * *t1 + y * *t2
+        }
+    }
 }
 
 /// A seam point's data in world terms.

@@ -60,6 +60,7 @@ fn compare_prints_a_table_and_json() {
         "max abs error",
         "relative luminance error",
         "mach-band energy",
+        "near sharp edges",
     ] {
         assert!(out.contains(row), "no `{row}` in\n{out}");
     }
@@ -76,6 +77,11 @@ fn compare_prints_a_table_and_json() {
     let rmse = json["rmse"].as_f64().unwrap();
     assert!((rmse - 0.3 / 128f64.sqrt()).abs() < 1e-6, "{json}");
     assert!(json["perceptual_distance"].as_f64().unwrap() > 0.0);
+    // The reference's bump is itself a sharp edge (0.3 over about 0.6: a 33 % step), so all of
+    // the error lies near it. The bump and its four neighbours are edge pixels; within 2 px of
+    // them: rows 2..=6 over columns 0..=6 and rows 1 and 7 over columns 1..=5, 35 + 10 pixels.
+    assert_eq!(json["edges"]["near_share"], 1.0, "{json}");
+    assert_eq!(json["edges"]["near_pixels"], 45, "{json}");
 
     // Identical images: distance 0, PSNR null.
     let o = run(&["compare", s(&a), s(&a), "--json"]);

@@ -323,6 +323,7 @@ fn scales() {
         scene: tiny,
         solution_file: None,
         estimator: Estimator::default(),
+        sharp_levels: reconstruction::sharp::DEFAULT_LEVELS,
     };
     let tiny = prepare(
         &Context::default(),
@@ -390,6 +391,7 @@ fn huge_beside() {
             scene: small,
             solution_file: None,
             estimator: Estimator::default(),
+            sharp_levels: reconstruction::sharp::DEFAULT_LEVELS,
         },
         SizePolicy::FromDepth,
         Placement::Centre,
@@ -883,6 +885,7 @@ fn a_spot_beyond_the_f32_range_is_refused() {
             scene,
             solution_file: None,
             estimator: Estimator::default(),
+            sharp_levels: reconstruction::sharp::DEFAULT_LEVELS,
         };
         prepare(
             &Context::default(),

@@ -49,7 +49,7 @@ use radiosity::{self, file as solution_file, Solution, SolveOptions};
 use reconstruction::compact::CompactReconstruction;
 use reconstruction::mesh::MeshModel;
 use reconstruction::texture::{SizePolicy, TextureSet};
-use reconstruction::{Estimator, Reconstruction, Seams};
+use reconstruction::{Estimator, Reconstruction, Seams, Sharp, SharpLight};
 use scene::{load_scene, Scene};
 
 /// What a job may use, given by its caller and passed down explicitly (the library holds no
@@ -139,6 +139,11 @@ pub struct Input {
     /// solution file's stored RRPs were built with the default; another estimator rebuilds
     /// them from the samples.
     pub estimator: Estimator,
+    /// How many levels below the solver's leaves the RRPs follow the edges of the spots' light
+    /// (`--sharp-levels`; default [`reconstruction::sharp::DEFAULT_LEVELS`]; 0: the spots'
+    /// light is reconstructed from the samples like any other). A solution file's stored RRPs
+    /// were built with the default; another value rebuilds them.
+    pub sharp_levels: u32,
 }
 
 impl Input {
@@ -157,6 +162,7 @@ impl Input {
                 scene: load_scene(&scene_path)?,
                 solution_file: Some(path.to_path_buf()),
                 estimator: Estimator::default(),
+                sharp_levels: reconstruction::sharp::DEFAULT_LEVELS,
             })
         } else {
             Ok(Input {
@@ -164,6 +170,7 @@ impl Input {
                 scene: load_scene(path)?,
                 solution_file: None,
                 estimator: Estimator::default(),
+                sharp_levels: reconstruction::sharp::DEFAULT_LEVELS,
             })
         }
     }
@@ -267,6 +274,8 @@ pub struct Prepared {
     pub estimator: Estimator,
     /// The polygon borders the RRPs (compact and expanded) are joined along ([`seams_of`]).
     pub seams: Seams,
+    /// Levels below the solver's leaves the RRPs follow the spots' edges ([`Input::sharp_levels`]).
+    pub sharp_levels: u32,
     /// How the texture methods size their textures (fixed by [`prepare`]).
     texture_policy: SizePolicy,
     /// Where the texture methods place their texels (fixed by [`prepare`]).
@@ -330,9 +339,15 @@ impl Prepared {
     pub fn expanded(&self) -> Result<(&Reconstruction, f64)> {
         if self.expanded.get().is_none() {
             let t = Instant::now();
-            let r =
-                Reconstruction::build_with(&self.solution.polygons, self.estimator, &self.seams)
-                    .map_err(|e| self.file_error(e))?;
+            let spots = spot_light(&self.scene, &self.solution, self.sharp_levels)
+                .map_err(|e| self.file_error(e))?;
+            let r = Reconstruction::build_with(
+                &self.solution.polygons,
+                self.estimator,
+                &self.seams,
+                spots.as_ref().map(SpotLight::sharp),
+            )
+            .map_err(|e| self.file_error(e))?;
             let _ = self.expanded.set((r, t.elapsed().as_secs_f64() * 1e3));
         }
         let (r, ms) = self
@@ -425,6 +440,7 @@ pub fn prepare(
         scene,
         solution_file: file,
         estimator,
+        sharp_levels,
         ..
     } = input;
     let (solution, stored, solve_ms) = match &file {
@@ -448,11 +464,18 @@ pub fn prepare(
     };
     let t = Instant::now();
     let seams = seams_of(&scene);
-    // A solution file stores the compact RRPs its solve built with the default estimator:
-    // decode them (checked) instead of building again; a file without them, another estimator
-    // or a fresh solve builds them from the samples.
+    let defaults =
+        estimator == Estimator::default() && sharp_levels == reconstruction::sharp::DEFAULT_LEVELS;
+    let build = || -> Result<CompactReconstruction> {
+        let spots = spot_light(&scene, &solution, sharp_levels)?;
+        let sharp = spots.as_ref().map(SpotLight::sharp);
+        CompactReconstruction::build_with(&solution.polygons, estimator, &seams, sharp)
+    };
+    // A solution file stores the compact RRPs its solve built with the default estimator and
+    // sharp levels: decode them (checked) instead of building again; a file without them,
+    // other settings or a fresh solve builds them from the samples.
     let compact = match stored {
-        Some((path, rrps)) if !rrps.is_empty() && estimator == Estimator::default() => {
+        Some((path, rrps)) if !rrps.is_empty() && defaults => {
             let corrupt = |m: String| {
                 Error::solution(
                     path,
@@ -473,23 +496,20 @@ pub fn prepare(
         // Samples read from a file that cannot be reconstructed (values so large the patches
         // overflow f32) are a bad file, exit 2, like any other inconsistency behind a valid
         // checksum; from a fresh solve they are a failure of this program.
-        Some((path, _)) => CompactReconstruction::build_with(&solution.polygons, estimator, &seams)
-            .map_err(|e| match e {
-                Error::Inconsistent(m) => Error::solution(
-                    path,
-                    base::error::SolutionProblem::Corrupt,
-                    format!("corrupt solution file: its samples cannot be reconstructed: {m}"),
-                ),
-                e => e,
-            })?,
-        None => CompactReconstruction::build_with(&solution.polygons, estimator, &seams).map_err(
-            |e| match e {
-                Error::Inconsistent(m) => {
-                    Error::internal(format!("this run's own solution is inconsistent: {m}"))
-                }
-                e => e,
-            },
-        )?,
+        Some((path, _)) => build().map_err(|e| match e {
+            Error::Inconsistent(m) => Error::solution(
+                path,
+                base::error::SolutionProblem::Corrupt,
+                format!("corrupt solution file: its samples cannot be reconstructed: {m}"),
+            ),
+            e => e,
+        })?,
+        None => build().map_err(|e| match e {
+            Error::Inconsistent(m) => {
+                Error::internal(format!("this run's own solution is inconsistent: {m}"))
+            }
+            e => e,
+        })?,
     };
     let reconstruction_ms = t.elapsed().as_secs_f64() * 1e3;
     Ok(Prepared {
@@ -504,6 +524,7 @@ pub fn prepare(
         reconstruction_ms,
         estimator,
         seams,
+        sharp_levels,
         expanded: OnceLock::new(),
         textures: OnceLock::new(),
         mesh: OnceLock::new(),
@@ -515,6 +536,53 @@ pub fn prepare(
 pub fn seams_of(scene: &Scene) -> Seams {
     let adjacency = scene::adjacency::Adjacency::of(&scene.polygons);
     Seams::of(&scene.polygons, &scene.materials, &adjacency)
+}
+
+/// The spot lights of a scene as sharp light for its RRPs ([`reconstruction::sharp`]): their
+/// part of the solution, known exactly at any point ([`radiosity::SpotParts`]).
+pub struct SpotLight<'a> {
+    parts: radiosity::SpotParts<'a>,
+    levels: u32,
+}
+
+impl SpotLight<'_> {
+    /// The light and its levels as the reconstruction takes them.
+    pub fn sharp(&self) -> Sharp<'_> {
+        Sharp {
+            light: self,
+            levels: self.levels,
+        }
+    }
+}
+
+impl SharpLight for SpotLight<'_> {
+    fn terms(&self, polygon: usize) -> Vec<u32> {
+        self.parts.reaching(polygon)
+    }
+
+    fn part(&self, polygon: usize, term: u32, u: f64, v: f64) -> Option<[f64; 3]> {
+        self.parts.part(polygon, term, u, v).map(|p| p.to_array())
+    }
+
+    fn smooth(&self, polygon: usize, term: u32, u: f64, v: f64) -> [f64; 3] {
+        self.parts.smooth(polygon, term, u, v).to_array()
+    }
+}
+
+/// The sharp light of `scene`'s spots under `solution` with `levels` ([`Input::sharp_levels`]);
+/// `None` (nothing to follow, nothing built) for a scene without spots or with `levels` 0.
+pub fn spot_light<'a>(
+    scene: &'a Scene,
+    solution: &Solution,
+    levels: u32,
+) -> Result<Option<SpotLight<'a>>> {
+    if scene.spots.is_empty() || levels == 0 {
+        return Ok(None);
+    }
+    Ok(Some(SpotLight {
+        parts: radiosity::SpotParts::new(solution, scene)?,
+        levels,
+    }))
 }
 
 /// Loads `path`, checks `texture`'s options against its scene, then solves and reconstructs:

@@ -52,6 +52,9 @@ pub struct RenderRequest {
     pub texture: TextureOptions,
     /// The RRPs' derivative estimator by name (`--estimator`; default: the default estimator).
     pub estimator: Option<String>,
+    /// Levels below the solver's leaves the RRPs follow the spots' edges (`--sharp-levels`;
+    /// default [`reconstruction::sharp::DEFAULT_LEVELS`], 0 = off).
+    pub sharp_levels: Option<u32>,
 }
 
 /// A render request resolved against its scene and checked: what will be drawn, how, and where
@@ -172,6 +175,19 @@ pub(crate) struct WalkthroughReport<'a> {
     pub frames: &'a [RenderReport],
 }
 
+/// The `--sharp-levels` value, checked: at most 16 (the lattice's depth; a deeper split has no
+/// lattice points).
+pub fn check_sharp_levels(levels: u32) -> Result<u32> {
+    if levels > base::quadtree::MAX_DEPTH {
+        return Err(Error::invalid_option(
+            "--sharp-levels",
+            levels.to_string(),
+            "expected 0 (off) to 16",
+        ));
+    }
+    Ok(levels)
+}
+
 /// Runs a render job: load the input, plan and check every option, then prepare once and
 /// render one frame or every walkthrough frame, writing PNG, EXR and statistics.
 pub fn run_render(
@@ -183,6 +199,9 @@ pub fn run_render(
     let plan = RenderPlan::new(ctx, req, &input.scene)?;
     if let Some(name) = &req.estimator {
         input.estimator = reconstruction::Estimator::parse_option("--estimator", name)?;
+    }
+    if let Some(levels) = req.sharp_levels {
+        input.sharp_levels = check_sharp_levels(levels)?;
     }
     // No output may replace an input, another output or anything but a regular file.
     let mut inputs = input.scene.inputs.clone();

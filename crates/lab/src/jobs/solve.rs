@@ -25,10 +25,12 @@ pub fn solve_to_file(ctx: &Context<'_>, scene_path: &Path, out: &Path) -> Result
             memory_limit: limit,
         },
     )?;
+    let spots = super::spot_light(&scene, &solution, reconstruction::sharp::DEFAULT_LEVELS)?;
     let rrps = CompactReconstruction::build_with(
         &solution.polygons,
         Estimator::default(),
         &super::seams_of(&scene),
+        spots.as_ref().map(super::SpotLight::sharp),
     )?;
     solution_file::write_solution(
         &ctx.outputs,

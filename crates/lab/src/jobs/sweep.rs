@@ -357,6 +357,7 @@ fn solve_at(ctx: &Context<'_>, input: &Input, scene: Scene) -> Result<Prepared> 
         scene,
         solution_file: None,
         estimator: input.estimator,
+        sharp_levels: input.sharp_levels,
     };
     prepare(ctx, input, SizePolicy::FromDepth, Placement::Centre)
 }

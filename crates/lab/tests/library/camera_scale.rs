@@ -33,6 +33,7 @@ fn centre_pixels(scene: Scene) -> Vec<(String, f32)> {
         scene,
         solution_file: None,
         estimator: Estimator::default(),
+        sharp_levels: reconstruction::sharp::DEFAULT_LEVELS,
     };
     let p = prepare(
         &Context::default(),

@@ -344,6 +344,7 @@ fn a_sharp_shadow_is_refined_to_the_depth_limit_and_never_negative() {
         scene: scene.clone(),
         solution_file: None,
         estimator: Estimator::default(),
+        sharp_levels: reconstruction::sharp::DEFAULT_LEVELS,
     };
     let p = prepare(
         &Context::default(),

@@ -160,6 +160,7 @@ fn golden_building() {
         scene,
         solution_file: None,
         estimator: Default::default(),
+        sharp_levels: reconstruction::sharp::DEFAULT_LEVELS,
     };
     let texture = TextureOptions::default();
     let policy = texture.policy(&input.scene).expect("texture policy");

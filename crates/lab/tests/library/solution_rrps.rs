@@ -31,7 +31,16 @@ fn the_file_holds_the_rrps_and_renders_like_the_scene() {
     let sol = solve_to_file(&Context::default(), &scene(), &out).unwrap();
     let s = load_scene(&scene()).unwrap();
     let (_, rrps) = file::read_solution(&out, &s).unwrap();
-    let built = CompactReconstruction::build(&sol.polygons, Estimator::default()).unwrap();
+    // What a solve stores: the RRPs with the default estimator, the scene's seams and the spots'
+    // edges followed at the default levels.
+    let spots = lab::jobs::spot_light(&s, &sol, reconstruction::sharp::DEFAULT_LEVELS).unwrap();
+    let built = CompactReconstruction::build_with(
+        &sol.polygons,
+        Estimator::default(),
+        &lab::jobs::seams_of(&s),
+        spots.as_ref().map(|l| l.sharp()),
+    )
+    .unwrap();
     assert_eq!(rrps, built.encode());
     assert_eq!(CompactReconstruction::decode(&rrps).unwrap(), built);
 
@@ -104,9 +113,13 @@ fn memory_accounting_agrees_with_what_is_built() {
 
 /// The samples-alone form (16-bit samples, derivatives re-estimated on load) is measured beside
 /// the Hermite form: its bytes are what `stats` reports, and rendering from it moves the direct
-/// method's distance to the exact image by at most 2 %. Not less: the estimator's limiter is not
-/// linear in the samples (a sample moved by 1/65535 can change where it acts), which is one
-/// reason files keep the Hermite form, quantized after the estimate.
+/// image by a perceptual distance of at most 1.5e-3 (measured 8.2e-4 on two-spots, 4.1e-4 on
+/// cornell-box), and where the direct image is visibly off the exact one (cornell-box, 0.40) its
+/// distance to it by at most 2 %. On two-spots, whose light is all spots followed exactly, the
+/// direct image is only 3.7e-4 from exact, so the quantization's move is of that order there.
+/// Not less: the estimator's limiter is not linear in the samples (a sample moved by 1/65535 can
+/// change where it acts), which is one reason files keep the Hermite form, quantized after the
+/// estimate.
 #[test]
 fn samples_alone_at_16_bits_barely_move_the_direct_image() {
     use engine::frame::render_patches;
@@ -139,7 +152,14 @@ fn samples_alone_at_16_bits_barely_move_the_direct_image() {
                 }
             }
         }
-        let from_samples = CompactReconstruction::build(&q, Estimator::default()).unwrap();
+        let spots = lab::jobs::spot_light(&p.scene, &p.solution, p.sharp_levels).unwrap();
+        let from_samples = CompactReconstruction::build_with(
+            &q,
+            Estimator::default(),
+            &p.seams,
+            spots.as_ref().map(|l| l.sharp()),
+        )
+        .unwrap();
         let opts = FrameOptions::new(128, 128);
         let cam = &p.scene.camera;
         let image =
@@ -150,11 +170,18 @@ fn samples_alone_at_16_bits_barely_move_the_direct_image() {
         let d_held = perceptual_distance(&held, &exact, DEFAULT_PPD).unwrap();
         let d_alone = perceptual_distance(&alone, &exact, DEFAULT_PPD).unwrap();
         let change = (d_alone - d_held).abs() / d_held;
+        let moved = perceptual_distance(&alone, &held, DEFAULT_PPD).unwrap();
         eprintln!(
-            "{name}: distance to exact {d_held:.5} -> {d_alone:.5} ({:.4} %)",
+            "{name}: distance to exact {d_held:.5} -> {d_alone:.5} ({:.4} %), moved {moved:.5}",
             100.0 * change
         );
-        assert!(change < 0.02, "{name}: {d_held} -> {d_alone}");
+        assert!(
+            moved <= 1.5e-3,
+            "{name}: moved {moved} ({d_held} -> {d_alone})"
+        );
+        if d_held > 0.05 {
+            assert!(change < 0.02, "{name}: {d_held} -> {d_alone}");
+        }
     }
 }
 

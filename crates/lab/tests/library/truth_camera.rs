@@ -60,6 +60,7 @@ fn truth_pixels_see_the_polygons_the_rasterizer_sees() {
         scene: scene.clone(),
         solution_file: None,
         estimator: Default::default(),
+        sharp_levels: reconstruction::sharp::DEFAULT_LEVELS,
     };
     let ctx = Context::default();
     let policy = reconstruction::texture::SizePolicy::Fixed(1);

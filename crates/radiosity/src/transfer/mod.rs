@@ -633,6 +633,12 @@ impl<'a> Transfer<'a> {
         }
     }
 
+    /// The entry of receiver polygon `r` in shooter `s`'s pair table (`None`: culled, or no
+    /// table built for `s`).
+    pub(crate) fn pair_entry(&self, s: usize, r: usize) -> Option<usize> {
+        self.pairs[s].as_ref().and_then(|p| p.find(r))
+    }
+
     /// [`Transfer::transfer`] given the pair's entry `i` in shooter `s`'s table (as the
     /// per-receiver index and the shots hold it), without looking it up.
     pub(crate) fn transfer_at(&self, s: usize, r: usize, i: usize, u: f64, v: f64) -> DVec3 {

@@ -764,3 +764,4 @@ fn eval_grad_matches_finite_differences() {
 
 mod compact;
 mod seam;
+mod sharp;

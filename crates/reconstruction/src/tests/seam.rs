@@ -93,7 +93,7 @@ fn jumps(rec: &Reconstruction, line: &Line, n: usize) -> (f64, f64) {
 }
 
 fn build(sq: &[SampledQuadtree], seams: &Seams) -> Reconstruction {
-    Reconstruction::build_with(sq, Estimator::default(), seams).expect("valid input")
+    Reconstruction::build_with(sq, Estimator::default(), seams, None).expect("valid input")
 }
 
 #[test]
@@ -243,8 +243,9 @@ fn compact_and_expanded_rrps_join_alike() {
     let sq = sampled(&polys, &[1e-3, 2e-4]);
     let seams = Seams::of(&polys, &materials(1), &Adjacency::of(&polys));
     let rec = build(&sq, &seams);
-    let c = crate::compact::CompactReconstruction::build_with(&sq, Estimator::default(), &seams)
-        .expect("valid input");
+    let c =
+        crate::compact::CompactReconstruction::build_with(&sq, Estimator::default(), &seams, None)
+            .expect("valid input");
     let mut worst = 0.0f64;
     for p in 0..2u32 {
         for k in 0..=64 {
@@ -432,4 +433,66 @@ fn lightmap_textures_meet_at_a_joined_seam() {
     );
     assert!(corner <= 1e-6, "corner-placed seam step {corner:.2e}");
     assert!(corner_apart > 100.0 * corner, "apart {corner_apart:.2e}");
+}
+
+/// A unit floor square and a square hinged to it at x = 1, rising at `degrees`.
+fn hinged(degrees: f64) -> [Polygon; 2] {
+    let (c, s) = (degrees.to_radians().cos(), degrees.to_radians().sin());
+    let ramp = Polygon::quad(
+        [
+            DVec3::new(1.0, 0.0, 1.0),
+            DVec3::new(1.0 + c, s, 1.0),
+            DVec3::new(1.0 + c, s, 0.0),
+            DVec3::new(1.0, 0.0, 0.0),
+        ],
+        0,
+        0,
+    )
+    .expect("valid quad");
+    [floor(0.0, 0.0, 1.0, 1.0, 0), ramp]
+}
+
+/// The fold line of [`hinged`]: polygon 0's u = 1 side, polygon 1's u = 0 side.
+const HINGE: Line = Line {
+    a: (0, |s| (1.0, s)),
+    b: (1, |s| (0.0, s)),
+    across: [(0, 1.0), (0, 1.0)],
+};
+
+/// A gentle fold (10 degrees) of one material under light that is continuous across it: joined
+/// in value (C0: the two edge cubics are one curve, to f32 rounding) while each side keeps its
+/// slope across. Apart, the two sides' edge cubics (different lattices, one-sided along-edge
+/// slopes) step by about 1e-4 of the peak between samples.
+#[test]
+fn a_gentle_fold_is_c0() {
+    let polys = hinged(10.0);
+    let mats = materials(1);
+    let sq = sampled(&polys, &[1e-3, 2e-4]);
+    let seams = Seams::of(&polys, &mats, &Adjacency::of(&polys));
+    assert_eq!((seams.joined(), seams.folds()), (1, 1));
+    let (jv, _) = jumps(&build(&sq, &seams), &HINGE, 997);
+    let (apart, _) = jumps(&build(&sq, &Seams::none()), &HINGE, 997);
+    eprintln!("gentle fold: value step joined {jv:.2e}, apart {apart:.2e}");
+    assert!(jv <= 1e-6, "value step {jv:.2e} of the peak");
+    assert!(apart >= 10.0 * jv.max(1e-7), "apart only {apart:.2e}");
+}
+
+/// A sharp crease (45 degrees, a wall on a floor) is not joined: the light there steps. Nor is a
+/// gentle fold whose two sides' samples disagree (a light that steps at the fold): it keeps its
+/// step.
+#[test]
+fn sharp_creases_and_stepping_folds_stay_apart() {
+    let polys = hinged(45.0);
+    let seams = Seams::of(&polys, &materials(1), &Adjacency::of(&polys));
+    assert_eq!((seams.joined(), seams.folds()), (0, 0));
+
+    let polys = hinged(10.0);
+    let seams = Seams::of(&polys, &materials(1), &Adjacency::of(&polys));
+    let mut sq = sampled(&polys, &[1e-3, 1e-3]);
+    for v in &mut sq[1].values {
+        *v *= 1.1;
+    }
+    let (step, _) = jumps(&build(&sq, &seams), &HINGE, 997);
+    // The light there is about 0.05-1.05; a 10 % step stays a step of at least 0.5 % of the peak.
+    assert!(step >= 5e-3, "the step was smoothed away: {step:.2e}");
 }

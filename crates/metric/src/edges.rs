@@ -1,0 +1,155 @@
+//! Error near sharp edges: how much of an image's error lies within a few pixels of the places
+//! where the reference's light jumps (a spot's cone rim, a hard shadow, a silhouette).
+//!
+//! A pixel pair is an **edge** when two 4-neighbours' reference luminances differ by more than
+//! [`EDGE_JUMP`] of the larger, and the larger is at least [`EDGE_FLOOR`] of the reference's
+//! peak (so noise in the dark does not count). Pixels within [`EDGE_RADIUS`] (Chebyshev
+//! distance) of an edge pixel are **near** an edge. The split then says which share of the
+//! squared luminance error is near edges, and the RMSE on each side. Images rendered by the same
+//! rasterizer share their silhouettes pixel for pixel, so between two of them the near-edge
+//! error is that of the light's edges. Only the reference `b` decides the mask, so two images
+//! measured against one reference are measured on the same pixels.
+
+use serde::Serialize;
+
+/// Relative luminance jump between 4-neighbours that makes an edge.
+pub const EDGE_JUMP: f64 = 0.25;
+/// Smallest luminance, relative to the reference's peak, at which a jump counts.
+pub const EDGE_FLOOR: f64 = 1e-3;
+/// Pixels within this Chebyshev distance of an edge pixel are near it.
+pub const EDGE_RADIUS: usize = 2;
+
+/// The error of `a` against `b` split at the reference's sharp edges.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct EdgeSplit {
+    /// Pixels near an edge.
+    pub near_pixels: usize,
+    /// Share of the summed squared luminance error on those pixels, in [0, 1] (0 for equal
+    /// images).
+    pub near_share: f64,
+    /// RMSE over the pixels near an edge (0 if there are none).
+    pub rmse_near: f64,
+    /// RMSE over the other pixels (0 if there are none).
+    pub rmse_far: f64,
+}
+
+/// Whether neighbours of luminances `p` and `q` make an edge, given the absolute `floor`.
+fn is_edge(p: f64, q: f64, floor: f64) -> bool {
+    let m = p.max(q);
+    m >= floor && m > 0.0 && (p - q).abs() > EDGE_JUMP * m
+}
+
+/// Which pixels (row-major, `w` x `h`) are near a sharp edge of the luminances `yb`.
+pub fn near_edges(yb: &[f64], w: usize, h: usize) -> Vec<bool> {
+    let peak = yb.iter().copied().fold(0.0f64, f64::max);
+    let floor = EDGE_FLOOR * peak;
+    let jump = |p: f64, q: f64| is_edge(p, q, floor);
+    let mut edge = vec![false; yb.len()];
+    for y in 0..h {
+        for x in 0..w {
+            let i = y * w + x;
+            if x + 1 < w && jump(yb[i], yb[i + 1]) {
+                edge[i] = true;
+                edge[i + 1] = true;
+            }
+            if y + 1 < h && jump(yb[i], yb[i + w]) {
+                edge[i] = true;
+                edge[i + w] = true;
+            }
+        }
+    }
+    dilate(&edge, w, h, EDGE_RADIUS)
+}
+
+/// The pixels within Chebyshev distance `radius` of a marked pixel of `marked` (row-major,
+/// `w` x `h`).
+pub fn dilate(marked: &[bool], w: usize, h: usize, radius: usize) -> Vec<bool> {
+    let mut near = vec![false; marked.len()];
+    for y in 0..h {
+        for x in 0..w {
+            if !marked[y * w + x] {
+                continue;
+            }
+            for yy in y.saturating_sub(radius)..(y + radius + 1).min(h) {
+                for xx in x.saturating_sub(radius)..(x + radius + 1).min(w) {
+                    near[yy * w + xx] = true;
+                }
+            }
+        }
+    }
+    near
+}
+
+/// The error of luminances `ya` against the reference's `yb` split at `yb`'s sharp edges.
+pub fn edge_split(ya: &[f64], yb: &[f64], w: usize, h: usize) -> EdgeSplit {
+    let near = near_edges(yb, w, h);
+    let (mut sq_near, mut sq_far, mut n_near) = (0.0f64, 0.0f64, 0usize);
+    for ((p, q), &m) in ya.iter().zip(yb).zip(&near) {
+        let d = (p - q) * (p - q);
+        if m {
+            sq_near += d;
+            n_near += 1;
+        } else {
+            sq_far += d;
+        }
+    }
+    let n_far = ya.len() - n_near;
+    let total = sq_near + sq_far;
+    EdgeSplit {
+        near_pixels: n_near,
+        near_share: if total > 0.0 { sq_near / total } else { 0.0 },
+        rmse_near: if n_near > 0 {
+            (sq_near / n_near as f64).sqrt()
+        } else {
+            0.0
+        },
+        rmse_far: if n_far > 0 {
+            (sq_far / n_far as f64).sqrt()
+        } else {
+            0.0
+        },
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A vertical step at x = 5 in a 12 x 3 reference: columns 4 and 5 are the edge, 2..=7
+    /// near it (radius 2); an error of 1 on column 3 and of 2 on column 10 splits 1 : 4 per
+    /// row.
+    #[test]
+    fn a_step_and_its_band() {
+        let (w, h) = (12, 3);
+        let yb: Vec<f64> = (0..w * h)
+            .map(|i| if i % w < 5 { 1.0 } else { 2.0 })
+            .collect();
+        let near = near_edges(&yb, w, h);
+        for (i, &n) in near.iter().enumerate() {
+            assert_eq!(n, (2..=7).contains(&(i % w)), "pixel {i}");
+        }
+        let mut ya = yb.clone();
+        for y in 0..h {
+            ya[y * w + 3] += 1.0;
+            ya[y * w + 10] += 2.0;
+        }
+        let s = edge_split(&ya, &yb, w, h);
+        assert_eq!(s.near_pixels, 18);
+        assert!((s.near_share - 0.2).abs() < 1e-15);
+        assert!((s.rmse_near - (3.0f64 / 18.0).sqrt()).abs() < 1e-15);
+        assert!((s.rmse_far - (12.0f64 / 18.0).sqrt()).abs() < 1e-15);
+    }
+
+    /// A jump below the floor or below the relative threshold is no edge; equal images share 0.
+    #[test]
+    fn small_jumps_are_not_edges() {
+        assert!(is_edge(0.1, 0.2, 0.15));
+        assert!(!is_edge(0.1, 0.2, 0.25), "below the floor");
+        assert!(!is_edge(1.0, 1.2, 0.0), "a 17 % step");
+        assert!(!is_edge(0.0, 0.0, 0.0));
+        let yb = vec![1.0, 1.2, 1.44, 1.2, 1.0];
+        assert!(near_edges(&yb, 5, 1).iter().all(|&n| !n));
+        let s = edge_split(&yb, &yb, 5, 1);
+        assert_eq!((s.near_share, s.rmse_near, s.rmse_far), (0.0, 0.0, 0.0));
+    }
+}
