@@ -13,7 +13,8 @@
 //! solve's. A pixel is **near a spot edge** when a pixel within 2 px (Chebyshev) and the pixel
 //! beside it (4-neighbours) see the same polygon lit by different sets of spots (cone rims and
 //! shadow lines, read from the solution's spot terms at the pixel centres; silhouettes are not
-//! edges here). Frame times: median of 15 frames per level, levels interleaved, after a warm-up.
+//! edges here). Frame times: median of 15 frames of the scene's camera per level, and the median
+//! of 5 walks of the camera path (mean frame time per walk), levels interleaved, after a warm-up.
 
 use std::path::PathBuf;
 use std::time::Instant;
@@ -121,8 +122,15 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         views.push((reference, mask));
     }
 
-    // Frame times, levels interleaved.
+    // Frame times, levels interleaved: the scene's camera (median of FRAMES frames) and the
+    // whole camera path (median of 5 walks, each the sum of its frames).
     let mut times = vec![Vec::new(); builds.len()];
+    let mut walks = vec![Vec::new(); builds.len()];
+    let path: Vec<scene::Camera> = p.scene.camera_path.as_ref().map_or_else(Vec::new, |cp| {
+        (0..cp.frames)
+            .map(|k| cp.camera(p.scene.camera.projection, k))
+            .collect()
+    });
     let mut fc = FrameContext::new();
     for round in 0..=FRAMES {
         for (b, (_, c, _, _)) in builds.iter().enumerate() {
@@ -136,14 +144,24 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             if round > 0 {
                 times[b].push(s.frame_ms);
             }
+            if round > 0 && round <= 5 {
+                let mut sum = 0.0;
+                for cam in &path {
+                    sum += fc
+                        .render(&p.scene, cam, &Shader::Patches(c), Method::Direct, &opts)?
+                        .frame_ms;
+                }
+                walks[b].push(sum / path.len().max(1) as f64);
+            }
         }
     }
 
     println!(
         "| levels | patches | RRP bytes | light evaluated (points) | build ms | frame ms (median) \
-         | rmse near spot edges | rmse elsewhere | share of squared error near spot edges |"
+         | walkthrough ms per frame (median of 5) | rmse near spot edges | rmse elsewhere \
+         | share of squared error near spot edges |"
     );
-    println!("|---|---|---|---|---|---|---|---|---|");
+    println!("|---|---|---|---|---|---|---|---|---|---|");
     for (b, (levels, c, ms, evaluated)) in builds.iter().enumerate() {
         let (mut near, mut far, mut n_near, mut n_far) = (0.0f64, 0.0f64, 0usize, 0usize);
         for ((reference, mask), cam) in views.iter().zip(&cameras) {
@@ -160,13 +178,15 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             }
         }
         times[b].sort_by(f64::total_cmp);
+        walks[b].sort_by(f64::total_cmp);
         let st = c.stats();
         println!(
-            "| {levels} | {} | {} | {} | {ms:.0} | {:.2} | {:.3e} | {:.3e} | {:.1} % |",
+            "| {levels} | {} | {} | {} | {ms:.0} | {:.2} | {:.2} | {:.3e} | {:.3e} | {:.1} % |",
             st.leaves,
             st.total_bytes,
             evaluated,
             times[b][times[b].len() / 2],
+            walks[b].get(walks[b].len() / 2).copied().unwrap_or(0.0),
             (near / n_near.max(1) as f64).sqrt(),
             (far / n_far.max(1) as f64).sqrt(),
             100.0 * near / (near + far).max(f64::MIN_POSITIVE),
