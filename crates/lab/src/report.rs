@@ -52,7 +52,8 @@ pub struct SceneSummary {
     pub memory_max: u64,
     /// Shared polygon edges ([`scene::adjacency`]).
     pub adjacency: scene::adjacency::AdjacencySummary,
-    /// Seams the reconstruction joins C1 (coplanar) and C0 (gentle folds), and those it leaves
+    /// Seams the reconstruction joins C1 (coplanar) and C0 (gentle folds, slanted sides), and
+    /// those it leaves
     /// apart because a polygon stands on them or because their lattices or shapes do not line
     /// up ([`reconstruction::seam`]).
     pub seams: (usize, usize, usize, usize),
@@ -104,8 +105,8 @@ pub fn summarize(scene: &Scene) -> SceneSummary {
         memory_max: worst,
         adjacency: adjacency.summary(&scene.polygons, &scene.materials),
         seams: (
-            seams.joined() - seams.folds(),
-            seams.folds(),
+            seams.joined() - seams.folds() - seams.slanted(),
+            seams.folds() + seams.slanted(),
             seams.standing(),
             seams.unjoined(),
         ),
@@ -156,9 +157,9 @@ impl fmt::Display for SceneSummary {
             (
                 "seams",
                 format!(
-                    "{} joined C1 and {} gentle folds joined C0 (unless their samples \
-                     disagree), apart: {} with a polygon standing on them, {} whose lattices or \
-                     shapes do not line up",
+                    "{} joined C1 and {} joined C0 (gentle folds, slanted sides) unless their \
+                     samples disagree, apart: {} with a polygon standing on them, {} whose \
+                     lattices do not line up or that are slivers",
                     self.seams.0, self.seams.1, self.seams.2, self.seams.3
                 ),
             ),

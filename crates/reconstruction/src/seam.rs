@@ -26,9 +26,11 @@
 //! same value and along-edge slope there, so their edge cubics are the same curve. The slope
 //! across an edge is the cubic Hermite interpolant of the cross derivative and the twist at the
 //! edge's ends; with the same world data at both ends and cross axes perpendicular to the seam,
-//! both polygons' cross slopes are the same cubic in world units. Where a cross axis is not
-//! perpendicular to the seam (a skewed quad, a triangle) the data still agree at every seam point,
-//! and between them the slope across differs by the twists' disagreement only.
+//! both polygons' cross slopes are the same cubic in world units. Where a cross axis is tilted
+//! from perpendicular by less than [`MAX_CROSS_TILT`] the data still agree at every seam point,
+//! and between them the slope across differs by the twists' disagreement only; beyond it (the
+//! hypotenuse of a triangle) the side is joined in value and along-edge slope only, C0, as a
+//! gentle fold is.
 //!
 //! Only sides whose lattices line up are joined: the shared segment's ends are lattice points of
 //! both sides and one side's parameter is a power of two times the other's, so every seam point
@@ -45,7 +47,7 @@ use super::hermite::{HermiteData, PatchPoly};
 use super::Estimator;
 use base::quadtree::{SampledQuadtree, VertexKey, LATTICE};
 use scene::adjacency::{side_endpoints, Adjacency, Junction, SharedEdge, Side};
-use scene::{Material, Polygon, Shape};
+use scene::{Material, Polygon};
 
 /// A shared side joined by the reconstruction, in lattice units.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -71,6 +73,7 @@ pub struct Seams {
     unjoined: usize,
     standing: usize,
     folds: usize,
+    slants: usize,
 }
 
 impl Seams {
@@ -80,13 +83,15 @@ impl Seams {
     }
 
     /// The seams of a scene: every shared edge between coplanar polygons of equal material whose
-    /// lattices line up ([`Adjacency::continuous`]), and the gentle folds between polygons of
-    /// equal material (creases of at most [`MAX_FOLD_DEGREES`]), joined in value only.
+    /// lattices line up ([`Adjacency::continuous`]), joined C1 (C0 where a cross axis is
+    /// slanted), and the gentle folds between polygons of equal material (creases of at most
+    /// [`MAX_FOLD_DEGREES`]), joined C0.
     pub fn of(polygons: &[Polygon], materials: &[Material], adjacency: &Adjacency) -> Seams {
         let mut links = Vec::new();
         let mut unjoined = 0;
         let mut standing = 0;
         let mut folds = 0;
+        let mut slants = 0;
         for e in &adjacency.edges {
             let fold = is_fold(e, polygons, materials);
             if !fold && !Adjacency::continuous(e, polygons, materials) {
@@ -96,16 +101,24 @@ impl Seams {
                 standing += 1;
                 continue;
             }
-            if !conditioned(&polygons[e.a.polygon as usize], e.a.side, e.a_range)
-                || !conditioned(&polygons[e.b.polygon as usize], e.b.side, e.b_range)
-            {
+            let shape =
+                |side: Side, range| conditioned(&polygons[side.polygon as usize], side.side, range);
+            let (sa, sb) = (shape(e.a, e.a_range), shape(e.b, e.b_range));
+            if sa == Shape::Degenerate || sb == Shape::Degenerate {
                 unjoined += 1;
                 continue;
             }
+            // A slanted cross axis cannot carry the slope across from one polygon to the other
+            // (module docs): such a side is joined in value only, like a fold.
+            let slanted = !fold && (sa == Shape::Slanted || sb == Shape::Slanted);
             match link(e) {
                 Some(l) => {
                     folds += usize::from(fold);
-                    links.push(Link { fold, ..l });
+                    slants += usize::from(slanted);
+                    links.push(Link {
+                        fold: fold || slanted,
+                        ..l
+                    });
                 }
                 None => unjoined += 1,
             }
@@ -121,12 +134,19 @@ impl Seams {
             unjoined,
             standing,
             folds,
+            slants,
         }
     }
 
     /// Joined shared sides that are gentle folds (joined in value only, [`MAX_FOLD_DEGREES`]).
     pub fn folds(&self) -> usize {
         self.folds
+    }
+
+    /// Joined coplanar sides whose cross axis is slanted (the hypotenuse of a triangle), joined
+    /// in value only.
+    pub fn slanted(&self) -> usize {
+        self.slants
     }
 
     /// Continuous shared sides left unjoined because another polygon stands on them at an angle
@@ -182,12 +202,28 @@ pub const MAX_CROSS_TILT: f64 = 0.5;
 /// height.
 pub const MIN_CROSS_RATIO: f64 = 1e-2;
 
-/// Whether `side` of `p` is a well-conditioned seam over `range`: at both ends the cross axis is
-/// within [`MAX_CROSS_TILT`] of perpendicular to the side and at least [`MIN_CROSS_RATIO`] of
-/// its length. Slivers, needles and the slanted sides of most triangles are left unjoined.
-fn conditioned(p: &Polygon, side: u8, range: [f64; 2]) -> bool {
-    range.iter().all(|&s| {
+/// How well a polygon's side carries a seam ([`conditioned`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Shape {
+    /// The cross axis is within [`MAX_CROSS_TILT`] of perpendicular: joined C1.
+    Square,
+    /// The cross axis is slanted beyond it (most triangles' sides): joined C0.
+    Slanted,
+    /// A sliver or needle (cross axis under [`MIN_CROSS_RATIO`] of the side, or at an angle
+    /// to it whose sine is under that ratio, or a side of length 0): left apart.
+    Degenerate,
+}
+
+/// How well `side` of `p` carries a seam over `range`, the worst of its two ends and its
+/// middle. A triangle's apex (v = 1, where its cross axis vanishes by construction) is not
+/// tested: it is never a seam point.
+fn conditioned(p: &Polygon, side: u8, range: [f64; 2]) -> Shape {
+    let mut worst = Shape::Square;
+    for s in [range[0], 0.5 * (range[0] + range[1]), range[1]] {
         let (u, v) = scene::adjacency::side_uv(side, s);
+        if p.shape == scene::Shape::Triangle && v >= 1.0 {
+            continue;
+        }
         let (xu, xv) = p.tangents(u, v);
         let (along, cross) = if side.is_multiple_of(2) {
             (xu, xv)
@@ -195,8 +231,17 @@ fn conditioned(p: &Polygon, side: u8, range: [f64; 2]) -> bool {
             (xv, xu)
         };
         let (la, lc) = (along.length(), cross.length());
-        la > 0.0 && lc >= MIN_CROSS_RATIO * la && along.dot(cross).abs() <= MAX_CROSS_TILT * la * lc
-    })
+        // A sliver (short cross axis) or a needle (cross axis nearly along the side).
+        if !(la > 0.0 && lc >= MIN_CROSS_RATIO * la)
+            || along.cross(cross).length() < MIN_CROSS_RATIO * la * lc
+        {
+            return Shape::Degenerate;
+        }
+        if along.dot(cross).abs() > MAX_CROSS_TILT * la * lc {
+            worst = Shape::Slanted;
+        }
+    }
+    worst
 }
 
 /// Largest angle between two polygons' normals, in degrees, at which a crease between polygons
@@ -515,7 +560,7 @@ fn agree(own: &[Own<'_>], pairs: &[(Member, Member)]) -> bool {
 
 /// Whether `k` is the apex of a triangle (its v = 1 side collapsed), where (u, v) is singular.
 fn apex(seams: &Seams, polygon: u32, k: VertexKey) -> bool {
-    seams.geometry[polygon as usize].shape == Shape::Triangle && k.j == LATTICE
+    seams.geometry[polygon as usize].shape == scene::Shape::Triangle && k.j == LATTICE
 }
 
 /// Whether `k` is a corner of the domain.

@@ -496,3 +496,32 @@ fn sharp_creases_and_stepping_folds_stay_apart() {
     // The light there is about 0.05-1.05; a 10 % step stays a step of at least 0.5 % of the peak.
     assert!(step >= 5e-3, "the step was smoothed away: {step:.2e}");
 }
+
+/// A unit square split along its diagonal into two triangles (the diagonal is each one's u = 0
+/// side, slanted 45 degrees from its cross axis): joined C0, the value along the diagonal is one
+/// curve (to f32 rounding) where apart the two sides' edge cubics step by about 1e-4 of the peak.
+#[test]
+fn triangles_are_joined_c0_along_a_slanted_side() {
+    let (p, q) = (DVec3::new(0.0, 0.0, 1.0), DVec3::new(1.0, 0.0, 0.0));
+    let polys = [
+        Polygon::triangle([p, DVec3::new(1.0, 0.0, 1.0), q], 0, 0).expect("valid triangle"),
+        Polygon::triangle([q, DVec3::new(0.0, 0.0, 0.0), p], 0, 0).expect("valid triangle"),
+    ];
+    let seams = Seams::of(&polys, &materials(1), &Adjacency::of(&polys));
+    assert_eq!(
+        (seams.joined(), seams.slanted(), seams.unjoined()),
+        (1, 1, 0)
+    );
+    let sq = sampled(&polys, &[1e-3, 2e-4]);
+    // Polygon 0 runs from p (v = 0) to q (v = 1) along u = 0, polygon 1 the other way.
+    let line = Line {
+        a: (0, |s| (0.0, s)),
+        b: (1, |s| (0.0, 1.0 - s)),
+        across: [(0, 1.0), (0, 1.0)],
+    };
+    let (jv, _) = jumps(&build(&sq, &seams), &line, 997);
+    let (apart, _) = jumps(&build(&sq, &Seams::none()), &line, 997);
+    eprintln!("triangles: value step joined {jv:.2e}, apart {apart:.2e}");
+    assert!(jv <= 1e-6, "value step {jv:.2e} of the peak");
+    assert!(apart >= 10.0 * jv.max(1e-7), "apart only {apart:.2e}");
+}
