@@ -17,7 +17,7 @@
 //!    from the light. Each vertex's Hermite data are then the rest's plus, for every term that
 //!    lights it, the term's value and the derivatives of its smooth continuation (the term
 //!    without its cuts, [`SharpLight::smooth`], by central differences at 1/64 of the smallest
-//!    leaf at the vertex).
+//!    leaf at the vertex). Merging (`refine::merge`) then runs on these full data.
 //!
 //! Vertices inside a leaf's edge (T-vertices) take their data from that leaf's polynomial, as in
 //! the compact form, so the result is C1 everywhere by the argument of `refine` (every leaf's
@@ -31,8 +31,8 @@
 //! original sample is still reproduced at its vertex (the rest plus the parts is the sample, to
 //! f32 rounding of the rest); the derivatives are those of the terms' smooth continuation, so a
 //! straight edge ramp has no overshoot beyond the estimator's on the rest. At most
-//! [`MAX_TERMS`] terms per polygon are followed; further ones stay in the samples (today's
-//! smooth treatment).
+//! [`MAX_TERMS`] terms per polygon are followed; further ones stay in the samples and are
+//! reconstructed from them like any other light.
 
 use base::quadtree::{Quadtree, SampledQuadtree, VertexKey, MAX_DEPTH};
 use glam::Vec3;
