@@ -795,3 +795,61 @@ fn a_scene_path_that_is_not_utf8_solves_and_renders() {
     assert!(o.status.success(), "{}", stderr(&o));
     assert!(png.is_file());
 }
+
+/// `--sharp-levels` takes effect from a scene and from a solution file alike (the file stores
+/// the default's RRPs; another value rebuilds them from its samples), 0 draws another image
+/// than the default on a scene lit by spots, and a value past the lattice's 16 levels is bad
+/// input, refused before any work (exit 2).
+#[test]
+fn sharp_levels_take_effect_and_are_checked() {
+    let ts = scene("two-spots");
+    let sol = tmp("sharp-two-spots.pfsol");
+    let o = run(&[
+        "solve",
+        ts.to_str().unwrap(),
+        "-o",
+        sol.to_str().unwrap(),
+        "--quiet",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let render = |input: &Path, name: &str, levels: &str| {
+        let exr = tmp(name);
+        let o = run(&[
+            "render",
+            input.to_str().unwrap(),
+            "--sharp-levels",
+            levels,
+            "--width",
+            "96",
+            "--height",
+            "64",
+            "-o",
+            tmp("sharp.png").to_str().unwrap(),
+            "--exr",
+            exr.to_str().unwrap(),
+            "--quiet",
+        ]);
+        assert!(o.status.success(), "{}", stderr(&o));
+        std::fs::read(exr).unwrap()
+    };
+    let a = render(&ts, "sharp3-scene.exr", "3");
+    let b = render(&sol, "sharp3-solution.exr", "3");
+    assert!(
+        a == b,
+        "the default levels differ between scene and solution input"
+    );
+    let c = render(&ts, "sharp0-scene.exr", "0");
+    let d = render(&sol, "sharp0-solution.exr", "0");
+    assert!(c == d, "--sharp-levels 0: scene and solution input differ");
+    assert!(a != c, "--sharp-levels 0 drew the default's image");
+
+    let o = run(&[
+        "render",
+        ts.to_str().unwrap(),
+        "--sharp-levels",
+        "17",
+        "--quiet",
+    ]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(stderr(&o).contains("--sharp-levels"), "{}", stderr(&o));
+}
