@@ -205,20 +205,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
 /// Pixels within 2 px of a pair of 4-neighbours that see one polygon (green channel: id + 1)
 /// under different sets of spots (red channel: the lit mask).
 fn near_spot_edges(ids: &[Vec3], w: usize, h: usize) -> Vec<bool> {
-    let edge_pair = |a: Vec3, b: Vec3| a.y > 0.0 && a.y == b.y && a.x != b.x;
-    let mut edge = vec![false; ids.len()];
-    for y in 0..h {
-        for x in 0..w {
-            let i = y * w + x;
-            if x + 1 < w && edge_pair(ids[i], ids[i + 1]) {
-                edge[i] = true;
-                edge[i + 1] = true;
-            }
-            if y + 1 < h && edge_pair(ids[i], ids[i + w]) {
-                edge[i] = true;
-                edge[i + w] = true;
-            }
-        }
-    }
+    let edge = metric::edges::mark_pairs(w, h, |i, j| {
+        let (a, b) = (ids[i], ids[j]);
+        a.y > 0.0 && a.y == b.y && a.x != b.x
+    });
     metric::edges::dilate(&edge, w, h, 2)
 }

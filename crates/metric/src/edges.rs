@@ -43,22 +43,29 @@ fn is_edge(p: f64, q: f64, floor: f64) -> bool {
 pub fn near_edges(yb: &[f64], w: usize, h: usize) -> Vec<bool> {
     let peak = yb.iter().copied().fold(0.0f64, f64::max);
     let floor = EDGE_FLOOR * peak;
-    let jump = |p: f64, q: f64| is_edge(p, q, floor);
-    let mut edge = vec![false; yb.len()];
+    let edge = mark_pairs(w, h, |i, j| is_edge(yb[i], yb[j], floor));
+    dilate(&edge, w, h, EDGE_RADIUS)
+}
+
+/// The pixels (row-major, `w` x `h`) of every pair of 4-neighbours (indices `i < j`) that
+/// `pair` accepts.
+pub fn mark_pairs(w: usize, h: usize, pair: impl Fn(usize, usize) -> bool) -> Vec<bool> {
+    let mut marked = vec![false; w * h];
     for y in 0..h {
         for x in 0..w {
             let i = y * w + x;
-            if x + 1 < w && jump(yb[i], yb[i + 1]) {
-                edge[i] = true;
-                edge[i + 1] = true;
-            }
-            if y + 1 < h && jump(yb[i], yb[i + w]) {
-                edge[i] = true;
-                edge[i + w] = true;
+            for j in [(x + 1 < w).then_some(i + 1), (y + 1 < h).then_some(i + w)]
+                .into_iter()
+                .flatten()
+            {
+                if pair(i, j) {
+                    marked[i] = true;
+                    marked[j] = true;
+                }
             }
         }
     }
-    dilate(&edge, w, h, EDGE_RADIUS)
+    marked
 }
 
 /// The pixels within Chebyshev distance `radius` of a marked pixel of `marked` (row-major,

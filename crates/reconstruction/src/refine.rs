@@ -170,19 +170,27 @@ pub(crate) fn split(
         {
             continue;
         }
-        let poly = PatchPoly::from_corners(cell, &corner_data(&map, cell));
-        let first = t.split(id);
-        for child in cell.children() {
-            for k in child.corners() {
-                map.entry(k)
-                    .or_insert_with(|| poly.hermite_at(k.u(), k.v()));
-            }
-        }
+        let first = split_leaf(&mut t, &mut map, id);
         for q in (0..4).rev() {
             stack.push(first + q);
         }
     }
     (t, map)
+}
+
+/// Splits leaf `id` of `t` at its midpoints; child corners without data take the leaf's patch
+/// polynomial there (points that have data keep it). Returns the first child's id.
+pub(crate) fn split_leaf(t: &mut Quadtree, map: &mut KeyMap<HermiteData>, id: u32) -> u32 {
+    let cell = t.node(id).cell;
+    let poly = PatchPoly::from_corners(cell, &corner_data(map, cell));
+    let first = t.split(id);
+    for child in cell.children() {
+        for k in child.corners() {
+            map.entry(k)
+                .or_insert_with(|| poly.hermite_at(k.u(), k.v()));
+        }
+    }
+    first
 }
 
 /// The merging half of [`refine`] on any tree whose leaf corners all carry data in `map`

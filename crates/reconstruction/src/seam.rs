@@ -58,9 +58,9 @@ struct Link {
     ka: [i64; 2],
     /// Lattice indices along `b` of the same ends (in `a`'s order).
     kb: [i64; 2],
-    /// A gentle fold (a crease of at most [`MAX_FOLD_DEGREES`]): joined in value and slope
-    /// along the edge only (C0), not across.
-    fold: bool,
+    /// Joined in value and slope along the edge only (C0), not across: a gentle fold (a crease
+    /// of at most [`MAX_FOLD_DEGREES`]) or a side whose cross axis is slanted.
+    c0: bool,
 }
 
 /// The seams a reconstruction joins, and the geometry it needs to convert derivatives.
@@ -116,7 +116,7 @@ impl Seams {
                     folds += usize::from(fold);
                     slants += usize::from(slanted);
                     links.push(Link {
-                        fold: fold || slanted,
+                        c0: fold || slanted,
                         ..l
                     });
                 }
@@ -303,7 +303,7 @@ fn link(e: &SharedEdge) -> Option<Link> {
         b: e.b,
         ka,
         kb,
-        fold: false,
+        c0: false,
     })
 }
 
@@ -638,7 +638,7 @@ pub(crate) fn force(seams: &Seams, own: &[Own<'_>], estimator: Estimator) -> For
         return out;
     }
     let mut smooth = HashSet::new();
-    for group in seam_points(seams, own, |l| !l.fold).0 {
+    for group in seam_points(seams, own, |l| !l.c0).0 {
         smooth.extend(group.iter().copied());
         let worlds: Vec<Option<World>> =
             group.iter().map(|&m| member_world(seams, own, m)).collect();
@@ -680,7 +680,7 @@ pub(crate) fn force(seams: &Seams, own: &[Own<'_>], estimator: Estimator) -> For
 /// (C0), while the light may turn with the surface. A point also on a coplanar seam (where the
 /// coplanar joint already fixed the data) is left as that seam made it.
 fn force_folds(seams: &Seams, own: &[Own<'_>], smooth: &HashSet<Member>, out: &mut Forced) {
-    let (groups, joined) = seam_points(seams, own, |l| l.fold);
+    let (groups, joined) = seam_points(seams, own, |l| l.c0);
     let mut world: HashMap<Member, (World, [f64; 3])> = HashMap::new();
     for group in groups {
         if group.iter().any(|m| smooth.contains(m)) {
@@ -689,14 +689,9 @@ fn force_folds(seams: &Seams, own: &[Own<'_>], smooth: &HashSet<Member>, out: &m
         let worlds: Option<Vec<World>> =
             group.iter().map(|&m| member_world(seams, own, m)).collect();
         let Some(worlds) = worlds else { continue };
-        let sampled: Vec<&World> = worlds.iter().filter(|w| w.sampled).collect();
-        let from: Vec<&World> = if sampled.is_empty() {
-            worlds.iter().collect()
-        } else {
-            sampled
+        let Some(f) = sampled_mean(&worlds.iter().collect::<Vec<_>>()) else {
+            continue;
         };
-        let n = from.len() as f64;
-        let f: [f64; 3] = std::array::from_fn(|ch| from.iter().map(|w| w.f[ch]).sum::<f64>() / n);
         for (m, w) in group.into_iter().zip(worlds) {
             world.insert(m, (w, f));
         }
@@ -769,6 +764,24 @@ struct Joint<'w> {
     reference: Option<&'w World>,
 }
 
+/// A seam point's value: the mean of its members' samples, or of all its members' values where
+/// none is a sample (`None` without members).
+fn sampled_mean(members: &[&World]) -> Option<[f64; 3]> {
+    let sampled: Vec<&World> = members.iter().copied().filter(|w| w.sampled).collect();
+    let from = if sampled.is_empty() {
+        members
+    } else {
+        &sampled[..]
+    };
+    if from.is_empty() {
+        return None;
+    }
+    let n = from.len() as f64;
+    Some(std::array::from_fn(|ch| {
+        from.iter().map(|w| w.f[ch]).sum::<f64>() / n
+    }))
+}
+
 /// The joint data of one seam point from its members' world data.
 fn joint<'w>(
     seams: &Seams,
@@ -777,13 +790,7 @@ fn joint<'w>(
     estimator: Estimator,
 ) -> Option<Joint<'w>> {
     let live: Vec<&World> = worlds.iter().flatten().collect();
-    let sampled: Vec<&World> = live.iter().copied().filter(|w| w.sampled).collect();
-    let from = if sampled.is_empty() { &live } else { &sampled };
-    if from.is_empty() {
-        return None;
-    }
-    let n = from.len() as f64;
-    let f = std::array::from_fn(|ch| from.iter().map(|w| w.f[ch]).sum::<f64>() / n);
+    let f = sampled_mean(&live)?;
     let nl = live.len() as f64;
     let mut grad: [DVec3; 3] =
         std::array::from_fn(|ch| live.iter().map(|w| w.grad[ch]).sum::<DVec3>() / nl);

@@ -38,8 +38,8 @@ use base::quadtree::{Quadtree, SampledQuadtree, VertexKey, MAX_DEPTH};
 use glam::Vec3;
 
 use crate::compact::Layout;
-use crate::hermite::{HermiteData, PatchPoly};
-use crate::refine::{self, corner_data, KeyMap, Refined};
+use crate::hermite::HermiteData;
+use crate::refine::{self, KeyMap, Refined};
 
 /// Light known exactly at any point, whose value may jump: the reconstruction takes it out of
 /// the samples and adds it back along its edges ([module docs](self)). Terms are numbered by
@@ -203,15 +203,7 @@ pub(crate) fn sharpen(
         if masks.iter().all(|&m| m == masks[0]) {
             continue;
         }
-        let poly = PatchPoly::from_corners(cell, &corner_data(&rest_data, cell));
-        let first = t.split(id);
-        for child in cell.children() {
-            for k in child.corners() {
-                rest_data
-                    .entry(k)
-                    .or_insert_with(|| poly.hermite_at(k.u(), k.v()));
-            }
-        }
+        let first = refine::split_leaf(&mut t, &mut rest_data, id);
         for q in (0..4).rev() {
             stack.push((first + q, limit));
         }

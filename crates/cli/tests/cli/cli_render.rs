@@ -158,6 +158,28 @@ fn a_closed_stdout_ends_quietly() {
     }
 }
 
+/// Renders `input` at 96 x 64 with the options `extra`, writing the EXR `exr` (and a PNG beside
+/// it); returns the EXR's bytes. Panics if the render fails.
+fn render_exr(input: &Path, exr: &Path, extra: &[&str]) -> Vec<u8> {
+    let png = exr.with_extension("png");
+    let mut args = vec!["render", input.to_str().unwrap()];
+    args.extend_from_slice(extra);
+    args.extend([
+        "--width",
+        "96",
+        "--height",
+        "64",
+        "-o",
+        png.to_str().unwrap(),
+        "--exr",
+        exr.to_str().unwrap(),
+        "--quiet",
+    ]);
+    let o = run(&args);
+    assert!(o.status.success(), "{}", stderr(&o));
+    std::fs::read(exr).unwrap()
+}
+
 #[test]
 fn render_from_a_solution_file_equals_render_from_the_scene() {
     let sol = tmp("cb.pfsol");
@@ -170,23 +192,7 @@ fn render_from_a_solution_file_equals_render_from_the_scene() {
     ]);
     assert!(o.status.success(), "{}", stderr(&o));
     let render = |input: &Path, exr: &Path, estimator: &str| {
-        let o = run(&[
-            "render",
-            input.to_str().unwrap(),
-            "--estimator",
-            estimator,
-            "--width",
-            "96",
-            "--height",
-            "64",
-            "-o",
-            tmp("cb.png").to_str().unwrap(),
-            "--exr",
-            exr.to_str().unwrap(),
-            "--quiet",
-        ]);
-        assert!(o.status.success(), "{}", stderr(&o));
-        std::fs::read(exr).unwrap()
+        render_exr(input, exr, &["--estimator", estimator])
     };
     let a = render(&scene("cornell-box"), &tmp("from-scene.exr"), "hyman");
     let b = render(&sol, &tmp("from-solution.exr"), "hyman");
@@ -813,24 +819,7 @@ fn sharp_levels_take_effect_and_are_checked() {
     ]);
     assert!(o.status.success(), "{}", stderr(&o));
     let render = |input: &Path, name: &str, levels: &str| {
-        let exr = tmp(name);
-        let o = run(&[
-            "render",
-            input.to_str().unwrap(),
-            "--sharp-levels",
-            levels,
-            "--width",
-            "96",
-            "--height",
-            "64",
-            "-o",
-            tmp("sharp.png").to_str().unwrap(),
-            "--exr",
-            exr.to_str().unwrap(),
-            "--quiet",
-        ]);
-        assert!(o.status.success(), "{}", stderr(&o));
-        std::fs::read(exr).unwrap()
+        render_exr(input, &tmp(name), &["--sharp-levels", levels])
     };
     let a = render(&ts, "sharp3-scene.exr", "3");
     let b = render(&sol, "sharp3-solution.exr", "3");
