@@ -400,8 +400,9 @@ fn deferred(c: &mut Criterion) {
         .collect();
     let set = TextureSet {
         textures,
-        memory: TextureMemory::of_sides(&vec![16; scene.polygons.len()]),
+        memory: TextureMemory::of_sides(&vec![16; scene.polygons.len()], 0),
         placement: Placement::Centre,
+        gutter: 0,
     };
     for (name, filter) in [
         ("texture-nearest-1024", Filter::Nearest),

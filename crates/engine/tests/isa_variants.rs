@@ -346,13 +346,23 @@ fn check_texture(isa: Isa) -> usize {
                         )
                     })
                     .collect();
-                RadiosityTexture::from_texels(n, n, t).expect("a texture")
+                if p % 2 == 0 {
+                    return RadiosityTexture::from_texels(n, n, t).expect("a texture");
+                }
+                // Every other texture with a 2-texel gutter of other values: edge lookups read
+                // it instead of clamped copies of the edge texels.
+                RadiosityTexture::from_fn(n, Placement::Centre, 2, |u, v| {
+                    let h = (u.to_bits() ^ v.to_bits().rotate_left(13)).wrapping_mul(2654435761);
+                    Vec3::new((h >> 20) as f32 * 1e-3, (h % 89) as f32 * 0.02 - 0.3, 0.5)
+                })
+                .expect("a texture with a gutter")
             })
             .collect();
         let set = TextureSet {
             textures,
-            memory: TextureMemory::of_sides(&sides),
+            memory: TextureMemory::of_sides(&sides, 0),
             placement: Placement::Centre,
+            gutter: 0,
         };
         for filter in [
             Filter::Nearest,

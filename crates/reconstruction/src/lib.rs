@@ -328,7 +328,8 @@ pub struct ReconstructionStats {
     /// Bytes of those full-grid patches (208 B each).
     pub full_grid_bytes: usize,
     /// Texels of equal-quality radiosity textures: per polygon (2^depth + 1)^2 samples rounded up
-    /// to a power-of-two square.
+    /// to a power-of-two square, stored with the texture module's gutter
+    /// ([`texture::GUTTER`] texels beyond each edge), level 0 only.
     pub texture_texels: usize,
     /// Those textures at 3 x 8 bits.
     pub texture_bytes_8: usize,
@@ -628,7 +629,8 @@ impl Reconstruction {
             st.merged_nodes += p.refined.merged_nodes;
             st.input_leaves += p.input_leaves;
             st.full_grid_patches += 1usize << (2 * p.input_depth);
-            let side = ((1usize << p.input_depth) + 1).next_power_of_two();
+            let side =
+                ((1usize << p.input_depth) + 1).next_power_of_two() + 2 * texture::GUTTER as usize;
             st.texture_texels += side * side;
         }
         let patch_size = std::mem::size_of::<PatchCoeffs>();

@@ -260,7 +260,8 @@ fn memory_requests_over_the_limit_are_refused_with_the_estimate() {
         text(&out.stderr)
     );
 
-    // 4096^2 textures: 4096^2 x 12 B x 4/3 = 256 MiB for the one polygon.
+    // 4096^2 textures: 4096^2 x 12 B x 4/3 = 256 MiB for the one polygon, plus the 2-texel
+    // gutters of its 13 levels (4 x 2 x (m + 2) texels each, 0.9 MiB in all).
     let out = run(&[
         "render",
         "scenes/two-spots.toml",
@@ -276,7 +277,7 @@ fn memory_requests_over_the_limit_are_refused_with_the_estimate() {
     ]);
     assert_eq!(out.status.code(), Some(2), "{}", text(&out.stderr));
     assert!(
-        text(&out.stderr).contains("the radiosity textures needs an estimated 256."),
+        text(&out.stderr).contains("textures and expanded RRPs 256.9 MiB"),
         "{}",
         text(&out.stderr)
     );

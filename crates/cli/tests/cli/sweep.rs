@@ -195,7 +195,9 @@ fn equal_error_is_consistent(report: &Value) {
         "3 texture methods x 2 placements x mip-mapped or not"
     );
     // The same sets with and without their mip chains: the chainless set holds level 0 alone,
-    // 3/4 of the chained bytes for large square textures (1 + 1/4 + 1/16 + ... = 4/3).
+    // 3/4 of the chained bytes for large square textures (1 + 1/4 + 1/16 + ... = 4/3), less
+    // for small ones whose 2-texel gutters weigh more (a 2 x 2 texture: 36 of 36 + 25 texels,
+    // 0.59); 1 x 1 textures have no chain.
     let bytes_at = |mip: bool, scale: i64| {
         rows.iter()
             .filter(|r| r["mip_mapped"] == mip && r["method"] == "texture-bilinear")
@@ -205,7 +207,7 @@ fn equal_error_is_consistent(report: &Value) {
             .unwrap()
     };
     let ratio = bytes_at(false, 0) / bytes_at(true, 0);
-    assert!(ratio < 1.0 && ratio > 0.74, "{ratio}");
+    assert!(ratio < 1.0 && ratio > 0.59, "{ratio}");
     for row in rows {
         let tested = row["tested"].as_array().unwrap();
         assert!(tested.len() >= 2, "{row}");

@@ -379,13 +379,23 @@ mod tests {
                         )
                     })
                     .collect();
-                RadiosityTexture::from_texels(n, n, t).unwrap()
+                if k != 1 {
+                    return RadiosityTexture::from_texels(n, n, t).unwrap();
+                }
+                // The middle texture with a 2-texel gutter of other values, which edge lookups
+                // read instead of clamped copies of the edge texels.
+                RadiosityTexture::from_fn(n, Placement::Centre, 2, |u, v| {
+                    let h = (u.to_bits() ^ v.to_bits().rotate_left(13)).wrapping_mul(2654435761);
+                    Vec3::new((h >> 20) as f32 * 1e-3, (h % 89) as f32 * 0.02 - 0.3, 0.5)
+                })
+                .unwrap()
             })
             .collect();
         let set = TextureSet {
             textures,
-            memory: TextureMemory::of_sides(&sides),
+            memory: TextureMemory::of_sides(&sides, 0),
             placement: Placement::Centre,
+            gutter: 0,
         };
         let (w, h, spp) = (37u32, 13u32, 2u32);
         let mut gb = RegionGBuffer::new(0, 0, 0, w, h, spp);

@@ -209,8 +209,9 @@ fn minified_textures_use_coarser_levels() {
         .collect();
     let set = TextureSet {
         textures: vec![RadiosityTexture::from_texels(256, 256, texels).unwrap()],
-        memory: TextureMemory::of_sides(&[256]),
+        memory: TextureMemory::of_sides(&[256], 0),
         placement: Placement::Centre,
+        gutter: 0,
     };
     let scene = two_spots();
     let frame = render(

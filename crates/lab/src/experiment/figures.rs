@@ -11,7 +11,7 @@ use engine::shading::Shader;
 use glam::Vec3;
 use metric::{compare, Comparison, LinearImage};
 use radiosity::{self, Oracle, SolveOptions};
-use reconstruction::texture::{Filter, RadiosityTexture, TextureMemory, TextureSet};
+use reconstruction::texture::{Filter, RadiosityTexture, TextureMemory, TextureSet, GUTTER};
 use reconstruction::{Estimator, Reconstruction};
 use scene::{load_scene, Scene};
 use serde::Serialize;
@@ -484,9 +484,12 @@ impl SmallTexture<'_> {
     fn texture(&self, placement: Placement) -> TextureSet {
         let ts = self.opts.texture_size;
         TextureSet {
-            memory: TextureMemory::of_sides(&[ts]),
-            textures: vec![RadiosityTexture::from_rrp(self.recon, 0, ts, placement)],
+            memory: TextureMemory::of_sides(&[ts], GUTTER),
+            textures: vec![RadiosityTexture::from_rrp(
+                self.recon, 0, ts, placement, GUTTER,
+            )],
             placement,
+            gutter: GUTTER,
         }
     }
 

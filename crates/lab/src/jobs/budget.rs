@@ -48,7 +48,7 @@
 use base::error::{human_bytes, Error, Result};
 use engine::raster::gbuffer::PIXEL_RECORD_BYTES;
 use radiosity::sizes;
-use reconstruction::texture::{SizePolicy, TextureMemory, TextureSet};
+use reconstruction::texture::{SizePolicy, TextureMemory, TextureSet, GUTTER};
 use reconstruction::PatchCoeffs;
 use scene::Scene;
 
@@ -396,7 +396,7 @@ pub(crate) fn output_bytes(width: u32, height: u32, png: bool, exr: bool) -> u64
 /// `nodes` nodes they are resampled from.
 pub fn texture_bytes(depths: &[u32], policy: SizePolicy, leaves: u64, nodes: u64) -> Result<u64> {
     let sides = TextureSet::sides(depths, policy)?;
-    let m = TextureMemory::of_sides(&sides);
+    let m = TextureMemory::of_sides(&sides, GUTTER);
     let rrps = leaves
         .saturating_mul(std::mem::size_of::<PatchCoeffs>() as u64)
         .saturating_add(nodes.saturating_mul(4))

@@ -35,7 +35,7 @@ use base::progress::{Observer, Stage};
 use engine::frame::{self, FrameOptions};
 use engine::shading::Shader;
 use metric::compare;
-use reconstruction::texture::{SizePolicy, TextureMemory, TextureSet};
+use reconstruction::texture::{SizePolicy, TextureMemory, TextureSet, GUTTER};
 
 /// Error ratios to the direct method's reconstruction error at which the texture memory is
 /// reported: equal (1.0) and within 10 % (1.1).
@@ -224,7 +224,7 @@ impl Search<'_> {
                     k - 1
                 ));
             }
-            let memory = TextureMemory::of_sides(&sides);
+            let memory = TextureMemory::of_sides(&sides, GUTTER);
             if held_bytes(&memory) > SEARCH_MEMORY_CAP {
                 return Ok(format!(
                     "the textures at 2^{k} would hold {:.0} MB in memory, above the search's cap \

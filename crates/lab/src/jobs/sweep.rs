@@ -41,7 +41,7 @@ use base::quadtree::MAX_DEPTH;
 use engine::frame::{Frame, FrameContext, FrameOptions, FrameStats};
 use engine::shading::Shader;
 use metric::{compare, Comparison, DEFAULT_PPD};
-use reconstruction::texture::{SizePolicy, TextureMemory, TextureSet};
+use reconstruction::texture::{SizePolicy, TextureMemory, TextureSet, GUTTER};
 use scene::{Scene, MAX_IMAGE_DIM};
 
 /// The methods a sweep measures when none are named.
@@ -551,7 +551,7 @@ impl AtDensity<'_> {
         for placement in [Placement::Centre, Placement::Corner] {
             for k in 0..self.sweep.req.texture_levels {
                 let sides: Vec<u32> = full.iter().map(|&n| (n >> k).max(1)).collect();
-                let mem = TextureMemory::of_sides(&sides);
+                let mem = TextureMemory::of_sides(&sides, GUTTER);
                 let set = TextureSet::build(
                     p.expanded()?.0,
                     &depths,

@@ -77,3 +77,4 @@ mod truth_camera;
 mod solution_rrps;
 mod scene_loading;
 mod gallery_scene;
+mod texture_seams;

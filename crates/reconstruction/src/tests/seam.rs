@@ -392,15 +392,17 @@ fn the_mesh_shares_its_vertices_across_a_seam() {
 }
 
 /// Largest value step across the x = 1 seam of the split floor between the two polygons'
-/// textures of side `n` (level 0, `filter`), relative to the light's peak.
+/// textures of sides `sides` (level 0, `filter`, `gutter` texels beyond each edge), in units of
+/// the light's peak (about 1.05: the step itself is a bound on the relative step).
 fn texture_step(
     rec: &Reconstruction,
-    n: u32,
+    sides: (u32, u32),
     placement: Placement,
     filter: texture::Filter,
+    gutter: u32,
 ) -> f64 {
-    let a = texture::RadiosityTexture::from_rrp(rec, 0, n, placement);
-    let b = texture::RadiosityTexture::from_rrp(rec, 1, n, placement);
+    let a = texture::RadiosityTexture::from_rrp(rec, 0, sides.0, placement, gutter);
+    let b = texture::RadiosityTexture::from_rrp(rec, 1, sides.1, placement, gutter);
     (1..500)
         .map(|k| {
             let v = k as f32 / 500.0;
@@ -417,22 +419,55 @@ fn lightmap_textures_meet_at_a_joined_seam() {
     let seams = Seams::of(&polys, &materials(1), &Adjacency::of(&polys));
     let (joined, apart) = (build(&sq, &seams), build(&sq, &Seams::none()));
     let bilinear = texture::Filter::Bilinear;
+    let mitchell = texture::Filter::MITCHELL;
     // Corner placement puts texels on the edge: the joined RRPs' one edge curve, sampled at the
     // same points on both sides, so bilinear textures meet to f32 rounding of the resampling.
-    let corner = texture_step(&joined, 64, Placement::Corner, bilinear);
-    let corner_apart = texture_step(&apart, 64, Placement::Corner, bilinear);
-    // Not fixed by seams, measured for the docs: centre placement clamps half a texel inside
-    // each polygon (a step of about the slope times one texel; gutters would remove it), and
-    // the Mitchell-Netravali filter (B = 1/3) does not interpolate, so at an edge it blends
-    // clamped texels differently on the two sides.
-    let centre = texture_step(&joined, 64, Placement::Centre, bilinear);
-    let mitchell = texture_step(&joined, 64, Placement::Corner, texture::Filter::MITCHELL);
-    eprintln!(
-        "textures 64^2, bilinear: corner joined {corner:.2e}, apart {corner_apart:.2e}; centre \
-         joined {centre:.2e}; Mitchell corner joined {mitchell:.2e}"
-    );
+    let corner = texture_step(&joined, (64, 64), Placement::Corner, bilinear, 0);
+    let corner_apart = texture_step(&apart, (64, 64), Placement::Corner, bilinear, 0);
     assert!(corner <= 1e-6, "corner-placed seam step {corner:.2e}");
     assert!(corner_apart > 100.0 * corner, "apart {corner_apart:.2e}");
+    // Without gutters, centre placement clamps half a texel inside each polygon (a step of
+    // about the slope times one texel) and the Mitchell-Netravali filter (B = 1/3, which does
+    // not interpolate) blends clamped texels differently on the two sides. With the gutters
+    // (texels reflected through the RRP's edge values) either filter returns, at the edge, the
+    // edge values interpolated along it: on one lattice the two sides agree to f32 rounding.
+    for (placement, filter) in [
+        (Placement::Centre, bilinear),
+        (Placement::Centre, mitchell),
+        (Placement::Corner, mitchell),
+    ] {
+        let clamped = texture_step(&joined, (64, 64), placement, filter, 0);
+        let gutter = texture_step(&joined, (64, 64), placement, filter, texture::GUTTER);
+        eprintln!(
+            "textures 64^2 {placement:?} {filter:?}: step {clamped:.2e} clamped to the edge, \
+             {gutter:.2e} with gutters"
+        );
+        assert!(gutter <= 1e-6, "{placement:?} {filter:?}: {gutter:.2e}");
+        assert!(clamped >= 1e-3, "{placement:?} {filter:?}: {clamped:.2e}");
+    }
+    // Sides of different sizes sample the edge at different points: what is left is the
+    // coarser texture's own interpolation error along the edge (about h^2 |f_vv| / 8 for
+    // bilinear, up to 5e-3 at h = 1/32 for this light), not a seam of the gutters' making.
+    for (sides, placement, filter) in [
+        ((64, 32), Placement::Centre, bilinear),
+        ((64, 32), Placement::Centre, mitchell),
+        ((32, 16), Placement::Corner, bilinear),
+    ] {
+        let gutter = texture_step(&joined, sides, placement, filter, texture::GUTTER);
+        let coarse =
+            texture::RadiosityTexture::from_rrp(&joined, 1, sides.1, placement, texture::GUTTER);
+        let own = (1..500)
+            .map(|k| {
+                let v = k as f32 / 500.0;
+                (coarse.sample(0, 0.0, v, filter).x - joined.eval(1, 0.0, v).x).abs() as f64
+            })
+            .fold(0.0, f64::max);
+        eprintln!(
+            "textures {sides:?} {placement:?} {filter:?}: step {gutter:.2e} with gutters, \
+             the coarser side's own error along the edge {own:.2e}"
+        );
+        assert!(gutter <= own + 1e-6, "{sides:?}: {gutter:.2e} > {own:.2e}");
+    }
 }
 
 /// A unit floor square and a square hinged to it at x = 1, rising at `degrees`.

@@ -7,27 +7,36 @@
 //! down to 1 x 1, with the texels placed by a [`Placement`]:
 //!
 //! - [`Placement::Centre`] (default): texel i at u = `(i + 0.5) / N`, the filters map u to
-//!   x = u N - 0.5; the chain is box-filtered (`mip_chain`). The samples stop half a texel
-//!   short of the polygon's edges, where the filters clamp.
+//!   x = u N - 0.5; the chain is box-filtered (`mip_chain`).
 //! - [`Placement::Corner`] (the lightmap convention): texel i at u = `i / (N - 1)` (0.5 for
-//!   N = 1), the filters map u to x = u (N - 1); the first and last texels lie on the edges, so
-//!   bilinear filtering reproduces a linear function on all of [0, 1]. Each coarser level is
-//!   resampled from the RRP at its own corner positions (`corner_chain`): box filtering would
-//!   not keep the corner alignment. The level of detail is still log2 of N texels per unit
-//!   (not N - 1), the same choice of level for both placements.
+//!   N = 1), the filters map u to x = u (N - 1); the first and last texels lie on the edges.
+//!   Each coarser level is resampled from the RRP at its own corner positions
+//!   (`corner_chain`): box filtering would not keep the corner alignment. The level of detail
+//!   is still log2 of N texels per unit (not N - 1), the same choice of level for both
+//!   placements.
 //!
-//! Both placements use clamp-to-edge addressing and the same filter code; the placement is
-//! recorded in each [`RadiosityTexture`] and in the [`TextureSet`].
+//! **Gutters.** Every level of a built texture stores [`GUTTER`] texels beyond each edge
+//! ([`MipLevel`]), the RRP reflected through its values on the edge (`MipLevel::reflected`):
+//! gutter texel `2 E - T` for the texel T mirrored through the edge and the edge value E beside
+//! it. The filters' weights are symmetric about an edge lookup, so the texels inside cancel and
+//! the lookup returns the edge values, filtered along the edge: bilinear and Mitchell-Netravali
+//! filters both reach the polygon's border, and two polygons whose RRPs share an edge curve
+//! (joined seams) meet along it, instead of each clamping half a texel inside. Without the
+//! gutter (clamp-to-edge) the two sides of a seam step by about the slope times a texel.
+//! The reflection continues the function C1 past the edge and a linear one exactly.
+//!
+//! Both placements use the same filter code, and clamp-to-edge addressing past the gutter;
+//! the placement is recorded in each [`RadiosityTexture`] and in the [`TextureSet`].
 //! The deferred pass then calls [`RadiosityTexture::sample`] / [`RadiosityTexture::sample_lod`]
 //! with a [`Filter`] and a level of detail from [`lod`]; its hot loop uses the lane form
 //! [`Sampler::sample8`] (8 samples per call, module `sample8`), which returns the same bits.
 //!
-//! Invariants: every texture is square with a power-of-two side between 1 and
+//! Invariants: every texture's square is a power-of-two side between 1 and
 //! [`MAX_TEXTURE_SIZE`]; its chain has `log2(side) + 1` levels, the last 1 x 1, all at one
-//! placement; all texels are
-//! finite (the RRPs are). Sampling never returns NaN or inf: coordinates are clamped to [0, 1]
-//! (NaN to 0) and texel indices clamped to the edge (clamp-to-edge addressing). Memory is
-//! accounted as the paper's hardware did ([`TextureMemory`]): power-of-two blocks of 3 channels.
+//! placement and one gutter (at most [`MAX_GUTTER`]); all texels are finite (the RRPs are).
+//! Sampling never returns NaN or inf: coordinates are clamped to [0, 1] (NaN to 0) and texel
+//! indices clamped to the stored texels. Memory ([`TextureMemory`]) counts every stored texel,
+//! gutters included, 3 channels.
 //!
 //! Why this way: the filters are written out (separable 4 x 4 for the bicubic, Mitchell and Netravali 1988)
 //! in f32 so that the cost comparison against the direct method measures the same kind of inner
@@ -175,8 +184,9 @@ fn nearest_index(u: f32, n: u32, p: Placement) -> i32 {
 
 impl RadiosityTexture {
     /// Resamples polygon `polygon` of `recon` at `side` x `side` with a full mip chain, texels
-    /// placed by `placement`. `side` must be a power of two in `1..=MAX_TEXTURE_SIZE` (checked by
-    /// the callers).
+    /// placed by `placement`, every level with `gutter` texels beyond each edge holding the RRP
+    /// reflected through its border values (`MipLevel::reflected`). `side` must be a power of two in
+    /// `1..=MAX_TEXTURE_SIZE` and `gutter` at most [`MAX_GUTTER`] (checked by the callers).
     ///
     /// Centre: level 0 at the texel centres, the chain box-filtered (`mip_chain`); a coarse
     /// texel's footprint is exactly the 2 x 2 fine texels it averages. Corner: every level is
@@ -189,37 +199,35 @@ impl RadiosityTexture {
         polygon: u32,
         side: u32,
         placement: Placement,
+        gutter: u32,
     ) -> RadiosityTexture {
-        let levels = match placement {
-            Placement::Centre => mip_chain(MipLevel {
-                width: side,
-                height: side,
-                texels: recon.resample(polygon, side, side),
-            }),
-            Placement::Corner => corner_chain(side, |n| {
-                recon.resample_placed(polygon, n, n, Placement::Corner)
-            }),
+        let inside = |n: u32| match placement {
+            Placement::Centre => recon.resample(polygon, n, n),
+            Placement::Corner => recon.resample_placed(polygon, n, n, Placement::Corner),
         };
+        let edge = |u: f32, v: f32| recon.eval(polygon, u, v);
         RadiosityTexture {
             width: side,
             height: side,
-            levels,
+            levels: placed_chain(side, placement, gutter, inside, edge),
             placement,
         }
     }
 
     /// A texture of `side` x `side` (a power of two in `1..=MAX_TEXTURE_SIZE`) sampling the
     /// function `f(u, v)` at the texel positions of `placement` ([`Placement::texel_position`]),
-    /// with the chain [`RadiosityTexture::from_rrp`] builds: for Centre level 0 and the box
-    /// chain, for Corner every level sampled at its own positions. Errors for a bad side or a
-    /// non-finite value.
+    /// with the chain and the gutters [`RadiosityTexture::from_rrp`] builds (`f` is called on
+    /// [0, 1]^2 only, its border included). Errors for a bad side, a gutter above
+    /// [`MAX_GUTTER`] or a non-finite value.
     pub fn from_fn(
         side: u32,
         placement: Placement,
+        gutter: u32,
         f: impl Fn(f32, f32) -> Vec3,
     ) -> Result<RadiosityTexture> {
         check_side(side)?;
-        let sample = |n: u32| -> Vec<Vec3> {
+        check_gutter(gutter)?;
+        let inside = |n: u32| -> Vec<Vec3> {
             let mut t = Vec::with_capacity(n as usize * n as usize);
             for j in 0..n {
                 let v = placement.texel_position(j, n);
@@ -229,14 +237,7 @@ impl RadiosityTexture {
             }
             t
         };
-        let levels = match placement {
-            Placement::Centre => mip_chain(MipLevel {
-                width: side,
-                height: side,
-                texels: sample(side),
-            }),
-            Placement::Corner => corner_chain(side, sample),
-        };
+        let levels = placed_chain(side, placement, gutter, inside, &f);
         if levels
             .iter()
             .any(|l| l.texels.iter().any(|t| !t.is_finite()))
@@ -275,6 +276,7 @@ impl RadiosityTexture {
             levels: mip_chain(MipLevel {
                 width,
                 height,
+                gutter: 0,
                 texels,
             }),
             placement: Placement::Centre,
@@ -286,12 +288,9 @@ impl RadiosityTexture {
         self.levels.len() - 1
     }
 
-    /// Texels stored over all levels.
+    /// Texels stored over all levels, gutters included.
     pub fn texels_with_chain(&self) -> u64 {
-        self.levels
-            .iter()
-            .map(|l| l.width as u64 * l.height as u64)
-            .sum()
+        self.levels.iter().map(MipLevel::stored).sum()
     }
 
     /// Filtered value at (u, v) of level `level` (clamped to the last level). u and v are clamped
@@ -444,15 +443,14 @@ pub fn lod(du_dx: f32, dv_dx: f32, du_dy: f32, dv_dy: f32, width: u32, height: u
 
 #[inline(always)]
 fn fetch(l: &MipLevel, i: i32, j: i32) -> Vec3 {
-    let x = i.clamp(0, l.width as i32 - 1) as usize;
-    let y = j.clamp(0, l.height as i32 - 1) as usize;
-    l.texels[y * l.width as usize + x]
+    l.texel(i, j)
 }
 
 fn nearest(l: &MipLevel, p: Placement, u: f32, v: f32) -> Vec3 {
-    // Centre: floor(u n), with u = 1 mapped onto the last texel by the edge clamp.
-    let i = nearest_index(u, l.width, p);
-    let j = nearest_index(v, l.height, p);
+    // Centre: floor(u n), with u = 1 mapped onto the last texel of the square (never the
+    // gutter: the nearest texel of a point of the square is in the square).
+    let i = nearest_index(u, l.width, p).clamp(0, l.width as i32 - 1);
+    let j = nearest_index(v, l.height, p).clamp(0, l.height as i32 - 1);
     fetch(l, i, j)
 }
 
@@ -472,27 +470,37 @@ fn bicubic(l: &MipLevel, p: Placement, u: f32, v: f32, k: &Cubic) -> Vec3 {
     let (j, t) = split(v, l.height, p);
     let wu = k.weights(s);
     let wv = k.weights(t);
-    let wmax = l.width as i32 - 1;
-    let hmax = l.height as i32 - 1;
-    let cols: [usize; 4] = std::array::from_fn(|a| (i - 1 + a as i32).clamp(0, wmax) as usize);
+    let (g, stride) = (l.gutter as i32, l.stride() as usize);
+    let wmax = stride as i32 - 1;
+    let hmax = l.rows() as i32 - 1;
+    let cols: [usize; 4] = std::array::from_fn(|a| (i - 1 + a as i32 + g).clamp(0, wmax) as usize);
     let mut acc = Vec3::ZERO;
     for (b, &wy) in wv.iter().enumerate() {
-        let row = (j - 1 + b as i32).clamp(0, hmax) as usize * l.width as usize;
-        let r = &l.texels[row..row + l.width as usize];
+        let row = (j - 1 + b as i32 + g).clamp(0, hmax) as usize * stride;
+        let r = &l.texels[row..row + stride];
         let h = r[cols[0]] * wu[0] + r[cols[1]] * wu[1] + r[cols[2]] * wu[2] + r[cols[3]] * wu[3];
         acc += h * wy;
     }
     acc
 }
 
-/// One level of a mip chain (see `mip_chain`).
+/// One level of a mip chain (see `mip_chain`): `width` x `height` texels over the polygon's
+/// parameter square, stored with `gutter` more texels beyond each edge.
+///
+/// Texel (i, j) of the level, with i in `-gutter..width + gutter` and j likewise, sits at the
+/// position the placement gives index i (outside the square for the gutter's indices) and is
+/// stored at row `j + gutter`, column `i + gutter`. The filters map coordinates with `width`
+/// and `height` alone, so a gutter changes which texels an edge lookup reads (its own gutter
+/// instead of a clamped copy of the edge texel), not where the texels sit.
 #[derive(Debug, Clone, PartialEq)]
 pub struct MipLevel {
-    /// Texels per row.
+    /// Texels per row over the parameter square.
     pub width: u32,
-    /// Rows.
+    /// Rows over the parameter square.
     pub height: u32,
-    /// Row-major texels, `width * height` of them.
+    /// Texels stored beyond each of the four edges.
+    pub gutter: u32,
+    /// Row-major texels, [`MipLevel::stride`] x [`MipLevel::rows`] of them, gutters included.
     pub texels: Vec<Vec3>,
 }
 
@@ -517,7 +525,36 @@ fn box_weights(src: u32, dst: u32) -> Vec<Vec<(usize, f64)>> {
 }
 
 impl MipLevel {
+    /// Stored texels per row: `width + 2 gutter`.
+    #[inline(always)]
+    pub fn stride(&self) -> u32 {
+        self.width + 2 * self.gutter
+    }
+
+    /// Stored rows: `height + 2 gutter`.
+    #[inline(always)]
+    pub fn rows(&self) -> u32 {
+        self.height + 2 * self.gutter
+    }
+
+    /// Texel (i, j) in level coordinates (0..width is the square, the gutter's indices lie
+    /// beyond), clamped to the stored texels (clamp-to-edge addressing past the gutter).
+    #[inline(always)]
+    pub fn texel(&self, i: i32, j: i32) -> Vec3 {
+        let g = self.gutter as i32;
+        let x = (i + g).clamp(0, self.stride() as i32 - 1) as usize;
+        let y = (j + g).clamp(0, self.rows() as i32 - 1) as usize;
+        self.texels[y * self.stride() as usize + x]
+    }
+
+    /// Texels stored, gutters included.
+    pub fn stored(&self) -> u64 {
+        self.stride() as u64 * self.rows() as u64
+    }
+
+    /// The next coarser level of a chain, box-filtered from this one's square (no gutter).
     fn downsample(&self) -> MipLevel {
+        debug_assert_eq!(self.gutter, 0);
         let (w, h) = (self.width, self.height);
         let (nw, nh) = ((w / 2).max(1), (h / 2).max(1));
         let wx = box_weights(w, nw);
@@ -540,6 +577,7 @@ impl MipLevel {
         MipLevel {
             width: nw,
             height: nh,
+            gutter: 0,
             texels,
         }
     }
@@ -573,11 +611,235 @@ pub(crate) fn corner_chain(side: u32, mut sample: impl FnMut(u32) -> Vec<Vec3>) 
         levels.push(MipLevel {
             width: n,
             height: n,
+            gutter: 0,
             texels: sample(n),
         });
         n /= 2;
     }
     levels
+}
+
+/// The chain of a texture of side `side` under `placement` with `gutter` texels beyond each
+/// edge of every level. `inside(n)` gives the n x n values at the placement's positions
+/// ([`mip_chain`] box-filters Centre level 0; [`corner_chain`] samples every Corner level);
+/// `edge(u, v)` gives the function's value at a point of the square's border (Centre only:
+/// corner-placed levels hold their edge values as texels). The gutters are filled by
+/// [`MipLevel::reflected`] through the edge values of each level ([`EdgeValues`]).
+fn placed_chain(
+    side: u32,
+    placement: Placement,
+    gutter: u32,
+    mut inside: impl FnMut(u32) -> Vec<Vec3>,
+    edge: impl Fn(f32, f32) -> Vec3,
+) -> Vec<MipLevel> {
+    match placement {
+        Placement::Centre => {
+            let square = mip_chain(MipLevel {
+                width: side,
+                height: side,
+                gutter: 0,
+                texels: inside(side),
+            });
+            if gutter == 0 {
+                return square;
+            }
+            let mut e = EdgeValues::centre(side, &edge);
+            let mut levels = Vec::with_capacity(square.len());
+            for level in square {
+                if level.width < e.u0.len() as u32 {
+                    e = e.halved();
+                }
+                levels.push(level.reflected(gutter, &e, Placement::Centre));
+            }
+            levels
+        }
+        Placement::Corner => corner_chain(side, inside)
+            .into_iter()
+            .map(|level| {
+                let e = EdgeValues::of_corner_level(&level);
+                level.reflected(gutter, &e, Placement::Corner)
+            })
+            .collect(),
+    }
+}
+
+/// The values a level's gutters are reflected through: along the edges u = 0 (`u0[j]`, row j),
+/// u = 1, v = 0 (`v0[i]`, column i) and v = 1, and at the corners (0, 0), (1, 0), (0, 1),
+/// (1, 1) in that order.
+#[derive(Debug, Clone)]
+struct EdgeValues {
+    u0: Vec<Vec3>,
+    u1: Vec<Vec3>,
+    v0: Vec<Vec3>,
+    v1: Vec<Vec3>,
+    corners: [Vec3; 4],
+}
+
+impl EdgeValues {
+    /// Level 0 of a centre-placed texture of side n: the function on the border at the texel
+    /// rows' and columns' centres, and at the corners.
+    fn centre(n: u32, edge: &impl Fn(f32, f32) -> Vec3) -> EdgeValues {
+        let at = |k: u32| Placement::Centre.texel_position(k, n);
+        EdgeValues {
+            u0: (0..n).map(|j| edge(0.0, at(j))).collect(),
+            u1: (0..n).map(|j| edge(1.0, at(j))).collect(),
+            v0: (0..n).map(|i| edge(at(i), 0.0)).collect(),
+            v1: (0..n).map(|i| edge(at(i), 1.0)).collect(),
+            corners: [
+                edge(0.0, 0.0),
+                edge(1.0, 0.0),
+                edge(0.0, 1.0),
+                edge(1.0, 1.0),
+            ],
+        }
+    }
+
+    /// The next coarser centre-placed level: each edge value the mean of the two it covers, as
+    /// the box filter averages the texels beside the edge (the corners are points and stay).
+    fn halved(&self) -> EdgeValues {
+        let half = |e: &[Vec3]| -> Vec<Vec3> {
+            if e.len() == 1 {
+                return e.to_vec();
+            }
+            e.chunks_exact(2)
+                .map(|p| ((p[0].as_dvec3() + p[1].as_dvec3()) * 0.5).as_vec3())
+                .collect()
+        };
+        EdgeValues {
+            u0: half(&self.u0),
+            u1: half(&self.u1),
+            v0: half(&self.v0),
+            v1: half(&self.v1),
+            corners: self.corners,
+        }
+    }
+
+    /// A corner-placed level holds its border: the first and last rows and columns.
+    fn of_corner_level(l: &MipLevel) -> EdgeValues {
+        let (w, h) = (l.width as i32, l.height as i32);
+        EdgeValues {
+            u0: (0..h).map(|j| l.texel(0, j)).collect(),
+            u1: (0..h).map(|j| l.texel(w - 1, j)).collect(),
+            v0: (0..w).map(|i| l.texel(i, 0)).collect(),
+            v1: (0..w).map(|i| l.texel(i, h - 1)).collect(),
+            corners: [
+                l.texel(0, 0),
+                l.texel(w - 1, 0),
+                l.texel(0, h - 1),
+                l.texel(w - 1, h - 1),
+            ],
+        }
+    }
+}
+
+/// Index of the texel mirrored through the edge nearest to index `i` on an axis of `n` texels
+/// under `p` (the identity inside): centre placement mirrors through the half-way point
+/// between texels -1 and 0 (so -1 <-> 0, -2 <-> 1), corner placement through texel 0 itself
+/// (-1 <-> 1), and likewise at the far edge. Clamped to the axis when the gutter is wider than
+/// the level (coarse levels of a few texels).
+fn mirror(i: i32, n: i32, p: Placement) -> i32 {
+    let m = match (p, i < 0, i >= n) {
+        (Placement::Centre, true, _) => -1 - i,
+        (Placement::Centre, _, true) => 2 * n - 1 - i,
+        (Placement::Corner, true, _) => -i,
+        (Placement::Corner, _, true) => 2 * (n - 1) - i,
+        _ => i,
+    };
+    m.clamp(0, n - 1)
+}
+
+/// `2 e - t` in f64, rounded once: the odd reflection of texel `t` through edge value `e`.
+fn reflect(e: Vec3, t: Vec3) -> Vec3 {
+    (e.as_dvec3() * 2.0 - t.as_dvec3()).as_vec3()
+}
+
+impl MipLevel {
+    /// This level (which has no gutter yet) with `g` texels beyond each edge holding the odd
+    /// reflection of the texels through the edge values `e`: a gutter texel is `2 E - T` for
+    /// the mirrored texel T ([`mirror`]) and the edge value E beside it. Rows first (the u
+    /// gutters through `u0` and `u1`), then whole columns (the v gutters through `v0` and `v1`,
+    /// themselves reflected past the corners through the corner values).
+    ///
+    /// Why: the filters' weights are symmetric about an edge lookup (bilinear 1/2 and 1/2 on
+    /// texels -1 and 0 at u = 0 under centre placement; Mitchell-Netravali k(1.5), k(0.5),
+    /// k(0.5), k(1.5) on -2 .. 1; under corner placement k(1), k(0), k(1) on -1 .. 1), so each
+    /// mirrored pair contributes its edge value and the lookup returns E exactly (to f32
+    /// rounding), for either filter and whatever the texels inside. Two polygons joined at a
+    /// seam have one edge curve, so their textures return one value along it wherever their
+    /// texels line up. The reflection also continues the function C1 past the edge (a linear
+    /// function is continued exactly). Gutter texels may be negative where the light falls
+    /// steeply toward an edge; no lookup in the square returns one alone.
+    fn reflected(self, g: u32, e: &EdgeValues, p: Placement) -> MipLevel {
+        debug_assert_eq!(self.gutter, 0);
+        if g == 0 {
+            return self;
+        }
+        let (w, h, gi) = (self.width as i32, self.height as i32, g as i32);
+        let stride = (w + 2 * gi) as usize;
+        let at = |i: i32, j: i32| (j + gi) as usize * stride + (i + gi) as usize;
+        let mut t = vec![Vec3::ZERO; stride * (h + 2 * gi) as usize];
+        for j in 0..h {
+            for i in 0..w {
+                t[at(i, j)] = self.texels[(j * w + i) as usize];
+            }
+            for i in (-gi..0).chain(w..w + gi) {
+                let edge = if i < 0 {
+                    e.u0[j as usize]
+                } else {
+                    e.u1[j as usize]
+                };
+                t[at(i, j)] = reflect(edge, t[at(mirror(i, w, p), j)]);
+            }
+        }
+        // The v edges' values continued past the corners, as the rows were.
+        let row = |along: &[Vec3], c0: Vec3, c1: Vec3, i: i32| -> Vec3 {
+            match i {
+                i if i < 0 => reflect(c0, along[mirror(i, w, p) as usize]),
+                i if i >= w => reflect(c1, along[mirror(i, w, p) as usize]),
+                i => along[i as usize],
+            }
+        };
+        let [c00, c10, c01, c11] = e.corners;
+        for j in (-gi..0).chain(h..h + gi) {
+            let mj = mirror(j, h, p);
+            for i in -gi..w + gi {
+                let edge = if j < 0 {
+                    row(&e.v0, c00, c10, i)
+                } else {
+                    row(&e.v1, c01, c11, i)
+                };
+                t[at(i, j)] = reflect(edge, t[at(i, mj)]);
+            }
+        }
+        MipLevel {
+            width: self.width,
+            height: self.height,
+            gutter: g,
+            texels: t,
+        }
+    }
+}
+
+/// Largest gutter a texture may have (texels beyond each edge).
+pub const MAX_GUTTER: u32 = 4;
+
+/// The gutter of the textures [`TextureSet::build`] makes: 2 texels beyond each edge of every
+/// level, what the 4 x 4 bicubic footprint reaches at an edge (under centre placement u = 0
+/// maps to x = -0.5, the taps run from -2 to 1); bilinear filtering reads the first of them.
+/// Filled by `MipLevel::reflected` (module docs), the filters at a polygon's edge return the RRP's value
+/// on the edge, from both polygons of a seam, instead of the value half a texel inside
+/// (clamp-to-edge).
+pub const GUTTER: u32 = 2;
+
+fn check_gutter(g: u32) -> Result<()> {
+    if g > MAX_GUTTER {
+        return Err(Error::invalid_option(
+            "gutter",
+            g.to_string(),
+            format!("is above {MAX_GUTTER} texels"),
+        ));
+    }
+    Ok(())
 }
 
 fn check_side(n: u32) -> Result<()> {
@@ -601,18 +863,20 @@ fn scale_side(n: u32, k: i32) -> u32 {
     s.clamp(1, MAX_TEXTURE_SIZE as u64) as u32
 }
 
-/// Texture memory as the paper's hardware accounted it: power-of-two blocks (the sides are
-/// already powers of two), 3 channels per texel, at 8, 12 and 32 bits per channel; bytes are
-/// rounded up to whole bytes per texture (matters only for 12 bits and odd texel counts, e.g.
-/// a 1 x 1 texture: 36 bits -> 5 bytes).
+/// Texture memory: every texel stored, 3 channels, at 8, 12 and 32 bits per channel. The
+/// squares are power-of-two blocks as the paper's hardware stored them; the gutters
+/// ([`GUTTER`]) add `4 g (m + g)` texels to a level of side m, counted here (a 2 x 2 texture
+/// with a 2-texel gutter stores 36 texels at level 0, a 64 x 64 one 4,624). Bytes are rounded
+/// up to whole bytes per texture (matters only for 12 bits and odd texel counts, e.g. a 1 x 1
+/// texture without gutter: 36 bits -> 5 bytes).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize)]
 pub struct TextureMemory {
     /// Number of textures (one per polygon).
     pub textures: usize,
-    /// Level-0 texels of all textures.
+    /// Level-0 texels of all textures, gutters included.
     pub texels: u64,
-    /// Texels including every mip level (for square power-of-two sides n: (4 n^2 - 1) / 3 each,
-    /// i.e. level 0 plus about 1/3).
+    /// Texels including every mip level and its gutter (without gutters, for square
+    /// power-of-two sides n: (4 n^2 - 1) / 3 each, i.e. level 0 plus about 1/3).
     pub texels_with_chain: u64,
     /// Level 0 only, [8, 12, 32] bits per channel, bytes.
     pub bytes: [u64; 3],
@@ -624,18 +888,20 @@ pub struct TextureMemory {
 pub(crate) const CHANNEL_BITS: [u64; 3] = [8, 12, 32];
 
 impl TextureMemory {
-    /// Memory of square textures with the given sides (each a power of two).
-    pub fn of_sides(sides: &[u32]) -> TextureMemory {
+    /// Memory of square textures with the given sides (each a power of two), every level with
+    /// `gutter` texels beyond each edge.
+    pub fn of_sides(sides: &[u32], gutter: u32) -> TextureMemory {
         let mut m = TextureMemory {
             textures: sides.len(),
             ..Default::default()
         };
+        let stored = |s: u64| (s + 2 * gutter as u64) * (s + 2 * gutter as u64);
         for &n in sides {
-            let base = n as u64 * n as u64;
+            let base = stored(n as u64);
             let mut chain = 0u64;
             let mut s = n.max(1) as u64;
             loop {
-                chain += s * s;
+                chain += stored(s);
                 if s == 1 {
                     break;
                 }
@@ -661,6 +927,8 @@ pub struct TextureSet {
     pub memory: TextureMemory,
     /// Where the texels of every texture sit (all textures of a set share it).
     pub placement: Placement,
+    /// Texels beyond each edge of every level of every texture ([`GUTTER`] when built).
+    pub gutter: u32,
 }
 
 impl TextureSet {
@@ -701,7 +969,7 @@ impl TextureSet {
             SizePolicy::Budget(bytes) => {
                 for k in 0..=MAX_TEXTURE_SIZE.ilog2() {
                     let s: Vec<u32> = from_depth.iter().map(|&n| (n >> k).max(1)).collect();
-                    if TextureMemory::of_sides(&s).bytes_with_chain[1] <= bytes {
+                    if TextureMemory::of_sides(&s, GUTTER).bytes_with_chain[1] <= bytes {
                         return Ok(s);
                     }
                 }
@@ -710,7 +978,7 @@ impl TextureSet {
                     bytes.to_string(),
                     format!(
                         "is below {} bytes, the size of {} 1 x 1 textures at 12 bits per channel",
-                        TextureMemory::of_sides(&vec![1; depths.len()]).bytes_with_chain[1],
+                        TextureMemory::of_sides(&vec![1; depths.len()], GUTTER).bytes_with_chain[1],
                         depths.len()
                     ),
                 ))
@@ -742,12 +1010,13 @@ impl TextureSet {
         let textures = sides
             .par_iter()
             .enumerate()
-            .map(|(p, &n)| RadiosityTexture::from_rrp(recon, p as u32, n, placement))
+            .map(|(p, &n)| RadiosityTexture::from_rrp(recon, p as u32, n, placement, GUTTER))
             .collect();
         Ok(TextureSet {
             textures,
-            memory: TextureMemory::of_sides(&sides),
+            memory: TextureMemory::of_sides(&sides, GUTTER),
             placement,
+            gutter: GUTTER,
         })
     }
 }

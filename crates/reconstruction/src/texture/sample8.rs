@@ -16,8 +16,8 @@
 //! [`Placement`], `floor`, the cubic weights by Horner,
 //! the row-then-column sums starting from 0, the level blend `a + (b - a) f`), so a lane's result
 //! has the same bits as the scalar call: the lane path is an implementation detail, not a new
-//! filter. Texel indices are clamped to the level (clamp-to-edge addressing), so every load is in
-//! bounds and every result finite.
+//! filter. Texel indices are clamped to the stored level, gutters included (clamp-to-edge
+//! addressing past the gutter), so every load is in bounds and every result finite.
 
 // Lane loops index several fixed-width arrays with one lane index on purpose: that is the form
 // the compiler vectorizes and the reader checks lane by lane.
@@ -43,18 +43,20 @@ unsafe fn gather<S: Simd>(s: S, texels: &[Vec3], idx: &[i32; LANES]) -> Rgb8 {
     unsafe { s.gather_rgb8(texels, idx) }
 }
 
-/// The level invariant the unchecked gathers rely on: `texels.len() == width * height`, both
-/// sides at least 1, and `width * height <= 2^24` so that every texel index is an integer that
-/// f32 represents exactly. Holds for every level [`RadiosityTexture`] builds (sides are powers
-/// of two up to [`super::MAX_TEXTURE_SIZE`] = 2^12); checked once per level and block.
+/// The level invariant the unchecked gathers rely on: `texels.len() == stride * rows`
+/// ([`MipLevel::stride`], [`MipLevel::rows`]), both sides at least 1, and every stored index
+/// within i32. Holds for every level [`RadiosityTexture`] builds (sides are powers of two up to
+/// [`super::MAX_TEXTURE_SIZE`] = 2^12 plus at most [`super::MAX_GUTTER`] texels each way);
+/// checked once per level and block.
 #[inline(always)]
 fn check_level(lv: &MipLevel) {
-    let n = lv.width as usize * lv.height as usize;
+    let n = lv.stride() as usize * lv.rows() as usize;
     assert!(
-        lv.width >= 1 && lv.height >= 1 && n <= 1 << 24 && lv.texels.len() == n,
-        "mip level of {} x {} with {} texels",
+        lv.width >= 1 && lv.height >= 1 && n <= i32::MAX as usize && lv.texels.len() == n,
+        "mip level of {} x {} (gutter {}) with {} texels",
         lv.width,
         lv.height,
+        lv.gutter,
         lv.texels.len()
     );
 }
@@ -92,56 +94,63 @@ fn clamp_index(i: F32x8, off: f32, max: f32) -> F32x8 {
     F32x8(r)
 }
 
-/// `row * w + col` per lane as an integer texel index. Row and column are clamped integers of
-/// the level, so the index is an integer below `width * height <= 2^24`: exact in f32 and in
-/// range for the conversion.
+/// `row * stride + col` per lane as an integer texel index, from a clamped stored row and
+/// column (exact small integers in f32, converted first and combined in i32: a level with
+/// gutters can hold more than 2^24 texels, past f32's exact integers).
 #[inline(always)]
-fn index(row: F32x8, w: f32, col: F32x8) -> [i32; LANES] {
-    let f = row * F32x8::splat(w) + col;
+fn index(row: F32x8, stride: i32, col: F32x8) -> [i32; LANES] {
     let mut r = [0i32; LANES];
     for l in 0..LANES {
-        // SAFETY: f.0[l] is an integer in [0, 2^24) (see above), representable in i32.
-        r[l] = unsafe { f.0[l].to_int_unchecked::<i32>() };
+        // SAFETY: row and column are integers in [0, 2^13), representable in i32.
+        let (y, x) = unsafe {
+            (
+                row.0[l].to_int_unchecked::<i32>(),
+                col.0[l].to_int_unchecked::<i32>(),
+            )
+        };
+        r[l] = y * stride + x;
     }
     r
 }
 
 /// Lane form of `nearest_index`: floor(u scale + (0.5 - offset)) (floor(u n) for centres),
-/// clamped to the edge.
+/// as a stored index (shifted by the gutter `g`) clamped to the square's n texels: the nearest
+/// texel of a clamped coordinate is never a gutter texel.
 #[inline(always)]
-fn nearest_index8(u: F32x8, n: u32, p: Placement) -> F32x8 {
+fn nearest_index8(u: F32x8, n: u32, p: Placement, g: f32) -> F32x8 {
     let (scale, offset) = p.texel_map(n);
     let x = u * F32x8::splat(scale) + F32x8::splat(0.5 - offset);
-    clamp_index(floor8(x), 0.0, n as f32 - 1.0)
+    clamp_index(floor8(x), g, g + n as f32 - 1.0)
 }
 
 /// Lane form of `nearest`.
 #[inline(always)]
 fn nearest8<S: Simd>(simd: S, lv: &MipLevel, p: Placement, u: F32x8, v: F32x8) -> Rgb8 {
     check_level(lv);
-    let w = lv.width as f32;
-    let i = nearest_index8(u, lv.width, p);
-    let j = nearest_index8(v, lv.height, p);
+    let g = lv.gutter as f32;
+    let i = nearest_index8(u, lv.width, p, g);
+    let j = nearest_index8(v, lv.height, p, g);
     // SAFETY: clamped row and column of a level checked by check_level.
-    unsafe { gather(simd, &lv.texels, &index(j, w, i)) }
+    unsafe { gather(simd, &lv.texels, &index(j, lv.stride() as i32, i)) }
 }
 
 /// Lane form of `bilinear`.
 #[inline(always)]
 fn bilinear8<S: Simd>(simd: S, lv: &MipLevel, p: Placement, u: F32x8, v: F32x8) -> Rgb8 {
     check_level(lv);
-    let (w, h) = (lv.width as f32, lv.height as f32);
+    let g = lv.gutter as f32;
+    let (w, h, stride) = (lv.stride() as f32, lv.rows() as f32, lv.stride() as i32);
     let (i, s) = split8(u, lv.width, p);
     let (j, t) = split8(v, lv.height, p);
-    let (c0, c1) = (clamp_index(i, 0.0, w - 1.0), clamp_index(i, 1.0, w - 1.0));
-    let (r0, r1) = (clamp_index(j, 0.0, h - 1.0), clamp_index(j, 1.0, h - 1.0));
+    let (c0, c1) = (clamp_index(i, g, w - 1.0), clamp_index(i, g + 1.0, w - 1.0));
+    let (r0, r1) = (clamp_index(j, g, h - 1.0), clamp_index(j, g + 1.0, h - 1.0));
     // SAFETY: clamped rows and columns of a level checked by check_level.
     let (t00, t10, t01, t11) = unsafe {
         (
-            gather(simd, &lv.texels, &index(r0, w, c0)),
-            gather(simd, &lv.texels, &index(r0, w, c1)),
-            gather(simd, &lv.texels, &index(r1, w, c0)),
-            gather(simd, &lv.texels, &index(r1, w, c1)),
+            gather(simd, &lv.texels, &index(r0, stride, c0)),
+            gather(simd, &lv.texels, &index(r0, stride, c1)),
+            gather(simd, &lv.texels, &index(r1, stride, c0)),
+            gather(simd, &lv.texels, &index(r1, stride, c1)),
         )
     };
     let one = F32x8::splat(1.0);
@@ -180,27 +189,28 @@ fn cubic8(p: &[f32; 4], a: F32x8) -> F32x8 {
 #[inline(always)]
 fn bicubic8<S: Simd>(simd: S, lv: &MipLevel, p: Placement, u: F32x8, v: F32x8, k: &Cubic) -> Rgb8 {
     check_level(lv);
-    let (w, h) = (lv.width as f32, lv.height as f32);
+    let g = lv.gutter as f32;
+    let (w, h, stride) = (lv.stride() as f32, lv.rows() as f32, lv.stride() as i32);
     let (i, s) = split8(u, lv.width, p);
     let (j, t) = split8(v, lv.height, p);
     let wu = weights8(k, s);
     let wv = weights8(k, t);
     let cols = [
-        clamp_index(i, -1.0, w - 1.0),
-        clamp_index(i, 0.0, w - 1.0),
-        clamp_index(i, 1.0, w - 1.0),
-        clamp_index(i, 2.0, w - 1.0),
+        clamp_index(i, g - 1.0, w - 1.0),
+        clamp_index(i, g, w - 1.0),
+        clamp_index(i, g + 1.0, w - 1.0),
+        clamp_index(i, g + 2.0, w - 1.0),
     ];
     let mut acc = [F32x8::splat(0.0); 3];
     for (b, &wy) in wv.iter().enumerate() {
-        let row = clamp_index(j, b as f32 - 1.0, h - 1.0);
+        let row = clamp_index(j, g + b as f32 - 1.0, h - 1.0);
         // SAFETY: clamped rows and columns of a level checked by check_level.
         let tx = unsafe {
             [
-                gather(simd, &lv.texels, &index(row, w, cols[0])),
-                gather(simd, &lv.texels, &index(row, w, cols[1])),
-                gather(simd, &lv.texels, &index(row, w, cols[2])),
-                gather(simd, &lv.texels, &index(row, w, cols[3])),
+                gather(simd, &lv.texels, &index(row, stride, cols[0])),
+                gather(simd, &lv.texels, &index(row, stride, cols[1])),
+                gather(simd, &lv.texels, &index(row, stride, cols[2])),
+                gather(simd, &lv.texels, &index(row, stride, cols[3])),
             ]
         };
         for ch in 0..3 {

@@ -21,6 +21,16 @@ fn seq(i: u32) -> f32 {
     ((i * 37 + 11) % 17) as f32 * 0.25 - 1.0
 }
 
+/// Irregular distinct channels from the bits of (u, v), for textures with gutters.
+fn hashed(u: f32, v: f32) -> Vec3 {
+    let h = (u.to_bits() ^ v.to_bits().rotate_left(13)).wrapping_mul(2654435761);
+    Vec3::new(
+        seq(h >> 20),
+        seq((h >> 8) & 0xfff) + 2.0,
+        0.5 * seq(h & 0xff) - 3.0,
+    )
+}
+
 #[test]
 fn mitchell_of_a_constant_is_the_constant_everywhere() {
     // Weights sum to 1 and clamp-to-edge fetches only the constant, so the result is the
@@ -149,7 +159,7 @@ fn nearest_picks_the_containing_texel() {
 #[test]
 fn memory_of_known_sizes_is_hand_computed() {
     // Sides 1, 2, 16, 64.
-    let m = TextureMemory::of_sides(&[1, 2, 16, 64]);
+    let m = TextureMemory::of_sides(&[1, 2, 16, 64], 0);
     let base: u64 = 1 + 4 + 256 + 4096; // 4357
     let chain: u64 = 1 + (4 + 1) + (256 + 64 + 16 + 4 + 1) + (4096 + 1024 + 256 + 64 + 16 + 4 + 1);
     assert_eq!(m.textures, 4);
@@ -167,6 +177,13 @@ fn memory_of_known_sizes_is_hand_computed() {
     // chains at 12 bits: 1 -> 5, 5 -> 22.5 -> 23, 341 -> 1534.5 -> 1535, 5461 -> 24574.5 -> 24575.
     assert_eq!(m.bytes_with_chain[1], 5 + 23 + 1535 + 24575);
     assert_eq!(m.bytes_with_chain[2], 12 * 5808);
+    // A 2-texel gutter around every level: sides 1 and 2 store 5^2 = 25 and 6^2 = 36 texels
+    // at level 0, and the 2 x 2 chain 36 + 25.
+    let g = TextureMemory::of_sides(&[1, 2], 2);
+    assert_eq!((g.texels, g.texels_with_chain), (25 + 36, 25 + 36 + 25));
+    // 12 bits: 25 texels -> 112.5 -> 113 bytes, 36 -> 162; chains 113 + 61 x 4.5 = 274.5 -> 275.
+    assert_eq!(g.bytes[1], 113 + 162);
+    assert_eq!(g.bytes_with_chain[1], 113 + 275);
 }
 
 #[test]
@@ -187,7 +204,8 @@ fn size_policies() {
     assert!(TextureSet::sides(&d, SizePolicy::Fixed(24)).is_err());
     assert!(TextureSet::sides(&d, SizePolicy::Fixed(0)).is_err());
     // Full FromDepth at 12 bits with chains: sides 4, 16, 128 fit exactly their own size.
-    let full = TextureMemory::of_sides(&[4, 16, 128]).bytes_with_chain[1];
+    // The budget counts the gutters the built textures carry.
+    let full = TextureMemory::of_sides(&[4, 16, 128], GUTTER).bytes_with_chain[1];
     assert_eq!(
         TextureSet::sides(&d, SizePolicy::Budget(full)).unwrap(),
         [4, 16, 128]
@@ -197,7 +215,7 @@ fn size_policies() {
         TextureSet::sides(&d, SizePolicy::Budget(full - 1)).unwrap(),
         [2, 8, 64]
     );
-    let ones = TextureMemory::of_sides(&[1, 1, 1]).bytes_with_chain[1];
+    let ones = TextureMemory::of_sides(&[1, 1, 1], GUTTER).bytes_with_chain[1];
     assert_eq!(
         TextureSet::sides(&d, SizePolicy::Budget(ones)).unwrap(),
         [1, 1, 1]
@@ -244,7 +262,8 @@ fn lod_from_derivatives() {
 fn texture_from_a_linear_rrp_reproduces_it_bilinearly() {
     // A linear radiosity on a refined tree reconstructs exactly (linear functions have exact
     // Hermite data), texels are its values at centres, and bilinear of linear data is exact in
-    // the texel-centre hull; f32 rounding on values up to ~4: 2e-5.
+    // the texel-centre hull, and with the gutter on the whole square; f32 rounding on values up
+    // to ~4: 2e-5.
     let mut tree = Quadtree::new();
     let c = tree.split(0);
     tree.split(c + 3);
@@ -262,8 +281,10 @@ fn texture_from_a_linear_rrp_reproduces_it_bilinearly() {
     let set = TextureSet::build(&recon, &depths, SizePolicy::FromDepth, Placement::Centre).unwrap();
     let t = &set.textures[0];
     assert_eq!((t.width, t.levels.len()), (8, 4));
-    assert_eq!(set.memory.texels, 64);
-    let (lo, hi) = (0.5 / 8.0, 1.0 - 0.5 / 8.0);
+    // 8 x 8 with a 2-texel gutter: 12 x 12 stored.
+    assert_eq!(set.memory.texels, 144);
+    // The gutter continues the linear function past the edges, so the whole square is exact.
+    let (lo, hi) = (0.0, 1.0);
     for a in 0..=23 {
         for b in 0..=23 {
             let u = lo + (hi - lo) * a as f32 / 23.0;
@@ -316,7 +337,8 @@ fn from_depth_memory_matches_the_reconstruction_stats() {
     let st = recon.stats();
     assert_eq!(set.memory.textures, 4);
     assert_eq!(set.memory.texels, st.texture_texels as u64);
-    assert_eq!(set.memory.texels, 4 + 16 + 64 + 256);
+    // Sides 2, 4, 8, 16 with a 2-texel gutter: 6^2 + 8^2 + 12^2 + 20^2.
+    assert_eq!(set.memory.texels, 36 + 64 + 144 + 400);
     assert_eq!(set.memory.bytes[0], st.texture_bytes_8 as u64);
     assert_eq!(set.memory.bytes[2], st.texture_bytes_32 as u64);
     let sides: Vec<u32> = set.textures.iter().map(|t| t.width).collect();
@@ -407,6 +429,7 @@ proptest! {
         ly2 in prop::array::uniform8(0.0f32..1e3),
         mask in prop::array::uniform8(any::<bool>()),
         corner in any::<bool>(),
+        gutter in 0u32..3,
     ) {
         use ::lanes::F32x8;
         // The lane form promises the scalar sampler's bits in every masked lane, for every filter,
@@ -416,7 +439,11 @@ proptest! {
         let texels = (0..n * n)
             .map(|k| Vec3::new(seq(k), seq(k * 7 + 3) + 2.0, 0.5 * seq(k * 13 + 5) - 3.0))
             .collect();
-        let mut t = RadiosityTexture::from_texels(n, n, texels).unwrap();
+        // With a gutter of other values, which edge lookups read past the square.
+        let mut t = match gutter {
+            0 => RadiosityTexture::from_texels(n, n, texels).unwrap(),
+            g => RadiosityTexture::from_fn(n, Placement::Centre, g, hashed).unwrap(),
+        };
         // Both placements: the lanes map u to texels as the scalar code does for each.
         t.placement = if corner { Placement::Corner } else { Placement::Centre };
         let filter = [Filter::Nearest, Filter::Bilinear, Filter::Bicubic { b, c }][filter_kind];
@@ -455,6 +482,7 @@ fn mip_chain_halves_and_keeps_the_mean() {
     let level = |w: u32, h: u32| MipLevel {
         width: w,
         height: h,
+        gutter: 0,
         texels: (0..w * h).map(|i| Vec3::splat(seq(i) + 2.0)).collect(),
     };
     let chain = mip_chain(level(7, 5));
@@ -492,8 +520,9 @@ fn corner_placement_preserves_a_constant_on_every_level() {
     // Every level is sampled from the constant, the filter weights sum to 1 and clamp-to-edge
     // fetches only the constant: the constant up to a few f32 roundings of values near 2.5.
     for side in [1, 2, 8, 16] {
+        // With a gutter: it holds the constant too.
         let t =
-            RadiosityTexture::from_fn(side, Placement::Corner, |_, _| Vec3::splat(2.5)).unwrap();
+            RadiosityTexture::from_fn(side, Placement::Corner, 2, |_, _| Vec3::splat(2.5)).unwrap();
         assert_eq!(t.levels.len(), side.ilog2() as usize + 1);
         for filter in [
             Filter::Nearest,
@@ -527,7 +556,7 @@ fn corner_bilinear_reproduces_a_linear_function_everywhere() {
     let f = |u: f32, v: f32| 0.5 + 1.25 * u - 0.75 * v;
     let g = |u: f32, v: f32| Vec3::new(f(u, v), 2.0 - u, 0.25 + v);
     for n in [2u32, 8, 16] {
-        let t = RadiosityTexture::from_fn(n, Placement::Corner, g).unwrap();
+        let t = RadiosityTexture::from_fn(n, Placement::Corner, 0, g).unwrap();
         // Every level of at least 2 x 2 texels, and blends of two such levels (the 1 x 1 last
         // level holds only the centre value, a constant).
         let fine = t.levels.iter().filter(|l| l.width >= 2).count();
@@ -546,11 +575,11 @@ fn corner_bilinear_reproduces_a_linear_function_everywhere() {
             }
         }
     }
-    // With centre placement the same data is exact only inside the half-texel margin (see
-    // bilinear_of_a_linear_function_is_exact_inside): at u = 0 it returns f at u = 0.5 / n,
-    // off by 1.25 * 0.5 / n.
+    // With centre placement and no gutter the same data is exact only inside the half-texel
+    // margin (see bilinear_of_a_linear_function_is_exact_inside): at u = 0 it returns f at
+    // u = 0.5 / n, off by 1.25 * 0.5 / n.
     let n = 16;
-    let centre = RadiosityTexture::from_fn(n, Placement::Centre, g).unwrap();
+    let centre = RadiosityTexture::from_fn(n, Placement::Centre, 0, g).unwrap();
     let err = centre.sample(0, 0.0, 0.5, Filter::Bilinear).x - f(0.0, 0.5);
     assert!((err - 1.25 * 0.5 / n as f32).abs() < 1e-5, "{err}");
 }
@@ -604,21 +633,32 @@ fn corner_texture_returns_the_rrp_edge_values() {
         for j in 0..m {
             for i in 0..m {
                 let want = recon.eval(0, corner_pos(i, m), corner_pos(j, m));
-                assert_eq!(l.texels[(j * m + i) as usize], want, "{m}: {i} {j}");
+                assert_eq!(l.texel(i as i32, j as i32), want, "{m}: {i} {j}");
             }
         }
     }
-    // Centre placement does not reach the corner: it returns the first texel centre's value.
-    let centre = TextureSet::build(&recon, &[2], SizePolicy::Fixed(16), Placement::Centre).unwrap();
-    let c0 = centre.textures[0].sample(0, 0.0, 0.0, Filter::Bilinear);
+    // Centre placement without a gutter does not reach the corner: it returns the first texel
+    // centre's value. With the gutter, bilinear weights of 1/4 on the four texels around the
+    // corner return the value there to second order: the RRP's f_uu, f_vv, f_uv (below 20 on
+    // this f) times h^2 / 8 with h = 1/16, i.e. within 0.1.
+    let clamped = RadiosityTexture::from_rrp(&recon, 0, 16, Placement::Centre, 0);
+    let c0 = clamped.sample(0, 0.0, 0.0, Filter::Bilinear);
     assert_eq!(c0, recon.eval(0, 0.5 / 16.0, 0.5 / 16.0));
     assert_ne!(c0, recon.eval(0, 0.0, 0.0));
+    let centre = TextureSet::build(&recon, &[2], SizePolicy::Fixed(16), Placement::Centre).unwrap();
+    assert_eq!(centre.gutter, GUTTER);
+    let corner = recon.eval(0, 0.0, 0.0);
+    let g0 = centre.textures[0].sample(0, 0.0, 0.0, Filter::Bilinear);
+    assert!(
+        (g0 - corner).abs().max_element() < (c0 - corner).abs().max_element(),
+        "{g0} {c0} {corner}"
+    );
 }
 
 #[test]
 fn corner_nearest_picks_the_nearest_corner_aligned_texel() {
     // n = 4: texels at 0, 1/3, 2/3, 1; nearest rounds u (n - 1).
-    let t = RadiosityTexture::from_fn(4, Placement::Corner, |u, v| {
+    let t = RadiosityTexture::from_fn(4, Placement::Corner, 0, |u, v| {
         Vec3::splat((u * 3.0).round() + 10.0 * (v * 3.0).round())
     })
     .unwrap();
@@ -628,7 +668,8 @@ fn corner_nearest_picks_the_nearest_corner_aligned_texel() {
     assert_eq!(t.sample(0, 1.0, 1.0, Filter::Nearest).x, 33.0);
     assert_eq!(t.sample(0, -5.0, f32::NAN, Filter::Nearest).x, 0.0);
     // A 1 x 1 corner texture holds the centre value and returns it everywhere.
-    let one = RadiosityTexture::from_fn(1, Placement::Corner, |u, v| Vec3::new(u, v, 1.0)).unwrap();
+    let one =
+        RadiosityTexture::from_fn(1, Placement::Corner, 2, |u, v| Vec3::new(u, v, 1.0)).unwrap();
     for filter in [Filter::Nearest, Filter::Bilinear] {
         assert_eq!(one.sample(0, 0.9, 0.1, filter), Vec3::new(0.5, 0.5, 1.0));
     }
@@ -638,8 +679,11 @@ fn corner_nearest_picks_the_nearest_corner_aligned_texel() {
         (m - Vec3::new(0.5, 0.5, 1.0)).abs().max_element() < 1e-5,
         "{m}"
     );
-    assert!(RadiosityTexture::from_fn(3, Placement::Corner, |_, _| Vec3::ONE).is_err());
-    assert!(RadiosityTexture::from_fn(2, Placement::Corner, |_, _| Vec3::NAN).is_err());
+    assert!(RadiosityTexture::from_fn(3, Placement::Corner, 0, |_, _| Vec3::ONE).is_err());
+    assert!(RadiosityTexture::from_fn(2, Placement::Corner, 0, |_, _| Vec3::NAN).is_err());
+    assert!(
+        RadiosityTexture::from_fn(2, Placement::Corner, MAX_GUTTER + 1, |_, _| Vec3::ONE).is_err()
+    );
 }
 
 /// [`Sampler::sample8`] as a kernel, to run it with each instruction set.
@@ -668,4 +712,138 @@ impl ::lanes::Kernel for Sample8<'_> {
         } = self;
         sampler.sample8(simd, tex, lx2, ly2, u, v, &mask)
     }
+}
+
+/// A smooth non-polynomial function with distinct channels, for the gutter tests.
+fn wavy(u: f32, v: f32) -> Vec3 {
+    Vec3::new(
+        1.0 + (3.0 * u).sin() * v,
+        0.5 + u * u * u - 0.3 * (2.0 * v).cos(),
+        2.0 * v * v - u + 1.5,
+    )
+}
+
+#[test]
+fn gutters_make_edge_lookups_depend_on_the_edge_values_alone() {
+    // At an edge lookup the filters weigh each gutter texel and its mirror alike, and the
+    // gutter holds 2 E - T: every texel inside cancels, and the lookup is the filter along the
+    // edge of the edge values E. So a texture of f and one of the function constant across the
+    // edge with f's values on it agree along that edge, on every level 2 x 2 texels, for every filter (f32 rounding of sums of values up to ~4 with
+    // weights up to 1.2: 4e-6). This is what
+    // makes two polygons of one edge curve meet. The interpolating filters (bilinear,
+    // Catmull-Rom) also return E itself at the rows (level 0: f at the edge, at the rows).
+    let n = 16u32;
+    for placement in [Placement::Centre, Placement::Corner] {
+        let t = RadiosityTexture::from_fn(n, placement, GUTTER, wavy).unwrap();
+        for edge in [0.0f32, 1.0] {
+            let along =
+                RadiosityTexture::from_fn(n, placement, GUTTER, |_, v| wavy(edge, v)).unwrap();
+            let across =
+                RadiosityTexture::from_fn(n, placement, GUTTER, |u, _| wavy(u, edge)).unwrap();
+            for filter in [Filter::Bilinear, Filter::MITCHELL, Filter::CATMULL_ROM] {
+                // Levels of at least 2 x 2: on 1 x 1 the mirrors of a 2-texel gutter clamp.
+                for level in (0..t.levels.len()).filter(|&l| t.levels[l].width >= 2) {
+                    for k in 0..=97 {
+                        let w = k as f32 / 97.0;
+                        let (a, b) = (
+                            t.sample(level, edge, w, filter),
+                            along.sample(level, edge, w, filter),
+                        );
+                        assert!(
+                            (a - b).abs().max_element() < 4e-6,
+                            "{placement:?} {filter:?} level {level} u {edge} v {w}: {a} {b}"
+                        );
+                        let (a, b) = (
+                            t.sample(level, w, edge, filter),
+                            across.sample(level, w, edge, filter),
+                        );
+                        assert!(
+                            (a - b).abs().max_element() < 4e-6,
+                            "{placement:?} {filter:?} level {level} v {edge} u {w}: {a} {b}"
+                        );
+                    }
+                }
+                if matches!(filter, Filter::MITCHELL) {
+                    continue;
+                }
+                for j in 0..n {
+                    let v = placement.texel_position(j, n);
+                    let got = t.sample(0, edge, v, filter);
+                    assert!(
+                        (got - wavy(edge, v)).abs().max_element() < 4e-6,
+                        "{placement:?} {filter:?} row {j}: {got}"
+                    );
+                }
+            }
+        }
+    }
+}
+
+#[test]
+fn centre_gutters_reproduce_a_linear_function_everywhere() {
+    // Without a gutter a centre-placed texture is exact for a linear function only inside its
+    // half-texel margin. The reflected gutter continues a linear function exactly, and the
+    // box chain of a linear function is linear at each level's centres, so bilinear and the
+    // Mitchell-Netravali and Catmull-Rom filters (which reproduce linear functions: B + 2C = 1)
+    // reproduce it on the whole square, edges and corners included, on every level of at
+    // least 2 x 2 texels (the gutter's mirrors stay inside) and their blends; f32 rounding of
+    // values up to ~3 through 16 weights: 2e-5.
+    let g = |u: f32, v: f32| Vec3::new(0.5 + 1.25 * u - 0.75 * v, 2.0 - u, 0.25 + v);
+    for n in [2u32, 8, 32] {
+        let t = RadiosityTexture::from_fn(n, Placement::Centre, GUTTER, g).unwrap();
+        let fine = t.levels.iter().filter(|l| l.width >= 2).count();
+        let lods = (0..fine).map(|l| l as f32);
+        let blends = (1..fine).map(|l| l as f32 - 0.5);
+        for lod in lods.chain(blends) {
+            for filter in [Filter::Bilinear, Filter::MITCHELL, Filter::CATMULL_ROM] {
+                let s = Sampler::new(filter);
+                for a in 0..=37 {
+                    for b in 0..=37 {
+                        let (u, v) = (a as f32 / 37.0, b as f32 / 37.0);
+                        let x = s.sample(&t, lod, u, v);
+                        assert!(
+                            (x - g(u, v)).abs().max_element() < 2e-5,
+                            "n {n} lod {lod} {filter:?}: {u} {v}: {x}"
+                        );
+                    }
+                }
+            }
+        }
+    }
+}
+
+#[test]
+fn gutter_layout_and_nearest_filter() {
+    // Stored rows of n + 2 g texels; texel(i, j) addresses the square from 0 and the gutter
+    // below it; the nearest filter never returns a gutter texel (the nearest texel of a point
+    // of the square is in the square), so it is unchanged by the gutter.
+    let n = 8u32;
+    let plain = RadiosityTexture::from_fn(n, Placement::Centre, 0, wavy).unwrap();
+    let t = RadiosityTexture::from_fn(n, Placement::Centre, GUTTER, wavy).unwrap();
+    let l = &t.levels[0];
+    assert_eq!((l.stride(), l.rows()), (n + 2 * GUTTER, n + 2 * GUTTER));
+    assert_eq!(l.texels.len() as u64, l.stored());
+    for j in 0..n as i32 {
+        for i in 0..n as i32 {
+            assert_eq!(l.texel(i, j), plain.levels[0].texel(i, j));
+        }
+    }
+    // Gutter texel -1 of row 3 mirrors texel 0 through the edge value.
+    let v3 = Placement::Centre.texel_position(3, n);
+    let want = wavy(0.0, v3) * 2.0 - l.texel(0, 3);
+    assert!((l.texel(-1, 3) - want).abs().max_element() < 1e-6);
+    for a in 0..=50 {
+        for b in 0..=50 {
+            let (u, v) = (a as f32 / 50.0, b as f32 / 50.0);
+            assert_eq!(
+                t.sample(0, u, v, Filter::Nearest),
+                plain.sample(0, u, v, Filter::Nearest)
+            );
+        }
+    }
+    // Memory counts the stored texels.
+    assert_eq!(
+        t.texels_with_chain(),
+        TextureMemory::of_sides(&[n], GUTTER).texels_with_chain
+    );
 }
