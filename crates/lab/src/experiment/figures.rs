@@ -37,7 +37,7 @@ pub struct FigureOptions {
     pub texture_size: u32,
     /// Pixels per degree of the perceptual metric.
     pub ppd: f64,
-    /// How the RRPs estimate vertex derivatives (the project default: monotone).
+    /// How the RRPs estimate vertex derivatives (default: [`Estimator::default`]).
     pub estimator: Estimator,
     /// Replaces the first spot light's falloff exponent (the spot sweep), widening its cone to
     /// [`sweep_half_angle`] so that only the spot's width changes; `None` keeps the scene's.
@@ -583,6 +583,27 @@ pub struct SweepRow {
     pub fig6: (f64, f64, f64),
     /// Fig. 6 distances with corner-aligned texels: bilinear, bicubic (Mitchell).
     pub fig6_corner: (f64, f64),
+    /// How far the four distances the paper reports (Fig. 5 and Fig. 6 centre texels, bicubic
+    /// and bilinear) are from the paper's up to one common scale ([`paper_misfit`]).
+    pub misfit: f64,
+}
+
+/// The distance of four perceptual distances from the paper's four ([`PAPER_FIG5`],
+/// [`PAPER_FIG6`], each (bicubic, bilinear)) up to one common scale: with
+/// r_i = ln(ours_i / paper_i) and m their mean, the root mean square of r_i - m. 0 when ours
+/// are the paper's times one factor; 0.1 when they scatter about 10 % around that. The metric's
+/// scale is not the paper's (a different observer model and display), so only the shape of
+/// the four (the two ratios and Fig. 6 against Fig. 5) can match. Arguments are (bilinear,
+/// bicubic) pairs, as [`SweepRow`] holds them; NaN if any distance is not positive.
+pub fn paper_misfit(fig5: (f64, f64), fig6: (f64, f64)) -> f64 {
+    let ours = [fig5.1, fig5.0, fig6.1, fig6.0];
+    let paper = [PAPER_FIG5.0, PAPER_FIG5.1, PAPER_FIG6.0, PAPER_FIG6.1];
+    if ours.iter().any(|&x| x.is_nan() || x <= 0.0) {
+        return f64::NAN;
+    }
+    let r: Vec<f64> = ours.iter().zip(paper).map(|(o, p)| (o / p).ln()).collect();
+    let m = r.iter().sum::<f64>() / 4.0;
+    (r.iter().map(|x| (x - m) * (x - m)).sum::<f64>() / 4.0).sqrt()
 }
 
 /// The 10 % radius of a spot of falloff `n` at height `h` over a plane facing it, with
@@ -638,6 +659,7 @@ pub fn spot_sweep(opts: &FigureOptions, falloffs: &[f64]) -> Result<Vec<SweepRow
                 fig5: d(&a),
                 fig6: d(&b),
                 fig6_corner: corner,
+                misfit: paper_misfit((d(&a).0, d(&a).1), (d(&b).0, d(&b).1)),
             })
         })
         .collect()

@@ -5,8 +5,8 @@
 use std::path::{Path, PathBuf};
 
 use lab::experiment::{
-    fig5, fig6, spot_fraction_at, spot_radius_10, sweep_falloffs, sweep_half_angle, Figure,
-    FigureOptions, CONE_EDGE_FRACTION, MAX_SWEEP_HALF_ANGLE_DEG,
+    fig5, fig6, paper_misfit, spot_fraction_at, spot_radius_10, sweep_falloffs, sweep_half_angle,
+    Figure, FigureOptions, CONE_EDGE_FRACTION, MAX_SWEEP_HALF_ANGLE_DEG, PAPER_FIG5, PAPER_FIG6,
 };
 use radiosity::{self, sizes::EDGE_INSET, Oracle, SolveOptions};
 use scene::load_scene;
@@ -231,9 +231,25 @@ fn sweep_runs_from_the_narrow_spot_to_wide_ones_with_the_scenes_own() {
     // Narrowest first, the narrow scene's 60 and the shipped scene's 5 among them, each once.
     assert_eq!(
         sweep_falloffs(Some(5.0)),
-        [60.0, 30.0, 15.0, 8.0, 5.0, 3.0, 1.0]
+        [60.0, 40.0, 30.0, 25.0, 22.0, 20.0, 18.0, 15.0, 12.0, 8.0, 5.0, 3.0, 1.0]
     );
-    assert_eq!(sweep_falloffs(Some(60.0)).len(), 6);
+    assert_eq!(sweep_falloffs(Some(60.0)).len(), 12);
+}
+
+#[test]
+fn paper_misfit_measures_the_shape_of_the_four_distances() {
+    // (bilinear, bicubic) pairs, as the sweep holds them.
+    let (p5, p6) = (PAPER_FIG5, PAPER_FIG6);
+    // The paper's numbers times any one factor fit exactly.
+    let m = paper_misfit((3.0 * p5.1, 3.0 * p5.0), (3.0 * p6.1, 3.0 * p6.0));
+    assert!(m < 1e-12, "{m}");
+    // One distance e^0.4 too large: r = (0.4, 0, 0, 0), mean 0.1, deviations (0.3, -0.1 x 3),
+    // rms sqrt((0.09 + 3 x 0.01) / 4) = sqrt(0.03).
+    let m = paper_misfit((p5.1, p5.0 * 0.4f64.exp()), (p6.1, p6.0));
+    assert!((m - 0.03f64.sqrt()).abs() < 1e-12, "{m}");
+    // Equal distances everywhere miss the two ratios and Fig. 6 against Fig. 5.
+    assert!(paper_misfit((1.0, 1.0), (1.0, 1.0)) > 0.3);
+    assert!(paper_misfit((0.0, 1.0), (1.0, 1.0)).is_nan());
 }
 
 #[test]
