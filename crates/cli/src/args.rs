@@ -255,8 +255,9 @@ pub struct ExperimentArgs {
     /// links are relative to its directory.
     #[arg(long)]
     pub doc: Option<PathBuf>,
-    /// The texture-space scene of fig5 and fig6.
-    #[arg(long, default_value = "scenes/two-spots.toml")]
+    /// The texture-space scene of fig5 and fig6 (default: the one fitted to the paper's
+    /// distances; `scenes/two-spots.toml` and `scenes/two-spots-narrow.toml` are variants).
+    #[arg(long, default_value = "scenes/two-spots-paper.toml")]
     pub scene: PathBuf,
     /// Image side of fig5 and fig6.
     #[arg(long, default_value_t = 256)]

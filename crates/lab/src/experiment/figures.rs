@@ -42,6 +42,9 @@ pub struct FigureOptions {
     /// Replaces the first spot light's falloff exponent (the spot sweep), widening its cone to
     /// [`sweep_half_angle`] so that only the spot's width changes; `None` keeps the scene's.
     pub first_spot_falloff: Option<f64>,
+    /// Moves the first spot light by this much along x and y (scene units; the sensitivity to
+    /// where the spot's peak falls between the coarse grid's samples).
+    pub first_spot_shift: [f64; 2],
     /// Where images are written (`None`: nothing is written).
     pub out_dir: Option<PathBuf>,
     /// The registry images are written through (atomically, removable on interrupt).
@@ -62,6 +65,7 @@ impl FigureOptions {
             ppd: metric::DEFAULT_PPD,
             estimator: Estimator::default(),
             first_spot_falloff: None,
+            first_spot_shift: [0.0, 0.0],
             out_dir: None,
             outputs: base::output::Outputs::new(),
             isa: lanes::Isa::detect(),
@@ -144,8 +148,16 @@ struct Setup {
 }
 
 impl Setup {
-    fn new(path: &Path, falloff: Option<f64>) -> Result<Setup> {
+    fn new(path: &Path, falloff: Option<f64>, shift: [f64; 2]) -> Result<Setup> {
         let mut scene = load_scene(path)?;
+        if shift != [0.0, 0.0] {
+            let spot = scene
+                .spots
+                .first_mut()
+                .ok_or_else(|| Error::input(Location::file(path), "no spot light to move"))?;
+            spot.position.x += shift[0];
+            spot.position.y += shift[1];
+        }
         if let Some(f) = falloff {
             let spot = scene
                 .spots
@@ -369,7 +381,7 @@ fn oracle_image(
 /// bicubic (RRP) resampling, and the direct method, against the reference.
 pub fn fig5(opts: &FigureOptions) -> Result<Figure> {
     check(opts)?;
-    let setup = Setup::new(&opts.scene, opts.first_spot_falloff)?;
+    let setup = Setup::new(&opts.scene, opts.first_spot_falloff, opts.first_spot_shift)?;
     let oracle = setup.oracle()?;
     let n = opts.size;
     let scene = &setup.scene;
@@ -439,7 +451,7 @@ pub fn fig5(opts: &FigureOptions) -> Result<Figure> {
 /// ([`Placement::Corner`], panels `corner-bilinear` and `corner-bicubic`).
 pub fn fig6(opts: &FigureOptions) -> Result<Figure> {
     check(opts)?;
-    let setup = Setup::new(&opts.scene, opts.first_spot_falloff)?;
+    let setup = Setup::new(&opts.scene, opts.first_spot_falloff, opts.first_spot_shift)?;
     let oracle = setup.oracle()?;
     let reference = oracle_image(&setup, &oracle, opts.size, opts.isa)?;
     let coarse = sampled(&oracle, opts.coarse_depth);
@@ -623,46 +635,120 @@ pub fn spot_fraction_at(n: f64, h: f64, d: f64) -> f64 {
 
 /// Fig. 5 and Fig. 6 distances for each falloff of the first spot (images not written).
 pub fn spot_sweep(opts: &FigureOptions, falloffs: &[f64]) -> Result<Vec<SweepRow>> {
+    falloffs
+        .iter()
+        .map(|&f| {
+            sweep_row(&FigureOptions {
+                first_spot_falloff: Some(f),
+                ..opts.clone()
+            })
+        })
+        .collect()
+}
+
+/// Fig. 5 and Fig. 6 distances of one setting (images not written), with the first spot's
+/// width in the coarse grid's terms.
+pub fn sweep_row(opts: &FigureOptions) -> Result<SweepRow> {
     let scene = load_scene(&opts.scene)?;
     let spot = scene
         .spots
         .first()
         .ok_or_else(|| Error::input(Location::file(&opts.scene), "no spot light"))?;
     let h = spot.position.z.abs();
-    let scene_half = spot.half_angle;
+    let f = opts.first_spot_falloff.unwrap_or(spot.falloff);
+    let half_angle = match opts.first_spot_falloff {
+        Some(f) => sweep_half_angle(f, spot.half_angle),
+        None => spot.half_angle,
+    };
     let spacing = 1.0 / (1u32 << opts.coarse_depth) as f64;
-    falloffs
-        .iter()
-        .map(|&f| {
-            let o = FigureOptions {
-                first_spot_falloff: Some(f),
-                out_dir: None,
+    let o = FigureOptions {
+        out_dir: None,
+        ..opts.clone()
+    };
+    let (a, b) = (fig5(&o)?, fig6(&o)?);
+    let d = |fig: &Figure| {
+        (
+            fig.distance("bilinear").unwrap_or(f64::NAN),
+            fig.distance("bicubic").unwrap_or(f64::NAN),
+            fig.distance("direct").unwrap_or(f64::NAN),
+        )
+    };
+    let corner = (
+        b.distance("corner-bilinear").unwrap_or(f64::NAN),
+        b.distance("corner-bicubic").unwrap_or(f64::NAN),
+    );
+    let (f5, f6) = (d(&a), d(&b));
+    Ok(SweepRow {
+        falloff: f,
+        radius_in_spacings: spot_radius_10(f, h) / spacing,
+        neighbour_fraction: spot_fraction_at(f, h, spacing),
+        half_angle_deg: half_angle.to_degrees(),
+        fig5: f5,
+        fig6: f6,
+        fig6_corner: corner,
+        misfit: paper_misfit((f5.0, f5.1), (f6.0, f6.1)),
+    })
+}
+
+/// One row of the figures' sensitivity to a setting other than the spot's width.
+#[derive(Debug, Clone, Serialize)]
+pub struct Sensitivity {
+    /// What was varied: `scene` (a shipped variant), `spot shift` (the first spot moved along
+    /// x and y, in coarse sample spacings) or `pixels per degree` (the metric's viewing
+    /// distance).
+    pub parameter: String,
+    /// Its value, as text (a scene path, a shift, a pixels-per-degree value).
+    pub value: String,
+    /// The figures' distances there.
+    pub row: SweepRow,
+}
+
+/// The figures' distances on the shipped variants of the figure scene (the `.toml` files
+/// beside it named in `variants` that exist), with the first spot moved by 1/4 and 1/2 of the
+/// coarse spacing diagonally, and at half and twice the metric's pixels per degree (the viewer
+/// twice as near or as far).
+pub fn sensitivity(opts: &FigureOptions, variants: &[&str]) -> Result<Vec<Sensitivity>> {
+    let mut rows = Vec::new();
+    let dir = opts.scene.parent().unwrap_or(Path::new("."));
+    for v in variants {
+        let path = dir.join(v);
+        if path.exists() && path != opts.scene {
+            let row = sweep_row(&FigureOptions {
+                scene: path,
                 ..opts.clone()
-            };
-            let (a, b) = (fig5(&o)?, fig6(&o)?);
-            let d = |fig: &Figure| {
-                (
-                    fig.distance("bilinear").unwrap_or(f64::NAN),
-                    fig.distance("bicubic").unwrap_or(f64::NAN),
-                    fig.distance("direct").unwrap_or(f64::NAN),
-                )
-            };
-            let corner = (
-                b.distance("corner-bilinear").unwrap_or(f64::NAN),
-                b.distance("corner-bicubic").unwrap_or(f64::NAN),
-            );
-            Ok(SweepRow {
-                falloff: f,
-                radius_in_spacings: spot_radius_10(f, h) / spacing,
-                neighbour_fraction: spot_fraction_at(f, h, spacing),
-                half_angle_deg: sweep_half_angle(f, scene_half).to_degrees(),
-                fig5: d(&a),
-                fig6: d(&b),
-                fig6_corner: corner,
-                misfit: paper_misfit((d(&a).0, d(&a).1), (d(&b).0, d(&b).1)),
-            })
-        })
-        .collect()
+            })?;
+            rows.push(Sensitivity {
+                parameter: "scene".into(),
+                value: v.to_string(),
+                row,
+            });
+        }
+    }
+    let spacing = 1.0 / (1u32 << opts.coarse_depth) as f64;
+    for k in [0.25, 0.5] {
+        let row = sweep_row(&FigureOptions {
+            first_spot_shift: [k * spacing, -k * spacing],
+            ..opts.clone()
+        })?;
+        rows.push(Sensitivity {
+            parameter: "spot shift".into(),
+            value: format!("({k}, -{k}) spacings"),
+            row,
+        });
+    }
+    for m in [0.5, 2.0] {
+        let ppd = opts.ppd * m;
+        let row = sweep_row(&FigureOptions {
+            ppd,
+            ..opts.clone()
+        })?;
+        rows.push(Sensitivity {
+            parameter: "pixels per degree".into(),
+            value: format!("{ppd}"),
+            row,
+        });
+    }
+    Ok(rows)
 }
 
 /// A figure's table in the paper's layout (distances to the reference in a row, the paper's

@@ -28,9 +28,9 @@ pub mod results;
 mod table1;
 
 pub use figures::{
-    fig5, fig6, figure_text, paper_misfit, spot_fraction_at, spot_radius_10, spot_sweep,
-    sweep_half_angle, Figure, FigureOptions, Panel, SweepRow, CONE_EDGE_FRACTION,
-    MAX_SWEEP_HALF_ANGLE_DEG, PAPER_FIG5, PAPER_FIG6,
+    fig5, fig6, figure_text, paper_misfit, sensitivity, spot_fraction_at, spot_radius_10,
+    spot_sweep, sweep_half_angle, sweep_row, Figure, FigureOptions, Panel, Sensitivity, SweepRow,
+    CONE_EDGE_FRACTION, MAX_SWEEP_HALF_ANGLE_DEG, PAPER_FIG5, PAPER_FIG6,
 };
 pub use markdown::{markdown, sweep_markdown};
 pub use table1::{table1, table1_markdown, PaperRow, PAPER_TABLE1};
@@ -116,7 +116,19 @@ pub struct Results {
     /// The spot sweep (with fig5 or all).
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub sweep: Vec<SweepRow>,
+    /// The figures on the shipped variants, with the spot moved and the viewer nearer and
+    /// farther (with all).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub sensitivity: Vec<Sensitivity>,
 }
+
+/// The figure scene's shipped variants, beside it in `scenes/`: the wider spot the figures used
+/// before they were fitted to the paper, and the spot narrower than the sample spacing.
+pub const FIGURE_VARIANTS: [&str; 3] = [
+    "two-spots-paper.toml",
+    "two-spots.toml",
+    "two-spots-narrow.toml",
+];
 
 /// Falloff exponents of the spot sweep, joined by the scene's own and run from narrow to wide:
 /// from the narrow spot of `scenes/two-spots-narrow.toml` (60, its 10 % radius half the coarse
@@ -161,6 +173,9 @@ pub fn run(job: &Context<'_>, req: &Request, wrote: &mut dyn FnMut(&Path)) -> Re
         let scene = load_scene(&req.figures.scene)?;
         let own = scene.spots.first().map(|s| s.falloff);
         r.sweep = spot_sweep(&figures, &sweep_falloffs(own))?;
+    }
+    if req.which == Which::All {
+        r.sensitivity = sensitivity(&figures, &FIGURE_VARIANTS)?;
     }
     if any(Which::Fig6) {
         let f = fig6(&figures)?;
