@@ -139,12 +139,13 @@ fn every_shipped_scene_has_a_golden_test() {
     assert_eq!(stems, SCENES);
 }
 
-const SCENES: [&str; 5] = [
+const SCENES: [&str; 6] = [
     "building",
     "cornell-box",
     "gallery",
     "two-spots",
     "two-spots-narrow",
+    "two-spots-paper",
 ];
 
 /// The shipped building's generator and options (doorways, ceiling panels, furniture, shell
@@ -187,4 +188,9 @@ fn golden_two_spots() {
 #[test]
 fn golden_two_spots_narrow() {
     check_scene("two-spots-narrow");
+}
+
+#[test]
+fn golden_two_spots_paper() {
+    check_scene("two-spots-paper");
 }
