@@ -329,10 +329,12 @@ pub struct SweepArgs {
     /// Image size, `WxH`.
     #[arg(long, default_value = "256x256", value_parser = parse_size)]
     pub size: (u32, u32),
-    /// Density levels as factors of the scene's solver tolerance, coarse to fine.
+    /// Density levels as factors f of the scene's solver tolerance, coarse to fine; each also
+    /// moves radiosity.max_depth by -round(log2 f) levels.
     #[arg(long, value_delimiter = ',', default_values_t = lab::jobs::sweep::DEFAULT_DENSITIES)]
     pub densities: Vec<f64>,
-    /// Tolerance factor of the converged reference solution (solved one level deeper).
+    /// Tolerance factor of the converged reference solution (its depth limit moved likewise:
+    /// two levels deeper at 1/4).
     #[arg(long, default_value_t = 0.25)]
     pub reference_density: f64,
     /// Texture sizes per density: the quadtree-depth sizes halved 0 .. N-1 times.

@@ -297,14 +297,15 @@ pub fn model_stats_text(s: &crate::jobs::stats::ModelStats) -> String {
         mb(m.bytes_with_chain[2]),
     );
     t += &format!(
-        "RRP memory: {} patches; compact (held) {:.3} MB, encoded {:.3} MB, samples alone \
-         {:.3} MB, expanded {:.3} MB; patch caches {:.3} MB\n",
+        "RRP memory: {} patches; compact (held) {:.3} MB, encoded {:.3} MB, expanded {:.3} \
+         MB; patch caches {:.3} MB; a samples-alone form would take {:.3} MB (measured, no \
+         reader: derivatives would be estimated again on load)\n",
         grouped(s.rrp_patches),
         mb(s.rrp_bytes),
         mb(s.rrp_encoded_bytes),
-        mb(s.rrp_samples_bytes),
         mb(s.rrp_expanded_bytes),
-        mb(s.rrp_cache_bytes)
+        mb(s.rrp_cache_bytes),
+        mb(s.rrp_samples_bytes)
     );
     let g = &s.guard_stops;
     t += &match &g.worst {

@@ -81,6 +81,13 @@ fn a_small_sweep_has_every_key_falling_errors_and_consistent_fronts() {
         }
         assert!(p["frame_ms"].as_f64().unwrap() > 0.0);
         assert!(p["bytes"].as_u64().unwrap() > 0);
+        // What a method holds while drawing is at least what it stores: the direct method adds
+        // its patch caches, textures are held as f32 (12-bit stored), the mesh's triangles as
+        // drawn are larger than its vertices and indices.
+        assert!(
+            p["working_bytes"].as_u64().unwrap() > p["bytes"].as_u64().unwrap(),
+            "{p}"
+        );
         let texture = p["method"].as_str().unwrap().starts_with("texture-");
         assert_eq!(p["texture"].is_null(), !texture, "{p}");
         if texture {

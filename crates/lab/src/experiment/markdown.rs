@@ -604,15 +604,14 @@ fn table1_section(table1: &[ModelStats]) -> String {
         ) {
             t += &format!(
                 "- {}: direct / bilinear {:.2}, direct / bicubic {:.2}, mesh / direct \
-                 {:.2}; mesh {:.1}x the original triangles; RRPs {:.2} MB as held ({:.3} MB \
-                 as samples alone) against {:.2} MB of 12-bit textures.\n",
+                 {:.2}; mesh {:.1}x the original triangles; RRPs {:.2} MB as held against \
+                 {:.2} MB of 12-bit textures.\n",
                 scene_name(s),
                 d / b,
                 d / c,
                 m / d,
                 s.mesh.triangles as f64 / s.original.triangles.max(1) as f64,
                 s.rrp_bytes as f64 / 1e6,
-                s.rrp_samples_bytes as f64 / 1e6,
                 s.texture_memory.bytes[1] as f64 / 1e6
             );
         }

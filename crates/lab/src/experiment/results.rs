@@ -477,7 +477,7 @@ fn fronts(p: &SweepPoint) -> &'static str {
 
 fn point_row(p: &SweepPoint) -> String {
     format!(
-        "| {} | {} | {} | {:.2} ({:.2}-{:.2}) | {} | {:.3} | {:.3} | {} | {} |\n",
+        "| {} | {} | {} | {:.2} ({:.2}-{:.2}) | {} | {} | {:.3} | {:.3} | {} | {} |\n",
         p.method,
         p.density,
         texture_label(p),
@@ -485,6 +485,7 @@ fn point_row(p: &SweepPoint) -> String {
         p.frame_ms_spread[0],
         p.frame_ms_spread[1],
         mb(p.bytes),
+        mb(p.working_bytes),
         p.error_reconstruction,
         p.error_total,
         p.error_physics.map_or("-".into(), |e| format!("{e:.3}")),
@@ -492,7 +493,7 @@ fn point_row(p: &SweepPoint) -> String {
     )
 }
 
-const POINT_HEADER: &str = "| method | density | texture | frame ms (spread) | bytes | error recon. | error total | error physics | front |\n|---|---|---|---|---|---|---|---|---|\n";
+const POINT_HEADER: &str = "| method | density | texture | frame ms (spread) | bytes stored | bytes held drawing | error recon. | error total | error physics | front |\n|---|---|---|---|---|---|---|---|---|---|\n";
 
 /// Per method, how many of its points lie on the time and on the memory front.
 fn front_counts(r: &SweepReport) -> String {
@@ -563,15 +564,13 @@ fn reached_cell(p: Option<ScalePoint>, rrp: u64) -> String {
 
 fn equal_error_markdown(e: &EqualError) -> String {
     let mut s = format!(
-        "Direct method's reconstruction error {:.3} with {} of RRPs as held ({} in the \
-         samples-alone form: the solution's trees and 16-bit samples, derivatives estimated on \
-         load) (density {}). Texture sides \
+        "Direct method's reconstruction error {:.3} with {} of RRPs as held (density {}). \
+         Texture sides \
          tried: the quadtree-depth sides times 2^-3 to 2^4; the search stopped because {}.\n\n\
          | method | placement | mip-mapped | texture bytes at <= direct's error | at <= 1.1x | lowest error / direct's (bytes) |\n\
          |---|---|---|---|---|---|\n",
         e.direct_error,
         mb(e.rrp_bytes),
-        mb(e.rrp_samples_bytes),
         e.density,
         e.stopped
     );
@@ -602,7 +601,7 @@ fn equal_error_markdown(e: &EqualError) -> String {
 }
 
 /// The cheapest texture set, mip-mapped or not (`mip`), at the direct method's error, against
-/// the RRPs' bytes in both forms; `what` says how the textures are drawn.
+/// the RRPs' bytes as held; `what` says how the textures are drawn.
 fn cheapest_finding(e: &EqualError, mip: bool, what: &str) -> String {
     let cheapest = e
         .rows
@@ -613,12 +612,11 @@ fn cheapest_finding(e: &EqualError, mip: bool, what: &str) -> String {
     match cheapest {
         Some((r, p)) => format!(
             "Textures {what}: the cheapest at the direct method's error is {} ({} texels, {} \
-             filtering), {} the RRPs' bytes as held and {} their samples-alone form's. ",
+             filtering), {} the RRPs' bytes as held. ",
             mb(p.bytes),
             r.placement,
             r.method.trim_start_matches("texture-"),
-            ratio_words(p.bytes as f64 / e.rrp_bytes.max(1) as f64),
-            ratio_words(p.bytes as f64 / e.rrp_samples_bytes.max(1) as f64)
+            ratio_words(p.bytes as f64 / e.rrp_bytes.max(1) as f64)
         ),
         None => {
             format!("Textures {what}: none reaches the direct method's error at any size tried. ")
@@ -662,18 +660,21 @@ fn introduction(r: &ResultsReport) -> String {
         r.machine.line()
     );
     s += "How the sweep is built and what its terms mean: [sweep.md](sweep.md). In short: each \
-          scene is solved at four sampling densities (the solver's tolerance times 4, 2, 1, 1/2; \
-          density 0 is the coarsest); every method is drawn at each, the texture methods at four \
+          scene is solved at four sampling densities (the solver's tolerance times 4, 2, 1, 1/2 \
+          and its depth limit moved by -2, -1, 0, +1 levels; density 0 is the coarsest); every \
+          method is drawn at each, the texture methods at four \
           texture sizes (the quadtree-depth sides halved 0-3 times) and both texel placements. \
           **Error recon.** is the perceptual distance ([metrics.md](metrics.md)) to the same \
           solution's exact image (the method's own error), **error total** to a converged \
-          solution's (tolerance 1/4, one level deeper: the solver's convergence), **physics \
+          solution's (tolerance 1/4, two levels deeper: the solver's convergence), **physics \
           error** to the independent path tracer's image (`pixelflow-sim truth`, its noise taken \
           out: what a user sees against the light), and **solution error** is the same \
           solution's exact image against that path tracer's: the physics error splits into the \
-          solution error (the solver's) and the reconstruction error (the method's). Bytes: RRP \
-          patches and locate trees; 12-bit textures with mip chains; the mesh's vertices and \
-          indices.\n\n";
+          solution error (the solver's) and the reconstruction error (the method's). **Bytes \
+          stored**: RRP patches and locate trees; 12-bit textures with mip chains and gutters; \
+          the mesh's vertices and indices. **Bytes held drawing** (the working set): the RRPs \
+          with the direct method's patch caches; the textures as f32 texels; the mesh's \
+          triangles as the renderer holds them.\n\n";
     s
 }
 

@@ -18,8 +18,14 @@
 //!   hardware counted 12-bit texels; mip-mapped drawing needs the chains).
 //! - **Mesh**: [`reconstruction::mesh::MeshStats::bytes`] (vertices and indices).
 //!
-//! Invariant: [`Memory::method_bytes`] is the single answer to "what does this method hold",
-//! and it is what the sweep's `bytes` and the equal-error comparison report.
+//! Invariant: [`Memory::method_bytes`] is the single answer to "what does this method store",
+//! and it is what the sweep's `bytes` and the equal-error comparison report. What a method
+//! holds in memory while it draws is counted apart, by [`working_bytes`]: the direct method's
+//! compact RRPs plus its patch caches; a texture method's textures as f32 texels with their
+//! chains (the 12-bit form is the paper's storage accounting, not what the CPU filters read);
+//! the mesh's triangles as the renderer holds them (each a polygon record, its colour patch and
+//! its primitive and bin records in a frame, `budget::MESH_TRIANGLE_BYTES`), not only its
+//! vertices and indices.
 
 use serde::Serialize;
 
@@ -45,6 +51,34 @@ pub fn rrp_bytes(c: &CompactReconstruction) -> u64 {
 pub fn expanded_rrp_bytes(c: &CompactReconstruction) -> u64 {
     let s = c.stats();
     (s.leaves * std::mem::size_of::<PatchCoeffs>() + 4 * s.nodes + 4 * s.polygons) as u64
+}
+
+/// Bytes `method` holds in memory while it draws (module docs): `textures` is the texture set
+/// a texture method draws with (its memory), ignored by the other methods.
+pub fn working_bytes(
+    p: &Prepared,
+    method: Method,
+    textures: Option<&TextureMemory>,
+) -> Result<u64> {
+    Ok(match method {
+        Method::Direct => {
+            rrp_bytes(&p.compact) + (p.compact.cache_bytes() * rayon::current_num_threads()) as u64
+        }
+        Method::Texture(_) => {
+            let m = match textures {
+                Some(m) => *m,
+                None => p.textures()?.0.memory,
+            };
+            m.bytes_with_chain[2]
+        }
+        Method::Mesh => p
+            .mesh()?
+            .0
+            .stats
+            .triangles
+            .saturating_mul(super::budget::MESH_TRIANGLE_BYTES),
+        Method::Reference => 0,
+    })
 }
 
 /// Every representation of one prepared scene.

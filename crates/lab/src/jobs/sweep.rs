@@ -166,8 +166,12 @@ pub struct SweepPoint {
     pub frame_ms: f64,
     /// Smallest and largest per-repeat median, ms.
     pub frame_ms_spread: [f64; 2],
-    /// Bytes the method must hold.
+    /// Bytes the method stores ([`memory::Memory::method_bytes`]: compact RRPs, 12-bit textures
+    /// with mip chains, the mesh's vertices and indices).
     pub bytes: u64,
+    /// Bytes the method holds in memory while it draws ([`memory::working_bytes`]: with the
+    /// direct method's patch caches, f32 textures, the mesh's triangles as drawn).
+    pub working_bytes: u64,
     /// Perceptual distance to the same solution's exact image.
     pub error_reconstruction: f64,
     /// Perceptual distance to the converged solution's exact image.
@@ -339,11 +343,22 @@ fn check(req: &SweepRequest) -> Result<Vec<Method>> {
     Ok(methods)
 }
 
-/// `scene` with its tolerance scaled by `factor` (and `max_depth` raised by `extra_depth`).
-fn at_density(scene: &Scene, factor: f64, extra_depth: u32) -> Scene {
+/// The quadtree depth shift of density `factor`: `-round(log2 factor)` (factor 4: two levels
+/// shallower, 1/2: one deeper).
+pub fn depth_shift(factor: f64) -> i32 {
+    (-factor.log2()).round() as i32
+}
+
+/// `scene` at density `factor`: its tolerance scaled by `factor` and its `max_depth` moved by
+/// [`depth_shift`] (kept within `min_depth..=MAX_DEPTH`). Both move together because where the
+/// light is sharp the depth limit, not the tolerance, stops the subdivision: scaling the
+/// tolerance alone left the error of scenes with spots and shadows where it was.
+pub fn at_density(scene: &Scene, factor: f64) -> Scene {
     let mut s = scene.clone();
     s.radiosity.tolerance *= factor;
-    s.radiosity.max_depth = (s.radiosity.max_depth + extra_depth).min(MAX_DEPTH);
+    let depth = s.radiosity.max_depth as i64 + depth_shift(factor) as i64;
+    s.radiosity.max_depth =
+        depth.clamp(s.radiosity.min_depth.max(1) as i64, MAX_DEPTH as i64) as u32;
     s
 }
 
@@ -383,7 +398,7 @@ pub fn run_sweep(job: &Context<'_>, req: &SweepRequest) -> Result<SweepReport> {
     let mut points = Vec::new();
     let mut densities = Vec::new();
     for (level, &factor) in req.densities.iter().enumerate() {
-        let p = solve_at(job, &sweep.input, at_density(&sweep.input.scene, factor, 0))?;
+        let p = solve_at(job, &sweep.input, at_density(&sweep.input.scene, factor))?;
         let at = AtDensity {
             sweep: &sweep,
             p: &p,
@@ -482,7 +497,7 @@ impl<'a> Sweep<'a> {
         &self,
         truth: Option<&TruthReference>,
     ) -> Result<(LinearImage, SolutionLevel)> {
-        let scene = at_density(&self.input.scene, self.req.reference_density, 1);
+        let scene = at_density(&self.input.scene, self.req.reference_density);
         let fine = solve_at(self.job, &self.input, scene)?;
         let exact = image(render_frame(
             &fine,
@@ -620,6 +635,8 @@ impl AtDensity<'_> {
             (Method::Mesh, _) => p.mesh()?.0.stats.bytes,
             _ => memory::rrp_bytes(&p.compact),
         };
+        let working_bytes =
+            memory::working_bytes(p, c.method, c.texture.map(|(_, set)| &set.memory))?;
         Ok(SweepPoint {
             method: c.method.name().to_string(),
             density: self.level,
@@ -629,6 +646,7 @@ impl AtDensity<'_> {
             frame_ms_spread: min_max(&reps),
             frame_ms: median(reps),
             bytes,
+            working_bytes,
             error_reconstruction: rc.perceptual_distance,
             error_total: tc.perceptual_distance,
             reconstruction: Errors::from(rc),
@@ -685,8 +703,8 @@ fn candidates<'s>(
 pub fn csv(report: &SweepReport) -> String {
     let mut s = String::from(
         "method,density,tolerance,samples,texture_halvings,texture_placement,texture_texels,frame_ms,frame_ms_min,\
-         frame_ms_max,bytes,error_reconstruction,error_total,rmse_reconstruction,rmse_total,\
-         max_abs_reconstruction,max_abs_total,mach_band_reconstruction,mach_band_total,\
+         frame_ms_max,bytes,working_bytes,error_reconstruction,error_total,rmse_reconstruction,\
+         rmse_total,max_abs_reconstruction,max_abs_total,mach_band_reconstruction,mach_band_total,\
          pareto_time,pareto_memory,error_physics,rmse_physics,error_solution,rmse_solution\n",
     );
     let opt = |v: Option<f64>| v.map(|v| v.to_string()).unwrap_or_default();
@@ -697,7 +715,7 @@ pub fn csv(report: &SweepReport) -> String {
             None => (String::new(), "", String::new()),
         };
         s += &format!(
-            "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}\n",
+            "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}\n",
             p.method,
             p.density,
             p.tolerance,
@@ -709,6 +727,7 @@ pub fn csv(report: &SweepReport) -> String {
             p.frame_ms_spread[0],
             p.frame_ms_spread[1],
             p.bytes,
+            p.working_bytes,
             p.error_reconstruction,
             p.error_total,
             p.reconstruction.rmse,
@@ -805,6 +824,30 @@ pub fn table(report: &SweepReport) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn densities_move_the_depth_limit_with_the_tolerance() {
+        assert_eq!(
+            [4.0, 2.0, 1.0, 0.5, 0.25].map(depth_shift),
+            [-2, -1, 0, 1, 2]
+        );
+        // Factors between powers of two round to the nearest level (log2 3 = 1.58).
+        assert_eq!([3.0, 1.3, 0.7].map(depth_shift), [-2, 0, 1]);
+        let mut scene =
+            scene::Scene::new(crate::closed_form::camera(), 8, 8, Vec::new(), Vec::new());
+        scene.radiosity.tolerance = 0.01;
+        scene.radiosity.min_depth = 2;
+        scene.radiosity.max_depth = 7;
+        let at = |f: f64| {
+            let s = at_density(&scene, f);
+            (s.radiosity.tolerance, s.radiosity.max_depth)
+        };
+        assert_eq!(at(4.0), (0.04, 5));
+        assert_eq!(at(0.25), (0.0025, 9));
+        // Clamped to min_depth below and the quadtree's limit above.
+        assert_eq!(at(1024.0).1, 2);
+        assert_eq!(at(1.0 / 1024.0).1, MAX_DEPTH);
+    }
 
     #[test]
     fn pareto_front_by_hand() {
