@@ -1,6 +1,9 @@
 //! Plots of a speed-against-error sweep: total error against warm frame time, and total error
-//! against the bytes a method holds, on log axes, one series per method, the Pareto front drawn
-//! as a line through its points. Each plot is written as PNG and SVG.
+//! against the bytes a method stores, on log axes with ticks inside the data (`log_ticks`), one
+//! colour per method, a thin line through each texture size's densities (coarse to fine),
+//! circles for centre-placed texels and methods without textures, triangles for corner-placed
+//! texels, and the Pareto front drawn as a thick line through its points. Each plot is written
+//! as PNG and SVG.
 //!
 //! Drawn with `plotters` (no hand-made axes). Text uses DejaVu Sans, shipped in `assets/fonts`
 //! and registered once, so the plots look the same on any machine and need no system fonts; the
@@ -69,7 +72,7 @@ impl Cost {
     fn label(self) -> &'static str {
         match self {
             Cost::Time => "warm frame time (ms, log)",
-            Cost::Bytes => "bytes held by the method (log)",
+            Cost::Bytes => "bytes stored by the method (log)",
         }
     }
     fn file(self) -> &'static str {
@@ -115,6 +118,57 @@ fn log_range(xs: impl Iterator<Item = f64>) -> std::ops::Range<f64> {
     }
 }
 
+/// Tick positions for a log axis over `r` (lo < hi, both > 0): the 1-2-5 sequence of each
+/// decade inside the range when that gives at least 3 ticks; else 1 to 9 of each decade when
+/// that gives at least 2 (a range within a decade or so); else 4 ticks evenly spaced in the
+/// logarithm, rounded to the power of ten below a fifth of the range. Every tick lies inside
+/// the range, so an axis whose data span less than a decade is still labelled inside its data.
+fn log_ticks(r: &std::ops::Range<f64>) -> Vec<f64> {
+    let (lo, hi) = (r.start, r.end);
+    if !(lo > 0.0 && hi > lo && hi.is_finite()) {
+        return Vec::new();
+    }
+    let within = |mantissas: &[f64]| -> Vec<f64> {
+        let mut v = Vec::new();
+        let mut e = lo.log10().floor() as i32;
+        while 10f64.powi(e) <= hi {
+            for m in mantissas {
+                let t = m * 10f64.powi(e);
+                if t >= lo && t <= hi {
+                    v.push(t);
+                }
+            }
+            e += 1;
+        }
+        v
+    };
+    let v = within(&[1.0, 2.0, 5.0]);
+    if v.len() >= 3 {
+        return v;
+    }
+    let v = within(&[1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0, 8.0, 9.0]);
+    if v.len() >= 2 {
+        return v;
+    }
+    let (a, b) = (lo.ln(), hi.ln());
+    let unit = 10f64.powi(((hi - lo) / 5.0).log10().floor() as i32);
+    let mut v: Vec<f64> = (1..=4)
+        .map(|k| ((a + (b - a) * k as f64 / 5.0).exp() / unit).round() * unit)
+        .filter(|t| (lo..=hi).contains(t))
+        .collect();
+    v.dedup();
+    v
+}
+
+/// A texture size and placement (halvings, placement), `None` for methods without textures.
+type LineKey<'a> = Option<(u32, &'a str)>;
+
+/// The marker of a texel placement: circles for centre placement (and methods without
+/// textures), triangles for corner placement.
+fn corner(p: &SweepPoint) -> bool {
+    p.texture.is_some_and(|t| t.placement == "corner")
+}
+
 fn draw<DB: DrawingBackend>(
     area: DrawingArea<DB, plotters::coord::Shift>,
     report: &SweepReport,
@@ -150,7 +204,10 @@ where
         .margin(16)
         .x_label_area_size(50)
         .y_label_area_size(80)
-        .build_cartesian_2d(x.log_scale(), y.log_scale())
+        .build_cartesian_2d(
+            x.clone().log_scale().with_key_points(log_ticks(&x)),
+            y.clone().log_scale().with_key_points(log_ticks(&y)),
+        )
         .map_err(err)?;
     chart
         .configure_mesh()
@@ -158,8 +215,6 @@ where
         .y_desc("perceptual distance to the converged solution (log)")
         .label_style(("sans-serif", 15))
         .axis_desc_style(("sans-serif", 17))
-        .x_labels(16)
-        .y_labels(16)
         .x_label_formatter(&|x| tick(*x))
         .y_label_formatter(&|y| tick(*y))
         .draw()
@@ -172,16 +227,40 @@ where
     }
     for m in methods {
         let c = colour(m);
-        let series: Vec<(f64, f64)> = pts
-            .iter()
-            .filter(|p| p.method == m)
-            .map(|p| (cost.of(p), p.error_total))
-            .collect();
+        let of_method: Vec<&&SweepPoint> = pts.iter().filter(|p| p.method == m).collect();
+        // One line per texture size and placement (the method's points when it has neither),
+        // through its densities coarse to fine.
+        let mut lines: Vec<(LineKey, Vec<(f64, f64)>)> = Vec::new();
+        for p in &of_method {
+            let key = p.texture.map(|t| (t.halvings, t.placement));
+            match lines.iter_mut().find(|(k, _)| *k == key) {
+                Some((_, v)) => v.push((cost.of(p), p.error_total)),
+                None => lines.push((key, vec![(cost.of(p), p.error_total)])),
+            }
+        }
+        for (_, line) in &lines {
+            chart
+                .draw_series(LineSeries::new(line.iter().copied(), c.stroke_width(1)))
+                .map_err(err)?;
+        }
         chart
-            .draw_series(series.iter().map(|&xy| Circle::new(xy, 5, c.filled())))
+            .draw_series(
+                of_method
+                    .iter()
+                    .filter(|p| !corner(p))
+                    .map(|p| Circle::new((cost.of(p), p.error_total), 5, c.filled())),
+            )
             .map_err(err)?
             .label(m)
             .legend(move |(x, y)| Circle::new((x + 10, y), 5, c.filled()));
+        chart
+            .draw_series(
+                of_method
+                    .iter()
+                    .filter(|p| corner(p))
+                    .map(|p| TriangleMarker::new((cost.of(p), p.error_total), 6, c.filled())),
+            )
+            .map_err(err)?;
     }
     let mut front: Vec<(f64, f64)> = pts
         .iter()
@@ -265,6 +344,27 @@ pub fn sweep_plots(outputs: &Outputs, report: &SweepReport, dir: &Path) -> Resul
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn log_ticks_lie_inside_the_data() {
+        // Several decades: 1-2-5.
+        assert_eq!(log_ticks(&(0.3..30.0)), [0.5, 1.0, 2.0, 5.0, 10.0, 20.0]);
+        // Within a decade: 1 to 9 when two of them fall inside.
+        assert_eq!(log_ticks(&(1.3..3.6)), [2.0, 3.0]);
+        // Narrower (the gallery's error axis, 1.3 to 2.6): 4 ticks evenly spaced in the log,
+        // at 0.1 (a fifth of the range is 0.26).
+        let t = log_ticks(&(1.3..2.6));
+        assert_eq!(t.len(), 4);
+        for (got, want) in t.iter().zip([1.5, 1.7, 2.0, 2.3]) {
+            assert!((got - want).abs() < 1e-12, "{t:?}");
+        }
+        // Narrower still: at 0.01.
+        let t = log_ticks(&(1.41..1.52));
+        for (got, want) in t.iter().zip([1.43, 1.45, 1.48, 1.5]) {
+            assert!((got - want).abs() < 1e-12, "{t:?}");
+        }
+        assert!(log_ticks(&(0.0..1.0)).is_empty());
+    }
 
     #[test]
     fn tick_labels_have_three_significant_digits() {
