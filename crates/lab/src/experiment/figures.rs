@@ -600,6 +600,21 @@ pub struct SweepRow {
     pub misfit: f64,
 }
 
+impl SweepRow {
+    /// Whether the direct method is the closest to the reference in both figures: below every
+    /// texture of Fig. 6 (both placements), and in Fig. 5 within 1e-4 of the better of bilinear
+    /// and bicubic (it evaluates the same RRPs as the bicubic panel there).
+    pub fn direct_closest(&self) -> bool {
+        let textures6 = self
+            .fig6
+            .0
+            .min(self.fig6.1)
+            .min(self.fig6_corner.0)
+            .min(self.fig6_corner.1);
+        self.fig6.2 < textures6 && self.fig5.2 <= self.fig5.0.min(self.fig5.1) * (1.0 + 1e-4)
+    }
+}
+
 /// The distance of four perceptual distances from the paper's four ([`PAPER_FIG5`],
 /// [`PAPER_FIG6`], each (bicubic, bilinear)) up to one common scale: with
 /// r_i = ln(ours_i / paper_i) and m their mean, the root mean square of r_i - m. 0 when ours

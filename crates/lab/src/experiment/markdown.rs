@@ -530,29 +530,20 @@ fn sensitivity_section(r: &Results, fo: &FigureOptions) -> String {
         fo.ppd
     );
     let line = |what: &str, value: &str, r: &SweepRow| {
-        let closest = r.fig6.2
-            < r.fig6
-                .0
-                .min(r.fig6.1)
-                .min(r.fig6_corner.0)
-                .min(r.fig6_corner.1)
-            && r.fig5.2 <= r.fig5.0.min(r.fig5.1) * (1.0 + 1e-4);
         format!(
             "| {what} | {value} | {} | {:.3} | {:.3} | {:.3} | {} | {:.3} |\n",
             r.falloff,
             r.fig5.1 / r.fig5.0,
             r.fig6.1 / r.fig6.0,
             r.fig6_corner.1 / r.fig6_corner.0,
-            if closest { "yes" } else { "no" },
+            if r.direct_closest() { "yes" } else { "no" },
             r.misfit
         )
     };
-    if let Some(own) = r.sweep.iter().find(|row| {
-        scene::load_scene(&fo.scene)
-            .ok()
-            .and_then(|s| s.spots.first().map(|s| s.falloff))
-            == Some(row.falloff)
-    }) {
+    let own_falloff = scene::load_scene(&fo.scene)
+        .ok()
+        .and_then(|s| s.spots.first().map(|s| s.falloff));
+    if let Some(own) = r.sweep.iter().find(|row| Some(row.falloff) == own_falloff) {
         t += &line("(the figures' scene)", &fo.scene.display().to_string(), own);
     }
     for s in &r.sensitivity {
@@ -707,20 +698,11 @@ fn sweep_findings(rows: &[SweepRow]) -> String {
             super::PAPER_FIG6.0 / super::PAPER_FIG6.1
         );
     }
-    let direct_best = |r: &SweepRow| {
-        r.fig6.2
-            < r.fig6
-                .0
-                .min(r.fig6.1)
-                .min(r.fig6_corner.0)
-                .min(r.fig6_corner.1)
-            && r.fig5.2 <= r.fig5.0.min(r.fig5.1) * (1.0 + 1e-4)
-    };
     t += &format!(
         "- The direct method is the closest to the reference in both figures (within rounding of \
          the bicubic reconstruction in Fig. 5, which evaluates the same RRPs) at every falloff \
          except {}.\n",
-        falloffs_where(rows, |r| !direct_best(r))
+        falloffs_where(rows, |r| !r.direct_closest())
     );
     if let Some(best) = rows
         .iter()

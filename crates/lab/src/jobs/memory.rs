@@ -47,6 +47,11 @@ pub fn rrp_bytes(c: &CompactReconstruction) -> u64 {
     c.stats().total_bytes as u64
 }
 
+/// Bytes of the direct method's patch caches for `c`: one per worker thread.
+pub fn cache_bytes(c: &CompactReconstruction) -> u64 {
+    (c.cache_bytes() * rayon::current_num_threads()) as u64
+}
+
 /// Bytes of the expanded RRPs of `c` (one patch per leaf, 4 B per locate-tree node and root).
 pub fn expanded_rrp_bytes(c: &CompactReconstruction) -> u64 {
     let s = c.stats();
@@ -61,9 +66,7 @@ pub fn working_bytes(
     textures: Option<&TextureMemory>,
 ) -> Result<u64> {
     Ok(match method {
-        Method::Direct => {
-            rrp_bytes(&p.compact) + (p.compact.cache_bytes() * rayon::current_num_threads()) as u64
-        }
+        Method::Direct => rrp_bytes(&p.compact) + cache_bytes(&p.compact),
         Method::Texture(_) => {
             let m = match textures {
                 Some(m) => *m,
@@ -111,7 +114,7 @@ impl Memory {
             rrp_samples: samples_form::encoded_len(&p.solution.polygons, samples_form::DEFAULT_BITS)
                 as u64,
             rrp_expanded: expanded_rrp_bytes(&p.compact),
-            rrp_caches: (p.compact.cache_bytes() * rayon::current_num_threads()) as u64,
+            rrp_caches: cache_bytes(&p.compact),
             textures: p.textures()?.0.memory,
             mesh: p.mesh()?.0.stats.bytes,
         })

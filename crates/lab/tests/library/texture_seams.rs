@@ -73,14 +73,15 @@ fn textures_of_a_split_floor_meet_along_the_seam() {
         let (set, _) = p.textures().unwrap();
         let (a, b) = (&set.textures[0], &set.textures[1]);
         let depths = TextureSet::depths(&p.solution.polygons, scene.radiosity.max_depth);
+        // Clamp-to-edge textures of the same sides, for comparison.
+        let (ca, cb) = (
+            RadiosityTexture::from_rrp(rec, 0, a.width, placement, 0),
+            RadiosityTexture::from_rrp(rec, 1, b.width, placement, 0),
+        );
         for filter in [Filter::Bilinear, Filter::MITCHELL] {
             for lod in [0.0, 1.0, 2.5] {
                 let s = step(a, b, filter, lod) / peak;
-                // Clamp-to-edge textures of the same sides, for comparison.
-                let clamped = |q: u32, t: &RadiosityTexture| {
-                    RadiosityTexture::from_rrp(rec, q, t.width, placement, 0)
-                };
-                let c = step(&clamped(0, a), &clamped(1, b), filter, lod) / peak;
+                let c = step(&ca, &cb, filter, lod) / peak;
                 eprintln!(
                     "split floor {placement:?} {filter:?} lod {lod}: sides {} and {} (depths \
                      {:?}), step {s:.2e} of the peak with gutters, {c:.2e} clamped to the edge",

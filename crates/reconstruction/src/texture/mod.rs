@@ -441,24 +441,19 @@ pub fn lod(du_dx: f32, dv_dx: f32, du_dy: f32, dv_dy: f32, width: u32, height: u
     }
 }
 
-#[inline(always)]
-fn fetch(l: &MipLevel, i: i32, j: i32) -> Vec3 {
-    l.texel(i, j)
-}
-
 fn nearest(l: &MipLevel, p: Placement, u: f32, v: f32) -> Vec3 {
     // Centre: floor(u n), with u = 1 mapped onto the last texel of the square (never the
     // gutter: the nearest texel of a point of the square is in the square).
     let i = nearest_index(u, l.width, p).clamp(0, l.width as i32 - 1);
     let j = nearest_index(v, l.height, p).clamp(0, l.height as i32 - 1);
-    fetch(l, i, j)
+    l.texel(i, j)
 }
 
 fn bilinear(l: &MipLevel, p: Placement, u: f32, v: f32) -> Vec3 {
     let (i, s) = split(u, l.width, p);
     let (j, t) = split(v, l.height, p);
-    let a = fetch(l, i, j) * (1.0 - s) + fetch(l, i + 1, j) * s;
-    let b = fetch(l, i, j + 1) * (1.0 - s) + fetch(l, i + 1, j + 1) * s;
+    let a = l.texel(i, j) * (1.0 - s) + l.texel(i + 1, j) * s;
+    let b = l.texel(i, j + 1) * (1.0 - s) + l.texel(i + 1, j + 1) * s;
     a * (1.0 - t) + b * t
 }
 

@@ -745,22 +745,17 @@ fn gutters_make_edge_lookups_depend_on_the_edge_values_alone() {
                 for level in (0..t.levels.len()).filter(|&l| t.levels[l].width >= 2) {
                     for k in 0..=97 {
                         let w = k as f32 / 97.0;
-                        let (a, b) = (
-                            t.sample(level, edge, w, filter),
-                            along.sample(level, edge, w, filter),
-                        );
-                        assert!(
-                            (a - b).abs().max_element() < 4e-6,
-                            "{placement:?} {filter:?} level {level} u {edge} v {w}: {a} {b}"
-                        );
-                        let (a, b) = (
-                            t.sample(level, w, edge, filter),
-                            across.sample(level, w, edge, filter),
-                        );
-                        assert!(
-                            (a - b).abs().max_element() < 4e-6,
-                            "{placement:?} {filter:?} level {level} v {edge} u {w}: {a} {b}"
-                        );
+                        // The u edge against `along`, the v edge against `across`.
+                        for (other, (u, v)) in [(&along, (edge, w)), (&across, (w, edge))] {
+                            let (a, b) = (
+                                t.sample(level, u, v, filter),
+                                other.sample(level, u, v, filter),
+                            );
+                            assert!(
+                                (a - b).abs().max_element() < 4e-6,
+                                "{placement:?} {filter:?} level {level} ({u}, {v}): {a} {b}"
+                            );
+                        }
                     }
                 }
                 if matches!(filter, Filter::MITCHELL) {
