@@ -16,6 +16,9 @@ use lab::jobs::TextureOptions;
 /// accepts: hours of timing at the largest sizes, not days.
 pub const MAX_TIMED_FRAMES: i64 = 100_000;
 
+/// Most timing processes `--processes` accepts (each one loads the solution again).
+pub const MAX_TIMING_PROCESSES: i64 = 1_000;
+
 /// Renders radiosity solutions with C1 bicubic Hermite reconstruction (Bastos, Goslin, Zhang).
 #[derive(Parser, Debug)]
 #[command(
@@ -126,6 +129,16 @@ pub enum Command {
     /// parts and their standard errors, sampled over the polygon itself, and prints them as a
     /// table. The same seed gives the same bytes for any `--threads` (docs/truth.md).
     Truth(TruthArgs),
+    /// One of the separate timing processes of `sweep` and `results`: times a sweep's points as
+    /// its parent asks (a JSON request) and prints the times as JSON. Not for direct use.
+    #[command(hide = true)]
+    TimeWorker(TimeWorkerArgs),
+}
+
+#[derive(Args, Debug)]
+pub struct TimeWorkerArgs {
+    /// The parent's request (JSON).
+    pub request: String,
 }
 
 #[derive(Args, Debug)]
@@ -343,9 +356,13 @@ pub struct SweepArgs {
     /// Frames timed per point and repeat (after a warm-up).
     #[arg(long, default_value_t = 5, value_parser = clap::value_parser!(u32).range(0..=MAX_TIMED_FRAMES))]
     pub frames: u32,
-    /// Timing repeats (the spread is over repeats).
-    #[arg(long, default_value_t = 3)]
+    /// Timing repeats within each timing process.
+    #[arg(long, default_value_t = 1)]
     pub repeats: u32,
+    /// Separate processes each point is timed in (its time: the median over them, with a 95 %
+    /// confidence interval from 6 on); 0: the repeats of this process alone.
+    #[arg(long, default_value_t = lab::jobs::timing::DEFAULT_PROCESSES, value_parser = clap::value_parser!(u32).range(0..=MAX_TIMING_PROCESSES))]
+    pub processes: u32,
     /// Pixels per degree of the perceptual metric.
     #[arg(long, default_value_t = metric::DEFAULT_PPD)]
     pub ppd: f64,
@@ -394,9 +411,13 @@ pub struct ResultsArgs {
     /// Frames timed per sweep point and repeat.
     #[arg(long, default_value_t = 5, value_parser = clap::value_parser!(u32).range(0..=MAX_TIMED_FRAMES))]
     pub frames: u32,
-    /// Sweep timing repeats.
-    #[arg(long, default_value_t = 3)]
+    /// Sweep timing repeats within each timing process.
+    #[arg(long, default_value_t = 1)]
     pub repeats: u32,
+    /// Separate processes each sweep point is timed in (the median over them, with a 95 %
+    /// confidence interval from 6 on); 0: the repeats of this process alone.
+    #[arg(long, default_value_t = lab::jobs::timing::DEFAULT_PROCESSES, value_parser = clap::value_parser!(u32).range(0..=MAX_TIMING_PROCESSES))]
+    pub processes: u32,
     /// Samples per pixel of each sweep's path-traced truth image (the error budget); 0: none.
     #[arg(long, default_value_t = lab::jobs::sweep::DEFAULT_TRUTH_SAMPLES)]
     pub truth_samples: u32,

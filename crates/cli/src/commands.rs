@@ -19,7 +19,7 @@ use lab::jobs::truth::{run_truth, TruthEvent, TruthRequest};
 
 use crate::args::{
     BenchArgs, BuildingArgs, CheckArgs, CompareArgs, ExperimentArgs, RenderArgs, ResultsArgs,
-    SolveArgs, StatsArgs, SweepArgs, TruthArgs,
+    SolveArgs, StatsArgs, SweepArgs, TimeWorkerArgs, TruthArgs,
 };
 use crate::terminal::Terminal;
 use crate::{json, note, out};
@@ -311,6 +311,7 @@ pub fn sweep(settings: &Settings, args: SweepArgs) -> anyhow::Result<()> {
             texture_levels: args.texture_levels,
             frames: args.frames,
             repeats: args.repeats,
+            processes: timing_processes(args.processes)?,
             ppd: args.ppd,
             equal_error: !args.no_equal_error,
             truth_samples: args.truth_samples,
@@ -371,6 +372,23 @@ fn write_sweep_outputs(
     Ok(())
 }
 
+/// `count` timing processes of this very binary (none for 0).
+fn timing_processes(count: u32) -> anyhow::Result<Option<lab::jobs::timing::TimingProcesses>> {
+    if count == 0 {
+        return Ok(None);
+    }
+    let exe = std::env::current_exe()
+        .map_err(|e| anyhow::anyhow!("cannot find this program to start timing processes: {e}"))?;
+    Ok(Some(lab::jobs::timing::TimingProcesses { exe, count }))
+}
+
+/// `time-worker`: one timing process of a sweep; its reply (JSON) on stdout.
+pub fn time_worker(settings: &Settings, args: TimeWorkerArgs) -> anyhow::Result<()> {
+    let observer = Terminal::new(false, false);
+    let reply = lab::jobs::timing::run_worker(&settings.context(&observer), &args.request)?;
+    out(&(reply + "\n"))
+}
+
 /// `results`: writes the results page and its data, then a one-line summary.
 pub fn results(settings: &Settings, args: ResultsArgs) -> anyhow::Result<()> {
     use lab::experiment::results;
@@ -383,6 +401,7 @@ pub fn results(settings: &Settings, args: ResultsArgs) -> anyhow::Result<()> {
         req.gallery_width = args.gallery_width;
         req.frames = args.frames;
         req.repeats = args.repeats;
+        req.processes = timing_processes(args.processes)?;
         req.truth_samples = args.truth_samples;
         let observer = Terminal::new(!args.quiet, args.trace);
         // The page, its data, plots and images appear together, or none does.

@@ -70,6 +70,7 @@ fn run(cli: Cli, outputs: Outputs) -> anyhow::Result<()> {
         Command::Generate(Generate::Building(args)) => commands::generate_building(&settings, args),
         Command::Compare(args) => commands::compare(&settings, args),
         Command::Truth(args) => commands::truth(&settings, args),
+        Command::TimeWorker(args) => commands::time_worker(&settings, args),
     }
 }
 

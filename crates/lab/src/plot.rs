@@ -2,8 +2,12 @@
 //! against the bytes a method stores, on log axes with ticks inside the data (`log_ticks`), one
 //! colour per method, a thin line through each texture size's densities (coarse to fine),
 //! circles for centre-placed texels and methods without textures, triangles for corner-placed
-//! texels, and the Pareto front drawn as a thick line through its points. Each plot is written
-//! as PNG and SVG.
+//! texels, and the Pareto front drawn as a thick line through its points. Two more plots follow
+//! one line per method and texel placement: error against the solution's samples (the
+//! quadtree-depth texture size at every density; against physics when the sweep has a truth
+//! image, with the solution's own error as the floor beneath), and reconstruction error against
+//! the textures' texels at the scene's own density (the direct method's as a level line). Each
+//! plot is written as PNG and SVG.
 //!
 //! Drawn with `plotters` (no hand-made axes). Text uses DejaVu Sans, shipped in `assets/fonts`
 //! and registered once, so the plots look the same on any machine and need no system fonts; the
@@ -160,6 +164,47 @@ fn log_ticks(r: &std::ops::Range<f64>) -> Vec<f64> {
     v
 }
 
+/// A chart's title and axis labels.
+struct Axes<'a> {
+    title: &'a str,
+    x_label: &'a str,
+    y_label: &'a str,
+}
+
+/// Log-log chart coordinates with the ticks of [`log_ticks`].
+type LogLog = Cartesian2d<
+    plotters::coord::combinators::WithKeyPoints<LogCoord<f64>>,
+    plotters::coord::combinators::WithKeyPoints<LogCoord<f64>>,
+>;
+
+/// A log-log chart over `x` and `y` on `area`, its mesh, ticks and labels drawn.
+fn log_chart<'a, DB: DrawingBackend>(
+    area: &'a DrawingArea<DB, plotters::coord::Shift>,
+    axes: &Axes<'_>,
+    x: &std::ops::Range<f64>,
+    y: &std::ops::Range<f64>,
+) -> std::result::Result<ChartContext<'a, DB, LogLog>, DrawingAreaErrorKind<DB::ErrorType>> {
+    let mut chart = ChartBuilder::on(area)
+        .caption(axes.title, ("sans-serif", 26))
+        .margin(16)
+        .x_label_area_size(50)
+        .y_label_area_size(80)
+        .build_cartesian_2d(
+            x.clone().log_scale().with_key_points(log_ticks(x)),
+            y.clone().log_scale().with_key_points(log_ticks(y)),
+        )?;
+    chart
+        .configure_mesh()
+        .x_desc(axes.x_label)
+        .y_desc(axes.y_label)
+        .label_style(("sans-serif", 15))
+        .axis_desc_style(("sans-serif", 17))
+        .x_label_formatter(&|x| tick(*x))
+        .y_label_formatter(&|y| tick(*y))
+        .draw()?;
+    Ok(chart)
+}
+
 /// A texture size and placement (halvings, placement), `None` for methods without textures.
 type LineKey<'a> = Option<(u32, &'a str)>;
 
@@ -186,6 +231,7 @@ where
         .collect();
     let x = log_range(pts.iter().map(|p| cost.of(p)));
     let y = log_range(pts.iter().map(|p| p.error_total));
+    let all: Vec<(f64, f64)> = pts.iter().map(|p| (cost.of(p), p.error_total)).collect();
     let title = format!(
         "{}: error against {} ({} x {})",
         Path::new(&report.scene)
@@ -199,26 +245,12 @@ where
         report.width,
         report.height
     );
-    let mut chart = ChartBuilder::on(&area)
-        .caption(title, ("sans-serif", 26))
-        .margin(16)
-        .x_label_area_size(50)
-        .y_label_area_size(80)
-        .build_cartesian_2d(
-            x.clone().log_scale().with_key_points(log_ticks(&x)),
-            y.clone().log_scale().with_key_points(log_ticks(&y)),
-        )
-        .map_err(err)?;
-    chart
-        .configure_mesh()
-        .x_desc(cost.label())
-        .y_desc("perceptual distance to the converged solution (log)")
-        .label_style(("sans-serif", 15))
-        .axis_desc_style(("sans-serif", 17))
-        .x_label_formatter(&|x| tick(*x))
-        .y_label_formatter(&|y| tick(*y))
-        .draw()
-        .map_err(err)?;
+    let axes = Axes {
+        title: &title,
+        x_label: cost.label(),
+        y_label: "perceptual distance to the converged solution (log)",
+    };
+    let mut chart = log_chart(&area, &axes, &x, &y).map_err(err)?;
     let mut methods: Vec<&str> = Vec::new();
     for p in &pts {
         if !methods.contains(&p.method.as_str()) {
@@ -288,23 +320,309 @@ where
         .label_font(("sans-serif", 15))
         .background_style(WHITE.mix(0.85))
         .border_style(BLACK)
-        .position(SeriesLabelPosition::UpperRight)
+        .position(legend_corner(&all, &x, &y))
         .draw()
         .map_err(err)?;
     area.present().map_err(err)?;
     Ok(())
 }
 
+/// The plots of a sweep, by file stem.
+const CURVE_FILES: [&str; 2] = ["error-vs-samples", "error-vs-texture-size"];
+
 /// The files [`sweep_plots`] writes into `dir`, for checking them before the sweep runs.
 pub fn sweep_plot_files(dir: &Path) -> Vec<PathBuf> {
-    [Cost::Time, Cost::Bytes]
+    [Cost::Time.file(), Cost::Bytes.file()]
         .into_iter()
-        .flat_map(|c| ["png", "svg"].map(|ext| dir.join(format!("{}.{ext}", c.file()))))
+        .chain(CURVE_FILES)
+        .flat_map(|f| ["png", "svg"].map(|ext| dir.join(format!("{f}.{ext}"))))
         .collect()
 }
 
-/// Writes `error-vs-time.{png,svg}` and `error-vs-memory.{png,svg}` for `report` into `dir`
-/// (created if missing). Returns the files written.
+/// One line of a curve plot: its legend, colour, marker and points `(x, y)`.
+struct Series {
+    label: String,
+    colour: RGBColor,
+    corner: bool,
+    points: Vec<(f64, f64)>,
+}
+
+/// A curve plot: its title, axis labels and lines.
+struct Curves {
+    file: &'static str,
+    title: String,
+    x_label: &'static str,
+    y_label: &'static str,
+    series: Vec<Series>,
+}
+
+/// The scene's name as the plots title it.
+fn scene_name(report: &SweepReport) -> String {
+    Path::new(&report.scene)
+        .file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_default()
+}
+
+/// The methods of `report` in the order they first appear.
+fn methods_of(report: &SweepReport) -> Vec<&str> {
+    let mut methods: Vec<&str> = Vec::new();
+    for p in &report.points {
+        if !methods.contains(&p.method.as_str()) {
+            methods.push(&p.method);
+        }
+    }
+    methods
+}
+
+/// The label of a method's line at a placement (`None`: no textures).
+fn line_label(method: &str, placement: Option<&str>) -> String {
+    match placement {
+        Some(pl) => format!("{method}, {pl}"),
+        None => method.to_string(),
+    }
+}
+
+/// Error against samples: per method and placement, the quadtree-depth texture size at every
+/// density; against physics (with the solution error's line) when there is a truth image,
+/// else against the converged solution.
+fn samples_curves(report: &SweepReport) -> Curves {
+    let physics = report.truth.is_some();
+    let y = |p: &SweepPoint| {
+        if physics {
+            p.error_physics.unwrap_or(p.error_total)
+        } else {
+            p.error_total
+        }
+    };
+    let mut series = Vec::new();
+    for m in methods_of(report) {
+        for placement in [None, Some("centre"), Some("corner")] {
+            let points: Vec<(f64, f64)> = report
+                .points
+                .iter()
+                .filter(|p| p.method == m)
+                .filter(|p| match (p.texture, placement) {
+                    (None, None) => true,
+                    (Some(t), Some(pl)) => t.halvings == 0 && t.placement == pl,
+                    _ => false,
+                })
+                .map(|p| (p.samples as f64, y(p)))
+                .collect();
+            if !points.is_empty() {
+                series.push(Series {
+                    label: line_label(m, placement),
+                    colour: colour(m),
+                    corner: placement == Some("corner"),
+                    points,
+                });
+            }
+        }
+    }
+    if physics {
+        series.push(Series {
+            label: "solution's exact image".into(),
+            colour: BLACK,
+            corner: false,
+            points: report
+                .densities
+                .iter()
+                .filter_map(|d| d.solution.map(|e| (d.samples as f64, e.perceptual)))
+                .collect(),
+        });
+    }
+    Curves {
+        file: CURVE_FILES[0],
+        title: format!(
+            "{}: error against samples ({} x {})",
+            scene_name(report),
+            report.width,
+            report.height
+        ),
+        x_label: "radiosity samples of the solution (log)",
+        y_label: if physics {
+            "perceptual distance to the path tracer (log)"
+        } else {
+            "perceptual distance to the converged solution (log)"
+        },
+        series,
+    }
+}
+
+/// Reconstruction error against texture texels at the scene's own density, per texture method
+/// and placement, with the direct method's error as a level line across them.
+fn texture_curves(report: &SweepReport) -> Curves {
+    let own = report.own_density;
+    let at_own = || report.points.iter().filter(move |p| p.density == own);
+    let mut series = Vec::new();
+    for m in methods_of(report) {
+        for pl in ["centre", "corner"] {
+            let mut points: Vec<(f64, f64)> = at_own()
+                .filter(|p| p.method == m)
+                .filter_map(|p| p.texture.filter(|t| t.placement == pl).map(|t| (t, p)))
+                .map(|(t, p)| (t.texels as f64, p.error_reconstruction))
+                .collect();
+            points.sort_by(|a, b| a.0.total_cmp(&b.0));
+            if !points.is_empty() {
+                series.push(Series {
+                    label: line_label(m, Some(pl)),
+                    colour: colour(m),
+                    corner: pl == "corner",
+                    points,
+                });
+            }
+        }
+    }
+    let texels = series.iter().flat_map(|s| s.points.iter().map(|p| p.0));
+    let (lo, hi) = texels.fold((f64::INFINITY, 0.0f64), |(lo, hi), x| {
+        (lo.min(x), hi.max(x))
+    });
+    if let Some(d) = at_own().find(|p| p.method == "direct") {
+        if lo.is_finite() {
+            series.push(Series {
+                label: "direct (no textures)".into(),
+                colour: colour("direct"),
+                corner: false,
+                points: vec![(lo, d.error_reconstruction), (hi, d.error_reconstruction)],
+            });
+        }
+    }
+    Curves {
+        file: CURVE_FILES[1],
+        title: format!(
+            "{}: error against texture size, density {} ({} x {})",
+            scene_name(report),
+            own,
+            report.width,
+            report.height
+        ),
+        x_label: "level-0 texels of all textures (log)",
+        y_label: "perceptual distance to the same solution's exact image (log)",
+        series,
+    }
+}
+
+/// Draws a curve plot: log axes with ticks inside the data, one line per series, circles or
+/// triangles at its points. Points at zero error (exact) are left out: a log axis has no zero.
+fn draw_curves<DB: DrawingBackend>(
+    area: DrawingArea<DB, plotters::coord::Shift>,
+    c: &Curves,
+) -> Result<()>
+where
+    DB::ErrorType: 'static,
+{
+    let err = |e: DrawingAreaErrorKind<DB::ErrorType>| Error::Runtime(format!("plotting: {e:?}"));
+    area.fill(&WHITE).map_err(err)?;
+    let positive = |s: &Series| -> Vec<(f64, f64)> {
+        s.points
+            .iter()
+            .copied()
+            .filter(|&(x, y)| x > 0.0 && y > 0.0 && x.is_finite() && y.is_finite())
+            .collect()
+    };
+    let all: Vec<(f64, f64)> = c.series.iter().flat_map(positive).collect();
+    let x = log_range(all.iter().map(|p| p.0));
+    let y = log_range(all.iter().map(|p| p.1));
+    let axes = Axes {
+        title: &c.title,
+        x_label: c.x_label,
+        y_label: c.y_label,
+    };
+    let mut chart = log_chart(&area, &axes, &x, &y).map_err(err)?;
+    for s in &c.series {
+        let pts = positive(s);
+        if pts.is_empty() {
+            continue;
+        }
+        let col = s.colour;
+        let width = if s.corner { 1 } else { 2 };
+        chart
+            .draw_series(LineSeries::new(
+                pts.iter().copied(),
+                col.stroke_width(width),
+            ))
+            .map_err(err)?;
+        let corner = s.corner;
+        let markers = pts.iter().map(move |&xy| -> DynElement<DB, (f64, f64)> {
+            if corner {
+                TriangleMarker::new(xy, 6, col.filled()).into_dyn()
+            } else {
+                Circle::new(xy, 5, col.filled()).into_dyn()
+            }
+        });
+        chart
+            .draw_series(markers)
+            .map_err(err)?
+            .label(&s.label)
+            .legend(move |(x, y)| -> DynElement<DB, (i32, i32)> {
+                if corner {
+                    TriangleMarker::new((x + 10, y), 6, col.filled()).into_dyn()
+                } else {
+                    Circle::new((x + 10, y), 5, col.filled()).into_dyn()
+                }
+            });
+    }
+    chart
+        .configure_series_labels()
+        .label_font(("sans-serif", 14))
+        .background_style(WHITE.mix(0.85))
+        .border_style(BLACK)
+        .position(legend_corner(&all, &x, &y))
+        .draw()
+        .map_err(err)?;
+    area.present().map_err(err)?;
+    Ok(())
+}
+
+/// The corner of the plot where the legend hides the fewest points: each corner's box (the
+/// outer 40 % of the width, 45 % of the height, in log coordinates) is counted.
+fn legend_corner(
+    points: &[(f64, f64)],
+    x: &std::ops::Range<f64>,
+    y: &std::ops::Range<f64>,
+) -> SeriesLabelPosition {
+    let unit =
+        |v: f64, r: &std::ops::Range<f64>| (v.ln() - r.start.ln()) / (r.end.ln() - r.start.ln());
+    let count = |right: bool, upper: bool| {
+        points
+            .iter()
+            .filter(|&&(px, py)| {
+                let (u, v) = (unit(px, x), unit(py, y));
+                (if right { u > 0.6 } else { u < 0.4 }) && (if upper { v > 0.55 } else { v < 0.45 })
+            })
+            .count()
+    };
+    let corners = [
+        (SeriesLabelPosition::UpperRight, count(true, true)),
+        (SeriesLabelPosition::UpperLeft, count(false, true)),
+        (SeriesLabelPosition::LowerRight, count(true, false)),
+        (SeriesLabelPosition::LowerLeft, count(false, false)),
+    ];
+    // The first of the emptiest, so equal counts keep the upper right.
+    let least = corners.iter().map(|c| c.1).min().unwrap_or(0);
+    corners
+        .into_iter()
+        .find(|c| c.1 == least)
+        .map_or(SeriesLabelPosition::UpperRight, |c| c.0)
+}
+
+/// Encodes plotters' RGB buffer as PNG.
+fn png_of(rgb: Vec<u8>) -> Result<Vec<u8>> {
+    let (w, h) = PLOT_SIZE;
+    let img = ::image::RgbImage::from_raw(w, h, rgb)
+        .ok_or_else(|| Error::internal("plot buffer size mismatch"))?;
+    let mut png = Vec::new();
+    img.write_to(
+        &mut std::io::Cursor::new(&mut png),
+        ::image::ImageFormat::Png,
+    )
+    .map_err(|e| Error::Runtime(format!("PNG encoding of a plot failed: {e}")))?;
+    Ok(png)
+}
+
+/// Writes `error-vs-time`, `error-vs-memory`, `error-vs-samples` and `error-vs-texture-size`,
+/// each `.png` and `.svg`, for `report` into `dir` (created if missing). Returns the files
+/// written.
 pub fn sweep_plots(outputs: &Outputs, report: &SweepReport, dir: &Path) -> Result<Vec<PathBuf>> {
     font()?;
     let (w, h) = PLOT_SIZE;
@@ -316,16 +634,8 @@ pub fn sweep_plots(outputs: &Outputs, report: &SweepReport, dir: &Path) -> Resul
             report,
             cost,
         )?;
-        let img = ::image::RgbImage::from_raw(w, h, rgb)
-            .ok_or_else(|| Error::internal("plot buffer size mismatch"))?;
-        let mut png = Vec::new();
-        img.write_to(
-            &mut std::io::Cursor::new(&mut png),
-            ::image::ImageFormat::Png,
-        )
-        .map_err(|e| Error::Runtime(format!("PNG encoding of a plot failed: {e}")))?;
         let path = dir.join(format!("{}.png", cost.file()));
-        outputs.write_atomic(&path, &png)?;
+        outputs.write_atomic(&path, &png_of(rgb)?)?;
         written.push(path);
 
         let mut svg = String::new();
@@ -335,6 +645,24 @@ pub fn sweep_plots(outputs: &Outputs, report: &SweepReport, dir: &Path) -> Resul
             cost,
         )?;
         let path = dir.join(format!("{}.svg", cost.file()));
+        outputs.write_atomic(&path, svg.as_bytes())?;
+        written.push(path);
+    }
+    for curves in [samples_curves(report), texture_curves(report)] {
+        let mut rgb = vec![0u8; w as usize * h as usize * 3];
+        draw_curves(
+            BitMapBackend::with_buffer(&mut rgb, (w, h)).into_drawing_area(),
+            &curves,
+        )?;
+        let path = dir.join(format!("{}.png", curves.file));
+        outputs.write_atomic(&path, &png_of(rgb)?)?;
+        written.push(path);
+        let mut svg = String::new();
+        draw_curves(
+            SVGBackend::with_string(&mut svg, (w, h)).into_drawing_area(),
+            &curves,
+        )?;
+        let path = dir.join(format!("{}.svg", curves.file));
         outputs.write_atomic(&path, svg.as_bytes())?;
         written.push(path);
     }
@@ -364,6 +692,28 @@ mod tests {
             assert!((got - want).abs() < 1e-12, "{t:?}");
         }
         assert!(log_ticks(&(0.0..1.0)).is_empty());
+    }
+
+    #[test]
+    fn the_legend_goes_where_the_points_are_not() {
+        let (x, y) = (1.0..100.0, 1.0..100.0);
+        // Crowded upper right: the upper left is free.
+        let pts = [(90.0, 90.0), (80.0, 70.0), (2.0, 2.0)];
+        assert!(matches!(
+            legend_corner(&pts, &x, &y),
+            SeriesLabelPosition::UpperLeft
+        ));
+        // Both upper corners taken: the lower right.
+        let pts = [(90.0, 90.0), (1.5, 90.0), (1.5, 1.5)];
+        assert!(matches!(
+            legend_corner(&pts, &x, &y),
+            SeriesLabelPosition::LowerRight
+        ));
+        // Nothing anywhere: the upper right.
+        assert!(matches!(
+            legend_corner(&[], &x, &y),
+            SeriesLabelPosition::UpperRight
+        ));
     }
 
     #[test]

@@ -64,8 +64,8 @@ fn the_results_page_links_every_image_and_quotes_its_data() {
             links += 1;
         }
     }
-    // 2 plots + 6 gallery images.
-    assert_eq!(links, 8);
+    // 4 plots + 6 gallery images.
+    assert_eq!(links, 10);
     // The data beside the page, and the page quoting it.
     let data: Value =
         serde_json::from_str(&std::fs::read_to_string(d.join("results/results.json")).unwrap())
@@ -93,7 +93,34 @@ fn the_results_page_links_every_image_and_quotes_its_data() {
             s["fps_max"].as_f64().unwrap(),
         );
         assert!(0.0 < lo && lo <= med && med <= hi, "{s}");
+        // Also flown in the default 6 separate processes: the median inside its interval.
+        let p = &w["processes"];
+        assert_eq!(p["processes"], 6, "{w}");
+        let (a, m, b) = (
+            p["interval"][0].as_f64().unwrap(),
+            p["fps"].as_f64().unwrap(),
+            p["interval"][1].as_f64().unwrap(),
+        );
+        assert!(0.0 < a && a <= m && m <= b, "{p}");
     }
+    assert_eq!(sc["walkthrough_load"].as_array().unwrap().len(), 6);
+    // The error along the path: all three frames, four methods, the textures within the
+    // RRPs' bytes, every error finite and the page quoting the direct method's first.
+    let we = &sc["walk_errors"];
+    assert_eq!(we["frames"], serde_json::json!([0, 1, 2]));
+    let wm = we["methods"].as_array().unwrap();
+    assert_eq!(wm.len(), 4);
+    assert!(wm[1]["bytes"].as_u64().unwrap() <= wm[0]["bytes"].as_u64().unwrap());
+    for m in wm {
+        let e = m["errors"].as_array().unwrap();
+        assert_eq!(e.len(), 3);
+        assert!(e.iter().all(|x| x.as_f64().unwrap().is_finite()), "{m}");
+    }
+    assert!(page.contains(&format!(
+        "| 0 | {:.3} |",
+        wm[0]["errors"][0].as_f64().unwrap()
+    )));
+    assert!(page.contains("## Table 1 at matched error"));
     let gallery = sc["gallery"].as_array().unwrap();
     assert_eq!(gallery.len(), 6);
     assert_eq!(gallery[0]["method"], "reference");

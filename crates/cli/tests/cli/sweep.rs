@@ -63,7 +63,7 @@ fn a_small_sweep_has_every_key_falling_errors_and_consistent_fronts() {
             "density",
             "texture",
             "frame_ms",
-            "frame_ms_spread",
+            "frame_ms_interval",
             "bytes",
             "error_reconstruction",
             "error_total",
@@ -106,27 +106,46 @@ fn a_small_sweep_has_every_key_falling_errors_and_consistent_fronts() {
     for m in ["direct", "mesh"] {
         assert!(err(m, 1) < err(m, 0), "{m}: {} -> {}", err(m, 0), err(m, 1));
     }
-    // The Pareto flags agree with the numbers: a flagged point is dominated by no other point,
+    // The solutions' distance to the converged one: finite, not growing with density, and
+    // zero here (two spots on a plane with nothing reflected back: every solution's exact
+    // image is the direct light itself); the converged one has none.
+    let conv: Vec<f64> = report["densities"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|d| d["converged"].as_f64().unwrap())
+        .collect();
+    assert!(conv.iter().all(|c| c.is_finite() && *c >= 0.0), "{conv:?}");
+    assert!(conv[1] <= conv[0], "{conv:?}");
+    assert!(report["reference"]["converged"].is_null());
+    // The memory flags agree with the numbers: a flagged point is dominated by no other point,
     // an unflagged one by at least one.
-    for (cost, flag) in [("frame_ms", "pareto_time"), ("bytes", "pareto_memory")] {
-        let pts: Vec<(f64, f64)> = points
+    let e = |p: &Value| p["error_total"].as_f64().unwrap();
+    for p in points {
+        let (c, ei) = (p["bytes"].as_f64().unwrap(), e(p));
+        let dominated = points.iter().any(|q| {
+            let c2 = q["bytes"].as_f64().unwrap();
+            c2 <= c && e(q) <= ei && (c2 < c || e(q) < ei)
+        });
+        assert_eq!(p["pareto_memory"].as_bool().unwrap(), !dominated, "{p}");
+        // The time front: off it only when another point as accurate is faster beyond both
+        // confidence intervals.
+        let lo = p["frame_ms_interval"][0].as_f64().unwrap();
+        let beaten = points
             .iter()
-            .map(|p| {
-                (
-                    p[cost].as_f64().unwrap(),
-                    p["error_total"].as_f64().unwrap(),
-                )
-            })
-            .collect();
-        for (i, p) in points.iter().enumerate() {
-            let (c, e) = pts[i];
-            let dominated = pts
-                .iter()
-                .any(|&(c2, e2)| c2 <= c && e2 <= e && (c2 < c || e2 < e));
-            assert_eq!(p[flag].as_bool().unwrap(), !dominated, "{flag}: {p}");
-        }
+            .any(|q| e(q) <= ei && q["frame_ms_interval"][1].as_f64().unwrap() < lo);
+        assert_eq!(p["pareto_time"].as_bool().unwrap(), !beaten, "{p}");
+        assert!(lo <= p["frame_ms"].as_f64().unwrap(), "{p}");
+        assert!(p["frame_ms"].as_f64().unwrap() <= p["frame_ms_interval"][1].as_f64().unwrap());
+    }
+    for flag in ["pareto_time", "pareto_memory"] {
         assert!(points.iter().any(|p| p[flag].as_bool().unwrap()));
     }
+    // Timed in the default 6 separate processes, each density once per process.
+    let timing = &report["timing"];
+    assert_eq!(timing["processes"], 6);
+    assert!((timing["coverage"].as_f64().unwrap() - 0.96875).abs() < 1e-12);
+    assert_eq!(timing["load"].as_array().unwrap().len(), 12);
     equal_error_is_consistent(&report);
     budget_is_consistent(&report);
 }
@@ -195,6 +214,46 @@ fn equal_error_is_consistent(report: &Value) {
         .map(|r| r.as_f64().unwrap())
         .collect();
     assert_eq!(ratios, [1.0, 1.1]);
+    // Across views: two-spots has no camera path, so its camera alone, at 64 x 64 and twice
+    // that, for each of the 3 texture methods. At the sweep's own size the centre-placed,
+    // mip-mapped curve is the one-view search's row, error for error.
+    let views = report["equal_views"].as_array().unwrap();
+    assert_eq!(views.len(), 6, "{views:?}");
+    let sizes: Vec<(u64, u64)> = views
+        .iter()
+        .map(|c| (c["width"].as_u64().unwrap(), c["height"].as_u64().unwrap()))
+        .collect();
+    assert_eq!(&sizes[..3], [(64, 64); 3]);
+    assert_eq!(&sizes[3..], [(128, 128); 3]);
+    for c in &views[..3] {
+        assert_eq!(c["direct_error"].as_f64().unwrap(), direct_error);
+        let row = e["rows"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .find(|r| {
+                r["method"] == c["method"] && r["placement"] == "centre" && r["mip_mapped"] == true
+            })
+            .unwrap();
+        let curve: Vec<f64> = c["curve"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|p| p["error"].as_f64().unwrap())
+            .collect();
+        let tested: Vec<f64> = row["tested"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|p| p["error"].as_f64().unwrap())
+            .collect();
+        assert_eq!(
+            curve[..tested.len().min(curve.len())],
+            tested[..tested.len().min(curve.len())],
+            "{}",
+            c["method"]
+        );
+    }
     let rows = e["rows"].as_array().unwrap();
     assert_eq!(
         rows.len(),
@@ -245,7 +304,12 @@ fn the_plots_are_png_and_svg_of_the_documented_size() {
         );
     }
     assert!(report["equal_error"].is_null());
-    for name in ["error-vs-time", "error-vs-memory"] {
+    for name in [
+        "error-vs-time",
+        "error-vs-memory",
+        "error-vs-samples",
+        "error-vs-texture-size",
+    ] {
         let png = tmp("plots", "plots").join(format!("{name}.png"));
         let img = image::open(&png)
             .expect("the plot decodes as PNG")
@@ -259,9 +323,9 @@ fn the_plots_are_png_and_svg_of_the_documented_size() {
         assert!(dark > 1000, "{name}: {dark} dark pixels");
         let svg =
             std::fs::read_to_string(tmp("plots", "plots").join(format!("{name}.svg"))).unwrap();
-        assert!(
-            svg.starts_with("<svg") && svg.contains("Pareto front"),
-            "{name}"
-        );
+        assert!(svg.starts_with("<svg"), "{name}");
+        if name == "error-vs-time" || name == "error-vs-memory" {
+            assert!(svg.contains("Pareto front"), "{name}");
+        }
     }
 }

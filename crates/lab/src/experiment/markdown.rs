@@ -797,8 +797,10 @@ fn frame_rate_finding(table1: &[ModelStats]) -> String {
         return String::new();
     };
     let mut t = format!(
-        "- **Frame rates.** On this CPU emulator the direct method takes {:.2}-{:.2} of the \
-         bilinear RAT frame time and {:.2}-{:.2} of the bicubic one: evaluating a broadcast \
+        "- **Frame rates** (medians of one run in one process, at equal sampling, not at equal \
+         error; `docs/results.md` compares the methods at matched error with confidence \
+         intervals over separate processes). On this CPU emulator the direct method takes \
+         {:.2}-{:.2} of the bilinear RAT frame time and {:.2}-{:.2} of the bicubic one: evaluating a broadcast \
          patch in 8 or 16 lanes (48 multiply-adds per sample) is cheaper than gathering 4 or 16 \
          texels per sample, and needs no texture memory. The paper's hardware made the \
          opposite trade: texture filtering was fixed-function and nearly free at bilinear. \

@@ -19,13 +19,16 @@
 //! and ratios.
 //!
 //! Layout: `figures` (Fig. 5, Fig. 6, the spot sweep), `table1`, `markdown` (the report),
-//! `results` (`docs/results.md`: every method's speed, error and memory on every shipped scene);
+//! `results` (`docs/results.md`: every method's speed, error and memory on every shipped scene),
+//! `matched` (its Table 1 at matched error), `walk_error` (its error along the camera path);
 //! this file holds the job: what to run, running it, and the terminal text.
 
 mod figures;
 mod markdown;
+pub mod matched;
 pub mod results;
 mod table1;
+pub mod walk_error;
 
 pub use figures::{
     fig5, fig6, figure_text, paper_misfit, sensitivity, spot_fraction_at, spot_radius_10,

@@ -18,12 +18,14 @@ use std::time::Instant;
 
 use serde::Serialize;
 
+use super::walk_error::{self, WalkErrors};
 use crate::image;
 use crate::jobs::equal_error::{EqualError, ScalePoint};
 use crate::jobs::sweep::{self, SweepPoint, SweepReport, SweepRequest};
-use crate::jobs::walkthrough::WalkthroughSummary;
+use crate::jobs::timing::{self, LoadSample, TimingProcesses};
+use crate::jobs::walkthrough::{walk, WalkWorkerRequest, WalkthroughSummary};
 use crate::jobs::Context;
-use crate::jobs::{prepare, render_frame, render_frame_in, scene_texture_policy, Input, Prepared};
+use crate::jobs::{prepare, render_frame, scene_texture_policy, Input, Prepared};
 use base::error::{Error, Result};
 use base::method::Method;
 use base::progress::Stage;
@@ -61,8 +63,10 @@ pub struct ResultsRequest {
     pub gallery_width: u32,
     /// Frames timed per sweep point and repeat.
     pub frames: u32,
-    /// Sweep timing repeats.
+    /// Sweep timing repeats within each timing process.
     pub repeats: u32,
+    /// Separate processes each sweep point is timed in (`None`: the repeats of this process).
+    pub processes: Option<TimingProcesses>,
     /// Samples per pixel of each sweep's truth image (0: no error budget).
     pub truth_samples: u32,
 }
@@ -77,7 +81,8 @@ impl ResultsRequest {
             sweep_size: 256,
             gallery_width: 192,
             frames: 5,
-            repeats: 3,
+            repeats: 1,
+            processes: None,
             truth_samples: sweep::DEFAULT_TRUTH_SAMPLES,
         }
     }
@@ -103,8 +108,24 @@ pub struct WalkthroughRow {
     pub width: u32,
     /// Image height.
     pub height: u32,
-    /// Frame rates and stage times.
+    /// Frame rates and stage times (this process).
     pub summary: WalkthroughSummary,
+    /// Frames per second over separate processes (each one's median frame), when timed so.
+    pub processes: Option<ProcessRate>,
+}
+
+/// A frame rate measured in separate processes: the median over them of each one's median
+/// frame's rate, with the confidence interval of that median.
+#[derive(Debug, Clone, Copy, Serialize)]
+pub struct ProcessRate {
+    /// Processes.
+    pub processes: usize,
+    /// Median frames per second.
+    pub fps: f64,
+    /// Its confidence interval, frames per second.
+    pub interval: [f64; 2],
+    /// The interval's coverage.
+    pub coverage: f64,
 }
 
 /// Everything measured on one scene.
@@ -120,6 +141,10 @@ pub struct SceneResults {
     pub gallery: Vec<GalleryImage>,
     /// Walkthrough rates per method (empty without a camera path).
     pub walkthrough: Vec<WalkthroughRow>,
+    /// The machine's load while each walkthrough timing process ran.
+    pub walkthrough_load: Vec<LoadSample>,
+    /// Errors along the camera path at fixed memory (without a camera path: none).
+    pub walk_errors: Option<WalkErrors>,
     /// Seconds this scene took.
     pub seconds: f64,
 }
@@ -282,6 +307,7 @@ fn sweep_request(req: &ResultsRequest, scene: &Path) -> SweepRequest {
         height: req.sweep_size,
         frames: req.frames,
         repeats: req.repeats,
+        processes: req.processes.clone(),
         truth_samples: req.truth_samples,
         ..SweepRequest::new(scene.to_path_buf())
     }
@@ -315,13 +341,16 @@ fn scene_results(
     for path in crate::plot::sweep_plots(&job.outputs, &report, &dir)? {
         wrote(&path);
     }
-    let (gallery, walkthrough) = gallery_and_walkthrough(job, req, scene, &dir, wrote)?;
+    let (gallery, walkthrough, walkthrough_load, walk_errors) =
+        gallery_and_walkthrough(job, req, scene, &dir, wrote)?;
     Ok(SceneResults {
         name,
         path: scene.display().to_string(),
         sweep: report,
         gallery,
         walkthrough,
+        walkthrough_load,
+        walk_errors,
         seconds: t.elapsed().as_secs_f64(),
     })
 }
@@ -346,6 +375,10 @@ fn command_line(req: &ResultsRequest) -> String {
     if req.repeats != defaults.repeats {
         c += &format!(" --repeats {}", req.repeats);
     }
+    let processes = req.processes.as_ref().map_or(0, |t| t.count);
+    if processes != timing::DEFAULT_PROCESSES {
+        c += &format!(" --processes {processes}");
+    }
     if req.truth_samples != defaults.truth_samples {
         c += &format!(" --truth-samples {}", req.truth_samples);
     }
@@ -360,17 +393,59 @@ fn gallery_and_walkthrough(
     scene: &Path,
     dir: &Path,
     wrote: &mut dyn FnMut(&Path),
-) -> Result<(Vec<GalleryImage>, Vec<WalkthroughRow>)> {
+) -> Result<Walked> {
     let input = Input::load(scene)?;
     let policy = scene_texture_policy(&input.scene);
     let placement = input.scene.render.texel_placement;
     let p = prepare(job, input, policy, placement)?;
     let gallery = gallery(job, req, &p, dir, wrote)?;
-    let walkthrough = match p.scene.camera_path.clone() {
-        Some(path) => walkthroughs(job, &p, &path)?,
+    let Some(path) = p.scene.camera_path.clone() else {
+        return Ok((gallery, Vec::new(), Vec::new(), None));
+    };
+    let mut rows = walkthroughs(job, &p, &path)?;
+    let load = match &req.processes {
+        Some(tp) => walkthrough_processes(tp, scene, &p, &mut rows)?,
         None => Vec::new(),
     };
-    Ok((gallery, walkthrough))
+    let errors = walk_error::walk_errors(job, &p, &path)?;
+    Ok((gallery, rows, load, Some(errors)))
+}
+
+/// A scene's gallery, walkthrough rows, their timing processes' load and errors along the path.
+type Walked = (
+    Vec<GalleryImage>,
+    Vec<WalkthroughRow>,
+    Vec<LoadSample>,
+    Option<WalkErrors>,
+);
+
+/// Times the walkthrough of every row's method in `tp`'s separate processes and adds each
+/// row's rate over them; returns the load each process ran under.
+fn walkthrough_processes(
+    tp: &TimingProcesses,
+    scene: &Path,
+    p: &Prepared,
+    rows: &mut [WalkthroughRow],
+) -> Result<Vec<LoadSample>> {
+    let (samples, load) = timing::with_solution_file(p, "walkthrough", |file| {
+        let request = timing::WorkerJob::Walkthrough(WalkWorkerRequest {
+            scene: scene.to_path_buf(),
+            solution: file.to_path_buf(),
+            methods: rows.iter().map(|r| r.method.clone()).collect(),
+            threads: rayon::current_num_threads(),
+        });
+        timing::in_processes(tp, &request, rows.len(), "walkthrough")
+    })?;
+    for (row, ms) in rows.iter_mut().zip(samples) {
+        let fps: Vec<f64> = ms.iter().map(|&m| crate::jobs::render::fps(m)).collect();
+        row.processes = timing::median_interval(&fps, timing::CONFIDENCE).map(|i| ProcessRate {
+            processes: fps.len(),
+            fps: crate::jobs::bench::median(fps.clone()),
+            interval: [i.lo, i.hi],
+            coverage: i.coverage,
+        });
+    }
+    Ok(load)
 }
 
 /// Every method of [`GALLERY_METHODS`] drawn at the gallery's width (the height from the
@@ -427,30 +502,20 @@ fn walkthroughs(job: &Context<'_>, p: &Prepared, path: &CameraPath) -> Result<Ve
     let methods = &GALLERY_METHODS[1..];
     let mut walkthrough = Vec::new();
     for (i, name) in methods.iter().enumerate() {
-        let method = Method::parse(name)?;
-        let cameras: Vec<_> = (0..path.frames)
-            .map(|k| path.camera(p.scene.camera.projection, k))
-            .collect();
-        // One warm-up frame (builds the textures or the mesh once, outside the timing),
-        // then every frame in the same frame context, as `render` draws a walkthrough.
-        let mut ctx = engine::frame::FrameContext::new();
-        render_frame_in(&mut ctx, p, method, &cameras[0], &opts)?;
-        let mut stats = Vec::new();
-        for c in &cameras {
-            stats.push(render_frame_in(&mut ctx, p, method, c, &opts)?);
-        }
+        let stats = walk(p, Method::parse(name)?, path, &opts)?;
         walkthrough.push(WalkthroughRow {
             method: name.to_string(),
             width: w,
             height: h,
             summary: WalkthroughSummary::new(&stats),
+            processes: None,
         });
         stage.advance((i + 1) as f64 / methods.len() as f64);
     }
     Ok(walkthrough)
 }
 
-fn mb(bytes: u64) -> String {
+pub(crate) fn mb(bytes: u64) -> String {
     if bytes >= 10_000_000 {
         format!("{:.0} MB", bytes as f64 / 1e6)
     } else if bytes >= 1_000_000 {
@@ -460,7 +525,7 @@ fn mb(bytes: u64) -> String {
     }
 }
 
-fn texture_label(p: &SweepPoint) -> String {
+pub(crate) fn texture_label(p: &SweepPoint) -> String {
     p.texture.map_or("-".into(), |l| {
         format!("1/{}, {}", 1u64 << l.halvings, l.placement)
     })
@@ -482,8 +547,8 @@ fn point_row(p: &SweepPoint) -> String {
         p.density,
         texture_label(p),
         p.frame_ms,
-        p.frame_ms_spread[0],
-        p.frame_ms_spread[1],
+        p.frame_ms_interval[0],
+        p.frame_ms_interval[1],
         mb(p.bytes),
         mb(p.working_bytes),
         p.error_reconstruction,
@@ -493,7 +558,76 @@ fn point_row(p: &SweepPoint) -> String {
     )
 }
 
-const POINT_HEADER: &str = "| method | density | texture | frame ms (spread) | bytes stored | bytes held drawing | error recon. | error total | error physics | front |\n|---|---|---|---|---|---|---|---|---|---|\n";
+const POINT_HEADER: &str = "| method | density | texture | frame ms (interval) | bytes stored | bytes held drawing | error recon. | error total | error physics | front |\n|---|---|---|---|---|---|---|---|---|---|\n";
+
+/// How far each density's solution is from the converged one (exact images, the
+/// reconstruction left out), and how much that moves from the coarsest density to the finest.
+fn convergence_line(sw: &SweepReport) -> String {
+    let d: Vec<f64> = sw.densities.iter().filter_map(|d| d.converged).collect();
+    let (Some(first), Some(last)) = (d.first(), d.last()) else {
+        return String::new();
+    };
+    let each: Vec<String> = d.iter().map(|e| format!("{e:.3}")).collect();
+    let moved = if *first == 0.0 {
+        "every solution's exact image is the converged one's (nothing here for the solver to \
+         converge on)"
+            .to_string()
+    } else if *last > 0.0 {
+        format!(
+            "it moves {:.1}x from the coarsest density to the finest",
+            first / last
+        )
+    } else {
+        "the finest density reaches the converged image".to_string()
+    };
+    format!(
+        "**Solution convergence** (each density's exact image against the converged solution's, \
+         perceptual distance: the solver alone, no reconstruction), coarse to fine: {}; {}.\n\n",
+        each.join(", "),
+        moved
+    )
+}
+
+/// How the sweep's frame times were measured: processes, the intervals' coverage, the load.
+fn timing_line(sw: &SweepReport) -> String {
+    let t = &sw.timing;
+    if t.processes == 0 {
+        return format!(
+            "Frame times: {} repeats in one process; the range shown is their spread, which \
+             is not a confidence interval of what another run would measure.",
+            t.samples
+        );
+    }
+    let mut s = format!(
+        "Frame times: every point timed in {} separate processes (each loads the solution, \
+         draws every point once to warm up, then times it); the time is the median over the \
+         processes, the interval a {:.1} % confidence interval of that median (distribution-free: \
+         order statistics of the process medians).",
+        t.processes,
+        100.0 * t.coverage
+    );
+    let others: Vec<f64> = t.load.iter().filter_map(|l| l.other_cores).collect();
+    if others.is_empty() {
+        s += " The machine's load was not recorded (no /proc, or every process ran under a \
+               second, too short for the 10 ms counters).";
+    } else {
+        s += &format!(
+            " Other work on the machine while they ran: median {:.2} cores, at most {:.2}; {} of {} \
+             processes ran beside more than {} cores of other work{}.",
+            crate::jobs::bench::median(others.clone()),
+            t.peak_load().unwrap_or(0.0),
+            t.high_load(),
+            t.load.len(),
+            timing::HIGH_LOAD_CORES,
+            if t.high_load() > 0 {
+                " (**high load**: those times are slower than an idle machine's)"
+            } else {
+                ""
+            }
+        );
+    }
+    s
+}
 
 /// Per method, how many of its points lie on the time and on the memory front.
 fn front_counts(r: &SweepReport) -> String {
@@ -513,7 +647,8 @@ fn front_counts(r: &SweepReport) -> String {
         parts.join(", ")
     };
     format!(
-        "On the time front: {}. On the memory front: {}.",
+        "On the time front (no point at most as wrong is faster beyond both intervals): {}. \
+         On the memory front: {}.",
         count(|p| p.pareto_time),
         count(|p| p.pareto_memory)
     )
@@ -639,8 +774,15 @@ pub fn markdown(r: &ResultsReport, req: &ResultsRequest) -> String {
     for sc in &r.scenes {
         s += &scene_section(sc);
     }
+    let sweeps: Vec<(&str, &SweepReport)> = r
+        .scenes
+        .iter()
+        .map(|sc| (sc.name.as_str(), &sc.sweep))
+        .collect();
+    s += &super::matched::section(&sweeps);
     s += &equal_error_section(r);
     s += &walkthrough_section(r);
+    s += &walk_error_section(r);
     s += &gallery_section(r, req);
     s += &commands_section(r, req);
     s
@@ -654,7 +796,10 @@ fn introduction(r: &ResultsReport) -> String {
          from that one run; the data are in [results/](results/) (`results.json`, and per scene \
          `sweep.json`, `sweep.csv`, the plots and the images). Frame times are wall-clock \
          milliseconds of warm frames (see [performance.md](performance.md) for what a frame time \
-         includes); they vary from run to run by the spreads shown, the errors and bytes do not.\n\n",
+         includes), each the median over separate processes with a confidence interval of that \
+         median (each scene's section says how many processes and the machine's load while they \
+         ran); a method is called faster than another only where their intervals do not \
+         overlap. The errors and bytes do not vary from run to run.\n\n",
         r.command,
         r.seconds,
         r.machine.line()
@@ -684,7 +829,7 @@ fn contents(r: &ResultsReport) -> String {
     for sc in &r.scenes {
         s += &format!("- [{0}](#{0})\n", sc.name);
     }
-    s += "- [Equal-error memory](#equal-error-memory)\n- [Walkthrough frame rates](#walkthrough-frame-rates)\n- [Image gallery](#image-gallery)\n\n";
+    s += "- [Table 1 at matched error](#table-1-at-matched-error)\n- [Equal-error memory](#equal-error-memory)\n- [Walkthrough frame rates](#walkthrough-frame-rates)\n- [Error along the walkthrough at fixed memory](#error-along-the-walkthrough-at-fixed-memory)\n- [Image gallery](#image-gallery)\n\n";
     s
 }
 
@@ -711,10 +856,16 @@ fn scene_section(sc: &SceneResults) -> String {
         sc.seconds
     );
     s += &format!(
-        "| error against frame time | error against memory |\n|---|---|\n| ![](results/{0}/error-vs-time.png) | ![](results/{0}/error-vs-memory.png) |\n\n",
+        "| error against frame time | error against memory |\n|---|---|\n| ![](results/{0}/error-vs-time.png) | ![](results/{0}/error-vs-memory.png) |\n| **error against samples** | **error against texture size** |\n| ![](results/{0}/error-vs-samples.png) | ![](results/{0}/error-vs-texture-size.png) |\n\n",
         sc.name
     );
-    s += &format!("{}\n\n{}\n\n", front_counts(sw), best_at_finest(sw));
+    s += &convergence_line(sw);
+    s += &format!(
+        "{}\n\n{}\n\n{}\n\n",
+        timing_line(sw),
+        front_counts(sw),
+        best_at_finest(sw)
+    );
     s += &budget_section(sw);
     s += &own_density_table(sw);
     s += "\nEvery point on a front, all densities:\n\n";
@@ -875,6 +1026,30 @@ fn equal_error_section(r: &ResultsReport) -> String {
             s += &format!("**{}**. {}\n", sc.name, equal_error_markdown(e));
         }
     }
+    s += &views_section(r);
+    s
+}
+
+/// The equal-error curves across views and image sizes.
+fn views_section(r: &ResultsReport) -> String {
+    let mut s = format!(
+        "### Across views and image sizes\n\nThe answer above is for one view at one image \
+         size. Here the same texture sets (the scene's texel placement, mip-mapped as drawn) are \
+         measured from the scene's camera and {} frames spread over its camera path, at the \
+         sweep's size and twice it, each against the same solution's exact image there. Each \
+         cell is the texture's reconstruction error over the direct method's at that view and \
+         size, at the quadtree-depth sides times the column's scale: the whole error-size \
+         curve. The last column is the bytes of the smallest scale within {:.0} % of the direct \
+         method.\n\n",
+        crate::jobs::equal_views::PATH_VIEWS,
+        100.0 * (crate::jobs::equal_views::VIEW_RATIO - 1.0)
+    );
+    for sc in &r.scenes {
+        let table = crate::jobs::equal_views::markdown(&sc.sweep.equal_views, mb);
+        if !table.is_empty() {
+            s += &format!("**{}**\n\n{}\n", sc.name, table);
+        }
+    }
     s
 }
 
@@ -882,21 +1057,30 @@ fn equal_error_section(r: &ResultsReport) -> String {
 fn walkthrough_section(r: &ResultsReport) -> String {
     let mut s = String::from("## Walkthrough frame rates\n\n");
     s += "Every frame of the scene's camera path, at the scene's image size, one method after \
-          the other (one warm-up frame each, which also builds the textures or the mesh): frames \
-          per second from each frame's wall-clock time, and the median stage times. Scenes \
-          without a `[camera_path]` are not walked.\n\n\
-          | scene | method | size | frames | fps min / median / max | median ms: geometry / raster / composition / shading |\n\
-          |---|---|---|---|---|---|\n";
+          the other (one warm-up frame each, which also builds the textures or the mesh). \
+          **fps over processes**: the path flown by each method in separate processes (each \
+          loads the solution, warms up and flies every frame); per process the median frame's \
+          rate, then the median over the processes with its confidence interval (as the \
+          sweep's, see [sweep.md](sweep.md)). Then, in this one process: frames per second of \
+          the slowest, median and fastest frame (a spread over the path's views, not an \
+          interval) and the median stage times. Scenes without a `[camera_path]` are not \
+          walked.\n\n\
+          | scene | method | size | frames | fps over processes (interval) | fps min / median / max, one process | median ms: geometry / raster / composition / shading |\n\
+          |---|---|---|---|---|---|---|\n";
     for sc in &r.scenes {
         for w in &sc.walkthrough {
             let m = &w.summary;
+            let over = w.processes.map_or("-".into(), |p| {
+                format!("{:.0} ({:.0}-{:.0})", p.fps, p.interval[0], p.interval[1])
+            });
             s += &format!(
-                "| {} | {} | {} x {} | {} | {:.0} / {:.0} / {:.0} | {:.2} / {:.2} / {:.2} / {:.2} |\n",
+                "| {} | {} | {} x {} | {} | {} | {:.0} / {:.0} / {:.0} | {:.2} / {:.2} / {:.2} / {:.2} |\n",
                 sc.name,
                 w.method,
                 w.width,
                 w.height,
                 m.frames,
+                over,
                 m.fps_min,
                 m.fps_median,
                 m.fps_max,
@@ -907,6 +1091,23 @@ fn walkthrough_section(r: &ResultsReport) -> String {
             );
         }
     }
+    for sc in r.scenes.iter().filter(|sc| !sc.walkthrough_load.is_empty()) {
+        let load = &sc.walkthrough_load;
+        let high = timing::high_load(load);
+        let peak = timing::peak_load(load);
+        s += &format!(
+            "\n{}: {} processes, {}; {} beside more than {} cores of other work{}.",
+            sc.name,
+            load.len(),
+            peak.map_or("load not recorded".into(), |p| format!(
+                "other work at most {p:.2} cores"
+            )),
+            high,
+            timing::HIGH_LOAD_CORES,
+            if high > 0 { " (**high load**)" } else { "" }
+        );
+    }
+    s += "\n";
     let walked: Vec<&str> = r
         .scenes
         .iter()
@@ -922,6 +1123,35 @@ fn walkthrough_section(r: &ResultsReport) -> String {
             walked.join(", ")
         }
     );
+    s
+}
+
+/// The error along each walked scene's camera path at fixed memory.
+fn walk_error_section(r: &ResultsReport) -> String {
+    let mut s = String::from(
+        "## Error along the walkthrough at fixed memory
+
+",
+    );
+    s += &format!(
+        "Frames spread evenly over each scene's camera path (at most {}, the first and last \
+         included), at the scene's image size, each method's image against the same solution's \
+         exact image at that frame (the reconstruction error: the solution is the same for every \
+         method). Memory is fixed: the texture methods' textures are sized by a budget equal to \
+         the bytes the direct method's RRPs store (12-bit texels, mip chains and gutters, the \
+         scene's texel placement); the mesh has the bytes its subdivision needs.\n\n",
+        walk_error::MAX_WALK_FRAMES
+    );
+    let mut any = false;
+    for sc in &r.scenes {
+        if let Some(e) = &sc.walk_errors {
+            s += &walk_error::markdown(&sc.name, e);
+            any = true;
+        }
+    }
+    if !any {
+        s += "No scene has a camera path.\n\n";
+    }
     s
 }
 

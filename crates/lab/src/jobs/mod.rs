@@ -25,6 +25,7 @@
 pub mod bench;
 pub mod compare;
 pub mod equal_error;
+pub mod equal_views;
 pub mod budget;
 pub mod memory;
 pub mod physics;
@@ -32,6 +33,7 @@ pub mod render;
 pub mod solve;
 pub mod stats;
 pub mod sweep;
+pub mod timing;
 pub mod truth;
 pub mod walkthrough;
 

@@ -143,6 +143,19 @@ pub(crate) const STATS_METHODS: [Method; 4] = [
 /// Table 1 for a prepared scene; with `frames > 0`, each of [`STATS_METHODS`] is rendered
 /// `frames` times (after a warm-up) at `opts`'s size and the medians are reported. The bicubic
 /// filter is `bicubic`'s (Mitchell–Netravali unless given).
+/// The original polygons as the RAT model (and the direct method) draw them: triangles (2 per
+/// quad) and vertices, corners not shared between polygons since each carries its own texture
+/// coordinates (4 per quad, 3 per triangle).
+pub(crate) fn rat_geometry(scene: &scene::Scene) -> (u64, u64) {
+    scene
+        .polygons
+        .iter()
+        .fold((0, 0), |(t, v), poly| match poly.shape {
+            Shape::Triangle => (t + 1, v + 3),
+            Shape::Quad => (t + 2, v + 4),
+        })
+}
+
 pub(crate) fn model_stats(
     p: &Prepared,
     frames: u32,
@@ -151,14 +164,7 @@ pub(crate) fn model_stats(
 ) -> Result<ModelStats> {
     let (mesh, _) = p.mesh()?;
     let original = MeshStats::original(&p.scene);
-    let (rat_triangles, rat_vertices) =
-        p.scene
-            .polygons
-            .iter()
-            .fold((0, 0), |(t, v), poly| match poly.shape {
-                Shape::Triangle => (t + 1, v + 3),
-                Shape::Quad => (t + 2, v + 4),
-            });
+    let (rat_triangles, rat_vertices) = rat_geometry(&p.scene);
     let memory = Memory::of(p)?;
     let mut rows = Vec::new();
     if frames > 0 {

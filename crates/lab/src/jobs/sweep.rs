@@ -3,8 +3,10 @@
 //! texture methods the texture size — and measures, for every method at every point, at one image
 //! size:
 //!
-//! - the warm frame time (median of several frames after a warm-up, all points of one density
-//!   interleaved within each repeat, the median over repeats, with the spread of the repeats);
+//! - the warm frame time: each point's median of several frames after a warm-up, all points of
+//!   one density interleaved, measured in several separate processes ([`super::timing`]; or in
+//!   repeats within this one), summarized by the median over them and a confidence interval of
+//!   that median, with the machine's load while each process ran;
 //! - the bytes of the representation that method must hold (RRP patches and locate trees; 12-bit
 //!   textures with mip chains; the mesh's vertices and indices);
 //! - the error against two references, each as perceptual distance, RMSE, maximum error and the
@@ -19,19 +21,22 @@
 //!   added).
 //!
 //! Each point is flagged if it is on the Pareto front of total error against frame time, and of
-//! total error against bytes, over all points of the sweep.
+//! total error against bytes, over all points of the sweep. A point leaves the time front only
+//! when another is at most as wrong and faster beyond doubt: its interval wholly below.
 //!
 //! Invariants: every option is checked before the first solve; each density is solved once; the
 //! errors and bytes are deterministic (only the times vary between runs).
 
 use std::path::PathBuf;
 
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
-use super::bench::{median, min_max};
+use super::bench::median;
 use super::equal_error::{self, EqualError};
+use super::equal_views::{self, ViewCurve};
 use super::memory;
 use super::physics::{self, PhysicsErrors, TruthNoise, TruthReference};
+use super::timing::{self, LoadSample, TimingProcesses, CONFIDENCE};
 use super::Context;
 use super::{prepare, render_frame, render_frame_in, Input, Prepared};
 use crate::image::LinearImage;
@@ -75,8 +80,12 @@ pub struct SweepRequest {
     pub texture_levels: u32,
     /// Frames timed per point and repeat (after one warm-up frame).
     pub frames: u32,
-    /// Repeats of the timing (the spread is over repeats).
+    /// Repeats of the timing within each process.
     pub repeats: u32,
+    /// Separate processes each timing point is measured in ([`super::timing`]); `None`: the
+    /// repeats of this process alone (their spread is not a confidence interval of the time
+    /// another run would measure).
+    pub processes: Option<TimingProcesses>,
     /// Pixels per degree of the perceptual metric.
     pub ppd: f64,
     /// Also search the texture memory each texture method needs to reach the direct method's
@@ -105,6 +114,7 @@ impl SweepRequest {
             texture_levels: 4,
             frames: 5,
             repeats: 3,
+            processes: None,
             ppd: DEFAULT_PPD,
             equal_error: true,
             truth_samples: DEFAULT_TRUTH_SAMPLES,
@@ -162,10 +172,16 @@ pub struct SweepPoint {
     pub samples: u64,
     /// Texture size (texture methods only).
     pub texture: Option<TextureLevel>,
-    /// Median warm frame time, ms (median over repeats of the per-repeat medians).
+    /// Median warm frame time, ms: the median over processes (or repeats) of each one's median.
     pub frame_ms: f64,
-    /// Smallest and largest per-repeat median, ms.
-    pub frame_ms_spread: [f64; 2],
+    /// Confidence interval of that median, ms ([`timing::median_interval`]; its coverage is the
+    /// report's [`Timing::coverage`]).
+    pub frame_ms_interval: [f64; 2],
+    /// Triangles the method draws: the mesh's, or the original polygons' (2 per quad).
+    pub triangles: u64,
+    /// Vertices of those triangles: the mesh's distinct vertices, or the original polygons'
+    /// corners, each polygon's own (they carry its texture coordinates or patch).
+    pub vertices: u64,
     /// Bytes the method stores ([`memory::Memory::method_bytes`]: compact RRPs, 12-bit textures
     /// with mip chains, the mesh's vertices and indices).
     pub bytes: u64,
@@ -201,6 +217,10 @@ pub struct SolutionLevel {
     pub samples: u64,
     /// Its exact image against the truth image: the solution error (with a truth image).
     pub solution: Option<PhysicsErrors>,
+    /// Its exact image against the converged solution's (perceptual distance): how far the
+    /// solver is from its own convergence, the reconstruction left out (`None` for the
+    /// converged solution itself).
+    pub converged: Option<f64>,
 }
 
 impl SolutionLevel {
@@ -208,9 +228,13 @@ impl SolutionLevel {
         p: &Prepared,
         exact: &LinearImage,
         truth: Option<&TruthReference>,
+        converged: Option<&LinearImage>,
         ppd: f64,
     ) -> Result<SolutionLevel> {
         Ok(SolutionLevel {
+            converged: converged
+                .map(|c| compare(exact, c, ppd).map(|d| d.perceptual_distance))
+                .transpose()?,
             tolerance: p.scene.radiosity.tolerance,
             max_depth: p.scene.radiosity.max_depth,
             samples: p.solution.stats.vertices,
@@ -240,6 +264,38 @@ pub struct SweepReport {
     pub points: Vec<SweepPoint>,
     /// The equal-error memory comparison (with texture methods and the search asked for).
     pub equal_error: Option<EqualError>,
+    /// How the frame times were measured.
+    pub timing: Timing,
+    /// The scene's own density level (the factor nearest 1: the equal-error search's).
+    pub own_density: usize,
+    /// The equal-error curves of the texture methods across views and image sizes, at the
+    /// scene's own density ([`super::equal_views`]; with the equal-error search).
+    pub equal_views: Vec<ViewCurve>,
+}
+
+/// How a sweep's frame times were measured.
+#[derive(Debug, Clone, Serialize)]
+pub struct Timing {
+    /// Separate processes per point (0: the repeats of the sweep's own process).
+    pub processes: u32,
+    /// Frame-time samples per point: one per process, or one per repeat.
+    pub samples: u32,
+    /// Coverage of every point's interval (the same for every point: it depends on the count).
+    pub coverage: f64,
+    /// The machine's load while each process ran (none for repeats in one process).
+    pub load: Vec<LoadSample>,
+}
+
+impl Timing {
+    /// Processes that ran while other work took more than [`timing::HIGH_LOAD_CORES`].
+    pub fn high_load(&self) -> usize {
+        timing::high_load(&self.load)
+    }
+
+    /// The largest other-work load seen, in cores (`None` when none was recorded).
+    pub fn peak_load(&self) -> Option<f64> {
+        timing::peak_load(&self.load)
+    }
 }
 
 /// The Pareto flags of points `(cost, error)`: a point is on the front when no other point is at
@@ -319,6 +375,13 @@ fn check(req: &SweepRequest) -> Result<Vec<Method>> {
             return Err(Error::invalid_option(name, "0", "must be at least 1"));
         }
     }
+    if req.processes.as_ref().is_some_and(|t| t.count == 0) {
+        return Err(Error::invalid_option(
+            "--processes",
+            "0",
+            "names no timing process (leave them out to time in this process)",
+        ));
+    }
     if req.texture_levels > 12 {
         return Err(Error::limit(
             "--texture-levels",
@@ -395,13 +458,17 @@ pub fn run_sweep(job: &Context<'_>, req: &SweepRequest) -> Result<SweepReport> {
     // The equal-error search runs at the scene's own density (the factor nearest 1).
     let own = nearest_one(&req.densities);
     let mut equal = None;
+    let mut views = Vec::new();
     let mut points = Vec::new();
     let mut densities = Vec::new();
+    let mut load = Vec::new();
     for (level, &factor) in req.densities.iter().enumerate() {
         let p = solve_at(job, &sweep.input, at_density(&sweep.input.scene, factor))?;
         let at = AtDensity {
-            sweep: &sweep,
-            p: &p,
+            drawer: Drawer {
+                sweep: &sweep,
+                p: &p,
+            },
             level,
             recon_ref: image(render_frame(
                 &p,
@@ -414,11 +481,13 @@ pub fn run_sweep(job: &Context<'_>, req: &SweepRequest) -> Result<SweepReport> {
             &p,
             &at.recon_ref,
             truth.as_ref(),
+            Some(&total_ref),
             req.ppd,
         )?);
-        points.extend(at.measure(&total_ref, truth.as_ref())?);
+        points.extend(at.measure(&total_ref, truth.as_ref(), &mut load)?);
         if req.equal_error && level == own {
             equal = at.equal_error()?;
+            views = at.equal_views()?;
         }
     }
     mark_fronts(&mut points);
@@ -432,6 +501,9 @@ pub fn run_sweep(job: &Context<'_>, req: &SweepRequest) -> Result<SweepReport> {
         truth: truth.map(|t| t.noise),
         points,
         equal_error: equal,
+        timing: sweep.timing(load),
+        own_density: own,
+        equal_views: views,
     })
 }
 
@@ -445,17 +517,30 @@ fn nearest_one(densities: &[f64]) -> usize {
         .unwrap_or(0)
 }
 
-/// Flags every point on the Pareto front of total error against frame time, and of total error
-/// against bytes.
+/// The time-front flags of points `(interval, error)`: a point is on the front unless another
+/// is at most as wrong and faster beyond doubt (its interval wholly below this one's), so a
+/// claim that one method is faster is only made where the intervals do not overlap.
+pub(crate) fn interval_front(points: &[([f64; 2], f64)]) -> Vec<bool> {
+    points
+        .iter()
+        .map(|&([lo, _], e)| !points.iter().any(|&([_, hi2], e2)| e2 <= e && hi2 < lo))
+        .collect()
+}
+
+/// Flags every point on the front of total error against frame time ([`interval_front`]), and
+/// on the Pareto front of total error against bytes.
 fn mark_fronts(points: &mut [SweepPoint]) {
-    let by_time: Vec<(f64, f64)> = points.iter().map(|p| (p.frame_ms, p.error_total)).collect();
+    let by_time: Vec<([f64; 2], f64)> = points
+        .iter()
+        .map(|p| (p.frame_ms_interval, p.error_total))
+        .collect();
     let by_bytes: Vec<(f64, f64)> = points
         .iter()
         .map(|p| (p.bytes as f64, p.error_total))
         .collect();
     for ((p, t), m) in points
         .iter_mut()
-        .zip(pareto_front(&by_time))
+        .zip(interval_front(&by_time))
         .zip(pareto_front(&by_bytes))
     {
         p.pareto_time = t;
@@ -490,6 +575,21 @@ impl<'a> Sweep<'a> {
         })
     }
 
+    /// The summary of how the frame times were measured, with the load of every process.
+    fn timing(&self, load: Vec<LoadSample>) -> Timing {
+        let (processes, samples) = match &self.req.processes {
+            Some(tp) => (tp.count, tp.count),
+            None => (0, self.req.repeats),
+        };
+        let probe = vec![0.0; samples as usize];
+        Timing {
+            processes,
+            samples,
+            coverage: timing::median_interval(&probe, CONFIDENCE).map_or(0.0, |i| i.coverage),
+            load,
+        }
+    }
+
     /// The converged solution's exact image (the total error's reference) and its level (its
     /// exact image against `truth`); the solution itself is dropped before the densities are
     /// solved.
@@ -505,49 +605,225 @@ impl<'a> Sweep<'a> {
             &fine.scene.camera,
             &self.opts,
         )?)?;
-        let level = SolutionLevel::of(&fine, &exact, truth, self.req.ppd)?;
+        let level = SolutionLevel::of(&fine, &exact, truth, None, self.req.ppd)?;
         Ok((exact, level))
     }
 }
 
-/// One density level of a sweep: its solution and that solution's exact image (the
-/// reconstruction error's reference).
+/// One density level of a sweep: its solution (drawn by `drawer`) and that solution's exact
+/// image (the reconstruction error's reference).
 struct AtDensity<'a> {
-    sweep: &'a Sweep<'a>,
-    p: &'a Prepared,
+    drawer: Drawer<'a>,
     level: usize,
     recon_ref: LinearImage,
 }
 
+/// What a timing worker is asked: the sweep's drawing options and one density's solution, in a
+/// file. It draws the same candidates as the sweep measures, in the same order.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct WorkerRequest {
+    /// The scene file.
+    pub scene: PathBuf,
+    /// The density's tolerance factor ([`at_density`]).
+    pub density: f64,
+    /// The density's solution file (with its compact RRPs).
+    pub solution: PathBuf,
+    /// Method names.
+    pub methods: Vec<String>,
+    /// Image width.
+    pub width: u32,
+    /// Image height.
+    pub height: u32,
+    /// Texture sizes ([`SweepRequest::texture_levels`]).
+    pub texture_levels: u32,
+    /// Frames per candidate and repeat.
+    pub frames: u32,
+    /// Repeats.
+    pub repeats: u32,
+    /// Worker threads (the parent's).
+    pub threads: usize,
+}
+
+/// A timing worker's sweep job: loads the solution a sweep wrote and times every candidate as
+/// the sweep would; per candidate, the median frame time of each repeat.
+pub(crate) fn worker_times(job: &Context<'_>, w: &WorkerRequest) -> Result<Vec<Vec<f64>>> {
+    let req = SweepRequest {
+        methods: w.methods.clone(),
+        width: w.width,
+        height: w.height,
+        densities: vec![w.density],
+        texture_levels: w.texture_levels,
+        frames: w.frames,
+        repeats: w.repeats,
+        truth_samples: 0,
+        equal_error: false,
+        ..SweepRequest::new(w.scene.clone())
+    };
+    let sweep = Sweep::new(job, &req)?;
+    let input = Input {
+        scene: at_density(&sweep.input.scene, w.density),
+        solution_file: Some(w.solution.clone()),
+        ..sweep.input.clone()
+    };
+    let p = prepare(job, input, SizePolicy::FromDepth, Placement::Centre)?;
+    let drawer = Drawer {
+        sweep: &sweep,
+        p: &p,
+    };
+    let sets = drawer.texture_sets()?;
+    let candidates = candidates(&sweep.methods, &sets);
+    for c in &candidates {
+        drawer.image(c)?; // warm-up, as the parent's error measurement is
+    }
+    drawer.times(&candidates)
+}
+
 impl AtDensity<'_> {
     /// Every candidate's point: errors against both references and the truth (deterministic,
-    /// drawing each once, which also warms it up), then the times, then the bytes.
+    /// drawing each once, which also warms it up), then the times (of this process, or of
+    /// workers, adding their load to `load`), then the bytes.
     fn measure(
         &self,
         total_ref: &LinearImage,
         truth: Option<&TruthReference>,
+        load: &mut Vec<LoadSample>,
     ) -> Result<Vec<SweepPoint>> {
-        let sets = self.texture_sets()?;
-        let candidates = candidates(&self.sweep.methods, &sets);
-        let ppd = self.sweep.req.ppd;
+        let sets = self.drawer.texture_sets()?;
+        let candidates = candidates(&self.drawer.sweep.methods, &sets);
+        let ppd = self.drawer.sweep.req.ppd;
         let mut errors = Vec::new();
         for c in &candidates {
-            let img = self.image(c)?;
+            let img = self.drawer.image(c)?;
             errors.push(Measured {
                 recon: compare(&img, &self.recon_ref, ppd)?,
                 total: compare(&img, total_ref, ppd)?,
                 physics: truth.map(|t| t.errors(&img, ppd)).transpose()?,
             });
         }
-        let per_repeat = self.times(&candidates)?;
+        let samples = self.time(&candidates, load)?;
         candidates
             .iter()
             .zip(&errors)
-            .zip(per_repeat)
-            .map(|((c, errors), reps)| self.point(c, errors, reps))
+            .zip(samples)
+            .map(|((c, errors), samples)| self.point(c, errors, samples))
             .collect()
     }
 
+    /// Each candidate's frame-time samples: its per-repeat medians in this process, or each
+    /// worker's median (the solution written to a temporary file for them, removed after).
+    fn time(
+        &self,
+        candidates: &[Candidate<'_>],
+        load: &mut Vec<LoadSample>,
+    ) -> Result<Vec<Vec<f64>>> {
+        let (s, p) = (self.drawer.sweep, self.drawer.p);
+        let Some(tp) = &s.req.processes else {
+            return self.drawer.times(candidates);
+        };
+        let what = format!("density {}", self.level);
+        let (samples, l) = timing::with_solution_file(p, &what.replace(' ', "-"), |file| {
+            let request = timing::WorkerJob::Sweep(WorkerRequest {
+                scene: s.input.scene.source.clone(),
+                density: s.req.densities[self.level],
+                solution: file.to_path_buf(),
+                methods: s.req.methods.clone(),
+                width: s.req.width,
+                height: s.req.height,
+                texture_levels: s.req.texture_levels,
+                frames: s.req.frames,
+                repeats: s.req.repeats,
+                threads: rayon::current_num_threads(),
+            });
+            timing::in_processes(tp, &request, candidates.len(), &what)
+        })?;
+        load.extend(l);
+        Ok(samples)
+    }
+
+    /// The point of `c` from its errors (against the same solution's and the converged exact
+    /// image, and the truth) and its frame-time samples; on no front yet.
+    fn point(&self, c: &Candidate<'_>, m: &Measured, samples: Vec<f64>) -> Result<SweepPoint> {
+        let (rc, tc) = (&m.recon, &m.total);
+        let p = self.drawer.p;
+        let bytes = match (c.method, c.texture) {
+            (_, Some((level, _))) => level.bytes,
+            (Method::Mesh, _) => p.mesh()?.0.stats.bytes,
+            _ => memory::rrp_bytes(&p.compact),
+        };
+        let working_bytes =
+            memory::working_bytes(p, c.method, c.texture.map(|(_, set)| &set.memory))?;
+        let interval =
+            timing::median_interval(&samples, CONFIDENCE).map_or([0.0; 2], |i| [i.lo, i.hi]);
+        let (triangles, vertices) = match c.method {
+            Method::Mesh => {
+                let stats = p.mesh()?.0.stats;
+                (stats.triangles, stats.vertices)
+            }
+            _ => super::stats::rat_geometry(&p.scene),
+        };
+        Ok(SweepPoint {
+            method: c.method.name().to_string(),
+            density: self.level,
+            tolerance: p.scene.radiosity.tolerance,
+            samples: p.solution.stats.vertices,
+            texture: c.texture.map(|(l, _)| l),
+            frame_ms_interval: interval,
+            frame_ms: median(samples),
+            triangles,
+            vertices,
+            bytes,
+            working_bytes,
+            error_reconstruction: rc.perceptual_distance,
+            error_total: tc.perceptual_distance,
+            reconstruction: Errors::from(rc),
+            total: Errors::from(tc),
+            error_physics: m.physics.map(|e| e.perceptual),
+            physics: m.physics,
+            pareto_time: false,
+            pareto_memory: false,
+        })
+    }
+
+    /// The texture methods' equal-error curves across views, at the sweep's size and twice it.
+    fn equal_views(&self) -> Result<Vec<ViewCurve>> {
+        let s = self.drawer.sweep;
+        let (w, h) = (s.req.width, s.req.height);
+        let mut sizes = vec![(w, h)];
+        if 2 * w.max(h) <= MAX_IMAGE_DIM {
+            sizes.push((2 * w, 2 * h));
+        }
+        equal_views::across_views(
+            self.drawer.p,
+            &s.methods,
+            &sizes,
+            &s.opts,
+            s.req.ppd,
+            s.job.observer,
+        )
+    }
+
+    /// The equal-error memory search at this density.
+    fn equal_error(&self) -> Result<Option<EqualError>> {
+        let s = self.drawer.sweep;
+        equal_error::equal_error(
+            self.drawer.p,
+            self.level,
+            &s.methods,
+            &self.recon_ref,
+            &s.opts,
+            s.req.ppd,
+            s.job.observer,
+        )
+    }
+}
+
+/// Draws one density's candidates: the sweep's options and the density's prepared solution.
+struct Drawer<'a> {
+    sweep: &'a Sweep<'a>,
+    p: &'a Prepared,
+}
+
+impl Drawer<'_> {
     /// Texture sets: for each placement, the quadtree-depth sides halved k times (a budget
     /// equal to that memory selects exactly that scale); none without a texture method.
     fn texture_sets(&self) -> Result<Vec<(TextureLevel, TextureSet)>> {
@@ -624,53 +900,6 @@ impl AtDensity<'_> {
         }
         Ok(per_repeat)
     }
-
-    /// The point of `c` from its errors (against the same solution's and the converged exact
-    /// image, and the truth) and its per-repeat times; on no front yet.
-    fn point(&self, c: &Candidate<'_>, m: &Measured, reps: Vec<f64>) -> Result<SweepPoint> {
-        let (rc, tc) = (&m.recon, &m.total);
-        let p = self.p;
-        let bytes = match (c.method, c.texture) {
-            (_, Some((level, _))) => level.bytes,
-            (Method::Mesh, _) => p.mesh()?.0.stats.bytes,
-            _ => memory::rrp_bytes(&p.compact),
-        };
-        let working_bytes =
-            memory::working_bytes(p, c.method, c.texture.map(|(_, set)| &set.memory))?;
-        Ok(SweepPoint {
-            method: c.method.name().to_string(),
-            density: self.level,
-            tolerance: p.scene.radiosity.tolerance,
-            samples: p.solution.stats.vertices,
-            texture: c.texture.map(|(l, _)| l),
-            frame_ms_spread: min_max(&reps),
-            frame_ms: median(reps),
-            bytes,
-            working_bytes,
-            error_reconstruction: rc.perceptual_distance,
-            error_total: tc.perceptual_distance,
-            reconstruction: Errors::from(rc),
-            total: Errors::from(tc),
-            error_physics: m.physics.map(|e| e.perceptual),
-            physics: m.physics,
-            pareto_time: false,
-            pareto_memory: false,
-        })
-    }
-
-    /// The equal-error memory search at this density.
-    fn equal_error(&self) -> Result<Option<EqualError>> {
-        let s = self.sweep;
-        equal_error::equal_error(
-            self.p,
-            self.level,
-            &s.methods,
-            &self.recon_ref,
-            &s.opts,
-            s.req.ppd,
-            s.job.observer,
-        )
-    }
 }
 
 /// Every method of `methods` at one density: a texture method once per texture set, any other
@@ -702,8 +931,8 @@ fn candidates<'s>(
 /// The points as CSV, one row per point, with a header.
 pub fn csv(report: &SweepReport) -> String {
     let mut s = String::from(
-        "method,density,tolerance,samples,texture_halvings,texture_placement,texture_texels,frame_ms,frame_ms_min,\
-         frame_ms_max,bytes,working_bytes,error_reconstruction,error_total,rmse_reconstruction,\
+        "method,density,tolerance,samples,texture_halvings,texture_placement,texture_texels,frame_ms,frame_ms_lo,\
+         frame_ms_hi,bytes,working_bytes,error_reconstruction,error_total,rmse_reconstruction,\
          rmse_total,max_abs_reconstruction,max_abs_total,mach_band_reconstruction,mach_band_total,\
          pareto_time,pareto_memory,error_physics,rmse_physics,error_solution,rmse_solution\n",
     );
@@ -724,8 +953,8 @@ pub fn csv(report: &SweepReport) -> String {
             pl,
             t,
             p.frame_ms,
-            p.frame_ms_spread[0],
-            p.frame_ms_spread[1],
+            p.frame_ms_interval[0],
+            p.frame_ms_interval[1],
             p.bytes,
             p.working_bytes,
             p.error_reconstruction,
@@ -857,6 +1086,23 @@ mod tests {
         assert_eq!(pareto_front(&[]), Vec::<bool>::new());
         // Equal cost, larger error: dominated.
         assert_eq!(pareto_front(&[(1.0, 1.0), (1.0, 2.0)]), [true, false]);
+    }
+
+    #[test]
+    fn the_time_front_needs_intervals_apart() {
+        // a: fast and wrong; b: overlaps c and is as wrong, so c stays; d: as wrong as b and
+        // wholly slower than b, so it leaves; e: the most accurate, slow, stays.
+        let pts = [
+            ([1.0, 2.0], 5.0),
+            ([3.0, 5.0], 2.0),
+            ([4.0, 6.0], 2.0),
+            ([5.5, 7.0], 2.0),
+            ([9.0, 9.5], 1.0),
+        ];
+        assert_eq!(interval_front(&pts), [true, true, true, false, true]);
+        // Points with zero-width intervals follow the plain Pareto rule, ties kept.
+        let plain = [([1.0, 1.0], 1.0), ([1.0, 1.0], 1.0), ([2.0, 2.0], 1.0)];
+        assert_eq!(interval_front(&plain), [true, true, false]);
     }
 
     #[test]

@@ -5,12 +5,95 @@
 //! Everything comes from the frames' [`FrameStats`]: frame rates are `1000 / frame_ms` of each
 //! frame's wall-clock time (see [`fps`]), so writing the PNGs is not part of them. Medians use
 //! [`median`], the bench job's, so the two report the same statistic.
+//!
+//! [`walk`] flies the path (one warm-up frame, then every frame in one frame context, as
+//! `render --walkthrough` draws it); `worker_times` is the same flight in a timing worker of
+//! its own ([`super::timing`]), so the results page can time a walkthrough in separate processes.
 
-use serde::Serialize;
+use std::path::PathBuf;
+
+use serde::{Deserialize, Serialize};
 
 use super::bench::{median, min_max};
 use super::render::fps;
-use engine::frame::FrameStats;
+use super::{prepare, render_frame_in, scene_texture_policy, Context, Input, Prepared};
+use base::error::{Error, Result};
+use base::method::Method;
+use engine::frame::{FrameOptions, FrameStats};
+use scene::CameraPath;
+
+/// Every frame of `path` drawn by `method` after one warm-up frame (which also builds the
+/// textures or the mesh), all in one frame context; each frame's statistics.
+pub fn walk(
+    p: &Prepared,
+    method: Method,
+    path: &CameraPath,
+    opts: &FrameOptions,
+) -> Result<Vec<FrameStats>> {
+    let cameras: Vec<_> = (0..path.frames)
+        .map(|k| path.camera(p.scene.camera.projection, k))
+        .collect();
+    let mut ctx = engine::frame::FrameContext::new();
+    if let Some(first) = cameras.first() {
+        render_frame_in(&mut ctx, p, method, first, opts)?;
+    }
+    cameras
+        .iter()
+        .map(|c| render_frame_in(&mut ctx, p, method, c, opts))
+        .collect()
+}
+
+/// `count` frame indices spread evenly over `frames` (all of them when there are fewer).
+pub fn spread_frames(frames: u32, count: u32) -> Vec<u32> {
+    if frames <= count {
+        return (0..frames).collect();
+    }
+    if count < 2 {
+        return (0..count).collect();
+    }
+    let last = (frames - 1) as u64;
+    (0..count as u64)
+        .map(|i| ((i * last + (count as u64 - 1) / 2) / (count as u64 - 1)) as u32)
+        .collect()
+}
+
+/// What a walkthrough's timing worker is asked: the scene, its solution in a file, the methods.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct WalkWorkerRequest {
+    /// The scene file (solved at its own settings).
+    pub scene: PathBuf,
+    /// Its solution file (with the compact RRPs).
+    pub solution: PathBuf,
+    /// Method names, in the order of the reply.
+    pub methods: Vec<String>,
+    /// Worker threads (the parent's).
+    pub threads: usize,
+}
+
+/// A timing worker's walkthrough job: per method, every frame's wall-clock time, ms, at the
+/// scene's image size, textures sized and placed as the scene says.
+pub(crate) fn worker_times(job: &Context<'_>, w: &WalkWorkerRequest) -> Result<Vec<Vec<f64>>> {
+    let mut input = Input::load(&w.scene)?;
+    input.solution_file = Some(w.solution.clone());
+    let policy = scene_texture_policy(&input.scene);
+    let placement = input.scene.render.texel_placement;
+    let p = prepare(job, input, policy, placement)?;
+    let path = p.scene.camera_path.clone().ok_or_else(|| {
+        Error::invalid_option(
+            "time-worker",
+            w.scene.display().to_string(),
+            "has no camera path",
+        )
+    })?;
+    let opts = job.frame_options(p.scene.width, p.scene.height);
+    w.methods
+        .iter()
+        .map(|name| {
+            let frames = walk(&p, Method::parse(name)?, &path, &opts)?;
+            Ok(frames.iter().map(|s| s.frame_ms).collect())
+        })
+        .collect()
+}
 
 /// Frame rates and per-stage medians over a walkthrough's frames (`--stats` JSON `summary`).
 #[derive(Debug, Clone, Default, PartialEq, Serialize)]
@@ -189,5 +272,18 @@ mod tests {
             "walkthrough: 3 frames, fps min 25.0 / median 50.0 / max 100.0; \
              median ms: geometry 1.0 raster 8.0 composition 2.0 shading 9.0"
         );
+    }
+
+    #[test]
+    fn frames_spread_over_the_path_with_both_ends() {
+        assert_eq!(spread_frames(48, 12)[0], 0);
+        assert_eq!(*spread_frames(48, 12).last().unwrap(), 47);
+        assert_eq!(spread_frames(48, 12).len(), 12);
+        assert_eq!(spread_frames(5, 3), [0, 2, 4]);
+        assert_eq!(spread_frames(3, 12), [0, 1, 2]);
+        assert_eq!(spread_frames(1, 12), [0]);
+        assert_eq!(spread_frames(0, 12), Vec::<u32>::new());
+        let s = spread_frames(1000, 12);
+        assert!(s.windows(2).all(|w| w[0] < w[1]), "{s:?}");
     }
 }
