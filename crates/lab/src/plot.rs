@@ -205,6 +205,21 @@ fn log_chart<'a, DB: DrawingBackend>(
     Ok(chart)
 }
 
+/// Draws the legend of `chart` at `corner`, its text `font` pixels high, on a pale box.
+fn legend<'a, DB: DrawingBackend + 'a>(
+    chart: &mut ChartContext<'a, DB, LogLog>,
+    font: u32,
+    corner: SeriesLabelPosition,
+) -> std::result::Result<(), DrawingAreaErrorKind<DB::ErrorType>> {
+    chart
+        .configure_series_labels()
+        .label_font(("sans-serif", font))
+        .background_style(WHITE.mix(0.85))
+        .border_style(BLACK)
+        .position(corner)
+        .draw()
+}
+
 /// A texture size and placement (halvings, placement), `None` for methods without textures.
 type LineKey<'a> = Option<(u32, &'a str)>;
 
@@ -315,14 +330,7 @@ where
                 .map(|&xy| Circle::new(xy, 9, BLACK.stroke_width(2))),
         )
         .map_err(err)?;
-    chart
-        .configure_series_labels()
-        .label_font(("sans-serif", 15))
-        .background_style(WHITE.mix(0.85))
-        .border_style(BLACK)
-        .position(legend_corner(&all, &x, &y))
-        .draw()
-        .map_err(err)?;
+    legend(&mut chart, 15, legend_corner(&all, &x, &y)).map_err(err)?;
     area.present().map_err(err)?;
     Ok(())
 }
@@ -364,17 +372,6 @@ fn scene_name(report: &SweepReport) -> String {
         .unwrap_or_default()
 }
 
-/// The methods of `report` in the order they first appear.
-fn methods_of(report: &SweepReport) -> Vec<&str> {
-    let mut methods: Vec<&str> = Vec::new();
-    for p in &report.points {
-        if !methods.contains(&p.method.as_str()) {
-            methods.push(&p.method);
-        }
-    }
-    methods
-}
-
 /// The label of a method's line at a placement (`None`: no textures).
 fn line_label(method: &str, placement: Option<&str>) -> String {
     match placement {
@@ -396,7 +393,7 @@ fn samples_curves(report: &SweepReport) -> Curves {
         }
     };
     let mut series = Vec::new();
-    for m in methods_of(report) {
+    for m in report.methods() {
         for placement in [None, Some("centre"), Some("corner")] {
             let points: Vec<(f64, f64)> = report
                 .points
@@ -455,7 +452,7 @@ fn texture_curves(report: &SweepReport) -> Curves {
     let own = report.own_density;
     let at_own = || report.points.iter().filter(move |p| p.density == own);
     let mut series = Vec::new();
-    for m in methods_of(report) {
+    for m in report.methods() {
         for pl in ["centre", "corner"] {
             let mut points: Vec<(f64, f64)> = at_own()
                 .filter(|p| p.method == m)
@@ -562,14 +559,7 @@ where
                 }
             });
     }
-    chart
-        .configure_series_labels()
-        .label_font(("sans-serif", 14))
-        .background_style(WHITE.mix(0.85))
-        .border_style(BLACK)
-        .position(legend_corner(&all, &x, &y))
-        .draw()
-        .map_err(err)?;
+    legend(&mut chart, 14, legend_corner(&all, &x, &y)).map_err(err)?;
     area.present().map_err(err)?;
     Ok(())
 }
@@ -620,6 +610,27 @@ fn png_of(rgb: Vec<u8>) -> Result<Vec<u8>> {
     Ok(png)
 }
 
+/// Writes one plot as `dir/<stem>.png` (drawn by `png` into an RGB buffer of [`PLOT_SIZE`])
+/// and `dir/<stem>.svg` (drawn by `svg`); returns both paths.
+fn write_plot(
+    outputs: &Outputs,
+    dir: &Path,
+    stem: &str,
+    png: impl FnOnce(&mut [u8]) -> Result<()>,
+    svg: impl FnOnce(&mut String) -> Result<()>,
+) -> Result<[PathBuf; 2]> {
+    let (w, h) = PLOT_SIZE;
+    let mut rgb = vec![0u8; w as usize * h as usize * 3];
+    png(&mut rgb)?;
+    let png_path = dir.join(format!("{stem}.png"));
+    outputs.write_atomic(&png_path, &png_of(rgb)?)?;
+    let mut text = String::new();
+    svg(&mut text)?;
+    let svg_path = dir.join(format!("{stem}.svg"));
+    outputs.write_atomic(&svg_path, text.as_bytes())?;
+    Ok([png_path, svg_path])
+}
+
 /// Writes `error-vs-time`, `error-vs-memory`, `error-vs-samples` and `error-vs-texture-size`,
 /// each `.png` and `.svg`, for `report` into `dir` (created if missing). Returns the files
 /// written.
@@ -628,43 +639,44 @@ pub fn sweep_plots(outputs: &Outputs, report: &SweepReport, dir: &Path) -> Resul
     let (w, h) = PLOT_SIZE;
     let mut written = Vec::new();
     for cost in [Cost::Time, Cost::Bytes] {
-        let mut rgb = vec![0u8; w as usize * h as usize * 3];
-        draw(
-            BitMapBackend::with_buffer(&mut rgb, (w, h)).into_drawing_area(),
-            report,
-            cost,
-        )?;
-        let path = dir.join(format!("{}.png", cost.file()));
-        outputs.write_atomic(&path, &png_of(rgb)?)?;
-        written.push(path);
-
-        let mut svg = String::new();
-        draw(
-            SVGBackend::with_string(&mut svg, (w, h)).into_drawing_area(),
-            report,
-            cost,
-        )?;
-        let path = dir.join(format!("{}.svg", cost.file()));
-        outputs.write_atomic(&path, svg.as_bytes())?;
-        written.push(path);
+        written.extend(write_plot(
+            outputs,
+            dir,
+            cost.file(),
+            |rgb| {
+                draw(
+                    BitMapBackend::with_buffer(rgb, (w, h)).into_drawing_area(),
+                    report,
+                    cost,
+                )
+            },
+            |svg| {
+                draw(
+                    SVGBackend::with_string(svg, (w, h)).into_drawing_area(),
+                    report,
+                    cost,
+                )
+            },
+        )?);
     }
     for curves in [samples_curves(report), texture_curves(report)] {
-        let mut rgb = vec![0u8; w as usize * h as usize * 3];
-        draw_curves(
-            BitMapBackend::with_buffer(&mut rgb, (w, h)).into_drawing_area(),
-            &curves,
-        )?;
-        let path = dir.join(format!("{}.png", curves.file));
-        outputs.write_atomic(&path, &png_of(rgb)?)?;
-        written.push(path);
-        let mut svg = String::new();
-        draw_curves(
-            SVGBackend::with_string(&mut svg, (w, h)).into_drawing_area(),
-            &curves,
-        )?;
-        let path = dir.join(format!("{}.svg", curves.file));
-        outputs.write_atomic(&path, svg.as_bytes())?;
-        written.push(path);
+        written.extend(write_plot(
+            outputs,
+            dir,
+            curves.file,
+            |rgb| {
+                draw_curves(
+                    BitMapBackend::with_buffer(rgb, (w, h)).into_drawing_area(),
+                    &curves,
+                )
+            },
+            |svg| {
+                draw_curves(
+                    SVGBackend::with_string(svg, (w, h)).into_drawing_area(),
+                    &curves,
+                )
+            },
+        )?);
     }
     Ok(written)
 }

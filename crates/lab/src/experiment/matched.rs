@@ -62,7 +62,7 @@ pub fn matched<'a>(sw: &'a SweepReport, method: &str, target_error: f64) -> Opti
 
 /// Frames per second of a point, with the interval of its frame time turned into rates.
 fn fps(p: &SweepPoint) -> String {
-    let rate = |ms: f64| if ms > 0.0 { 1e3 / ms } else { 0.0 };
+    let rate = crate::jobs::render::fps;
     format!(
         "{:.0} ({:.0}-{:.0})",
         rate(p.frame_ms),
@@ -106,13 +106,7 @@ pub fn section(scenes: &[(&str, &SweepReport)]) -> String {
         let target_error = error_of(t);
         // The direct method at matched error (its cheapest point as accurate as the target).
         let direct = matched(sw, "direct", target_error).map_or(t, |d| d.point);
-        let mut methods: Vec<&str> = Vec::new();
-        for p in &sw.points {
-            if !methods.contains(&p.method.as_str()) {
-                methods.push(&p.method);
-            }
-        }
-        for m in methods {
+        for m in sw.methods() {
             let Some(mt) = matched(sw, m, target_error) else {
                 continue;
             };

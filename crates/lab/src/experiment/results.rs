@@ -631,7 +631,7 @@ fn timing_line(sw: &SweepReport) -> String {
 
 /// Per method, how many of its points lie on the time and on the memory front.
 fn front_counts(r: &SweepReport) -> String {
-    let methods = method_names(r);
+    let methods = r.methods();
     let count = |f: fn(&SweepPoint) -> bool| -> String {
         let parts: Vec<String> = methods
             .iter()
@@ -887,7 +887,7 @@ fn budget_section(sw: &SweepReport) -> String {
     let Some(t) = &sw.truth else {
         return String::new();
     };
-    let methods = method_names(sw);
+    let methods = sw.methods();
     let mut s = format!(
         "**Error budget against physics** (perceptual distance; truth: {} samples per pixel, its \
          noise {:.3} taken out in quadrature, see [sweep.md](sweep.md#error-budget)). Each cell \
@@ -932,17 +932,6 @@ fn physics_of(p: &SweepPoint) -> f64 {
     p.error_physics.unwrap_or(f64::INFINITY)
 }
 
-/// The methods of a sweep, in the order of their first point.
-fn method_names(sw: &SweepReport) -> Vec<&str> {
-    let mut methods: Vec<&str> = Vec::new();
-    for p in &sw.points {
-        if !methods.contains(&p.method.as_str()) {
-            methods.push(&p.method);
-        }
-    }
-    methods
-}
-
 /// Which term of the budget dominates: at how many points (every method, density and texture
 /// size) the solution error exceeds the reconstruction error, and per method where it does not.
 fn budget_finding(sw: &SweepReport) -> String {
@@ -954,7 +943,7 @@ fn budget_finding(sw: &SweepReport) -> String {
     };
     let mut by_method = Vec::new();
     let (mut sol_wins, mut all) = (0, 0);
-    for m in method_names(sw) {
+    for m in sw.methods() {
         let (mut w, mut n) = (0, 0);
         for p in sw.points.iter().filter(|p| p.method == m) {
             if let Some(e) = solution(p) {

@@ -12,9 +12,8 @@
 
 use serde::Serialize;
 
-use crate::image::LinearImage;
 use crate::jobs::walkthrough::spread_frames;
-use crate::jobs::{memory, render_frame, Context, Prepared};
+use crate::jobs::{frame_image, memory, render_frame, Context, Prepared};
 use base::error::Result;
 use base::method::{Filter, Method};
 use base::progress::Stage;
@@ -87,7 +86,7 @@ pub fn walk_errors(job: &Context<'_>, p: &Prepared, path: &CameraPath) -> Result
     let mut stage = Stage::start(job.observer, "walkthrough errors");
     for (i, &k) in frames.iter().enumerate() {
         let camera = path.camera(p.scene.camera.projection, k);
-        let exact = image(render_frame(p, Method::Reference, &camera, &opts)?)?;
+        let exact = frame_image(render_frame(p, Method::Reference, &camera, &opts)?)?;
         for (m, row) in WALK_METHODS.iter().zip(methods.iter_mut()) {
             let frame = match m {
                 Method::Texture(filter) => {
@@ -101,7 +100,7 @@ pub fn walk_errors(job: &Context<'_>, p: &Prepared, path: &CameraPath) -> Result
                 }
                 _ => render_frame(p, *m, &camera, &opts)?,
             };
-            let error = compare(&image(frame)?, &exact, DEFAULT_PPD)?.perceptual_distance;
+            let error = compare(&frame_image(frame)?, &exact, DEFAULT_PPD)?.perceptual_distance;
             row.errors.push(error);
         }
         stage.advance((i + 1) as f64 / frames.len() as f64);
@@ -111,10 +110,6 @@ pub fn walk_errors(job: &Context<'_>, p: &Prepared, path: &CameraPath) -> Result
         frames,
         methods,
     })
-}
-
-fn image(f: engine::frame::Frame) -> Result<LinearImage> {
-    LinearImage::new(f.width, f.height, f.pixels)
 }
 
 /// One scene's table: a row per measured frame, a column per method, then the median and the

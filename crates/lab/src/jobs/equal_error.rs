@@ -27,7 +27,7 @@
 
 use serde::Serialize;
 
-use super::{render_frame, Prepared};
+use super::{frame_image, render_frame, Prepared};
 use crate::image::LinearImage;
 use base::error::Result;
 use base::method::{Method, Placement};
@@ -112,7 +112,7 @@ pub struct EqualError {
 }
 
 /// Bytes a set of these sides holds in memory: f32 RGB texels with mip chains.
-fn held_bytes(memory: &TextureMemory) -> u64 {
+pub(crate) fn held_bytes(memory: &TextureMemory) -> u64 {
     memory.texels_with_chain.saturating_mul(12)
 }
 
@@ -137,7 +137,7 @@ pub fn equal_error(
         return Ok(None);
     }
     let mut stage = Stage::start(observer, "equal-error search");
-    let direct = image(render_frame(p, Method::Direct, &p.scene.camera, opts)?)?;
+    let direct = frame_image(render_frame(p, Method::Direct, &p.scene.camera, opts)?)?;
     let direct_error = compare(&direct, exact, ppd)?.perceptual_distance;
     let mut rows = empty_rows(&filters);
     let search = Search {
@@ -161,11 +161,6 @@ pub fn equal_error(
         stopped,
         rows,
     }))
-}
-
-/// A frame's pixels as an image.
-fn image(f: frame::Frame) -> Result<LinearImage> {
-    LinearImage::new(f.width, f.height, f.pixels)
 }
 
 /// The texel placements every scale is tried at, in row order.
@@ -272,7 +267,7 @@ impl Search<'_> {
                 let Method::Texture(filter) = m else {
                     continue;
                 };
-                let img = image(frame::render(
+                let img = frame_image(frame::render(
                     &p.scene,
                     &p.scene.camera,
                     &Shader::Texture { set: &set, filter },

@@ -13,9 +13,8 @@
 
 use serde::Serialize;
 
-use super::equal_error::{ScalePoint, MAX_SCALE, MIN_SCALE, SEARCH_MEMORY_CAP};
-use super::{render_frame, Prepared};
-use crate::image::LinearImage;
+use super::equal_error::{held_bytes, ScalePoint, MAX_SCALE, MIN_SCALE, SEARCH_MEMORY_CAP};
+use super::{frame_image, render_frame, Prepared};
 use base::error::Result;
 use base::method::Method;
 use base::progress::{Observer, Stage};
@@ -92,8 +91,8 @@ pub fn across_views(
                 height,
                 ..base.clone()
             };
-            let exact = image(render_frame(p, Method::Reference, camera, &opts)?)?;
-            let direct = image(render_frame(p, Method::Direct, camera, &opts)?)?;
+            let exact = frame_image(render_frame(p, Method::Reference, camera, &opts)?)?;
+            let direct = frame_image(render_frame(p, Method::Direct, camera, &opts)?)?;
             let direct_error = compare(&direct, &exact, ppd)?.perceptual_distance;
             for m in &filters {
                 curves.push(ViewCurve {
@@ -115,9 +114,7 @@ pub fn across_views(
     for k in MIN_SCALE..=MAX_SCALE {
         let sides = TextureSet::sides(&depths, SizePolicy::Scaled(k))?;
         let memory = TextureMemory::of_sides(&sides, GUTTER);
-        if previous.as_ref() == Some(&sides)
-            || memory.texels_with_chain.saturating_mul(12) > SEARCH_MEMORY_CAP
-        {
+        if previous.as_ref() == Some(&sides) || held_bytes(&memory) > SEARCH_MEMORY_CAP {
             break;
         }
         previous = Some(sides);
@@ -129,7 +126,7 @@ pub fn across_views(
         for (camera, opts, exact) in &targets {
             for &m in &filters {
                 let Method::Texture(filter) = m else { continue };
-                let img = image(frame::render(
+                let img = frame_image(frame::render(
                     &p.scene,
                     camera,
                     &Shader::Texture { set: &set, filter },
@@ -192,8 +189,4 @@ pub fn markdown(curves: &[ViewCurve], bytes: impl Fn(u64) -> String) -> String {
         );
     }
     s
-}
-
-fn image(f: frame::Frame) -> Result<LinearImage> {
-    LinearImage::new(f.width, f.height, f.pixels)
 }

@@ -596,6 +596,11 @@ pub fn prepare_path(ctx: &Context<'_>, path: &Path, texture: &TextureOptions) ->
     prepare(ctx, input, policy, placement)
 }
 
+/// A frame's pixels as an image (to measure it).
+pub(crate) fn frame_image(f: engine::frame::Frame) -> Result<crate::image::LinearImage> {
+    crate::image::LinearImage::new(f.width, f.height, f.pixels)
+}
+
 /// Renders one frame of a prepared scene with `method`, in a new frame context (a cold frame;
 /// [`render_frame_in`] reuses one).
 pub fn render_frame(

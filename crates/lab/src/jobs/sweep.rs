@@ -38,12 +38,12 @@ use super::memory;
 use super::physics::{self, PhysicsErrors, TruthNoise, TruthReference};
 use super::timing::{self, LoadSample, TimingProcesses, CONFIDENCE};
 use super::Context;
-use super::{prepare, render_frame, render_frame_in, Input, Prepared};
+use super::{frame_image, prepare, render_frame, render_frame_in, Input, Prepared};
 use crate::image::LinearImage;
 use base::error::{Error, Result};
 use base::method::{Method, Placement};
 use base::quadtree::MAX_DEPTH;
-use engine::frame::{Frame, FrameContext, FrameOptions, FrameStats};
+use engine::frame::{FrameContext, FrameOptions, FrameStats};
 use engine::shading::Shader;
 use metric::{compare, Comparison, DEFAULT_PPD};
 use reconstruction::texture::{SizePolicy, TextureMemory, TextureSet, GUTTER};
@@ -286,6 +286,19 @@ pub struct Timing {
     pub load: Vec<LoadSample>,
 }
 
+impl SweepReport {
+    /// The methods of the points, in the order they first appear.
+    pub fn methods(&self) -> Vec<&str> {
+        let mut methods: Vec<&str> = Vec::new();
+        for p in &self.points {
+            if !methods.contains(&p.method.as_str()) {
+                methods.push(&p.method);
+            }
+        }
+        methods
+    }
+}
+
 impl Timing {
     /// Processes that ran while other work took more than [`timing::HIGH_LOAD_CORES`].
     pub fn high_load(&self) -> usize {
@@ -425,10 +438,6 @@ pub fn at_density(scene: &Scene, factor: f64) -> Scene {
     s
 }
 
-fn image(frame: Frame) -> Result<LinearImage> {
-    LinearImage::new(frame.width, frame.height, frame.pixels)
-}
-
 fn solve_at(ctx: &Context<'_>, input: &Input, scene: Scene) -> Result<Prepared> {
     let input = Input {
         path: input.path.clone(),
@@ -470,7 +479,7 @@ pub fn run_sweep(job: &Context<'_>, req: &SweepRequest) -> Result<SweepReport> {
                 p: &p,
             },
             level,
-            recon_ref: image(render_frame(
+            recon_ref: frame_image(render_frame(
                 &p,
                 Method::Reference,
                 &p.scene.camera,
@@ -581,11 +590,10 @@ impl<'a> Sweep<'a> {
             Some(tp) => (tp.count, tp.count),
             None => (0, self.req.repeats),
         };
-        let probe = vec![0.0; samples as usize];
         Timing {
             processes,
             samples,
-            coverage: timing::median_interval(&probe, CONFIDENCE).map_or(0.0, |i| i.coverage),
+            coverage: timing::order_statistic(samples.max(1) as usize, CONFIDENCE).1,
             load,
         }
     }
@@ -599,7 +607,7 @@ impl<'a> Sweep<'a> {
     ) -> Result<(LinearImage, SolutionLevel)> {
         let scene = at_density(&self.input.scene, self.req.reference_density);
         let fine = solve_at(self.job, &self.input, scene)?;
-        let exact = image(render_frame(
+        let exact = frame_image(render_frame(
             &fine,
             Method::Reference,
             &fine.scene.camera,
@@ -880,7 +888,7 @@ impl Drawer<'_> {
     fn image(&self, c: &Candidate<'_>) -> Result<LinearImage> {
         let mut ctx = FrameContext::new();
         let stats = self.draw_in(&mut ctx, c)?;
-        image(ctx.into_frame(stats))
+        frame_image(ctx.into_frame(stats))
     }
 
     /// Each candidate's median frame time per repeat: every candidate once per repeat,

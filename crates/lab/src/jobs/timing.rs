@@ -84,9 +84,21 @@ fn binomial_half_cdf(n: usize, k: usize) -> f64 {
     sum * 0.5f64.powi(n as i32)
 }
 
-/// The narrowest order-statistic interval `[x_(k), x_(n+1-k)]` of the sorted samples whose
-/// coverage of the median is at least `confidence`; the whole range (with its smaller coverage)
-/// when even that falls short; `None` for no samples.
+/// For `n >= 1` samples, the largest `k` whose order-statistic interval `[x_(k), x_(n+1-k)]`
+/// covers the median with probability at least `confidence` (1 when even the whole range falls
+/// short), and that interval's coverage.
+pub fn order_statistic(n: usize, confidence: f64) -> (usize, f64) {
+    let coverage = |k: usize| (1.0 - 2.0 * binomial_half_cdf(n, k - 1)).max(0.0);
+    let mut k = 1;
+    while 2 * (k + 1) <= n + 1 && coverage(k + 1) >= confidence {
+        k += 1;
+    }
+    (k, coverage(k))
+}
+
+/// The narrowest order-statistic interval of the samples whose coverage of the median is at
+/// least `confidence` ([`order_statistic`]); the whole range (with its smaller coverage) when
+/// even that falls short; `None` for no samples.
 pub fn median_interval(xs: &[f64], confidence: f64) -> Option<Interval> {
     let mut s = xs.to_vec();
     s.sort_by(f64::total_cmp);
@@ -94,15 +106,11 @@ pub fn median_interval(xs: &[f64], confidence: f64) -> Option<Interval> {
     if n == 0 {
         return None;
     }
-    let coverage = |k: usize| 1.0 - 2.0 * binomial_half_cdf(n, k - 1);
-    let mut k = 1;
-    while 2 * (k + 1) <= n + 1 && coverage(k + 1) >= confidence {
-        k += 1;
-    }
+    let (k, coverage) = order_statistic(n, confidence);
     Some(Interval {
         lo: s[k - 1],
         hi: s[n - k],
-        coverage: coverage(k).max(0.0),
+        coverage,
     })
 }
 
