@@ -343,7 +343,8 @@ pub struct SweepArgs {
     #[arg(long, default_value = "256x256", value_parser = parse_size)]
     pub size: (u32, u32),
     /// Density levels as factors f of the scene's solver tolerance, coarse to fine; each also
-    /// moves radiosity.max_depth by -round(log2 f) levels.
+    /// moves radiosity.max_depth by -round(log2 f) levels (and, for f > 1, min_depth likewise,
+    /// down to 0).
     #[arg(long, value_delimiter = ',', default_values_t = lab::jobs::sweep::DEFAULT_DENSITIES)]
     pub densities: Vec<f64>,
     /// Tolerance factor of the converged reference solution (its depth limit moved likewise:

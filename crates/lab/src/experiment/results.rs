@@ -806,7 +806,8 @@ fn introduction(r: &ResultsReport) -> String {
     );
     s += "How the sweep is built and what its terms mean: [sweep.md](sweep.md). In short: each \
           scene is solved at four sampling densities (the solver's tolerance times 4, 2, 1, 1/2 \
-          and its depth limit moved by -2, -1, 0, +1 levels; density 0 is the coarsest); every \
+          and its depth limit moved by -2, -1, 0, +1 levels, its minimum depth by as many of \
+          the coarser ones, down to 0; density 0 is the coarsest); every \
           method is drawn at each, the texture methods at four \
           texture sizes (the quadtree-depth sides halved 0-3 times) and both texel placements. \
           **Error recon.** is the perceptual distance ([metrics.md](metrics.md)) to the same \

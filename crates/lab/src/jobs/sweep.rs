@@ -426,13 +426,19 @@ pub fn depth_shift(factor: f64) -> i32 {
 }
 
 /// `scene` at density `factor`: its tolerance scaled by `factor` and its `max_depth` moved by
-/// [`depth_shift`] (kept within `min_depth..=MAX_DEPTH`). Both move together because where the
-/// light is sharp the depth limit, not the tolerance, stops the subdivision: scaling the
-/// tolerance alone left the error of scenes with spots and shadows where it was.
+/// [`depth_shift`] (kept within `1..=MAX_DEPTH`); a coarser density (shift < 0) also lowers
+/// `min_depth` by the same shift (down to 0), a finer one keeps it. All move together because
+/// where the light is sharp the depth limit, not the tolerance, stops the subdivision, and on a
+/// scene of many small polygons the minimum depth, not the tolerance, sets the sample count of
+/// the coarse levels: scaling the tolerance alone left the error of such scenes where it was.
 pub fn at_density(scene: &Scene, factor: f64) -> Scene {
     let mut s = scene.clone();
+    let shift = depth_shift(factor) as i64;
     s.radiosity.tolerance *= factor;
-    let depth = s.radiosity.max_depth as i64 + depth_shift(factor) as i64;
+    if shift < 0 {
+        s.radiosity.min_depth = (s.radiosity.min_depth as i64 + shift).max(0) as u32;
+    }
+    let depth = s.radiosity.max_depth as i64 + shift;
     s.radiosity.max_depth =
         depth.clamp(s.radiosity.min_depth.max(1) as i64, MAX_DEPTH as i64) as u32;
     s
@@ -1077,13 +1083,19 @@ mod tests {
         scene.radiosity.max_depth = 7;
         let at = |f: f64| {
             let s = at_density(&scene, f);
-            (s.radiosity.tolerance, s.radiosity.max_depth)
+            (
+                s.radiosity.tolerance,
+                s.radiosity.min_depth,
+                s.radiosity.max_depth,
+            )
         };
-        assert_eq!(at(4.0), (0.04, 5));
-        assert_eq!(at(0.25), (0.0025, 9));
-        // Clamped to min_depth below and the quadtree's limit above.
-        assert_eq!(at(1024.0).1, 2);
-        assert_eq!(at(1.0 / 1024.0).1, MAX_DEPTH);
+        // Coarser: both depths one level up per halving of the density; finer: the minimum kept.
+        assert_eq!(at(2.0), (0.02, 1, 6));
+        assert_eq!(at(4.0), (0.04, 0, 5));
+        assert_eq!(at(0.25), (0.0025, 2, 9));
+        // The minimum stops at 0, the limit at 1 below and the quadtree's limit above.
+        assert_eq!(at(1024.0), (10.24, 0, 1));
+        assert_eq!(at(1.0 / 1024.0).2, MAX_DEPTH);
     }
 
     #[test]

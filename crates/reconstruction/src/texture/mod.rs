@@ -283,6 +283,56 @@ impl RadiosityTexture {
         })
     }
 
+    /// A centre-placed square texture from a stored level 0 with its gutter (as a texture atlas
+    /// holds it, see [`RadiosityTexture::from_rrp`]): the chain is box-filtered from the square
+    /// and every coarser level's gutter reflected through the edge values read back from level
+    /// 0's gutter, so the texture equals the one `from_rrp` built (to within a rounding of each
+    /// gutter texel) without the RRP. Errors for a side that is not a power of two in
+    /// `1..=MAX_TEXTURE_SIZE`, a non-square level, a gutter above [`MAX_GUTTER`], a texel count
+    /// other than stride x rows, or a non-finite texel.
+    pub fn from_stored_level0(level0: MipLevel) -> Result<RadiosityTexture> {
+        check_side(level0.width)?;
+        check_gutter(level0.gutter)?;
+        if level0.width != level0.height {
+            return Err(Error::Inconsistent(format!(
+                "stored texture of {} x {} is not square",
+                level0.width, level0.height
+            )));
+        }
+        if level0.texels.len() as u64 != level0.stored() {
+            return Err(Error::Inconsistent(format!(
+                "stored texture needs {} texels with its gutter, got {}",
+                level0.stored(),
+                level0.texels.len()
+            )));
+        }
+        if level0.texels.iter().any(|t| !t.is_finite()) {
+            return Err(Error::Inconsistent("texture texel is not finite".into()));
+        }
+        let (n, g) = (level0.width, level0.gutter);
+        let mut inside = Vec::with_capacity(n as usize * n as usize);
+        for j in 0..n as i32 {
+            inside.extend((0..n as i32).map(|i| level0.texel(i, j)));
+        }
+        let square = mip_chain(MipLevel {
+            width: n,
+            height: n,
+            gutter: 0,
+            texels: inside,
+        });
+        let levels = if g == 0 {
+            square
+        } else {
+            centre_gutters(square, g, EdgeValues::of_centre_gutter(&level0))
+        };
+        Ok(RadiosityTexture {
+            width: n,
+            height: n,
+            levels,
+            placement: Placement::Centre,
+        })
+    }
+
     /// Index of the last (1 x 1) level.
     pub fn last_level(&self) -> usize {
         self.levels.len() - 1
@@ -638,15 +688,7 @@ fn placed_chain(
             if gutter == 0 {
                 return square;
             }
-            let mut e = EdgeValues::centre(side, &edge);
-            let mut levels = Vec::with_capacity(square.len());
-            for level in square {
-                if level.width < e.u0.len() as u32 {
-                    e = e.halved();
-                }
-                levels.push(level.reflected(gutter, &e, Placement::Centre));
-            }
-            levels
+            centre_gutters(square, gutter, EdgeValues::centre(side, &edge))
         }
         Placement::Corner => corner_chain(side, inside)
             .into_iter()
@@ -656,6 +698,19 @@ fn placed_chain(
             })
             .collect(),
     }
+}
+
+/// A centre-placed square chain with `gutter` texels reflected beyond every level's edges
+/// through `e`, level 0's edge values, halved level by level ([`EdgeValues::halved`]).
+fn centre_gutters(square: Vec<MipLevel>, gutter: u32, mut e: EdgeValues) -> Vec<MipLevel> {
+    let mut levels = Vec::with_capacity(square.len());
+    for level in square {
+        if level.width < e.u0.len() as u32 {
+            e = e.halved();
+        }
+        levels.push(level.reflected(gutter, &e, Placement::Centre));
+    }
+    levels
 }
 
 /// The values a level's gutters are reflected through: along the edges u = 0 (`u0[j]`, row j),
@@ -706,6 +761,46 @@ impl EdgeValues {
             v0: half(&self.v0),
             v1: half(&self.v1),
             corners: self.corners,
+        }
+    }
+
+    /// The edge values a centre-placed level with a gutter of at least 1 was reflected through,
+    /// read back from its texels: `E = (g + t) / 2` for the gutter texel g beside texel t
+    /// (`g = 2 E - t`), and each corner from the corner gutter texel, which reflects the
+    /// already reflected row through `2 c - v0[0]` (and likewise at the other corners). Equal to
+    /// the values written to within the one rounding of each gutter texel.
+    fn of_centre_gutter(l: &MipLevel) -> EdgeValues {
+        let (w, h) = (l.width as i32, l.height as i32);
+        let mean = |a: Vec3, b: Vec3| ((a.as_dvec3() + b.as_dvec3()) * 0.5).as_vec3();
+        let u0: Vec<Vec3> = (0..h)
+            .map(|j| mean(l.texel(-1, j), l.texel(0, j)))
+            .collect();
+        let u1: Vec<Vec3> = (0..h)
+            .map(|j| mean(l.texel(w, j), l.texel(w - 1, j)))
+            .collect();
+        let v0: Vec<Vec3> = (0..w)
+            .map(|i| mean(l.texel(i, -1), l.texel(i, 0)))
+            .collect();
+        let v1: Vec<Vec3> = (0..w)
+            .map(|i| mean(l.texel(i, h), l.texel(i, h - 1)))
+            .collect();
+        // Corner (i, j) outside both edges: t = 2 (2 c - along) - beside.
+        let corner = |i: i32, j: i32, beside_j: i32, along: Vec3| -> Vec3 {
+            let row = mean(l.texel(i, j), l.texel(i, beside_j));
+            mean(row, along)
+        };
+        let corners = [
+            corner(-1, -1, 0, v0[0]),
+            corner(w, -1, 0, v0[w as usize - 1]),
+            corner(-1, h, h - 1, v1[0]),
+            corner(w, h, h - 1, v1[w as usize - 1]),
+        ];
+        EdgeValues {
+            u0,
+            u1,
+            v0,
+            v1,
+            corners,
         }
     }
 
