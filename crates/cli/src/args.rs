@@ -129,10 +129,99 @@ pub enum Command {
     /// parts and their standard errors, sampled over the polygon itself, and prints them as a
     /// table. The same seed gives the same bytes for any `--threads` (docs/truth.md).
     Truth(TruthArgs),
+    /// Export a solution to glTF 2.0: the original polygons with a lightmap atlas, or the
+    /// adaptive mesh with vertex colours (`--mesh`).
+    ///
+    /// The lightmap: every polygon's radiosity texture (the texels `render --method
+    /// texture-bilinear` draws, sized alike) packed into power-of-two pages with gutters that
+    /// continue each polygon's RRP past its edges, addressed by texture coordinate set 1; the
+    /// pages as sRGB PNG after the scene's exposure (used by the unlit materials) and as linear
+    /// OpenEXR beside the file. The container follows the name: `.glb` (one file) or `.gltf`
+    /// (its buffer and PNGs beside it). Prints the files, the atlas's packing and texel density.
+    Export(ExportArgs),
+    /// Walk through a scene or solution interactively, in a window drawn by the PixelFlow
+    /// engine (the pixels `render` writes for the same camera).
+    ///
+    /// Keys: W/S forward and back, A/D sideways, Q/E down and up, arrows turn (fly) or circle
+    /// the look-at point (orbit); Tab switches fly and orbit; M the next method, 1-5 direct,
+    /// texture-nearest, texture-bilinear, texture-bicubic, mesh; R / Shift+R more or fewer
+    /// renderers, G / Shift+G larger or smaller regions; P plays the scene's camera path; Home
+    /// the scene's camera; Esc quits. The top line shows the frame rate and the frame's stage
+    /// times. With `--script`, no window: the recorded actions are replayed and the last frame
+    /// written to `--screenshot`.
+    View(ViewArgs),
     /// One of the separate timing processes of `sweep` and `results`: times a sweep's points as
     /// its parent asks (a JSON request) and prints the times as JSON. Not for direct use.
     #[command(hide = true)]
     TimeWorker(TimeWorkerArgs),
+}
+
+#[derive(Args, Debug)]
+pub struct ExportArgs {
+    /// A scene file or a solution file (a scene is solved first).
+    pub input: PathBuf,
+    /// The glTF to write: `.glb` or `.gltf`.
+    #[arg(short, long)]
+    pub output: PathBuf,
+    /// The adaptive mesh with Gouraud vertex colours (COLOR_0) instead of the lightmap.
+    #[arg(long)]
+    pub mesh: bool,
+    /// Largest atlas page side, a power of two from 64 to 16384; charts that do not fit one
+    /// page go to more.
+    #[arg(long, default_value_t = lab::jobs::export::DEFAULT_PAGE)]
+    pub page_size: u32,
+    /// Exposure in stops of the PNG pages and vertex colours (default: the scene's
+    /// `[display] exposure`).
+    #[arg(long, allow_hyphen_values = true)]
+    pub exposure: Option<f64>,
+    /// The scene of a solution file, when it is no longer where the file says.
+    #[arg(long)]
+    pub scene: Option<PathBuf>,
+    #[command(flatten)]
+    pub texture: TextureArgs,
+    /// Worker threads (default: all cores). The files are identical for any count.
+    #[arg(long)]
+    pub threads: Option<usize>,
+    /// Print the report as JSON instead of lines.
+    #[arg(long)]
+    pub json: bool,
+}
+
+#[derive(Args, Debug)]
+pub struct ViewArgs {
+    /// A scene file or a solution file (a scene is solved first).
+    pub input: PathBuf,
+    /// Window width.
+    #[arg(long, default_value_t = 1280)]
+    pub width: u32,
+    /// Window height.
+    #[arg(long, default_value_t = 720)]
+    pub height: u32,
+    /// Virtual renderers at the start.
+    #[arg(long, default_value_t = 1)]
+    pub renderers: u32,
+    /// Region side at the start, pixels.
+    #[arg(long, default_value_t = 128)]
+    pub region: u32,
+    /// The scene of a solution file, when it is no longer where the file says.
+    #[arg(long)]
+    pub scene: Option<PathBuf>,
+    /// No window: replay this recorded session (`press ACTION`, `hold ACTION[,ACTION] SECONDS`,
+    /// `wait SECONDS` per line; docs/viewer.md) at 60 steps a second, then draw one frame.
+    #[arg(long, requires = "screenshot")]
+    pub script: Option<PathBuf>,
+    /// With `--script`: the PNG of the last frame (as `render` would write it).
+    #[arg(long, requires = "script")]
+    pub screenshot: Option<PathBuf>,
+    /// With `--script`: frames drawn after the session, each as the window would show it
+    /// (frame, sRGB, status line), timed; prints their median.
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=10000))]
+    pub frames: u32,
+    #[command(flatten)]
+    pub texture: TextureArgs,
+    /// Worker threads (default: all cores).
+    #[arg(long)]
+    pub threads: Option<usize>,
 }
 
 #[derive(Args, Debug)]
@@ -206,6 +295,9 @@ pub struct RenderArgs {
     /// print a frame-rate summary (fps min / median / max, median stage times).
     #[arg(long)]
     pub walkthrough: bool,
+    /// The scene of a solution file, when it is no longer where the file says.
+    #[arg(long)]
+    pub scene: Option<PathBuf>,
     #[command(flatten)]
     pub texture: TextureArgs,
     /// The RRPs' derivative estimator: `hyman` (default: Hyman-filtered central

@@ -18,8 +18,8 @@ use lab::jobs::sweep;
 use lab::jobs::truth::{run_truth, TruthEvent, TruthRequest};
 
 use crate::args::{
-    BenchArgs, BuildingArgs, CheckArgs, CompareArgs, ExperimentArgs, RenderArgs, ResultsArgs,
-    SolveArgs, StatsArgs, SweepArgs, TimeWorkerArgs, TruthArgs,
+    BenchArgs, BuildingArgs, CheckArgs, CompareArgs, ExperimentArgs, ExportArgs, RenderArgs,
+    ResultsArgs, SolveArgs, StatsArgs, SweepArgs, TimeWorkerArgs, TruthArgs,
 };
 use crate::terminal::Terminal;
 use crate::{json, note, out};
@@ -53,8 +53,13 @@ impl Settings {
         })
     }
 
+    /// The instruction set frames run with.
+    pub(crate) fn isa(&self) -> lanes::Isa {
+        self.isa
+    }
+
     /// A job context reporting progress to `observer`.
-    fn context<'a>(&self, observer: &'a dyn Observer) -> lab::jobs::Context<'a> {
+    pub(crate) fn context<'a>(&self, observer: &'a dyn Observer) -> lab::jobs::Context<'a> {
         lab::jobs::Context::new(observer)
             .with_memory_limit(self.limit)
             .with_isa(self.isa)
@@ -79,7 +84,10 @@ fn isa_from_env() -> anyhow::Result<lanes::Isa> {
 }
 
 /// Runs `f` in a rayon pool of `threads` workers (all cores when `None`).
-fn in_pool<T: Send>(threads: Option<usize>, f: impl FnOnce() -> T + Send) -> anyhow::Result<T> {
+pub(crate) fn in_pool<T: Send>(
+    threads: Option<usize>,
+    f: impl FnOnce() -> T + Send,
+) -> anyhow::Result<T> {
     match threads {
         None => Ok(f()),
         Some(0) => Err(Error::invalid_option("--threads", "0", "needs at least one thread").into()),
@@ -100,7 +108,7 @@ fn in_pool<T: Send>(threads: Option<usize>, f: impl FnOnce() -> T + Send) -> any
 }
 
 /// A "wrote" line on stderr, unless `quiet`.
-fn wrote(path: &Path, quiet: bool) {
+pub(crate) fn wrote(path: &Path, quiet: bool) {
     if !quiet {
         note(&format!("wrote {}", path.display()));
     }
@@ -179,6 +187,7 @@ pub fn render(settings: &Settings, args: RenderArgs) -> anyhow::Result<()> {
         region: args.region,
         stats: args.stats,
         walkthrough: args.walkthrough,
+        scene: args.scene,
         texture: args.texture.options(),
         estimator: args.estimator,
         sharp_levels: args.sharp_levels,
@@ -222,6 +231,30 @@ pub fn stats(settings: &Settings, args: StatsArgs) -> anyhow::Result<()> {
         } else {
             out(&lab::report::model_stats_text(&stats))
         }
+    })?
+}
+
+/// `export`: a scene or solution to glTF, then what was written and how well the atlas packs.
+pub fn export(settings: &Settings, args: ExportArgs) -> anyhow::Result<()> {
+    in_pool(args.threads, || -> anyhow::Result<()> {
+        let req = lab::jobs::export::ExportRequest {
+            input: args.input,
+            scene: args.scene,
+            output: args.output,
+            mesh: args.mesh,
+            page_size: args.page_size,
+            texture: args.texture.options(),
+            exposure: args.exposure,
+        };
+        let report =
+            lab::jobs::export::run_export(&settings.context(&Terminal::new(false, false)), &req)?;
+        if args.json {
+            return out(&json(&report)?);
+        }
+        for f in &report.files {
+            wrote(f, false);
+        }
+        out(&lab::report::export_text(&report))
     })?
 }
 

@@ -16,6 +16,7 @@ use std::process::ExitCode;
 mod args;
 mod commands;
 mod terminal;
+mod view;
 
 use args::{Cli, Command, Generate};
 use commands::Settings;
@@ -70,6 +71,8 @@ fn run(cli: Cli, outputs: Outputs) -> anyhow::Result<()> {
         Command::Generate(Generate::Building(args)) => commands::generate_building(&settings, args),
         Command::Compare(args) => commands::compare(&settings, args),
         Command::Truth(args) => commands::truth(&settings, args),
+        Command::Export(args) => commands::export(&settings, args),
+        Command::View(args) => view::view(&settings, args),
         Command::TimeWorker(args) => commands::time_worker(&settings, args),
     }
 }

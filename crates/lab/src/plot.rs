@@ -681,6 +681,27 @@ pub fn sweep_plots(outputs: &Outputs, report: &SweepReport, dir: &Path) -> Resul
     Ok(written)
 }
 
+/// Writes `text` in white on a dark strip across the top of an sRGB image (`rgb`, 3 bytes per
+/// pixel, `w` x `h`), in the shipped font: the viewer's on-screen line.
+pub fn overlay_text(rgb: &mut [u8], w: u32, h: u32, text: &str) -> Result<()> {
+    font()?;
+    let strip = 22.min(h);
+    let area = BitMapBackend::with_buffer(rgb, (w, h)).into_drawing_area();
+    let err = |e: &dyn std::fmt::Display| Error::internal(format!("overlay text: {e}"));
+    area.draw(&Rectangle::new(
+        [(0, 0), (w as i32, strip as i32)],
+        RGBColor(20, 20, 20).filled(),
+    ))
+    .map_err(|e| err(&e))?;
+    area.draw(&Text::new(
+        text.to_string(),
+        (6, 4),
+        ("sans-serif", 14).into_font().color(&WHITE),
+    ))
+    .map_err(|e| err(&e))?;
+    area.present().map_err(|e| err(&e))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

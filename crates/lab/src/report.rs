@@ -359,6 +359,38 @@ pub fn model_stats_text(s: &crate::jobs::stats::ModelStats) -> String {
     t
 }
 
+/// The lines `export` prints: what was written, its size and, for a lightmap, how well the
+/// atlas packs and how densely it samples the polygons.
+pub fn export_text(r: &crate::export::ExportReport) -> String {
+    let mut t = format!(
+        "{} export: {} polygons, {} triangles, {} vertices, exposure {:+}\n",
+        r.kind,
+        grouped(r.polygons as u64),
+        grouped(r.triangles as u64),
+        grouped(r.vertices as u64),
+        r.exposure
+    );
+    if let Some(a) = &r.atlas {
+        t += &format!(
+            "atlas: {} page(s), {} texels; charts with gutters fill {:.1} % of them (packing), \
+             the polygons' own texels {:.1} % (utilization)\n",
+            a.pages,
+            grouped(a.page_texels),
+            100.0 * a.packing,
+            100.0 * a.utilization
+        );
+        t += &format!(
+            "texel density: {:.3} / {:.3} / {:.3} texels per scene unit (least / median / greatest)\n",
+            a.texels_per_unit[0], a.texels_per_unit[1], a.texels_per_unit[2]
+        );
+        t += &format!(
+            "largest texel shift of the triangulation: {:.3} texel widths\n",
+            r.largest_shift_texels
+        );
+    }
+    t
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -7,7 +7,9 @@
 //! path_len     u32      bytes of the scene path (0: none)
 //! payload_len  u64      bytes of payload
 //! scene_hash   u64      radiosity::scene_hash of the scene solved
-//! scene_path   path_len absolute path of the scene file, its bytes (so `render <solution>` works)
+//! scene_path   path_len path of the scene file, its bytes (so `render <solution>` works):
+//!                       relative to the solution file's folder when the two share a root
+//!                       (a solution copied with its scene keeps finding it), else absolute
 //! payload      ...      trees, keys, values, shooters, stats, then the RRPs: a u64 length and
 //!                       that many bytes of the compact reconstruction's encoding (see
 //!                       `encode_payload`; empty when not stored)
@@ -75,8 +77,9 @@ pub fn encode_with_scene(sol: &Solution, scene_path: Option<&Path>, rrps: &[u8])
 }
 
 /// Writes `sol` and `rrps` (the compact reconstruction's encoding, or empty) to `path`
-/// atomically through `outputs`. `scene_path`, if given, is made absolute and stored so that the
-/// solution file alone is enough to render.
+/// atomically through `outputs`. `scene_path`, if given, is stored relative to the solution
+/// file's folder ([`relative_to`]; absolute when they share no root) so that the solution file
+/// alone is enough to render, also after both are copied elsewhere together.
 pub fn write_solution(
     outputs: &base::output::Outputs,
     path: &Path,
@@ -84,15 +87,62 @@ pub fn write_solution(
     scene_path: Option<&Path>,
     rrps: &[u8],
 ) -> Result<()> {
-    let abs = match scene_path {
-        Some(p) => Some(std::fs::canonicalize(p).map_err(|e| Error::io(p, e))?),
+    let stored = match scene_path {
+        Some(p) => {
+            let scene = std::fs::canonicalize(p).map_err(|e| Error::io(p, e))?;
+            let folder = solution_folder(path)?;
+            Some(relative_to(&scene, &folder).unwrap_or(scene))
+        }
         None => None,
     };
-    outputs.write_atomic(path, &encode_with_scene(sol, abs.as_deref(), rrps))
+    outputs.write_atomic(path, &encode_with_scene(sol, stored.as_deref(), rrps))
 }
 
-/// The scene file a solution file names (checked: magic, version, length, checksum).
+/// The canonical folder a solution file at `path` lives in (created if missing, as writing the
+/// file would).
+fn solution_folder(path: &Path) -> Result<std::path::PathBuf> {
+    let parent = match path.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
+        _ => std::path::PathBuf::from("."),
+    };
+    std::fs::create_dir_all(&parent).map_err(|e| Error::io(&parent, e))?;
+    std::fs::canonicalize(&parent).map_err(|e| Error::io(&parent, e))
+}
+
+/// `target` as a path relative to the folder `base` (both absolute and canonical): `..` for each
+/// component of `base` past their common prefix, then the rest of `target`. `None` when they
+/// share no root (another drive or prefix).
+pub fn relative_to(target: &Path, base: &Path) -> Option<std::path::PathBuf> {
+    use std::path::Component;
+    let t: Vec<Component> = target.components().collect();
+    let b: Vec<Component> = base.components().collect();
+    if t.first() != b.first() {
+        return None;
+    }
+    let common = t.iter().zip(&b).take_while(|(x, y)| x == y).count();
+    let mut rel = std::path::PathBuf::new();
+    for _ in common..b.len() {
+        rel.push("..");
+    }
+    for c in &t[common..] {
+        rel.push(c.as_os_str());
+    }
+    Some(rel)
+}
+
+/// The scene file a solution file names (checked: magic, version, length, checksum): a relative
+/// stored path is taken from the solution file's folder.
 pub fn read_scene_path(path: &Path) -> Result<std::path::PathBuf> {
+    let stored = read_stored_scene_path(path)?;
+    if stored.is_absolute() {
+        return Ok(stored);
+    }
+    let folder = path.parent().unwrap_or(Path::new(""));
+    Ok(folder.join(stored))
+}
+
+/// The scene path as the solution file stores it.
+fn read_stored_scene_path(path: &Path) -> Result<std::path::PathBuf> {
     let bytes = read(path)?;
     let env = envelope(&bytes).map_err(|b| b.at(path))?;
     let name = &bytes[HEADER..HEADER + env.path_len];
@@ -667,4 +717,23 @@ fn decode_payload(payload: &[u8], scene: &Scene, hash: u64) -> Decoded<(Solution
         },
         rrps,
     ))
+}
+
+#[cfg(test)]
+mod path_tests {
+    use super::relative_to;
+    use std::path::{Path, PathBuf};
+
+    #[test]
+    fn scene_paths_are_stored_relative_to_the_solution_folder() {
+        let rel = |t: &str, b: &str| relative_to(Path::new(t), Path::new(b));
+        assert_eq!(rel("/a/b/s.toml", "/a/b"), Some(PathBuf::from("s.toml")));
+        assert_eq!(
+            rel("/a/scenes/s.toml", "/a/out/x"),
+            Some(PathBuf::from("../../scenes/s.toml"))
+        );
+        assert_eq!(rel("/s.toml", "/"), Some(PathBuf::from("s.toml")));
+        // Relative against absolute: no common root.
+        assert_eq!(rel("s.toml", "/a"), None);
+    }
 }

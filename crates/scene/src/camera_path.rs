@@ -31,7 +31,7 @@ impl CameraPath {
     }
 
     /// The camera at path time `t` in `[0, segments]` (keyframe `i` at `t = i`; clamped).
-    pub(crate) fn camera_at(&self, projection: Projection, t: f64) -> Camera {
+    pub fn camera_at(&self, projection: Projection, t: f64) -> Camera {
         let keyframes = &self.keyframes;
         let segs = self.segments();
         let t = if t.is_finite() {

@@ -41,9 +41,11 @@ const MODULES: &[(&str, &[&str])] = &[
         "lab",
         &[
             "image",
+            "export",
             "jobs",
             "report",
             "plot",
+            "viewer",
             "experiment",
             "generate",
             "closed_form",
@@ -52,7 +54,7 @@ const MODULES: &[(&str, &[&str])] = &[
 ];
 
 /// Dependencies that belong to the command line only.
-const USER_INTERFACE: &[&str] = &["clap", "indicatif", "ctrlc", "anyhow"];
+const USER_INTERFACE: &[&str] = &["clap", "indicatif", "ctrlc", "anyhow", "minifb"];
 
 fn crates_dir() -> PathBuf {
     Path::new(crate::REPO).join("crates")

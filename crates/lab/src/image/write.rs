@@ -74,12 +74,63 @@ fn level_by_table(t: &[f32; 255], x: f32) -> u8 {
     t.partition_point(|&v| v <= x) as u8
 }
 
+/// Bits of an `f32` below a bucket of [`Buckets`]: a bucket is 2^16 consecutive floats.
+const BUCKET_SHIFT: u32 = 16;
+
+/// [`level`] in one lookup and one comparison: the floats of [0, 1] in buckets of 2^16
+/// consecutive bit patterns, each with the level of its first float and the one threshold of
+/// [`srgb8_thresholds`] inside it (+inf when none; NaN when more than one, where the binary
+/// search decides). The thresholds are at least 3e-4 apart and a bucket spans at most 0.004 of
+/// [0, 1] (below 1.0; less near 0), so every bucket holds at most one; the tests check the
+/// result against [`level`] around every threshold.
+struct Buckets {
+    level: Vec<u8>,
+    threshold: Vec<f32>,
+}
+
+fn buckets() -> &'static Buckets {
+    static B: std::sync::OnceLock<Buckets> = std::sync::OnceLock::new();
+    B.get_or_init(|| {
+        let t = srgb8_thresholds();
+        let n = (1.0f32.to_bits() >> BUCKET_SHIFT) as usize + 1;
+        let mut b = Buckets {
+            level: Vec::with_capacity(n),
+            threshold: Vec::with_capacity(n),
+        };
+        for i in 0..n as u32 {
+            let lo = f32::from_bits(i << BUCKET_SHIFT);
+            let hi = f32::from_bits(((i + 1) << BUCKET_SHIFT) - 1);
+            let first = level_by_table(t, lo);
+            let inside = t.iter().filter(|&&v| v > lo && v <= hi).count();
+            b.level.push(first);
+            b.threshold.push(match inside {
+                0 => f32::INFINITY,
+                1 => t[first as usize],
+                _ => f32::NAN,
+            });
+        }
+        b
+    })
+}
+
+/// [`level`] by [`Buckets`], for `x` in [0, 1] (not NaN).
+#[inline(always)]
+fn level_by_bucket(b: &Buckets, t: &[f32; 255], x: f32) -> u8 {
+    let i = (x.to_bits() >> BUCKET_SHIFT) as usize;
+    let th = b.threshold[i];
+    if th.is_nan() {
+        return level_by_table(t, x);
+    }
+    b.level[i] + (x >= th) as u8
+}
+
 /// The 8-bit sRGB bytes of a frame (RGB, row-major) after exposure `exposure` (stops), exactly
-/// [`to_srgb8`] per channel, computed by table and in parallel over rows (the bytes do not
+/// [`to_srgb8`] per channel, computed by [`Buckets`] and in parallel over rows (the bytes do not
 /// depend on the split).
 pub(crate) fn srgb8_bytes(frame: ImageView<'_>, exposure: f32) -> Vec<u8> {
     use rayon::prelude::*;
     let t = srgb8_thresholds();
+    let b = buckets();
     let k = exposure.exp2();
     let mut raw = vec![0u8; frame.pixels.len() * 3];
     let w = (frame.width as usize).max(1);
@@ -91,7 +142,7 @@ pub(crate) fn srgb8_bytes(frame: ImageView<'_>, exposure: f32) -> Vec<u8> {
                     // The same operations as `to_srgb8`: scale, then max/min (NaN to 0).
                     #[allow(clippy::manual_clamp)]
                     let x = (p[c] * k).max(0.0).min(1.0);
-                    o[c] = level_by_table(t, x);
+                    o[c] = level_by_bucket(b, t, x);
                 }
             }
         });
@@ -145,6 +196,17 @@ pub fn encode_exr(frame: ImageView<'_>) -> Result<Vec<u8>> {
     Ok(bytes)
 }
 
+/// Writes sRGB bytes (3 per pixel, `w` x `h`, already encoded) as a PNG, atomically through
+/// `outputs`.
+pub fn write_srgb_png(outputs: &Outputs, path: &Path, w: u32, h: u32, rgb: Vec<u8>) -> Result<()> {
+    let img: ImageBuffer<Rgb<u8>, Vec<u8>> = ImageBuffer::from_raw(w, h, rgb)
+        .ok_or_else(|| Error::internal("PNG buffer size mismatch"))?;
+    let mut bytes = Vec::new();
+    img.write_to(&mut Cursor::new(&mut bytes), ImageFormat::Png)
+        .map_err(|e| Error::Runtime(format!("PNG encoding failed: {e}")))?;
+    outputs.write_atomic(path, &bytes)
+}
+
 /// Writes an image as an sRGB PNG (exposure in stops), atomically through `outputs`.
 pub fn write_png(
     outputs: &Outputs,
@@ -165,24 +227,39 @@ mod tests {
     use super::*;
     use crate::image::LinearImage;
 
-    /// The table gives `level` exactly: at and within 4096 ulps around every threshold (where
-    /// a difference would show), at 2^20 evenly spaced values of [0, 1], and for the clamped
-    /// inputs (negative, NaN, above 1, infinite) through `srgb8_bytes` against `to_srgb8`.
+    /// The table and the buckets give `level` exactly: at and within 4096 ulps around every
+    /// threshold (where a difference would show), at 2^20 evenly spaced values of [0, 1], at
+    /// the first and last float of every bucket, and for the clamped inputs (negative, NaN,
+    /// above 1, infinite) through `srgb8_bytes` against `to_srgb8`. No bucket holds two
+    /// thresholds (the binary-search fallback is never needed on [0, 1]).
     #[test]
     fn srgb8_by_table_is_bit_exact() {
         let t = srgb8_thresholds();
+        let b = buckets();
         assert!(t.windows(2).all(|w| w[0] < w[1]), "thresholds increase");
+        assert!(
+            b.threshold.iter().all(|v| !v.is_nan()),
+            "a bucket holds two thresholds"
+        );
+        let check = |x: f32| {
+            assert_eq!(level_by_table(t, x), level(x), "x = {x:e}");
+            assert_eq!(level_by_bucket(b, t, x), level(x), "bucket, x = {x:e}");
+        };
         for &th in t.iter() {
-            let b = th.to_bits();
+            let bits = th.to_bits();
             for d in 0..=8192u32 {
-                let x = f32::from_bits((b + d).saturating_sub(4096).min(1.0f32.to_bits()));
-                assert_eq!(level_by_table(t, x), level(x), "x = {x:e}");
+                check(f32::from_bits(
+                    (bits + d).saturating_sub(4096).min(1.0f32.to_bits()),
+                ));
             }
         }
         let n = 1u32 << 20;
         for i in 0..=n {
-            let x = i as f32 / n as f32;
-            assert_eq!(level_by_table(t, x), level(x), "x = {x:e}");
+            check(i as f32 / n as f32);
+        }
+        for i in 0..b.level.len() as u32 {
+            check(f32::from_bits(i << BUCKET_SHIFT));
+            check(f32::from_bits(((i + 1) << BUCKET_SHIFT) - 1).min(1.0));
         }
         let odd = [
             -1.0,

@@ -26,6 +26,7 @@ pub mod bench;
 pub mod compare;
 pub mod equal_error;
 pub mod equal_views;
+pub mod export;
 pub mod budget;
 pub mod memory;
 pub mod physics;
@@ -154,11 +155,21 @@ impl Input {
     /// `.pfsol` extension (so an empty or damaged one is reported as a bad solution file, not as
     /// a scene that fails to parse). Nothing is solved.
     pub fn load(path: &Path) -> Result<Input> {
+        Input::load_with(path, None)
+    }
+
+    /// [`Input::load`], a solution file's scene read from `scene` when given (`--scene`: the
+    /// scene moved away from where the solution file says; its hash is still checked against
+    /// the solution). Errors if `scene` is given for an input that is not a solution file.
+    pub fn load_with(path: &Path, scene: Option<&Path>) -> Result<Input> {
         let named_solution = path
             .extension()
             .is_some_and(|e| e.eq_ignore_ascii_case(SOLUTION_EXTENSION));
         if named_solution || is_solution_file(path) {
-            let scene_path = solution_file::read_scene_path(path)?;
+            let scene_path = match scene {
+                Some(s) => s.to_path_buf(),
+                None => solution_file::read_scene_path(path)?,
+            };
             Ok(Input {
                 path: path.to_path_buf(),
                 scene: load_scene(&scene_path)?,
@@ -167,6 +178,16 @@ impl Input {
                 sharp_levels: reconstruction::sharp::DEFAULT_LEVELS,
             })
         } else {
+            if let Some(s) = scene {
+                return Err(Error::invalid_option(
+                    "--scene",
+                    s.display().to_string(),
+                    format!(
+                        "names the scene of a solution file, and {} is a scene file",
+                        path.display()
+                    ),
+                ));
+            }
             Ok(Input {
                 path: path.to_path_buf(),
                 scene: load_scene(path)?,

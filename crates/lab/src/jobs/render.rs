@@ -48,6 +48,8 @@ pub struct RenderRequest {
     pub stats: Option<PathBuf>,
     /// Render every frame of the scene's camera path.
     pub walkthrough: bool,
+    /// The scene of a solution file, when it is no longer where the file says (`--scene`).
+    pub scene: Option<PathBuf>,
     /// Texture sizes and the bicubic filter's parameters.
     pub texture: TextureOptions,
     /// The RRPs' derivative estimator by name (`--estimator`; default: the default estimator).
@@ -195,7 +197,7 @@ pub fn run_render(
     req: &RenderRequest,
     on: &mut dyn FnMut(RenderEvent<'_>),
 ) -> Result<()> {
-    let mut input = Input::load(&req.input)?;
+    let mut input = Input::load_with(&req.input, req.scene.as_deref())?;
     let plan = RenderPlan::new(ctx, req, &input.scene)?;
     if let Some(name) = &req.estimator {
         input.estimator = reconstruction::Estimator::parse_option("--estimator", name)?;

@@ -1,0 +1,89 @@
+//! `pixelflow-sim view` without a window: a recorded session replayed, its last frame written.
+//! At the scene's camera the frame is the PNG `render` writes, byte for byte; keys move the
+//! camera and switch the method; a bad script is refused with its line.
+
+use std::path::{Path, PathBuf};
+use std::process::Output;
+
+use crate::bin;
+
+fn scratch() -> PathBuf {
+    let d = Path::new(env!("CARGO_TARGET_TMPDIR")).join("cli_view");
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+fn run(args: &[&str]) -> Output {
+    bin().args(args).output().expect("binary runs")
+}
+
+fn text(b: &[u8]) -> String {
+    String::from_utf8_lossy(b).into_owned()
+}
+
+#[test]
+fn a_replayed_session_draws_what_render_draws() {
+    let dir = scratch();
+    let sol = dir.join("cornell.pfsol");
+    let o = run(&[
+        "solve",
+        "scenes/cornell-box.toml",
+        "-o",
+        sol.to_str().unwrap(),
+        "--quiet",
+    ]);
+    assert!(o.status.success(), "{}", text(&o.stderr));
+    let sol = sol.to_str().unwrap();
+    let size = ["--width", "96", "--height", "64"];
+    let view = |name: &str, script: &str| -> (Vec<u8>, String) {
+        let s = dir.join(format!("{name}.txt"));
+        std::fs::write(&s, script).unwrap();
+        let png = dir.join(format!("{name}.png"));
+        let mut args = vec!["view", sol, "--script", s.to_str().unwrap()];
+        args.extend(["--screenshot", png.to_str().unwrap()]);
+        args.extend(size);
+        let o = run(&args);
+        assert!(o.status.success(), "{name}: {}", text(&o.stderr));
+        (std::fs::read(png).unwrap(), text(&o.stdout))
+    };
+    for method in ["direct", "texture-bilinear", "mesh"] {
+        let (shot, status) = view(method, &format!("press {method}\n"));
+        assert!(status.starts_with(method), "{status}");
+        let png = dir.join(format!("render-{method}.png"));
+        let mut args = vec![
+            "render",
+            sol,
+            "--method",
+            method,
+            "-o",
+            png.to_str().unwrap(),
+            "--quiet",
+        ];
+        args.extend(size);
+        let o = run(&args);
+        assert!(o.status.success(), "{}", text(&o.stderr));
+        assert!(
+            shot == std::fs::read(&png).unwrap(),
+            "{method}: the viewer's frame is not render's"
+        );
+    }
+    // Flying forward and turning changes the frame; reset brings back the scene's camera.
+    let (still, _) = view("still", "wait 0.5\n");
+    let (moved, _) = view("moved", "hold forward,turn-left 0.5\n");
+    let (back, _) = view("back", "hold forward,turn-left 0.5\npress reset\n");
+    assert!(moved != still && back == still);
+
+    let bad = dir.join("bad.txt");
+    std::fs::write(&bad, "wait 1\nhold sideways 2\n").unwrap();
+    let png = dir.join("bad.png");
+    let o = run(&[
+        "view",
+        sol,
+        "--script",
+        bad.to_str().unwrap(),
+        "--screenshot",
+        png.to_str().unwrap(),
+    ]);
+    assert_eq!(o.status.code(), Some(2), "{}", text(&o.stderr));
+    assert!(text(&o.stderr).contains("bad.txt:2"), "{}", text(&o.stderr));
+}

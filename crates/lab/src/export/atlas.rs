@@ -1,0 +1,401 @@
+//! The lightmap atlas: every polygon's radiosity texture (level 0 with its gutter, exactly the
+//! texels the texture methods draw) packed as one rectangle ("chart") into a few power-of-two
+//! pages.
+//!
+//! A chart is the polygon's square texture of side n plus its gutter g on each side, so its
+//! rectangle is n + 2g texels wide; the gutter holds the polygon's RRP continued past its edge
+//! (the odd reflection through the RRP's edge values, `reconstruction::texture`), so bilinear and
+//! bicubic lookups at a polygon's border read the function's continuation, not a neighbour's
+//! texels or a copied edge. Texel (i, j) of the polygon's parameter square, i along u and j along
+//! v, is page texel (x + g + i, y + g + j) with row 0 the top of the image: the glTF texture
+//! coordinate of parameter (u, v) is ((x + g + u n) / W, (y + g + v n) / H), which puts texel
+//! centres where the texture methods put them.
+//!
+//! Packing uses the `crunch` packer (rectangles by decreasing area, best-fit into a split free
+//! list), one page at a time: whatever does not fit in a page of the largest side goes to the
+//! next; each page is then shrunk to the smallest power-of-two rectangle its charts fit in.
+//! Deterministic: the packer sorts stably and the charts are offered in polygon order.
+
+use glam::Vec3;
+
+use base::error::{Error, Result};
+use reconstruction::texture::{Placement, TextureSet};
+use scene::Scene;
+
+/// One polygon's rectangle in the atlas.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Chart {
+    /// The page it lies on.
+    pub page: u32,
+    /// Left column of its rectangle, gutter included.
+    pub x: u32,
+    /// Top row of its rectangle, gutter included.
+    pub y: u32,
+    /// Side of the polygon's texture (the rectangle is `side + 2 gutter` wide).
+    pub side: u32,
+}
+
+/// One page: linear radiosity texels, row-major, row 0 the top of the image.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Page {
+    /// Texels per row (a power of two).
+    pub width: u32,
+    /// Rows (a power of two).
+    pub height: u32,
+    /// The texels; those no chart covers are 0.
+    pub texels: Vec<Vec3>,
+}
+
+/// The packed atlas of a scene.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Atlas {
+    /// Texels of every chart beyond each edge of its polygon's square.
+    pub gutter: u32,
+    /// One chart per polygon, in scene polygon order.
+    pub charts: Vec<Chart>,
+    /// The pages.
+    pub pages: Vec<Page>,
+}
+
+/// How well the atlas is packed and how densely it samples the scene.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct AtlasStats {
+    /// Pages.
+    pub pages: u32,
+    /// Texels over every page.
+    pub page_texels: u64,
+    /// Texels of every chart, gutters included.
+    pub chart_texels: u64,
+    /// Texels of the polygons' squares (what the texture methods filter inside a polygon).
+    pub square_texels: u64,
+    /// Chart texels over page texels: how tightly the packer filled the pages.
+    pub packing: f64,
+    /// Square texels over page texels: the share of the pages that samples a polygon.
+    pub utilization: f64,
+    /// Texels per scene unit along a polygon (side / sqrt(area)): least, median, greatest.
+    pub texels_per_unit: [f64; 3],
+    /// Charts per texture side, smallest side first: (side, count).
+    pub sides: Vec<(u32, u32)>,
+    /// Each page's width and height.
+    pub page_sizes: Vec<(u32, u32)>,
+}
+
+/// Largest page side accepted.
+pub const MAX_PAGE: u32 = 16384;
+
+impl Atlas {
+    /// Packs the textures of `set` (centre-placed, one per polygon of `scene`) into pages of at
+    /// most `max_page` x `max_page` texels and copies each texture's level 0 with its gutter
+    /// into its chart. Errors for a corner-placed set, a set that does not match the scene, a
+    /// page side that is not a power of two in `64..=MAX_PAGE`, or a chart larger than a page.
+    pub fn build(scene: &Scene, set: &TextureSet, max_page: u32) -> Result<Atlas> {
+        if set.placement != Placement::Centre {
+            return Err(Error::internal(
+                "the atlas holds centre-placed textures only",
+            ));
+        }
+        if set.textures.len() != scene.polygons.len() {
+            return Err(Error::internal(format!(
+                "{} textures for {} polygons",
+                set.textures.len(),
+                scene.polygons.len()
+            )));
+        }
+        check_page(max_page)?;
+        let g = set.gutter;
+        let sides: Vec<u32> = set.textures.iter().map(|t| t.width).collect();
+        let (charts, sizes) = pack(&sides, g, max_page)?;
+        let mut pages: Vec<Page> = sizes
+            .iter()
+            .map(|&(w, h)| Page {
+                width: w,
+                height: h,
+                texels: vec![Vec3::ZERO; w as usize * h as usize],
+            })
+            .collect();
+        for (chart, tex) in charts.iter().zip(&set.textures) {
+            let level = &tex.levels[0];
+            let page = &mut pages[chart.page as usize];
+            let stride = level.stride() as usize;
+            for (r, row) in level.texels.chunks_exact(stride).enumerate() {
+                let start = (chart.y as usize + r) * page.width as usize + chart.x as usize;
+                page.texels[start..start + stride].copy_from_slice(row);
+            }
+        }
+        Ok(Atlas {
+            gutter: g,
+            charts,
+            pages,
+        })
+    }
+
+    /// The texture coordinate on its page of parameter (u, v) of `polygon`.
+    pub fn uv(&self, polygon: usize, u: f64, v: f64) -> [f32; 2] {
+        let c = &self.charts[polygon];
+        let p = &self.pages[c.page as usize];
+        let g = self.gutter as f64;
+        let n = c.side as f64;
+        [
+            ((c.x as f64 + g + u * n) / p.width as f64) as f32,
+            ((c.y as f64 + g + v * n) / p.height as f64) as f32,
+        ]
+    }
+
+    /// Packing and density figures (`scene` gives the polygons' areas).
+    pub fn stats(&self, scene: &Scene) -> AtlasStats {
+        let page_texels: u64 = self
+            .pages
+            .iter()
+            .map(|p| p.width as u64 * p.height as u64)
+            .sum();
+        let edge = |c: &Chart| (c.side + 2 * self.gutter) as u64;
+        let chart_texels: u64 = self.charts.iter().map(|c| edge(c) * edge(c)).sum();
+        let square_texels: u64 = self
+            .charts
+            .iter()
+            .map(|c| c.side as u64 * c.side as u64)
+            .sum();
+        let mut density: Vec<f64> = self
+            .charts
+            .iter()
+            .zip(&scene.polygons)
+            .map(|(c, p)| c.side as f64 / p.area.sqrt())
+            .collect();
+        density.sort_by(f64::total_cmp);
+        let texels_per_unit = match density.len() {
+            0 => [0.0; 3],
+            n => [density[0], density[n / 2], density[n - 1]],
+        };
+        let share = |t: u64| t as f64 / page_texels.max(1) as f64;
+        let mut sides = std::collections::BTreeMap::new();
+        for c in &self.charts {
+            *sides.entry(c.side).or_insert(0u32) += 1;
+        }
+        AtlasStats {
+            pages: self.pages.len() as u32,
+            page_texels,
+            chart_texels,
+            square_texels,
+            packing: share(chart_texels),
+            utilization: share(square_texels),
+            texels_per_unit,
+            sides: sides.into_iter().collect(),
+            page_sizes: self.pages.iter().map(|p| (p.width, p.height)).collect(),
+        }
+    }
+}
+
+/// Checks a largest page side: a power of two in `64..=MAX_PAGE`.
+pub fn check_page(side: u32) -> Result<()> {
+    if !(64..=MAX_PAGE).contains(&side) || !side.is_power_of_two() {
+        return Err(Error::invalid_option(
+            "--page-size",
+            side.to_string(),
+            format!("must be a power of two from 64 to {MAX_PAGE}"),
+        ));
+    }
+    Ok(())
+}
+
+/// Where every chart lies and each page's size, as the packers return them.
+type Packing = (Vec<Chart>, Vec<(u32, u32)>);
+
+/// Pages a packing leaves no emptier than this when a smaller page can take the rest.
+pub const FILL_AIM: f64 = 0.7;
+
+/// Places charts of the given square sides (plus `g` on each side) on pages of at most
+/// `max_page` texels a side: the charts (in polygon order) and each page's size.
+///
+/// Two packings are made and the one whose pages are fuller kept (fewer pages on a tie): all
+/// charts on the smallest power-of-two page that holds them, when one within `max_page` does;
+/// and page by page ([`pack_pages`]).
+fn pack(sides: &[u32], g: u32, max_page: u32) -> Result<Packing> {
+    let edge = |s: u32| (s + 2 * g) as usize;
+    if let Some((p, &s)) = sides
+        .iter()
+        .enumerate()
+        .find(|(_, &s)| edge(s) > max_page as usize)
+    {
+        return Err(Error::invalid_option(
+            "--page-size",
+            max_page.to_string(),
+            format!(
+                "is smaller than polygon {p}'s chart ({} texels with its gutter)",
+                edge(s)
+            ),
+        ));
+    }
+    let paged = pack_pages(sides, g, max_page);
+    let items = (0..sides.len())
+        .map(|p| crunch::Item::new(p, edge(sides[p]), edge(sides[p]), crunch::Rotation::None));
+    let Ok(one) = crunch::pack_into_po2(max_page as usize, items) else {
+        return Ok(paged);
+    };
+    let area: usize = sides.iter().map(|&s| edge(s).pow(2)).sum();
+    let paged_area: usize = paged.1.iter().map(|&(w, h)| (w * h) as usize).sum();
+    if one.w * one.h > paged_area
+        || (one.w * one.h == paged_area && paged.1.len() == 1)
+        || area == 0
+    {
+        return Ok(paged);
+    }
+    let mut charts = unplaced(sides.len());
+    place(&mut charts, 0, &one.items, sides);
+    Ok((charts, vec![(one.w as u32, one.h as u32)]))
+}
+
+/// `n` charts not placed yet.
+fn unplaced(n: usize) -> Vec<Chart> {
+    let none = Chart {
+        page: 0,
+        x: 0,
+        y: 0,
+        side: 0,
+    };
+    vec![none; n]
+}
+
+/// Records where the packer put `items` (polygon indices) on page `page`.
+fn place(charts: &mut [Chart], page: u32, items: &[crunch::PackedItem<usize>], sides: &[u32]) {
+    for it in items {
+        charts[it.data] = Chart {
+            page,
+            x: it.rect.x as u32,
+            y: it.rect.y as u32,
+            side: sides[it.data],
+        };
+    }
+}
+
+/// Page by page: when everything left fits the smallest power-of-two page that holds it
+/// ([`crunch::pack_into_po2`]) at least [`FILL_AIM`] full, or no smaller page could be filled
+/// better, that page is the last. Otherwise the page is the largest power-of-two rectangle
+/// (square, or twice as wide as high) no larger than what is left, and it is filled largest
+/// chart first, a chart that does not fit waiting for the next page while smaller ones are
+/// tried ([`fill`]). Every chart fits a page (checked by [`pack`]).
+fn pack_pages(sides: &[u32], g: u32, max_page: u32) -> Packing {
+    let edge = |s: u32| (s + 2 * g) as usize;
+    let mut charts = unplaced(sides.len());
+    let mut sizes = Vec::new();
+    // Largest first, ties in polygon order (crunch sorts stably by area and side, so its order
+    // is this one).
+    let mut left: Vec<usize> = (0..sides.len()).collect();
+    left.sort_by_key(|&p| std::cmp::Reverse(edge(sides[p])));
+    while !left.is_empty() {
+        let item = |&p: &usize| {
+            crunch::Item::new(p, edge(sides[p]), edge(sides[p]), crunch::Rotation::None)
+        };
+        let area: usize = left.iter().map(|&p| edge(sides[p]).pow(2)).sum();
+        let largest = edge(sides[left[0]]);
+        let last = crunch::pack_into_po2(max_page as usize, left.iter().map(item)).ok();
+        let page = fill_page(area, largest, max_page as usize);
+        let (w, h, placed, rest) = match last {
+            Some(p)
+                if area as f64 >= FILL_AIM * (p.w * p.h) as f64 || page.0 * page.1 >= p.w * p.h =>
+            {
+                (p.w, p.h, p.items, Vec::new())
+            }
+            _ => {
+                let (placed, rest) = fill(page, &left, &item);
+                (page.0, page.1, placed, rest)
+            }
+        };
+        place(&mut charts, sizes.len() as u32, &placed, sides);
+        sizes.push((w as u32, h as u32));
+        left = rest;
+    }
+    (charts, sizes)
+}
+
+/// The largest power-of-two page (square, or twice as wide as high; at most `max` a side) of at
+/// most `area` texels that holds a chart of side `largest`; the smallest square page that holds
+/// it when none is that small.
+fn fill_page(area: usize, largest: usize, max: usize) -> (usize, usize) {
+    let mut side = max;
+    while side >= largest {
+        for (w, h) in [(side, side), (side, side / 2)] {
+            if h >= largest && w * h <= area {
+                return (w, h);
+            }
+        }
+        side /= 2;
+    }
+    let s = largest.next_power_of_two().min(max);
+    (s, s)
+}
+
+/// Fills a page of `page` = (w, h) from `left` (largest first): packs them all, and when one
+/// does not fit, sets it aside for the next page and packs again without it, until everything
+/// not set aside fits. Returns what was placed and what waits, in order.
+fn fill(
+    page: (usize, usize),
+    left: &[usize],
+    item: &dyn Fn(&usize) -> crunch::Item<usize>,
+) -> (Vec<crunch::PackedItem<usize>>, Vec<usize>) {
+    let rect = crunch::Rect::of_size(page.0, page.1);
+    let mut trying: Vec<usize> = left.to_vec();
+    let mut waiting = Vec::new();
+    loop {
+        match crunch::pack(rect, trying.iter().map(item)) {
+            Ok(all) => {
+                waiting.sort_by_key(|&p| left.iter().position(|&q| q == p));
+                return (all, waiting);
+            }
+            Err(some) => {
+                // crunch places in the order given and stops at the first that fails; every
+                // later chart of its size meets the same free space after the same placements,
+                // so all of them wait.
+                let e = item(&trying[some.len()]).w;
+                let end = some.len()
+                    + trying[some.len()..]
+                        .iter()
+                        .take_while(|p| item(p).w == e)
+                        .count();
+                waiting.extend(trying.drain(some.len()..end));
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn overlap(a: &Chart, b: &Chart, g: u32) -> bool {
+        let (ea, eb) = (a.side + 2 * g, b.side + 2 * g);
+        a.page == b.page && a.x < b.x + eb && b.x < a.x + ea && a.y < b.y + eb && b.y < a.y + ea
+    }
+
+    /// Charts of mixed power-of-two sides with a 2-texel gutter: none overlaps another, all lie
+    /// inside their page, pages are powers of two, and a page too small for everything spills
+    /// onto more pages.
+    #[test]
+    fn charts_are_disjoint_and_inside_their_pages() {
+        let sides: Vec<u32> = (0..300).map(|k| 1 << (k % 6)).collect();
+        for max in [64, 256, 4096] {
+            let (charts, sizes) = pack(&sides, 2, max).unwrap();
+            for (i, a) in charts.iter().enumerate() {
+                let (w, h) = sizes[a.page as usize];
+                assert!(w.is_power_of_two() && h.is_power_of_two() && w <= max && h <= max);
+                assert!(a.x + a.side + 4 <= w && a.y + a.side + 4 <= h);
+                assert_eq!(a.side, sides[i]);
+                for b in &charts[i + 1..] {
+                    assert!(!overlap(a, b, 2), "{a:?} overlaps {b:?}");
+                }
+            }
+            // No page holds more than its area; everything fits one 4096 page.
+            let area: u64 = sides.iter().map(|&s| (s as u64 + 4).pow(2)).sum();
+            assert!(sizes.len() as u64 >= area.div_ceil((max as u64).pow(2)));
+            if max == 4096 {
+                assert_eq!(sizes.len(), 1);
+            }
+        }
+    }
+
+    #[test]
+    fn a_chart_larger_than_a_page_is_refused() {
+        let e = pack(&[64], 2, 64).unwrap_err();
+        assert!(e.to_string().contains("--page-size"), "{e}");
+        assert!(check_page(100).is_err() && check_page(32).is_err() && check_page(128).is_ok());
+    }
+}

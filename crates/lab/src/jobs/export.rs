@@ -1,0 +1,78 @@
+//! The export job: a scene or solution file to glTF ([`crate::export`]), the lightmap atlas
+//! from the textures `render --method texture-*` draws (same sizes, centre-placed texels), or
+//! the Gouraud mesh with `mesh`.
+
+use std::path::PathBuf;
+
+use super::{prepare, Context, Input, TextureOptions};
+use crate::export::{export_lightmap, export_mesh, Container, ExportReport};
+use base::error::{Error, Result};
+use reconstruction::texture::Placement;
+
+/// What `pixelflow-sim export` was asked to do.
+#[derive(Debug, Clone, Default)]
+pub struct ExportRequest {
+    /// Scene file or solution file.
+    pub input: PathBuf,
+    /// The scene of a solution file, when not where the file says (`--scene`).
+    pub scene: Option<PathBuf>,
+    /// The glTF to write (`.glb` or `.gltf`).
+    pub output: PathBuf,
+    /// The adaptive mesh with vertex colours instead of the lightmap.
+    pub mesh: bool,
+    /// Largest atlas page side (a power of two).
+    pub page_size: u32,
+    /// Texture sizes (as `render`'s texture methods take them).
+    pub texture: TextureOptions,
+    /// Exposure in stops (default: the scene's).
+    pub exposure: Option<f64>,
+}
+
+/// Default largest atlas page side: what every desktop and mobile GPU of the last decade
+/// samples.
+pub const DEFAULT_PAGE: u32 = 4096;
+
+/// Runs an export: checks the options, loads (or solves) the input, writes the glTF.
+pub fn run_export(ctx: &Context<'_>, req: &ExportRequest) -> Result<ExportReport> {
+    Container::of(&req.output)?;
+    if !req.mesh {
+        crate::export::atlas::check_page(req.page_size)?;
+    }
+    if req
+        .texture
+        .placement
+        .as_deref()
+        .is_some_and(|p| p != "centre")
+    {
+        return Err(Error::invalid_option(
+            "--texel-placement",
+            req.texture.placement.clone().unwrap_or_default(),
+            "an atlas holds centre-placed texels (texel centres at (i + 0.5) / n, as engines sample)",
+        ));
+    }
+    let input = Input::load_with(&req.input, req.scene.as_deref())?;
+    let policy = req.texture.policy(&input.scene)?;
+    let exposure = req.exposure.unwrap_or(input.scene.display.exposure);
+    if !exposure.is_finite() {
+        return Err(Error::invalid_option(
+            "--exposure",
+            exposure.to_string(),
+            "must be finite",
+        ));
+    }
+    let p = prepare(ctx, input, policy, Placement::Centre)?;
+    if req.mesh {
+        let (mesh, _) = p.mesh()?;
+        export_mesh(&p.scene, mesh, exposure, &req.output, &ctx.outputs)
+    } else {
+        let (set, _) = p.textures()?;
+        export_lightmap(
+            &p.scene,
+            set,
+            req.page_size,
+            exposure,
+            &req.output,
+            &ctx.outputs,
+        )
+    }
+}
