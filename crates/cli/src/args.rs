@@ -324,6 +324,9 @@ pub struct RenderArgs {
 pub struct StatsArgs {
     /// A scene file or a solution file.
     pub input: PathBuf,
+    /// The scene of a solution file, when it is no longer where the file says.
+    #[arg(long)]
+    pub scene: Option<PathBuf>,
     /// Frames timed per method (after one warm-up); 0 = sizes only.
     #[arg(long, default_value_t = 0, value_parser = clap::value_parser!(u32).range(0..=MAX_TIMED_FRAMES))]
     pub frames: u32,
@@ -392,6 +395,9 @@ pub struct ExperimentArgs {
 pub struct BenchArgs {
     /// A scene file or a solution file.
     pub input: PathBuf,
+    /// The scene of a solution file, when it is no longer where the file says.
+    #[arg(long)]
+    pub scene: Option<PathBuf>,
     /// Methods to measure, comma-separated (`direct`, `texture-bilinear`, ...), each at
     /// every size, interleaved per size so they see the same machine state.
     #[arg(long, value_delimiter = ',', default_values_t = [String::from("direct")])]

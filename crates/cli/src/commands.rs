@@ -217,6 +217,7 @@ pub fn stats(settings: &Settings, args: StatsArgs) -> anyhow::Result<()> {
     in_pool(args.threads, || -> anyhow::Result<()> {
         let req = StatsRequest {
             input: args.input,
+            scene: args.scene,
             frames: args.frames,
             frame: FrameOptions {
                 aa: args.aa,
@@ -304,6 +305,7 @@ pub fn bench(settings: &Settings, args: BenchArgs) -> anyhow::Result<()> {
     in_pool(args.threads, || -> anyhow::Result<()> {
         let req = BenchRequest {
             input: args.input,
+            scene: args.scene,
             methods: args.methods,
             texture: args.texture.options(),
             sizes: args.sizes,

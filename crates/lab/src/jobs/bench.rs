@@ -62,6 +62,8 @@ impl Timed {
 pub struct BenchRequest {
     /// Scene file or solution file.
     pub input: PathBuf,
+    /// The scene of a solution file, when it is no longer where the file says (`--scene`).
+    pub scene: Option<PathBuf>,
     /// Method names, each measured at every size.
     pub methods: Vec<String>,
     /// Texture sizes and the bicubic filter's parameters.
@@ -98,7 +100,7 @@ pub struct BenchReport {
 /// Runs a bench job: load the input, check every option (methods, sizes, antialiasing,
 /// renderers, texture options), then prepare once and measure.
 pub fn run_bench(ctx: &Context<'_>, req: &BenchRequest) -> Result<BenchReport> {
-    let input = Input::load(&req.input)?;
+    let input = Input::load_with(&req.input, req.scene.as_deref())?;
     let methods = req
         .methods
         .iter()

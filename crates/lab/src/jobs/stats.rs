@@ -22,6 +22,8 @@ use scene::Shape;
 pub struct StatsRequest {
     /// Scene file or solution file.
     pub input: PathBuf,
+    /// The scene of a solution file, when it is no longer where the file says (`--scene`).
+    pub scene: Option<PathBuf>,
     /// Frames timed per method (after one warm-up); 0 = sizes only.
     pub frames: u32,
     /// Frame options of the timings.
@@ -32,7 +34,7 @@ pub struct StatsRequest {
 
 /// Runs a stats job: load the input, check every option, then prepare once and tabulate.
 pub fn run_stats(ctx: &Context<'_>, req: &StatsRequest) -> Result<ModelStats> {
-    let input = Input::load(&req.input)?;
+    let input = Input::load_with(&req.input, req.scene.as_deref())?;
     let bicubic = match req.texture.method(Method::Texture(Filter::MITCHELL))? {
         Method::Texture(f) => f,
         _ => Filter::MITCHELL,

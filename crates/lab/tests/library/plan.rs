@@ -102,6 +102,7 @@ fn bad_bench_and_stats_options_are_refused_before_the_solve() {
     let bench = |edit: fn(&mut BenchRequest)| {
         let mut req = BenchRequest {
             input: gallery_fine(),
+            scene: None,
             methods: vec!["direct".into()],
             texture: TextureOptions::default(),
             sizes: vec![64],
@@ -127,6 +128,7 @@ fn bad_bench_and_stats_options_are_refused_before_the_solve() {
     let stats = |edit: fn(&mut StatsRequest)| {
         let mut req = StatsRequest {
             input: gallery_fine(),
+            scene: None,
             frames: 0,
             frame: FrameOptions::new(64, 64),
             texture: TextureOptions::default(),
