@@ -222,25 +222,52 @@ pub fn check_texture_side(option: &str, n: u32) -> Result<()> {
     }
 }
 
-/// Parses a byte count with an optional binary suffix: `1048576`, `512K`, `4M`, `1G` (K = 1024).
+/// Parses a byte count, the one size syntax of every option (`--texture-budget`,
+/// `--memory-limit`): a number, decimals allowed, optionally followed by K, M, G or T (powers of
+/// 1024), with or without `B` or `iB`, any case, spaces allowed before the unit (`2MB`, `1.5M`,
+/// `8 GiB`, `4096`). At least 1 byte and below 2^64; the error names `option`.
 pub fn parse_bytes(option: &str, text: &str) -> Result<u64> {
+    size_in_bytes(text).map_err(|reason| Error::invalid_option(option, text, reason))
+}
+
+/// [`parse_bytes`] with the reason as text.
+pub fn size_in_bytes(text: &str) -> std::result::Result<u64, String> {
     let t = text.trim();
-    let (num, mult) = match t.char_indices().last() {
-        Some((i, 'K' | 'k')) => (&t[..i], 1u64 << 10),
-        Some((i, 'M' | 'm')) => (&t[..i], 1 << 20),
-        Some((i, 'G' | 'g')) => (&t[..i], 1 << 30),
-        _ => (t, 1),
+    let lower = t.to_ascii_lowercase();
+    if lower.starts_with('-') {
+        return Err(format!(
+            "`{t}` is negative: a size is a number of bytes, at least 1"
+        ));
+    }
+    let split = lower
+        .find(|c: char| !(c.is_ascii_digit() || c == '.'))
+        .unwrap_or(lower.len());
+    let (num, unit) = lower.split_at(split);
+    let shift = match unit.trim() {
+        "" | "b" => 0,
+        "k" | "kb" | "kib" => 10,
+        "m" | "mb" | "mib" => 20,
+        "g" | "gb" | "gib" => 30,
+        "t" | "tb" | "tib" => 40,
+        u => {
+            return Err(format!(
+                "unknown unit `{u}`: write bytes, or a number with K, M, G or T"
+            ))
+        }
     };
-    num.parse::<u64>()
-        .ok()
-        .and_then(|n| n.checked_mul(mult))
-        .ok_or_else(|| {
-            Error::invalid_option(
-                option,
-                text,
-                "is not a byte count (an integer, optionally followed by K, M or G)",
-            )
-        })
+    let x: f64 = num
+        .parse()
+        .map_err(|_| format!("`{t}` is not a size (for example 512M, 1.5GB or 8589934592)"))?;
+    let bytes = x * (1u64 << shift) as f64;
+    if !(bytes.is_finite() && bytes >= 1.0) {
+        return Err("must be at least 1 byte".into());
+    }
+    if bytes >= u64::MAX as f64 {
+        return Err(format!(
+            "`{t}` is 2^64 bytes or more, more than any machine addresses"
+        ));
+    }
+    Ok(bytes as u64)
 }
 
 /// Parses `B,C` (two numbers) for `--bicubic`.
@@ -312,7 +339,11 @@ mod tests {
         assert_eq!(parse_bytes("--b", "4M").unwrap(), 4 << 20);
         assert_eq!(parse_bytes("--b", "512k").unwrap(), 512 << 10);
         assert_eq!(parse_bytes("--b", "17").unwrap(), 17);
-        for bad in ["", "M", "-1", "1.5M", "99999999999G"] {
+        // One syntax for every size option: units with and without B, decimals, spaces.
+        assert_eq!(parse_bytes("--b", "2MB").unwrap(), 2 << 20);
+        assert_eq!(parse_bytes("--b", "1.5M").unwrap(), 3 << 19);
+        assert_eq!(parse_bytes("--b", "8 GiB").unwrap(), 8 << 30);
+        for bad in ["", "M", "-1", "0.1", "5X", "99999999999G"] {
             assert!(parse_bytes("--b", bad).is_err(), "{bad}");
         }
         assert_eq!(parse_bicubic("0, 0.5").unwrap(), (0.0, 0.5));

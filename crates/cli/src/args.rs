@@ -259,13 +259,16 @@ pub struct SolveArgs {
 pub struct RenderArgs {
     /// A scene file (`.toml`) or a solution file written by `solve`.
     pub input: PathBuf,
-    /// PNG to write (default: `out/<scene>-<method>.png`).
+    /// PNG to write, named `.png` (default: `out/<scene>-<method>.png`, followed by every option
+    /// given that changes the method's pixels, e.g. `-640x480-aa4-t64`).
     #[arg(short, long)]
     pub output: Option<PathBuf>,
-    /// Also write the linear radiosity of every pixel as OpenEXR.
+    /// Also write the linear radiosity of every pixel as OpenEXR, named `.exr`.
     #[arg(long)]
     pub exr: Option<PathBuf>,
-    /// Rendering method (default: the scene's `[render] method`).
+    /// Rendering method: `direct` (the RRPs per pixel, the PixelFlow path), `texture-nearest`,
+    /// `texture-bilinear`, `texture-bicubic` (radiosity textures), `mesh` (the Gouraud mesh) or
+    /// `reference` (the solution exact per pixel) (default: the scene's `[render] method`).
     #[arg(long)]
     pub method: Option<String>,
     /// Image width (default: the scene's).
@@ -495,8 +498,9 @@ pub struct SweepArgs {
 
 #[derive(Args, Debug)]
 pub struct ResultsArgs {
-    /// The Markdown page to write.
-    #[arg(long, default_value = "docs/results.md")]
+    /// The Markdown page to write (no default: in a checkout, `docs/results.md` is the committed
+    /// page, replaced only when asked for by name).
+    #[arg(long)]
     pub doc: PathBuf,
     /// Scene files, comma-separated (default: two-spots, cornell-box, gallery).
     #[arg(long, value_delimiter = ',')]
@@ -676,8 +680,9 @@ pub struct TextureArgs {
     /// scene's `[render] texture_size`; 0 there = per polygon from its quadtree depth).
     #[arg(long)]
     texture_size: Option<u32>,
-    /// Texture methods: a texture memory budget (12 bits per channel, mip chains included),
-    /// bytes with an optional K, M or G suffix; sides are halved uniformly until it fits.
+    /// Texture methods: a texture memory budget (12 bits per channel, mip chains included):
+    /// bytes, or a number (decimals allowed) with K, M, G or T, with or without B (`2MB`,
+    /// `1.5M`); sides are halved uniformly until it fits.
     #[arg(long, value_parser = parse_bytes)]
     texture_budget: Option<u64>,
     /// `texture-bicubic`: the Mitchell–Netravali (B, C), default 0.333,0.333 (Catmull-Rom:

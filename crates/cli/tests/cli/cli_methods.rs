@@ -141,7 +141,10 @@ fn bad_texture_options_and_names_exit_2() {
             "[0, 1]",
         ),
         (vec!["render", &ts, "--bicubic", "0.3"], "B,C"),
-        (vec!["render", &ts, "--texture-budget", "12Q"], "byte count"),
+        (
+            vec!["render", &ts, "--texture-budget", "12Q"],
+            "unknown unit",
+        ),
         (
             vec![
                 "render",

@@ -842,3 +842,52 @@ fn sharp_levels_take_effect_and_are_checked() {
     assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
     assert!(stderr(&o).contains("--sharp-levels"), "{}", stderr(&o));
 }
+
+/// The format follows the name: a PNG named `.exr` (or an EXR named `.png`) is refused before any
+/// work, exit 2 naming the option, instead of writing bytes that disagree with the name.
+#[test]
+fn outputs_named_for_another_format_are_refused() {
+    let (png, exr) = (tmp("named.png"), tmp("named.exr"));
+    for (args, option) in [
+        (vec!["-o", exr.to_str().unwrap()], "-o"),
+        (vec!["--exr", png.to_str().unwrap()], "--exr"),
+        (
+            vec![
+                "-o",
+                png.to_str().unwrap(),
+                "--exr",
+                tmp("x.EXR.png").to_str().unwrap(),
+            ],
+            "--exr",
+        ),
+    ] {
+        let mut all = vec![
+            "render",
+            "scenes/two-spots.toml",
+            "--width",
+            "8",
+            "--height",
+            "8",
+        ];
+        all.extend(args);
+        let o = run(&all);
+        assert_eq!(o.status.code(), Some(2), "{all:?}");
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(err.contains(option) && err.contains("must end in"), "{err}");
+    }
+    // Extensions in any case are the format's.
+    let upper = tmp("named-upper.PNG");
+    let o = run(&[
+        "render",
+        "scenes/two-spots.toml",
+        "--width",
+        "8",
+        "--height",
+        "8",
+        "-o",
+        upper.to_str().unwrap(),
+        "--quiet",
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert_eq!(&std::fs::read(&upper).unwrap()[1..4], b"PNG");
+}

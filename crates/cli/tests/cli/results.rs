@@ -207,3 +207,16 @@ fn bad_options_are_refused_before_any_work() {
         assert!(!doc.exists(), "{args:?}");
     }
 }
+
+/// The page is written only where it is named: without `--doc` nothing runs (a checkout's
+/// committed docs/results.md is never replaced by default).
+#[test]
+fn results_needs_the_page_named() {
+    let o = crate::bin()
+        .current_dir(crate::REPO)
+        .args(["results", "--scenes", "scenes/two-spots.toml"])
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("--doc"));
+}

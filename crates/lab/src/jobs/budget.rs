@@ -127,46 +127,17 @@ pub(crate) fn cgroup_limit(cgroups: &str, read: impl Fn(&str) -> Option<String>)
 /// (`1.5G`); or `none` / `unlimited` for no limit (`u64::MAX`). Zero, negative sizes and
 /// sizes of 2^64 bytes or more are refused, each with its own message.
 pub fn parse_size(text: &str) -> std::result::Result<u64, String> {
-    let t = text.trim();
-    let lower = t.to_ascii_lowercase();
+    let lower = text.trim().to_ascii_lowercase();
     if lower == "none" || lower == "unlimited" {
         return Ok(u64::MAX);
     }
-    if lower.starts_with('-') {
-        return Err(format!(
-            "`{t}` is negative: a size is a number of bytes, at least 1"
-        ));
-    }
-    let split = lower
-        .find(|c: char| !(c.is_ascii_digit() || c == '.'))
-        .unwrap_or(lower.len());
-    let (num, unit) = lower.split_at(split);
-    let shift = match unit.trim() {
-        "" | "b" => 0,
-        "k" | "kb" | "kib" => 10,
-        "m" | "mb" | "mib" => 20,
-        "g" | "gb" | "gib" => 30,
-        "t" | "tb" | "tib" => 40,
-        u => {
-            return Err(format!(
-                "unknown unit `{u}`: write bytes, or a number with K, M, G or T"
-            ))
+    base::method::size_in_bytes(text).map_err(|e| {
+        if e.contains("2^64") {
+            e + "; write `none` for no limit"
+        } else {
+            e
         }
-    };
-    let x: f64 = num
-        .parse()
-        .map_err(|_| format!("`{t}` is not a size (for example 512M, 8G or 8589934592)"))?;
-    let bytes = x * (1u64 << shift) as f64;
-    if !(bytes.is_finite() && bytes >= 1.0) {
-        return Err("must be at least 1 byte".into());
-    }
-    if bytes >= u64::MAX as f64 {
-        return Err(format!(
-            "`{t}` is 2^64 bytes or more, more than any machine addresses; write `none` for no \
-             limit"
-        ));
-    }
-    Ok(bytes as u64)
+    })
 }
 
 /// One estimate: what it is for, its parts (name, bytes) and what to change if it is too big.

@@ -118,7 +118,7 @@ impl RenderPlan {
         let png = req
             .output
             .clone()
-            .unwrap_or_else(|| default_png_path(&req.input, method));
+            .unwrap_or_else(|| default_png_path(req, method, &frame));
         let frames = if req.walkthrough {
             let path = scene.camera_path.as_ref().ok_or_else(|| {
                 Error::invalid_option(
@@ -216,6 +216,15 @@ pub fn run_render(
     outputs.extend(plan.exr.as_deref().map(|e| ("--exr", e)));
     outputs.extend(plan.stats.as_deref().map(|s| ("--stats", s)));
     base::output::check_outputs(&inputs, &outputs)?;
+    // Then the format follows the name (after the data-loss checks, whose messages say more).
+    if let Some(o) = &req.output {
+        let what = "a PNG (8-bit sRGB); the linear radiosity goes to --exr";
+        check_extension("-o", o, "png", what)?;
+    }
+    if let Some(e) = &req.exr {
+        let what = "an OpenEXR file (linear float); the sRGB image goes to -o";
+        check_extension("--exr", e, "exr", what)?;
+    }
     for w in &input.scene.warnings {
         on(RenderEvent::Warning(w));
     }
@@ -388,13 +397,69 @@ pub fn fps(frame_ms: f64) -> f64 {
     }
 }
 
-/// Where output goes when the user names no file: `out/<scene stem>-<method>.png`.
-pub(crate) fn default_png_path(input: &Path, method: Method) -> PathBuf {
-    let stem = input
+/// Refuses an output whose name does not end in `.ext` (any case): the bytes written are that
+/// format's, so a file named otherwise would lie about its contents.
+pub(crate) fn check_extension(option: &str, path: &Path, ext: &str, what: &str) -> Result<()> {
+    let ok = path
+        .extension()
+        .and_then(|e| e.to_str())
+        .is_some_and(|e| e.eq_ignore_ascii_case(ext));
+    if ok {
+        return Ok(());
+    }
+    Err(Error::invalid_option(
+        option,
+        path.display().to_string(),
+        format!("must end in .{ext}: it is written as {what}"),
+    ))
+}
+
+/// Where output goes when the user names no file: `out/<scene stem>-<method>.png`, with every
+/// option given that changes the pixels of this method appended (`-640x480`, `-aa4`, `-t64` or
+/// `-b2097152` for the texture size or budget, `-bc0,0.5`, `-corner`, `-plain`, `-sharp0`), so
+/// renders of one scene with different options do not overwrite each other. Renderers, regions
+/// and threads change no pixel and no name.
+pub(crate) fn default_png_path(
+    req: &RenderRequest,
+    method: Method,
+    frame: &FrameOptions,
+) -> PathBuf {
+    let stem = req
+        .input
         .file_stem()
         .map(|s| s.to_string_lossy().into_owned())
         .unwrap_or_else(|| "frame".into());
-    PathBuf::from("out").join(format!("{stem}-{}.png", method.name()))
+    let mut name = format!("{stem}-{}", method.name());
+    if req.width.is_some() || req.height.is_some() {
+        name += &format!("-{}x{}", frame.width, frame.height);
+    }
+    if let Some(aa) = req.aa {
+        name += &format!("-aa{aa}");
+    }
+    if let Method::Texture(filter) = method {
+        let t = &req.texture;
+        if let Some(n) = t.size {
+            name += &format!("-t{n}");
+        }
+        if let Some(b) = t.budget {
+            name += &format!("-b{b}");
+        }
+        if let (Some((b, c)), base::method::Filter::Bicubic { .. }) = (t.bicubic, filter) {
+            name += &format!("-bc{b},{c}");
+        }
+        if let Some(p) = &t.placement {
+            name += &format!("-{p}");
+        }
+    }
+    if matches!(method, Method::Direct | Method::Texture(_)) {
+        if let Some(e) = &req.estimator {
+            name += &format!("-{e}");
+        }
+        if let Some(s) = req.sharp_levels {
+            name += &format!("-sharp{s}");
+        }
+    }
+    PathBuf::from("out").join(name + ".png")
 }
 
 /// The frame file name of walkthrough frame `k`: `<png stem>-NNNN.png` beside `png`.
@@ -409,6 +474,7 @@ pub(crate) fn walkthrough_frame_path(png: &Path, k: u32) -> PathBuf {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use base::method::Filter;
     use base::progress::{Event, Recorder};
 
     /// A directory of this test process for `name`'s files.
@@ -445,6 +511,47 @@ mod tests {
             walkthrough: true,
             ..RenderRequest::default()
         }
+    }
+
+    /// Default names carry the options that change this method's pixels, and only those.
+    #[test]
+    fn default_names_carry_the_options_that_change_pixels() {
+        let name = |req: &RenderRequest, m: Method| {
+            let frame = FrameOptions::new(req.width.unwrap_or(8), req.height.unwrap_or(8));
+            default_png_path(req, m, &frame)
+        };
+        let mut req = RenderRequest {
+            input: PathBuf::from("scenes/x.toml"),
+            renderers: 3,
+            ..RenderRequest::default()
+        };
+        assert_eq!(name(&req, Method::Direct), Path::new("out/x-direct.png"));
+        req.width = Some(64);
+        req.height = Some(32);
+        req.aa = Some(4);
+        req.texture.size = Some(64);
+        req.texture.bicubic = Some((0.0, 0.5));
+        assert_eq!(
+            name(&req, Method::Direct),
+            Path::new("out/x-direct-64x32-aa4.png")
+        );
+        assert_eq!(
+            name(&req, Method::Texture(Filter::MITCHELL)),
+            Path::new("out/x-texture-bicubic-64x32-aa4-t64-bc0,0.5.png")
+        );
+        assert_eq!(
+            name(&req, Method::Texture(Filter::Bilinear)),
+            Path::new("out/x-texture-bilinear-64x32-aa4-t64.png")
+        );
+        req.estimator = Some("plain".into());
+        assert_eq!(
+            name(&req, Method::Mesh),
+            Path::new("out/x-mesh-64x32-aa4.png")
+        );
+        assert_eq!(
+            name(&req, Method::Direct),
+            Path::new("out/x-direct-64x32-aa4-plain.png")
+        );
     }
 
     /// The fractions of the walkthrough stage and whether it finished after them.
