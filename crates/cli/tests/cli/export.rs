@@ -108,6 +108,21 @@ fn export_writes_what_its_name_says_and_refuses_bad_options() {
         text(&o.stdout)
     );
     assert!(dir.join("two-spots.lightmap-0.exr").is_file());
+    // The same bytes for any thread count.
+    let again = scratch("options-one-thread").join("two-spots.glb");
+    let o = run(&[
+        "export",
+        "scenes/two-spots.toml",
+        "-o",
+        again.to_str().unwrap(),
+        "--threads",
+        "1",
+    ]);
+    assert!(o.status.success(), "{}", text(&o.stderr));
+    assert!(
+        std::fs::read(&again).unwrap() == bytes,
+        "another thread count, other bytes"
+    );
 
     let gltf = dir.join("two-spots.gltf");
     let o = run(&[
