@@ -124,6 +124,7 @@ fn window(viewer: &mut Viewer<'_>, exposure: f64) -> anyhow::Result<()> {
     let mut seconds = 0.0;
     while win.is_open() && !win.is_key_down(Key::Escape) {
         let shift = win.is_key_down(Key::LeftShift) || win.is_key_down(Key::RightShift);
+        // The prepared solution outlives the viewer's borrow: the state can change beside it.
         let scene = &viewer.prepared().scene;
         for k in win.get_keys_pressed(KeyRepeat::No) {
             if let Some(a) = pressed(k, shift) {
@@ -135,10 +136,7 @@ fn window(viewer: &mut Viewer<'_>, exposure: f64) -> anyhow::Result<()> {
         let dt = (now - last).as_secs_f64();
         last = now;
         seconds = 0.9 * seconds + 0.1 * dt;
-        let scene = &viewer.prepared().scene;
-        let mut state = viewer.state.clone();
-        state.advance(&keys, dt.min(0.25), scene);
-        viewer.state = state;
+        viewer.state.advance(&keys, dt.min(0.25), scene);
         viewer.frame()?;
         let rgb = viewer.display(exposure, Some(&viewer.status(seconds)))?;
         for (px, c) in buf.iter_mut().zip(rgb.chunks_exact(3)) {

@@ -169,8 +169,12 @@ pub fn encode_png(frame: ImageView<'_>, exposure: f64) -> Result<Vec<u8>> {
     } else {
         0.0
     };
-    let raw = srgb8_bytes(frame, e);
-    let img: ImageBuffer<Rgb<u8>, Vec<u8>> = ImageBuffer::from_raw(frame.width, frame.height, raw)
+    srgb_png_bytes(frame.width, frame.height, srgb8_bytes(frame, e))
+}
+
+/// PNG bytes of sRGB bytes (3 per pixel, `w` x `h`, already encoded).
+fn srgb_png_bytes(w: u32, h: u32, rgb: Vec<u8>) -> Result<Vec<u8>> {
+    let img: ImageBuffer<Rgb<u8>, Vec<u8>> = ImageBuffer::from_raw(w, h, rgb)
         .ok_or_else(|| Error::internal("PNG buffer size mismatch"))?;
     let mut bytes = Vec::new();
     img.write_to(&mut Cursor::new(&mut bytes), ImageFormat::Png)
@@ -199,12 +203,7 @@ pub fn encode_exr(frame: ImageView<'_>) -> Result<Vec<u8>> {
 /// Writes sRGB bytes (3 per pixel, `w` x `h`, already encoded) as a PNG, atomically through
 /// `outputs`.
 pub fn write_srgb_png(outputs: &Outputs, path: &Path, w: u32, h: u32, rgb: Vec<u8>) -> Result<()> {
-    let img: ImageBuffer<Rgb<u8>, Vec<u8>> = ImageBuffer::from_raw(w, h, rgb)
-        .ok_or_else(|| Error::internal("PNG buffer size mismatch"))?;
-    let mut bytes = Vec::new();
-    img.write_to(&mut Cursor::new(&mut bytes), ImageFormat::Png)
-        .map_err(|e| Error::Runtime(format!("PNG encoding failed: {e}")))?;
-    outputs.write_atomic(path, &bytes)
+    outputs.write_atomic(path, &srgb_png_bytes(w, h, rgb)?)
 }
 
 /// Writes an image as an sRGB PNG (exposure in stops), atomically through `outputs`.
