@@ -106,6 +106,60 @@ impl Drop for Stage<'_> {
     }
 }
 
+/// An observer that passes every call on to another with each stage's name followed by a
+/// context in parentheses: `solve` becomes `solve (scene 2/3 cornell-box, density 3/5)`. A job
+/// that runs a stage many times (a sweep's densities, the results page's scenes) wraps its
+/// observer in one, so that each bar says which of the runs it is. Contexts nest outer first: a
+/// job's labelled observer wrapped again by a job it runs (the results page's scene, then the
+/// sweep's density) names the stage with the outer context before the inner one.
+pub struct Labelled<'a> {
+    inner: &'a dyn Observer,
+    context: String,
+}
+
+impl<'a> Labelled<'a> {
+    /// `inner`, with `context` after every stage name (none when `context` is empty).
+    pub fn new(inner: &'a dyn Observer, context: impl Into<String>) -> Labelled<'a> {
+        Labelled {
+            inner,
+            context: context.into(),
+        }
+    }
+
+    /// The name `inner` sees for stage `stage`.
+    pub fn label(&self, stage: &str) -> String {
+        if self.context.is_empty() {
+            return stage.to_string();
+        }
+        // A name that already carries an inner job's context gets this (outer) one before it,
+        // in the same parentheses.
+        match stage.split_once(" (") {
+            Some((name, inner)) if inner.ends_with(')') => {
+                format!("{name} ({}, {inner}", self.context)
+            }
+            _ => format!("{stage} ({})", self.context),
+        }
+    }
+}
+
+impl Observer for Labelled<'_> {
+    fn progress(&self, stage: &str, fraction: f64) {
+        self.inner.progress(&self.label(stage), fraction);
+    }
+    fn finished(&self, stage: &str) {
+        self.inner.finished(&self.label(stage));
+    }
+    fn remaining(&self, stage: &str, phase: &str, seconds: f64) {
+        self.inner.remaining(&self.label(stage), phase, seconds);
+    }
+    fn tracing(&self) -> bool {
+        self.inner.tracing()
+    }
+    fn trace(&self, line: &str) {
+        self.inner.trace(line);
+    }
+}
+
 /// An observer that records every call (for a caller that inspects a job's progress afterwards,
 /// and for the tests).
 #[derive(Debug, Default)]
@@ -224,6 +278,31 @@ mod tests {
         }));
         assert!(caught.is_err());
         assert_eq!(r.events()[2..], [p("boom", 0.0), Finished("boom".into())]);
+    }
+
+    #[test]
+    fn labelled_names_every_stage_with_its_context_and_nests() {
+        let r = Recorder::tracing();
+        // The results job labels its scene, the sweep it runs then its density.
+        let scene = Labelled::new(&r, "scene 2/3 cornell-box");
+        let density = Labelled::new(&scene, "density 3/5");
+        {
+            let mut s = Stage::start(&density, "solve");
+            s.advance(0.5);
+            s.remaining("round 1 gather", 4.0);
+            assert!(s.observer().tracing());
+        }
+        let name = "solve (scene 2/3 cornell-box, density 3/5)";
+        assert_eq!(
+            r.events(),
+            [
+                p(name, 0.0),
+                p(name, 0.5),
+                Event::Remaining("round 1 gather".into(), 4.0),
+                Finished(name.into())
+            ]
+        );
+        assert_eq!(Labelled::new(&r, "").label("solve"), "solve");
     }
 
     #[test]

@@ -24,12 +24,14 @@ pub struct Terminal {
     state: Mutex<BarState>,
 }
 
-/// The running stage: its name, its start and its bar, once shown.
+/// The running stage: its name, its start, its bar once shown, and its latest estimate of the
+/// time left (phase, when it came, seconds).
 #[derive(Default)]
 struct BarState {
     stage: String,
     started: Option<Instant>,
     bar: Option<indicatif::ProgressBar>,
+    estimate: Option<(String, Instant, f64)>,
 }
 
 impl BarState {
@@ -37,6 +39,7 @@ impl BarState {
     fn end(&mut self) {
         self.stage.clear();
         self.started = None;
+        self.estimate = None;
         if let Some(b) = self.bar.take() {
             b.finish_and_clear();
         }
@@ -97,6 +100,16 @@ impl Observer for Terminal {
             b
         });
         bar.set_position((fraction.clamp(0.0, 1.0) * 1000.0) as u64);
+        // An estimate whose time has run out while the stage still runs is not "0 s left":
+        // the bar says the stage is estimating again until a new estimate comes.
+        if let Some((phase, at, secs)) = &st.estimate {
+            if at.elapsed().as_secs_f64() > secs + 1.0 && fraction < 1.0 {
+                let text = format!("{phase}, estimating");
+                if let Some(bar) = &st.bar {
+                    bar.set_message(text);
+                }
+            }
+        }
     }
 
     fn remaining(&self, stage: &str, phase: &str, seconds: f64) {
@@ -107,12 +120,13 @@ impl Observer for Terminal {
             let at = self.created.elapsed().as_secs_f64();
             self.note(&format!("  {stage} at {at:.1} s: {text} ({seconds:.1} s)"));
         }
-        let Ok(st) = self.state.lock() else {
+        let Ok(mut st) = self.state.lock() else {
             return;
         };
         if st.stage != stage {
             return;
         }
+        st.estimate = Some((phase.to_string(), Instant::now(), seconds));
         if let Some(bar) = &st.bar {
             bar.set_message(text);
         }
@@ -177,6 +191,23 @@ mod tests {
         assert_eq!(msg(&t), "gather, about 2 min 5 s left");
         assert_eq!(human_seconds(7322.0), "2 h 2 min");
         assert_eq!(human_seconds(0.4), "0 s");
+    }
+
+    /// An estimate that has run out while the stage runs shows as "estimating", not "0 s left".
+    #[test]
+    fn an_expired_estimate_shows_estimating() {
+        let t = terminal();
+        let msg = |t: &Terminal| t.state.lock().unwrap().bar.as_ref().unwrap().message();
+        t.progress("solve", 0.2);
+        t.remaining("solve", "round 1 refinement", 30.0);
+        t.progress("solve", 0.3);
+        assert_eq!(msg(&t), "round 1 refinement, about 30 s left");
+        // The estimate made 40 s ago said 30 s: it has run out.
+        if let Some(e) = &mut t.state.lock().unwrap().estimate {
+            e.1 = Instant::now() - Duration::from_secs(40);
+        }
+        t.progress("solve", 0.4);
+        assert_eq!(msg(&t), "round 1 refinement, estimating");
     }
 
     #[test]

@@ -576,8 +576,10 @@ fn observer_sees_progress_and_only_requested_traces() {
     assert!(lb.len() >= 3, "{lb:?}");
     assert!(lb.iter().any(|l| l.starts_with("round 1:")), "{lb:?}");
     assert!(lb.iter().all(|l| !l.contains('\n')));
+    // The fractions are priced from measured times, so two runs report different ones; each
+    // run's are checked by `observed` (from 0, never decreasing, ending at 1).
     assert!(fa.len() > 3, "{fa:?}");
-    assert_eq!(fa, fb);
+    assert!(fb.len() > 3, "{fb:?}");
     // The final gather reports its remaining time (after each of its chunks).
     let gathers = quiet
         .events()

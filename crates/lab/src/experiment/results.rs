@@ -28,7 +28,7 @@ use crate::jobs::Context;
 use crate::jobs::{prepare, render_frame, scene_texture_policy, Input, Prepared};
 use base::error::{Error, Result};
 use base::method::Method;
-use base::progress::Stage;
+use base::progress::{Labelled, Stage};
 use metric::{compare, DEFAULT_PPD};
 use scene::CameraPath;
 
@@ -282,8 +282,12 @@ pub fn run_results(
     let named: Vec<(&str, &Path)> = outputs.iter().map(|(o, p)| (*o, p.as_path())).collect();
     base::output::check_outputs(&inputs, &named)?;
     let mut scenes = Vec::new();
-    for scene in &req.scenes {
-        scenes.push(scene_results(job, req, scene, &root, wrote)?);
+    let n = req.scenes.len();
+    for (k, scene) in req.scenes.iter().enumerate() {
+        // Every stage of this scene (its sweep's densities, its walkthrough) says which scene.
+        let label = Labelled::new(job.observer, format!("scene {}/{n} {}", k + 1, stem(scene)));
+        let ctx = job.with_observer(&label);
+        scenes.push(scene_results(&ctx, req, scene, &root, wrote)?);
     }
     let report = ResultsReport {
         machine: Machine::this(),
@@ -404,7 +408,7 @@ fn gallery_and_walkthrough(
     };
     let mut rows = walkthroughs(job, &p, &path)?;
     let load = match &req.processes {
-        Some(tp) => walkthrough_processes(tp, scene, &p, &mut rows)?,
+        Some(tp) => walkthrough_processes(job.observer, tp, scene, &p, &mut rows)?,
         None => Vec::new(),
     };
     let errors = walk_error::walk_errors(job, &p, &path)?;
@@ -420,8 +424,9 @@ type Walked = (
 );
 
 /// Times the walkthrough of every row's method in `tp`'s separate processes and adds each
-/// row's rate over them; returns the load each process ran under.
+/// row's rate over them (progress to `observer`); returns the load each process ran under.
 fn walkthrough_processes(
+    observer: &dyn base::progress::Observer,
     tp: &TimingProcesses,
     scene: &Path,
     p: &Prepared,
@@ -434,7 +439,7 @@ fn walkthrough_processes(
             methods: rows.iter().map(|r| r.method.clone()).collect(),
             threads: rayon::current_num_threads(),
         });
-        timing::in_processes(tp, &request, rows.len(), "walkthrough")
+        timing::in_processes(tp, &request, rows.len(), "walkthrough", observer)
     })?;
     for (row, ms) in rows.iter_mut().zip(samples) {
         let fps: Vec<f64> = ms.iter().map(|&m| crate::jobs::render::fps(m)).collect();

@@ -38,10 +38,11 @@ use super::memory;
 use super::physics::{self, PhysicsErrors, TruthNoise, TruthReference};
 use super::timing::{self, LoadSample, TimingProcesses, CONFIDENCE};
 use super::Context;
-use super::{frame_image, prepare, render_frame, render_frame_in, Input, Prepared};
+use super::{frame_image, prepare, render_frame_in, render_frame_observed, Input, Prepared};
 use crate::image::LinearImage;
 use base::error::{Error, Result};
 use base::method::{Method, Placement};
+use base::progress::Labelled;
 use base::quadtree::MAX_DEPTH;
 use engine::frame::{FrameContext, FrameOptions, FrameStats};
 use engine::shading::Shader;
@@ -477,19 +478,24 @@ pub fn run_sweep(job: &Context<'_>, req: &SweepRequest) -> Result<SweepReport> {
     let mut points = Vec::new();
     let mut densities = Vec::new();
     let mut load = Vec::new();
+    let n = req.densities.len();
     for (level, &factor) in req.densities.iter().enumerate() {
-        let p = solve_at(job, &sweep.input, at_density(&sweep.input.scene, factor))?;
+        // Every stage of this density says which of the sweep's densities it belongs to.
+        let label = Labelled::new(job.observer, format!("density {}/{n}", level + 1));
+        let ctx = job.with_observer(&label);
+        let p = solve_at(&ctx, &sweep.input, at_density(&sweep.input.scene, factor))?;
         let at = AtDensity {
             drawer: Drawer {
                 sweep: &sweep,
                 p: &p,
             },
             level,
-            recon_ref: frame_image(render_frame(
+            recon_ref: frame_image(render_frame_observed(
                 &p,
                 Method::Reference,
                 &p.scene.camera,
                 &sweep.opts,
+                &label,
             )?)?,
         };
         densities.push(SolutionLevel::of(
@@ -612,12 +618,14 @@ impl<'a> Sweep<'a> {
         truth: Option<&TruthReference>,
     ) -> Result<(LinearImage, SolutionLevel)> {
         let scene = at_density(&self.input.scene, self.req.reference_density);
-        let fine = solve_at(self.job, &self.input, scene)?;
-        let exact = frame_image(render_frame(
+        let label = Labelled::new(self.job.observer, "converged reference");
+        let fine = solve_at(&self.job.with_observer(&label), &self.input, scene)?;
+        let exact = frame_image(render_frame_observed(
             &fine,
             Method::Reference,
             &fine.scene.camera,
             &self.opts,
+            &label,
         )?)?;
         let level = SolutionLevel::of(&fine, &exact, truth, None, self.req.ppd)?;
         Ok((exact, level))
@@ -748,7 +756,7 @@ impl AtDensity<'_> {
                 repeats: s.req.repeats,
                 threads: rayon::current_num_threads(),
             });
-            timing::in_processes(tp, &request, candidates.len(), &what)
+            timing::in_processes(tp, &request, candidates.len(), &what, s.job.observer)
         })?;
         load.extend(l);
         Ok(samples)

@@ -25,6 +25,7 @@ use serde::{Deserialize, Serialize};
 
 use super::{Context, Prepared};
 use base::error::{Error, Result};
+use base::progress::{Observer, Stage};
 
 /// Processes each timing point is measured in by default: the fewest whose extreme medians
 /// bound a 95 % confidence interval for the median (coverage `1 - 2/2^6 = 96.9 %`).
@@ -260,17 +261,20 @@ pub struct WorkerReply {
 
 /// Runs `exe time-worker <request>` `count` times one after the other and returns, per
 /// candidate, each process's median frame time, with the load each process ran under (labelled
-/// `what`).
+/// `what`). Reports stage `timing (what)` to `observer`, one step per process.
 pub(crate) fn in_processes(
     tp: &TimingProcesses,
     request: &WorkerJob,
     candidates: usize,
     what: &str,
+    observer: &dyn Observer,
 ) -> Result<(Vec<Vec<f64>>, Vec<LoadSample>)> {
+    let name = format!("timing ({what})");
+    let mut stage = Stage::start(observer, &name);
     let request = serde_json::to_string(request).map_err(|e| Error::internal(e.to_string()))?;
     let mut per_candidate = vec![Vec::new(); candidates];
     let mut load = Vec::new();
-    for _ in 0..tp.count {
+    for k in 0..tp.count {
         let before = cpu_ticks();
         let load_average = load_average();
         let t = Instant::now();
@@ -313,6 +317,7 @@ pub(crate) fn in_processes(
             load_average,
             seconds,
         });
+        stage.advance((k + 1) as f64 / tp.count as f64);
     }
     Ok((per_candidate, load))
 }

@@ -49,10 +49,11 @@
 //! (left an open scene, or the discretization's own error).
 //!
 //! Progress and diagnostics go to the caller's [`Observer`](base::progress::Observer) through the
-//! solve's [`Stage`]: after every shot the distance to convergence on a log scale, and, only when
-//! the observer is [`tracing`](base::progress::Observer::tracing), one trace line per phase with
-//! its time, shots, vertices and unshot fraction (used to measure the solver). Neither changes
-//! what is computed.
+//! solve's [`Stage`]: the work done over the whole work and the seconds left, priced from the
+//! rates the solve measures (`eta`), and, only when the observer is
+//! [`tracing`](base::progress::Observer::tracing), one trace line per phase with its time, shots,
+//! vertices and unshot power in per cent of the emitted power (used to measure the solver).
+//! Neither changes what is computed.
 //!
 //! Code: the solve is a `Solver` (`solver`), its state named fields and its phases methods, in
 //! the order above. What it holds per polygon (tree, vertices, G, coarse receivers, leaves) and
@@ -60,7 +61,7 @@
 //! light, the next shooter and the unshot fraction in `unshot`; one shot and the coarse
 //! transfer cache in `shot`; the refinement passes in `refine`; the patches' shapes in
 //! `shapes`; where each light's direct contribution peaks on each polygon in `peaks`; the
-//! energy account in `energy`; the remaining-time estimate in `eta`.
+//! energy account in `energy`; the progress and remaining-time estimate in `eta`.
 //!
 //! Scale: after a shot only the polygons it reached have new integrals and only their patches a
 //! new unshot power; the unshot powers live in a tournament tree (`UnshotQueue`) that gives

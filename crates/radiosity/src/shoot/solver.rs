@@ -9,7 +9,7 @@ use glam::DVec3;
 use rayon::prelude::*;
 
 use super::energy;
-use super::eta::Eta;
+use super::eta::{Eta, Phase};
 use super::poly::{PatchLayout, Poly};
 use super::refine::refine;
 use super::shapes;
@@ -136,14 +136,15 @@ impl<'a, 't, 'o> Solver<'a, 't, 'o> {
     pub(super) fn solve(mut self) -> Result<Outcome> {
         self.direct_pass();
         if self.unshot.emitted > 0.0 {
+            self.enter(Phase::Refine);
             self.refine_and_reestimate()?;
             self.trace(|sv| {
                 format!(
-                    "direct + refine {:.0} ms, shots {}, vertices {}, unshot {:.4}",
+                    "direct + refine {:.0} ms, shots {}, vertices {}, unshot {}",
                     elapsed_ms(sv.clock.start),
                     sv.shots,
                     sv.vertices(),
-                    sv.fraction
+                    percent(sv.fraction)
                 )
             });
             while self.round < MAX_ROUNDS {
@@ -156,6 +157,8 @@ impl<'a, 't, 'o> Solver<'a, 't, 'o> {
                 self.gather();
             }
         }
+        // Every phase has run: whatever the estimate said, the work is done.
+        self.stage.advance(1.0);
         Ok(self.into_outcome())
     }
 
@@ -190,7 +193,9 @@ impl<'a, 't, 'o> Solver<'a, 't, 'o> {
             if unshot::power(self.tr, s, db) <= 0.0 {
                 continue;
             }
-            let (touched, _) = shoot(self.tr, &mut self.polys, s, db, None);
+            let t = Instant::now();
+            let (touched, points) = shoot(self.tr, &mut self.polys, s, db, None);
+            self.eta.transfers(points, t.elapsed().as_secs_f64());
             self.record_shot(s, db, &touched, false);
         }
     }
@@ -201,6 +206,7 @@ impl<'a, 't, 'o> Solver<'a, 't, 'o> {
     /// (converged, or out of shots).
     fn indirect_round(&mut self) -> Result<bool> {
         self.round += 1;
+        self.enter(Phase::Shooting);
         let target = SHOOT_MARGIN * self.convergence;
         while self.fraction >= target && self.shots < self.max_shots {
             let Some(s) = self.unshot.next() else { break };
@@ -209,17 +215,17 @@ impl<'a, 't, 'o> Solver<'a, 't, 'o> {
         self.trace_shooting_done();
         self.flush_unshot()?;
         self.gather();
-        self.eta.phase_start();
         self.trace(|sv| format!("  gather done {:.0} ms", elapsed_ms(sv.clock.start)));
+        self.enter(Phase::Refine);
         let splits = self.refine_and_reestimate()?;
         self.trace(|sv| {
             format!(
-                "round {}: {:.0} ms, shots {}, splits {splits}, vertices {}, unshot {:.4}, rays {}",
+                "round {}: {:.0} ms, shots {}, splits {splits}, vertices {}, unshot {}, rays {}",
                 sv.round,
                 elapsed_ms(sv.clock.start),
                 sv.shots,
                 sv.vertices(),
-                sv.fraction,
+                percent(sv.fraction),
                 sv.rays()
             )
         });
@@ -254,10 +260,10 @@ impl<'a, 't, 'o> Solver<'a, 't, 'o> {
         if self.shots.is_multiple_of(100) {
             self.trace(|sv| {
                 format!(
-                    "  shot {}: {:.0} ms, unshot {:.4}, rays {}",
+                    "  shot {}: {:.0} ms, unshot {}, rays {}",
                     sv.shots,
                     elapsed_ms(sv.clock.start),
-                    sv.fraction,
+                    percent(sv.fraction),
                     sv.rays()
                 )
             });
@@ -281,15 +287,13 @@ impl<'a, 't, 'o> Solver<'a, 't, 'o> {
         self.fraction = self.record_shot(s, db, &touched, true);
         self.eta
             .shot_took(first_shot, shot_start.elapsed().as_secs_f64());
-        self.eta.shot(
-            self.stage,
-            self.tr,
-            &self.polys,
-            &self.unshot.radiosity,
-            self.fraction,
-            target,
-            self.round,
-        );
+        let now = self.clock.start.elapsed().as_secs_f64();
+        let counts = self.eta.due(now).then(|| {
+            let unpaired = self.unpaired();
+            (unpaired, self.expected_gather_transfers(unpaired))
+        });
+        self.eta
+            .shot(self.stage, now, (self.fraction, target), counts);
         Ok(())
     }
 
@@ -306,7 +310,6 @@ impl<'a, 't, 'o> Solver<'a, 't, 'o> {
         self.reestimate(touched());
         let fraction = self.unshot.fraction();
         self.history.push(fraction);
-        self.report_progress(fraction);
         fraction
     }
 
@@ -337,6 +340,7 @@ impl<'a, 't, 'o> Solver<'a, 't, 'o> {
     /// rate so far. Chunking changes no value: each vertex's gather is the same computation.
     fn gather(&mut self) {
         self.tr.index_receivers();
+        self.enter(Phase::Gather);
         let work: Vec<(u32, u32)> = self
             .polys
             .iter()
@@ -345,18 +349,16 @@ impl<'a, 't, 'o> Solver<'a, 't, 'o> {
             .flat_map(|(r, p)| (0..p.keys.len() as u32).map(move |k| (r as u32, k)))
             .collect();
         let (tr, polys, totals) = (&*self.tr, &self.polys, &self.totals);
-        let start = Instant::now();
         let chunk = work.len().div_ceil(GATHER_CHUNKS).max(1);
         let mut g: Vec<DVec3> = Vec::with_capacity(work.len());
-        let phase = format!("round {} gather", self.round);
         for part in work.chunks(chunk) {
             g.par_extend(part.par_iter().map(|&(r, k)| {
                 let key = polys[r as usize].keys[k as usize];
                 tr.gather(totals, r as usize, key.u(), key.v())
             }));
             let done = g.len() as f64 / work.len() as f64;
-            let t = start.elapsed().as_secs_f64();
-            self.stage.remaining(&phase, t / done - t);
+            let now = self.clock.start.elapsed().as_secs_f64();
+            self.eta.gather_chunk(self.stage, now, done);
         }
         for (&(r, k), g) in work.iter().zip(g) {
             self.polys[r as usize].g[k as usize] = g;
@@ -453,17 +455,41 @@ impl<'a, 't, 'o> Solver<'a, 't, 'o> {
         Ok(())
     }
 
-    /// Reports the distance to convergence of unshot fraction `fraction` on a log scale (the
-    /// stage keeps the reported progress non-decreasing: the fraction may rise after a
-    /// refinement pass).
-    fn report_progress(&mut self, fraction: f64) {
-        let done = if fraction <= 0.0 {
-            1.0
-        } else {
-            let log_target = -(self.convergence.max(1e-12)).ln();
-            (-fraction.ln() / log_target).clamp(0.0, 1.0)
-        };
-        self.stage.advance(done);
+    /// The solve enters `phase` of the current round: the progress model learns it (with the
+    /// transfers the coming gather will compute) and reports.
+    fn enter(&mut self, phase: Phase) {
+        let now = self.clock.start.elapsed().as_secs_f64();
+        self.eta.enter(phase, self.round, now);
+        self.eta.set_gather_transfers(self.gather_transfers());
+        self.eta.report(self.stage, now);
+    }
+
+    /// Shooters with unshot light and no pair table yet (they will have one by the gather).
+    fn unpaired(&self) -> usize {
+        let (tr, unshot) = (&*self.tr, &self.unshot.radiosity);
+        (0..tr.shooters.len())
+            .filter(|&s| tr.pairs[s].is_none() && unshot[s] != DVec3::ZERO)
+            .count()
+    }
+
+    /// Transfers of the round's gather as far as the shooting can tell: those of the shooters
+    /// with pair tables ([`Self::gather_transfers`]), and `unpaired` more shooters at their
+    /// mean.
+    fn expected_gather_transfers(&self, unpaired: usize) -> f64 {
+        let now = self.gather_transfers();
+        let paired = self.tr.pairs.iter().filter(|p| p.is_some()).count();
+        now + unpaired as f64 * now / paired.max(1) as f64
+    }
+
+    /// Transfers of a full gather at the current vertices: every vertex of a reflecting polygon
+    /// times the shooters that reach it (as last indexed).
+    fn gather_transfers(&self) -> f64 {
+        self.polys
+            .iter()
+            .enumerate()
+            .filter(|(_, p)| p.reflects())
+            .map(|(r, p)| (p.keys.len() * self.tr.shooters_of(r).len()) as f64)
+            .sum()
     }
 
     /// Sends the line `line` makes of the solver to the observer, if it is tracing.
@@ -517,11 +543,22 @@ impl<'a, 't, 'o> Solver<'a, 't, 'o> {
             self.unshot.power3(self.tr),
         );
         self.trace(|_| {
+            // Every share in the unit of the other trace lines: per cent of the emitted power
+            // (here per channel; a channel that emits nothing shows 0).
             let e = &energy;
+            let share = |v: DVec3| {
+                let f = |x: f64, of: f64| if of > 0.0 { 100.0 * x / of } else { 0.0 };
+                let (a, b) = (v.to_array(), e.emitted.to_array());
+                format!("{:.2} {:.2} {:.2}", f(a[0], b[0]), f(a[1], b[1]), f(a[2], b[2]))
+            };
             format!(
-                "energy (W, r g b): emitted {:.4} {:.4} {:.4}, absorbed {:.4} {:.4} {:.4}, unshot {:.4} {:.4} {:.4}, lost {:.4} {:.4} {:.4}",
-                e.emitted.x, e.emitted.y, e.emitted.z, e.absorbed.x, e.absorbed.y, e.absorbed.z,
-                e.unshot.x, e.unshot.y, e.unshot.z, e.lost.x, e.lost.y, e.lost.z
+                "energy (% of emitted, r g b; emitted {:.4} {:.4} {:.4} W): absorbed {}, unshot {}, lost {}",
+                e.emitted.x,
+                e.emitted.y,
+                e.emitted.z,
+                share(e.absorbed),
+                share(e.unshot),
+                share(e.lost)
             )
         });
         Outcome {
@@ -575,6 +612,11 @@ impl PairCounts {
         }
         c
     }
+}
+
+/// An unshot fraction of the emitted power as the trace lines state it: `1.23 % of emitted`.
+fn percent(fraction: f64) -> String {
+    format!("{:.2} % of emitted", fraction * 100.0)
 }
 
 /// Most coarse-cache entries (4 bytes each) under `memory_limit`: an eighth of it.
