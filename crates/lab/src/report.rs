@@ -59,6 +59,8 @@ pub struct SceneSummary {
     pub seams: (usize, usize, usize, usize),
     /// Warnings the loader emitted.
     pub warnings: usize,
+    /// Notes the loader emitted (repairs that change nothing the image shows).
+    pub notes: usize,
 }
 
 /// Summarises `scene`.
@@ -111,6 +113,7 @@ pub fn summarize(scene: &Scene) -> SceneSummary {
             seams.unjoined(),
         ),
         warnings: scene.warnings.len(),
+        notes: scene.notes.len(),
     }
 }
 
@@ -164,6 +167,7 @@ impl fmt::Display for SceneSummary {
                 ),
             ),
             ("warnings", self.warnings.to_string()),
+            ("notes", self.notes.to_string()),
         ];
         for (k, v) in rows {
             writeln!(f, "{k:<15} {v}")?;
@@ -263,6 +267,9 @@ pub fn grouped(n: u64) -> String {
 /// ratios the project tracks (direct / bilinear, direct / bicubic, mesh / direct).
 pub fn model_stats_text(s: &crate::jobs::stats::ModelStats) -> String {
     let mut t = format!("{}: {} radiosity samples\n", s.scene, grouped(s.samples));
+    if let Some(level) = lanes::Level::named(s.simd) {
+        t += &format!("simd build: {}\n", level.describe());
+    }
     t += "model            triangles    vertices   size (MB)\n";
     t += &format!(
         "original      {:>12} {:>11} {:>11.3}\n",
@@ -475,7 +482,7 @@ mod tests {
             s.adjacency.shared,
             s.adjacency.coplanar + s.adjacency.creases + s.adjacency.folded
         );
-        assert_eq!(table.lines().count(), 17);
+        assert_eq!(table.lines().count(), 18);
     }
 
     #[test]

@@ -196,6 +196,49 @@ impl Level {
         }
     }
 
+    /// The `f32` lanes of this level's widest kernels: 8, or 16 for AVX-512 (whose kernels
+    /// without a 16-lane form run 8 lanes, EVEX-encoded).
+    pub fn lanes(self) -> usize {
+        match self {
+            Level::Portable | Level::Avx2 => LANES,
+            Level::Avx512 => 2 * LANES,
+        }
+    }
+
+    /// The level named `name` (`portable`, `avx2`, `avx512`), if any.
+    pub fn named(name: &str) -> Option<Level> {
+        Level::ALL.into_iter().find(|l| l.name() == name)
+    }
+
+    /// `avx2 (8 f32 lanes)`: the build as reports name it.
+    pub fn describe(self) -> String {
+        format!("{} ({} f32 lanes)", self.name(), self.lanes())
+    }
+
+    /// The first CPU feature this level needs that the running CPU lacks (`None` when it has
+    /// them all), named as in [`Level::requirement`].
+    pub fn missing_feature(self) -> Option<&'static str> {
+        #[cfg(target_arch = "x86_64")]
+        {
+            let needs: &[(&str, bool)] = match self {
+                Level::Portable => &[],
+                Level::Avx2 => &[("AVX2", is_x86_feature_detected!("avx2"))],
+                Level::Avx512 => &[
+                    ("AVX2", is_x86_feature_detected!("avx2")),
+                    ("AVX-512F", is_x86_feature_detected!("avx512f")),
+                    ("AVX-512VL", is_x86_feature_detected!("avx512vl")),
+                    ("POPCNT", is_x86_feature_detected!("popcnt")),
+                ],
+            };
+            needs.iter().find(|(_, has)| !has).map(|(name, _)| *name)
+        }
+        #[cfg(not(target_arch = "x86_64"))]
+        match self {
+            Level::Portable => None,
+            _ => Some("x86-64"),
+        }
+    }
+
     /// What the CPU needs for this level, for reports of builds that were not run.
     pub fn requirement(self) -> &'static str {
         match self {
@@ -262,6 +305,18 @@ impl Isa {
             .unwrap_or(Isa::Portable(Portable::new()))
     }
 
+    /// [`Isa::capped`] for a cap someone asked for, and, when the CPU (whose widest set is
+    /// `self`) cannot run `cap`, the warning to print: `this CPU has no AVX-512F; running avx2`.
+    /// A cap narrower than the CPU is a choice, not a shortfall: no warning.
+    pub fn capped_or_warn(self, cap: Level) -> (Isa, Option<String>) {
+        let isa = self.capped(cap);
+        let warning = (isa.level() < cap).then(|| {
+            let missing = cap.missing_feature().unwrap_or(cap.requirement());
+            cap_warning(missing, isa.level())
+        });
+        (isa, warning)
+    }
+
     /// This instruction set's level.
     pub fn level(self) -> Level {
         match self {
@@ -315,6 +370,11 @@ impl Isa {
             Isa::Avx512(s) => s.avx2().vectorize(kernel),
         }
     }
+}
+
+/// The warning of a cap the CPU cannot run: it lacks `missing`, and `running` runs instead.
+fn cap_warning(missing: &str, running: Level) -> String {
+    format!("this CPU has no {missing}; running {}", running.name())
 }
 
 /// 8 `f32` lanes in a plain array: the portable token's lane type, and the form lane code takes
@@ -380,5 +440,41 @@ pub fn sanitize1(x: f32) -> f32 {
         x
     } else {
         0.0
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn builds_are_named_with_their_lanes() {
+        assert_eq!(Level::Avx2.describe(), "avx2 (8 f32 lanes)");
+        assert_eq!(Level::Avx512.describe(), "avx512 (16 f32 lanes)");
+        assert_eq!(Level::Portable.describe(), "portable (8 f32 lanes)");
+        for l in Level::ALL {
+            assert_eq!(Level::named(l.name()), Some(l));
+        }
+        assert_eq!(Level::named("sse"), None);
+        assert_eq!(Level::Portable.missing_feature(), None);
+    }
+
+    #[test]
+    fn a_cap_above_the_cpu_warns_and_one_below_does_not() {
+        // A CPU whose widest set is the portable one, asked for AVX-512: portable runs, and the
+        // warning says so.
+        let (isa, w) = Isa::Portable(Portable::new()).capped_or_warn(Level::Avx512);
+        assert_eq!(isa.level(), Level::Portable);
+        let w = w.expect("a warning");
+        assert!(
+            w.starts_with("this CPU has no ") && w.ends_with("; running portable"),
+            "{w}"
+        );
+        // Asking for less than the CPU has (or exactly it) is a choice: no warning.
+        let detected = Isa::detect();
+        for cap in Level::ALL.into_iter().filter(|&l| l <= detected.level()) {
+            let (isa, w) = detected.capped_or_warn(cap);
+            assert_eq!((isa.level(), w), (cap.min(detected.level()), None));
+        }
     }
 }

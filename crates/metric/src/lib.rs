@@ -18,7 +18,9 @@
 //!   light jumps), and the RMSE on each side.
 //! - [`pixels`]: the pixel-by-pixel check against a golden image (which pixels moved, a
 //!   difference image), for regression tests.
-//! - Here: the plain error measures and [`compare`], which computes all of them.
+//! - Here: the plain error measures and [`compare`], which computes all of them, with the
+//!   perceptual distance also per pixel (divided by `sqrt(W H)`), for thresholds that must hold
+//!   at any image size.
 //!
 //! In [`compare`]`(a, b, ppd)` the second image `b` is the **reference**: the peak of the PSNR and
 //! the denominator of the relative luminance error are taken from it. The perceptual distance and
@@ -58,8 +60,15 @@ pub struct Comparison {
     pub height: u32,
     /// Pixels per degree of visual angle used by the perceptual distance.
     pub ppd: f64,
-    /// The perceptual distance of `docs/metrics.md` (dimensionless; 0 for equal images).
+    /// The perceptual distance of `docs/metrics.md` (dimensionless; 0 for equal images): an L2
+    /// norm over the pixels, which grows like `sqrt(width * height)` for the same per-pixel
+    /// difference.
     pub perceptual_distance: f64,
+    /// `perceptual_distance / sqrt(width * height)`: the root-mean-square per pixel of the
+    /// CSF-filtered lightness difference. The same picture at another resolution, seen over the
+    /// same visual angle (`ppd` proportional to the width), gives the same value: the measure for
+    /// thresholds that must not depend on the image size.
+    pub perceptual_distance_per_pixel: f64,
     /// Root-mean-square luminance difference, `sqrt(mean((Y_a - Y_b)^2))`, in the images' units.
     pub rmse: f64,
     /// Peak signal-to-noise ratio in dB, `20 log10(psnr_peak / rmse)`; `None` (JSON `null`) when
@@ -91,11 +100,15 @@ impl Comparison {
             None => format!("inf (equal images; peak {:.6})", self.psnr_peak),
         };
         let e = &self.edges;
-        let rows: [(&str, String); 9] = [
+        let rows: [(&str, String); 10] = [
             ("size", format!("{} x {}", self.width, self.height)),
             (
                 "perceptual distance",
                 format!("{:.6} (ppd {})", self.perceptual_distance, self.ppd),
+            ),
+            (
+                "  per pixel",
+                format!("{:.6e}", self.perceptual_distance_per_pixel),
             ),
             ("rmse", format!("{:.6e}", self.rmse)),
             ("psnr", psnr),
@@ -215,11 +228,13 @@ pub fn compare(a: &LinearImage, b: &LinearImage, ppd: f64) -> Result<Comparison>
     let peak = yb.iter().copied().fold(f64::NEG_INFINITY, f64::max);
     // rmse > 0 and peak > 0 (the mean is positive), so the logarithm is finite.
     let psnr_db = (rmse > 0.0).then(|| 20.0 * (peak / rmse).log10());
+    let perceptual_distance = perceptual::distance_of_luminances(&ya, &yb, w, h, ppd);
     Ok(Comparison {
         width: a.width,
         height: a.height,
         ppd,
-        perceptual_distance: perceptual::distance_of_luminances(&ya, &yb, w, h, ppd),
+        perceptual_distance,
+        perceptual_distance_per_pixel: perceptual_distance / n.sqrt(),
         rmse,
         psnr_db,
         psnr_peak: peak,
@@ -274,6 +289,7 @@ mod tests {
         let a = img(5, 4, |x, y| 0.1 + (x * 7 + y * 3) as f32 * 0.01);
         let c = compare(&a, &a, 32.0).unwrap();
         assert_eq!(c.perceptual_distance, 0.0);
+        assert_eq!(c.perceptual_distance_per_pixel, 0.0);
         assert_eq!(c.rmse, 0.0);
         assert_eq!(c.max_abs_error, 0.0);
         assert_eq!(c.relative_luminance_error, 0.0);
@@ -282,6 +298,47 @@ mod tests {
         let json = serde_json::to_value(&c).unwrap();
         assert!(json["psnr_db"].is_null());
         assert!(c.table().contains("inf (equal images"));
+    }
+
+    /// The same periodic picture sampled at `side x side` pixel centres: a lit gradient of whole
+    /// cycles, and the image under test with a ripple of 3 cycles over it.
+    fn picture(side: u32, ripple: f32) -> LinearImage {
+        use std::f32::consts::TAU;
+        img(side, side, |x, y| {
+            let (u, v) = (
+                (x as f32 + 0.5) / side as f32,
+                (y as f32 + 0.5) / side as f32,
+            );
+            (1.0 + 0.5 * (TAU * u).cos() * (TAU * v).sin()) * (1.0 + ripple * (3.0 * TAU * u).sin())
+        })
+    }
+
+    #[test]
+    fn the_per_pixel_distance_does_not_depend_on_the_image_size() {
+        // Both sizes seen over the same 8 degrees (ppd = side / 8): every harmonic of the
+        // picture falls on the same cycles per degree, so by Parseval D^2 / (W H) is the same
+        // sum of |Fourier coefficient|^2 A(f)^2 at both sizes, up to the harmonics folded back
+        // above the smaller image's Nyquist frequency and f32 rounding of the pixels (relative
+        // 1e-7 each): agreement to 1e-5. D itself grows with the side: a ratio of 4.
+        let at = |side: u32| {
+            compare(&picture(side, 0.02), &picture(side, 0.0), side as f64 / 8.0).unwrap()
+        };
+        let (small, large) = (at(64), at(256));
+        let rel =
+            (small.perceptual_distance_per_pixel / large.perceptual_distance_per_pixel - 1.0).abs();
+        assert!(rel < 1e-5, "{small:?} {large:?}");
+        // The value itself: the ripple moves the lightness cbrt(Y') by about 0.02 / 3 sin(..)
+        // (first order), an RMS of 0.02 / (3 sqrt 2), weighted by the CSF at its 3 cycles over
+        // 8 degrees; the gradient's modulation changes that by a few percent at most.
+        let want = 0.02 / (3.0 * 2f64.sqrt()) * csf(3.0 / 8.0);
+        let got = small.perceptual_distance_per_pixel;
+        assert!((got / want - 1.0).abs() < 0.05, "{got} against {want}");
+        let ratio = large.perceptual_distance / small.perceptual_distance;
+        assert!((ratio - 4.0).abs() < 4e-5, "{ratio}");
+        assert_eq!(
+            small.perceptual_distance_per_pixel,
+            small.perceptual_distance / 64.0
+        );
     }
 
     #[test]

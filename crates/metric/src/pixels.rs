@@ -7,7 +7,9 @@
 //! is meant to break on **one** changed pixel: a pixel differs when any channel moves by more
 //! than `tolerance * max(|reference|, floor)`. The floor keeps black pixels from demanding an
 //! exact zero; the default tolerance is a few `f32` rounding steps, so a rebuild with the same
-//! compiler on the same CPU kind passes and any change of the algorithm fails.
+//! compiler on the same CPU kind passes and any change of the algorithm fails. The share of
+//! differing pixels is reported as a percentage too, so a caller can tolerate a fraction of the
+//! image that does not depend on its size.
 //!
 //! Invariants: the two images have the same size (else an error); NaN in either image is a
 //! difference (never equal); the difference image is finite.
@@ -45,6 +47,8 @@ pub struct PixelDiff {
     pub pixels: u64,
     /// Pixels that differ by more than the tolerance.
     pub differing: u64,
+    /// `differing` as a percentage of `pixels` (0 to 100): comparable between image sizes.
+    pub differing_percent: f64,
     /// The first differing pixels in row order (at most `PixelDiff::LISTED`).
     pub first: Vec<DifferentPixel>,
     /// Largest absolute channel difference over all pixels.
@@ -61,8 +65,8 @@ impl PixelDiff {
     /// How many differing pixels [`PixelDiff::first`] lists.
     pub(crate) const LISTED: usize = 10;
 
-    /// `3 of 4096 pixels differ (largest relative difference 0.25): (12, 40) got [...] want
-    /// [...]; ...`, or `identical within the tolerance`.
+    /// `3 of 4096 pixels (0.0732 %) differ (largest absolute difference ..., relative ...)`
+    /// and the listed pixels, or `all 4096 pixels within the tolerance (...)`.
     pub fn summary(&self) -> String {
         if self.differing == 0 {
             return format!(
@@ -71,8 +75,8 @@ impl PixelDiff {
             );
         }
         let mut s = format!(
-            "{} of {} pixels differ (largest absolute difference {:.4e}, relative {:.4e})",
-            self.differing, self.pixels, self.max_abs, self.max_rel
+            "{} of {} pixels ({:.4} %) differ (largest absolute difference {:.4e}, relative {:.4e})",
+            self.differing, self.pixels, self.differing_percent, self.max_abs, self.max_rel
         );
         for p in &self.first {
             s += &format!(
@@ -135,6 +139,7 @@ pub fn diff(
     let mut out = PixelDiff {
         pixels: got.pixels.len() as u64,
         differing: 0,
+        differing_percent: 0.0,
         first: Vec::new(),
         max_abs: 0.0,
         max_rel: 0.0,
@@ -171,6 +176,8 @@ pub fn diff(
             }
         }
     }
+    // `pixels` is at least 1 for a valid image; an empty one differs nowhere.
+    out.differing_percent = 100.0 * out.differing as f64 / out.pixels.max(1) as f64;
     Ok(out)
 }
 
@@ -199,6 +206,9 @@ mod tests {
         got.pixels[3].y *= 1.0 + 1e-4;
         let d = diff(&got, &want, DEFAULT_TOLERANCE, DEFAULT_FLOOR).unwrap();
         assert_eq!(d.differing, 1);
+        // One of 4 pixels: exactly 25 %.
+        assert_eq!(d.differing_percent, 25.0);
+        assert!(d.summary().contains("(25.0000 %)"), "{}", d.summary());
         assert_eq!((d.first[0].x, d.first[0].y), (1, 1));
         assert!((d.max_rel - 1e-4).abs() < 1e-6, "{}", d.max_rel);
         assert_eq!(d.normalized_image().pixels[3], Vec3::new(0.0, 1.0, 0.0));

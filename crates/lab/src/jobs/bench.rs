@@ -2,7 +2,8 @@
 //! with the methods interleaved per size so they see the same machine state. Solving and
 //! reconstruction happen once, before timing; each size gets one warm-up frame, then the medians
 //! of the measured frames are reported (wall-clock frame time, each stage, deferred-pass
-//! throughput).
+//! throughput). Every row names the SIMD build it ran with, since the same binary times
+//! differently under `PIXELFLOW_SIM_LANES`.
 
 use std::path::PathBuf;
 
@@ -160,6 +161,9 @@ pub fn run_bench(ctx: &Context<'_>, req: &BenchRequest) -> Result<BenchReport> {
 pub struct BenchRow {
     /// Method.
     pub method: String,
+    /// The SIMD build the frames ran with (`portable`, `avx2`, `avx512`: the CPU's widest,
+    /// capped by `PIXELFLOW_SIM_LANES`), as [`lanes::Level::name`] names it.
+    pub simd: &'static str,
     /// Image width and height.
     pub width: u32,
     /// Image height.
@@ -259,6 +263,7 @@ pub fn bench(
         let samples = stats[0].pixels_shaded;
         rows.push(BenchRow {
             method: method.name().into(),
+            simd: opts.isa.name(),
             width: w,
             height: h,
             aa: opts.aa,
@@ -284,9 +289,19 @@ pub fn bench(
     Ok(rows)
 }
 
-/// The bench rows as a fixed-width table.
+/// `simd build: avx2 (8 f32 lanes)`, the line naming the SIMD build of `rows` (every row of
+/// one run has the same), with its newline; empty for no rows.
+pub fn simd_line(rows: &[BenchRow]) -> String {
+    let Some(level) = rows.first().and_then(|r| lanes::Level::named(r.simd)) else {
+        return String::new();
+    };
+    format!("simd build: {}\n", level.describe())
+}
+
+/// The bench rows as a fixed-width table, after the line naming their SIMD build.
 pub fn bench_table(rows: &[BenchRow]) -> String {
-    let mut s = String::from(
+    let mut s = simd_line(rows);
+    s.push_str(
         "method            size        aa  frame_ms  cold_ms reserve    fps  geometry  raster  compos.  shading  Msample/s\n",
     );
     for r in rows {

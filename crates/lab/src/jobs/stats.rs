@@ -53,6 +53,8 @@ pub fn run_stats(ctx: &Context<'_>, req: &StatsRequest) -> Result<ModelStats> {
 pub struct ModelStats {
     /// Scene file.
     pub scene: String,
+    /// The SIMD build frames run with (`portable`, `avx2`, `avx512`; [`lanes::Level::name`]).
+    pub simd: &'static str,
     /// Original model: triangles (2 per quad) and distinct corner positions.
     pub original: MeshStats,
     /// Mesh model: the adaptive quadtrees triangulated with T-vertex fans.
@@ -186,6 +188,7 @@ pub(crate) fn model_stats(
     }
     Ok(ModelStats {
         scene: p.scene.source.display().to_string(),
+        simd: opts.isa.name(),
         original,
         mesh: mesh.stats,
         rat_triangles,
