@@ -230,17 +230,77 @@ pub struct TimeWorkerArgs {
     pub request: String,
 }
 
+/// The scene's command-line options: values set over the scene file's, and strictness.
+#[derive(Args, Debug, Clone, Default)]
+pub struct SceneOptions {
+    /// Set a scene value: a dotted key of the scene file and a TOML value
+    /// (`-D camera.eye=[0,1,3]`, `-D image.width=800`, `-D radiosity.max_depth=8`,
+    /// `-D display.exposure=1`); repeatable, later ones win. Checked like the file's own values.
+    #[arg(short = 'D', value_name = "KEY=VALUE", value_parser = parse_define)]
+    pub define: Vec<(String, String)>,
+    /// The camera: eye and look-at point, six numbers `ex,ey,ez,lx,ly,lz` (short for
+    /// `-D camera.eye=[ex,ey,ez] -D camera.look_at=[lx,ly,lz]`).
+    #[arg(long, value_name = "EX,EY,EZ,LX,LY,LZ", value_parser = parse_camera, allow_hyphen_values = true)]
+    pub camera: Option<[f64; 6]>,
+    /// Refuse what is otherwise repaired with a warning (an OBJ material's `Kd` of 1 or more,
+    /// clamped to 0.95 otherwise).
+    #[arg(long)]
+    pub strict: bool,
+}
+
+impl SceneOptions {
+    /// The library's load options.
+    pub fn load_options(&self) -> scene::LoadOptions {
+        let mut overrides = self.define.clone();
+        if let Some(c) = self.camera {
+            overrides.push((
+                "camera.eye".into(),
+                format!("[{}, {}, {}]", c[0], c[1], c[2]),
+            ));
+            overrides.push((
+                "camera.look_at".into(),
+                format!("[{}, {}, {}]", c[3], c[4], c[5]),
+            ));
+        }
+        scene::LoadOptions {
+            overrides,
+            strict: self.strict,
+        }
+    }
+}
+
+fn parse_define(s: &str) -> Result<(String, String), String> {
+    scene::overrides::parse(s).map_err(reason)
+}
+
+fn parse_camera(s: &str) -> Result<[f64; 6], String> {
+    let v: Vec<f64> = s
+        .split(',')
+        .map(|x| x.trim().parse::<f64>())
+        .collect::<Result<_, _>>()
+        .map_err(|_| "expected six numbers ex,ey,ez,lx,ly,lz".to_string())?;
+    <[f64; 6]>::try_from(v.as_slice())
+        .ok()
+        .filter(|a| a.iter().all(|x| x.is_finite()))
+        .ok_or_else(|| "expected six finite numbers ex,ey,ez,lx,ly,lz".to_string())
+}
+
 #[derive(Args, Debug)]
 pub struct CheckArgs {
-    /// The scene file (`scenes/cornell-box.toml`), or a solution file (`.pfsol`): then also
-    /// where its solve's guards stopped refinement with the error test still failing.
+    /// The scene file (`scenes/cornell-box.toml`), a model (`room.obj`: a camera, material
+    /// and light are chosen for it), or a solution file (`.pfsol`): then also where its solve's
+    /// guards stopped refinement with the error test still failing.
     pub scene: PathBuf,
+    #[command(flatten)]
+    pub options: SceneOptions,
 }
 
 #[derive(Args, Debug)]
 pub struct SolveArgs {
-    /// The scene file.
+    /// The scene file, or a model (`room.obj`).
     pub scene: PathBuf,
+    #[command(flatten)]
+    pub options: SceneOptions,
     /// Where to write the solution (written atomically).
     #[arg(short, long)]
     pub output: PathBuf,
@@ -257,12 +317,30 @@ pub struct SolveArgs {
 
 #[derive(Args, Debug)]
 pub struct RenderArgs {
-    /// A scene file (`.toml`) or a solution file written by `solve`.
+    /// A scene file (`.toml`), a model (`room.obj`, with its MTL: a camera framing it, a grey
+    /// default material and, if nothing emits, a default light are chosen and said), or a
+    /// solution file written by `solve`.
     pub input: PathBuf,
-    /// PNG to write, named `.png` (default: `out/<scene>-<method>.png`, followed by every option
-    /// given that changes the method's pixels, e.g. `-640x480-aa4-t64`).
+    /// The image to write; the format follows the name: `.png` (8-bit sRGB after the exposure),
+    /// `.exr`, `.hdr` or `.pfm` (linear radiosity) (default: `out/<scene>-<method>.png`,
+    /// followed by every option given that changes the method's pixels, e.g. `-640x480-aa4-t64`).
     #[arg(short, long)]
     pub output: Option<PathBuf>,
+    #[command(flatten)]
+    pub options: SceneOptions,
+    /// Exposure of the PNG in stops: radiosity times 2^N before sRGB (default: the scene's
+    /// `[display] exposure`).
+    #[arg(
+        long,
+        value_name = "N",
+        allow_hyphen_values = true,
+        conflicts_with = "auto_exposure"
+    )]
+    pub exposure: Option<f64>,
+    /// Choose the exposure that maps the image's log-average luminance to middle grey (0.18);
+    /// a walkthrough uses its first frame's.
+    #[arg(long)]
+    pub auto_exposure: bool,
     /// Also write the linear radiosity of every pixel as OpenEXR, named `.exr`.
     #[arg(long)]
     pub exr: Option<PathBuf>,
@@ -600,14 +678,24 @@ pub struct CompareArgs {
     /// Pixels per degree of visual angle (viewing distance) for the contrast sensitivity.
     #[arg(long, default_value_t = metric::DEFAULT_PPD)]
     pub ppd: f64,
-    /// Print JSON instead of the table.
+    /// The visual angle the image's width spans, in degrees, instead of --ppd (ppd = width /
+    /// DEG): every resolution of one picture is then seen alike, for thresholds that hold at
+    /// any image size.
+    #[arg(long, value_name = "DEG", conflicts_with = "ppd")]
+    pub view_degrees: Option<f64>,
+    /// Print one JSON document (the measures, the pixel check, every check and the verdict)
+    /// instead of the table.
     #[arg(long)]
     pub json: bool,
     /// Regression check: compare pixel by pixel; a pixel differs when a channel moves by more
     /// than this times max(|reference|, --floor) (`default` = 2^-19, 16 f32 rounding steps).
-    /// Lists the first differing pixels; exit 1 if any differ.
+    /// Lists the first differing pixels; exit 1 if more than --fail-percent of them differ.
     #[arg(long, value_name = "REL|default", value_parser = parse_tolerance)]
     pub tolerance: Option<f32>,
+    /// With --tolerance: fail (exit 1) only when more than P % of the pixels differ (0, the
+    /// default: any differing pixel fails).
+    #[arg(long, value_name = "P", default_value_t = 0.0, requires = "tolerance")]
+    pub fail_percent: f64,
     /// With --tolerance: the reference level under which the tolerance is absolute.
     #[arg(long, default_value_t = metric::pixels::DEFAULT_FLOOR)]
     pub floor: f32,
@@ -615,9 +703,18 @@ pub struct CompareArgs {
     /// difference is white, or EXR with the raw |a - b|).
     #[arg(long, value_name = "PATH", requires = "tolerance")]
     pub diff: Option<PathBuf>,
-    /// Fail (exit 1) when the perceptual distance is above this.
+    /// Fail (exit 1) when the perceptual distance is above this (an L2 norm over the pixels:
+    /// it grows with the image size; see --max-distance-per-pixel).
     #[arg(long, value_name = "D")]
     pub max_distance: Option<f64>,
+    /// Fail (exit 1) when the perceptual distance per pixel (distance / sqrt(width x height))
+    /// is above this; with --view-degrees the same for any image size.
+    #[arg(long, value_name = "D")]
+    pub max_distance_per_pixel: Option<f64>,
+    /// Compare a PNG (sRGB, after the render's exposure) with a linear float image (EXR, HDR,
+    /// PFM) by decoding the PNG to linear; without it such a pair is refused.
+    #[arg(long)]
+    pub convert: bool,
 }
 
 /// The scenes `generate` makes.

@@ -12,7 +12,7 @@ use lab::experiment;
 use lab::jobs::bench::{bench_table, run_bench, BenchRequest};
 use lab::jobs::budget;
 use lab::jobs::render::{run_render, RenderEvent, RenderRequest};
-use lab::jobs::solve::solve_to_file;
+use lab::jobs::solve::solve_scene_to_file;
 use lab::jobs::stats::{run_stats, StatsRequest};
 use lab::jobs::sweep;
 use lab::jobs::truth::{run_truth, TruthEvent, TruthRequest};
@@ -68,7 +68,9 @@ impl Settings {
 }
 
 /// The detected instruction set, capped by [`LANES_ENV`] (portable, avx2, avx512, auto) to time
-/// the builds against each other; the images are the same.
+/// the builds against each other; the images are the same. A cap this CPU cannot run prints one
+/// warning naming what was asked and what runs instead (a timing run must not measure another
+/// build unawares); an unknown value is an error.
 fn isa_from_env() -> anyhow::Result<lanes::Isa> {
     let isa = lanes::Isa::detect();
     let Some(v) = std::env::var_os(LANES_ENV) else {
@@ -80,7 +82,14 @@ fn isa_from_env() -> anyhow::Result<lanes::Isa> {
         value: v.to_string(),
         reason,
     })?;
-    Ok(cap.map_or(isa, |cap| isa.capped(cap)))
+    let Some(cap) = cap else {
+        return Ok(isa);
+    };
+    let (isa, warning) = isa.capped_or_warn(cap);
+    if let Some(w) = warning {
+        note(&format!("warning: {LANES_ENV}={v}: {w}"));
+    }
+    Ok(isa)
 }
 
 /// Runs `f` in a rayon pool of `threads` workers (all cores when `None`).
@@ -116,10 +125,13 @@ pub(crate) fn wrote(path: &Path, quiet: bool) {
 
 /// `check`: the scene's warnings, summary and memory estimate against the limit.
 pub fn check(settings: &Settings, args: CheckArgs) -> anyhow::Result<()> {
-    let input = lab::jobs::Input::load(&args.scene)?;
+    let input = lab::jobs::Input::load_opts(&args.scene, None, &args.options.load_options())?;
     let s = &input.scene;
     for w in &s.warnings {
         note(&format!("warning: {w}"));
+    }
+    for n in &s.notes {
+        note(&format!("note: {n}"));
     }
     let summary = lab::report::summarize(s);
     let b = budget::scene_budget(s)?;
@@ -143,15 +155,22 @@ pub fn check(settings: &Settings, args: CheckArgs) -> anyhow::Result<()> {
 /// `solve`: solves the scene into the solution file and reports the solver's statistics.
 pub fn solve(settings: &Settings, args: SolveArgs) -> anyhow::Result<()> {
     let observer = Terminal::new(!args.quiet, args.trace);
+    let opts = args.options.load_options();
     let sol = in_pool(args.threads, || {
-        solve_to_file(&settings.context(&observer), &args.scene, &args.output)
+        solve_scene_to_file(
+            &settings.context(&observer),
+            &args.scene,
+            &args.output,
+            &opts,
+            &mut |line| observer.note(line),
+        )
     })??;
     if sol.stats.guard_stops.leaves > 0 {
         // The scene again, for the polygon's file and line (a guard stop is the rare case).
         if let Some(w) = sol
             .stats
             .guard_stops
-            .warning(&scene::load_scene(&args.scene)?)
+            .warning(&scene::load_scene_with(&args.scene, &opts)?)
         {
             note(&format!("warning: {w}"));
         }
@@ -191,12 +210,16 @@ pub fn render(settings: &Settings, args: RenderArgs) -> anyhow::Result<()> {
         texture: args.texture.options(),
         estimator: args.estimator,
         sharp_levels: args.sharp_levels,
+        load: args.options.load_options(),
+        exposure: args.exposure,
+        auto_exposure: args.auto_exposure,
     };
     let (verbose, quiet) = (args.verbose, args.quiet);
     let observer = Terminal::new(!quiet, args.trace);
     let mut stdout_closed = false;
     let mut on_event = |event: RenderEvent| match event {
         RenderEvent::Warning(w) => observer.note(&format!("warning: {w}")),
+        RenderEvent::Note(n) if !quiet => observer.note(&format!("note: {n}")),
         // Above the walkthrough's bar, not into it.
         RenderEvent::Wrote(path) if !quiet => observer.note(&format!("wrote {}", path.display())),
         RenderEvent::Frame(report) if verbose && !stdout_closed => {
@@ -204,6 +227,9 @@ pub fn render(settings: &Settings, args: RenderArgs) -> anyhow::Result<()> {
             stdout_closed = out(&(report.to_json() + "\n")).is_err();
         }
         RenderEvent::Walkthrough(summary) if !quiet => observer.note(&summary.line()),
+        RenderEvent::Luminance(path, l) if !quiet => {
+            observer.note(&format!("{}: {}", path.display(), l.line()))
+        }
         _ => {}
     };
     in_pool(args.threads, || {
@@ -476,82 +502,58 @@ pub fn generate_building(settings: &Settings, args: BuildingArgs) -> anyhow::Res
 }
 
 /// `compare`: the pixel-by-pixel check (with `--tolerance`) and the perceptual measures
-/// (without it, or with `--max-distance`); an error naming every failed check.
+/// (without it, or with a distance threshold), as one table or one JSON document; an error
+/// naming every failed check.
 pub fn compare(settings: &Settings, args: CompareArgs) -> anyhow::Result<()> {
-    let perceptual = args.tolerance.is_none() || args.max_distance.is_some();
-    lab::jobs::compare::check_compare(
-        &args.a,
-        &args.b,
-        args.tolerance.is_some(),
-        perceptual,
-        settings.limit,
-    )?;
-    let mut failed = Vec::new();
-    if let Some(tolerance) = args.tolerance {
-        failed.extend(compare_pixels(&settings.outputs, &args, tolerance)?);
+    use lab::jobs::compare::{run_compare, CompareRequest};
+    if let Some(path) = &args.diff {
+        base::output::check_outputs(&[args.a.clone(), args.b.clone()], &[("--diff", path)])?;
     }
-    if args.tolerance.is_none() || args.max_distance.is_some() {
-        failed.extend(compare_perceptual(&args)?);
+    let req = CompareRequest {
+        a: args.a.clone(),
+        b: args.b.clone(),
+        ppd: args.ppd,
+        view_degrees: args.view_degrees,
+        tolerance: args.tolerance,
+        floor: args.floor,
+        fail_percent: args.fail_percent,
+        max_distance: args.max_distance,
+        max_distance_per_pixel: args.max_distance_per_pixel,
+        convert: args.convert,
+    };
+    let report = run_compare(&req, settings.limit)?;
+    if let (Some(path), Some(d)) = (&args.diff, &report.pixels) {
+        write_diff(&settings.outputs, path, d)?;
     }
-    if failed.is_empty() {
+    if args.json {
+        out(&json(&report)?)?;
+    } else {
+        out(&report.text())?;
+    }
+    if report.passed {
         return Ok(());
     }
     Err(Error::Runtime(format!(
         "{} differs from {}: {}",
         args.a.display(),
         args.b.display(),
-        failed.join("; ")
+        report.failures().join("; ")
     ))
     .into())
 }
 
-/// The pixel-by-pixel check: prints the differing pixels, writes `--diff`; the failure, if any
-/// pixel differs.
-fn compare_pixels(
-    files: &Outputs,
-    args: &CompareArgs,
-    tolerance: f32,
-) -> anyhow::Result<Option<String>> {
-    use lab::image::{read_image, write_exr, write_png};
-    let (a, b) = (read_image(&args.a)?, read_image(&args.b)?);
-    let d = metric::pixels::diff(&a, &b, tolerance, args.floor)?;
-    if let Some(path) = &args.diff {
-        base::output::check_outputs(&[args.a.clone(), args.b.clone()], &[("--diff", path)])?;
-        let exr = path
-            .extension()
-            .is_some_and(|e| e.eq_ignore_ascii_case("exr"));
-        if exr {
-            write_exr(files, path, d.image.view())?;
-        } else {
-            write_png(files, path, d.normalized_image().view(), 0.0)?;
-        }
-    }
-    if args.json {
-        out(&json(&d)?)?;
+/// Writes `--diff`: an EXR of the raw `|a - b|`, or a PNG scaled so the largest difference is
+/// white.
+fn write_diff(files: &Outputs, path: &Path, d: &metric::pixels::PixelDiff) -> anyhow::Result<()> {
+    let exr = path
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("exr"));
+    if exr {
+        lab::image::write_exr(files, path, d.image.view())?;
     } else {
-        out(&(d.summary() + "\n"))?;
+        lab::image::write_png(files, path, d.normalized_image().view(), 0.0)?;
     }
-    Ok((d.differing > 0).then(|| format!("{} pixels differ", d.differing)))
-}
-
-/// The perceptual distance and error measures; the failure, if the distance is above
-/// `--max-distance`.
-fn compare_perceptual(args: &CompareArgs) -> anyhow::Result<Option<String>> {
-    let c = lab::jobs::compare::compare_files(&args.a, &args.b, args.ppd)?;
-    if args.json {
-        out(&json(&c)?)?;
-    } else {
-        out(&c.table())?;
-    }
-    Ok(args
-        .max_distance
-        .filter(|&m| c.perceptual_distance > m)
-        .map(|m| {
-            format!(
-                "perceptual distance {:.6} above --max-distance {m}",
-                c.perceptual_distance
-            )
-        }))
+    Ok(())
 }
 
 /// `truth`: the path tracer's image and per-polygon estimates; "wrote" lines and a summary on

@@ -29,11 +29,17 @@ pub const SAME_POINT: f64 = 1e-6;
 pub const OVERLAP_WARN: f64 = 1e-4;
 
 /// Drops every polygon that repeats an earlier one (keeping `origins` aligned) and returns the
-/// warnings: one per polygon dropped, one per overlapping pair kept.
-pub(crate) fn merge(polygons: &mut Vec<Polygon>, origins: &mut Vec<Location>) -> Vec<String> {
+/// messages as (notes, warnings): a note per polygon dropped that repeats one of its material (a
+/// repair that changes nothing the image shows), a warning per polygon dropped that repeats one
+/// of another material and per overlapping pair kept.
+pub(crate) fn merge(
+    polygons: &mut Vec<Polygon>,
+    origins: &mut Vec<Location>,
+) -> (Vec<String>, Vec<String>) {
     let bvh = Bvh::build(polygons);
     let mut dropped = vec![false; polygons.len()];
     let mut warnings = Vec::new();
+    let mut notes = Vec::new();
     for j in 0..polygons.len() {
         let pj = &polygons[j];
         let tol = SAME_POINT * diameter(pj);
@@ -53,12 +59,14 @@ pub(crate) fn merge(polygons: &mut Vec<Polygon>, origins: &mut Vec<Location>) ->
             let pi = &polygons[i];
             if same_corners(pi, pj, tol) {
                 dropped[j] = true;
-                let material = if pi.material == pj.material {
+                let same = pi.material == pj.material;
+                let material = if same {
                     ""
                 } else {
                     ", with another material: the first one's is kept"
                 };
-                warnings.push(format!(
+                let to = if same { &mut notes } else { &mut warnings };
+                to.push(format!(
                     "{}: this polygon repeats the one at {} (same corners, same side{material}): \
                      counted once (a surface listed twice would reflect its light twice)",
                     origins[j], origins[i]
@@ -87,7 +95,7 @@ pub(crate) fn merge(polygons: &mut Vec<Polygon>, origins: &mut Vec<Location>) ->
         k += 1;
         !dropped[k - 1]
     });
-    warnings
+    (notes, warnings)
 }
 
 /// Largest distance between two corners of `p`.
@@ -212,7 +220,8 @@ mod tests {
         ];
         let mut ps = vec![quad(FLOOR), quad(other), quad(shifted)];
         let mut o = origins(3);
-        let w = merge(&mut ps, &mut o);
+        let (w, warnings) = merge(&mut ps, &mut o);
+        assert!(warnings.is_empty(), "{warnings:?}");
         assert_eq!(ps.len(), 2);
         assert_eq!(o.len(), 2);
         assert_eq!(
@@ -233,7 +242,7 @@ mod tests {
         let mut ps = vec![quad(FLOOR), quad(back)];
         let w = merge(&mut ps, &mut origins(2));
         assert_eq!(ps.len(), 2);
-        assert!(w.is_empty(), "{w:?}");
+        assert!(w.0.is_empty() && w.1.is_empty(), "{w:?}");
     }
 
     #[test]
@@ -246,7 +255,7 @@ mod tests {
         ];
         let mut ps = vec![quad(FLOOR), quad(next)];
         let w = merge(&mut ps, &mut origins(2));
-        assert!(w.is_empty(), "{w:?}");
+        assert!(w.0.is_empty() && w.1.is_empty(), "{w:?}");
     }
 
     #[test]
@@ -259,7 +268,8 @@ mod tests {
             [0.5, 1.0, 0.0],
         ];
         let mut ps = vec![quad(FLOOR), quad(half)];
-        let w = merge(&mut ps, &mut origins(2));
+        let (notes, w) = merge(&mut ps, &mut origins(2));
+        assert!(notes.is_empty(), "{notes:?}");
         assert_eq!(ps.len(), 2);
         assert_eq!(w.len(), 1);
         assert!(
@@ -283,12 +293,12 @@ mod tests {
         for pair in [[ground, floor], [floor, ground]] {
             let mut ps = vec![quad(pair[0]), quad(pair[1])];
             let w = merge(&mut ps, &mut origins(2));
-            assert!(w.is_empty(), "{w:?}");
+            assert!(w.0.is_empty() && w.1.is_empty(), "{w:?}");
         }
         // In its plane, the floor is reported, whichever comes first.
         let lowered = floor.map(|[x, _, z]| [x, -1.0, z]);
         let mut ps = vec![quad(ground), quad(lowered)];
-        assert_eq!(merge(&mut ps, &mut origins(2)).len(), 1);
+        assert_eq!(merge(&mut ps, &mut origins(2)).1.len(), 1);
     }
 
     #[test]
@@ -305,6 +315,6 @@ mod tests {
             2,
             "1e-3 of the size apart: an overlap, not a copy"
         );
-        assert_eq!(w.len(), 1);
+        assert_eq!(w.1.len(), 1);
     }
 }

@@ -25,9 +25,15 @@ pub mod camera_path;
 mod coincident;
 pub mod format;
 pub mod load;
+mod model;
 mod obj;
+pub mod orientation;
+pub mod overrides;
+mod triangulate;
 
-pub use load::{load_scene, parse_scene, parse_scene_with};
+pub use load::{load_scene, load_scene_with, parse_scene, parse_scene_with, LoadOptions};
+pub use model::is_model;
+pub use obj::MAX_OBJ_REFLECTANCE;
 
 /// Largest image width or height accepted, in pixels.
 pub const MAX_IMAGE_DIM: u32 = 16384;
@@ -396,8 +402,13 @@ pub struct Scene {
     pub display: DisplaySettings,
     /// Optional walkthrough path.
     pub camera_path: Option<CameraPath>,
-    /// Warnings the loader emitted (non-planar quads split, ...), for the user to read.
+    /// Warnings about what the image will show (a material clamped, a default camera or light
+    /// of a model, faces seen or lit from behind, overlapping polygons), for the user to read.
     pub warnings: Vec<String>,
+    /// Repairs of the input that change nothing the image shows (a non-planar quad split, a
+    /// concave face triangulated, a repeated polygon counted once, a point or line skipped):
+    /// `check` lists them, the other commands count them.
+    pub notes: Vec<String>,
     /// Every file read to build the scene: the scene file, then its OBJ and MTL files in load
     /// order (empty for scenes built in code). Outputs are checked against these, so that no
     /// job overwrites its own input.
@@ -441,6 +452,7 @@ impl Scene {
             display: DisplaySettings::default(),
             camera_path: None,
             warnings: Vec::new(),
+            notes: Vec::new(),
             inputs: Vec::new(),
             origins: Vec::new(),
         }

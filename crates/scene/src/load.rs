@@ -62,13 +62,38 @@ pub const MAX_FACE_CORNERS: usize = 256;
 /// named, so this bounds the MTL text read for one OBJ.
 pub const MAX_MTL_FILES: usize = 64;
 
+/// How a scene is loaded beyond its own text: the command line's part.
+#[derive(Debug, Clone, Default)]
+pub struct LoadOptions {
+    /// `-D key=value`: TOML values set over the file's, in order (see `scene::overrides`).
+    pub overrides: Vec<(String, String)>,
+    /// `--strict`: refuse what is otherwise repaired with a warning (an OBJ's `Kd` of 1 or
+    /// more).
+    pub strict: bool,
+}
+
 /// Reads and validates the scene file at `path`.
 ///
 /// A file that cannot be read is an [`Error::Input`] (exit code 2): it is the user's input.
 pub fn load_scene(path: &Path) -> Result<Scene> {
-    let text = base::output::read_text(path)
-        .map_err(|e| Error::input(Location::file(path), format!("cannot read scene file: {e}")))?;
-    parse_scene(&text, path)
+    load_scene_with(path, &LoadOptions::default())
+}
+
+/// [`load_scene`] with the command line's options: a scene file (TOML) or a bare model (`.obj`,
+/// see `scene::model`), `-D` overrides applied, then the orientation checks of
+/// `scene::orientation` added to its warnings.
+pub fn load_scene_with(path: &Path, opts: &LoadOptions) -> Result<Scene> {
+    let mut scene = if super::model::is_model(path) {
+        super::model::load_model(path, opts)?
+    } else {
+        let text = base::output::read_text(path).map_err(|e| {
+            Error::input(Location::file(path), format!("cannot read scene file: {e}"))
+        })?;
+        parse_scene_options(&text, path, &base::output::read_text, opts)?
+    };
+    let facing = super::orientation::warnings(&scene);
+    scene.warnings.extend(facing);
+    Ok(scene)
 }
 
 /// Validates the scene text `text`; `path` names it in messages and is the base of relative
@@ -86,6 +111,30 @@ pub(crate) type ReadText<'r> = &'r dyn Fn(&Path) -> std::io::Result<String>;
 /// targets under `fuzz/` use it). The paths `read` is given are the ones messages name; an `Err`
 /// from it is reported like an unreadable file.
 pub fn parse_scene_with(text: &str, path: &Path, read: ReadText<'_>) -> Result<Scene> {
+    parse_text(text, path, read, false)
+}
+
+/// [`parse_scene_with`] with the `-D` overrides and `--strict` of `opts`. An error of the merged
+/// scene that the file has without the overrides is reported at the file's own line; any other
+/// names the overrides (`scene::overrides`).
+pub(crate) fn parse_scene_options(
+    text: &str,
+    path: &Path,
+    read: ReadText<'_>,
+    opts: &LoadOptions,
+) -> Result<Scene> {
+    if opts.overrides.is_empty() {
+        return parse_text(text, path, read, opts.strict);
+    }
+    let merged = super::overrides::apply(text, path, &opts.overrides)?;
+    parse_text(&merged, path, read, opts.strict).or_else(|e| {
+        parse_text(text, path, read, opts.strict)?;
+        Err(super::overrides::blame(e, &opts.overrides))
+    })
+}
+
+/// Parses and validates `text` (see [`parse_scene_with`]); `strict` refuses the repairs.
+fn parse_text(text: &str, path: &Path, read: ReadText<'_>, strict: bool) -> Result<Scene> {
     let file: SceneFile = toml::from_str(text).map_err(|e| {
         let mut loc = Location::file(path);
         if let Some(span) = e.span() {
@@ -97,11 +146,13 @@ pub fn parse_scene_with(text: &str, path: &Path, read: ReadText<'_>) -> Result<S
         text,
         path,
         warnings: Vec::new(),
+        notes: Vec::new(),
         inputs: vec![path.to_path_buf()],
         origins: Vec::new(),
         newlines: std::cell::OnceCell::new(),
         read,
         next_suffix: BTreeMap::new(),
+        strict,
     };
     cx.scene(file)
 }
@@ -121,6 +172,8 @@ pub(crate) struct Cx<'a> {
     pub(crate) text: &'a str,
     pub(crate) path: &'a Path,
     pub(crate) warnings: Vec<String>,
+    /// Repairs that change nothing the image shows (`Scene::notes`).
+    pub(crate) notes: Vec<String>,
     /// Files read so far (the scene file first), for [`Scene::inputs`].
     pub(crate) inputs: Vec<std::path::PathBuf>,
     /// Where each polygon added so far was defined (aligned with the surfaces' polygons).
@@ -133,6 +186,9 @@ pub(crate) struct Cx<'a> {
     /// suffix to try: every smaller one is taken, so renaming is not quadratic in the number
     /// of includes of one file.
     pub(crate) next_suffix: BTreeMap<String, usize>,
+    /// Refuse what is otherwise repaired with a warning (`--strict`): an OBJ's `Kd` of 1 or
+    /// more.
+    pub(crate) strict: bool,
 }
 
 /// The polygons one face became, and a warning if it was repaired.
@@ -270,8 +326,9 @@ impl<'a> Cx<'a> {
             Some(cp) => Some(self.camera_path(cp)?),
             None => None,
         };
-        let merged = super::coincident::merge(&mut surfaces.polygons, &mut self.origins);
-        self.warnings.extend(merged);
+        let (notes, warnings) = super::coincident::merge(&mut surfaces.polygons, &mut self.origins);
+        self.notes.extend(notes);
+        self.warnings.extend(warnings);
         self.check_polygons_and_light(&surfaces, &spots)?;
         let Surfaces {
             materials,
@@ -293,6 +350,7 @@ impl<'a> Cx<'a> {
             display,
             camera_path,
             warnings: std::mem::take(&mut self.warnings),
+            notes: std::mem::take(&mut self.notes),
             inputs: std::mem::take(&mut self.inputs),
             origins: std::mem::take(&mut self.origins),
         })
@@ -395,7 +453,7 @@ impl<'a> Cx<'a> {
         let built = build_face(corners, material, object)
             .map_err(|msg| Error::input(location.clone(), msg))?;
         if let Some(w) = built.warning {
-            self.warnings.push(format!("{location}: {w}"));
+            self.notes.push(format!("{location}: {w}"));
         }
         for _ in &built.polygons {
             self.origins.push(location.clone());
@@ -825,14 +883,15 @@ fn known_names(by_name: &BTreeMap<String, u32>) -> String {
 /// polygons, or says what is wrong with it.
 ///
 /// - 3 corners: a triangle; refused if (near) zero area.
-/// - 4 corners: refused if zero area, concave, self-intersecting or with three collinear
-///   consecutive corners. Its deviation from planarity is the largest distance of a corner from
+/// - 4 corners, convex: its deviation from planarity is the largest distance of a corner from
 ///   the best-fit plane (Newell normal through the centroid) over the longest diagonal. Within
 ///   [`PLANARITY_TOLERANCE`] the corners are projected onto that plane; beyond it the quad is
 ///   split along the c0-c2 diagonal into two triangles, with a warning.
-/// - 5 or more (OBJ faces only, at most [`MAX_FACE_CORNERS`]): must be convex and planar within
-///   the same tolerance; then the corners are projected and fan-triangulated from the first
-///   corner.
+/// - 5 or more (OBJ faces only, at most [`MAX_FACE_CORNERS`]), convex and planar within the same
+///   tolerance: projected and fan-triangulated from the first corner.
+/// - Concave faces, faces with three collinear consecutive corners, and non-planar faces of 5
+///   or more corners: triangulated by ear clipping with a note (`build_clipped`). Refused:
+///   zero net area, or a face that crosses itself.
 pub(crate) fn build_face(
     corners: &[DVec3],
     material: u32,
@@ -845,12 +904,63 @@ pub(crate) fn build_face(
         return Ok(BuiltFace::single(t));
     }
     let plane = BestFitPlane::of(corners)?;
-    plane.check_convex()?;
-    if corners.len() == 4 {
-        build_quad(corners, &plane, material, object)
-    } else {
-        build_fan(&plane, material, object)
+    match plane.check_convex() {
+        Ok(()) if corners.len() == 4 => build_quad(corners, &plane, material, object),
+        Ok(()) if plane.is_planar() => build_fan(&plane, material, object),
+        Ok(()) => build_clipped(
+            corners,
+            &plane,
+            material,
+            object,
+            "is convex but not planar",
+        ),
+        Err(why) => build_clipped(corners, &plane, material, object, &why),
     }
+}
+
+/// A face the parametric map cannot take as one polygon (concave, or of 5 or more corners off
+/// its plane): cut into triangles by ear clipping on its best-fit plane, with a note. A planar
+/// face's triangles use its projected corners; a non-planar one's keep the original corners, so
+/// the surface follows the model. Refused if the face, projected on its plane, crosses or
+/// touches itself.
+fn build_clipped(
+    corners: &[DVec3],
+    plane: &BestFitPlane,
+    material: u32,
+    object: u32,
+    why: &str,
+) -> std::result::Result<BuiltFace, String> {
+    let n = corners.len();
+    let flat = plane.flattened();
+    let area2 = super::triangulate::area2(&flat);
+    let refuse = || {
+        format!(
+            "{why}, and cannot be triangulated: it crosses itself or repeats a corner \
+             (faces must be simple polygons)"
+        )
+    };
+    if area2 <= 0.0 || !super::triangulate::is_simple(&flat) {
+        return Err(refuse());
+    }
+    let tris = super::triangulate::ear_clip(&flat, 1e-9 * plane.size2).ok_or_else(refuse)?;
+    let source = if plane.is_planar() {
+        &plane.projected
+    } else {
+        corners
+    };
+    let mut polygons = Vec::with_capacity(tris.len());
+    for [a, b, c] in tris {
+        let t = Polygon::triangle([source[a], source[b], source[c]], material, object)
+            .ok_or_else(refuse)?;
+        polygons.push(t);
+    }
+    let count = polygons.len();
+    Ok(BuiltFace {
+        polygons,
+        warning: Some(format!(
+            "{n}-corner face {why}: triangulated by ear clipping into {count} triangles"
+        )),
+    })
 }
 
 /// `Ok` if a face has between 3 and [`MAX_FACE_CORNERS`] corners, all in range.
@@ -930,6 +1040,18 @@ impl BestFitPlane {
         })
     }
 
+    /// The projected corners in 2D coordinates of the plane, counter-clockwise seen from the
+    /// front (the side the normal points to).
+    fn flattened(&self) -> Vec<glam::DVec2> {
+        let e1 = self.normal.any_orthonormal_vector();
+        let e2 = self.normal.cross(e1);
+        let o = self.projected[0];
+        self.projected
+            .iter()
+            .map(|p| glam::DVec2::new((*p - o).dot(e1), (*p - o).dot(e2)))
+            .collect()
+    }
+
     /// Whether the face is within [`PLANARITY_TOLERANCE`] of the plane.
     fn is_planar(&self) -> bool {
         self.relative <= PLANARITY_TOLERANCE
@@ -945,8 +1067,7 @@ impl BestFitPlane {
             let turn = (b - a).cross(c - b).dot(self.normal);
             if turn <= 1e-9 * self.size2 {
                 return Err(format!(
-                    "is concave, self-intersecting or has three collinear corners (at corner \
-                     {}); faces must be convex",
+                    "is concave or has three collinear corners (at corner {})",
                     (i + 1) % n
                 ));
             }
@@ -984,8 +1105,8 @@ fn build_quad(
     })
 }
 
-/// A convex face of 5 or more corners: refused unless planar, then projected and
-/// fan-triangulated from its first corner.
+/// A convex planar face of 5 or more corners: projected and fan-triangulated from its first
+/// corner.
 fn build_fan(
     plane: &BestFitPlane,
     material: u32,
@@ -993,14 +1114,6 @@ fn build_fan(
 ) -> std::result::Result<BuiltFace, String> {
     let p = &plane.projected;
     let n = p.len();
-    if !plane.is_planar() {
-        return Err(format!(
-            "has {n} corners and is not planar (a corner is {:.3}% of its longest diagonal off \
-             the best-fit plane, tolerance {}%); faces with more than 4 corners must be planar",
-            100.0 * plane.relative,
-            100.0 * PLANARITY_TOLERANCE
-        ));
-    }
     let mut polygons = Vec::with_capacity(n - 2);
     for i in 1..n - 1 {
         let t = Polygon::triangle([p[0], p[i], p[i + 1]], material, object)

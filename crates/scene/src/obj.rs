@@ -38,6 +38,12 @@ use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
 use toml::Spanned;
 
+/// The largest reflectance a `Kd` of 1 or more is clamped to: the brightest diffuse white
+/// paints reflect about 0.9, and a closed room of reflectance r needs about ln(0.01) / ln(r)
+/// bounces to bring its unshot light under 1 % (90 at 0.95, 460 at 0.99), so the clamp keeps
+/// the solve's length bounded while leaving a white surface white.
+pub const MAX_OBJ_REFLECTANCE: f64 = 0.95;
+
 /// Loads one `[[obj]]` include, appending to the scene's materials, objects and polygons.
 pub(crate) fn include(
     cx: &mut Cx<'_>,
@@ -48,13 +54,35 @@ pub(crate) fn include(
     let o = section.get_ref();
     let (obj_path, text) = read_obj(cx, o, key)?;
     let transform = Transform::of(cx, o, key)?;
-    let parsed = parse_obj(cx, &text, &obj_path)?;
+    let mut parsed = parse_obj(cx, &text, &obj_path, &[])?;
+    let default_material = default_material(cx, o, key, &surfaces.by_name)?;
+    let undefined = undefined_usemtl(&text, &parsed);
+    if !undefined.is_empty() {
+        check_usemtl(&undefined, &obj_path, o, parsed.mtl_error.as_deref())?;
+        let names: Vec<String> = undefined.iter().map(|(n, _)| n.clone()).collect();
+        let why = parsed.mtl_error.clone();
+        parsed = parse_obj(cx, &text, &obj_path, &names)?;
+        parsed.mtl_error = why;
+    }
     // The MTL materials' names, looked up once per `usemtl` and per override: a scan of the
     // materials for each would make a file with many of both quadratic to load.
     let mtl_names: BTreeSet<&str> = parsed.materials.iter().map(|m| m.name.as_str()).collect();
     let overrides = overrides(cx, o, key, &mtl_names, &surfaces.by_name)?;
-    let default_material = default_material(cx, o, key, &surfaces.by_name)?;
-    check_usemtl(&text, &obj_path, &mtl_names, parsed.mtl_error.as_deref())?;
+    for (name, line) in &undefined {
+        if overrides.contains_key(name) {
+            continue;
+        }
+        let default = o.default_material.as_ref().map_or("", |d| d.get_ref());
+        let why = match &parsed.mtl_error {
+            Some(e) => format!("its MTL file could not be loaded ({e})"),
+            None => "no MTL file of this OBJ defines it".to_string(),
+        };
+        cx.warnings.push(format!(
+            "{}:{line}: usemtl `{name}`: {why}: drawn with the default material `{default}` \
+             (map it in the scene's [[obj]] `materials` table)",
+            obj_path.display()
+        ));
+    }
     let mut converter = Converter {
         stem: obj_path
             .file_stem()
@@ -64,6 +92,7 @@ pub(crate) fn include(
         face_lines: face_lines(&text, &parsed.models),
         transform,
         parsed: &parsed,
+        undefined: undefined.into_iter().map(|(n, _)| n).collect(),
         overrides,
         default_material,
         imported: BTreeMap::new(),
@@ -168,16 +197,37 @@ struct ParsedObj {
 /// A problem that [`MtlLoader`] found in an MTL file is reported as such; an MTL file that
 /// cannot be read is not an error here: its materials are missing, and `mtl_error` says why
 /// for the messages about faces that need them.
-fn parse_obj(cx: &mut Cx<'_>, text: &str, obj_path: &Path) -> Result<ParsedObj> {
+///
+/// `placeholders` are `usemtl` names no MTL file defines: they are declared first, through a
+/// `mtllib` line naming [`PLACEHOLDER_MTL`] put before the text, as materials without values,
+/// so that tobj keeps their faces apart and the converter can map them (the include's
+/// `materials` map or default material). The line numbers of the text are unaffected: faces
+/// are located by counting `f` lines of the original text.
+fn parse_obj(
+    cx: &mut Cx<'_>,
+    text: &str,
+    obj_path: &Path,
+    placeholders: &[String],
+) -> Result<ParsedObj> {
     // Untriangulated, so quads stay quads (see the module docs).
     let opts = tobj::LoadOptions {
         triangulate: false,
         single_index: false,
         ..Default::default()
     };
-    let loader = MtlLoader::new(obj_path, cx.read);
+    let mut loader = MtlLoader::new(obj_path, cx.read);
+    loader.placeholders = placeholders.to_vec();
+    let prefixed;
+    let text = if placeholders.is_empty() {
+        text
+    } else {
+        prefixed = format!("mtllib {PLACEHOLDER_MTL}\n{text}");
+        &prefixed
+    };
     let parsed = tobj::load_obj_buf(&mut text.as_bytes(), &opts, |name| loader.load(name));
-    cx.inputs.extend(loader.files_read.into_inner());
+    if placeholders.is_empty() {
+        cx.inputs.extend(loader.files_read.into_inner());
+    }
     if let Some(e) = loader.problem.into_inner() {
         return Err(e);
     }
@@ -227,7 +277,13 @@ struct MtlLoader<'a> {
     files_read: RefCell<Vec<PathBuf>>,
     /// Where each material is defined (the first definition of a name).
     sources: RefCell<BTreeMap<String, MtlSource>>,
+    /// The materials [`PLACEHOLDER_MTL`] declares.
+    placeholders: Vec<String>,
 }
+
+/// The MTL name [`parse_obj`] declares `usemtl` names without a definition through (not a file:
+/// no file name contains a NUL).
+const PLACEHOLDER_MTL: &str = "\u{0}pixelflow-sim-undefined-materials";
 
 impl<'a> MtlLoader<'a> {
     fn new(obj_path: &'a Path, read: ReadText<'a>) -> Self {
@@ -243,11 +299,29 @@ impl<'a> MtlLoader<'a> {
             unreadable: RefCell::new(None),
             files_read: RefCell::new(Vec::new()),
             sources: RefCell::new(BTreeMap::new()),
+            placeholders: Vec::new(),
         }
     }
 
     /// tobj's material loader: the materials of the MTL file `name`.
     fn load(&self, name: &Path) -> tobj::MTLLoadResult {
+        if name == Path::new(PLACEHOLDER_MTL) {
+            let materials: Vec<tobj::Material> = self
+                .placeholders
+                .iter()
+                .map(|n| tobj::Material {
+                    name: n.clone(),
+                    ..Default::default()
+                })
+                .collect();
+            let map = self
+                .placeholders
+                .iter()
+                .enumerate()
+                .map(|(i, n)| (n.clone(), i))
+                .collect();
+            return Ok((materials, map));
+        }
         let mtl_path = self.dir.join(name);
         {
             let mut seen = self.seen.borrow_mut();
@@ -346,33 +420,56 @@ fn face_lines(text: &str, models: &[tobj::Model]) -> Option<Vec<usize>> {
     (faces == lines.len()).then_some(lines)
 }
 
-/// `Ok` if every `usemtl` of the OBJ `text` names a material an MTL file defined: tobj would
-/// leave the faces without a material (then the default material, or an error) without saying
-/// why.
-fn check_usemtl(
-    text: &str,
-    obj_path: &Path,
-    mtl_names: &BTreeSet<&str>,
-    mtl_error: Option<&str>,
-) -> Result<()> {
+/// The `usemtl` names of the OBJ `text` that no MTL file of `parsed` defines, each with the
+/// line of its first use, in order of first use.
+fn undefined_usemtl(text: &str, parsed: &ParsedObj) -> Vec<(String, usize)> {
+    let defined: BTreeSet<&str> = parsed.materials.iter().map(|m| m.name.as_str()).collect();
+    let mut seen = BTreeSet::new();
+    let mut out = Vec::new();
     for (i, line) in text.lines().enumerate() {
         let t = line.trim();
         if t.split_whitespace().next() != Some("usemtl") {
             continue;
         }
         let name = t["usemtl".len()..].trim();
-        if !mtl_names.contains(name) {
-            let why = match mtl_error {
-                Some(e) => format!("its MTL file could not be loaded: {e}"),
-                None => "no MTL file of this OBJ defines it".to_string(),
-            };
-            return Err(Error::input(
-                Location::file(obj_path)
-                    .at_line(i + 1)
-                    .with_key(format!("usemtl `{name}`")),
-                format!("unknown material: {why}"),
-            ));
+        if !name.is_empty() && !defined.contains(name) && seen.insert(name.to_string()) {
+            out.push((name.to_string(), i + 1));
         }
+    }
+    out
+}
+
+/// `Ok` if every undefined `usemtl` name is mapped by the include's `materials` table or can
+/// take its `default_material`; else the error at the first one's line (tobj would leave the
+/// faces without a material without saying why).
+fn check_usemtl(
+    undefined: &[(String, usize)],
+    obj_path: &Path,
+    o: &ObjSection,
+    mtl_error: Option<&str>,
+) -> Result<()> {
+    let mapped = |n: &str| {
+        o.materials
+            .as_ref()
+            .is_some_and(|m| m.get_ref().contains_key(n))
+    };
+    if o.default_material.is_some() {
+        return Ok(());
+    }
+    if let Some((name, line)) = undefined.iter().find(|(n, _)| !mapped(n)) {
+        let why = match mtl_error {
+            Some(e) => format!("its MTL file could not be loaded: {e}"),
+            None => "no MTL file of this OBJ defines it".to_string(),
+        };
+        return Err(Error::input(
+            Location::file(obj_path)
+                .at_line(*line)
+                .with_key(format!("usemtl `{name}`")),
+            format!(
+                "unknown material: {why}; map it to a scene material in the [[obj]] entry's \
+                 `materials` table, or set its `default_material`"
+            ),
+        ));
     }
     Ok(())
 }
@@ -386,6 +483,8 @@ struct Converter<'o> {
     face_lines: Option<Vec<usize>>,
     transform: Transform,
     parsed: &'o ParsedObj,
+    /// `usemtl` names no MTL defines: their faces take the default material unless mapped.
+    undefined: BTreeSet<String>,
     /// MTL material name -> scene material, from the include's `materials` map.
     overrides: BTreeMap<String, u32>,
     default_material: Option<u32>,
@@ -460,7 +559,16 @@ impl Converter<'_> {
         if let Some(&idx) = self.imported.get(&id) {
             return Ok(idx);
         }
-        let (reflectance, emission) = self.material_values(m)?;
+        if self.undefined.contains(&m.name) {
+            // `check_usemtl` made sure an undefined name is mapped or has the default.
+            return self.default_material.ok_or_else(|| {
+                Error::input(
+                    self.face_loc(model, 0),
+                    format!("material `{}` is undefined", m.name),
+                )
+            });
+        }
+        let (reflectance, emission) = self.material_values(m, cx.strict, &mut cx.warnings)?;
         let name = unique_name(cx, &self.stem, &m.name, &surfaces.by_name);
         let idx = surfaces.add_material(Material {
             name,
@@ -472,8 +580,16 @@ impl Converter<'_> {
     }
 
     /// The reflectance (`Kd`) and emission (`Ke`) of the MTL material `m`, checked; a problem
-    /// is the MTL file's, at the line of the statement.
-    fn material_values(&self, m: &tobj::Material) -> Result<(DVec3, DVec3)> {
+    /// is the MTL file's, at the line of the statement. A `Kd` of 1 or more in some channel
+    /// (modelling tools write `Kd 1 1 1` for "white") is clamped to [`MAX_OBJ_REFLECTANCE`] with
+    /// a warning, unless `strict`; values above [`super::load::MAX_MAGNITUDE`] or negative are
+    /// refused as before.
+    fn material_values(
+        &self,
+        m: &tobj::Material,
+        strict: bool,
+        warnings: &mut Vec<String>,
+    ) -> Result<(DVec3, DVec3)> {
         let src = self.parsed.sources.get(&m.name);
         let mloc = |line: Option<usize>, what: &str| match src {
             Some(src) => Location::file(&src.path)
@@ -487,9 +603,20 @@ impl Converter<'_> {
                 "is missing (diffuse reflectance)",
             ));
         };
-        let reflectance = decimal3(kd);
-        check_reflectance(reflectance)
-            .map_err(|msg| Error::input(mloc(src.and_then(|s| s.kd), "Kd"), msg))?;
+        let mut reflectance = decimal3(kd);
+        let kd_loc = mloc(src.and_then(|s| s.kd), "Kd");
+        if !strict && reflectance.is_finite() && reflectance.max_element() >= 1.0 {
+            let clamped = reflectance.min(DVec3::splat(MAX_OBJ_REFLECTANCE));
+            if check_reflectance(clamped).is_ok() {
+                warnings.push(format!(
+                    "{kd_loc}: {reflectance} is 1 or more (a surface reflecting all its light \
+                     or more; a closed room would never converge): clamped to {clamped} \
+                     (`--strict` refuses it)"
+                ));
+                reflectance = clamped;
+            }
+        }
+        check_reflectance(reflectance).map_err(|msg| Error::input(kd_loc, msg))?;
         // tobj 4 parses `Ke` into `emissive` (`check_mtl` made sure it has three values);
         // absent means 0.
         let emission = m.emissive.map_or(DVec3::ZERO, decimal3);
@@ -537,7 +664,7 @@ impl Converter<'_> {
             };
             start += arity;
             if arity < 3 {
-                cx.warnings.push(format!(
+                cx.notes.push(format!(
                     "{loc}: a point or line element ({arity} vertices) is not a surface: skipped"
                 ));
                 continue;

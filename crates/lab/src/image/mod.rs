@@ -5,6 +5,7 @@
 //! Why here and not beside the image type ([`base::image`]): the codecs are the one part of the
 //! project that needs the `image` crate, and only the jobs write or read files.
 
+pub mod exposure;
 pub mod read;
 pub mod write;
 
@@ -12,4 +13,7 @@ pub use base::image::*;
 pub use read::{
     decode_image, decode_pfm, read_image, read_image_header, srgb_decode, ImageHeader, MAX_PFM_DIM,
 };
-pub use write::{encode_exr, encode_png, srgb_encode, to_srgb8, write_exr, write_png};
+pub use write::{
+    encode_exr, encode_hdr, encode_pfm, encode_png, srgb_encode, to_srgb8, write_exr, write_png,
+    OutputFormat,
+};

@@ -200,6 +200,82 @@ pub fn encode_exr(frame: ImageView<'_>) -> Result<Vec<u8>> {
     Ok(bytes)
 }
 
+/// Encodes an image as a Radiance HDR (RGBE) file's bytes: linear, 8-bit mantissas with a
+/// shared exponent (about 1 % precision).
+pub fn encode_hdr(frame: ImageView<'_>) -> Result<Vec<u8>> {
+    check(frame)?;
+    let pixels: Vec<Rgb<f32>> = frame
+        .pixels
+        .iter()
+        .map(|p| Rgb(Vec3::select(p.is_finite_mask(), p.max(Vec3::ZERO), Vec3::ZERO).to_array()))
+        .collect();
+    let mut bytes = Vec::new();
+    image::codecs::hdr::HdrEncoder::new(&mut bytes)
+        .encode(&pixels, frame.width as usize, frame.height as usize)
+        .map_err(|e| Error::Runtime(format!("HDR encoding failed: {e}")))?;
+    Ok(bytes)
+}
+
+/// Encodes an image as a colour PFM file's bytes: `PF`, the size, scale -1 (little-endian), then
+/// the rows bottom to top as three `f32` per pixel.
+pub fn encode_pfm(frame: ImageView<'_>) -> Result<Vec<u8>> {
+    check(frame)?;
+    let (w, h) = (frame.width as usize, frame.height as usize);
+    let mut bytes = format!("PF\n{w} {h}\n-1.0\n").into_bytes();
+    bytes.reserve(w * h * 12);
+    for row in (0..h).rev() {
+        for p in &frame.pixels[row * w..(row + 1) * w] {
+            let p = Vec3::select(p.is_finite_mask(), *p, Vec3::ZERO);
+            for c in p.to_array() {
+                bytes.extend_from_slice(&c.to_le_bytes());
+            }
+        }
+    }
+    Ok(bytes)
+}
+
+/// The image formats an image output can be written as, chosen by the file's extension.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum OutputFormat {
+    /// `.png`: 8-bit sRGB after the exposure.
+    Png,
+    /// `.exr`: OpenEXR, linear float.
+    Exr,
+    /// `.hdr`: Radiance RGBE, linear.
+    Hdr,
+    /// `.pfm`: portable float map, linear float.
+    Pfm,
+}
+
+impl OutputFormat {
+    /// Every format with its extension.
+    pub const ALL: [(OutputFormat, &'static str); 4] = [
+        (OutputFormat::Png, "png"),
+        (OutputFormat::Exr, "exr"),
+        (OutputFormat::Hdr, "hdr"),
+        (OutputFormat::Pfm, "pfm"),
+    ];
+
+    /// The format of `path` by its extension (any case), if it names one.
+    pub fn of(path: &Path) -> Option<OutputFormat> {
+        let ext = path.extension()?.to_str()?;
+        Self::ALL
+            .iter()
+            .find(|(_, e)| ext.eq_ignore_ascii_case(e))
+            .map(|(f, _)| *f)
+    }
+
+    /// The file's bytes: the PNG with `exposure` stops, the others linear.
+    pub fn encode(self, frame: ImageView<'_>, exposure: f64) -> Result<Vec<u8>> {
+        match self {
+            OutputFormat::Png => encode_png(frame, exposure),
+            OutputFormat::Exr => encode_exr(frame),
+            OutputFormat::Hdr => encode_hdr(frame),
+            OutputFormat::Pfm => encode_pfm(frame),
+        }
+    }
+}
+
 /// Writes sRGB bytes (3 per pixel, `w` x `h`, already encoded) as a PNG, atomically through
 /// `outputs`.
 pub fn write_srgb_png(outputs: &Outputs, path: &Path, w: u32, h: u32, rgb: Vec<u8>) -> Result<()> {

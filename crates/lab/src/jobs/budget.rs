@@ -355,11 +355,12 @@ pub(crate) fn frame_bytes(
 }
 
 /// Bytes of the output buffers: the 8-bit RGB PNG (3 B per pixel) and the 32-bit RGB EXR
-/// (12 B per pixel), each counted twice (the pixels and the encoder's copy).
+/// (12 B per pixel), each counted twice (the pixels and the encoder's copy), and the luminance
+/// summary's `f32` per pixel (`image::exposure`).
 pub(crate) fn output_bytes(width: u32, height: u32, png: bool, exr: bool) -> u64 {
     let pixels = u64::from(width) * u64::from(height);
     let per = if png { 3 } else { 0 } + if exr { 12 } else { 0 };
-    pixels.saturating_mul(2 * per)
+    pixels.saturating_mul(2 * per + 4)
 }
 
 /// Bytes of the radiosity textures under `policy` for quadtrees of the given `depths` (32-bit

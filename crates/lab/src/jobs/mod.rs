@@ -45,7 +45,7 @@ use std::time::Instant;
 use base::error::{Error, Result};
 use base::method::{check_texture_side, Method, Placement};
 use base::output::Outputs;
-use base::progress::Observer;
+use base::progress::{Observer, Stage};
 use engine::frame::FrameOptions;
 use lanes::Isa;
 use radiosity::{self, file as solution_file, Solution, SolveOptions};
@@ -53,7 +53,7 @@ use reconstruction::compact::CompactReconstruction;
 use reconstruction::mesh::MeshModel;
 use reconstruction::texture::{SizePolicy, TextureSet};
 use reconstruction::{Estimator, Reconstruction, Seams, Sharp, SharpLight};
-use scene::{load_scene, Scene};
+use scene::{load_scene_with, LoadOptions, Scene};
 
 /// What a job may use, given by its caller and passed down explicitly (the library holds no
 /// process-wide setting): the memory limit every estimate is checked against, the instruction
@@ -162,6 +162,12 @@ impl Input {
     /// scene moved away from where the solution file says; its hash is still checked against
     /// the solution). Errors if `scene` is given for an input that is not a solution file.
     pub fn load_with(path: &Path, scene: Option<&Path>) -> Result<Input> {
+        Input::load_opts(path, scene, &LoadOptions::default())
+    }
+
+    /// [`Input::load_with`] with the command line's scene options (`-D`, `--camera`,
+    /// `--strict`), applied to the scene file or to a solution file's scene.
+    pub fn load_opts(path: &Path, scene: Option<&Path>, opts: &LoadOptions) -> Result<Input> {
         let named_solution = path
             .extension()
             .is_some_and(|e| e.eq_ignore_ascii_case(SOLUTION_EXTENSION));
@@ -172,7 +178,7 @@ impl Input {
             };
             Ok(Input {
                 path: path.to_path_buf(),
-                scene: load_scene(&scene_path)?,
+                scene: load_scene_with(&scene_path, opts)?,
                 solution_file: Some(path.to_path_buf()),
                 estimator: Estimator::default(),
                 sharp_levels: reconstruction::sharp::DEFAULT_LEVELS,
@@ -190,13 +196,27 @@ impl Input {
             }
             Ok(Input {
                 path: path.to_path_buf(),
-                scene: load_scene(path)?,
+                scene: load_scene_with(path, opts)?,
                 solution_file: None,
                 estimator: Estimator::default(),
                 sharp_levels: reconstruction::sharp::DEFAULT_LEVELS,
             })
         }
     }
+}
+
+/// One line for a scene's notes (repairs that change nothing the image shows), for the commands
+/// that do not list them: how many, and the command that does; `None` without notes.
+pub fn notes_line(scene: &scene::Scene) -> Option<String> {
+    let n = scene.notes.len();
+    (n > 0).then(|| {
+        format!(
+            "{n} repair{} of the scene's input that change nothing the image shows (faces split \
+             or triangulated, repeats counted once): `pixelflow-sim check {}` lists them",
+            if n == 1 { "" } else { "s" },
+            scene.source.display()
+        )
+    })
 }
 
 /// The extension of solution files (`solve -o x.pfsol`).
@@ -635,6 +655,69 @@ pub fn render_frame(
     Ok(ctx.into_frame(stats))
 }
 
+/// The stage a reference frame reports (every sample of it is a gather from the whole solution:
+/// tens of seconds a frame where the other methods take milliseconds).
+pub const REFERENCE_STAGE: &str = "reference";
+
+/// [`render_frame`] with progress to `observer`: a reference frame runs as stage
+/// [`REFERENCE_STAGE`] ([`render_frame_in_observed`]); the pixels are the same for any observer.
+pub fn render_frame_observed(
+    p: &Prepared,
+    method: Method,
+    camera: &scene::Camera,
+    opts: &engine::frame::FrameOptions,
+    observer: &dyn Observer,
+) -> Result<engine::frame::Frame> {
+    let mut ctx = engine::frame::FrameContext::new();
+    let stats = render_frame_in_observed(&mut ctx, p, method, camera, opts, observer)?;
+    Ok(ctx.into_frame(stats))
+}
+
+/// [`render_frame_in`] with progress to `observer`. A reference frame reports stage
+/// [`REFERENCE_STAGE`]: the fraction of its samples evaluated, out of the samples a first pass
+/// with a shader that evaluates nothing counted (rasterization and composition only,
+/// milliseconds; every pixel it wrote is written again). Other methods report nothing (a frame
+/// takes milliseconds). The pixels and counters are those of [`render_frame_in`].
+pub fn render_frame_in_observed(
+    ctx: &mut engine::frame::FrameContext,
+    p: &Prepared,
+    method: Method,
+    camera: &scene::Camera,
+    opts: &engine::frame::FrameOptions,
+    observer: &dyn Observer,
+) -> Result<engine::frame::FrameStats> {
+    use engine::shading::Shader;
+    use std::sync::atomic::{AtomicU64, Ordering};
+    if method != Method::Reference {
+        return render_frame_in(ctx, p, method, camera, opts);
+    }
+    let stage = std::sync::Mutex::new(Stage::start(observer, REFERENCE_STAGE));
+    let oracle = radiosity::Oracle::new(&p.solution, &p.scene).map_err(|e| p.file_error(e))?;
+    let nothing = |_: u32, _: f32, _: f32| glam::Vec3::ZERO;
+    let total = ctx
+        .render(&p.scene, camera, &Shader::Reference(&nothing), method, opts)?
+        .pixels_shaded
+        .max(1);
+    // About a thousand reports a frame; a worker that finds the stage busy skips its report.
+    let step = (total / 1000).max(1);
+    let done = AtomicU64::new(0);
+    let f = |poly: u32, u: f32, v: f32| {
+        let c = oracle.radiosity(poly as usize, u as f64, v as f64);
+        let n = done.fetch_add(1, Ordering::Relaxed) + 1;
+        if n.is_multiple_of(step) {
+            if let Ok(mut s) = stage.try_lock() {
+                s.advance(n as f64 / total as f64);
+            }
+        }
+        c
+    };
+    let stats = ctx.render(&p.scene, camera, &Shader::Reference(&f), method, opts)?;
+    if let Ok(mut s) = stage.lock() {
+        s.advance(1.0);
+    }
+    Ok(stats)
+}
+
 /// Builds, once per job, what `method` draws from (the textures, the mesh), so that neither a
 /// reservation nor a frame timed after it pays for that.
 pub(crate) fn build_method_data(p: &Prepared, method: Method) -> Result<()> {
@@ -697,5 +780,66 @@ pub fn render_frame_in(
             let f = |poly: u32, u: f32, v: f32| oracle.radiosity(poly as usize, u as f64, v as f64);
             ctx.render(&p.scene, camera, &Shader::Reference(&f), method, opts)
         }
+    }
+}
+
+#[cfg(test)]
+mod reference_stage_tests {
+    use super::*;
+    use base::progress::{Event, Recorder};
+
+    /// A reference frame reports its own stage, from 0 to 1 then finished, and its pixels are
+    /// those of the unobserved frame, bit for bit.
+    #[test]
+    fn the_reference_method_reports_a_stage() {
+        let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes/two-spots.toml");
+        let mut input = Input::load(&path).expect("scene loads");
+        input.scene.radiosity.max_depth = input.scene.radiosity.min_depth.max(3);
+        input.scene.radiosity.shadow_rays = 4;
+        let p = prepare(
+            &Context::default(),
+            input,
+            SizePolicy::FromDepth,
+            Placement::Centre,
+        )
+        .expect("solves");
+        let opts = Context::default().frame_options(48, 32);
+        let r = Recorder::default();
+        let seen = render_frame_observed(&p, Method::Reference, &p.scene.camera, &opts, &r)
+            .expect("renders");
+        let plain = render_frame(&p, Method::Reference, &p.scene.camera, &opts).expect("renders");
+        let bits = |f: &engine::frame::Frame| -> Vec<u32> {
+            f.pixels
+                .iter()
+                .flat_map(|c| c.to_array().map(f32::to_bits))
+                .collect()
+        };
+        assert!(
+            bits(&seen) == bits(&plain),
+            "the observer changed the pixels"
+        );
+        let events = r.events();
+        assert_eq!(
+            events.first(),
+            Some(&Event::Progress(REFERENCE_STAGE.into(), 0.0))
+        );
+        assert_eq!(
+            events.last(),
+            Some(&Event::Finished(REFERENCE_STAGE.into()))
+        );
+        let fractions: Vec<f64> = events
+            .iter()
+            .filter_map(|e| match e {
+                Event::Progress(s, f) if s == REFERENCE_STAGE => Some(*f),
+                _ => None,
+            })
+            .collect();
+        assert_eq!(fractions.last(), Some(&1.0));
+        assert!(fractions.windows(2).all(|w| w[0] <= w[1]), "{fractions:?}");
+        // Other methods take milliseconds and report nothing.
+        let direct = Recorder::default();
+        render_frame_observed(&p, Method::Direct, &p.scene.camera, &opts, &direct)
+            .expect("renders");
+        assert!(direct.events().is_empty());
     }
 }

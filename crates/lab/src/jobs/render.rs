@@ -12,8 +12,10 @@ use serde::Serialize;
 
 use super::walkthrough::WalkthroughSummary;
 use super::Context;
-use super::{prepare, render_frame_in, Input, Prepared, TextureOptions};
+use super::{prepare, Input, Prepared, TextureOptions};
 use crate::image;
+use crate::image::exposure::{self, LuminanceSummary};
+use crate::image::OutputFormat;
 use base::error::{Error, Result};
 use base::method::Method;
 use base::progress::Stage;
@@ -57,6 +59,13 @@ pub struct RenderRequest {
     /// Levels below the solver's leaves the RRPs follow the spots' edges (`--sharp-levels`;
     /// default [`reconstruction::sharp::DEFAULT_LEVELS`], 0 = off).
     pub sharp_levels: Option<u32>,
+    /// The scene's command-line options (`-D`, `--camera`, `--strict`).
+    pub load: scene::LoadOptions,
+    /// Exposure of the PNG in stops (`--exposure`; default: the scene's `[display] exposure`).
+    pub exposure: Option<f64>,
+    /// Choose the exposure from the first frame (`--auto-exposure`,
+    /// [`crate::image::exposure::auto_exposure`]); used for every frame of a walkthrough.
+    pub auto_exposure: bool,
 }
 
 /// A render request resolved against its scene and checked: what will be drawn, how, and where
@@ -157,12 +166,17 @@ pub enum RenderEvent<'a> {
     /// A warning: the scene's (a non-planar quad split, ...), or a frame with no polygon in
     /// view (`empty_view_warning`).
     Warning(&'a str),
+    /// A note: how many repairs of the scene's input changed nothing the image shows.
+    Note(&'a str),
     /// A file was written.
     Wrote(&'a Path),
     /// A frame was rendered.
     Frame(&'a RenderReport),
     /// A walkthrough ended: its summary (the last event of a walkthrough).
     Walkthrough(&'a WalkthroughSummary),
+    /// The luminance summary of the image (of a walkthrough's first frame), after its file
+    /// was written.
+    Luminance(&'a Path, &'a LuminanceSummary),
 }
 
 /// The progress stage of a walkthrough's frames: fraction `k / n` after frame `k` of `n`.
@@ -197,7 +211,7 @@ pub fn run_render(
     req: &RenderRequest,
     on: &mut dyn FnMut(RenderEvent<'_>),
 ) -> Result<()> {
-    let mut input = Input::load_with(&req.input, req.scene.as_deref())?;
+    let mut input = Input::load_opts(&req.input, req.scene.as_deref(), &req.load)?;
     let plan = RenderPlan::new(ctx, req, &input.scene)?;
     if let Some(name) = &req.estimator {
         input.estimator = reconstruction::Estimator::parse_option("--estimator", name)?;
@@ -218,8 +232,23 @@ pub fn run_render(
     base::output::check_outputs(&inputs, &outputs)?;
     // Then the format follows the name (after the data-loss checks, whose messages say more).
     if let Some(o) = &req.output {
-        let what = "a PNG (8-bit sRGB); the linear radiosity goes to --exr";
-        check_extension("-o", o, "png", what)?;
+        if OutputFormat::of(o).is_none() {
+            return Err(Error::invalid_option(
+                "-o",
+                o.display().to_string(),
+                "must end in .png (8-bit sRGB after the exposure), .exr, .hdr or .pfm (linear \
+                 radiosity): the format follows the name",
+            ));
+        }
+    }
+    if let Some(e) = req.exposure {
+        if !e.is_finite() || e.abs() > exposure::MAX_AUTO_STOPS {
+            return Err(Error::invalid_option(
+                "--exposure",
+                e.to_string(),
+                format!("stops, from -{0} to {0}", exposure::MAX_AUTO_STOPS),
+            ));
+        }
     }
     if let Some(e) = &req.exr {
         let what = "an OpenEXR file (linear float); the sRGB image goes to -o";
@@ -228,17 +257,31 @@ pub fn run_render(
     for w in &input.scene.warnings {
         on(RenderEvent::Warning(w));
     }
+    if let Some(n) = super::notes_line(&input.scene) {
+        on(RenderEvent::Note(&n));
+    }
     let p = prepare(ctx, input, plan.texture_policy, plan.texture_placement)?;
     if let Some(w) = p.solution.stats.guard_stops.warning(&p.scene) {
         on(RenderEvent::Warning(&w));
     }
-    let exposure = p.scene.display.exposure;
+    let mut exposure = req.exposure.unwrap_or(p.scene.display.exposure);
+    // A bare model has no `[display]` to set its exposure in: it is chosen from the image
+    // unless the command line gives one.
+    let auto_exposure = req.auto_exposure
+        || (req.exposure.is_none()
+            && scene::is_model(&p.scene.source)
+            && !req
+                .load
+                .overrides
+                .iter()
+                .any(|(k, _)| k == "display.exposure"));
     let n = plan.frames.len();
     // The walkthrough's own stage, after the solve's: it ends (also on an error) when dropped.
     let mut stage = plan
         .walkthrough
         .then(|| Stage::start(ctx.observer, WALKTHROUGH_STAGE));
     let mut reports = Vec::new();
+    let mut summary_of_first: Option<(PathBuf, LuminanceSummary)> = None;
     // A single frame's PNG, EXR and statistics are one batch: all replaced or none
     // (base::output). A walkthrough's frames are written as they are drawn.
     let mut batch = ctx.outputs.batch();
@@ -247,13 +290,21 @@ pub fn run_render(
     // One frame context for every frame: a walkthrough's frames reuse its buffers, and the
     // frame and G-buffers are reserved before the first frame (timed apart), as a display
     // system allocates its framebuffers before it draws.
+    let observer = ctx.observer;
     let mut ctx = FrameContext::new();
     super::build_method_data(&p, plan.method)?;
     let t = std::time::Instant::now();
     super::reserve_frames(&mut ctx, &p, plan.method, &plan.frame)?;
     let reserve_ms = t.elapsed().as_secs_f64() * 1e3;
     for (k, (camera, png)) in plan.frames.iter().enumerate() {
-        let stats = render_frame_in(&mut ctx, &p, plan.method, camera, &plan.frame)?;
+        let stats = super::render_frame_in_observed(
+            &mut ctx,
+            &p,
+            plan.method,
+            camera,
+            &plan.frame,
+            observer,
+        )?;
         // A valid scene can still put nothing in view (every polygon behind the camera or
         // outside its frustum): the image is drawn, but never silently as the background alone.
         if stats.pixels_shaded == 0 {
@@ -262,18 +313,30 @@ pub fn run_render(
                 plan.walkthrough.then_some(k),
             )));
         }
+        if k == 0 && auto_exposure {
+            exposure = exposure::auto_exposure(ctx.view());
+        }
+        let format = OutputFormat::of(png).unwrap_or(OutputFormat::Png);
+        let bytes = format.encode(ctx.view(), exposure)?;
+        if k == 0 {
+            let samples = plan.frame.width as f64 * plan.frame.height as f64 * plan.frame.aa as f64;
+            let covered = stats.pixels_shaded as f64 / samples.max(1.0);
+            let background = base::image::luminance(p.scene.display.background.as_vec3());
+            let l = exposure::summarize(ctx.view(), exposure, covered, background);
+            summary_of_first = Some((png.clone(), l));
+        }
         if plan.walkthrough {
-            image::write_png(&files, png, ctx.view(), exposure)?;
+            files.write_atomic(png, &bytes)?;
             on(RenderEvent::Wrote(png));
         } else {
-            batch.stage(png, &image::encode_png(ctx.view(), exposure)?)?;
+            batch.stage(png, &bytes)?;
             staged.push(png);
         }
         if let Some(exr) = &plan.exr {
             batch.stage(exr, &image::encode_exr(ctx.view())?)?;
             staged.push(exr);
         }
-        let mut report = RenderReport::new(&p, plan.method, stats);
+        let mut report = RenderReport::new(&p, plan.method, stats, plan.frame.isa);
         report.reserve_ms = reserve_ms;
         on(RenderEvent::Frame(&report));
         reports.push(report);
@@ -301,6 +364,12 @@ pub fn run_render(
     batch.commit()?;
     for path in staged {
         on(RenderEvent::Wrote(path));
+    }
+    if let Some((path, l)) = &summary_of_first {
+        on(RenderEvent::Luminance(path, l));
+        if let Some(w) = exposure::exposure_warning(l, auto_exposure) {
+            on(RenderEvent::Warning(&w));
+        }
     }
     if let Some(summary) = &summary {
         on(RenderEvent::Walkthrough(summary));
@@ -353,11 +422,14 @@ pub struct RenderReport {
     /// Time to triangulate the mesh, once per job (mesh method only), ms.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub mesh_build_ms: Option<f64>,
+    /// The SIMD build the frame ran with (`portable`, `avx2`, `avx512`; [`lanes::Level::name`]).
+    pub simd: &'static str,
 }
 
 impl RenderReport {
-    /// The report of a frame rendered from `p`, with its statistics `frame`.
-    pub fn new(p: &Prepared, method: Method, frame: FrameStats) -> RenderReport {
+    /// The report of a frame rendered from `p` with the instruction set `isa`, with its
+    /// statistics `frame`.
+    pub fn new(p: &Prepared, method: Method, frame: FrameStats, isa: lanes::Isa) -> RenderReport {
         let tex = match method {
             Method::Texture(_) => p.textures().ok(),
             _ => None,
@@ -379,6 +451,7 @@ impl RenderReport {
             patches: p.compact.leaf_count() as u64,
             samples: p.solution.stats.vertices,
             guard_stops: super::stats::GuardReport::of(&p.solution.stats.guard_stops, &p.scene),
+            simd: isa.name(),
         }
     }
 
@@ -417,8 +490,9 @@ pub(crate) fn check_extension(option: &str, path: &Path, ext: &str, what: &str) 
 /// Where output goes when the user names no file: `out/<scene stem>-<method>.png`, with every
 /// option given that changes the pixels of this method appended (`-640x480`, `-aa4`, `-t64` or
 /// `-b2097152` for the texture size or budget, `-bc0,0.5`, `-corner`, `-plain`, `-sharp0`), so
-/// renders of one scene with different options do not overwrite each other. Renderers, regions
-/// and threads change no pixel and no name.
+/// renders of one scene with different options do not overwrite each other; `-ev1.5` or
+/// `-autoexp` for the exposure, and `-D` with a 6-digit digest of the `-D` and `--camera`
+/// overrides. Renderers, regions and threads change no pixel and no name.
 pub(crate) fn default_png_path(
     req: &RenderRequest,
     method: Method,
@@ -459,16 +533,43 @@ pub(crate) fn default_png_path(
             name += &format!("-sharp{s}");
         }
     }
+    if let Some(e) = req.exposure.filter(|_| !req.auto_exposure) {
+        name += &format!("-ev{e}");
+    }
+    if req.auto_exposure {
+        name += "-autoexp";
+    }
+    if !req.load.overrides.is_empty() {
+        // The overrides (camera, image, settings) as a short digest: FNV-1a of their text.
+        let text: Vec<String> = req
+            .load
+            .overrides
+            .iter()
+            .map(|(k, v)| format!("{k}={v}"))
+            .collect();
+        let h = text
+            .join("\n")
+            .bytes()
+            .fold(0xcbf2_9ce4_8422_2325u64, |h, b| {
+                (h ^ b as u64).wrapping_mul(0x0100_0000_01b3)
+            });
+        name += &format!("-D{:06x}", h & 0xff_ffff);
+    }
     PathBuf::from("out").join(name + ".png")
 }
 
-/// The frame file name of walkthrough frame `k`: `<png stem>-NNNN.png` beside `png`.
+/// The frame file name of walkthrough frame `k`: `<stem>-NNNN.<ext>` beside `png` (the
+/// format of the name given).
 pub(crate) fn walkthrough_frame_path(png: &Path, k: u32) -> PathBuf {
     let stem = png
         .file_stem()
         .map(|s| s.to_string_lossy().into_owned())
         .unwrap_or_else(|| "frame".into());
-    png.with_file_name(format!("{stem}-{k:04}.png"))
+    let ext = png
+        .extension()
+        .map(|e| e.to_string_lossy().into_owned())
+        .unwrap_or_else(|| "png".into());
+    png.with_file_name(format!("{stem}-{k:04}.{ext}"))
 }
 
 #[cfg(test)]

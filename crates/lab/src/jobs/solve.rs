@@ -9,12 +9,31 @@ use base::error::Result;
 use radiosity::{self, file as solution_file, Solution, SolveOptions};
 use reconstruction::compact::CompactReconstruction;
 use reconstruction::Estimator;
-use scene::load_scene;
+use scene::{load_scene_with, LoadOptions};
 
 /// Solves `scene_path` and writes the solution to `out`. A solve over the memory limit
 /// ([`super::budget`]) is refused before it starts or stopped when it would pass it.
 pub fn solve_to_file(ctx: &Context<'_>, scene_path: &Path, out: &Path) -> Result<Solution> {
-    let scene = load_scene(scene_path)?;
+    solve_scene_to_file(ctx, scene_path, out, &LoadOptions::default(), &mut |_| {})
+}
+
+/// [`solve_to_file`] with the command line's scene options, every warning of the scene (and the
+/// line counting its notes) passed to `on_warning` before the solve starts, as a line starting
+/// `warning: ` or `note: `.
+pub fn solve_scene_to_file(
+    ctx: &Context<'_>,
+    scene_path: &Path,
+    out: &Path,
+    opts: &LoadOptions,
+    on_warning: &mut dyn FnMut(&str),
+) -> Result<Solution> {
+    let scene = load_scene_with(scene_path, opts)?;
+    for w in &scene.warnings {
+        on_warning(&format!("warning: {w}"));
+    }
+    if let Some(n) = super::notes_line(&scene) {
+        on_warning(&format!("note: {n}"));
+    }
     base::output::check_outputs(&scene.inputs, &[("-o", out)])?;
     let limit = ctx.memory_limit;
     super::budget::check_solve(&scene, limit)?;

@@ -139,10 +139,11 @@ fn every_shipped_scene_has_a_golden_test() {
     assert_eq!(stems, SCENES);
 }
 
-const SCENES: [&str; 6] = [
+const SCENES: [&str; 7] = [
     "building",
     "cornell-box",
     "gallery",
+    "studio",
     "two-spots",
     "two-spots-narrow",
     "two-spots-paper",
@@ -178,6 +179,13 @@ fn golden_cornell_box() {
 #[test]
 fn golden_gallery() {
     check_scene("gallery");
+}
+
+/// The tutorial's model: an OBJ as a modelling tool writes it (concave n-gon floor and
+/// ceiling, triangulated at load) included by a scene file.
+#[test]
+fn golden_studio() {
+    check_scene("studio");
 }
 
 #[test]

@@ -68,6 +68,7 @@ mod frame_context;
 mod golden;
 mod mesh;
 mod metric;
+mod models;
 mod mutations;
 mod physics;
 mod plan;

@@ -195,14 +195,16 @@ fn cornell_box_loads_with_its_quirks() {
         .filter(|p| p.shape == Shape::Triangle)
         .count();
     assert_eq!(tris, 2);
-    assert_eq!(s.warnings.len(), 3);
-    let w = &s.warnings[0];
+    // The shipped OBJ's repairs are notes (they change nothing the image shows); no warning.
+    assert!(s.warnings.is_empty(), "{:?}", s.warnings);
+    assert_eq!(s.notes.len(), 3);
+    let w = &s.notes[0];
     assert!(
         w.contains("CornellBox-Original.obj:62") && w.contains("leftWall"),
         "{w}"
     );
     assert!(w.contains("0.176%"), "{w}");
-    for (w, line, first) in [(&s.warnings[1], 107, 93), (&s.warnings[2], 155, 148)] {
+    for (w, line, first) in [(&s.notes[1], 107, 93), (&s.notes[2], 155, 148)] {
         assert!(
             w.contains(&format!("CornellBox-Original.obj:{line}"))
                 && w.contains("repeats the one at")
@@ -254,12 +256,12 @@ fn repeated_polygons_are_counted_once_and_overlaps_named() {
     let text = format!("{BASE}\n{copy}");
     let s = parse_scene(&text, Path::new("test.toml")).unwrap();
     assert_eq!(s.polygons.len(), 2);
-    assert_eq!(s.warnings.len(), 1, "{:?}", s.warnings);
+    assert_eq!(s.notes.len(), 1, "{:?}", s.notes);
     let (copy_line, first_line) = (
         line_of(&text, "[[1, 1, 0], [0, 1, 0]"),
         line_of(&text, "[[0, 0, 0], [1, 0, 0]"),
     );
-    let w = &s.warnings[0];
+    let w = &s.notes[0];
     assert!(
         w.starts_with(&format!(
             "test.toml:{copy_line}: polygons[2].vertices: this polygon repeats"
@@ -318,8 +320,8 @@ fn non_planar_quad_is_split_with_a_warning() {
     assert_eq!(s.polygons[1].shape, Shape::Triangle);
     // The two triangles keep the original corners and together cover the original quad.
     assert_eq!(s.polygons[0].corners[2], DVec3::new(1.0, 1.0, 0.1));
-    assert_eq!(s.warnings.len(), 1);
-    let w = &s.warnings[0];
+    assert_eq!(s.notes.len(), 1);
+    let w = &s.notes[0];
     let line = line_of(&text, "[1, 1, 0.1]");
     assert!(
         w.starts_with(&format!(
@@ -436,20 +438,52 @@ fn degenerate_polygons_are_refused() {
     );
 }
 
+/// Total area of the polygons of `s` made of material `material`.
+fn area_of_material(s: &Scene, material: u32) -> f64 {
+    s.polygons
+        .iter()
+        .filter(|p| p.material == material)
+        .map(|p| 0.5 * scene::newell_normal(p.vertices()).length())
+        .sum()
+}
+
 #[test]
-fn concave_and_self_intersecting_quads_are_refused() {
-    // Corner 2 pulled inside the triangle of the others: a dart.
+fn concave_quads_and_collinear_corners_are_triangulated_with_a_note() {
+    // Corner 2 pulled inside the triangle of the others: a dart, cut into two triangles.
     let text = edit("[1, 1, 0], [0, 1, 0]]", "[0.3, 0.3, 0], [0, 1, 0]]");
-    assert_error(&text, "[0.3, 0.3, 0]", &["polygons[0]", "concave"]);
-    // A bow tie.
+    let s = parse_scene(&text, Path::new("test.toml")).unwrap();
+    check_invariants(&s);
+    let white = s.polygons.iter().filter(|p| p.material == 0).count();
+    assert_eq!(white, 2);
+    // Shoelace: (0,0) (1,0) (0.3,0.3) (0,1) -> 0.5 * (0.3 + 0.3) = 0.3.
+    assert!((area_of_material(&s, 0) - 0.3).abs() < 1e-12);
+    let line = line_of(&text, "[0.3, 0.3, 0]");
+    let note = format!("test.toml:{line}: polygons[0].vertices: 4-corner face is concave");
+    assert!(
+        s.notes
+            .iter()
+            .any(|w| w.starts_with(&note) && w.contains("ear clipping")),
+        "{:?}",
+        s.notes
+    );
+    // Three collinear corners (a triangle written as a quad): cut into triangles covering it.
+    let text = edit("[1, 1, 0], [0, 1, 0]]", "[2, 0, 0], [0, 1, 0]]");
+    let s = parse_scene(&text, Path::new("test.toml")).unwrap();
+    check_invariants(&s);
+    assert!(s.polygons.iter().filter(|p| p.material == 0).count() <= 2);
+    assert!((area_of_material(&s, 0) - 1.0).abs() < 1e-12);
+}
+
+#[test]
+fn self_intersecting_quads_are_refused() {
+    // A bow tie: its signed areas cancel, zero net area.
     let text = edit("[1, 1, 0], [0, 1, 0]]", "[0, 1, 0], [1, 1, 0]]");
-    // Its signed areas cancel: zero net area.
     assert_error(
         &text,
         "[0, 1, 0], [1, 1, 0]]",
         &["polygons[0]", "crosses itself"],
     );
-    // A bow tie with unequal lobes has a net area and fails the convexity test.
+    // A bow tie with unequal lobes has a net area but crosses itself: no triangulation.
     let text = edit(
         "[1, 0, 0], [1, 1, 0], [0, 1, 0]]",
         "[2, 0, 0], [0, 1, 0], [1, 1, 0]]",
@@ -457,11 +491,8 @@ fn concave_and_self_intersecting_quads_are_refused() {
     assert_error(
         &text,
         "[2, 0, 0], [0, 1, 0]",
-        &["polygons[0]", "self-intersecting"],
+        &["polygons[0]", "crosses itself"],
     );
-    // Three collinear corners (a triangle written as a quad).
-    let text = edit("[1, 1, 0], [0, 1, 0]]", "[2, 0, 0], [0, 1, 0]]");
-    assert_error(&text, "[2, 0, 0]", &["polygons[0]", "collinear"]);
 }
 
 #[test]
@@ -751,7 +782,8 @@ const MTL: &str = "newmtl lamp\nKd 0.5 0.5 0.5\nKe 2 2 2\n\nnewmtl grey\nKd 0.25
 #[test]
 fn obj_faces_are_validated_with_their_line() {
     let dir = scratch("obj-bad");
-    let obj = "mtllib m.mtl\nv 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 0.3 0.3 0\ng a\nusemtl lamp\nf 1 2 3 4\nf 1 2 5 4\n";
+    // Face 2 is a bow tie: it crosses itself.
+    let obj = "mtllib m.mtl\nv 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 0.3 0.3 0\ng a\nusemtl lamp\nf 1 2 3 4\nf 1 2 4 3\n";
     let scene = write_obj(&dir, obj, MTL);
     let e = load_scene(&scene).unwrap_err();
     let msg = e.to_string();
@@ -760,7 +792,7 @@ fn obj_faces_are_validated_with_their_line() {
         dir.join("m.obj").display()
     );
     assert!(msg.starts_with(&expect), "{msg}");
-    assert!(msg.contains("concave"), "{msg}");
+    assert!(msg.contains("crosses itself"), "{msg}");
     assert_eq!(e.exit_code(), EXIT_BAD_INPUT);
 }
 
@@ -854,6 +886,7 @@ fn many_includes_of_one_obj_are_named_in_linear_time() {
     assert_linear_time(t);
     // The same triangle 8000 times is one surface, and each repeat is named.
     assert_eq!(s.polygons.len(), 1);
+    // Each repeat has another material (`m/lamp#k`): a warning, not a note.
     assert_eq!(s.warnings.len(), n - 1);
     let names: Vec<&str> = s.materials.iter().map(|m| m.name.as_str()).collect();
     assert_eq!(names[..4], ["grey", "lamp", "m/lamp", "m/lamp#2"]);
@@ -965,9 +998,29 @@ fn obj_material_values_are_checked() {
     let dir = scratch("obj-kd");
     let obj = "mtllib m.mtl\nv 0 0 0\nv 1 0 0\nv 1 1 0\ng a\nusemtl lamp\nf 1 2 3\n";
     let scene = write_obj(&dir, obj, "newmtl lamp\nKd 1.0 0.5 0.5\nKe 1 1 1\n");
-    let msg = load_scene(&scene).unwrap_err().to_string();
-    // A value's problem is the MTL file's, at its line (regression: it used to name the OBJ).
+    // `Kd 1` (what modelling tools write for white) is clamped with a warning at its line...
     let mtl = dir.join("m.mtl").display().to_string();
+    let s = load_scene(&scene).unwrap();
+    assert_eq!(
+        s.materials[1].reflectance,
+        DVec3::new(scene::MAX_OBJ_REFLECTANCE, 0.5, 0.5)
+    );
+    assert!(
+        s.warnings.iter().any(
+            |w| w.starts_with(&format!("{mtl}:2: material `lamp` Kd")) && w.contains("clamped")
+        ),
+        "{:?}",
+        s.warnings
+    );
+    // ... and refused under --strict. A value's problem is the MTL file's, at its line
+    // (regression: it used to name the OBJ).
+    let strict = scene::LoadOptions {
+        strict: true,
+        ..Default::default()
+    };
+    let msg = scene::load_scene_with(&scene, &strict)
+        .unwrap_err()
+        .to_string();
     assert!(
         msg.starts_with(&format!("{mtl}:2: material `lamp` Kd"))
             && msg.contains("component 0 is 1"),
@@ -999,13 +1052,25 @@ fn obj_material_values_are_checked() {
         "file = \"m.obj\"\ndefault_material = \"grey\"",
     );
     std::fs::write(&scene, &text).unwrap();
-    let msg = load_scene(&scene).unwrap_err().to_string();
+    // With a default material, the faces take it, said at the `usemtl` line (never silently).
+    // (A second face, of the MTL's lamp, lights the scene.)
+    std::fs::write(
+        dir.join("m.obj"),
+        "mtllib m.mtl\nv 0 0 0\nv 1 0 0\nv 1 1 0\ng a\nusemtl lmap\nf 1 2 3\nusemtl lamp\nf 1 3 2\n",
+    )
+    .unwrap();
+    let s = load_scene(&scene).unwrap();
     let obj_path = dir.join("m.obj").display().to_string();
     assert!(
-        msg.starts_with(&format!("{obj_path}:6: usemtl `lmap`"))
-            && msg.contains("no MTL file of this OBJ defines it"),
-        "{msg}"
+        s.warnings
+            .iter()
+            .any(|w| w.starts_with(&format!("{obj_path}:6: usemtl `lmap`"))
+                && w.contains("no MTL file of this OBJ defines it")
+                && w.contains("default material `grey`")),
+        "{:?}",
+        s.warnings
     );
+    assert_eq!(s.materials[s.polygons[0].material as usize].name, "grey");
     // No usemtl and no default_material.
     let scene = write_obj(&dir, "v 0 0 0\nv 1 0 0\nv 1 1 0\nf 1 2 3\n", MTL);
     let msg = load_scene(&scene).unwrap_err().to_string();

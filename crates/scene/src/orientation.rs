@@ -1,0 +1,295 @@
+//! Orientation checks: warnings for the scenes that render black without any error.
+//!
+//! Polygons are one-sided: light leaves and arrives on the side the normal points to (the
+//! corners turn counter-clockwise seen from there); a surface seen from behind shows its front's
+//! light, black when the front is unlit. A model whose winding is reversed (a modelling tool's cube has outward normals, so a
+//! room built from one faces away from everything inside it), a camera behind a wall or inside a
+//! closed object, or a lamp turned upside down is a valid scene that renders a black image. These
+//! checks cast a few thousand rays through the scene's [`Bvh`] and count which side of the first
+//! polygon hit faces the ray's origin:
+//! - from the camera, a grid over the image: the share of the image that shows back sides;
+//! - from the eye, a sphere of directions: whether the camera is enclosed by back sides;
+//! - from the lights (emitting polygons over their front hemisphere, spot lights over their
+//!   cone): the share of their light that lands on back sides, and emitters whose light all
+//!   escapes while their back faces the model.
+//!
+//! Deterministic (fixed direction sets, no random numbers) and cheap: at most
+//! [`MAX_CHECKED_LIGHTS`] lights are sampled, so the cost is a BVH build and about 10^4 rays for
+//! any scene. The thresholds are set well above what a correct scene shows (a Cornell box seen
+//! from its open side: no back side in view) and below what a flipped one does (all of it).
+
+use crate::bvh::Bvh;
+use crate::{Projection, Scene};
+use glam::DVec3;
+use std::collections::BTreeMap;
+
+/// Image rays per side of the camera check's grid.
+const CAMERA_GRID: usize = 48;
+
+/// Directions of the eye's enclosure check and of each light.
+const SPHERE_RAYS: usize = 256;
+
+/// Most lights (emitting polygons and spot lights) whose rays are cast.
+pub const MAX_CHECKED_LIGHTS: usize = 64;
+
+/// Share of the image showing back sides from which the camera check warns.
+pub const BACK_IN_VIEW_WARN: f64 = 0.2;
+
+/// Share of a light's hits landing on back sides from which the light check warns.
+pub const BACK_LIT_WARN: f64 = 0.5;
+
+/// What a bundle of rays met: hits on front sides, on back sides (by object), and misses.
+#[derive(Debug, Default, Clone)]
+pub struct Facing {
+    /// Rays whose first hit shows its front side to the origin.
+    pub front: usize,
+    /// Rays whose first hit shows its back side, per object index.
+    pub back: BTreeMap<u32, usize>,
+    /// Rays that hit nothing.
+    pub missed: usize,
+}
+
+impl Facing {
+    /// Rays that hit a back side.
+    pub fn back_count(&self) -> usize {
+        self.back.values().sum()
+    }
+
+    /// Rays that hit anything.
+    pub fn hits(&self) -> usize {
+        self.front + self.back_count()
+    }
+
+    /// Share of all rays that hit a back side.
+    pub fn back_share(&self) -> f64 {
+        ratio(self.back_count(), self.hits() + self.missed)
+    }
+
+    /// Share of the hits that are back sides.
+    pub fn back_share_of_hits(&self) -> f64 {
+        ratio(self.back_count(), self.hits())
+    }
+
+    /// The object whose back side most rays hit (ties: the smaller index).
+    pub fn worst_object(&self) -> Option<u32> {
+        let mut v: Vec<(u32, usize)> = self.back.iter().map(|(&o, &n)| (o, n)).collect();
+        v.sort_by(|a, b| b.1.cmp(&a.1).then(a.0.cmp(&b.0)));
+        v.first().map(|&(o, _)| o)
+    }
+
+    fn add(&mut self, o: &Facing) {
+        self.front += o.front;
+        self.missed += o.missed;
+        for (&k, &n) in &o.back {
+            *self.back.entry(k).or_default() += n;
+        }
+    }
+}
+
+fn ratio(a: usize, b: usize) -> f64 {
+    if b == 0 {
+        0.0
+    } else {
+        a as f64 / b as f64
+    }
+}
+
+/// Casts rays from `origin` along `dirs` (unit) and sorts the first hits by side; `reach` is a
+/// length beyond the scene, `skip` a polygon not to hit (the emitter itself).
+fn cast(scene: &Scene, bvh: &Bvh, origin: DVec3, dirs: &[DVec3], reach: f64, skip: u32) -> Facing {
+    let mut f = Facing::default();
+    for &d in dirs {
+        match bvh.first_hit(origin, d * reach, skip) {
+            None => f.missed += 1,
+            Some((i, _)) => {
+                let p = &scene.polygons[i as usize];
+                if p.normal.dot(d) < 0.0 {
+                    f.front += 1;
+                } else {
+                    *f.back.entry(p.object).or_default() += 1;
+                }
+            }
+        }
+    }
+    f
+}
+
+/// [`cast`] with a BVH built for the purpose, from `origin` along `dirs`.
+pub(crate) fn cast_all(scene: &Scene, origin: DVec3, dirs: &[DVec3], reach: f64) -> Facing {
+    let bvh = Bvh::build(&scene.polygons);
+    cast(scene, &bvh, origin, dirs, reach, u32::MAX)
+}
+
+/// `n` directions spread evenly over the unit sphere (a Fibonacci lattice).
+pub fn sphere_directions(n: usize) -> Vec<DVec3> {
+    let golden = std::f64::consts::PI * (3.0 - 5f64.sqrt());
+    (0..n)
+        .map(|k| {
+            let z = 1.0 - (2 * k + 1) as f64 / n as f64;
+            let r = (1.0 - z * z).max(0.0).sqrt();
+            let a = golden * k as f64;
+            DVec3::new(r * a.cos(), r * a.sin(), z)
+        })
+        .collect()
+}
+
+/// The directions of the sphere lattice within `half_angle` of the unit axis `axis`.
+fn cone_directions(axis: DVec3, half_angle: f64) -> Vec<DVec3> {
+    let c = half_angle.cos();
+    sphere_directions(4 * SPHERE_RAYS)
+        .into_iter()
+        .filter(|d| d.dot(axis) > c.max(1e-3))
+        .collect()
+}
+
+/// The camera rays of a `CAMERA_GRID`-wide grid over the scene's image: (origin, direction).
+fn camera_rays(scene: &Scene) -> Vec<(DVec3, DVec3)> {
+    let c = &scene.camera;
+    let forward = (c.look_at - c.eye).normalize();
+    let right = forward.cross(c.up).normalize();
+    let up = right.cross(forward);
+    let aspect = scene.width as f64 / scene.height as f64;
+    let (nx, ny) = (
+        CAMERA_GRID,
+        (CAMERA_GRID as f64 / aspect).ceil().max(1.0) as usize,
+    );
+    let mut rays = Vec::with_capacity(nx * ny);
+    for j in 0..ny {
+        for i in 0..nx {
+            let sx = 2.0 * (i as f64 + 0.5) / nx as f64 - 1.0;
+            let sy = 1.0 - 2.0 * (j as f64 + 0.5) / ny as f64;
+            rays.push(match c.projection {
+                Projection::Perspective { fov_y_deg } => {
+                    let t = (0.5 * fov_y_deg.to_radians()).tan();
+                    let d = forward + right * (sx * t * aspect) + up * (sy * t);
+                    (c.eye, d.normalize())
+                }
+                Projection::Orthographic { width, height } => {
+                    let o = c.eye + right * (0.5 * sx * width) + up * (0.5 * sy * height);
+                    (o, forward)
+                }
+            });
+        }
+    }
+    rays
+}
+
+/// The orientation warnings of `scene` (see the module docs), in a fixed order.
+pub fn warnings(scene: &Scene) -> Vec<String> {
+    if scene.polygons.is_empty() {
+        return Vec::new();
+    }
+    let bvh = Bvh::build(&scene.polygons);
+    let (lo, hi) = scene.bounds();
+    let (lo, hi) = (lo.min(scene.camera.eye), hi.max(scene.camera.eye));
+    let reach = 4.0 * (hi - lo).length().max(1e-9);
+    let mut out = Vec::new();
+    let object = |o: Option<u32>| {
+        o.and_then(|o| scene.objects.get(o as usize))
+            .map_or(String::new(), |n| format!("; most in object `{n}`"))
+    };
+    let mut view = Facing::default();
+    for (o, d) in camera_rays(scene) {
+        view.add(&cast(scene, &bvh, o, &[d], reach, u32::MAX));
+    }
+    let enclosed = cast(
+        scene,
+        &bvh,
+        scene.camera.eye,
+        &sphere_directions(SPHERE_RAYS),
+        reach,
+        u32::MAX,
+    );
+    if enclosed.missed == 0 && enclosed.back_share_of_hits() >= 0.9 {
+        out.push(format!(
+            "the camera at {} is enclosed by the back sides of faces ({:.0} % of the directions \
+             around it){}: it is inside a closed object, or in a room whose normals point \
+             outward (a modelling tool's cube; flip its normals); the image will be black",
+            scene.camera.eye,
+            100.0 * enclosed.back_share_of_hits(),
+            object(enclosed.worst_object())
+        ));
+    } else if view.back_share() >= BACK_IN_VIEW_WARN {
+        out.push(format!(
+            "{:.0} % of the image shows the back side of faces{}: polygons are one-sided (lit \
+             on the side their corners turn counter-clockwise around), so the camera sees the \
+             light of the other side, black where that side is unlit; flip their normals \
+             (winding), or move the camera out from behind them",
+            100.0 * view.back_share(),
+            object(view.worst_object())
+        ));
+    }
+    out.extend(light_warnings(scene, &bvh, reach));
+    out
+}
+
+/// The lights' part of [`warnings`]: light landing on back sides, emitters facing away.
+fn light_warnings(scene: &Scene, bvh: &Bvh, reach: f64) -> Vec<String> {
+    let emitters: Vec<usize> = (0..scene.polygons.len())
+        .filter(|&i| scene.material_of(i).is_emitter())
+        .collect();
+    let total = emitters.len() + scene.spots.len();
+    let step = total.div_ceil(MAX_CHECKED_LIGHTS).max(1);
+    let sphere = sphere_directions(SPHERE_RAYS);
+    let mut lit = Facing::default();
+    let mut upside_down = Vec::new();
+    for &i in emitters.iter().step_by(step) {
+        let p = &scene.polygons[i];
+        let (c, r) = p.bounding_sphere();
+        let o = c + p.normal * (1e-6 * r.max(1e-9));
+        let front: Vec<DVec3> = sphere
+            .iter()
+            .copied()
+            .filter(|d| d.dot(p.normal) > 0.0)
+            .collect();
+        let back: Vec<DVec3> = sphere
+            .iter()
+            .copied()
+            .filter(|d| d.dot(p.normal) < 0.0)
+            .collect();
+        let f = cast(scene, bvh, o, &front, reach, i as u32);
+        if f.missed == front.len() {
+            let b = cast(
+                scene,
+                bvh,
+                c - p.normal * (1e-6 * r.max(1e-9)),
+                &back,
+                reach,
+                i as u32,
+            );
+            if b.hits() * 2 >= back.len() {
+                upside_down.push(scene.origin(i));
+            }
+        }
+        lit.add(&f);
+    }
+    let first_spot = emitters.len();
+    for (k, s) in scene.spots.iter().enumerate() {
+        if !(first_spot + k).is_multiple_of(step) {
+            continue;
+        }
+        let dirs = cone_directions(s.direction, s.half_angle);
+        lit.add(&cast(scene, bvh, s.position, &dirs, reach, u32::MAX));
+    }
+    let mut out = Vec::new();
+    if lit.hits() > 0 && lit.back_share_of_hits() >= BACK_LIT_WARN {
+        let worst = lit
+            .worst_object()
+            .and_then(|o| scene.objects.get(o as usize))
+            .map_or(String::new(), |n| format!("; most on object `{n}`"));
+        out.push(format!(
+            "{:.0} % of the light that reaches a surface lands on its back side, which reflects \
+             nothing{worst}: a closed room with outward normals (flip them), or lights behind \
+             walls",
+            100.0 * lit.back_share_of_hits()
+        ));
+    }
+    if let Some(first) = upside_down.first() {
+        out.push(format!(
+            "{} emitting polygon(s) send all their light away from the model while their back \
+             faces it (first: {first}): is the lamp upside down (reversed winding)?",
+            upside_down.len()
+        ));
+    }
+    out
+}
