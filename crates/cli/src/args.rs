@@ -546,8 +546,9 @@ pub struct SweepArgs {
     /// Pixels per degree of the perceptual metric.
     #[arg(long, default_value_t = metric::DEFAULT_PPD)]
     pub ppd: f64,
-    /// Write every point as JSON to this file.
-    #[arg(long)]
+    /// Write every point as JSON to this file (`-`: print it on stdout, as `--json` does in
+    /// bench, stats, compare, experiment and export).
+    #[arg(long, value_name = "FILE")]
     pub json: Option<PathBuf>,
     /// Write every point as CSV to this file.
     #[arg(long)]

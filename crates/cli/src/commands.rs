@@ -384,6 +384,10 @@ pub fn sweep(settings: &Settings, args: SweepArgs) -> anyhow::Result<()> {
         for path in hold.commit()? {
             wrote(&path, args.quiet);
         }
+        // `--json -` puts the JSON on stdout instead of the table: one document.
+        if args.json.as_deref() == Some(Path::new("-")) {
+            return Ok(());
+        }
         out(&sweep::table(&report))
     })?
 }
@@ -398,6 +402,7 @@ fn check_sweep_outputs(args: &SweepArgs) -> anyhow::Result<()> {
     let outputs: Vec<(&str, &Path)> = args
         .json
         .as_deref()
+        .filter(|p| *p != Path::new("-"))
         .map(|p| ("--json", p))
         .into_iter()
         .chain(args.csv.as_deref().map(|p| ("--csv", p)))
@@ -421,8 +426,10 @@ fn write_sweep_outputs(
     report: &sweep::SweepReport,
     args: &SweepArgs,
 ) -> anyhow::Result<()> {
-    if let Some(path) = &args.json {
-        files.write_atomic(path, json(report)?.as_bytes())?;
+    match &args.json {
+        Some(path) if path == Path::new("-") => out(&json(report)?)?,
+        Some(path) => files.write_atomic(path, json(report)?.as_bytes())?,
+        None => {}
     }
     if let Some(path) = &args.csv {
         files.write_atomic(path, sweep::csv(report).as_bytes())?;

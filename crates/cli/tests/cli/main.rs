@@ -64,6 +64,7 @@ mod export;
 mod generate;
 mod hard_cases;
 mod interrupt;
+mod models;
 mod results;
 mod simd_build;
 mod sweep;

@@ -1,0 +1,212 @@
+//! A modelling tool's OBJ on the command line: `check`, `render` and `solve` of a bare model,
+//! `--strict`, `-D` and `--camera`, and the warnings and luminance summary that keep a first
+//! render from coming out black or washed out in silence.
+
+use std::path::PathBuf;
+use std::process::Output;
+
+fn run(args: &[&str]) -> Output {
+    crate::bin().args(args).output().expect("the binary runs")
+}
+
+fn text(b: &[u8]) -> String {
+    String::from_utf8_lossy(b).into_owned()
+}
+
+fn scratch(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("pfs-cli-models-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+/// A small, quick render of the shipped studio model.
+const SMALL: [&str; 6] = [
+    "-D",
+    "image.width=80",
+    "-D",
+    "image.height=60",
+    "-D",
+    "radiosity.max_depth=3",
+];
+
+/// A closed box room with outward normals (a modelling tool's cube) and an emitting panel
+/// facing down inside it, as an OBJ with its MTL; `kd` is the walls' `Kd`.
+fn outward_box(dir: &std::path::Path, kd: &str) -> PathBuf {
+    let obj = "mtllib box.mtl\n\
+        v 0 0 0\nv 2 0 0\nv 2 0 2\nv 0 0 2\nv 0 2 0\nv 2 2 0\nv 2 2 2\nv 0 2 2\n\
+        v 0.8 1.9 0.8\nv 1.2 1.9 0.8\nv 1.2 1.9 1.2\nv 0.8 1.9 1.2\n\
+        o Cube\nusemtl wall\n\
+        f 1 2 3 4\nf 8 7 6 5\nf 5 6 2 1\nf 6 7 3 2\nf 3 7 8 4\nf 4 8 5 1\n\
+        o Lamp\nusemtl lamp\nf 9 10 11 12\n";
+    std::fs::write(dir.join("box.obj"), obj).unwrap();
+    std::fs::write(
+        dir.join("box.mtl"),
+        format!("newmtl wall\nKd {kd}\n\nnewmtl lamp\nKd 0.5 0.5 0.5\nKe 4 4 4\n"),
+    )
+    .unwrap();
+    dir.join("box.obj")
+}
+
+#[test]
+fn check_a_bare_model_says_what_it_chose() {
+    let out = run(&["check", "scenes/models/studio.obj"]);
+    assert_eq!(out.status.code(), Some(0), "{}", text(&out.stderr));
+    let e = text(&out.stderr);
+    assert!(
+        e.contains("warning: scenes/models/studio.obj: no camera in a model"),
+        "{e}"
+    );
+    assert!(e.contains("note: ") && e.contains("ear clipping"), "{e}");
+    assert!(!e.contains("back side") && !e.contains("enclosed"), "{e}");
+    assert!(text(&out.stdout).contains("polygons"));
+}
+
+#[test]
+fn render_a_bare_model_exposes_it_and_summarizes_its_luminance() {
+    let dir = scratch("render");
+    let png = dir.join("studio.png");
+    let mut args = vec![
+        "render",
+        "scenes/models/studio.obj",
+        "-o",
+        png.to_str().unwrap(),
+    ];
+    args.extend(SMALL);
+    let out = run(&args);
+    assert_eq!(out.status.code(), Some(0), "{}", text(&out.stderr));
+    let e = text(&out.stderr);
+    let line = e
+        .lines()
+        .find(|l| l.contains("luminance min"))
+        .unwrap_or_else(|| panic!("{e}"));
+    // Auto exposure: the log-average luminance at middle grey leaves little black or clipped.
+    assert!(line.contains("0.0 % of the model black"), "{line}");
+    assert!(
+        !e.contains("washed out") && !e.contains("is black at"),
+        "{e}"
+    );
+    assert_eq!(&std::fs::read(&png).unwrap()[1..4], b"PNG");
+    // A fixed exposure far too high is called washed out.
+    let mut args = vec![
+        "render",
+        "scenes/models/studio.obj",
+        "-o",
+        png.to_str().unwrap(),
+        "--exposure",
+        "8",
+    ];
+    args.extend(SMALL);
+    let e = text(&run(&args).stderr);
+    assert!(
+        e.contains("washed out") && e.contains("--auto-exposure"),
+        "{e}"
+    );
+}
+
+#[test]
+fn an_outward_room_is_warned_about_before_it_renders_black() {
+    let dir = scratch("outward");
+    let obj = outward_box(&dir, "0.7 0.7 0.7");
+    let png = dir.join("box.png");
+    let out = run(&[
+        "render",
+        obj.to_str().unwrap(),
+        "-o",
+        png.to_str().unwrap(),
+        "-D",
+        "image.width=64",
+        "-D",
+        "image.height=48",
+    ]);
+    assert_eq!(out.status.code(), Some(0), "{}", text(&out.stderr));
+    let e = text(&out.stderr);
+    assert!(e.contains("enclosed by the back sides of faces"), "{e}");
+    assert!(e.contains("lands on its back side"), "{e}");
+}
+
+#[test]
+fn kd_of_one_is_clamped_or_refused_under_strict() {
+    let dir = scratch("kd");
+    let obj = outward_box(&dir, "1 1 1");
+    let mtl = dir.join("box.mtl");
+    let out = run(&["check", obj.to_str().unwrap()]);
+    assert_eq!(out.status.code(), Some(0), "{}", text(&out.stderr));
+    let e = text(&out.stderr);
+    assert!(
+        e.contains(&format!("{}:2: material `wall` Kd", mtl.display()))
+            && e.contains("clamped to [0.95, 0.95, 0.95]"),
+        "{e}"
+    );
+    let out = run(&["check", obj.to_str().unwrap(), "--strict"]);
+    assert_eq!(out.status.code(), Some(2), "{}", text(&out.stderr));
+    assert!(text(&out.stderr).contains(&format!("{}:2:", mtl.display())));
+}
+
+#[test]
+fn overrides_set_the_camera_and_bad_ones_exit_2_naming_them() {
+    let dir = scratch("overrides");
+    let png = dir.join("o.png");
+    // Outside the studio's west wall (x = 0), looking in: the back of that wall fills the view.
+    let mut args = vec![
+        "render",
+        "scenes/models/studio.obj",
+        "-o",
+        png.to_str().unwrap(),
+        "--camera",
+        "-1,1.4,2.5,2,1.4,2.5",
+    ];
+    args.extend(SMALL);
+    let out = run(&args);
+    assert_eq!(out.status.code(), Some(0), "{}", text(&out.stderr));
+    let e = text(&out.stderr);
+    assert!(!e.contains("no camera in a model"), "{e}");
+    assert!(
+        e.contains("% of the image shows the back side of faces"),
+        "{e}"
+    );
+    for bad in [
+        ["-D", "image.width=0"],
+        ["-D", "camera.zoom=2"],
+        ["-D", "nokey"],
+    ] {
+        let out = run(&["check", "scenes/models/studio.obj", bad[0], bad[1]]);
+        assert_eq!(out.status.code(), Some(2), "{bad:?}: {}", text(&out.stderr));
+        assert!(text(&out.stderr).contains("-D"), "{}", text(&out.stderr));
+    }
+}
+
+#[test]
+fn solve_of_a_model_prints_its_warnings_and_renders_from_the_file() {
+    let dir = scratch("solve");
+    let sol = dir.join("studio.pfsol");
+    let out = run(&[
+        "solve",
+        "scenes/models/studio.obj",
+        "-o",
+        sol.to_str().unwrap(),
+        "-D",
+        "radiosity.max_depth=3",
+        "--quiet",
+    ]);
+    assert_eq!(out.status.code(), Some(0), "{}", text(&out.stderr));
+    assert!(text(&out.stderr).contains("no camera in a model"));
+    // The solution names the OBJ; rendered without the same override its scene differs (the
+    // radiosity settings are hashed), which is refused rather than drawn from the wrong scene.
+    let png = dir.join("s.png");
+    let out = run(&[
+        "render",
+        sol.to_str().unwrap(),
+        "-o",
+        png.to_str().unwrap(),
+        "-D",
+        "radiosity.max_depth=3",
+        "-D",
+        "image.width=64",
+        "-D",
+        "image.height=48",
+    ]);
+    assert_eq!(out.status.code(), Some(0), "{}", text(&out.stderr));
+    let out = run(&["render", sol.to_str().unwrap(), "-o", png.to_str().unwrap()]);
+    assert_ne!(out.status.code(), Some(0), "{}", text(&out.stderr));
+}
