@@ -166,7 +166,8 @@ pub enum RenderEvent<'a> {
     /// A warning: the scene's (a non-planar quad split, ...), or a frame with no polygon in
     /// view (`empty_view_warning`).
     Warning(&'a str),
-    /// A note: how many repairs of the scene's input changed nothing the image shows.
+    /// A note: how many repairs of the scene's input changed nothing the image shows, or where
+    /// the solve stopped refining with its error test still failing.
     Note(&'a str),
     /// A file was written.
     Wrote(&'a Path),
@@ -261,8 +262,10 @@ pub fn run_render(
         on(RenderEvent::Note(&n));
     }
     let p = prepare(ctx, input, plan.texture_policy, plan.texture_placement)?;
+    // Where the solve stopped refining with its error test failing: a property of the solution
+    // (its `max_depth`), said by `solve` as a warning and here as a note.
     if let Some(w) = p.solution.stats.guard_stops.warning(&p.scene) {
-        on(RenderEvent::Warning(&w));
+        on(RenderEvent::Note(&w));
     }
     let mut exposure = req.exposure.unwrap_or(p.scene.display.exposure);
     // A bare model has no `[display]` to set its exposure in: it is chosen from the image

@@ -119,6 +119,7 @@ impl Eta {
     /// The solve enters `phase` of round `round` at `now`; the phase that ends records what it
     /// measured (a gather its rate, a round's refinement its ratio to the gather).
     pub(super) fn enter(&mut self, phase: Phase, round: u32, now: f64) {
+        if std::env::var_os("ETA_DEBUG").is_some() { eprintln!("ETA enter {:?} {} {:.3} prev {:?} gt {} first {:?} rep {:?} tr {} {}", phase, round, now, self.phase, self.gather_transfers, self.first, self.repeat, self.transfers, self.transfer_secs); }
         let secs = now - self.phase_start;
         match self.phase {
             Phase::Gather if self.gather_transfers > 0.0 => {
@@ -140,6 +141,7 @@ impl Eta {
 
     /// The transfers the coming gather will compute (every vertex times its shooters).
     pub(super) fn set_gather_transfers(&mut self, n: f64) {
+        if std::env::var_os("ETA_DEBUG").is_some() { eprintln!("ETA set_gt {}", n); }
         self.gather_transfers = n;
     }
 
