@@ -210,3 +210,18 @@ fn solve_of_a_model_prints_its_warnings_and_renders_from_the_file() {
     let out = run(&["render", sol.to_str().unwrap(), "-o", png.to_str().unwrap()]);
     assert_ne!(out.status.code(), Some(0), "{}", text(&out.stderr));
 }
+
+#[test]
+fn a_solution_file_named_for_another_format_is_refused() {
+    let dir = scratch("solve-name");
+    let png = dir.join("solution.png");
+    let out = run(&[
+        "solve",
+        "scenes/two-spots.toml",
+        "-o",
+        png.to_str().unwrap(),
+    ]);
+    assert_eq!(out.status.code(), Some(2), "{}", text(&out.stderr));
+    assert!(text(&out.stderr).contains("must end in .pfsol"));
+    assert!(!png.exists());
+}

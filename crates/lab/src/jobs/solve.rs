@@ -28,13 +28,16 @@ pub fn solve_scene_to_file(
     on_warning: &mut dyn FnMut(&str),
 ) -> Result<Solution> {
     let scene = load_scene_with(scene_path, opts)?;
+    base::output::check_outputs(&scene.inputs, &[("-o", out)])?;
+    // A solution file is named for what it is (renders also recognise it by its magic bytes).
+    let what = "a solution file (binary, versioned and checksummed)";
+    super::render::check_extension("-o", out, super::SOLUTION_EXTENSION, what)?;
     for w in &scene.warnings {
         on_warning(&format!("warning: {w}"));
     }
     if let Some(n) = super::notes_line(&scene) {
         on_warning(&format!("note: {n}"));
     }
-    base::output::check_outputs(&scene.inputs, &[("-o", out)])?;
     let limit = ctx.memory_limit;
     super::budget::check_solve(&scene, limit)?;
     let solution = radiosity::solve(

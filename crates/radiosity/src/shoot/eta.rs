@@ -9,10 +9,18 @@
 //! this solve: the shots left to the round's target from the unshot fraction's decay on a log
 //! scale, the gather's transfers (every vertex times the shooters that reach it) at the time per
 //! transfer of the last gather (before the first, of the shots that computed theirs), the
-//! refinement at the ratio of refinement to gather time the last round measured, and the rounds
-//! still expected ([`EXPECTED_ROUNDS`], then [`P_ANOTHER_ROUND`] of one more). The fraction is
-//! done / (done + left); a phase that overruns its estimate is priced at a share of its time so
-//! far ([`OVERRUN`]), so the estimate of seconds left grows instead of sitting at 0 while work
+//! refinement at the ratio of refinement to gather time the last round measured (falling round
+//! by round, [`REFINE_DECAY_FIRST`], [`REFINE_DECAY_LATER`]; before the first round's, from the
+//! direct light's refinement, [`REFINE_FROM_DIRECT`]), and the rounds still expected, each
+//! weighted by the chance it runs. A round's refinement moves the solution as much as it grows
+//! the mesh, so the growth of the gather's transfers by a refinement prices the next gather
+//! (the first round's, estimated from its refinement's time) and says whether the round after
+//! the next is likely ([`p_another`]): on the shipped scenes a round whose refinement grew the
+//! mesh by 40 % or more was followed by two more, one that grew it by 16 % or less by one. The
+//! fraction is done / (done + left), a silent phase (the refinement reports nothing until it
+//! ends) counted half done when it starts, so the bar is as far from the truth at its start as
+//! at its end; a phase that overruns its estimate is priced at a share of its time so far
+//! ([`OVERRUN`]), so the estimate of seconds left grows instead of sitting at 0 while work
 //! remains. The work done is the solve's own clock, so the fraction follows work whatever the
 //! machine's load; the tests drive the model with a synthetic clock.
 
@@ -37,18 +45,40 @@ pub(super) enum Phase {
 /// flat patch shapes, so a second one nearly always follows.
 pub(super) const EXPECTED_ROUNDS: u32 = 2;
 
-/// After the expected rounds, the weight of one more round in the work left (the shipped scenes
-/// run 2 or 3 rounds).
-const P_ANOTHER_ROUND: f64 = 0.3;
-
-/// Refinement seconds per gather second before any round has measured it.
+/// Refinement seconds per gather second when nothing better is known.
 const REFINE_RATIO: f64 = 0.5;
 
-/// The next round's gather over this one's: more vertices after the refinement, and, after the
-/// first round, patch shapes that make a transfer dearer (measured 0.54 to 1.47 s on the Cornell
-/// box, 2.8 to 4.2 s on the gallery; later rounds grow by the refinement's new vertices).
-const GROWTH_AFTER_FIRST: f64 = 1.5;
+/// The first round's refinement over the direct light's (measured 2.5 on the Cornell box, 4.5 on
+/// the gallery).
+const REFINE_FROM_DIRECT: f64 = 3.5;
+
+/// A round's refinement-to-gather ratio over the previous round's: into round 2 (measured 0.66
+/// on the Cornell box, 0.57 on the gallery) and after (0.64, 0.74 on gallery-fine).
+const REFINE_DECAY_FIRST: f64 = 0.5;
+const REFINE_DECAY_LATER: f64 = 0.7;
+
+/// Round 2's seconds per transfer over round 1's (flat shapes), per unit of growth of the
+/// transfers by round 1's refinement (1.55 at a growth of 0.69 on the Cornell box, 1.02 at 0.16
+/// on the gallery).
+const SHAPED_RATE_PER_GROWTH: f64 = 0.8;
+
+/// The first refinement's growth of the transfers per unit of its refinement-to-gather ratio
+/// (0.69 at 1.13 on the Cornell box, 0.16 at 0.35 on the gallery).
+const GROWTH_PER_REFINE_RATIO: f64 = 0.5;
+
+/// A later refinement's growth over the previous one's (0.14 after 0.69 on the Cornell box).
+const GROWTH_DECAY: f64 = 0.2;
+
+/// A gather after round 2's over the previous one (1.3 on the Cornell box, 1.18 on
+/// gallery-fine).
 const GROWTH_LATER: f64 = 1.2;
+
+/// The chance that another round follows round `r`, from the growth `g` of the transfers by
+/// round `r - 1`'s refinement: a refinement that moved the mesh much moved the light, and the
+/// next gather then finds unshot light above the threshold or changed shapes.
+fn p_another(g: f64) -> f64 {
+    ((g - 0.15) / 0.2).clamp(0.15, 0.85)
+}
 
 /// A phase past its estimate is priced at this share of its time so far (so the seconds left
 /// grow with the overrun and never reach 0).
@@ -87,8 +117,16 @@ pub(super) struct Eta {
     /// The last gather: seconds per transfer and seconds.
     gather_rate: Option<f64>,
     gather_secs: f64,
-    /// Refinement over gather seconds, from the last round that measured both.
+    /// Refinement over gather seconds, from the last round that measured both, and that round.
     refine_ratio: Option<f64>,
+    refine_round: u32,
+    /// The round of the last gather, and its transfers.
+    gather_round: u32,
+    last_gather_transfers: f64,
+    /// Seconds of the direct light's refinement (round 0).
+    refine0: Option<f64>,
+    /// Growth of the gather's transfers by the refinement of round 1 and of round 2.
+    growth: [Option<f64>; 2],
 }
 
 impl Eta {
@@ -113,21 +151,29 @@ impl Eta {
             gather_rate: None,
             gather_secs: 0.0,
             refine_ratio: None,
+            refine_round: 0,
+            gather_round: 0,
+            last_gather_transfers: 0.0,
+            refine0: None,
+            growth: [None; 2],
         }
     }
 
     /// The solve enters `phase` of round `round` at `now`; the phase that ends records what it
     /// measured (a gather its rate, a round's refinement its ratio to the gather).
     pub(super) fn enter(&mut self, phase: Phase, round: u32, now: f64) {
-        if std::env::var_os("ETA_DEBUG").is_some() { eprintln!("ETA enter {:?} {} {:.3} prev {:?} gt {} first {:?} rep {:?} tr {} {}", phase, round, now, self.phase, self.gather_transfers, self.first, self.repeat, self.transfers, self.transfer_secs); }
         let secs = now - self.phase_start;
         match self.phase {
             Phase::Gather if self.gather_transfers > 0.0 => {
                 self.gather_rate = Some(secs / self.gather_transfers);
                 self.gather_secs = secs;
+                self.gather_round = self.round;
+                self.last_gather_transfers = self.gather_transfers;
             }
-            Phase::Refine if self.round > 0 && self.gather_secs > 0.0 => {
+            Phase::Refine if self.round == 0 => self.refine0 = Some(secs),
+            Phase::Refine if self.gather_secs > 0.0 => {
                 self.refine_ratio = Some(secs / self.gather_secs);
+                self.refine_round = self.round;
             }
             _ => {}
         }
@@ -140,9 +186,17 @@ impl Eta {
     }
 
     /// The transfers the coming gather will compute (every vertex times its shooters).
+    /// At the start of a round's shooting they tell how much the last refinement grew the mesh.
     pub(super) fn set_gather_transfers(&mut self, n: f64) {
-        if std::env::var_os("ETA_DEBUG").is_some() { eprintln!("ETA set_gt {}", n); }
         self.gather_transfers = n;
+        let r = self.round as usize;
+        if self.phase == Phase::Shooting
+            && (2..=3).contains(&r)
+            && self.gather_round + 1 == self.round
+            && self.last_gather_transfers > 0.0
+        {
+            self.growth[r - 2] = Some((n / self.last_gather_transfers - 1.0).max(0.0));
+        }
     }
 
     /// `n` transfers were computed in `secs` (by a shot).
@@ -214,7 +268,13 @@ impl Eta {
         // A round's shooting learns the gather's transfers at its first report.
         let counted = self.phase != Phase::Shooting || !self.recent.is_empty();
         if self.round > 0 && counted {
-            stage.advance(now / (now + left));
+            // The refinement reports nothing until it ends: counted half done now, the bar
+            // is as far ahead at its start as it is behind at its end.
+            let credit = match self.phase {
+                Phase::Refine => 0.5 * self.refine_left(now).min(left),
+                _ => 0.0,
+            };
+            stage.advance((now + credit) / (now + left));
         }
         let phase = match self.phase {
             // Every label starts with its round ("round 0" is the direct light's).
@@ -229,11 +289,9 @@ impl Eta {
 
     /// Estimated seconds left of the whole solve at `now`, if any rate is known.
     pub(super) fn left(&self, now: f64) -> Option<f64> {
-        let per = self
-            .gather_rate
-            .or_else(|| (self.transfers > 0).then(|| self.transfer_secs / self.transfers as f64))?;
-        let gather = self.gather_transfers * per;
-        let refine = self.refine_ratio.unwrap_or(REFINE_RATIO) * gather;
+        let gather = self.gather_estimate()?;
+        let ratio = self.refine_ratio_now(gather);
+        let refine = ratio * gather;
         let spent = now - self.phase_start;
         let overrun = |est: f64| est.max(OVERRUN * spent);
         let this_round = match self.phase {
@@ -250,30 +308,93 @@ impl Eta {
             }
             Phase::Refine => overrun(refine - spent),
         };
-        Some(this_round + self.later_rounds(gather + refine))
+        Some(this_round + self.later_rounds(gather, ratio))
     }
 
-    /// Seconds of the rounds expected after this one, a round of `unit` seconds (gather and
-    /// refinement at today's vertices) growing by [`GROWTH_AFTER_FIRST`] into round 2 and by
-    /// [`GROWTH_LATER`] after; rounds up to [`EXPECTED_ROUNDS`] count whole, one more at
-    /// [`P_ANOTHER_ROUND`].
-    fn later_rounds(&self, unit: f64) -> f64 {
-        let mut cost = unit;
-        let mut sum = 0.0;
-        let extra = self.round.max(EXPECTED_ROUNDS) + 1;
-        for r in self.round + 1..=super::MAX_ROUNDS {
-            if r >= 2 {
-                cost *= if r == 2 {
-                    GROWTH_AFTER_FIRST
+    /// Seconds of the refinement left at `now` (0 outside one), as [`Self::left`] prices it.
+    fn refine_left(&self, now: f64) -> f64 {
+        let Some(gather) = self.gather_estimate() else {
+            return 0.0;
+        };
+        let refine = self.refine_ratio_now(gather) * gather;
+        let spent = now - self.phase_start;
+        (refine - spent).max(OVERRUN * spent)
+    }
+
+    /// Seconds of this round's gather (the one that ran, in the refinement): its transfers at
+    /// the last gather's time per transfer (before the first, at the shots'), round 2's dearer
+    /// than round 1's by its shapes ([`SHAPED_RATE_PER_GROWTH`]).
+    fn gather_estimate(&self) -> Option<f64> {
+        let per = self
+            .gather_rate
+            .or_else(|| (self.transfers > 0).then(|| self.transfer_secs / self.transfers as f64))?;
+        let shaped = if self.round >= 2 && self.gather_round <= 1 && self.phase != Phase::Refine {
+            1.0 + SHAPED_RATE_PER_GROWTH * self.growth[0].unwrap_or(0.0)
+        } else {
+            1.0
+        };
+        Some(self.gather_transfers * per * shaped)
+    }
+
+    /// Refinement over gather seconds for this round's refinement, `gather` its gather.
+    fn refine_ratio_now(&self, gather: f64) -> f64 {
+        match self.refine_ratio {
+            Some(r) if self.refine_round >= 1 && self.refine_round < self.round => {
+                let decay = if self.round == 2 {
+                    REFINE_DECAY_FIRST
                 } else {
-                    GROWTH_LATER
+                    REFINE_DECAY_LATER
                 };
+                r * decay.powi((self.round - self.refine_round) as i32)
             }
-            if r <= EXPECTED_ROUNDS {
-                sum += cost;
-            } else if r == extra {
-                sum += P_ANOTHER_ROUND * cost;
+            Some(r) if self.refine_round == self.round => r,
+            _ => match self.refine0 {
+                Some(r0) if r0 > 0.0 && gather > 0.0 && self.round <= 1 => {
+                    REFINE_FROM_DIRECT * r0 / gather
+                }
+                _ => REFINE_RATIO,
+            },
+        }
+    }
+
+    /// Seconds of the rounds expected after this one, from this round's `gather` seconds and
+    /// refinement `ratio`: round 2's gather grows with round 1's refinement (its transfers and
+    /// its shapes, [`GROWTH_PER_REFINE_RATIO`], [`SHAPED_RATE_PER_GROWTH`]), later ones by
+    /// [`GROWTH_LATER`]; the refinement ratio falls ([`REFINE_DECAY_FIRST`],
+    /// [`REFINE_DECAY_LATER`]). Rounds up to [`EXPECTED_ROUNDS`] count whole, a later one at the
+    /// chance that it runs ([`p_another`] of the growth by the refinement two rounds before it,
+    /// measured or estimated).
+    fn later_rounds(&self, gather: f64, ratio: f64) -> f64 {
+        // Growth by round 1's refinement: measured, else from its refinement ratio.
+        let g1 = self.growth[0].unwrap_or_else(|| {
+            let ratio1 = if self.round <= 1 {
+                ratio
+            } else {
+                self.refine_ratio.unwrap_or(REFINE_RATIO)
+            };
+            GROWTH_PER_REFINE_RATIO * ratio1
+        });
+        let g2 = self.growth[1].unwrap_or(GROWTH_DECAY * g1);
+        let growth_of = |k: u32| match k {
+            1 => Some(g1),
+            2 => Some(g2),
+            _ => None,
+        };
+        let (mut gather, mut ratio) = (gather, ratio);
+        let (mut weight, mut sum) = (1.0, 0.0);
+        for k in self.round + 1..=super::MAX_ROUNDS {
+            if k == 2 {
+                gather *= (1.0 + g1) * (1.0 + SHAPED_RATE_PER_GROWTH * g1);
+                ratio *= REFINE_DECAY_FIRST;
+            } else {
+                gather *= GROWTH_LATER;
+                ratio *= REFINE_DECAY_LATER;
             }
+            if k > EXPECTED_ROUNDS {
+                let g = growth_of(k - 2).unwrap_or(GROWTH_DECAY * g2);
+                weight *= p_another(g);
+            }
+            sum += weight * gather * (1.0 + ratio);
         }
         sum
     }
