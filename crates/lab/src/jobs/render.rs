@@ -205,23 +205,12 @@ pub fn check_sharp_levels(levels: u32) -> Result<u32> {
     Ok(levels)
 }
 
-/// Runs a render job: load the input, plan and check every option, then prepare once and
-/// render one frame or every walkthrough frame, writing PNG, EXR and statistics.
-pub fn run_render(
-    ctx: &Context<'_>,
-    req: &RenderRequest,
-    on: &mut dyn FnMut(RenderEvent<'_>),
-) -> Result<()> {
-    let mut input = Input::load_opts(&req.input, req.scene.as_deref(), &req.load)?;
-    let plan = RenderPlan::new(ctx, req, &input.scene)?;
-    if let Some(name) = &req.estimator {
-        input.estimator = reconstruction::Estimator::parse_option("--estimator", name)?;
-    }
-    if let Some(levels) = req.sharp_levels {
-        input.sharp_levels = check_sharp_levels(levels)?;
-    }
+/// Checks a render's outputs before any work: none may replace an input, another output or
+/// anything but a regular file; then the formats follow the names (`-o` PNG, EXR, HDR or PFM,
+/// `--exr` EXR), and `--exposure` is in range.
+fn check_render_outputs(req: &RenderRequest, plan: &RenderPlan, scene: &Scene) -> Result<()> {
     // No output may replace an input, another output or anything but a regular file.
-    let mut inputs = input.scene.inputs.clone();
+    let mut inputs = scene.inputs.clone();
     inputs.push(req.input.clone());
     let mut outputs: Vec<(&str, &Path)> = plan
         .frames
@@ -255,6 +244,51 @@ pub fn run_render(
         let what = "an OpenEXR file (linear float); the sRGB image goes to -o";
         check_extension("--exr", e, "exr", what)?;
     }
+    Ok(())
+}
+
+/// Whether the exposure is chosen from the first frame: `--auto-exposure`, or a bare model
+/// (which has no `[display]` to set it in) when neither `--exposure` nor `-D display.exposure`
+/// gives one.
+fn wants_auto_exposure(req: &RenderRequest, scene: &Scene) -> bool {
+    let set_by_d = req
+        .load
+        .overrides
+        .iter()
+        .any(|(k, _)| k == "display.exposure");
+    req.auto_exposure || (req.exposure.is_none() && scene::is_model(&scene.source) && !set_by_d)
+}
+
+/// The luminance summary of a frame shown with `exposure` stops (`stats`: its counters).
+fn luminance_of(
+    view: base::image::ImageView<'_>,
+    stats: &FrameStats,
+    frame: &FrameOptions,
+    scene: &Scene,
+    exposure: f64,
+) -> LuminanceSummary {
+    let samples = frame.width as f64 * frame.height as f64 * frame.aa as f64;
+    let covered = stats.pixels_shaded as f64 / samples.max(1.0);
+    let background = base::image::luminance(scene.display.background.as_vec3());
+    exposure::summarize(view, exposure, covered, background)
+}
+
+/// Runs a render job: load the input, plan and check every option, then prepare once and
+/// render one frame or every walkthrough frame, writing PNG, EXR and statistics.
+pub fn run_render(
+    ctx: &Context<'_>,
+    req: &RenderRequest,
+    on: &mut dyn FnMut(RenderEvent<'_>),
+) -> Result<()> {
+    let mut input = Input::load_opts(&req.input, req.scene.as_deref(), &req.load)?;
+    let plan = RenderPlan::new(ctx, req, &input.scene)?;
+    if let Some(name) = &req.estimator {
+        input.estimator = reconstruction::Estimator::parse_option("--estimator", name)?;
+    }
+    if let Some(levels) = req.sharp_levels {
+        input.sharp_levels = check_sharp_levels(levels)?;
+    }
+    check_render_outputs(req, &plan, &input.scene)?;
     for w in &input.scene.warnings {
         on(RenderEvent::Warning(w));
     }
@@ -268,16 +302,7 @@ pub fn run_render(
         on(RenderEvent::Note(&w));
     }
     let mut exposure = req.exposure.unwrap_or(p.scene.display.exposure);
-    // A bare model has no `[display]` to set its exposure in: it is chosen from the image
-    // unless the command line gives one.
-    let auto_exposure = req.auto_exposure
-        || (req.exposure.is_none()
-            && scene::is_model(&p.scene.source)
-            && !req
-                .load
-                .overrides
-                .iter()
-                .any(|(k, _)| k == "display.exposure"));
+    let auto_exposure = wants_auto_exposure(req, &p.scene);
     let n = plan.frames.len();
     // The walkthrough's own stage, after the solve's: it ends (also on an error) when dropped.
     let mut stage = plan
@@ -322,10 +347,7 @@ pub fn run_render(
         let format = OutputFormat::of(png).unwrap_or(OutputFormat::Png);
         let bytes = format.encode(ctx.view(), exposure)?;
         if k == 0 {
-            let samples = plan.frame.width as f64 * plan.frame.height as f64 * plan.frame.aa as f64;
-            let covered = stats.pixels_shaded as f64 / samples.max(1.0);
-            let background = base::image::luminance(p.scene.display.background.as_vec3());
-            let l = exposure::summarize(ctx.view(), exposure, covered, background);
+            let l = luminance_of(ctx.view(), &stats, &plan.frame, &p.scene, exposure);
             summary_of_first = Some((png.clone(), l));
         }
         if plan.walkthrough {
@@ -353,15 +375,7 @@ pub fn run_render(
         WalkthroughSummary::new(&frames)
     });
     if let Some(path) = &plan.stats {
-        let json = match &summary {
-            Some(summary) => serde_json::to_string_pretty(&WalkthroughReport {
-                summary,
-                frames: &reports,
-            }),
-            None => serde_json::to_string_pretty(&reports[0]),
-        }
-        .map_err(|e| Error::internal(format!("statistics to JSON: {e}")))?;
-        batch.stage(path, json.as_bytes())?;
+        batch.stage(path, stats_json(summary.as_ref(), &reports)?.as_bytes())?;
         staged.push(path);
     }
     batch.commit()?;
@@ -378,6 +392,18 @@ pub fn run_render(
         on(RenderEvent::Walkthrough(summary));
     }
     Ok(())
+}
+
+/// The `--stats` JSON: a walkthrough's summary and frames, or the single frame's report.
+fn stats_json(summary: Option<&WalkthroughSummary>, reports: &[RenderReport]) -> Result<String> {
+    match summary {
+        Some(summary) => serde_json::to_string_pretty(&WalkthroughReport {
+            summary,
+            frames: reports,
+        }),
+        None => serde_json::to_string_pretty(&reports[0]),
+    }
+    .map_err(|e| Error::internal(format!("statistics to JSON: {e}")))
 }
 
 /// The warning of a frame in which no polygon is in view, so every pixel is the background:

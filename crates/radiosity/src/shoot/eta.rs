@@ -17,8 +17,8 @@
 //! (the first round's, estimated from its refinement's time) and says whether the round after
 //! the next is likely ([`p_another`]): on the shipped scenes a round whose refinement grew the
 //! mesh by 40 % or more was followed by two more, one that grew it by 16 % or less by one. The
-//! fraction is done / (done + left), a silent phase (the refinement reports nothing until it
-//! ends) counted half done when it starts, so the bar is as far from the truth at its start as
+//! fraction is done / (done + left), a silent phase (a refinement after the first reports
+//! nothing until it ends) counted half done when it starts, so the bar is as far from the truth at its start as
 //! at its end; a phase that overruns its estimate is priced at a share of its time so far
 //! ([`OVERRUN`]), so the estimate of seconds left grows instead of sitting at 0 while work
 //! remains. The work done is the solve's own clock, so the fraction follows work whatever the
@@ -269,9 +269,10 @@ impl Eta {
         let counted = self.phase != Phase::Shooting || !self.recent.is_empty();
         if self.round > 0 && counted {
             // The refinement reports nothing until it ends: counted half done now, the bar
-            // is as far ahead at its start as it is behind at its end.
+            // is as far ahead at its start as it is behind at its end (once a round has
+            // measured a refinement: the first one's estimate is only a guess).
             let credit = match self.phase {
-                Phase::Refine => 0.5 * self.refine_left(now).min(left),
+                Phase::Refine if self.round >= 2 => 0.5 * self.refine_left(now).min(left),
                 _ => 0.0,
             };
             stage.advance((now + credit) / (now + left));
