@@ -89,11 +89,37 @@ pub fn load_scene_with(path: &Path, opts: &LoadOptions) -> Result<Scene> {
         let text = base::output::read_text(path).map_err(|e| {
             Error::input(Location::file(path), format!("cannot read scene file: {e}"))
         })?;
+        check_is_toml(&text, path)?;
         parse_scene_options(&text, path, &base::output::read_text, opts)?
     };
     let facing = super::orientation::warnings(&scene);
     scene.warnings.extend(facing);
     Ok(scene)
+}
+
+/// A file not named `.toml` whose text is not TOML at all is most likely another format (a
+/// model from a tool, an image): refused with what the commands read instead, rather than with
+/// the TOML parser's complaint alone.
+fn check_is_toml(text: &str, path: &Path) -> Result<()> {
+    let toml_named = path
+        .extension()
+        .and_then(|x| x.to_str())
+        .is_some_and(|x| x.eq_ignore_ascii_case("toml"));
+    match toml::from_str::<toml::Table>(text) {
+        Err(e) if !toml_named => {
+            let line = e.span().map_or(1, |s| line_of(text, s.start));
+            Err(Error::input(
+                Location::file(path),
+                format!(
+                    "is not a scene file: scenes are TOML (.toml), models Wavefront OBJ (.obj, \
+                     with their .mtl), solutions .pfsol; export other formats as OBJ (the TOML \
+                     parser says, at line {line}: {})",
+                    e.message().trim_end()
+                ),
+            ))
+        }
+        _ => Ok(()),
+    }
 }
 
 /// Validates the scene text `text`; `path` names it in messages and is the base of relative

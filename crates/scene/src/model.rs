@@ -70,6 +70,10 @@ pub(crate) fn load_model(path: &Path, opts: &LoadOptions) -> Result<Scene> {
         .file_name()
         .map(|n| n.to_string_lossy().into_owned())
         .ok_or_else(|| Error::input(Location::file(path), "not a file name"))?;
+    // Read here first, so that a missing model is named as such and not as a key of the scene
+    // this module writes for it.
+    base::output::read_text(path)
+        .map_err(|e| Error::input(Location::file(path), format!("cannot read OBJ file: {e}")))?;
     let text = scene_text(&name);
     let mut scene = parse_scene_options(&text, path, &base::output::read_text, opts)?;
     // The placeholder light is the last spot; any other was set by the user.

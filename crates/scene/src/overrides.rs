@@ -98,5 +98,9 @@ pub(crate) fn blame(e: Error, overrides: &[(String, String)]) -> Error {
         },
         e => e.to_string(),
     };
-    Error::invalid_option(OPTION, given.join(" "), reason)
+    Error::invalid_option(
+        OPTION,
+        given.join(" "),
+        format!("{reason} (values are TOML: a list [0, 1.5, 3], a number 800, a string \"name\")"),
+    )
 }

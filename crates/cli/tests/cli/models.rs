@@ -225,3 +225,27 @@ fn a_solution_file_named_for_another_format_is_refused() {
     assert!(text(&out.stderr).contains("must end in .pfsol"));
     assert!(!png.exists());
 }
+
+/// What broke: a missing model was reported at a line of the scene written for it
+/// (`nothere.obj:15: obj[0].file`), and a model in another format by the TOML parser alone.
+#[test]
+fn a_missing_model_and_a_model_of_another_format_are_named_as_such() {
+    let dir = scratch("formats");
+    let missing = dir.join("nothere.obj");
+    let out = run(&["render", missing.to_str().unwrap()]);
+    assert_eq!(out.status.code(), Some(2));
+    let e = text(&out.stderr);
+    assert!(
+        e.contains(&format!("{}: cannot read OBJ file", missing.display())),
+        "{e}"
+    );
+    let fbx = dir.join("model.fbx");
+    std::fs::write(&fbx, "Kaydara FBX Binary\0").unwrap();
+    let out = run(&["check", fbx.to_str().unwrap()]);
+    assert_eq!(out.status.code(), Some(2));
+    let e = text(&out.stderr);
+    assert!(
+        e.contains("is not a scene file") && e.contains("export other formats as OBJ"),
+        "{e}"
+    );
+}
