@@ -49,8 +49,9 @@ pub(super) const EXPECTED_ROUNDS: u32 = 2;
 const REFINE_RATIO: f64 = 0.5;
 
 /// The first round's refinement over the direct light's (measured 2.5 on the Cornell box, 4.5 on
-/// the gallery).
-const REFINE_FROM_DIRECT: f64 = 3.5;
+/// the gallery, about 7 on gallery-fine): 4.5 keeps the largest gap between the fraction and
+/// elapsed/total under 0.15 on all three (docs/performance.md).
+const REFINE_FROM_DIRECT: f64 = 4.5;
 
 /// A round's refinement-to-gather ratio over the previous round's: into round 2 (measured 0.66
 /// on the Cornell box, 0.57 on the gallery) and after (0.64, 0.74 on gallery-fine).
