@@ -160,6 +160,8 @@ pub enum Command {
 pub struct ExportArgs {
     /// A scene file or a solution file (a scene is solved first).
     pub input: PathBuf,
+    #[command(flatten)]
+    pub options: SceneOptions,
     /// The glTF to write: `.glb` or `.gltf`.
     #[arg(short, long)]
     pub output: PathBuf,
@@ -191,6 +193,8 @@ pub struct ExportArgs {
 pub struct ViewArgs {
     /// A scene file or a solution file (a scene is solved first).
     pub input: PathBuf,
+    #[command(flatten)]
+    pub options: SceneOptions,
     /// Window width.
     #[arg(long, default_value_t = 1280)]
     pub width: u32,
@@ -405,6 +409,8 @@ pub struct RenderArgs {
 pub struct StatsArgs {
     /// A scene file or a solution file.
     pub input: PathBuf,
+    #[command(flatten)]
+    pub options: SceneOptions,
     /// The scene of a solution file, when it is no longer where the file says.
     #[arg(long)]
     pub scene: Option<PathBuf>,
@@ -476,6 +482,8 @@ pub struct ExperimentArgs {
 pub struct BenchArgs {
     /// A scene file or a solution file.
     pub input: PathBuf,
+    #[command(flatten)]
+    pub options: SceneOptions,
     /// The scene of a solution file, when it is no longer where the file says.
     #[arg(long)]
     pub scene: Option<PathBuf>,
@@ -618,6 +626,8 @@ pub struct ResultsArgs {
 pub struct TruthArgs {
     /// A scene file (`.toml`), or a solution file (its scene is traced).
     pub input: PathBuf,
+    #[command(flatten)]
+    pub options: SceneOptions,
     /// OpenEXR of the mean radiosity per pixel; the standard errors go to `<stem>.stderr.exr`
     /// beside it.
     #[arg(short, long)]

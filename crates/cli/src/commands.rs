@@ -242,6 +242,7 @@ pub fn render(settings: &Settings, args: RenderArgs) -> anyhow::Result<()> {
 pub fn stats(settings: &Settings, args: StatsArgs) -> anyhow::Result<()> {
     in_pool(args.threads, || -> anyhow::Result<()> {
         let req = StatsRequest {
+            load: args.options.load_options(),
             input: args.input,
             scene: args.scene,
             frames: args.frames,
@@ -265,6 +266,7 @@ pub fn stats(settings: &Settings, args: StatsArgs) -> anyhow::Result<()> {
 pub fn export(settings: &Settings, args: ExportArgs) -> anyhow::Result<()> {
     in_pool(args.threads, || -> anyhow::Result<()> {
         let req = lab::jobs::export::ExportRequest {
+            load: args.options.load_options(),
             input: args.input,
             scene: args.scene,
             output: args.output,
@@ -330,6 +332,7 @@ pub fn experiment(settings: &Settings, args: ExperimentArgs) -> anyhow::Result<(
 pub fn bench(settings: &Settings, args: BenchArgs) -> anyhow::Result<()> {
     in_pool(args.threads, || -> anyhow::Result<()> {
         let req = BenchRequest {
+            load: args.options.load_options(),
             input: args.input,
             scene: args.scene,
             methods: args.methods,
@@ -567,6 +570,7 @@ fn write_diff(files: &Outputs, path: &Path, d: &metric::pixels::PixelDiff) -> an
 /// stderr, the polygon table on stdout.
 pub fn truth(settings: &Settings, args: TruthArgs) -> anyhow::Result<()> {
     let req = TruthRequest {
+        load: args.options.load_options(),
         input: args.input,
         output: args.output,
         json: args.json,

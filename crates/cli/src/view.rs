@@ -52,7 +52,11 @@ pub fn view(settings: &Settings, args: ViewArgs) -> anyhow::Result<()> {
     in_pool(args.threads, || -> anyhow::Result<()> {
         let observer = Terminal::new(true, false);
         let ctx = settings.context(&observer);
-        let input = lab::jobs::Input::load_with(&args.input, args.scene.as_deref())?;
+        let input = lab::jobs::Input::load_opts(
+            &args.input,
+            args.scene.as_deref(),
+            &args.options.load_options(),
+        )?;
         let texture = args.texture.options();
         let policy = texture.policy(&input.scene)?;
         let placement = texture.placement(&input.scene)?;

@@ -61,6 +61,8 @@ impl Timed {
 /// What `pixelflow-sim bench` was asked to do.
 #[derive(Debug, Clone)]
 pub struct BenchRequest {
+    /// The scene's command-line options (`-D`, `--camera`, `--strict`).
+    pub load: scene::LoadOptions,
     /// Scene file or solution file.
     pub input: PathBuf,
     /// The scene of a solution file, when it is no longer where the file says (`--scene`).
@@ -101,7 +103,7 @@ pub struct BenchReport {
 /// Runs a bench job: load the input, check every option (methods, sizes, antialiasing,
 /// renderers, texture options), then prepare once and measure.
 pub fn run_bench(ctx: &Context<'_>, req: &BenchRequest) -> Result<BenchReport> {
-    let input = Input::load_with(&req.input, req.scene.as_deref())?;
+    let input = Input::load_opts(&req.input, req.scene.as_deref(), &req.load)?;
     let methods = req
         .methods
         .iter()

@@ -12,6 +12,8 @@ use reconstruction::texture::Placement;
 /// What `pixelflow-sim export` was asked to do.
 #[derive(Debug, Clone, Default)]
 pub struct ExportRequest {
+    /// The scene's command-line options (`-D`, `--camera`, `--strict`).
+    pub load: scene::LoadOptions,
     /// Scene file or solution file.
     pub input: PathBuf,
     /// The scene of a solution file, when not where the file says (`--scene`).
@@ -50,7 +52,7 @@ pub fn run_export(ctx: &Context<'_>, req: &ExportRequest) -> Result<ExportReport
             "an atlas holds centre-placed texels (texel centres at (i + 0.5) / n, as engines sample)",
         ));
     }
-    let input = Input::load_with(&req.input, req.scene.as_deref())?;
+    let input = Input::load_opts(&req.input, req.scene.as_deref(), &req.load)?;
     let policy = req.texture.policy(&input.scene)?;
     let exposure = req.exposure.unwrap_or(input.scene.display.exposure);
     if !exposure.is_finite() {

@@ -20,6 +20,8 @@ use scene::Shape;
 /// What `pixelflow-sim stats` was asked to do.
 #[derive(Debug, Clone)]
 pub struct StatsRequest {
+    /// The scene's command-line options (`-D`, `--camera`, `--strict`).
+    pub load: scene::LoadOptions,
     /// Scene file or solution file.
     pub input: PathBuf,
     /// The scene of a solution file, when it is no longer where the file says (`--scene`).
@@ -34,7 +36,7 @@ pub struct StatsRequest {
 
 /// Runs a stats job: load the input, check every option, then prepare once and tabulate.
 pub fn run_stats(ctx: &Context<'_>, req: &StatsRequest) -> Result<ModelStats> {
-    let input = Input::load_with(&req.input, req.scene.as_deref())?;
+    let input = Input::load_opts(&req.input, req.scene.as_deref(), &req.load)?;
     let bicubic = match req.texture.method(Method::Texture(Filter::MITCHELL))? {
         Method::Texture(f) => f,
         _ => Filter::MITCHELL,

@@ -30,6 +30,8 @@ use truth::{PixelFilter, PolygonEstimate, TruthImage, TruthOptions};
 /// What `pixelflow-sim truth` was asked to do.
 #[derive(Debug, Clone, Default)]
 pub struct TruthRequest {
+    /// The scene's command-line options (`-D`, `--camera`, `--strict`).
+    pub load: scene::LoadOptions,
     /// Scene file (or a solution file, whose scene is used).
     pub input: PathBuf,
     /// OpenEXR of the mean B per pixel (`-o`); the standard errors go beside it
@@ -199,7 +201,7 @@ pub fn run_truth(
     req: &TruthRequest,
     on: &mut dyn FnMut(TruthEvent<'_>),
 ) -> Result<TruthOutcome> {
-    let input = super::Input::load(&req.input)?;
+    let input = super::Input::load_opts(&req.input, None, &req.load)?;
     let plan = TruthPlan::new(ctx, req, &input.scene)?;
     for w in &input.scene.warnings {
         on(TruthEvent::Warning(w));

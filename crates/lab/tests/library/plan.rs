@@ -110,6 +110,7 @@ fn bad_bench_and_stats_options_are_refused_before_the_solve() {
             aa: 1,
             renderers: 1,
             region: 128,
+            load: Default::default(),
         };
         edit(&mut req);
         let rec = Recorder::default();
@@ -132,6 +133,7 @@ fn bad_bench_and_stats_options_are_refused_before_the_solve() {
             frames: 0,
             frame: FrameOptions::new(64, 64),
             texture: TextureOptions::default(),
+            load: Default::default(),
         };
         edit(&mut req);
         let rec = Recorder::default();
