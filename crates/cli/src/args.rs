@@ -184,9 +184,10 @@ pub struct ExportArgs {
     /// Worker threads (default: all cores). The files are identical for any count.
     #[arg(long)]
     pub threads: Option<usize>,
-    /// Print the report as JSON instead of lines.
-    #[arg(long)]
-    pub json: bool,
+    /// JSON instead of the table: to FILE, or to standard output when no FILE (or `-`) is
+    /// given (the same `--json [FILE]` in every command).
+    #[arg(long, value_name = "FILE", num_args = 0..=1, default_missing_value = "-")]
+    pub json: Option<PathBuf>,
 }
 
 #[derive(Args, Debug)]
@@ -431,9 +432,10 @@ pub struct StatsArgs {
     /// Worker threads (default: all cores).
     #[arg(long)]
     pub threads: Option<usize>,
-    /// Print JSON instead of the table.
-    #[arg(long)]
-    pub json: bool,
+    /// JSON instead of the table: to FILE, or to standard output when no FILE (or `-`) is
+    /// given (the same `--json [FILE]` in every command).
+    #[arg(long, value_name = "FILE", num_args = 0..=1, default_missing_value = "-")]
+    pub json: Option<PathBuf>,
     /// When solving a scene, print the solver's trace lines (phase times, shots, vertices, unshot) to stderr.
     #[arg(long)]
     pub trace: bool,
@@ -473,9 +475,10 @@ pub struct ExperimentArgs {
     /// Worker threads (default: all cores).
     #[arg(long)]
     pub threads: Option<usize>,
-    /// Print JSON instead of tables.
-    #[arg(long)]
-    pub json: bool,
+    /// JSON instead of the table: to FILE, or to standard output when no FILE (or `-`) is
+    /// given (the same `--json [FILE]` in every command).
+    #[arg(long, value_name = "FILE", num_args = 0..=1, default_missing_value = "-")]
+    pub json: Option<PathBuf>,
 }
 
 #[derive(Args, Debug)]
@@ -511,9 +514,10 @@ pub struct BenchArgs {
     /// Worker threads (default: all cores).
     #[arg(long)]
     pub threads: Option<usize>,
-    /// Print JSON instead of the table.
-    #[arg(long)]
-    pub json: bool,
+    /// JSON instead of the table: to FILE, or to standard output when no FILE (or `-`) is
+    /// given (the same `--json [FILE]` in every command).
+    #[arg(long, value_name = "FILE", num_args = 0..=1, default_missing_value = "-")]
+    pub json: Option<PathBuf>,
     /// When solving a scene, print the solver's trace lines (phase times, shots, vertices, unshot) to stderr.
     #[arg(long)]
     pub trace: bool,
@@ -554,9 +558,9 @@ pub struct SweepArgs {
     /// Pixels per degree of the perceptual metric.
     #[arg(long, default_value_t = metric::DEFAULT_PPD)]
     pub ppd: f64,
-    /// Write every point as JSON to this file (`-`: print it on stdout, as `--json` does in
-    /// bench, stats, compare, experiment and export).
-    #[arg(long, value_name = "FILE")]
+    /// Every point as JSON: to FILE, or to standard output instead of the table when no FILE
+    /// (or `-`) is given.
+    #[arg(long, value_name = "FILE", num_args = 0..=1, default_missing_value = "-")]
     pub json: Option<PathBuf>,
     /// Write every point as CSV to this file.
     #[arg(long)]
@@ -694,10 +698,10 @@ pub struct CompareArgs {
     /// any image size.
     #[arg(long, value_name = "DEG", conflicts_with = "ppd")]
     pub view_degrees: Option<f64>,
-    /// Print one JSON document (the measures, the pixel check, every check and the verdict)
-    /// instead of the table.
-    #[arg(long)]
-    pub json: bool,
+    /// JSON instead of the table: to FILE, or to standard output when no FILE (or `-`) is
+    /// given (the same `--json [FILE]` in every command).
+    #[arg(long, value_name = "FILE", num_args = 0..=1, default_missing_value = "-")]
+    pub json: Option<PathBuf>,
     /// Regression check: compare pixel by pixel; a pixel differs when a channel moves by more
     /// than this times max(|reference|, --floor) (`default` = 2^-19, 16 f32 rounding steps).
     /// Lists the first differing pixels; exit 1 if more than --fail-percent of them differ.

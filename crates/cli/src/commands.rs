@@ -116,6 +116,32 @@ pub(crate) fn in_pool<T: Send>(
     }
 }
 
+/// A command's `--json [FILE]`: the document on standard output for `-`, else written to FILE
+/// (atomically, never over an input: checked by [`check_json_path`] before the work).
+fn emit_json<T: serde::Serialize>(
+    settings: &Settings,
+    path: &Path,
+    value: &T,
+) -> anyhow::Result<()> {
+    let text = json(value)?;
+    if path == Path::new("-") {
+        return out(&text);
+    }
+    settings.outputs.write_atomic(path, text.as_bytes())?;
+    wrote(path, false);
+    Ok(())
+}
+
+/// Refuses a `--json FILE` that would replace one of `inputs` (or is not a writable regular
+/// file), before any work.
+fn check_json_path(json: &Option<PathBuf>, inputs: &[&Path]) -> anyhow::Result<()> {
+    if let Some(path) = json.as_deref().filter(|p| *p != Path::new("-")) {
+        let inputs: Vec<PathBuf> = inputs.iter().map(|p| p.to_path_buf()).collect();
+        base::output::check_outputs(&inputs, &[("--json", path)])?;
+    }
+    Ok(())
+}
+
 /// A "wrote" line on stderr, unless `quiet`.
 pub(crate) fn wrote(path: &Path, quiet: bool) {
     if !quiet {
@@ -240,6 +266,7 @@ pub fn render(settings: &Settings, args: RenderArgs) -> anyhow::Result<()> {
 
 /// `stats`: the paper's Table 1 for one scene, as a table or JSON.
 pub fn stats(settings: &Settings, args: StatsArgs) -> anyhow::Result<()> {
+    check_json_path(&args.json, &[&args.input])?;
     in_pool(args.threads, || -> anyhow::Result<()> {
         let req = StatsRequest {
             load: args.options.load_options(),
@@ -254,8 +281,8 @@ pub fn stats(settings: &Settings, args: StatsArgs) -> anyhow::Result<()> {
             texture: args.texture.options(),
         };
         let stats = run_stats(&settings.context(&Terminal::new(false, args.trace)), &req)?;
-        if args.json {
-            out(&json(&stats)?)
+        if let Some(path) = &args.json {
+            emit_json(settings, path, &stats)
         } else {
             out(&lab::report::model_stats_text(&stats))
         }
@@ -264,6 +291,7 @@ pub fn stats(settings: &Settings, args: StatsArgs) -> anyhow::Result<()> {
 
 /// `export`: a scene or solution to glTF, then what was written and how well the atlas packs.
 pub fn export(settings: &Settings, args: ExportArgs) -> anyhow::Result<()> {
+    check_json_path(&args.json, &[&args.input, &args.output])?;
     in_pool(args.threads, || -> anyhow::Result<()> {
         let req = lab::jobs::export::ExportRequest {
             load: args.options.load_options(),
@@ -277,8 +305,8 @@ pub fn export(settings: &Settings, args: ExportArgs) -> anyhow::Result<()> {
         };
         let report =
             lab::jobs::export::run_export(&settings.context(&Terminal::new(false, false)), &req)?;
-        if args.json {
-            return out(&json(&report)?);
+        if let Some(path) = &args.json {
+            return emit_json(settings, path, &report);
         }
         for f in &report.files {
             wrote(f, false);
@@ -289,6 +317,7 @@ pub fn export(settings: &Settings, args: ExportArgs) -> anyhow::Result<()> {
 
 /// `experiment`: reruns the paper's figures and tables, printing the results.
 pub fn experiment(settings: &Settings, args: ExperimentArgs) -> anyhow::Result<()> {
+    check_json_path(&args.json, &[&args.scene])?;
     in_pool(args.threads, || -> anyhow::Result<()> {
         let req = experiment::Request {
             which: experiment::Which::parse(&args.which)?,
@@ -320,8 +349,8 @@ pub fn experiment(settings: &Settings, args: ExperimentArgs) -> anyhow::Result<(
         for path in hold.commit()? {
             wrote(&path, false);
         }
-        if args.json {
-            out(&json(&results)?)
+        if let Some(path) = &args.json {
+            emit_json(settings, path, &results)
         } else {
             out(&experiment::results_text(&results))
         }
@@ -330,6 +359,7 @@ pub fn experiment(settings: &Settings, args: ExperimentArgs) -> anyhow::Result<(
 
 /// `bench`: frame times of the methods at every size, as a table or JSON.
 pub fn bench(settings: &Settings, args: BenchArgs) -> anyhow::Result<()> {
+    check_json_path(&args.json, &[&args.input])?;
     in_pool(args.threads, || -> anyhow::Result<()> {
         let req = BenchRequest {
             load: args.options.load_options(),
@@ -344,8 +374,8 @@ pub fn bench(settings: &Settings, args: BenchArgs) -> anyhow::Result<()> {
             region: args.region,
         };
         let report = run_bench(&settings.context(&Terminal::new(false, args.trace)), &req)?;
-        if args.json {
-            out(&json(&report.rows)?)
+        if let Some(path) = &args.json {
+            emit_json(settings, path, &report.rows)
         } else {
             out(&format!(
                 "{}: {} polygons, {} samples, {} RRP patches, {} threads\n{}",
@@ -515,6 +545,7 @@ pub fn generate_building(settings: &Settings, args: BuildingArgs) -> anyhow::Res
 /// (without it, or with a distance threshold), as one table or one JSON document; an error
 /// naming every failed check.
 pub fn compare(settings: &Settings, args: CompareArgs) -> anyhow::Result<()> {
+    check_json_path(&args.json, &[&args.a, &args.b])?;
     use lab::jobs::compare::{run_compare, CompareRequest};
     if let Some(path) = &args.diff {
         base::output::check_outputs(&[args.a.clone(), args.b.clone()], &[("--diff", path)])?;
@@ -535,8 +566,8 @@ pub fn compare(settings: &Settings, args: CompareArgs) -> anyhow::Result<()> {
     if let (Some(path), Some(d)) = (&args.diff, &report.pixels) {
         write_diff(&settings.outputs, path, d)?;
     }
-    if args.json {
-        out(&json(&report)?)?;
+    if let Some(path) = &args.json {
+        emit_json(settings, path, &report)?;
     } else {
         out(&report.text())?;
     }

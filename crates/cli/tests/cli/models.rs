@@ -249,3 +249,42 @@ fn a_missing_model_and_a_model_of_another_format_are_named_as_such() {
         "{e}"
     );
 }
+
+/// One convention for JSON: `--json` prints one document on standard output, `--json FILE`
+/// writes it there (never over an input).
+#[test]
+fn json_goes_to_standard_output_or_to_the_file_named() {
+    let dir = scratch("json");
+    let to_stdout = run(&["stats", "scenes/two-spots.toml", "--json"]);
+    assert_eq!(
+        to_stdout.status.code(),
+        Some(0),
+        "{}",
+        text(&to_stdout.stderr)
+    );
+    let a: serde_json::Value = serde_json::from_slice(&to_stdout.stdout).unwrap();
+    let file = dir.join("stats.json");
+    let to_file = run(&[
+        "stats",
+        "scenes/two-spots.toml",
+        "--json",
+        file.to_str().unwrap(),
+    ]);
+    assert_eq!(to_file.status.code(), Some(0), "{}", text(&to_file.stderr));
+    assert!(to_file.stdout.is_empty());
+    let b: serde_json::Value = serde_json::from_slice(&std::fs::read(&file).unwrap()).unwrap();
+    assert_eq!(a, b);
+    // Over the input: refused before any work.
+    let scene = dir.join("s.toml");
+    std::fs::copy(format!("{}/scenes/two-spots.toml", crate::REPO), &scene).unwrap();
+    let over = run(&[
+        "stats",
+        scene.to_str().unwrap(),
+        "--json",
+        scene.to_str().unwrap(),
+    ]);
+    assert_eq!(over.status.code(), Some(2), "{}", text(&over.stderr));
+    assert!(std::fs::read_to_string(&scene)
+        .unwrap()
+        .contains("[camera]"));
+}
