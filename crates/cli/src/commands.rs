@@ -138,6 +138,7 @@ fn check_json_path(json: &Option<PathBuf>, inputs: &[&Path]) -> anyhow::Result<(
     if let Some(path) = json.as_deref().filter(|p| *p != Path::new("-")) {
         let inputs: Vec<PathBuf> = inputs.iter().map(|p| p.to_path_buf()).collect();
         base::output::check_outputs(&inputs, &[("--json", path)])?;
+        lab::jobs::render::check_extension("--json", path, "json", "JSON")?;
     }
     Ok(())
 }
@@ -450,6 +451,12 @@ fn check_sweep_outputs(args: &SweepArgs) -> anyhow::Result<()> {
         .chain(plots.iter().map(|p| ("--plots", p.as_path())))
         .collect();
     base::output::check_outputs(&inputs, &outputs)?;
+    if let Some(j) = args.json.as_deref().filter(|p| *p != Path::new("-")) {
+        lab::jobs::render::check_extension("--json", j, "json", "JSON")?;
+    }
+    if let Some(c) = &args.csv {
+        lab::jobs::render::check_extension("--csv", c, "csv", "CSV")?;
+    }
     Ok(())
 }
 
@@ -545,6 +552,12 @@ pub fn generate_building(settings: &Settings, args: BuildingArgs) -> anyhow::Res
 /// (without it, or with a distance threshold), as one table or one JSON document; an error
 /// naming every failed check.
 pub fn compare(settings: &Settings, args: CompareArgs) -> anyhow::Result<()> {
+    if let Some(d) = &args.diff {
+        let what = "an image: .png (scaled so the largest difference is white) or .exr (|a - b|)";
+        if lab::jobs::render::check_extension("--diff", d, "exr", what).is_err() {
+            lab::jobs::render::check_extension("--diff", d, "png", what)?;
+        }
+    }
     check_json_path(&args.json, &[&args.a, &args.b])?;
     use lab::jobs::compare::{run_compare, CompareRequest};
     if let Some(path) = &args.diff {

@@ -288,3 +288,52 @@ fn json_goes_to_standard_output_or_to_the_file_named() {
         .unwrap()
         .contains("[camera]"));
 }
+
+/// Every file a command writes is named for what it holds: statistics and JSON `.json`, CSV
+/// `.csv`, a difference image `.png` or `.exr`; another name is refused before any work.
+#[test]
+fn data_files_named_for_another_format_are_refused() {
+    let dir = scratch("data-names");
+    let png = dir.join("x.png");
+    let wrong = dir.join("stats.png");
+    let cases: [Vec<&str>; 3] = [
+        vec![
+            "render",
+            "scenes/two-spots.toml",
+            "-o",
+            png.to_str().unwrap(),
+            "--stats",
+            wrong.to_str().unwrap(),
+        ],
+        vec![
+            "stats",
+            "scenes/two-spots.toml",
+            "--json",
+            wrong.to_str().unwrap(),
+        ],
+        vec![
+            "compare",
+            "scenes/cornell-box/CornellBox-Original.mtl",
+            "x.png",
+            "--tolerance",
+            "default",
+            "--diff",
+            "d.txt",
+        ],
+    ];
+    for args in cases {
+        let out = run(&args);
+        assert_eq!(
+            out.status.code(),
+            Some(2),
+            "{args:?}: {}",
+            text(&out.stderr)
+        );
+        assert!(
+            text(&out.stderr).contains("must end in"),
+            "{args:?}: {}",
+            text(&out.stderr)
+        );
+    }
+    assert!(!wrong.exists() && !png.exists());
+}

@@ -244,6 +244,9 @@ fn check_render_outputs(req: &RenderRequest, plan: &RenderPlan, scene: &Scene) -
         let what = "an OpenEXR file (linear float); the sRGB image goes to -o";
         check_extension("--exr", e, "exr", what)?;
     }
+    if let Some(s) = &req.stats {
+        check_extension("--stats", s, "json", "JSON (the frame statistics)")?;
+    }
     Ok(())
 }
 
@@ -501,7 +504,7 @@ pub fn fps(frame_ms: f64) -> f64 {
 
 /// Refuses an output whose name does not end in `.ext` (any case): the bytes written are that
 /// format's, so a file named otherwise would lie about its contents.
-pub(crate) fn check_extension(option: &str, path: &Path, ext: &str, what: &str) -> Result<()> {
+pub fn check_extension(option: &str, path: &Path, ext: &str, what: &str) -> Result<()> {
     let ok = path
         .extension()
         .and_then(|e| e.to_str())

@@ -152,7 +152,16 @@ impl TruthPlan {
             outputs.push(("-o (its standard errors)", se));
         }
         outputs.extend(self.json.as_deref().map(|j| ("--json", j)));
-        base::output::check_outputs(&inputs, &outputs)
+        base::output::check_outputs(&inputs, &outputs)?;
+        if let Some(j) = &self.json {
+            super::render::check_extension(
+                "--json",
+                j,
+                "json",
+                "JSON (every polygon's estimates)",
+            )?;
+        }
+        Ok(())
     }
 
     /// What the run holds at most: the BVH and the per-polygon sums, the per-pixel sums and
