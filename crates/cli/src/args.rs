@@ -637,8 +637,9 @@ pub struct TruthArgs {
     #[arg(short, long)]
     pub output: Option<PathBuf>,
     /// JSON of every polygon's estimates (mean B, direct, indirect, standard errors, object,
-    /// material, area); also printed as a table.
-    #[arg(long)]
+    /// material, area): to FILE (and printed as a table), or to standard output instead of the
+    /// table when no FILE (or `-`) is given.
+    #[arg(long, value_name = "FILE", num_args = 0..=1, default_missing_value = "-")]
     pub json: Option<PathBuf>,
     /// Camera samples per pixel, at most (default 64).
     #[arg(long)]

@@ -630,6 +630,7 @@ pub fn truth(settings: &Settings, args: TruthArgs) -> anyhow::Result<()> {
         compare_solver: args.compare_solver,
     };
     let quiet = args.quiet;
+    let to_stdout = req.json.as_deref() == Some(Path::new("-"));
     let observer = Terminal::new(!quiet, args.trace);
     let mut on_event = |event: TruthEvent| match event {
         TruthEvent::Warning(w) => observer.note(&format!("warning: {w}")),
@@ -639,6 +640,9 @@ pub fn truth(settings: &Settings, args: TruthArgs) -> anyhow::Result<()> {
     let outcome = in_pool(args.threads, || {
         run_truth(&settings.context(&observer), &req, &mut on_event)
     })??;
+    if let (true, Some((report, _))) = (to_stdout, &outcome.polygons) {
+        out(&json(report)?)?;
+    }
     if quiet {
         return Ok(());
     }
@@ -654,7 +658,9 @@ pub fn truth(settings: &Settings, args: TruthArgs) -> anyhow::Result<()> {
         ));
     }
     if let Some((report, seconds)) = &outcome.polygons {
-        out(&report.table())?;
+        if !to_stdout {
+            out(&report.table())?;
+        }
         note(&format!(
             "truth polygons: {} polygons, largest relative standard error {:.3} %, {seconds:.1} s",
             report.polygons.len(),

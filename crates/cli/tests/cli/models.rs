@@ -274,6 +274,20 @@ fn json_goes_to_standard_output_or_to_the_file_named() {
     assert!(to_file.stdout.is_empty());
     let b: serde_json::Value = serde_json::from_slice(&std::fs::read(&file).unwrap()).unwrap();
     assert_eq!(a, b);
+    // truth: the per-polygon report on standard output, in place of its table.
+    let t = run(&[
+        "truth",
+        "scenes/two-spots.toml",
+        "--json",
+        "--polygon-samples",
+        "64",
+    ]);
+    assert_eq!(t.status.code(), Some(0), "{}", text(&t.stderr));
+    let t: serde_json::Value = serde_json::from_slice(&t.stdout).unwrap();
+    assert!(
+        t["polygons"].as_array().is_some_and(|p| !p.is_empty()),
+        "{t}"
+    );
     // Over the input: refused before any work.
     let scene = dir.join("s.toml");
     std::fs::copy(format!("{}/scenes/two-spots.toml", crate::REPO), &scene).unwrap();

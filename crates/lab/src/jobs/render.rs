@@ -130,10 +130,16 @@ impl RenderPlan {
             .unwrap_or_else(|| default_png_path(req, method, &frame));
         let frames = if req.walkthrough {
             let path = scene.camera_path.as_ref().ok_or_else(|| {
+                let how = if scene::is_model(&scene.source) {
+                    ": a model has none; write a scene file that includes it ([[obj]]) and give \
+                     it one (docs/tutorial.md)"
+                } else {
+                    ""
+                };
                 Error::invalid_option(
                     "--walkthrough",
                     "",
-                    format!("{} has no [camera_path]", scene.source.display()),
+                    format!("{} has no [camera_path]{how}", scene.source.display()),
                 )
             })?;
             (0..path.frames)

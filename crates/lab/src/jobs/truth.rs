@@ -37,7 +37,8 @@ pub struct TruthRequest {
     /// OpenEXR of the mean B per pixel (`-o`); the standard errors go beside it
     /// ([`stderr_path`]). `None`: no image.
     pub output: Option<PathBuf>,
-    /// JSON of the per-polygon estimates (`--json`). `None`: no per-polygon run.
+    /// JSON of the per-polygon estimates (`--json`); `-`: none written, the caller prints the
+    /// report. `None`: no per-polygon run.
     pub json: Option<PathBuf>,
     /// Samples per pixel, at most (default 64).
     pub spp: Option<u32>,
@@ -151,9 +152,10 @@ impl TruthPlan {
             outputs.push(("-o", mean));
             outputs.push(("-o (its standard errors)", se));
         }
-        outputs.extend(self.json.as_deref().map(|j| ("--json", j)));
+        let file = self.json.as_deref().filter(|j| *j != Path::new("-"));
+        outputs.extend(file.map(|j| ("--json", j)));
         base::output::check_outputs(&inputs, &outputs)?;
-        if let Some(j) = &self.json {
+        if let Some(j) = file {
             super::render::check_extension(
                 "--json",
                 j,
@@ -251,8 +253,10 @@ pub fn run_truth(
         }
         let json = serde_json::to_string_pretty(&report)
             .map_err(|e| Error::internal(format!("truth report to JSON: {e}")))?;
-        batch.stage(path, (json + "\n").as_bytes())?;
-        staged.push(path);
+        if path != Path::new("-") {
+            batch.stage(path, (json + "\n").as_bytes())?;
+            staged.push(path);
+        }
         outcome.polygons = Some((report, seconds));
     }
     batch.commit()?;
