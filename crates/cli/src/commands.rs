@@ -553,9 +553,14 @@ pub fn generate_building(settings: &Settings, args: BuildingArgs) -> anyhow::Res
 /// naming every failed check.
 pub fn compare(settings: &Settings, args: CompareArgs) -> anyhow::Result<()> {
     if let Some(d) = &args.diff {
-        let what = "an image: .png (scaled so the largest difference is white) or .exr (|a - b|)";
-        if lab::jobs::render::check_extension("--diff", d, "exr", what).is_err() {
-            lab::jobs::render::check_extension("--diff", d, "png", what)?;
+        use lab::image::OutputFormat::{Exr, Png};
+        if !matches!(lab::image::OutputFormat::of(d), Some(Png | Exr)) {
+            return Err(Error::invalid_option(
+                "--diff",
+                d.display().to_string(),
+                "must end in .png (scaled so the largest difference is white) or .exr (|a - b|)",
+            )
+            .into());
         }
     }
     check_json_path(&args.json, &[&args.a, &args.b])?;

@@ -105,8 +105,11 @@ fn check_is_toml(text: &str, path: &Path) -> Result<()> {
         .extension()
         .and_then(|x| x.to_str())
         .is_some_and(|x| x.eq_ignore_ascii_case("toml"));
+    if toml_named {
+        return Ok(());
+    }
     match toml::from_str::<toml::Table>(text) {
-        Err(e) if !toml_named => {
+        Err(e) => {
             let line = e.span().map_or(1, |s| line_of(text, s.start));
             Err(Error::input(
                 Location::file(path),

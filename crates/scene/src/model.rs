@@ -25,8 +25,9 @@
 //! The scene's path is the OBJ's, so a solution file of a model names the OBJ and renders from
 //! it again with the same defaults.
 
+use super::bvh::{Aabb, Bvh};
 use super::load::{parse_scene_options, LoadOptions};
-use super::orientation::{cast_all, sphere_directions};
+use super::orientation::{cast, sphere_directions};
 use super::{Camera, Projection, Scene, SpotLight};
 use base::error::{Error, Location, Result};
 use glam::DVec3;
@@ -78,11 +79,17 @@ pub(crate) fn load_model(path: &Path, opts: &LoadOptions) -> Result<Scene> {
     let mut scene = parse_scene_options(&text, path, &base::output::read_text, opts)?;
     // The placeholder light is the last spot; any other was set by the user.
     scene.spots.pop();
-    let (lo, hi) = polygon_bounds(&scene);
-    let enclosed = is_enclosed(&scene, (lo + hi) * 0.5, (hi - lo).length());
+    // The polygons' bounds (the spot lights left out) and one BVH for both ray tests.
+    let bounds = scene
+        .polygons
+        .iter()
+        .fold(Aabb::EMPTY, |b, p| b.union(Aabb::of(p.vertices())));
+    let (lo, hi) = (bounds.lo, bounds.hi);
+    let bvh = Bvh::build(&scene.polygons);
+    let enclosed = is_enclosed(&scene, &bvh, (lo + hi) * 0.5, (hi - lo).length());
     let camera_set = opts.overrides.iter().any(|(k, _)| k.starts_with("camera."));
     if !camera_set {
-        scene.camera = framing_camera(&scene, lo, hi, enclosed);
+        scene.camera = framing_camera(&scene, &bvh, lo, hi, enclosed);
         scene.warnings.push(format!(
             "{}: no camera in a model: looking from {} at {} ({}; set one with -D camera.eye=[x,y,z] \
              -D camera.look_at=[x,y,z], or --camera)",
@@ -110,23 +117,10 @@ fn fmt(p: DVec3) -> String {
     format!("[{:.3}, {:.3}, {:.3}]", p.x, p.y, p.z)
 }
 
-/// The bounds of the polygons' corners (the spot lights left out).
-fn polygon_bounds(scene: &Scene) -> (DVec3, DVec3) {
-    let mut lo = DVec3::splat(f64::INFINITY);
-    let mut hi = DVec3::splat(f64::NEG_INFINITY);
-    for p in &scene.polygons {
-        for c in p.vertices() {
-            lo = lo.min(*c);
-            hi = hi.max(*c);
-        }
-    }
-    (lo, hi)
-}
-
 /// Whether nearly every direction from `centre` meets a polygon (either side): a room.
-fn is_enclosed(scene: &Scene, centre: DVec3, size: f64) -> bool {
+fn is_enclosed(scene: &Scene, bvh: &Bvh, centre: DVec3, size: f64) -> bool {
     let dirs = sphere_directions(256);
-    let f = cast_all(scene, centre, &dirs, 4.0 * size.max(1e-9));
+    let f = cast(scene, bvh, centre, &dirs, 4.0 * size.max(1e-9), u32::MAX);
     f.missed * 20 <= dirs.len()
 }
 
@@ -134,8 +128,7 @@ fn is_enclosed(scene: &Scene, centre: DVec3, size: f64) -> bool {
 /// surroundings are most open (largest mean distance to the first hit) among those that see only
 /// front sides and no gap, and the horizontal direction (of 16) with the farthest view from it.
 /// `None` if no grid point qualifies (the room faces outward, or it is not a room).
-fn inside_view(scene: &Scene, lo: DVec3, hi: DVec3) -> Option<(DVec3, DVec3)> {
-    let bvh = crate::bvh::Bvh::build(&scene.polygons);
+fn inside_view(scene: &Scene, bvh: &Bvh, lo: DVec3, hi: DVec3) -> Option<(DVec3, DVec3)> {
     let size = hi - lo;
     let reach = 4.0 * size.length().max(1e-9);
     let dirs = sphere_directions(64);
@@ -187,10 +180,10 @@ fn inside_view(scene: &Scene, lo: DVec3, hi: DVec3) -> Option<(DVec3, DVec3)> {
 }
 
 /// The default camera of a model with bounds (`lo`, `hi`) (see the module docs).
-fn framing_camera(scene: &Scene, lo: DVec3, hi: DVec3, enclosed: bool) -> Camera {
+fn framing_camera(scene: &Scene, bvh: &Bvh, lo: DVec3, hi: DVec3, enclosed: bool) -> Camera {
     let c = (lo + hi) * 0.5;
     let size = (hi - lo).max(DVec3::splat(1e-9));
-    if let Some((eye, look_at)) = enclosed.then(|| inside_view(scene, lo, hi)).flatten() {
+    if let Some((eye, look_at)) = enclosed.then(|| inside_view(scene, bvh, lo, hi)).flatten() {
         return Camera {
             eye,
             look_at,

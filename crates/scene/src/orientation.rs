@@ -96,9 +96,27 @@ fn ratio(a: usize, b: usize) -> f64 {
 
 /// Casts rays from `origin` along `dirs` (unit) and sorts the first hits by side; `reach` is a
 /// length beyond the scene, `skip` a polygon not to hit (the emitter itself).
-fn cast(scene: &Scene, bvh: &Bvh, origin: DVec3, dirs: &[DVec3], reach: f64, skip: u32) -> Facing {
+pub(crate) fn cast(
+    scene: &Scene,
+    bvh: &Bvh,
+    origin: DVec3,
+    dirs: &[DVec3],
+    reach: f64,
+    skip: u32,
+) -> Facing {
+    cast_rays(scene, bvh, dirs.iter().map(|&d| (origin, d)), reach, skip)
+}
+
+/// [`cast`] of rays with their own origins: (origin, unit direction).
+fn cast_rays(
+    scene: &Scene,
+    bvh: &Bvh,
+    rays: impl Iterator<Item = (DVec3, DVec3)>,
+    reach: f64,
+    skip: u32,
+) -> Facing {
     let mut f = Facing::default();
-    for &d in dirs {
+    for (origin, d) in rays {
         match bvh.first_hit(origin, d * reach, skip) {
             None => f.missed += 1,
             Some((i, _)) => {
@@ -112,12 +130,6 @@ fn cast(scene: &Scene, bvh: &Bvh, origin: DVec3, dirs: &[DVec3], reach: f64, ski
         }
     }
     f
-}
-
-/// [`cast`] with a BVH built for the purpose, from `origin` along `dirs`.
-pub(crate) fn cast_all(scene: &Scene, origin: DVec3, dirs: &[DVec3], reach: f64) -> Facing {
-    let bvh = Bvh::build(&scene.polygons);
-    cast(scene, &bvh, origin, dirs, reach, u32::MAX)
 }
 
 /// `n` directions spread evenly over the unit sphere (a Fibonacci lattice).
@@ -188,10 +200,7 @@ pub fn warnings(scene: &Scene) -> Vec<String> {
         o.and_then(|o| scene.objects.get(o as usize))
             .map_or(String::new(), |n| format!("; most in object `{n}`"))
     };
-    let mut view = Facing::default();
-    for (o, d) in camera_rays(scene) {
-        view.add(&cast(scene, &bvh, o, &[d], reach, u32::MAX));
-    }
+    let view = cast_rays(scene, &bvh, camera_rays(scene).into_iter(), reach, u32::MAX);
     let enclosed = cast(
         scene,
         &bvh,

@@ -585,13 +585,9 @@ pub(crate) fn default_png_path(
             .iter()
             .map(|(k, v)| format!("{k}={v}"))
             .collect();
-        let h = text
-            .join("\n")
-            .bytes()
-            .fold(0xcbf2_9ce4_8422_2325u64, |h, b| {
-                (h ^ b as u64).wrapping_mul(0x0100_0000_01b3)
-            });
-        name += &format!("-D{:06x}", h & 0xff_ffff);
+        let mut h = radiosity::Fnv::default();
+        h.bytes(text.join("\n").as_bytes());
+        name += &format!("-D{:06x}", h.0 & 0xff_ffff);
     }
     PathBuf::from("out").join(name + ".png")
 }
