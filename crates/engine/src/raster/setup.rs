@@ -331,12 +331,17 @@ fn fold_linear_inverse(planes: &mut [Plane; 5], m: &InverseFrame) -> bool {
 ///
 /// Quads solve `h = u b + v c + u v d` (h = (s, t)): eliminating u gives
 /// `k2 v^2 + k1 v + k0 = 0` with k2 = cross(d, c), k1 = cross(b, c) + cross(h, d),
-/// k0 = cross(h, b). The root taken is `v = k0 / q`, q = -(k1 + sign(k1) sqrt(disc)) / 2: the
-/// cancellation-free form, which tends to the linear solution -k0/k1 as k2 -> 0 (parallelograms)
-/// and is the root continuous with it, the only one inside a convex quad. Then
-/// `u = (h - v c) . m / |m|^2` with m = b + v d, a least-squares solve over both axes that needs no
-/// choice of axis. The discriminant is clamped at 0 (it is negative only by rounding for points of
-/// a convex quad).
+/// k0 = cross(h, b). Both roots are formed without cancellation, `v1 = k0 / q` and
+/// `v2 = q / k2` with q = -(k1 + sign(k1) sqrt(disc)) / 2 (v1 tends to the linear solution
+/// -k0/k1 as k2 -> 0, where v2 runs off to infinity), each with
+/// `u = (h - v c) . m / |m|^2`, m = b + v d, a least-squares solve over both axes that needs no
+/// choice of axis; the root whose (u, v) lies in [0, 1]^2 is taken, or, if neither does (a
+/// point rounding put just outside), the one closer to it. Taking v1 alone was wrong where k1
+/// changes sign inside the quad: then `sign(k1)` swaps the roots, and a tapered quad whose
+/// first side is its short one (a floor cut along a box's side, seen from its narrow end) was
+/// drawn with the (u, v) of a point outside it, clamped to one corner (its light constant over
+/// the whole piece). The discriminant is clamped at 0 (it is negative only by rounding for
+/// points of a convex quad).
 ///
 /// Triangles (collapsed quads, c3 == c2) solve `h = U b + v c` by barycentrics, then
 /// `u = U / (1 - v)` = b1 / (b0 + b1), defined as 0.5 at the apex (1 - v < 1e-7) where every u
@@ -366,11 +371,29 @@ pub fn invert_bilinear(inv: &BilinearInverse, s: f32, t: f32) -> (f32, f32) {
         let k0 = cross(h, b);
         let disc = (k1 * k1 - 4.0 * k0 * k2).max(0.0);
         let q = -0.5 * (k1 + disc.sqrt().copysign(k1));
-        let v = if q != 0.0 { k0 / q } else { 0.0 };
-        let m = [b[0] + v * d[0], b[1] + v * d[1]];
-        let r = [h[0] - v * c[0], h[1] - v * c[1]];
-        let mm = (m[0] * m[0] + m[1] * m[1]).max(f64::MIN_POSITIVE);
-        (((r[0] * m[0] + r[1] * m[1]) / mm) as f32, v as f32)
+        let u_of = |v: f64| {
+            let m = [b[0] + v * d[0], b[1] + v * d[1]];
+            let r = [h[0] - v * c[0], h[1] - v * c[1]];
+            let mm = (m[0] * m[0] + m[1] * m[1]).max(f64::MIN_POSITIVE);
+            (r[0] * m[0] + r[1] * m[1]) / mm
+        };
+        let outside = |u: f64, v: f64| {
+            let o = |x: f64| (-x).max(x - 1.0).max(0.0);
+            if u.is_finite() && v.is_finite() {
+                o(u).max(o(v))
+            } else {
+                f64::INFINITY
+            }
+        };
+        let v1 = if q != 0.0 { k0 / q } else { 0.0 };
+        let u1 = u_of(v1);
+        let v2 = if k2 != 0.0 { q / k2 } else { f64::INFINITY };
+        let u2 = if v2.is_finite() { u_of(v2) } else { f64::NAN };
+        if outside(u2, v2) < outside(u1, v1) {
+            (u2 as f32, v2 as f32)
+        } else {
+            (u1 as f32, v1 as f32)
+        }
     };
     clamp_uv(u, v)
 }
@@ -495,6 +518,30 @@ mod tests {
             false,
             1e-5,
         );
+    }
+
+    /// What broke: a tapered quad (a floor piece cut along two sides of a box, narrow at one
+    /// end) whose first side is its short one, and whose k1 changes sign inside it: the root
+    /// picked by the sign of k1 alone lay outside the quad, and the whole piece was drawn with
+    /// the light of one corner. Every rotation and mirror image of it inverts exactly.
+    #[test]
+    fn a_tapered_quad_inverts_in_every_corner_order() {
+        let q = [[0.276, 0.671], [0.53, 0.75], [0.46, 0.99], [0.375, 0.99]];
+        for rot in 0..4 {
+            for mirror in [false, true] {
+                let at = |k: usize| {
+                    let p = q[(k + rot) % 4];
+                    if mirror {
+                        [10.0 * p[1], 10.0 * p[0]]
+                    } else {
+                        [10.0 * p[0], 10.0 * p[1]]
+                    }
+                };
+                let o = at(0);
+                let c = [0, 1, 2, 3].map(|k| [at(k)[0] - o[0], at(k)[1] - o[1]]);
+                check_inverse(c, false, 1e-4);
+            }
+        }
     }
 
     #[test]
