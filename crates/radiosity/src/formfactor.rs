@@ -108,6 +108,41 @@ pub(crate) fn point_to_polygon(x: DVec3, n: DVec3, poly: &SmallPoly, poly_normal
     lambert(x, n, p.verts())
 }
 
+/// Exact unoccluded form factor from a differential area at `x` (unit normal `n`) to the convex
+/// planar polygon `vs` of any length (at most [`crate::visible::MAX_VERTS`] vertices), which the
+/// caller knows `x` to be in front of: clipped to the receiver's front half-space, then
+/// Lambert's formula; in [0, 1].
+pub(crate) fn polygon_form_factor(x: DVec3, n: DVec3, vs: &[DVec3]) -> f64 {
+    const CAP: usize = crate::visible::MAX_VERTS + 1;
+    let (mut front, mut behind) = (false, false);
+    for p in vs {
+        let d = n.dot(*p - x);
+        behind |= d < 0.0;
+        front |= d > 0.0;
+    }
+    if !front || vs.len() < 3 {
+        return 0.0;
+    }
+    if !behind {
+        return lambert(x, n, vs);
+    }
+    let mut out = [DVec3::ZERO; CAP];
+    let mut len = 0;
+    for i in 0..vs.len() {
+        let (a, b) = (vs[i], vs[(i + 1) % vs.len()]);
+        let (da, db) = (n.dot(a - x), n.dot(b - x));
+        if da >= 0.0 && len < CAP {
+            out[len] = a;
+            len += 1;
+        }
+        if (da >= 0.0) != (db >= 0.0) && len < CAP {
+            out[len] = a + (b - a) * (da / (da - db));
+            len += 1;
+        }
+    }
+    lambert(x, n, &out[..len])
+}
+
 /// Lambert's contour integral for a polygon entirely in the closed front half-space of (x, n).
 fn lambert(x: DVec3, n: DVec3, vs: &[DVec3]) -> f64 {
     if vs.len() < 3 {

@@ -46,6 +46,7 @@ mod spots;
 #[cfg(test)]
 pub(crate) mod test_scenes;
 mod transfer;
+mod visible;
 
 /// What the solve's data structures take, for estimating a solve's memory before it starts (the
 /// jobs' budget): bytes per tree node, vertex and pair, the coarse transfers' cache, and the

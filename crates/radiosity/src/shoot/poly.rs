@@ -10,6 +10,18 @@ use crate::transfer::{build_shooters, sub_area};
 use base::quadtree::{Cell, Quadtree, VertexKey};
 use scene::Scene;
 
+/// Which light of a polygon an integral is of.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(super) enum Light {
+    /// G at the fine vertices: the direct pass's or the last full gather's (Simpson's rule on
+    /// the leaves the refinement tested, the trapezoid rule on the others).
+    Fine,
+    /// G at the coarse receivers from the shots since (trapezoid rule on the coarse cells).
+    Coarse,
+    /// G at the fine vertices from the concentrated shots since (trapezoid rule).
+    Concentrated,
+}
+
 /// One leaf (or coarse cell), with what the unshot estimate needs.
 #[derive(Debug, Clone, Copy)]
 pub(super) struct Leaf {
@@ -37,6 +49,13 @@ pub(super) struct Poly {
     pub(super) ckeys: Vec<VertexKey>,
     pub(super) cg: Vec<DVec3>,
     cleaves: Vec<Leaf>,
+    /// The spacing of the coarse receivers in the scene's units (the longest side of a coarse
+    /// cell): light that a shooter concentrates on less than this goes to the fine vertices
+    /// instead (`ng`; see [`crate::transfer::Transfer::concentrated`]).
+    pub(super) coarse_spacing: f64,
+    /// G at the fine vertices from the shots concentrated on this polygon since the last full
+    /// gather.
+    pub(super) ng: Vec<DVec3>,
     /// Reflectance.
     pub(super) rho: DVec3,
     /// Leaves the last refinement pass judged and kept, sorted by cell, with G at their five
@@ -95,12 +114,19 @@ impl Poly {
         let patch_depth = patches.depth[i];
         let tree = uniform_tree(st.min_depth.max(patch_depth).min(st.max_depth));
         let keys = tree.vertex_keys();
-        let coarse = uniform_tree((patch_depth + 1).min(st.max_depth.max(patch_depth)));
+        let coarse_depth = (patch_depth + 1).min(st.max_depth.max(patch_depth));
+        let coarse = uniform_tree(coarse_depth);
         let ckeys = coarse.vertex_keys();
+        let vs = scene.polygons[i].vertices();
+        let longest = (0..vs.len())
+            .map(|k| (vs[(k + 1) % vs.len()] - vs[k]).length())
+            .fold(0.0f64, f64::max);
         let cleaves = leaves_of(scene, i, &coarse, &ckeys, patches);
         let leaves = leaves_of(scene, i, &tree, &keys, patches);
         Poly {
             g: vec![DVec3::ZERO; keys.len()],
+            ng: vec![DVec3::ZERO; keys.len()],
+            coarse_spacing: longest / (1u32 << coarse_depth) as f64,
             leaves,
             tree,
             keys,
@@ -122,23 +148,22 @@ impl Poly {
         self.leaves = leaves_of(scene, i, &self.tree, &self.keys, patches);
     }
 
-    /// The integral of G over each patch of polygon `r` (trapezoid rule over its fine leaves, or
-    /// its coarse cells if `coarse`) into `out`, indexed by shooter id. Nothing for a polygon
-    /// that does not reflect.
+    /// The integral over each patch of polygon `r` of the light `which` says into `out`,
+    /// indexed by shooter id. Nothing for a polygon that does not reflect.
     pub(super) fn integrate(
         &self,
         r: usize,
         patches: &PatchLayout,
-        coarse: bool,
+        which: Light,
         out: &mut [DVec3],
     ) {
         let Some(first) = patches.first(r) else {
             return;
         };
-        let (leaves, g) = if coarse {
-            (&self.cleaves, &self.cg)
-        } else {
-            (&self.leaves, &self.g)
+        let (leaves, g) = match which {
+            Light::Coarse => (&self.cleaves, &self.cg),
+            Light::Fine => (&self.leaves, &self.g),
+            Light::Concentrated => (&self.leaves, &self.ng),
         };
         let last = leaves
             .iter()
@@ -146,7 +171,12 @@ impl Poly {
             .max()
             .unwrap_or(first);
         out[first..=last].iter_mut().for_each(|x| *x = DVec3::ZERO);
-        let tests: &[(Cell, [DVec3; 5])] = if coarse { &[] } else { &self.tests };
+        // The test points hold the light of the last gather only.
+        let tests: &[(Cell, [DVec3; 5])] = if which == Light::Fine {
+            &self.tests
+        } else {
+            &[]
+        };
         for l in leaves {
             out[l.patch as usize] += leaf_integral(l, g, tests);
         }
@@ -185,9 +215,12 @@ impl Poly {
             .sum()
     }
 
-    /// Forgets the light shot to the coarse receivers (a full gather has superseded it).
+    /// Forgets the light shot to the coarse receivers and the concentrated light (a full
+    /// gather has superseded them).
     pub(super) fn clear_coarse(&mut self) {
         self.cg.iter_mut().for_each(|g| *g = DVec3::ZERO);
+        self.ng.clear();
+        self.ng.resize(self.keys.len(), DVec3::ZERO);
     }
 }
 

@@ -10,6 +10,7 @@ use glam::DVec3;
 use rayon::prelude::*;
 
 use super::poly::{PatchLayout, Poly};
+pub(super) use crate::transfer::shape::concentrates;
 use crate::transfer::shape::{absolute, weights, PatchShape, MAX_SHAPE_LEVELS};
 use crate::transfer::{sub_area, ShooterKind, Transfer};
 use base::quadtree::{Cell, Quadtree};
@@ -107,6 +108,57 @@ fn node_of(tree: &Quadtree, cell: Cell) -> Option<u32> {
     }
 }
 
+/// A patch whose shape changes by more than this share of [`SHAPE_CHANGE`] (measured as
+/// [`shooter_change`]) and whose light is concentrated ([`concentrates`], before or after)
+/// delivers its total again with the new shape when the shape is installed (the solver's
+/// `install_shapes`). Shapes that move less, or light that is not concentrated, change what
+/// the coarse shots estimate by little, and the next gather corrects it.
+pub(crate) const RESHOOT_SHARE: f64 = 0.25;
+
+/// The change of shooter `s`'s shape from the one in use to `new`, as [`change`] measures it
+/// for every patch (`brightest`: [`brightest_patch`]).
+pub(super) fn shooter_change(
+    tr: &Transfer<'_>,
+    s: usize,
+    new: Option<&PatchShape>,
+    totals: &[DVec3],
+    brightest: DVec3,
+) -> f64 {
+    if !concentrates(tr.shape(s)) && !concentrates(new) {
+        return 0.0;
+    }
+    patch_change(tr.shape(s), new, totals[s], brightest)
+}
+
+/// Largest change of a weight in one channel between the shapes `old` and `new` (a missing
+/// shape counts as all weights 1), sampled on a 16 x 16 grid over the patch, scaled by the
+/// patch's total over `brightest`, per channel.
+fn patch_change(
+    old: Option<&PatchShape>,
+    new: Option<&PatchShape>,
+    total: DVec3,
+    brightest: DVec3,
+) -> f64 {
+    let at = |s: Option<&PatchShape>, su: f64, sv: f64| s.map_or([1.0; 3], |s| s.weight_at(su, sv));
+    let mut worst = 0.0f64;
+    for i in 0..256 {
+        let (su, sv) = (
+            (i % 16) as f64 / 16.0 + 1.0 / 32.0,
+            (i / 16) as f64 / 16.0 + 1.0 / 32.0,
+        );
+        let (a, b) = (at(old, su, sv), at(new, su, sv));
+        for k in 0..3 {
+            let scale = if brightest[k] > 0.0 {
+                total[k] / brightest[k]
+            } else {
+                0.0
+            };
+            worst = worst.max(scale * (a[k] as f64 - b[k] as f64).abs());
+        }
+    }
+    worst
+}
+
 /// Largest change of a weight in one channel between the shapes in use and `new` (a missing
 /// shape counts as all weights 1), sampled on a 16 x 16 grid over each patch, each patch's
 /// change scaled by its total over the largest patch total in that channel: what a stale
@@ -116,29 +168,14 @@ pub(super) fn change(
     new: &[(usize, Option<PatchShape>)],
     totals: &[DVec3],
 ) -> f64 {
-    let brightest = new.iter().fold(DVec3::ZERO, |m, (s, _)| m.max(totals[*s]));
-    let at = |s: Option<&PatchShape>, su: f64, sv: f64| s.map_or([1.0; 3], |s| s.weight_at(su, sv));
-    let mut worst = 0.0f64;
-    for (s, shape) in new {
-        let old = tr.shape(*s);
-        if old.is_none() && shape.is_none() {
-            continue;
-        }
-        for i in 0..256 {
-            let (su, sv) = (
-                (i % 16) as f64 / 16.0 + 1.0 / 32.0,
-                (i / 16) as f64 / 16.0 + 1.0 / 32.0,
-            );
-            let (a, b) = (at(old, su, sv), at(shape.as_ref(), su, sv));
-            for k in 0..3 {
-                let scale = if brightest[k] > 0.0 {
-                    totals[*s][k] / brightest[k]
-                } else {
-                    0.0
-                };
-                worst = worst.max(scale * (a[k] as f64 - b[k] as f64).abs());
-            }
-        }
-    }
-    worst
+    let brightest = brightest_patch(new, totals);
+    new.iter()
+        .filter(|(s, shape)| tr.shape(*s).is_some() || shape.is_some())
+        .map(|(s, shape)| patch_change(tr.shape(*s), shape.as_ref(), totals[*s], brightest))
+        .fold(0.0, f64::max)
+}
+
+/// The largest total of the patches of `new`, per channel.
+pub(super) fn brightest_patch(new: &[(usize, Option<PatchShape>)], totals: &[DVec3]) -> DVec3 {
+    new.iter().fold(DVec3::ZERO, |m, (s, _)| m.max(totals[*s]))
 }

@@ -44,6 +44,14 @@ impl CoarseCache {
         self.per[s].is_some()
     }
 
+    /// Forgets shooter `s`'s transfers (its light changed shape: the next shot computes them
+    /// again).
+    pub(super) fn forget(&mut self, s: usize) {
+        if let Some(t) = self.per[s].take() {
+            self.used -= t.len();
+        }
+    }
+
     /// Keeps `t` as shooter `s`'s transfers if there is room; gives it back if not.
     fn store(&mut self, s: usize, t: Vec<f32>) -> Result<(), Vec<f32>> {
         if self.used + t.len() > self.budget {
@@ -66,13 +74,20 @@ struct Points {
 
 impl Points {
     /// Every vertex (or coarse receiver, if `coarse`) of every reflecting polygon that shooter
-    /// `s`'s pairs reach.
-    fn of(tr: &Transfer<'_>, polys: &[Poly], s: usize, coarse: bool) -> Points {
+    /// `s`'s pairs reach and `keep` keeps.
+    fn of(
+        tr: &Transfer<'_>,
+        polys: &[Poly],
+        s: usize,
+        coarse: bool,
+        keep: impl Fn(usize) -> bool,
+    ) -> Points {
         let pairs = tr.pairs[s].as_ref().expect("pairs computed above");
         let keys = |p: &Poly| if coarse { p.ckeys.len() } else { p.keys.len() };
         let (at, entry) = pairs
             .receivers()
             .enumerate()
+            .filter(|&(_, (r, _))| keep(r))
             .map(|(i, (r, _))| (i, r, &polys[r]))
             .filter(|(_, _, p)| p.reflects())
             .flat_map(|(i, r, p)| (0..keys(p) as u32).map(move |k| ((r as u32, k), i as u32)))
@@ -80,8 +95,10 @@ impl Points {
         Points { at, entry, coarse }
     }
 
-    /// Shooter `s`'s transfer to every point (in parallel, collected in order).
-    fn transfers(&self, tr: &Transfer<'_>, polys: &[Poly], s: usize) -> Vec<DVec3> {
+    /// Shooter `s`'s transfer to every point (in parallel, collected in order): at coarse
+    /// receivers and concentrated shots' fine vertices as an indirect shot takes it
+    /// ([`Transfer::coarse_transfer`]), at every vertex of a direct shot as the gather does.
+    fn transfers(&self, tr: &Transfer<'_>, polys: &[Poly], s: usize, indirect: bool) -> Vec<DVec3> {
         self.at
             .par_iter()
             .zip(&self.entry)
@@ -92,15 +109,101 @@ impl Points {
                 } else {
                     p.keys[k as usize]
                 };
-                tr.transfer_at(s, r as usize, i as usize, key.u(), key.v())
+                if indirect {
+                    tr.coarse_transfer(s, r as usize, i as usize, key.u(), key.v())
+                } else {
+                    tr.transfer_at(s, r as usize, i as usize, key.u(), key.v())
+                }
             })
             .collect()
     }
 }
 
-/// Shooter `s` shoots radiosity `db` (per unit intensity scale for a spot) to every vertex, or
-/// to the coarse receiver points if `cache` is given. Returns the polygons that received or own
-/// the shooter, ascending, and the number of receiver points.
+/// What one shot reached.
+pub(super) struct Shot {
+    /// The polygons that received it or own the shooter, ascending.
+    pub touched: Vec<u32>,
+    /// The polygons whose fine vertices received an indirect shot concentrated on them,
+    /// ascending (see [`shoot`]).
+    pub concentrated: Vec<u32>,
+    /// Receiver points.
+    pub points: usize,
+}
+
+/// The receiver points of an indirect shot of one shooter: the coarse receivers of the
+/// polygons it reaches, and the fine vertices of those it concentrates its light on.
+pub(super) struct Plan {
+    shot: Shot,
+    coarse: Points,
+    fine: Points,
+}
+
+impl Plan {
+    /// Where shooter `s` (whose pair table exists) shoots in the indirect pass.
+    pub(super) fn of(tr: &Transfer<'_>, polys: &[Poly], s: usize) -> Plan {
+        let touched = touched_polygons(tr, polys.len(), s);
+        let concentrated: Vec<u32> = touched
+            .iter()
+            .copied()
+            .filter(|&r| {
+                let p = &polys[r as usize];
+                p.reflects() && tr.concentrated(s, r as usize, p.coarse_spacing)
+            })
+            .collect();
+        let is_concentrated = |r: usize| concentrated.binary_search(&(r as u32)).is_ok();
+        let coarse = Points::of(tr, polys, s, true, |r| !is_concentrated(r));
+        let fine = Points::of(tr, polys, s, false, is_concentrated);
+        Plan {
+            shot: Shot {
+                points: coarse.at.len() + fine.at.len(),
+                touched,
+                concentrated,
+            },
+            coarse,
+            fine,
+        }
+    }
+
+    /// Shooter `s`'s transfers to the coarse points and to the fine ones, as they are now.
+    pub(super) fn transfers(
+        &self,
+        tr: &Transfer<'_>,
+        polys: &[Poly],
+        s: usize,
+    ) -> (Vec<DVec3>, Vec<DVec3>) {
+        (
+            self.coarse.transfers(tr, polys, s, true),
+            self.fine.transfers(tr, polys, s, true),
+        )
+    }
+
+    /// Adds `db` times `new - old` (pairs of [`Plan::transfers`]) to the points' light: the
+    /// change of what a shooter's total delivers when its transfers change (its shape did).
+    /// What it reached.
+    pub(super) fn add_change(
+        self,
+        polys: &mut [Poly],
+        db: DVec3,
+        old: (Vec<DVec3>, Vec<DVec3>),
+        new: (Vec<DVec3>, Vec<DVec3>),
+    ) -> Shot {
+        for ((&(r, k), o), n) in self.coarse.at.iter().zip(old.0).zip(new.0) {
+            polys[r as usize].cg[k as usize] += db * (n - o);
+        }
+        for ((&(r, k), o), n) in self.fine.at.iter().zip(old.1).zip(new.1) {
+            polys[r as usize].ng[k as usize] += db * (n - o);
+        }
+        self.shot
+    }
+}
+
+/// Shooter `s` shoots radiosity `db` (per unit intensity scale for a spot) to every vertex, or,
+/// if `cache` is given (an indirect shot), to the coarse receiver points, except on the
+/// polygons where its light is concentrated on a few coarse cells
+/// ([`Transfer::concentrated`]: a panel 2 cm under a ceiling lights a spot of the ceiling
+/// smaller than the ceiling's coarse cells, whose trapezoid rule would count that spot's light
+/// over a whole cell), whose fine vertices receive it instead (`Poly::ng`, not cached: the
+/// fine vertices change with every refinement).
 ///
 /// Coarse shots go to a fixed set of points (the coarse receivers never change during a solve),
 /// and a patch shoots several times in an enclosed scene (about 4.7 times on average in the
@@ -114,20 +217,30 @@ pub(super) fn shoot(
     s: usize,
     db: DVec3,
     cache: Option<&mut CoarseCache>,
-) -> (Vec<u32>, usize) {
+) -> Shot {
     tr.ensure_pairs(s);
     let tr = &*tr;
-    let points = Points::of(tr, polys, s, cache.is_some());
-    match cache {
-        None => {
-            let t = points.transfers(tr, polys, s);
-            for (&(r, k), t) in points.at.iter().zip(t) {
-                polys[r as usize].g[k as usize] += db * t;
-            }
+    let Some(cache) = cache else {
+        let points = Points::of(tr, polys, s, false, |_| true);
+        let t = points.transfers(tr, polys, s, false);
+        for (&(r, k), t) in points.at.iter().zip(t) {
+            polys[r as usize].g[k as usize] += db * t;
         }
-        Some(cache) => shoot_coarse(tr, polys, s, db, &points, cache),
+        return Shot {
+            touched: touched_polygons(tr, polys.len(), s),
+            concentrated: Vec::new(),
+            points: points.at.len(),
+        };
+    };
+    let plan = Plan::of(tr, polys, s);
+    shoot_coarse(tr, polys, s, db, &plan.coarse, cache);
+    if !plan.fine.at.is_empty() {
+        let t = plan.fine.transfers(tr, polys, s, true);
+        for (&(r, k), t) in plan.fine.at.iter().zip(t) {
+            polys[r as usize].ng[k as usize] += db * t;
+        }
     }
-    (touched_polygons(tr, polys.len(), s), points.at.len())
+    plan.shot
 }
 
 /// The coarse half of [`shoot`]: a patch's transfers come from the cache (computed and stored
@@ -143,7 +256,7 @@ fn shoot_coarse(
     if !matches!(tr.shooters[s].kind, ShooterKind::Patch { .. }) {
         // Spots and emitters shoot to every vertex in the direct pass; should one ever shoot
         // coarse, its (coloured, for a spot) transfer is added unrounded.
-        let t = points.transfers(tr, polys, s);
+        let t = points.transfers(tr, polys, s, true);
         for (&(r, k), t) in points.at.iter().zip(t) {
             polys[r as usize].cg[k as usize] += db * t;
         }
@@ -152,7 +265,7 @@ fn shoot_coarse(
     if !cache.holds(s) {
         // A patch's transfer is the same in every channel (F * V), so one f32 holds it.
         let t: Vec<f32> = points
-            .transfers(tr, polys, s)
+            .transfers(tr, polys, s, true)
             .into_iter()
             .map(|t| t.x as f32)
             .collect();

@@ -10,10 +10,10 @@ use rayon::prelude::*;
 
 use super::energy;
 use super::eta::{Eta, Phase};
-use super::poly::{PatchLayout, Poly};
+use super::poly::{Light, PatchLayout, Poly};
 use super::refine::refine;
 use super::shapes;
-use super::shot::{shoot, CoarseCache};
+use super::shot::{shoot, CoarseCache, Plan, Shot};
 use super::unshot::{self, Unshot};
 use super::{elapsed_ms, memory_error, state_bytes, Outcome, MAX_ROUNDS, SHOOT_MARGIN};
 use crate::transfer::shape::PatchShape;
@@ -50,9 +50,12 @@ pub(super) struct Solver<'a, 't, 'o> {
     /// Per patch shooter: the integral of G over the patch from the fine leaves (light that
     /// reached every vertex: direct shots, gathers) ...
     fine: Vec<DVec3>,
-    /// ... and from the coarse cells (light shot to the coarse receivers since the last full
-    /// gather).
+    /// ... from the coarse cells (light shot to the coarse receivers since the last full
+    /// gather) ...
     coarse: Vec<DVec3>,
+    /// ... and from the fine leaves of the light shots concentrated on less than a coarse cell
+    /// (see `shot`) since the last full gather.
+    concentrated: Vec<DVec3>,
     /// The patches' coarse transfers, kept from their first shot.
     cache: CoarseCache,
     /// Shots taken, and the most the solve takes.
@@ -112,6 +115,7 @@ impl<'a, 't, 'o> Solver<'a, 't, 'o> {
             unshot,
             fine: vec![DVec3::ZERO; ns],
             coarse: vec![DVec3::ZERO; ns],
+            concentrated: vec![DVec3::ZERO; ns],
             // The cache is a speed-up, not part of the result: it takes at most an eighth of
             // the memory limit, and its bytes count against the limit in every refinement.
             cache: CoarseCache::new(ns, cache_entries.min(cache_budget(memory_limit))),
@@ -194,9 +198,9 @@ impl<'a, 't, 'o> Solver<'a, 't, 'o> {
                 continue;
             }
             let t = Instant::now();
-            let (touched, points) = shoot(self.tr, &mut self.polys, s, db, None);
-            self.eta.transfers(points, t.elapsed().as_secs_f64());
-            self.record_shot(s, db, &touched, false);
+            let shot = shoot(self.tr, &mut self.polys, s, db, None);
+            self.eta.transfers(shot.points, t.elapsed().as_secs_f64());
+            self.record_shot(s, db, &shot, false);
         }
     }
 
@@ -246,11 +250,55 @@ impl<'a, 't, 'o> Solver<'a, 't, 'o> {
         Ok(false)
     }
 
-    /// Gathers from now on distribute each patch's light by its shape in `new`.
+    /// Gathers from now on distribute each patch's light by its shape in `new`, and so do the
+    /// shots; what a patch has shot so far is delivered again with its new shape (the change
+    /// added to its receivers' coarse and concentrated light) where the shape changed by more
+    /// than a share of [`shapes::SHAPE_CHANGE`]: otherwise the next gather finds the light a
+    /// new shape moves (a ceiling's bright spot over a panel 2 cm below it, growing with every
+    /// round as more bounces reach it) as unshot light the round's shots never estimated, and
+    /// the rounds end far from converged.
     fn install_shapes(&mut self, new: Vec<(usize, Option<PatchShape>)>) {
-        for (s, shape) in new {
+        let brightest = shapes::brightest_patch(&new, &self.totals);
+        let changed: Vec<(usize, Option<PatchShape>)> = new
+            .into_iter()
+            .filter(|(s, shape)| self.tr.shape(*s) != shape.as_ref())
+            .collect();
+        let moved: Vec<usize> = changed
+            .iter()
+            .filter(|(s, shape)| {
+                self.totals[*s] != DVec3::ZERO
+                    && shapes::shooter_change(self.tr, *s, shape.as_ref(), &self.totals, brightest)
+                        > shapes::RESHOOT_SHARE * shapes::SHAPE_CHANGE
+            })
+            .map(|(s, _)| *s)
+            .collect();
+        let (tr, polys) = (&*self.tr, &self.polys);
+        let before: Vec<(Plan, (Vec<DVec3>, Vec<DVec3>))> = moved
+            .iter()
+            .map(|&s| {
+                let plan = Plan::of(tr, polys, s);
+                let t = plan.transfers(tr, polys, s);
+                (plan, t)
+            })
+            .collect();
+        for (s, shape) in changed {
+            // The coarse transfers of a concentrated patch follow its shape
+            // (`Transfer::coarse_transfer`).
+            if shapes::concentrates(self.tr.shape(s)) || shapes::concentrates(shape.as_ref()) {
+                self.cache.forget(s);
+            }
             self.tr.set_shape(s, shape);
         }
+        for (&s, (plan, old)) in moved.iter().zip(before) {
+            let new = plan.transfers(self.tr, &self.polys, s);
+            let shot = plan.add_change(&mut self.polys, self.totals[s], old, new);
+            let concentrated = shot.concentrated.iter().map(|&r| r as usize);
+            self.integrate(concentrated, Light::Concentrated);
+            let touched = || shot.touched.iter().map(|&r| r as usize);
+            self.integrate(touched(), Light::Coarse);
+            self.reestimate(touched());
+        }
+        self.fraction = self.unshot.fraction();
     }
 
     /// Patch `s` shoots its unshot radiosity to the coarse receivers (building its pair table
@@ -278,13 +326,13 @@ impl<'a, 't, 'o> Solver<'a, 't, 'o> {
         // Whether this shot computes its transfers (a cached one only adds them): only computed
         // ones tell what a gather's transfer costs.
         let computes = !self.cache.holds(s);
-        let (touched, points) = shoot(self.tr, &mut self.polys, s, db, Some(&mut self.cache));
+        let shot = shoot(self.tr, &mut self.polys, s, db, Some(&mut self.cache));
         let dt = transfer_start.elapsed().as_secs_f64();
         self.clock.shots += dt;
         if computes {
-            self.eta.transfers(points, dt);
+            self.eta.transfers(shot.points, dt);
         }
-        self.fraction = self.record_shot(s, db, &touched, true);
+        self.fraction = self.record_shot(s, db, &shot, true);
         self.eta
             .shot_took(first_shot, shot_start.elapsed().as_secs_f64());
         let now = self.clock.start.elapsed().as_secs_f64();
@@ -297,16 +345,22 @@ impl<'a, 't, 'o> Solver<'a, 't, 'o> {
         Ok(())
     }
 
-    /// After shooter `s` shot `db` (to the fine vertices, or to the coarse receivers if
-    /// `coarse`): its total and unshot radiosity, the integrals and unshot radiosity of the
-    /// patches of the polygons it reached (`touched`), the history and the progress. Returns the
-    /// unshot fraction.
-    fn record_shot(&mut self, s: usize, db: DVec3, touched: &[u32], coarse: bool) -> f64 {
+    /// After shooter `s` shot `db` (to the fine vertices, or to the coarse receivers and the
+    /// fine vertices of the polygons it concentrates on if `coarse`): its total and unshot
+    /// radiosity, the integrals and unshot radiosity of the patches of the polygons it reached,
+    /// the history and the progress. Returns the unshot fraction.
+    fn record_shot(&mut self, s: usize, db: DVec3, shot: &Shot, coarse: bool) -> f64 {
         self.totals[s] += db;
         self.unshot.set(self.tr, s, DVec3::ZERO);
         self.shots += 1;
-        let touched = || touched.iter().map(|&r| r as usize);
-        self.integrate(touched(), coarse);
+        let touched = || shot.touched.iter().map(|&r| r as usize);
+        if coarse {
+            self.integrate(touched(), Light::Coarse);
+            let concentrated = shot.concentrated.iter().map(|&r| r as usize);
+            self.integrate(concentrated, Light::Concentrated);
+        } else {
+            self.integrate(touched(), Light::Fine);
+        }
         self.reestimate(touched());
         let fraction = self.unshot.fraction();
         self.history.push(fraction);
@@ -383,26 +437,26 @@ impl<'a, 't, 'o> Solver<'a, 't, 'o> {
             &mut self.guard_stops,
         )?;
         let all = 0..self.polys.len();
-        self.integrate(all.clone(), false);
+        self.integrate(all.clone(), Light::Fine);
         for p in self.polys.iter_mut() {
             p.clear_coarse();
         }
         self.coarse.iter_mut().for_each(|c| *c = DVec3::ZERO);
+        self.concentrated.iter_mut().for_each(|c| *c = DVec3::ZERO);
         self.reestimate(all);
         self.fraction = self.unshot.fraction();
         Ok(splits)
     }
 
-    /// Recomputes the patch integrals of G of `polygons` (fine leaves, or coarse cells if
-    /// `coarse`).
-    fn integrate(&mut self, polygons: impl Iterator<Item = usize>, coarse: bool) {
-        let out = if coarse {
-            &mut self.coarse
-        } else {
-            &mut self.fine
+    /// Recomputes the patch integrals of the light `which` of `polygons`.
+    fn integrate(&mut self, polygons: impl Iterator<Item = usize>, which: Light) {
+        let out = match which {
+            Light::Fine => &mut self.fine,
+            Light::Coarse => &mut self.coarse,
+            Light::Concentrated => &mut self.concentrated,
         };
         for r in polygons {
-            self.polys[r].integrate(r, &self.patches, coarse, out);
+            self.polys[r].integrate(r, &self.patches, which, out);
         }
     }
 
@@ -416,9 +470,9 @@ impl<'a, 't, 'o> Solver<'a, 't, 'o> {
         }
     }
 
-    /// Unshot radiosity of patch `s`: rho * (fine + coarse integral) / area - total, per
-    /// channel, negative where the patch has shot more than the latest estimate says it
-    /// reflects (see the module doc).
+    /// Unshot radiosity of patch `s`: rho * (fine + coarse + concentrated integral) / area -
+    /// total, per channel, negative where the patch has shot more than the latest estimate says
+    /// it reflects (see the module doc).
     fn patch_unshot(&self, s: usize) -> DVec3 {
         let sg = &self.tr.shooters[s];
         let ShooterKind::Patch { polygon, .. } = sg.kind else {
@@ -426,7 +480,7 @@ impl<'a, 't, 'o> Solver<'a, 't, 'o> {
         };
         let rho = self.polys[polygon as usize].rho;
         let b = if sg.area > 0.0 {
-            rho * (self.fine[s] + self.coarse[s]) / sg.area
+            rho * (self.fine[s] + self.coarse[s] + self.concentrated[s]) / sg.area
         } else {
             DVec3::ZERO
         };

@@ -44,6 +44,7 @@ use std::sync::atomic::{AtomicU64, Ordering};
 use glam::DVec3;
 
 use super::formfactor::{point_to_polygon, SmallPoly};
+use super::visible::{self, Sight};
 use base::quadtree::Cell;
 use base::rng::{seed_of, Rng};
 use receivers::corner_neighbours;
@@ -291,6 +292,11 @@ pub(crate) struct Transfer<'a> {
     eps: f64,
     /// Shadow rays cast so far (a sum of integers: independent of scheduling).
     pub rays: AtomicU64,
+    /// Visibility queries answered exactly (the visible region clipped, [`crate::visible`]),
+    /// and those that fell back to shadow rays (more near occluders or pieces than the exact
+    /// query's fixed buffers hold).
+    pub exact_queries: AtomicU64,
+    pub ray_fallbacks: AtomicU64,
     /// Whether [`Transfer::classify`] drops candidates outside a face of the receiver/shooter
     /// hull (always on; off only in the test that checks it changes no transfer).
     use_hull_faces: bool,
@@ -344,6 +350,8 @@ impl<'a> Transfer<'a> {
             shooters,
             eps,
             rays: AtomicU64::new(0),
+            exact_queries: AtomicU64::new(0),
+            ray_fallbacks: AtomicU64::new(0),
             use_hull_faces: true,
             pair_bytes: 0,
             exact_fallbacks: 0,
@@ -712,7 +720,7 @@ impl<'a> Transfer<'a> {
                     1.0
                 }
             }
-            _ => self.visibility_weighted(s, r, cands, x, (None, coherent)),
+            _ => self.visibility_weighted(s, r, cands, x, open.x, (None, coherent)),
         };
         (open, vis)
     }
@@ -747,36 +755,108 @@ impl<'a> Transfer<'a> {
         }
     }
 
-    /// The visible fraction of shooter `s` from point `x` given the pair's occluder candidates
-    /// `cands` ([`Transfer::visible_fraction`]), sampled as `how` says (a shape weighting the
-    /// rays, and whether only the first set is cast). Candidates that cannot meet
-    /// the pyramid from `x` over the shooter are dropped first (no ray can hit them); with none
-    /// left, visibility is 1 without rays.
+    /// The visible fraction of shooter `s` from point `x` of receiver `r` given the pair's
+    /// occluder candidates `cands` and the shooter's unoccluded form factor `open` there: the
+    /// form factor of the part of the shooter `x` sees ([`crate::visible`], exact) over
+    /// `open`. Candidates that cannot meet the pyramid from `x` over the shooter are dropped
+    /// first; with none left, visibility is 1. Where more than [`MAX_NEAR`] remain or the
+    /// visible region's description would not fit, the fraction is estimated from shadow rays
+    /// instead ([`Transfer::visible_fraction`], sampled as `how` says: a shape weighting the
+    /// rays, and whether only the first set is cast), and counted in `ray_fallbacks`.
     pub(crate) fn visibility_weighted(
         &self,
         s: usize,
         r: usize,
         cands: &[u32],
         x: DVec3,
+        open: f64,
         how: Sampling<'_>,
     ) -> f64 {
+        let n = self.scene.polygons[r].normal;
+        visible::with_arena(|view| {
+            let look = self.look(s, r, cands, x, view, how);
+            look.fraction(view, x, n, open)
+        })
+    }
+
+    /// What point `x` of receiver `r` sees of shooter `s` past the pair's candidates `cands`
+    /// (see [`Transfer::visibility_weighted`]): nothing that may block, the exact region (left
+    /// in `view`), or where that does not apply the visible fraction from shadow rays sampled
+    /// as `how` says.
+    pub(crate) fn look(
+        &self,
+        s: usize,
+        r: usize,
+        cands: &[u32],
+        x: DVec3,
+        view: &mut visible::View,
+        how: Sampling<'_>,
+    ) -> Look {
+        let near = self.near_occluders(s, cands, x);
+        if near.len == 0 && !near.many {
+            return Look::Clear;
+        }
+        if !near.many {
+            self.exact_queries.fetch_add(1, Ordering::Relaxed);
+            let sg = &self.shooters[s];
+            let polys = &self.scene.polygons;
+            let occ = near.ids[..near.len]
+                .iter()
+                .map(|&q| polys[q as usize].vertices());
+            match visible::see(view, x, sg.outline.verts(), sg.normal, occ, self.eps) {
+                Sight::Complex => {}
+                sight => return Look::Exact(sight),
+            }
+        }
+        Look::Rays(self.visibility_by_rays(s, r, cands, x, &near, how))
+    }
+
+    /// The visible fraction of shooter `s` from `x` estimated from shadow rays (the exact
+    /// query's fallback, counted), `near` being the pair's candidates that may block.
+    pub(crate) fn visibility_by_rays(
+        &self,
+        s: usize,
+        r: usize,
+        cands: &[u32],
+        x: DVec3,
+        near: &Near,
+        how: Sampling<'_>,
+    ) -> f64 {
+        self.ray_fallbacks.fetch_add(1, Ordering::Relaxed);
         let sg = &self.shooters[s];
         if sg.strata.len() <= FEW_RAYS {
             return self.visibility_unfiltered(s, r, cands, x, how);
         }
-        let mut near = [0u32; 16];
-        let mut nn = 0usize;
-        let mut many = false;
+        self.visible_fraction(s, r, x, how, |y| {
+            if near.many {
+                self.bvh.occluded(x, y, r as u32, sg.polygon)
+            } else {
+                near.ids[..near.len]
+                    .iter()
+                    .any(|&q| self.bvh.hits(q as usize, x, y - x))
+            }
+        })
+    }
+
+    /// The candidates of a pair that may meet the pyramid from `x` over shooter `s`'s outline
+    /// (at most [`MAX_NEAR`]; `many` when there are more).
+    pub(crate) fn near_occluders(&self, s: usize, cands: &[u32], x: DVec3) -> Near {
+        let sg = &self.shooters[s];
+        let mut near = Near {
+            ids: [0; MAX_NEAR],
+            len: 0,
+            many: false,
+        };
         let sides = pyramid_sides(x, &sg.outline);
         let mut consider = |q: u32| {
-            if many || !self.may_block(q, x, sg, &sides) {
+            if near.many || !self.may_block(q, x, sg, &sides) {
                 return;
             }
-            if nn < near.len() {
-                near[nn] = q;
-                nn += 1;
+            if near.len < MAX_NEAR {
+                near.ids[near.len] = q;
+                near.len += 1;
             } else {
-                many = true;
+                near.many = true;
             }
         };
         if cands.len() <= LONG_CANDIDATE_LIST {
@@ -799,18 +879,7 @@ impl<'a> Transfer<'a> {
                 }
             });
         }
-        if nn == 0 {
-            return 1.0;
-        }
-        self.visible_fraction(s, r, x, how, |y| {
-            if many {
-                self.bvh.occluded(x, y, r as u32, sg.polygon)
-            } else {
-                near[..nn]
-                    .iter()
-                    .any(|&q| self.bvh.hits(q as usize, x, y - x))
-            }
-        })
+        near
     }
 
     /// [`Transfer::visibility_weighted`] for a shooter with few sample points: filtering the candidates
@@ -961,8 +1030,21 @@ impl<'a> Transfer<'a> {
     /// ([`Transfer::index_receivers`]).
     pub fn gather(&self, totals: &[DVec3], r: usize, u: f64, v: f64) -> DVec3 {
         debug_assert!(!self.unsorted, "index_receivers after new pairs");
+        visible::with_pool(|pool| self.gather_in(totals, r, (u, v), pool))
+    }
+
+    /// [`Transfer::gather`] with the pool of views its shaped patches' regions are kept in
+    /// between the two passes (found once per point and patch).
+    fn gather_in(
+        &self,
+        totals: &[DVec3],
+        r: usize,
+        (u, v): (f64, f64),
+        pool: &mut Vec<visible::View>,
+    ) -> DVec3 {
         let mut g = DVec3::ZERO;
         let mut pending: Vec<shape::Pending> = Vec::new();
+        let mut used = 0usize;
         for &(s, i) in &self.by_receiver[r] {
             let t = totals[s as usize];
             if t == DVec3::ZERO {
@@ -971,8 +1053,17 @@ impl<'a> Transfer<'a> {
             match &self.shapes[s as usize] {
                 None => g += t * self.transfer_at(s as usize, r, i as usize, u, v),
                 Some(shape) => {
-                    let (uniform, error, f) =
-                        self.uniform_with_error(s as usize, r, i as usize, shape, u, v);
+                    if pool.len() == used {
+                        pool.push(visible::View::default());
+                    }
+                    let (uniform, error, f, look) = self.uniform_with_error(
+                        s as usize,
+                        r,
+                        i as usize,
+                        shape,
+                        (u, v),
+                        &mut pool[used],
+                    );
                     g += t * uniform;
                     if error > 0.0 {
                         pending.push(shape::Pending {
@@ -981,7 +1072,11 @@ impl<'a> Transfer<'a> {
                             uniform,
                             error,
                             f,
+                            look,
+                            slot: used as u32,
                         });
+                        // A part seen keeps its region for the second pass.
+                        used += usize::from(look == Look::Exact(Sight::Part));
                     }
                 }
             }
@@ -1002,8 +1097,15 @@ impl<'a> Transfer<'a> {
                 let shape = self.shapes[p.s as usize]
                     .as_ref()
                     .expect("pending is shaped");
-                let shaped =
-                    self.shaped_transfer(p.s as usize, r, p.i as usize, shape, (u, v), p.f);
+                let shaped = self.shaped_in_view(
+                    p.s as usize,
+                    r,
+                    p.i as usize,
+                    shape,
+                    (u, v),
+                    (p.f, shape::NODE_BUDGET * tau),
+                    (p.look, &pool[p.slot as usize]),
+                );
                 g += a * t * (shaped - p.uniform);
             }
         }
@@ -1042,9 +1144,46 @@ pub(crate) fn kernel(x: DVec3, n: DVec3, y: DVec3, ny: DVec3) -> f64 {
     cx * cy / (r2 * r2)
 }
 
-/// Shooters with at most this many sample points skip the per-point candidate filter (see
-/// [`Transfer::visibility_unfiltered`]).
+/// Shooters with at most this many sample points skip the per-point candidate filter when
+/// their visibility falls back to rays (see [`Transfer::visibility_unfiltered`]).
 const FEW_RAYS: usize = 2;
+
+/// What a receiver point sees of a polygon shooter ([`Transfer::look`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) enum Look {
+    /// No occluder may block it: all of it.
+    Clear,
+    /// The exact region (the pieces in the view it was built in; never `Complex`).
+    Exact(Sight),
+    /// Its visible fraction, from shadow rays (the exact query did not apply).
+    Rays(f64),
+}
+
+impl Look {
+    /// The visible fraction of a shooter whose unoccluded form factor at `x` (normal `n`) is
+    /// `open`, `view` holding the region of an exact part.
+    pub(crate) fn fraction(self, view: &visible::View, x: DVec3, n: DVec3, open: f64) -> f64 {
+        match self {
+            Look::Clear | Look::Exact(Sight::All) => 1.0,
+            Look::Exact(Sight::Nothing) => 0.0,
+            Look::Exact(_) if open <= 0.0 => 1.0,
+            Look::Exact(_) => (view.form_factor(x, n, open) / open).clamp(0.0, 1.0),
+            Look::Rays(f) => f,
+        }
+    }
+}
+
+/// Most occluders an exact visibility query takes ([`Transfer::visibility_weighted`]); beyond
+/// them it falls back to shadow rays.
+pub(crate) const MAX_NEAR: usize = 16;
+
+/// The occluders that may meet the pyramid from a receiver point over a shooter.
+pub(crate) struct Near {
+    pub(crate) ids: [u32; MAX_NEAR],
+    pub(crate) len: usize,
+    /// More than [`MAX_NEAR`] (then `ids` is incomplete).
+    pub(crate) many: bool,
+}
 
 /// Occluder lists longer than this are searched through the BVH per receiver point.
 const LONG_CANDIDATE_LIST: usize = 24;

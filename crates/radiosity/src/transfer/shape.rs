@@ -33,8 +33,10 @@
 
 use glam::{DVec3, Vec3};
 
-use super::{cell_corners, sub_area, Candidates, PairClass, ShooterKind, Transfer};
+use super::Look;
+use super::{cell_corners, sub_area, PairClass, ShooterKind, Transfer};
 use crate::formfactor::{point_to_polygon, SmallPoly};
+use crate::visible::{self, CellIn, Region, Sight, View};
 use base::quadtree::{Cell, Quadtree};
 use scene::Polygon;
 
@@ -58,6 +60,9 @@ pub struct PatchShape {
     moment: Vec<[Vec3; 3]>,
     /// Per node: the index of its weight in `leaves` (leaves only; derived).
     leaf_index: Vec<u32>,
+    /// Per node: the largest difference between two of its leaves' weights in one channel
+    /// (derived; 0 for a leaf): how far the light of a part of it can stand from its mean.
+    node_spread: Vec<f32>,
     /// Largest difference between two leaves' weights in one channel.
     spread: f64,
 }
@@ -98,6 +103,7 @@ impl PatchShape {
             };
         }
         let moment = moments(poly, patch, &tree, &mean);
+        let node_spread = node_spreads(&tree, &leaves, &leaf_index);
         let mut lo = [f32::INFINITY; 3];
         let mut hi = [f32::NEG_INFINITY; 3];
         for c in &leaves {
@@ -116,6 +122,7 @@ impl PatchShape {
             mean,
             moment,
             leaf_index,
+            node_spread,
             spread,
         })
     }
@@ -127,12 +134,45 @@ impl PatchShape {
         self.leaves[self.leaf_index[id] as usize]
     }
 
+    #[cfg(test)]
+    pub(crate) fn weight_at_node(&self, id: usize) -> [f32; 3] {
+        self.leaves[self.leaf_index[id] as usize]
+    }
+
     /// Luminance of the weight of the leaf at unit-square position (su, sv) of the patch.
     #[inline]
     fn luminance_at(&self, su: f64, sv: f64) -> f64 {
         let c = self.weight_at(su, sv);
         0.2126 * c[0] as f64 + 0.7152 * c[1] as f64 + 0.0722 * c[2] as f64
     }
+}
+
+/// Per node, the largest difference between two of its leaves' weights in one channel (0 for
+/// a leaf), from each node's lowest and highest leaf weight per channel.
+fn node_spreads(tree: &Quadtree, leaves: &[[f32; 3]], leaf_index: &[u32]) -> Vec<f32> {
+    let nodes = tree.nodes();
+    let mut range = vec![([f32::INFINITY; 3], [f32::NEG_INFINITY; 3]); nodes.len()];
+    for i in (0..nodes.len()).rev() {
+        let n = nodes[i];
+        range[i] = if n.is_leaf() {
+            let w = leaves[leaf_index[i] as usize];
+            (w, w)
+        } else {
+            let f = n.first_child as usize;
+            let mut r = range[f];
+            for c in &range[f + 1..f + 4] {
+                for k in 0..3 {
+                    r.0[k] = r.0[k].min(c.0[k]);
+                    r.1[k] = r.1[k].max(c.1[k]);
+                }
+            }
+            r
+        };
+    }
+    range
+        .iter()
+        .map(|(lo, hi)| (0..3).map(|k| hi[k] - lo[k]).fold(0.0f32, f32::max))
+        .collect()
 }
 
 /// Each node's first moment of deviation about its centre (see [`PatchShape::moment`]), from
@@ -234,6 +274,11 @@ pub(crate) fn weights(sums: &[DVec3], areas: &[f64], flat: f64) -> Option<Vec<[f
     (spread > flat).then_some(cells)
 }
 
+/// Share of a gather's tolerance for one patch ([`SHAPE_TAU`]) that one far, partly hidden
+/// node of its shape may leave (see `correction`): nodes along a hole's outline are opened
+/// until each one's possible error is below it.
+pub(crate) const NODE_BUDGET: f64 = 4.0;
+
 /// A gather corrects a shaped patch's transfer where its error estimate passes this fraction
 /// of the scene's `radiosity.tolerance` times what the point receives (see
 /// [`Transfer::gather`](super::Transfer::gather)). A point sees tens of patches whose errors
@@ -254,112 +299,290 @@ pub(crate) struct Pending {
     pub uniform: DVec3,
     pub error: f64,
     pub f: f64,
+    /// What the point sees of the patch, its region (if part of it) in the gather's view
+    /// `slot` (`visible::with_pool`).
+    pub look: Look,
+    pub slot: u32,
+}
+
+/// A coarse shot takes a patch's light by its shape only where the shape concentrates it: a
+/// weight at least this far from another. A gentler shape changes what the coarse receivers
+/// estimate by little (the next gather corrects it), and the coarse transfers of a patch so
+/// shaped stay cached across rounds.
+pub(crate) const CONCENTRATED_SPREAD: f64 = 4.0;
+
+/// A coarse shot takes a concentrated patch's light by its shape at a receiver point where
+/// taking it as uniform could be off by more than this share of its uniform transfer there.
+pub(crate) const COARSE_SHAPE_SHARE: f64 = 0.5;
+
+/// Whether a shape concentrates its patch's light (see [`CONCENTRATED_SPREAD`]).
+pub(crate) fn concentrates(shape: Option<&PatchShape>) -> bool {
+    shape.is_some_and(|s| s.spread >= CONCENTRATED_SPREAD)
 }
 
 impl Transfer<'_> {
+    /// Shooter `s`'s transfer to the receiver point of polygon `r` at (u, v) for a coarse shot
+    /// (`i`: the pair's entry): its uniform transfer, or for a patch whose shape concentrates
+    /// its light, where the shape could change it by more than [`COARSE_SHAPE_SHARE`] of that,
+    /// the shaped one (its nodes opened to 1 % of the uniform transfer). Without it a patch
+    /// whose light is concentrated near a receiver (a ceiling over a panel 2 cm below it, lit
+    /// by the panel) sent that receiver its mean in every shot, and the gather, which follows
+    /// the shape, then found several times the light the shots had estimated: the rounds did
+    /// not converge.
+    pub(crate) fn coarse_transfer(&self, s: usize, r: usize, i: usize, u: f64, v: f64) -> DVec3 {
+        let Some(shape) = self.shapes[s].as_ref().filter(|s| concentrates(Some(s))) else {
+            return self.transfer_at(s, r, i, u, v);
+        };
+        visible::with_arena(|view| {
+            let (uniform, error, f, look) = self.uniform_with_error(s, r, i, shape, (u, v), view);
+            if error <= COARSE_SHAPE_SHARE * uniform.x {
+                return uniform;
+            }
+            let budget = 0.01 * uniform.x;
+            self.shaped_in_view(s, r, i, shape, (u, v), (f, budget), (look, view))
+        })
+    }
+
+    /// Whether shooter `s` (a reflecting patch) concentrates its light on a few coarse cells
+    /// (of side `spacing`) of polygon `r`: the part of `r` it lights strongly is about the
+    /// patch's size plus twice its height over `r`'s plane (a light at height h spreads over
+    /// about h each way); concentrated when that is below 4 coarse cells and below half of
+    /// `r`'s own size (a patch lighting all of `r` is sampled fairly by its coarse cells).
+    pub(crate) fn concentrated(&self, s: usize, r: usize, spacing: f64) -> bool {
+        let sg = &self.shooters[s];
+        if !matches!(sg.kind, ShooterKind::Patch { .. }) {
+            return false;
+        }
+        let vs = sg.outline.verts();
+        let c = vs.iter().copied().sum::<DVec3>() / vs.len().max(1) as f64;
+        let size = vs
+            .iter()
+            .map(|&p| 2.0 * (p - c).length())
+            .fold(0.0f64, f64::max);
+        let rp = &self.scene.polygons[r];
+        let height = rp.normal.dot(c - rp.corners[0]).abs();
+        let rv = rp.vertices();
+        let rc = rv.iter().copied().sum::<DVec3>() / rv.len() as f64;
+        let r_size = rv
+            .iter()
+            .map(|&p| 2.0 * (p - rc).length())
+            .fold(0.0f64, f64::max);
+        let footprint = size + 2.0 * height;
+        footprint < 4.0 * spacing && footprint < 0.5 * r_size
+    }
+
     /// Shooter `s`'s uniform transfer to the receiver point of polygon `r` at (u, v) (as
     /// [`Transfer::transfer_at`] gives it for a patch), the error estimate of taking its light
     /// as uniform, spread x F x min(1, 2 size / distance) (0 when the patch is flat or the
-    /// transfer is 0), and its unoccluded form factor F.
+    /// transfer is 0), its unoccluded form factor F, and what the point sees of it (its region
+    /// left in `view`).
+    #[allow(clippy::too_many_arguments)]
     pub(crate) fn uniform_with_error(
         &self,
         s: usize,
         r: usize,
         i: usize,
         shape: &PatchShape,
-        u: f64,
-        v: f64,
-    ) -> (DVec3, f64, f64) {
+        (u, v): (f64, f64),
+        view: &mut View,
+    ) -> (DVec3, f64, f64, Look) {
         let p = self.pairs[s].as_ref().expect("the pair's table exists");
-        let (c, l) = p.at(i);
-        let (open, vis) = self.shadowed_with(s, r, (c, Candidates::Table(l)), u, v, false);
-        let f = open.x;
-        let t = DVec3::splat(f * vis);
-        if t == DVec3::ZERO || shape.spread <= 0.0 {
-            return (t, 0.0, f);
+        let (class, cands) = p.at(i);
+        if class == PairClass::Culled {
+            return (DVec3::ZERO, 0.0, 0.0, Look::Clear);
         }
         let x = self.receiver(r, u, v);
+        let n = self.scene.polygons[r].normal;
+        let f = self.unoccluded_at(s, x, n).x;
+        let look = if f == 0.0 || class != PairClass::Occluded {
+            Look::Clear
+        } else {
+            self.look(s, r, cands, x, view, (None, false))
+        };
+        let t = DVec3::splat(f * look.fraction(view, x, n, f));
+        if t == DVec3::ZERO || shape.spread <= 0.0 {
+            return (t, 0.0, f, look);
+        }
         let sg = &self.shooters[s];
-        (t, error_estimate(shape.spread, f, &sg.outline, x), f)
+        (t, error_estimate(shape.spread, f, &sg.outline, x), f, look)
     }
 
     /// Shooter `s`'s transfer to the receiver point of polygon `r` at (u, v), per unit of the
-    /// patch's total, with the patch's light distributed by `shape` (see the module doc):
-    /// `(F + sum_c d_c F_c) V_w`, at least 0 per channel, given the patch's unoccluded form
-    /// factor `f` > 0 there. `i` is the pair's entry in `s`'s table.
-    pub(crate) fn shaped_transfer(
+    /// patch's total, with the patch's light distributed by `shape` (see the module doc),
+    /// given its unoccluded form factor `f` > 0 there and what the point sees of it (`look`,
+    /// its region in `view`): `F_v + sum_c d_c F_c,v`, the form factor of the part seen plus
+    /// each cell's deviation times the form factor of its part seen, far nodes opened while
+    /// their error could pass `budget`; at least 0 per channel. With rays instead of the
+    /// region, the unoccluded correction times the shape-weighted visible fraction. `i` is the
+    /// pair's entry in `s`'s table.
+    #[allow(clippy::too_many_arguments)]
+    pub(crate) fn shaped_in_view(
         &self,
         s: usize,
         r: usize,
         i: usize,
         shape: &PatchShape,
         (u, v): (f64, f64),
-        f: f64,
+        (f, budget): (f64, f64),
+        (look, view): (Look, &View),
     ) -> DVec3 {
-        let p = self.pairs[s].as_ref().expect("the pair's table exists");
-        let (class, cands) = p.at(i);
         let ShooterKind::Patch { polygon, cell } = self.shooters[s].kind else {
             return DVec3::ZERO;
         };
         let x = self.receiver(r, u, v);
         let n = self.scene.polygons[r].normal;
         let poly = &self.scene.polygons[polygon as usize];
-        let corrected = (DVec3::splat(f) + correction(poly, cell, shape, x, n)).max(DVec3::ZERO);
-        let vis = match class {
-            PairClass::Occluded => self.visibility_weighted(s, r, cands, x, (Some(shape), false)),
-            _ => 1.0,
+        let geometry = Geometry {
+            poly,
+            patch: cell,
+            x,
+            n,
         };
-        corrected * vis
+        let whole = |f: f64, view: Option<&View>| {
+            let c = match view {
+                None => correction(&geometry, shape, None, budget),
+                Some(v) => match v.smaller() {
+                    Region::Visible => {
+                        correction(&geometry, shape, Some((v, Region::Visible)), budget)
+                    }
+                    Region::Hidden => {
+                        correction(&geometry, shape, None, budget)
+                            - correction(&geometry, shape, Some((v, Region::Hidden)), budget)
+                    }
+                },
+            };
+            (DVec3::splat(f) + c).max(DVec3::ZERO)
+        };
+        match look {
+            Look::Clear | Look::Exact(Sight::All) => whole(f, None),
+            Look::Exact(Sight::Nothing) => DVec3::ZERO,
+            Look::Exact(_) => whole(view.form_factor(x, n, f), Some(view)),
+            Look::Rays(_) => {
+                let p = self.pairs[s].as_ref().expect("the pair's table exists");
+                let cands = p.at(i).1;
+                let near = self.near_occluders(s, cands, x);
+                let vis = self.visibility_by_rays(s, r, cands, x, &near, (Some(shape), false));
+                whole(f, None) * vis
+            }
+        }
+    }
+
+    /// [`Transfer::shaped_in_view`] on its own: what the point sees of the patch found again,
+    /// in this thread's arena.
+    #[cfg(test)]
+    #[allow(clippy::too_many_arguments)]
+    pub(crate) fn shaped_transfer(
+        &self,
+        s: usize,
+        r: usize,
+        i: usize,
+        shape: &PatchShape,
+        uv: (f64, f64),
+        f: f64,
+        budget: f64,
+    ) -> DVec3 {
+        visible::with_arena(|view| {
+            let (_, _, _, look) = self.uniform_with_error(s, r, i, shape, uv, view);
+            self.shaped_in_view(s, r, i, shape, uv, (f, budget), (look, view))
+        })
     }
 }
 
-/// `sum_c d_c F_c` over the leaves of `shape` on patch `patch` of polygon `poly`, seen from
-/// point `x` with normal `n` (see the module doc), as a Barnes-Hut sum: a node at least twice
-/// its size away counts as one, its mean deviation times the kernel at its centre plus its
-/// deviation's first moment times the kernel's gradient there (a dipole: without it, light
-/// that varies inside a far node is lost wherever the kernel varies with it, measured -2 % on
-/// a ceiling lit by the walls); a nearer node is opened; a near leaf gets Lambert's exact form
-/// factor. Children in node order.
-fn correction(poly: &Polygon, patch: Cell, shape: &PatchShape, x: DVec3, n: DVec3) -> DVec3 {
+/// Where a patch's correction is summed: the patch (cell `patch` of polygon `poly`) and the
+/// receiver point `x` with normal `n`.
+struct Geometry<'p> {
+    poly: &'p Polygon,
+    patch: Cell,
+    x: DVec3,
+    n: DVec3,
+}
+
+/// `sum_c d_c F_c` over the leaves of `shape` seen from the point of `g` (see the module doc),
+/// over the whole patch or, given a view and one of its regions, over that region (the part of
+/// the patch the point sees, or the part it does not), as a Barnes-Hut sum: a node at least
+/// twice its size away counts as one, its mean deviation times the kernel at its centre plus
+/// its deviation's first moment times the kernel's gradient there (a dipole: without it, light
+/// that varies inside a far node is lost wherever the kernel varies with it, measured -2 % on a
+/// ceiling lit by the walls); a nearer node is opened; a near leaf gets Lambert's exact form
+/// factor (of its part in the region). Against a region, a node outside it is skipped, one
+/// inside it counts whole, and a far one across its border counts by the share of its area in
+/// it, opened while the part in the region could differ from the node's mean by more than
+/// `budget` (its spread times its form factor bound). Children in node order.
+fn correction(
+    g: &Geometry<'_>,
+    shape: &PatchShape,
+    region: Option<(&View, Region)>,
+    budget: f64,
+) -> DVec3 {
+    let (poly, x, n) = (g.poly, g.x, g.n);
     let nodes = shape.tree.nodes();
     let mut sum = DVec3::ZERO;
     // Depth first, on the stack: an opened node leaves at most 3 siblings behind per level.
-    let mut stack = [0u32; 3 * MAX_SHAPE_LEVELS as usize + 4];
+    // Each entry carries the region's pieces its parent met (a part of the parent meets no
+    // others), 0 once a parent lies inside one.
+    let mut stack = [(0u32, 0u64); 3 * MAX_SHAPE_LEVELS as usize + 4];
+    stack[0].1 = region.map_or(0, |(v, which)| v.all(which));
     let mut len = 1;
     while len > 0 {
         len -= 1;
-        let id = stack[len];
+        let (id, mask) = stack[len];
         let node = nodes[id as usize];
         let (w, area) = shape.mean[id as usize];
-        let corners = cell_corners(poly, absolute(patch, node.cell));
+        let corners = cell_corners(poly, absolute(g.patch, node.cell));
         let centre = 0.25 * (corners[0] + corners[1] + corners[2] + corners[3]);
         let size = (corners[2] - corners[0])
             .length()
             .max((corners[3] - corners[1]).length());
-        let far = (centre - x).length() >= 2.0 * size;
-        if !far && !node.is_leaf() {
+        let (within, met) = match region {
+            Some((v, which)) if mask != 0 => v.classify(which, &corners, mask),
+            _ => (CellIn::Inside, 0),
+        };
+        if within == CellIn::Outside {
+            continue;
+        }
+        let dist = (centre - x).length();
+        let far = dist >= 2.0 * size;
+        let open_partly = within == CellIn::Partly
+            && shape.node_spread[id as usize] as f64 * area / (std::f64::consts::PI * dist * dist)
+                > budget;
+        if (!far || open_partly) && !node.is_leaf() {
             let f = node.first_child;
-            stack[len..len + 4].copy_from_slice(&[f + 3, f + 2, f + 1, f]);
+            stack[len..len + 4].copy_from_slice(&[
+                (f + 3, met),
+                (f + 2, met),
+                (f + 1, met),
+                (f, met),
+            ]);
             len += 4;
             continue;
         }
         let d = w - DVec3::ONE;
+        if d == DVec3::ZERO && node.is_leaf() {
+            continue;
+        }
+        let partly = region.filter(|_| within == CellIn::Partly);
         if !far {
-            if d != DVec3::ZERO {
+            if let Some((v, which)) = partly {
+                sum += d * v.form_factor_in(which, (x, n), &corners, met);
+            } else {
                 sum += d * point_to_polygon(x, n, &SmallPoly::from_corners(&corners), poly.normal);
             }
             continue;
         }
-        let Some((k, g)) = kernel_and_gradient(x, n, centre, poly.normal) else {
+        let share = partly.map_or(1.0, |(v, which)| v.share(which, &corners, met));
+        if share <= 0.0 {
+            continue;
+        }
+        let Some((k, grad)) = kernel_and_gradient(x, n, centre, poly.normal) else {
             continue;
         };
         let m = &shape.moment[id as usize];
         let dipole = DVec3::new(
-            g.dot(m[0].as_dvec3()),
-            g.dot(m[1].as_dvec3()),
-            g.dot(m[2].as_dvec3()),
+            grad.dot(m[0].as_dvec3()),
+            grad.dot(m[1].as_dvec3()),
+            grad.dot(m[2].as_dvec3()),
         );
-        sum += (d * (area * k) + dipole) * std::f64::consts::FRAC_1_PI;
+        sum += (d * (area * k) + dipole) * (share * std::f64::consts::FRAC_1_PI);
     }
     sum
 }
@@ -484,14 +707,20 @@ mod tests {
                 y: 0,
             };
             let f = point_to_polygon(x, n, &SmallPoly::from_corners(poly.vertices()), poly.normal);
-            let bh = correction(&poly, root, &shape, x, n).x;
+            let g = Geometry {
+                poly: &poly,
+                patch: root,
+                x,
+                n,
+            };
+            let bh = correction(&g, &shape, None, 0.0).x;
             assert!(
                 (bh - exact).abs() <= 0.1 * exact.abs() + 1e-4 * f,
                 "at {x}: Barnes-Hut {bh}, leaf by leaf {exact}, F {f}"
             );
             let mut flat = shape.clone();
             flat.moment.iter_mut().for_each(|m| *m = [Vec3::ZERO; 3]);
-            let mono = correction(&poly, root, &flat, x, n).x;
+            let mono = correction(&g, &flat, None, 0.0).x;
             worst_monopole = worst_monopole.max((mono - exact).abs() / exact.abs().max(1e-12));
         }
         assert!(worst_monopole > 0.2, "the monopole alone: {worst_monopole}");

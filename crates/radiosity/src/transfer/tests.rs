@@ -40,79 +40,116 @@ fn hull_faces_change_no_transfer() {
     );
 }
 
-/// Regression (found while speeding up the gallery): a shooter straddling a receiver's
-/// plane had sample points behind the receiver; the pair's candidates exclude polygons wholly
-/// behind the receiver, yet rays to those points cross them, so the candidate path and the
-/// full-BVH path disagreed (Cornell light -> short-box face). Visibility now counts only the
-/// points in front, like the clipped form factor: every transfer equals the brute-force one
-/// (all polygons tested, front points only), bit for bit.
+/// The Cornell box without the OBJ's repeated faces (a repeat lies in its original's plane and
+/// blocks every ray to it, which the scene loader prevents by keeping one copy).
+fn cornell_once() -> scene::Scene {
+    let mut scene = cornell();
+    let mut kept: Vec<scene::Polygon> = Vec::new();
+    for p in scene.polygons.drain(..) {
+        let same = |q: &scene::Polygon| {
+            let mut a: Vec<[i64; 3]> = p
+                .vertices()
+                .iter()
+                .map(|v| (*v * 1e6).round().as_i64vec3().to_array())
+                .collect();
+            let mut b: Vec<[i64; 3]> = q
+                .vertices()
+                .iter()
+                .map(|v| (*v * 1e6).round().as_i64vec3().to_array())
+                .collect();
+            a.sort_unstable();
+            b.sort_unstable();
+            a == b
+        };
+        if !kept.iter().any(same) {
+            kept.push(p);
+        }
+    }
+    scene.polygons = kept;
+    scene
+}
+
+/// Exact visibility (the visible part of the shooter clipped past its occluders) against brute
+/// force: on the Cornell box, for every polygon shooter and every receiver its pair table calls
+/// occluded, at 3 x 3 points of the receiver, the transfer equals the kernel cos cos / (pi r^2)
+/// summed over a 64 x 64 grid on the shooter with one ray each through the whole BVH. The grid
+/// counts a cell a shadow edge crosses as wholly seen or hidden, so it errs by up to that
+/// cell's share where an edge passes: a box's outline crosses about 2 x 64 of the 4,096 cells,
+/// and the errors of different cells cancel in part. Measured over the 2,272 cases: at most 2.0
+/// % of the unoccluded form factor at 64 x 64, 1.5 % at 128 x 128 (falling with the cell, as a
+/// grid's error does; the largest are grazing receivers whose visible part is a sliver); 3 %
+/// allows that, while a hole lost or counted twice moves a transfer by its whole share (the
+/// lost box of a triangle wound against its frame, or a hole with a repeated vertex, were
+/// 100 %). Only the shooter's part in front of the receiver counts, as in the form factor.
 #[test]
-fn visibility_counts_only_shooter_points_in_front_of_the_receiver() {
-    let scene = cornell();
+fn exact_visibility_matches_a_grid_of_rays() {
+    let scene = cornell_once();
     let mut tr = Transfer::new(&scene);
-    let mut straddling = 0;
+    let m = 64usize;
+    // A polygon in the receiver's or the shooter's plane cannot block light between them (the
+    // OBJ's box bottoms lie in the floor's plane, under the boxes); every other polygon can.
+    let polys = &scene.polygons;
+    let coplanar = |a: usize, b: usize| {
+        let (pa, pb) = (&polys[a], &polys[b]);
+        pa.normal.cross(pb.normal).length() < 1e-9
+            && pb
+                .vertices()
+                .iter()
+                .all(|&v| pa.normal.dot(v - pa.corners[0]).abs() < 1e-9)
+    };
+    let bvh = Bvh::build(polys);
+    let blocked = |x: DVec3, y: DVec3, r: usize, s: usize| {
+        (0..polys.len()).any(|q| {
+            q != r && q != s && !coplanar(q, r) && !coplanar(q, s) && bvh.hits(q, x, y - x)
+        })
+    };
+    let (mut worst, mut cases) = (0.0f64, 0);
     for s in 0..tr.shooters.len() {
         tr.ensure_pairs(s);
-        let sg = &tr.shooters[s];
+        let sg = tr.shooters[s].clone();
         if matches!(sg.kind, ShooterKind::Spot { .. }) {
             continue;
         }
+        let p = &scene.polygons[sg.polygon as usize];
         for r in 0..scene.polygons.len() {
-            // Culled pairs (shooter and receiver facing away within the classifier's
-            // tolerance) transfer nothing by design; this test is about visibility.
-            if tr.pairs[s].as_ref().unwrap().class(r) == PairClass::Culled {
+            if tr.pairs[s].as_ref().unwrap().class(r) != PairClass::Occluded {
                 continue;
             }
             let n = scene.polygons[r].normal;
-            for i in 0..5 {
-                for j in 0..5 {
-                    let (u, v) = (0.1 + 0.2 * i as f64, 0.1 + 0.2 * j as f64);
+            for i in 0..3 {
+                for j in 0..3 {
+                    let (u, v) = (0.17 + 0.33 * i as f64, 0.17 + 0.33 * j as f64);
                     let x = tr.receiver(r, u, v);
                     let f = point_to_polygon(x, n, &sg.outline, sg.normal);
-                    // Grazing configurations (form factor below 1e-9) are decided by the
-                    // classifier's geometric tolerance, not by visibility; skip them.
                     if f <= 1e-9 {
                         continue;
                     }
-                    let first: Vec<(DVec3, f64)> =
-                        tr.targets(s, 0).map(|(y, w, _, _)| (y, w)).collect();
-                    let behind = first.iter().any(|&(y, _)| n.dot(y - x) <= 0.0);
-                    let front = first.iter().any(|&(y, _)| n.dot(y - x) > 0.0);
-                    straddling += usize::from(behind && front);
-                    let pass = |k: u64| {
-                        let (mut seen, mut total) = (0.0, 0.0);
-                        for (y, w, _, _) in tr.targets(s, k) {
-                            let w = w * kernel(x, n, y, sg.normal);
-                            if w <= 0.0 {
+                    let (u0, v0, u1, v1) = sg.bounds;
+                    let mut grid = 0.0;
+                    for a in 0..m {
+                        for b in 0..m {
+                            let uu = u0 + (u1 - u0) * (a as f64 + 0.5) / m as f64;
+                            let vv = v0 + (v1 - v0) * (b as f64 + 0.5) / m as f64;
+                            let y = p.point(uu, vv);
+                            let k = kernel(x, n, y, sg.normal);
+                            if k <= 0.0 || blocked(x, y, r, sg.polygon as usize) {
                                 continue;
                             }
-                            total += w;
-                            if !tr.bvh.occluded(x, y, r as u32, sg.polygon) {
-                                seen += w;
-                            }
-                        }
-                        (seen, total)
-                    };
-                    let (mut seen, mut total) = pass(0);
-                    let emitter = matches!(sg.kind, ShooterKind::Emitter { .. });
-                    if emitter && seen > 0.0 && seen < total {
-                        for k in 1..PENUMBRA_PASSES {
-                            let (a, b) = pass(k);
-                            seen += a;
-                            total += b;
+                            let da = p.area_element(uu, vv) * (u1 - u0) * (v1 - v0);
+                            grid += k * da / (m * m) as f64 / std::f64::consts::PI;
                         }
                     }
-                    let vis = if total > 0.0 { seen / total } else { 1.0 };
-                    assert_eq!(
-                        tr.transfer(s, r, u, v),
-                        DVec3::splat(f * vis),
-                        "shooter {s} receiver {r} ({u}, {v})"
-                    );
+                    let t = tr.transfer(s, r, u, v).x;
+                    worst = worst.max((t - grid).abs() / f);
+                    cases += 1;
                 }
             }
         }
     }
-    assert!(straddling > 0, "the case this guards never occurred");
+    assert!(cases > 500, "only {cases} occluded cases");
+    assert!(worst <= 0.03, "worst difference {worst} of the form factor");
+    assert!(tr.ray_fallbacks.load(Ordering::Relaxed) == 0);
+    assert!(tr.exact_queries.load(Ordering::Relaxed) > 0);
 }
 
 /// Hull faces of two parallel unit squares one apart: 4 side faces (each found 4 times, from

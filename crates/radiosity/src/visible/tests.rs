@@ -1,0 +1,297 @@
+use super::*;
+use crate::formfactor::polygon_form_factor;
+use proptest::prelude::*;
+
+/// A parallelogram `o + a e1 + b e2`, a and b in [0, 1], wound so that it faces along
+/// `e1 x e2`.
+fn parallelogram(o: DVec3, e1: DVec3, e2: DVec3) -> [DVec3; 4] {
+    [o, o + e1, o + e1 + e2, o + e2]
+}
+
+/// Whether the segment from `x` to `y` meets the convex planar polygon `q` strictly between its
+/// ends.
+fn blocks(x: DVec3, y: DVec3, q: &[DVec3]) -> bool {
+    let n = (q[1] - q[0]).cross(q[2] - q[0]);
+    let (dx, dy) = (n.dot(x - q[0]), n.dot(y - q[0]));
+    if (dx > 0.0) == (dy > 0.0) || dx == dy {
+        return false;
+    }
+    let t = dx / (dx - dy);
+    if t <= 1e-12 || t >= 1.0 - 1e-12 {
+        return false;
+    }
+    let p = x + (y - x) * t;
+    (0..q.len()).all(|i| {
+        let (a, b) = (q[i], q[(i + 1) % q.len()]);
+        (b - a).cross(p - a).dot(n) >= 0.0
+    })
+}
+
+/// The visible form factor by brute force: the kernel cos cos / (pi r^2) times the visibility
+/// of an `m x m` midpoint grid over the parallelogram.
+fn brute_force(x: DVec3, n: DVec3, s: &[DVec3; 4], occluders: &[Vec<DVec3>], m: usize) -> f64 {
+    let (o, e1, e2) = (s[0], s[1] - s[0], s[3] - s[0]);
+    let ns = e1.cross(e2).normalize();
+    let da = e1.cross(e2).length() / (m * m) as f64;
+    let mut f = 0.0;
+    for i in 0..m {
+        for j in 0..m {
+            let y = o + e1 * ((i as f64 + 0.5) / m as f64) + e2 * ((j as f64 + 0.5) / m as f64);
+            let d = y - x;
+            let r2 = d.length_squared();
+            let (cx, cy) = (n.dot(d), -ns.dot(d));
+            if cx <= 0.0 || cy <= 0.0 {
+                continue;
+            }
+            if occluders.iter().any(|q| blocks(x, y, q)) {
+                continue;
+            }
+            f += cx * cy / (r2 * r2) * da / std::f64::consts::PI;
+        }
+    }
+    f
+}
+
+fn visible_ff(x: DVec3, n: DVec3, s: &[DVec3; 4], occluders: &[Vec<DVec3>]) -> Option<f64> {
+    let ns = (s[1] - s[0]).cross(s[3] - s[0]).normalize();
+    let occ = occluders.iter().map(|q| q.as_slice());
+    let mut view = View::default();
+    match see(&mut view, x, s, ns, occ, 1e-12) {
+        Sight::All => Some(polygon_form_factor(x, n, s)),
+        Sight::Nothing => Some(0.0),
+        Sight::Part => Some(view.form_factor(x, n, polygon_form_factor(x, n, s))),
+        Sight::Complex => None,
+    }
+}
+
+/// A unit square light 2 above the origin facing down.
+fn light() -> [DVec3; 4] {
+    parallelogram(DVec3::new(-0.5, -0.5, 2.0), DVec3::Y, DVec3::X)
+}
+
+#[test]
+fn nothing_in_between_sees_all() {
+    let s = light();
+    let far_aside = vec![
+        DVec3::new(5.0, 5.0, 1.0),
+        DVec3::new(6.0, 5.0, 1.0),
+        DVec3::new(6.0, 6.0, 1.0),
+    ];
+    let ns = -DVec3::Z;
+    let occ = [far_aside.as_slice()].into_iter();
+    let mut view = View::default();
+    assert_eq!(see(&mut view, DVec3::ZERO, &s, ns, occ, 1e-12), Sight::All);
+}
+
+/// A half-plane at height 1 over x > 0 hides, seen from the origin, exactly the half x > 0 of
+/// the light: by symmetry, half its form factor.
+#[test]
+fn a_half_plane_hides_half_the_light() {
+    let s = light();
+    let half = vec![
+        DVec3::new(0.0, -10.0, 1.0),
+        DVec3::new(10.0, -10.0, 1.0),
+        DVec3::new(10.0, 10.0, 1.0),
+        DVec3::new(0.0, 10.0, 1.0),
+    ];
+    let full = polygon_form_factor(DVec3::ZERO, DVec3::Z, &s);
+    let f = visible_ff(DVec3::ZERO, DVec3::Z, &s, &[half]).expect("simple");
+    assert!(
+        (f - 0.5 * full).abs() <= 1e-14,
+        "{f} against {}",
+        0.5 * full
+    );
+}
+
+/// An occluder covering the whole pyramid hides everything; one beyond the light or behind the
+/// receiver hides nothing.
+#[test]
+fn covering_and_out_of_range_occluders() {
+    let s = light();
+    let big = |z: f64| {
+        vec![
+            DVec3::new(-9.0, -9.0, z),
+            DVec3::new(9.0, -9.0, z),
+            DVec3::new(9.0, 9.0, z),
+            DVec3::new(-9.0, 9.0, z),
+        ]
+    };
+    assert_eq!(
+        visible_ff(DVec3::ZERO, DVec3::Z, &s, &[big(1.0)]),
+        Some(0.0)
+    );
+    let full = polygon_form_factor(DVec3::ZERO, DVec3::Z, &s);
+    assert_eq!(
+        visible_ff(DVec3::ZERO, DVec3::Z, &s, &[big(3.0)]),
+        Some(full)
+    );
+    assert_eq!(
+        visible_ff(DVec3::ZERO, DVec3::Z, &s, &[big(-1.0)]),
+        Some(full)
+    );
+}
+
+/// A receiver a few micrometres from a wall standing between it and part of the light: the
+/// wall's plane cuts the light exactly where it passes (a contact line's limit), with no
+/// infinite or lost coordinates.
+#[test]
+fn a_wall_beside_the_point_cuts_the_light_along_its_plane() {
+    let s = light();
+    for gap in [1e-3, 4e-6, 1e-9] {
+        // The wall: the plane x = gap, from the floor up to height 1.5.
+        let wall = vec![
+            DVec3::new(gap, -10.0, 0.0),
+            DVec3::new(gap, 10.0, 0.0),
+            DVec3::new(gap, 10.0, 1.5),
+            DVec3::new(gap, -10.0, 1.5),
+        ];
+        let f = visible_ff(DVec3::ZERO, DVec3::Z, &s, &[wall]).expect("simple");
+        // What stays visible: the part of the light with x below gap * 2 / 0 ... the plane
+        // x = gap seen from the origin meets the light's plane at x = gap (it is parallel to
+        // the view direction's x), so the visible part is x < gap, for heights above 1.5 the
+        // wall does not reach: rays to x > gap cross x = gap at height 2 gap / x <= 2, below
+        // 1.5 only when x > 4 gap / 3.
+        let visible = parallelogram(
+            DVec3::new(-0.5, -0.5, 2.0),
+            DVec3::Y,
+            DVec3::X * (0.5 + 4.0 * gap / 3.0),
+        );
+        let expected = polygon_form_factor(DVec3::ZERO, DVec3::Z, &visible);
+        // Rounding grows as the gap shrinks (the clipped wall's points near the apex project
+        // by hx / (hx - h)): 3e-8 at a gap of 1e-9 of the light's size, 1e-12 at 4e-6.
+        let tol = if gap < 1e-6 { 1e-7 } else { 1e-9 };
+        assert!(
+            (f - expected).abs() <= tol * expected,
+            "gap {gap}: {f} against {expected}"
+        );
+    }
+}
+
+prop_compose! {
+    /// A convex quad occluder between the receiver (height 0) and the light (height 2):
+    /// a rectangle of random size, centre and tilt.
+    fn occluder()(cx in -1.0f64..1.0, cy in -1.0f64..1.0, cz in 0.2f64..1.8,
+                  w in 0.05f64..1.0, h in 0.05f64..1.0, a in 0.0f64..6.283, tilt in -1.2f64..1.2,
+                  tri in any::<bool>())
+                 -> Vec<DVec3> {
+        let (sa, ca) = a.sin_cos();
+        let e1 = DVec3::new(ca, sa, 0.0) * w;
+        let e2 = DVec3::new(-sa * tilt.cos(), ca * tilt.cos(), tilt.sin()) * h;
+        let c = DVec3::new(cx, cy, cz) - 0.5 * (e1 + e2);
+        if tri {
+            vec![c, c + e1, c + e2]
+        } else {
+            vec![c, c + e1, c + e1 + e2, c + e2]
+        }
+    }
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 64, ..ProptestConfig::default() })]
+
+    /// The exact visible form factor equals a brute-force integral of the kernel times the
+    /// visibility of a 240 x 240 grid over the light, past 1 to 4 random occluders. The grid
+    /// counts each cell a shadow edge crosses as wholly seen or hidden: an error of at most the
+    /// cell's weight, about 1/240^2 of the light's form factor (the kernel varies by less than
+    /// 3x over the light), of either sign. 4 occluders' outlines cross at most about
+    /// 4 x 4 x 240 = 3,840 cells, so the sum of those errors, of independent signs, has a
+    /// standard deviation near sqrt(3840) / 240^2 = 1.1e-3 of the form factor: 2e-3 allows
+    /// about two of them (the largest seen in 64 cases was below 2e-4). A hole lost or
+    /// counted twice moves the result by the hole's whole share, far more.
+    #[test]
+    fn the_visible_form_factor_matches_brute_force(
+        occ in prop::collection::vec(occluder(), 1..5),
+        px in -0.8f64..0.8, py in -0.8f64..0.8, nx in -0.5f64..0.5, ny in -0.5f64..0.5,
+        skew in -0.4f64..0.4,
+    ) {
+        let s = parallelogram(DVec3::new(-0.6, -0.5, 2.0), DVec3::new(skew, 1.0, 0.0), DVec3::new(1.2, 0.0, 0.0));
+        let x = DVec3::new(px, py, 0.0);
+        let n = DVec3::new(nx, ny, 1.0).normalize();
+        let full = polygon_form_factor(x, n, &s);
+        if let Some(f) = visible_ff(x, n, &s, &occ) {
+            let b = brute_force(x, n, &s, &occ, 240);
+            prop_assert!((f - b).abs() <= 2e-3 * full, "exact {f}, brute force {b}, unoccluded {full}");
+            prop_assert!(f <= full * (1.0 + 1e-12) && f >= 0.0);
+        }
+    }
+}
+
+/// The visible form factor of a planar convex quad `s` (any corners, front `ns`) by brute
+/// force over an `m x m` grid of its bilinear parametrisation.
+fn brute_force_quad(
+    x: DVec3,
+    n: DVec3,
+    s: &[DVec3; 4],
+    ns: DVec3,
+    occluders: &[Vec<DVec3>],
+    m: usize,
+) -> f64 {
+    let at = |a: f64, b: f64| {
+        (1.0 - b) * ((1.0 - a) * s[0] + a * s[1]) + b * ((1.0 - a) * s[3] + a * s[2])
+    };
+    let mut f = 0.0;
+    for i in 0..m {
+        for j in 0..m {
+            let (a, b) = ((i as f64 + 0.5) / m as f64, (j as f64 + 0.5) / m as f64);
+            let y = at(a, b);
+            let da = (1.0 - b) * (s[1] - s[0]) + b * (s[2] - s[3]);
+            let db = (1.0 - a) * (s[3] - s[0]) + a * (s[2] - s[1]);
+            let area = da.cross(db).length() / (m * m) as f64;
+            let d = y - x;
+            let r2 = d.length_squared();
+            let (cx, cy) = (n.dot(d), -ns.dot(d));
+            if cx <= 0.0 || cy <= 0.0 || occluders.iter().any(|q| blocks(x, y, q)) {
+                continue;
+            }
+            f += cx * cy / (r2 * r2) * area / std::f64::consts::PI;
+        }
+    }
+    f
+}
+
+/// What broke: a light with a corner in the receiver's own plane (a wall patch standing on the
+/// floor), seen from a floor point past a box standing on that floor: the box face clipped to
+/// the pyramid kept two copies of the point where the pyramid's edge meets it, and the hole's
+/// zero-length edge cut nothing, so the whole light counted as visible behind the box. The
+/// numbers are the Cornell box's (left wall, short box).
+#[test]
+fn a_hole_with_a_repeated_corner_still_hides() {
+    let x = DVec3::new(0.66, 0.0, -0.025);
+    let s = [
+        DVec3::new(-1.01, 0.0, 0.99),
+        DVec3::new(-1.015, 0.995, -0.025),
+        DVec3::new(-1.0175, 1.4925, 0.4825),
+        DVec3::new(-1.015, 0.995, 0.99),
+    ];
+    let ns = DVec3::new(0.999_987_374_295_327_4, 0.005_025_062_182_388_584, 0.0);
+    let v = |a: [f64; 3]| DVec3::from_array(a);
+    let occluders = vec![
+        vec![
+            v([-0.05, 0.0, 0.57]),
+            v([-0.05, 0.6, 0.57]),
+            v([0.13, 0.6, 0.0]),
+            v([0.13, 0.0, 0.0]),
+        ],
+        vec![
+            v([0.13, 0.0, 0.0]),
+            v([0.13, 0.6, 0.0]),
+            v([0.7, 0.6, 0.17]),
+            v([0.7, 0.0, 0.17]),
+        ],
+    ];
+    let occ = occluders.iter().map(|q| q.as_slice());
+    let mut view = View::default();
+    let f = match see(&mut view, x, &s, ns, occ, 1e-12) {
+        Sight::All => polygon_form_factor(x, DVec3::Y, &s),
+        Sight::Nothing => 0.0,
+        Sight::Part => view.form_factor(x, DVec3::Y, polygon_form_factor(x, DVec3::Y, &s)),
+        Sight::Complex => f64::NAN,
+    };
+    let full = polygon_form_factor(x, DVec3::Y, &s);
+    let b = brute_force_quad(x, DVec3::Y, &s, ns, &occluders, 200);
+    assert!(b < 0.5 * full, "the box hides most of it: {b} of {full}");
+    assert!(
+        (f - b).abs() <= 5e-3 * full,
+        "exact {f}, brute force {b}, unoccluded {full}"
+    );
+}
