@@ -173,6 +173,8 @@ pub(crate) struct RadiositySection {
     pub seed: Option<Spanned<i64>>,
     /// Receiver search: "auto", "exact" or "sampled".
     pub visibility: Option<Spanned<String>>,
+    /// Whether polygons are cut along their contact lines.
+    pub cut_contacts: Option<Spanned<bool>>,
 }
 
 /// `[render]`.

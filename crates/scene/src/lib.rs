@@ -23,6 +23,7 @@ pub mod adjacency;
 pub mod bvh;
 pub mod camera_path;
 mod coincident;
+pub mod contact;
 pub mod format;
 pub mod load;
 mod model;
@@ -303,6 +304,9 @@ pub struct RadiositySettings {
     pub seed: u64,
     /// How the solver finds which polygons each shooter can reach (`docs/scene-format.md`).
     pub visibility: Visibility,
+    /// Whether the loader cuts polygons along their contact lines ([`contact`]): where a
+    /// polygon stands on or passes through another, the light of the other steps.
+    pub cut_contacts: bool,
 }
 
 /// How the solver finds the receivers a shooter can reach (`radiosity.visibility`).
@@ -329,6 +333,7 @@ impl Default for RadiositySettings {
             shadow_rays: 16,
             seed: 1,
             visibility: Visibility::Auto,
+            cut_contacts: true,
         }
     }
 }
@@ -416,6 +421,9 @@ pub struct Scene {
     /// Per polygon, where it was written (file, line, key or OBJ face), for messages about
     /// it; empty for scenes built in code.
     pub origins: Vec<base::error::Location>,
+    /// The contact lines the loader found and the polygons it cut along them ([`contact`]);
+    /// polygon indices in it are those before the cut.
+    pub contacts: contact::Cuts,
 }
 
 /// A polygon more than this many times the diagonal of the rest of the scene is a backdrop
@@ -455,7 +463,16 @@ impl Scene {
             notes: Vec::new(),
             inputs: Vec::new(),
             origins: Vec::new(),
+            contacts: contact::Cuts::default(),
         }
+    }
+
+    /// Cuts the polygons along their contact lines ([`contact`]), keeping `origins` aligned,
+    /// and records what was cut in `contacts`. The loader does this for every scene whose
+    /// `radiosity.cut_contacts` is on; a scene built in code does it when it asks.
+    pub fn cut_contacts(&mut self) {
+        let lines = contact::find(&self.polygons);
+        self.contacts = contact::cut(&mut self.polygons, &mut self.origins, lines);
     }
 
     /// Where polygon `i` was written (`file:line: key`), or `polygon i` for a scene built in

@@ -365,7 +365,7 @@ impl<'a> Cx<'a> {
             polygons,
             ..
         } = surfaces;
-        Ok(Scene {
+        let mut scene = Scene {
             source: self.path.to_path_buf(),
             camera,
             width,
@@ -382,7 +382,15 @@ impl<'a> Cx<'a> {
             notes: std::mem::take(&mut self.notes),
             inputs: std::mem::take(&mut self.inputs),
             origins: std::mem::take(&mut self.origins),
-        })
+            contacts: crate::contact::Cuts::default(),
+        };
+        if scene.radiosity.cut_contacts {
+            scene.cut_contacts();
+            if let Some(note) = scene.contacts.note() {
+                scene.notes.push(note);
+            }
+        }
+        Ok(scene)
     }
 
     /// One `[[materials]]` entry: a unique, non-empty name and values in range.
@@ -726,6 +734,9 @@ impl<'a> Cx<'a> {
         }
         if let Some(v) = &r.visibility {
             s.visibility = self.visibility(v)?;
+        }
+        if let Some(v) = &r.cut_contacts {
+            s.cut_contacts = *v.get_ref();
         }
         Ok(s)
     }

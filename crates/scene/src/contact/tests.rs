@@ -1,0 +1,202 @@
+use super::*;
+use proptest::prelude::*;
+
+fn quad(c: [[f64; 3]; 4]) -> Polygon {
+    Polygon::quad(c.map(DVec3::from_array), 0, 0).expect("quad")
+}
+
+/// A 4 x 4 floor at y = 0 facing up (u along +x, v along -z).
+fn floor() -> Polygon {
+    quad([
+        [-2.0, 0.0, 2.0],
+        [2.0, 0.0, 2.0],
+        [2.0, 0.0, -2.0],
+        [-2.0, 0.0, -2.0],
+    ])
+}
+
+/// The four sides of a box of footprint corners `f` (counter-clockwise seen from above) and
+/// height `h`, standing on y = 0, facing out.
+fn box_sides(f: [[f64; 2]; 4], h: f64) -> Vec<Polygon> {
+    (0..4)
+        .map(|i| {
+            let (a, b) = (f[i], f[(i + 1) % 4]);
+            // Seen from outside, counter-clockwise: bottom a, bottom b, top b, top a reversed
+            // so the normal points out of a footprint wound counter-clockwise from above.
+            quad([
+                [b[0], 0.0, b[1]],
+                [a[0], 0.0, a[1]],
+                [a[0], h, a[1]],
+                [b[0], h, b[1]],
+            ])
+        })
+        .collect()
+}
+
+fn area(ps: &[Polygon]) -> f64 {
+    ps.iter().map(|p| p.area).sum()
+}
+
+/// Whether `p` lies (within `tol`) on one side of the line through `a` and `b` in the floor.
+fn one_side(p: &Polygon, a: DVec3, b: DVec3, tol: f64) -> bool {
+    let d = b - a;
+    let s: Vec<f64> = p
+        .vertices()
+        .iter()
+        .map(|v| DVec3::Y.dot(d.cross(*v - a)) / d.length())
+        .collect();
+    s.iter().all(|&x| x >= -tol) || s.iter().all(|&x| x <= tol)
+}
+
+/// A 2 m wall standing on a 4 m floor: the floor is cut along the wall's foot and across it at
+/// the wall's two ends (so that the parts of the line the wall does not stand on are edges of
+/// their own), into a 3 x 2 grid of quads that tile it.
+#[test]
+fn a_wall_on_a_floor_cuts_it_along_its_foot() {
+    let wall = quad([
+        [-1.0, 0.0, 0.3],
+        [1.0, 0.0, 0.3],
+        [1.0, 1.0, 0.3],
+        [-1.0, 1.0, 0.3],
+    ]);
+    let mut polys = vec![floor(), wall];
+    let lines = find(&polys);
+    assert_eq!(lines.len(), 1, "{lines:?}");
+    let l = lines[0].clone();
+    assert_eq!((l.receiver, l.by), (0, 1));
+    assert!((l.a.z - 0.3).abs() < 1e-12 && (l.b.z - 0.3).abs() < 1e-12);
+    assert!(((l.b - l.a).length() - 2.0).abs() < 1e-12);
+    let mut origins: Vec<u32> = vec![10, 11];
+    let cuts = cut(&mut polys, &mut origins, lines);
+    assert_eq!(polys.len(), 7);
+    assert_eq!(origins, vec![10, 10, 10, 10, 10, 10, 11]);
+    assert_eq!(cuts.pieces, vec![(0, 6)]);
+    assert!((area(&polys[..6]) - 16.0).abs() < 1e-9);
+    for p in &polys[..6] {
+        assert_eq!(p.shape, crate::Shape::Quad);
+        assert!(one_side(p, l.a, l.b, 1e-12));
+        let across = |x: f64| one_side(p, DVec3::new(x, 0.0, 0.0), DVec3::new(x, 0.0, 1.0), 1e-12);
+        assert!(across(-1.0) && across(1.0));
+        assert!((p.normal - DVec3::Y).length() < 1e-12);
+    }
+}
+
+#[test]
+fn a_wall_on_the_floor_border_or_floating_cuts_nothing() {
+    let on_border = quad([
+        [-2.0, 0.0, -2.0],
+        [2.0, 0.0, -2.0],
+        [2.0, 1.0, -2.0],
+        [-2.0, 1.0, -2.0],
+    ]);
+    let floating = quad([
+        [-1.0, 0.1, 0.3],
+        [1.0, 0.1, 0.3],
+        [1.0, 1.0, 0.3],
+        [-1.0, 1.0, 0.3],
+    ]);
+    let below = quad([
+        [-1.0, -1.0, 0.3],
+        [1.0, -1.0, 0.3],
+        [1.0, 0.0, 0.3],
+        [-1.0, 0.0, 0.3],
+    ]);
+    for other in [on_border, floating, below] {
+        assert!(find(&[floor(), other.clone()])
+            .iter()
+            .all(|l| l.receiver != 0));
+    }
+}
+
+/// A wall passing through the floor cuts the floor, and the floor cuts the wall (its part
+/// below the floor is a piece of its own).
+#[test]
+fn crossing_polygons_cut_each_other() {
+    let wall = quad([
+        [-1.0, -0.5, 0.3],
+        [1.0, -0.5, 0.3],
+        [1.0, 1.0, 0.3],
+        [-1.0, 1.0, 0.3],
+    ]);
+    let mut polys = vec![floor(), wall];
+    let lines = find(&polys);
+    let receivers: Vec<u32> = lines.iter().map(|l| l.receiver).collect();
+    assert_eq!(receivers, vec![0, 1]);
+    let mut origins: Vec<()> = Vec::new();
+    let cuts = cut(&mut polys, &mut origins, lines);
+    // The floor: along the wall and across at its ends (3 x 2); the wall: along the floor,
+    // which crosses it from end to end (2).
+    assert_eq!(cuts.pieces, vec![(0, 6), (1, 2)]);
+    assert!(origins.is_empty());
+    // The wall's two pieces: one above the floor, one below, split at y = 0.
+    let wall_pieces = &polys[6..];
+    assert!((area(wall_pieces) - 3.0).abs() < 1e-9);
+    assert!(wall_pieces
+        .iter()
+        .all(|p| p.vertices().iter().all(|v| v.y >= -1e-12)
+            || p.vertices().iter().all(|v| v.y <= 1e-12)));
+}
+
+/// An axis-aligned box on the floor: its four sides' lines cut the floor in a 3 x 3 grid of
+/// quads (the arrangement of the lines), which tile it; the middle one is under the box.
+#[test]
+fn a_box_cuts_a_floor_into_a_grid() {
+    let f = [[-0.5, 0.5], [0.5, 0.5], [0.5, -0.5], [-0.5, -0.5]];
+    let mut polys = vec![floor()];
+    polys.extend(box_sides(f, 1.0));
+    let lines = find(&polys);
+    let on_floor: Vec<&ContactLine> = lines.iter().filter(|l| l.receiver == 0).collect();
+    assert_eq!(on_floor.len(), 4);
+    let mut origins: Vec<()> = Vec::new();
+    let cuts = cut(&mut polys, &mut origins, lines);
+    assert_eq!(cuts.pieces, vec![(0, 9)]);
+    let pieces = &polys[..9];
+    assert!(pieces.iter().all(|p| p.shape == crate::Shape::Quad));
+    assert!((area(pieces) - 16.0).abs() < 1e-9);
+    for l in cuts.lines.iter().filter(|l| l.receiver == 0) {
+        assert!(pieces.iter().all(|p| one_side(p, l.a, l.b, 1e-9)));
+    }
+}
+
+prop_compose! {
+    /// A box of random size, place and turn standing on the floor, inside it.
+    fn standing_box()(cx in -1.2f64..1.2, cz in -1.2f64..1.2, w in 0.1f64..0.7, d in 0.1f64..0.7,
+                      turn in 0.0f64..1.57) -> [[f64; 2]; 4] {
+        let (s, c) = turn.sin_cos();
+        let at = |x: f64, z: f64| [cx + c * x - s * z, cz + s * x + c * z];
+        // Counter-clockwise seen from above (+y): x then -z.
+        [at(-w, d), at(w, d), at(w, -d), at(-w, -d)]
+    }
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 64, ..ProptestConfig::default() })]
+
+    /// Random boxes on a floor: the floor's pieces tile it (their areas add up to its area),
+    /// every piece is a convex triangle or quad in the floor's plane facing up, and no piece
+    /// straddles a contact line's line (every piece lies on one side of it, within the snap).
+    #[test]
+    fn pieces_tile_the_floor_and_straddle_no_contact_line(
+        boxes in prop::collection::vec(standing_box(), 1..4),
+    ) {
+        let mut polys = vec![floor()];
+        for b in &boxes {
+            polys.extend(box_sides(*b, 0.5));
+        }
+        let lines = find(&polys);
+        let floor_lines: Vec<ContactLine> = lines.iter().filter(|l| l.receiver == 0).cloned().collect();
+        prop_assert_eq!(floor_lines.len(), 4 * boxes.len());
+        let mut origins: Vec<()> = Vec::new();
+        let cuts = cut(&mut polys, &mut origins, lines);
+        let n = cuts.pieces.iter().find(|(p, _)| *p == 0).map_or(1, |(_, n)| *n as usize);
+        let pieces = &polys[..n];
+        prop_assert!((area(pieces) - 16.0).abs() < 1e-9 * 16.0, "area {}", area(pieces));
+        for p in pieces {
+            prop_assert!((p.normal - DVec3::Y).length() < 1e-9);
+            prop_assert!(p.vertices().iter().all(|v| v.y.abs() < 1e-12));
+            for l in &floor_lines {
+                prop_assert!(one_side(p, l.a, l.b, SNAP * 6.0));
+            }
+        }
+    }
+}
