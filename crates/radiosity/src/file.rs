@@ -42,8 +42,10 @@ pub const MAGIC: &[u8; 8] = b"PFSOLN\r\n";
 /// stores the compact RRPs with a per-vertex shift per quantity (relative precision) and without
 /// the T-vertices' data (`PFRRPC02`); version 7 stores RRPs that follow the spot lights' edges
 /// (split three levels deeper where a spot's rim or hard shadow crosses a leaf), so an older
-/// file's RRPs would be silently smoother there. Older files are refused (solve again).
-pub const FORMAT_VERSION: u32 = 7;
+/// file's RRPs would be silently smoother there; version 8 stores the light that escaped the
+/// scene in the energy account, from solves with exact visibility. Older files are refused
+/// (solve again).
+pub const FORMAT_VERSION: u32 = 8;
 /// Most nodes a stored patch shape may have: a full tree of [`MAX_SHAPE_LEVELS`] levels.
 const MAX_SHAPE_NODES: usize = ((1 << (2 * (MAX_SHAPE_LEVELS + 1))) - 1) / 3;
 const HEADER: usize = 8 + 4 + 4 + 8 + 8;
@@ -416,7 +418,7 @@ impl W {
         self.f64(st.guard_stops.worst_excess);
         self.u64(st.guard_stops.shadow_leaves);
         let e = &st.energy;
-        for v in [e.emitted, e.absorbed, e.unshot, e.lost] {
+        for v in [e.emitted, e.absorbed, e.unshot, e.lost, e.escaped] {
             self.f64(v.x);
             self.f64(v.y);
             self.f64(v.z);
@@ -624,7 +626,7 @@ impl R<'_> {
             worst_excess: self.f64()?,
             shadow_leaves: self.u64()?,
         };
-        let mut v = [DVec3::ZERO; 4];
+        let mut v = [DVec3::ZERO; 5];
         for x in v.iter_mut() {
             *x = DVec3::new(self.f64()?, self.f64()?, self.f64()?);
         }
@@ -636,6 +638,7 @@ impl R<'_> {
             absorbed: v[1],
             unshot: v[2],
             lost: v[3],
+            escaped: v[4],
         };
         let nh = self.count(8)?;
         for _ in 0..nh {

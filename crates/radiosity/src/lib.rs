@@ -173,6 +173,54 @@ pub struct GuardStops {
     pub shadow_leaves: u64,
 }
 
+/// A solve whose energy account lost more than this share of the emitted power (in a channel)
+/// beyond what escaped lost light it should not have: `solve` and `render` warn. Looser than
+/// [`ENERGY_ERROR_WARN`], the bound on light created: the solve's quadrature of the receivers'
+/// light and the patches' shapes applied only where they matter lose up to 1 % on the shipped
+/// scenes, and nothing in it creates light.
+pub const ENERGY_LOSS_WARN: f64 = 0.02;
+
+impl SolveStats {
+    /// The warnings a solve's statistics give about its light (empty when all is well): its
+    /// energy account created light (by more than [`ENERGY_ERROR_WARN`] of the emitted power)
+    /// or lost it (by more than [`ENERGY_LOSS_WARN`]), and it stopped with more light unshot
+    /// than `convergence` (the scene's `radiosity.convergence`) allows.
+    pub fn light_warnings(&self, convergence: f64) -> Vec<String> {
+        let mut out = Vec::new();
+        let e = &self.energy;
+        let error = e.error();
+        if !(-ENERGY_ERROR_WARN..=ENERGY_LOSS_WARN).contains(&error) {
+            let total = 1.0 - error;
+            out.push(format!(
+                "the solve's energy account does not balance: absorbed + unshot + escaped is \
+                 {:.1} % of the emitted light ({} {:.1} %); {}",
+                100.0 * total,
+                if error < 0.0 { "created" } else { "lost" },
+                100.0 * error.abs(),
+                if error < 0.0 {
+                    "light bouncing between surfaces closer than the solve resolves (a light \
+                     facing a wall a few centimetres away) is the usual cause; `solve --trace` \
+                     shows the account"
+                } else {
+                    "raise radiosity.max_depth or lower radiosity.tolerance"
+                }
+            ));
+        }
+        if self.unshot_fraction > convergence * (1.0 + 1e-9) {
+            out.push(format!(
+                "the solve stopped after {} rounds with {:.2} % of the light still unshot, more \
+                 than radiosity.convergence ({:.2} %): the image is darker than the scene's \
+                 light, by about that share; light trapped between close surfaces needs many \
+                 bounces",
+                self.refined_after.len().saturating_sub(1),
+                100.0 * self.unshot_fraction,
+                100.0 * convergence
+            ));
+        }
+        out
+    }
+}
+
 impl GuardStops {
     /// Where the worst leaf is: its polygon's file and line in `scene` (or its index).
     pub fn worst_origin(&self, scene: &Scene) -> String {
@@ -216,7 +264,8 @@ impl GuardStops {
 
 /// Where a solve's emitted power went, per channel, in watts: emitted = absorbed + unshot +
 /// lost. `lost` is light that left an open scene plus the solve's own energy error (on a
-/// closed scene, only the latter).
+/// closed scene, only the latter); `escaped` estimates the first on its own (rays from every
+/// shooter that hit nothing), so `lost - escaped` is the error ([`EnergyAccount::error`]).
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct EnergyAccount {
     /// Spots' and emitters' power.
@@ -227,15 +276,33 @@ pub struct EnergyAccount {
     pub unshot: DVec3,
     /// The rest: emitted - absorbed - unshot.
     pub lost: DVec3,
+    /// The light that left the scene (every shooter's power shot times the share of its rays
+    /// that hit nothing).
+    pub escaped: DVec3,
 }
+
+/// A solve whose energy account is off by more than this share of the emitted power (in a
+/// channel) created or lost light it should not have: `solve` and `render` warn.
+pub const ENERGY_ERROR_WARN: f64 = 0.005;
 
 impl EnergyAccount {
     /// `lost` over `emitted` in the channel where its magnitude is largest (0 when nothing is
     /// emitted).
     pub fn lost_fraction(&self) -> f64 {
+        self.largest(self.lost)
+    }
+
+    /// The solve's energy error, `lost - escaped` (negative: light created), over `emitted`
+    /// in the channel where its magnitude is largest (0 when nothing is emitted).
+    pub fn error(&self) -> f64 {
+        self.largest(self.lost - self.escaped)
+    }
+
+    /// `v` over `emitted` in the channel where its magnitude is largest.
+    fn largest(&self, v: DVec3) -> f64 {
         (0..3)
             .filter(|&k| self.emitted[k] > 0.0)
-            .map(|k| self.lost[k] / self.emitted[k])
+            .map(|k| v[k] / self.emitted[k])
             .fold(0.0f64, |a, b| if b.abs() > a.abs() { b } else { a })
     }
 }

@@ -164,9 +164,11 @@ fn split(
 ) -> Result<(), Overflow> {
     pos.len = 0;
     neg.len = 0;
+    // A distance of eps from the line, in the units of m's dot products.
+    let tol = eps * (m.x.abs() + m.y.abs());
     for i in 0..src.len() {
         let (p, q) = (src[i], src[next(i, src.len())]);
-        let (dp, dq) = (snap(m.dot(p - a), eps), snap(m.dot(q - a), eps));
+        let (dp, dq) = (snap(m.dot(p - a), tol), snap(m.dot(q - a), tol));
         if dp >= 0.0 {
             pos.push(p)?;
         }
@@ -186,9 +188,10 @@ fn split(
 /// line on it), written to `out`.
 fn clip_half(src: &[DVec2], a: DVec2, m: DVec2, eps: f64, out: &mut Buf) -> Result<(), Overflow> {
     out.len = 0;
+    let tol = eps * (m.x.abs() + m.y.abs());
     for i in 0..src.len() {
         let (p, q) = (src[i], src[next(i, src.len())]);
-        let (dp, dq) = (snap(m.dot(p - a), eps), snap(m.dot(q - a), eps));
+        let (dp, dq) = (snap(m.dot(p - a), tol), snap(m.dot(q - a), tol));
         if dp >= 0.0 {
             out.push(p)?;
         }
@@ -317,10 +320,13 @@ impl View {
     }
 
     /// The smaller of the visible and the hidden region, by area: a sum over a region is
-    /// cheapest over the smaller one (the other follows from the whole shooter's).
+    /// cheapest over the smaller one (the other follows from the whole shooter's). Equal
+    /// areas (a shooter half hidden by an occluder on its grid), to within a relative 1e-9,
+    /// give the visible one: rounding, which differs between two scales of one scene, must not
+    /// decide which sum (and so which approximation) a point gets.
     pub(crate) fn smaller(&self) -> Region {
         let area = |l: &[Piece]| l.iter().map(|p| area2(self.poly(&p.range))).sum::<f64>();
-        if area(&self.hidden) < area(&self.pieces) {
+        if area(&self.hidden) < area(&self.pieces) * (1.0 - 1e-9) {
             Region::Hidden
         } else {
             Region::Visible

@@ -138,6 +138,9 @@ pub(super) struct Plan {
     fine: Points,
 }
 
+/// A shooter's transfers to a [`Plan`]'s coarse points and to its fine ones.
+pub(super) type PlanTransfers = (Vec<DVec3>, Vec<DVec3>);
+
 impl Plan {
     /// Where shooter `s` (whose pair table exists) shoots in the indirect pass.
     pub(super) fn of(tr: &Transfer<'_>, polys: &[Poly], s: usize) -> Plan {
@@ -165,12 +168,7 @@ impl Plan {
     }
 
     /// Shooter `s`'s transfers to the coarse points and to the fine ones, as they are now.
-    pub(super) fn transfers(
-        &self,
-        tr: &Transfer<'_>,
-        polys: &[Poly],
-        s: usize,
-    ) -> (Vec<DVec3>, Vec<DVec3>) {
+    pub(super) fn transfers(&self, tr: &Transfer<'_>, polys: &[Poly], s: usize) -> PlanTransfers {
         (
             self.coarse.transfers(tr, polys, s, true),
             self.fine.transfers(tr, polys, s, true),
@@ -184,8 +182,8 @@ impl Plan {
         self,
         polys: &mut [Poly],
         db: DVec3,
-        old: (Vec<DVec3>, Vec<DVec3>),
-        new: (Vec<DVec3>, Vec<DVec3>),
+        old: PlanTransfers,
+        new: PlanTransfers,
     ) -> Shot {
         for ((&(r, k), o), n) in self.coarse.at.iter().zip(old.0).zip(new.0) {
             polys[r as usize].cg[k as usize] += db * (n - o);

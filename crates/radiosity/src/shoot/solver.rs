@@ -13,7 +13,7 @@ use super::eta::{Eta, Phase};
 use super::poly::{Light, PatchLayout, Poly};
 use super::refine::refine;
 use super::shapes;
-use super::shot::{shoot, CoarseCache, Plan, Shot};
+use super::shot::{shoot, CoarseCache, Plan, PlanTransfers, Shot};
 use super::unshot::{self, Unshot};
 use super::{elapsed_ms, memory_error, state_bytes, Outcome, MAX_ROUNDS, SHOOT_MARGIN};
 use crate::transfer::shape::PatchShape;
@@ -273,7 +273,7 @@ impl<'a, 't, 'o> Solver<'a, 't, 'o> {
             .map(|(s, _)| *s)
             .collect();
         let (tr, polys) = (&*self.tr, &self.polys);
-        let before: Vec<(Plan, (Vec<DVec3>, Vec<DVec3>))> = moved
+        let before: Vec<(Plan, PlanTransfers)> = moved
             .iter()
             .map(|&s| {
                 let plan = Plan::of(tr, polys, s);
@@ -606,13 +606,14 @@ impl<'a, 't, 'o> Solver<'a, 't, 'o> {
                 format!("{:.2} {:.2} {:.2}", f(a[0], b[0]), f(a[1], b[1]), f(a[2], b[2]))
             };
             format!(
-                "energy (% of emitted, r g b; emitted {:.4} {:.4} {:.4} W): absorbed {}, unshot {}, lost {}",
+                "energy (% of emitted, r g b; emitted {:.4} {:.4} {:.4} W): absorbed {}, unshot {}, escaped {}, error {}",
                 e.emitted.x,
                 e.emitted.y,
                 e.emitted.z,
                 share(e.absorbed),
                 share(e.unshot),
-                share(e.lost)
+                share(e.escaped),
+                share(e.lost - e.escaped)
             )
         });
         Outcome {

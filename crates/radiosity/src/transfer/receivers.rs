@@ -277,6 +277,59 @@ impl Transfer<'_> {
         }
     }
 
+    /// The share of shooter `s`'s light that leaves the scene, hitting no polygon: the
+    /// weighted share of `n` probe rays (stratified origins paired with stratified cosine
+    /// directions, as [`Transfer::probe_round`] casts them, with a stream of their own) that
+    /// hit nothing, each weighted by the light it carries (the area element at its origin for
+    /// a polygon, the intensity in its direction over the axis's for a spot).
+    pub(crate) fn escape_share(&self, s: usize, n: usize) -> f64 {
+        let sg = &self.shooters[s];
+        let seed = seed_of(&[self.scene.radiosity.seed, s as u64, 0x6573_6361_7065]);
+        let grid = (n as f64).sqrt().ceil() as usize;
+        let mut rng = Rng::new(seed);
+        let perm = strata_pairing(&mut rng, n);
+        let (mut missed, mut total) = (0.0, 0.0);
+        let g = grid as f64;
+        for (i, &j) in perm.iter().enumerate() {
+            let (o, d, w) = match sg.kind {
+                ShooterKind::Spot { spot } => {
+                    let (o, d) = self.probe_ray(sg, i, j as usize, grid, &mut rng);
+                    let sp = &self.scene.spots[spot as usize];
+                    let axis = sp.intensity.max_element();
+                    let w = if axis > 0.0 {
+                        sp.intensity_towards(d).max_element() / axis
+                    } else {
+                        0.0
+                    };
+                    (o, d, w)
+                }
+                _ => {
+                    let p = &self.scene.polygons[sg.polygon as usize];
+                    let (u0, v0, u1, v1) = sg.bounds;
+                    let su = ((i % grid) as f64 + rng.next_f64()) / g;
+                    let sv = (((i / grid) as f64 + rng.next_f64()) / g).min(1.0);
+                    let (u, v) = (u0 + (u1 - u0) * su, v0 + (v1 - v0) * sv);
+                    let j = j as usize;
+                    let a = ((j % grid) as f64 + rng.next_f64()) / g;
+                    let phi = 2.0 * std::f64::consts::PI * ((j / grid) as f64 + rng.next_f64()) / g;
+                    let (t1, t2) = sg.normal.any_orthonormal_pair();
+                    let d =
+                        (t1 * phi.cos() + t2 * phi.sin()) * a.sqrt() + sg.normal * (1.0 - a).sqrt();
+                    (p.point(u, v), d, p.area_element(u, v))
+                }
+            };
+            total += w;
+            if w > 0.0 && self.bvh.first_hit(o, d * self.reach, sg.polygon).is_none() {
+                missed += w;
+            }
+        }
+        if total > 0.0 {
+            missed / total
+        } else {
+            0.0
+        }
+    }
+
     /// The first polygons hit by round `round` of `n` probe rays of shooter `s` (with
     /// repeats, in ray order).
     fn probe_round(&self, s: usize, n: usize, round: u64) -> Vec<u32> {
@@ -285,13 +338,8 @@ impl Transfer<'_> {
         let reach = self.reach;
         let seed = seed_of(&[self.scene.radiosity.seed, s as u64, 0x7072_6f62_6573, round]);
         let grid = (n as f64).sqrt().ceil() as usize;
-        // One permutation pairs origin strata with direction strata.
         let mut rng = Rng::new(seed);
-        let mut perm: Vec<u32> = (0..n as u32).collect();
-        for i in (1..n).rev() {
-            let j = rng.below(i as u32 + 1) as usize;
-            perm.swap(i, j);
-        }
+        let perm = strata_pairing(&mut rng, n);
         const CHUNK: usize = 64;
         (0..n.div_ceil(CHUNK))
             .into_par_iter()
@@ -386,4 +434,16 @@ pub(super) fn corner_neighbours(scene: &Scene) -> Vec<Vec<u32>> {
         l.dedup();
     }
     out
+}
+
+/// A random permutation of `0..n` (Fisher-Yates): probe ray `i` takes origin stratum `i` and
+/// direction stratum `perm[i]`, so origins and directions are each stratified and paired at
+/// random.
+fn strata_pairing(rng: &mut Rng, n: usize) -> Vec<u32> {
+    let mut perm: Vec<u32> = (0..n as u32).collect();
+    for i in (1..n).rev() {
+        let j = rng.below(i as u32 + 1) as usize;
+        perm.swap(i, j);
+    }
+    perm
 }

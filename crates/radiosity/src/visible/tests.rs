@@ -171,7 +171,7 @@ prop_compose! {
     /// A convex quad occluder between the receiver (height 0) and the light (height 2):
     /// a rectangle of random size, centre and tilt.
     fn occluder()(cx in -1.0f64..1.0, cy in -1.0f64..1.0, cz in 0.2f64..1.8,
-                  w in 0.05f64..1.0, h in 0.05f64..1.0, a in 0.0f64..6.283, tilt in -1.2f64..1.2,
+                  w in 0.05f64..1.0, h in 0.05f64..1.0, a in 0.0f64..std::f64::consts::TAU, tilt in -1.2f64..1.2,
                   tri in any::<bool>())
                  -> Vec<DVec3> {
         let (sa, ca) = a.sin_cos();
