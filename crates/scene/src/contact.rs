@@ -293,10 +293,13 @@ impl Frame {
     fn to2(&self, x: DVec3) -> DVec2 {
         DVec2::new((x - self.o).dot(self.e1), (x - self.o).dot(self.e2))
     }
+}
 
-    fn to3(&self, x: DVec2) -> DVec3 {
-        self.o + self.e1 * x.x + self.e2 * x.y
-    }
+/// A corner of a piece: where it lies in the polygon's plane, and in space.
+#[derive(Debug, Clone, Copy)]
+struct Corner {
+    at: DVec2,
+    pos: DVec3,
 }
 
 /// The pieces of `p` cut along the lines through `lines` (at most [`MAX_LINES`] distinct
@@ -354,7 +357,18 @@ fn pieces(p: &Polygon, lines: &[ContactLine]) -> (Vec<Polygon>, usize) {
             skipped += 1;
         }
     }
-    let mut faces: Vec<Vec<DVec2>> = vec![p.vertices().iter().map(|v| frame.to2(*v)).collect()];
+    // Each corner carries its 3-D position, interpolated along the 3-D side it splits: the
+    // polygon's own corners stay bit for bit, and a cut's end on a side lies on that side to
+    // rounding, at any scale (a round trip through the plane's frame would move every corner
+    // by a few ulps, differently at another scale of the same scene).
+    let mut faces: Vec<Vec<Corner>> = vec![p
+        .vertices()
+        .iter()
+        .map(|&v| Corner {
+            at: frame.to2(v),
+            pos: v,
+        })
+        .collect()];
     for (a, dir) in &cut_lines {
         let mut next = Vec::with_capacity(faces.len() + 1);
         for f in faces {
@@ -368,7 +382,7 @@ fn pieces(p: &Polygon, lines: &[ContactLine]) -> (Vec<Polygon>, usize) {
         .iter()
         .flat_map(|f| convex_to_polygons(f, u_axis))
         .filter_map(|c| {
-            let c3: Vec<DVec3> = c.iter().map(|x| frame.to3(*x)).collect();
+            let c3: Vec<DVec3> = c.iter().map(|x| x.pos).collect();
             match c3.len() {
                 3 => Polygon::triangle([c3[0], c3[1], c3[2]], p.material, p.object),
                 _ => Polygon::quad([c3[0], c3[1], c3[2], c3[3]], p.material, p.object),
@@ -396,11 +410,11 @@ fn inside(f: &[DVec2], x: DVec2, margin: f64) -> bool {
 /// The parts of the convex polygon `f` left and right of the line through `a` along `dir`;
 /// corners within `snap` of the line lie on it (both parts take them). A part that would hold
 /// only corners on the line is empty.
-fn split(f: &[DVec2], a: DVec2, dir: DVec2, snap: f64) -> (Vec<DVec2>, Vec<DVec2>) {
+fn split(f: &[Corner], a: DVec2, dir: DVec2, snap: f64) -> (Vec<Corner>, Vec<Corner>) {
     let s: Vec<f64> = f
         .iter()
         .map(|x| {
-            let d = dir.perp_dot(*x - a);
+            let d = dir.perp_dot(x.at - a);
             if d.abs() <= snap {
                 0.0
             } else {
@@ -421,7 +435,11 @@ fn split(f: &[DVec2], a: DVec2, dir: DVec2, snap: f64) -> (Vec<DVec2>, Vec<DVec2
             r.push(f[i]);
         }
         if (s[i] > 0.0 && s[j] < 0.0) || (s[i] < 0.0 && s[j] > 0.0) {
-            let x = f[i] + (f[j] - f[i]) * (s[i] / (s[i] - s[j]));
+            let t = s[i] / (s[i] - s[j]);
+            let x = Corner {
+                at: f[i].at + (f[j].at - f[i].at) * t,
+                pos: f[i].pos + (f[j].pos - f[i].pos) * t,
+            };
             l.push(x);
             r.push(x);
         }
@@ -433,7 +451,7 @@ fn split(f: &[DVec2], a: DVec2, dir: DVec2, snap: f64) -> (Vec<DVec2>, Vec<DVec2
 /// corner, each starting at the corner whose first side runs most nearly along `u_axis` (so
 /// the pieces' parameter axes follow the polygon they came from, as far as their shapes
 /// allow).
-fn convex_to_polygons(f: &[DVec2], u_axis: DVec2) -> Vec<Vec<DVec2>> {
+fn convex_to_polygons(f: &[Corner], u_axis: DVec2) -> Vec<Vec<Corner>> {
     let mut out = Vec::new();
     let n = f.len();
     if n <= 4 {
@@ -453,10 +471,10 @@ fn convex_to_polygons(f: &[DVec2], u_axis: DVec2) -> Vec<Vec<DVec2>> {
 
 /// `c` rotated (same cycle, same winding) to start at the corner whose side to the next runs
 /// most nearly along `u_axis`; a triangle keeps its corners distinct.
-fn aligned(c: Vec<DVec2>, u_axis: DVec2) -> Vec<DVec2> {
+fn aligned(c: Vec<Corner>, u_axis: DVec2) -> Vec<Corner> {
     let n = c.len();
     let u = u_axis.normalize_or_zero();
-    let score = |i: usize| (c[(i + 1) % n] - c[i]).normalize_or_zero().dot(u);
+    let score = |i: usize| (c[(i + 1) % n].at - c[i].at).normalize_or_zero().dot(u);
     let best = (0..n)
         .max_by(|&a, &b| score(a).total_cmp(&score(b)).then(b.cmp(&a)))
         .unwrap_or(0);

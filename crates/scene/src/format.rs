@@ -97,6 +97,8 @@ pub(crate) struct MaterialSection {
     pub reflectance: Spanned<Vec3>,
     /// Emission, each >= 0; default 0.
     pub emission: Option<Spanned<Vec3>>,
+    /// Whether its polygons emit and reflect on both faces (default false).
+    pub two_sided: Option<Spanned<bool>>,
 }
 
 /// One `[[polygons]]` entry.

@@ -241,6 +241,8 @@ impl BuiltFace {
 #[derive(Default)]
 pub(crate) struct Surfaces {
     pub(crate) materials: Vec<Material>,
+    /// The materials whose polygons emit and reflect on both faces (`two_sided`).
+    pub(crate) two_sided: Vec<u32>,
     /// The index of every material in `materials`, by name.
     pub(crate) by_name: BTreeMap<String, u32>,
     pub(crate) objects: Vec<String>,
@@ -358,6 +360,17 @@ impl<'a> Cx<'a> {
         let (notes, warnings) = super::coincident::merge(&mut surfaces.polygons, &mut self.origins);
         self.notes.extend(notes);
         self.warnings.extend(warnings);
+        let doubled = two_sided(
+            &mut surfaces.polygons,
+            &mut self.origins,
+            &surfaces.two_sided,
+        );
+        if doubled > 0 {
+            self.notes.push(format!(
+                "{doubled} polygons of two-sided materials given a twin facing the other way, \
+                 so that they emit and reflect on both faces"
+            ));
+        }
         self.check_polygons_and_light(&surfaces, &spots)?;
         let Surfaces {
             materials,
@@ -424,11 +437,14 @@ impl<'a> Cx<'a> {
             }
             None => DVec3::ZERO,
         };
-        surfaces.add_material(Material {
+        let index = surfaces.add_material(Material {
             name,
             reflectance,
             emission,
         });
+        if m.two_sided.as_ref().is_some_and(|t| *t.get_ref()) {
+            surfaces.two_sided.push(index);
+        }
         Ok(())
     }
 
@@ -881,6 +897,42 @@ impl<'a> Cx<'a> {
 
 /// What [`in_range`] demands, for messages.
 pub(crate) const FINITE_RULE: &str = "every number must be finite and at most 1e9 in magnitude";
+
+/// Gives every polygon whose material is in `materials` a twin right after it, the same
+/// corners wound the other way (so facing the other way), keeping `origins` aligned; the
+/// number of twins. A polygon is one-sided (it emits and reflects on its front): its twin is
+/// its back face, a separate surface in its plane, which no light crosses.
+fn two_sided(polygons: &mut Vec<Polygon>, origins: &mut Vec<Location>, materials: &[u32]) -> usize {
+    if materials.is_empty() {
+        return 0;
+    }
+    let old = std::mem::take(polygons);
+    let old_origins = std::mem::take(origins);
+    let mut n = 0;
+    for (i, p) in old.into_iter().enumerate() {
+        let twin = materials.contains(&p.material).then(|| {
+            let c = p.corners;
+            match p.shape {
+                crate::Shape::Triangle => {
+                    Polygon::triangle([c[0], c[2], c[1]], p.material, p.object)
+                }
+                crate::Shape::Quad => Polygon::quad([c[0], c[3], c[2], c[1]], p.material, p.object),
+            }
+        });
+        polygons.push(p);
+        if let Some(o) = old_origins.get(i) {
+            origins.push(o.clone());
+        }
+        if let Some(Some(t)) = twin {
+            polygons.push(t);
+            if let Some(o) = old_origins.get(i) {
+                origins.push(o.clone());
+            }
+            n += 1;
+        }
+    }
+    n
+}
 
 /// Whether `x` is finite and within [`MAX_MAGNITUDE`].
 pub(crate) fn in_range(x: f64) -> bool {

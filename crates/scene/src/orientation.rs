@@ -229,6 +229,101 @@ pub fn warnings(scene: &Scene) -> Vec<String> {
         ));
     }
     out.extend(light_warnings(scene, &bvh, reach));
+    out.extend(trapped_lights(scene, &bvh, reach));
+    out
+}
+
+/// Whether polygon `i` has a two-sided material's twin beside it (the loader puts the twin,
+/// the same corners wound the other way, right after its original).
+fn has_twin(scene: &Scene, i: usize) -> bool {
+    let p = &scene.polygons[i];
+    let twin = |j: usize| {
+        scene.polygons.get(j).is_some_and(|q| {
+            q.material == p.material
+                && q.normal.dot(p.normal) < -0.999
+                && q.vertices().iter().all(|a| p.vertices().contains(a))
+        })
+    };
+    twin(i + 1) || (i > 0 && twin(i - 1))
+}
+
+/// Share of an emitter's light (cosine-weighted) landing within its own size of it from which
+/// [`trapped_lights`] warns.
+pub const TRAPPED_WARN: f64 = 0.5;
+
+/// Distance, as a share of an emitter's size (its bounding sphere's diameter), within which a
+/// surface it faces traps its light ([`trapped_lights`]). Far less than the size itself: a
+/// ceiling lamp as wide as the room is high sends all its light to the floor within its size,
+/// and an uplight 20 cm under a ceiling is a design; a panel a few centimetres from what it
+/// faces sends its light back and forth between the two.
+pub const TRAPPED_GAP: f64 = 0.125;
+
+/// Emitters that face a surface closer than [`TRAPPED_GAP`] of their size, which catches more
+/// than [`TRAPPED_WARN`] of their light (a light panel a modelling tool left 2 cm under a ceiling,
+/// facing it, because the tool lit both sides): the light bounces between the two, and little
+/// reaches the room. One warning per such emitter, naming the surface, for the first few.
+fn trapped_lights(scene: &Scene, bvh: &Bvh, reach: f64) -> Vec<String> {
+    let sphere = sphere_directions(SPHERE_RAYS);
+    let mut out = Vec::new();
+    let mut more = 0;
+    let emitters = (0..scene.polygons.len()).filter(|&i| scene.material_of(i).is_emitter());
+    for i in emitters.take(4 * MAX_CHECKED_LIGHTS) {
+        let p = &scene.polygons[i];
+        let (c, r) = p.bounding_sphere();
+        let size = 2.0 * r;
+        let gap = TRAPPED_GAP * size;
+        let o = c + p.normal * (1e-6 * r.max(1e-9));
+        let (mut total, mut near) = (0.0, 0.0);
+        let mut by: BTreeMap<u32, f64> = BTreeMap::new();
+        for d in sphere.iter().filter(|d| d.dot(p.normal) > 0.0) {
+            let w = d.dot(p.normal);
+            total += w;
+            if let Some((q, t)) = bvh.first_hit(o, *d * reach, i as u32) {
+                if t * reach < gap {
+                    near += w;
+                    *by.entry(q).or_insert(0.0) += w;
+                }
+            }
+        }
+        if total <= 0.0 || near < TRAPPED_WARN * total {
+            continue;
+        }
+        if out.len() >= 3 {
+            more += 1;
+            continue;
+        }
+        let (q, _) = by.iter().fold(
+            (0u32, 0.0f64),
+            |b, (&q, &w)| if w > b.1 { (q, w) } else { b },
+        );
+        let distance = scene.polygons[q as usize]
+            .normal
+            .dot(c - scene.polygons[q as usize].corners[0]);
+        let fix = if has_twin(scene, i) {
+            "its material is two-sided: if only the face toward the scene should shine, make \
+             it one-sided and turn it to face the scene"
+        } else {
+            "a modelling tool that lights both faces of a panel leaves it so: turn it to face \
+             the scene (reverse its corners), or give its material `two_sided = true` to emit \
+             from both faces"
+        };
+        out.push(format!(
+            "the light {} faces {} {:.3} away, close for its size ({:.3}): {:.0} % of its light \
+             lands within {:.3} of it, bouncing between the two, and little reaches the \
+             rest of the scene; {fix}",
+            scene.origin(i),
+            scene.origin(q as usize),
+            distance.abs(),
+            size,
+            100.0 * near / total,
+            gap
+        ));
+    }
+    if more > 0 {
+        out.push(format!(
+            "{more} more lights face a surface close for their size"
+        ));
+    }
     out
 }
 
