@@ -192,15 +192,14 @@ pub fn solve(settings: &Settings, args: SolveArgs) -> anyhow::Result<()> {
             &mut |line| observer.note(line),
         )
     })??;
-    if sol.stats.guard_stops.leaves > 0 {
-        // The scene again, for the polygon's file and line (a guard stop is the rare case).
-        if let Some(w) = sol
-            .stats
-            .guard_stops
-            .warning(&scene::load_scene_with(&args.scene, &opts)?)
-        {
-            note(&format!("warning: {w}"));
-        }
+    // The scene again, for a guard stop's file and line and the convergence the light
+    // warnings compare against; loading costs little next to the solve.
+    let scene = scene::load_scene_with(&args.scene, &opts)?;
+    if let Some(w) = sol.stats.guard_stops.warning(&scene) {
+        note(&format!("warning: {w}"));
+    }
+    for w in sol.stats.light_warnings(scene.radiosity.convergence) {
+        note(&format!("warning: {w}"));
     }
     if !args.quiet {
         let s = &sol.stats;

@@ -57,10 +57,59 @@ pub struct SceneSummary {
     /// apart because a polygon stands on them or because their lattices or shapes do not line
     /// up ([`reconstruction::seam`]).
     pub seams: (usize, usize, usize, usize),
+    /// Contact lines ([`scene::contact`]): how many, how long in all, the polygons they cut
+    /// and the pieces those became, and where (the first few cut polygons' origins with their
+    /// lines).
+    pub contacts: String,
     /// Warnings the loader emitted.
     pub warnings: usize,
     /// Notes the loader emitted (repairs that change nothing the image shows).
     pub notes: usize,
+}
+
+/// The `contact lines` line of `check`: the lines, what they cut, and where (up to three
+/// polygons, by the file and line they were written at).
+fn contacts_text(scene: &Scene) -> String {
+    let c = &scene.contacts;
+    if c.lines.is_empty() {
+        return if scene.radiosity.cut_contacts {
+            "0".to_string()
+        } else {
+            "not looked for (radiosity.cut_contacts = false)".to_string()
+        };
+    }
+    let (cut, pieces) = c.counts();
+    let mut t = format!(
+        "{} ({:.4} long in all) cut {cut} polygons into {pieces} pieces",
+        c.lines.len(),
+        c.length()
+    );
+    // Where each cut polygon's first piece now is: the polygons before it less the pieces
+    // they lost, plus those they gained.
+    let mut at = Vec::new();
+    let mut shift = 0i64;
+    for &(orig, n) in &c.pieces {
+        let first = (orig as i64 + shift) as usize;
+        let lines = c.lines.iter().filter(|l| l.receiver == orig).count();
+        at.push(format!("{} ({lines} lines)", scene.origin(first)));
+        shift += n as i64 - 1;
+    }
+    let more = at.len().saturating_sub(3);
+    t += &format!(
+        ": {}",
+        at.into_iter().take(3).collect::<Vec<_>>().join(", ")
+    );
+    if more > 0 {
+        t += &format!(" and {more} more");
+    }
+    if c.skipped > 0 {
+        t += &format!(
+            "; {} lines not cut along (more than {} on one polygon)",
+            c.skipped,
+            scene::contact::MAX_LINES
+        );
+    }
+    t
 }
 
 /// Summarises `scene`.
@@ -112,6 +161,7 @@ pub fn summarize(scene: &Scene) -> SceneSummary {
             seams.standing(),
             seams.unjoined(),
         ),
+        contacts: contacts_text(scene),
         warnings: scene.warnings.len(),
         notes: scene.notes.len(),
     }
@@ -156,6 +206,7 @@ impl fmt::Display for SceneSummary {
                     human_bytes(self.memory_max)
                 ),
             ),
+            ("contact lines", self.contacts.clone()),
             ("shared edges", adjacency_text(&self.adjacency)),
             (
                 "seams",
@@ -482,7 +533,8 @@ mod tests {
             s.adjacency.shared,
             s.adjacency.coplanar + s.adjacency.creases + s.adjacency.folded
         );
-        assert_eq!(table.lines().count(), 18);
+        assert!(table.contains("contact lines   0\n"), "{table}");
+        assert_eq!(table.lines().count(), 19);
     }
 
     #[test]

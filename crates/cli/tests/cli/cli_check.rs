@@ -48,9 +48,14 @@ fn check_cornell_lists_its_repairs_as_notes_and_exits_0() {
     );
     assert!(!stderr.contains("warning:"), "{stderr}");
     assert!(stderr.contains("split into two triangles"), "{stderr}");
-    let stdout = text(&out.stdout);
     assert!(
-        stdout.contains("polygons        17 (15 quads, 2 triangles)"),
+        stderr.contains("8 contact lines") && stderr.contains("cut 1 polygons into 30 pieces"),
+        "{stderr}"
+    );
+    let stdout = text(&out.stdout);
+    // 17 faces, the floor among them cut into 30 pieces (10 of them triangles).
+    assert!(
+        stdout.contains("polygons        46 (36 quads, 10 triangles)"),
         "{stdout}"
     );
     assert!(stdout.contains("emitters        1 polygons"), "{stdout}");

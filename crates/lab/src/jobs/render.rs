@@ -310,6 +310,13 @@ pub fn run_render(
     if let Some(w) = p.solution.stats.guard_stops.warning(&p.scene) {
         on(RenderEvent::Note(&w));
     }
+    for w in p
+        .solution
+        .stats
+        .light_warnings(p.scene.radiosity.convergence)
+    {
+        on(RenderEvent::Warning(&w));
+    }
     let mut exposure = req.exposure.unwrap_or(p.scene.display.exposure);
     let auto_exposure = wants_auto_exposure(req, &p.scene);
     let n = plan.frames.len();

@@ -62,6 +62,7 @@ pub fn building(rooms_x: u32, rooms_z: u32, cut: u32) -> scene::Scene {
 
 mod camera_scale;
 mod closed_form;
+mod contact_lines;
 mod experiments;
 mod export;
 mod frame_context;

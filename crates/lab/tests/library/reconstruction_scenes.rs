@@ -84,16 +84,20 @@ fn shipped_scene_rrps_are_compact_and_the_limited_estimators_do_not_ring() {
             );
         }
         // The monotone estimator's ringing is a 2-D effect of a fraction of a percent of a
-        // polygon's range (module docs: 0.18 % on a spot); 1 % catches a limiter that stopped
-        // working, and it never rings more than the plain estimator.
-        assert!(o_mono < 1e-2, "{name}: monotone overshoot {o_mono}");
+        // polygon's range (module docs: 0.18 % on a spot), at most 2.5 % where a spot's rim
+        // (a step of 2.7 times across one leaf) crosses a small floor piece next to its border
+        // (gallery, room 2: the pieces a contact line cuts put more borders beside the rims;
+        // the renderer takes spots' light out and adds it back exactly, `sharp`, so no drawn
+        // image holds this). 3 % catches a limiter that stopped working (the plain estimator
+        // rings 20 %), and it never rings more than the plain estimator.
+        assert!(o_mono < 3e-2, "{name}: monotone overshoot {o_mono}");
         assert!(
             o_mono <= o_plain + 1e-6,
             "{name}: {o_mono} vs plain {o_plain}"
         );
         // Hyman's filter keeps central slopes where they are inside Fritsch and Carlson's
         // region, so it may ring a little more than Fritsch-Butland but never more than plain.
-        assert!(o_hyman < 1e-2, "{name}: hyman overshoot {o_hyman}");
+        assert!(o_hyman < 3e-2, "{name}: hyman overshoot {o_hyman}");
         assert!(
             o_hyman <= o_plain + 1e-6,
             "{name}: {o_hyman} vs plain {o_plain}"

@@ -184,11 +184,24 @@ fn two_spots_narrow_differs_only_in_the_bright_spot() {
 
 #[test]
 fn cornell_box_loads_with_its_quirks() {
-    let s = load_scene(&scenes().join("cornell-box.toml")).unwrap();
-    check_invariants(&s);
+    let whole = scene::LoadOptions {
+        overrides: vec![("radiosity.cut_contacts".into(), "false".into())],
+        ..scene::LoadOptions::default()
+    };
+    let uncut = scene::load_scene_with(&scenes().join("cornell-box.toml"), &whole).unwrap();
     // 18 faces, two of them repeats (the short box's "Bottom Face" repeats its right face, the
     // tall box's last face its front), counted once; the left wall split in two.
-    assert_eq!(s.polygons.len(), 17);
+    assert_eq!(uncut.polygons.len(), 17);
+    let s = load_scene(&scenes().join("cornell-box.toml")).unwrap();
+    check_invariants(&s);
+    // The floor cut along the 8 lines where the boxes' sides stand on it (the arrangement of
+    // their lines inside it): 30 pieces, of equal total area.
+    assert_eq!(s.contacts.lines.len(), 8);
+    assert_eq!(s.contacts.pieces, vec![(0, 30)]);
+    assert_eq!(s.polygons.len(), 17 - 1 + 30);
+    let floor: f64 = s.polygons[..30].iter().map(|p| p.area).sum();
+    assert!((floor - uncut.polygons[0].area).abs() < 1e-12 * floor);
+    let s = uncut;
     let tris = s
         .polygons
         .iter()
@@ -282,7 +295,11 @@ fn gallery_loads() {
     let s = load_scene(&scenes().join("gallery.toml")).unwrap();
     check_invariants(&s);
     assert!(s.warnings.is_empty());
-    assert_eq!(s.polygons.len(), 946);
+    // 946 quads, of which the floors and the pedestals' tops under what stands on them are cut
+    // along 144 contact lines into 286 pieces.
+    let (cut, pieces) = s.contacts.counts();
+    assert_eq!((s.contacts.lines.len(), cut, pieces), (144, 72, 286));
+    assert_eq!(s.polygons.len(), 946 - cut + pieces);
     assert_eq!(s.emitter_count(), 6);
     assert_eq!(s.spots.len(), 3);
     assert_eq!(s.materials.len(), 8);
@@ -1261,4 +1278,99 @@ fn short_mtl_colour_is_an_error_not_a_tobj_panic() {
         dir.join("m.mtl").display()
     );
     assert!(msg.starts_with(&expect), "{msg}");
+}
+
+/// A 1 m light panel 2 cm under a ceiling, facing it (the panel of a tool that lit both of its
+/// faces, exported one-sided the wrong way round): named in a warning with the surface it
+/// faces, the gap and the fix. The shipped-style lamp of `BASE`, 1 m over what it lights, is
+/// not: its light reaches the floor within its size, but not within an eighth of it.
+#[test]
+fn a_light_facing_a_close_surface_is_named_with_the_fix() {
+    let ceiling = "[[polygons]]\nname = \"ceiling\"\nvertices = [[-1, -1, 1.02], [-1, 2, 1.02], [2, 2, 1.02], [2, -1, 1.02]]\nmaterial = \"white\"\n";
+    let up = edit(
+        "[[0, 0, 1], [0, 1, 1], [1, 1, 1]]",
+        "[[0, 0, 1], [1, 1, 1], [0, 1, 1]]",
+    );
+    let text = format!("{up}\n{ceiling}");
+    // The orientation checks, as `load_scene` adds them to a file's warnings.
+    let warned = |text: &str| {
+        let s = parse_scene(text, Path::new("test.toml")).unwrap();
+        scene::orientation::warnings(&s)
+    };
+    let warnings = warned(&text);
+    let trapped: Vec<&String> = warnings
+        .iter()
+        .filter(|w| w.contains("close for its size"))
+        .collect();
+    assert_eq!(trapped.len(), 1, "{warnings:?}");
+    let w = trapped[0];
+    let (lamp, ceiling_line) = (
+        line_of(&text, "[[0, 0, 1], [1, 1, 1]"),
+        line_of(&text, "1.02]"),
+    );
+    assert!(
+        w.contains(&format!("test.toml:{lamp}"))
+            && w.contains(&format!("test.toml:{ceiling_line}"))
+            && w.contains("0.020 away")
+            && w.contains("two_sided = true"),
+        "{w}"
+    );
+    // Nearly all its light: all but the rays from near its corners that pass the ceiling's
+    // edge within the distance it checks.
+    let share: f64 = w
+        .split(" % of its light")
+        .next()
+        .and_then(|h| h.rsplit(' ').next())
+        .and_then(|n| n.parse().ok())
+        .expect("a share");
+    assert!(share >= 95.0, "{w}");
+    let base = warned(BASE);
+    assert!(
+        base.iter().all(|w| !w.contains("close for its size")),
+        "{base:?}"
+    );
+    // Two-sided, the face toward the ceiling is still trapped; the fix offered is the other.
+    let two = text.replace(
+        "emission = [1.0, 1.0, 1.0]",
+        "emission = [1.0, 1.0, 1.0]\ntwo_sided = true",
+    );
+    let warnings = warned(&two);
+    let w = warnings
+        .iter()
+        .find(|w| w.contains("close for its size"))
+        .expect("warned");
+    assert!(w.contains("its material is two-sided"), "{w}");
+}
+
+/// A two-sided material's polygon becomes two, the second its mirror (same corners wound the
+/// other way, the opposite normal, the same material and area), named by the same line; a
+/// note says how many; one-sided polygons stay single.
+#[test]
+fn two_sided_materials_get_a_reversed_twin() {
+    let text = edit(
+        "emission = [1.0, 1.0, 1.0]",
+        "emission = [1.0, 1.0, 1.0]\ntwo_sided = true",
+    );
+    let s = parse_scene(&text, Path::new("test.toml")).unwrap();
+    assert_eq!(s.polygons.len(), 3);
+    let (a, b) = (&s.polygons[1], &s.polygons[2]);
+    assert_eq!(a.material, b.material);
+    assert!(
+        (a.normal + b.normal).length() < 1e-12,
+        "{} vs {}",
+        a.normal,
+        b.normal
+    );
+    assert!((a.area - b.area).abs() < 1e-12);
+    assert!(a.vertices().iter().all(|v| b.vertices().contains(v)));
+    assert_eq!(s.origin(1), s.origin(2));
+    assert!(
+        s.notes
+            .iter()
+            .any(|n| n.starts_with("1 polygons of two-sided materials")),
+        "{:?}",
+        s.notes
+    );
+    let s = parse_scene(BASE, Path::new("test.toml")).unwrap();
+    assert_eq!(s.polygons.len(), 2);
 }
