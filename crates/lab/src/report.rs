@@ -61,6 +61,9 @@ pub struct SceneSummary {
     /// and the pieces those became, and where (the first few cut polygons' origins with their
     /// lines).
     pub contacts: String,
+    /// Triangle pairs the loader merged into quads ([`scene::triangle_pairs`]), and whether it
+    /// looked for them.
+    pub merged: (usize, bool),
     /// Warnings the loader emitted.
     pub warnings: usize,
     /// Notes the loader emitted (repairs that change nothing the image shows).
@@ -162,6 +165,7 @@ pub fn summarize(scene: &Scene) -> SceneSummary {
             seams.unjoined(),
         ),
         contacts: contacts_text(scene),
+        merged: (scene.merged.pairs, scene.radiosity.merge_triangles),
         warnings: scene.warnings.len(),
         notes: scene.notes.len(),
     }
@@ -182,8 +186,17 @@ impl fmt::Display for SceneSummary {
             (
                 "polygons",
                 format!(
-                    "{} ({} quads, {} triangles)",
-                    self.polygons, self.quads, self.triangles
+                    "{} ({} quads, {} triangles){}",
+                    self.polygons,
+                    self.quads,
+                    self.triangles,
+                    match self.merged {
+                        (0, true) => String::new(),
+                        (n, true) => format!("; {n} triangle pairs merged into quads"),
+                        (_, false) => "; triangle pairs not merged \
+                                       (radiosity.merge_triangles = false)"
+                            .to_string(),
+                    }
                 ),
             ),
             ("objects", self.objects.to_string()),

@@ -177,6 +177,8 @@ pub(crate) struct RadiositySection {
     pub visibility: Option<Spanned<String>>,
     /// Whether polygons are cut along their contact lines.
     pub cut_contacts: Option<Spanned<bool>>,
+    /// Whether coplanar triangle pairs are merged into quads.
+    pub merge_triangles: Option<Spanned<bool>>,
 }
 
 /// `[render]`.

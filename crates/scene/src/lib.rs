@@ -30,6 +30,7 @@ mod model;
 mod obj;
 pub mod orientation;
 pub mod overrides;
+pub mod triangle_pairs;
 mod triangulate;
 
 pub use load::{load_scene, load_scene_with, parse_scene, parse_scene_with, LoadOptions};
@@ -307,6 +308,9 @@ pub struct RadiositySettings {
     /// Whether the loader cuts polygons along their contact lines ([`contact`]): where a
     /// polygon stands on or passes through another, the light of the other steps.
     pub cut_contacts: bool,
+    /// Whether the loader merges coplanar triangle pairs of one material into the quads they
+    /// form ([`triangle_pairs`]).
+    pub merge_triangles: bool,
 }
 
 /// How the solver finds the receivers a shooter can reach (`radiosity.visibility`).
@@ -334,6 +338,7 @@ impl Default for RadiositySettings {
             seed: 1,
             visibility: Visibility::Auto,
             cut_contacts: true,
+            merge_triangles: true,
         }
     }
 }
@@ -424,6 +429,8 @@ pub struct Scene {
     /// The contact lines the loader found and the polygons it cut along them ([`contact`]);
     /// polygon indices in it are those before the cut.
     pub contacts: contact::Cuts,
+    /// The triangle pairs the loader merged into quads ([`triangle_pairs`]).
+    pub merged: triangle_pairs::Merged,
 }
 
 /// A polygon more than this many times the diagonal of the rest of the scene is a backdrop
@@ -464,6 +471,7 @@ impl Scene {
             inputs: Vec::new(),
             origins: Vec::new(),
             contacts: contact::Cuts::default(),
+            merged: triangle_pairs::Merged::default(),
         }
     }
 

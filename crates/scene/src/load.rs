@@ -360,6 +360,12 @@ impl<'a> Cx<'a> {
         let (notes, warnings) = super::coincident::merge(&mut surfaces.polygons, &mut self.origins);
         self.notes.extend(notes);
         self.warnings.extend(warnings);
+        let merged = if radiosity.merge_triangles {
+            super::triangle_pairs::merge(&mut surfaces.polygons, &mut self.origins)
+        } else {
+            super::triangle_pairs::Merged::default()
+        };
+        self.notes.extend(merged.note());
         let doubled = two_sided(
             &mut surfaces.polygons,
             &mut self.origins,
@@ -396,6 +402,7 @@ impl<'a> Cx<'a> {
             inputs: std::mem::take(&mut self.inputs),
             origins: std::mem::take(&mut self.origins),
             contacts: crate::contact::Cuts::default(),
+            merged,
         };
         if scene.radiosity.cut_contacts {
             scene.cut_contacts();
@@ -753,6 +760,9 @@ impl<'a> Cx<'a> {
         }
         if let Some(v) = &r.cut_contacts {
             s.cut_contacts = *v.get_ref();
+        }
+        if let Some(v) = &r.merge_triangles {
+            s.merge_triangles = *v.get_ref();
         }
         Ok(s)
     }

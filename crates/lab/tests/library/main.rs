@@ -81,3 +81,4 @@ mod solution_rrps;
 mod scene_loading;
 mod gallery_scene;
 mod texture_seams;
+mod triangles;
