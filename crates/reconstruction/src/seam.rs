@@ -97,7 +97,7 @@ impl Seams {
             if !fold && !Adjacency::continuous(e, polygons, materials) {
                 continue;
             }
-            if stands_on(adjacency, e) {
+            if adjacency.stands_on(e) {
                 standing += 1;
                 continue;
             }
@@ -261,44 +261,11 @@ fn is_fold(e: &SharedEdge, polygons: &[Polygon], materials: &[Material]) -> bool
     degrees <= MAX_FOLD_DEGREES && ma.reflectance == mb.reflectance && ma.emission == mb.emission
 }
 
-/// Whether a third polygon meets either side of `e` at an angle over part of `e`'s segment:
-/// a wall standing on the seam, whose two sides see different light.
-fn stands_on(adjacency: &Adjacency, e: &SharedEdge) -> bool {
-    let overlaps = |r: [f64; 2], q: [f64; 2]| {
-        let (lo, hi) = (r[0].min(r[1]), r[0].max(r[1]));
-        let (ql, qh) = (q[0].min(q[1]), q[0].max(q[1]));
-        qh.min(hi) - ql.max(lo) > 1e-9
-    };
-    adjacency.edges.iter().any(|o| {
-        if matches!(o.junction, Junction::Coplanar) || std::ptr::eq(o, e) {
-            return false;
-        }
-        // The part of `o` on e's a side or b side, in that side's parameter.
-        let on = |side: Side, range: [f64; 2]| {
-            (o.a == side && overlaps(range, o.a_range))
-                || (o.b == side && overlaps(range, o.b_range))
-        };
-        on(e.a, e.a_range) || on(e.b, e.b_range)
-    })
-}
-
-/// The lattice index of parameter `x` in [0, 1], if it is one (within rounding).
-fn lattice_index(x: f64) -> Option<i64> {
-    let y = x * LATTICE as f64;
-    let r = y.round();
-    ((y - r).abs() <= 1e-6 && (0.0..=LATTICE as f64).contains(&r)).then_some(r as i64)
-}
-
-/// The link of shared edge `e`, if its two lattices line up.
+/// The link of shared edge `e`, if its two lattices line up
+/// ([`SharedEdge::lattice_link`]).
 fn link(e: &SharedEdge) -> Option<Link> {
-    let ka = [lattice_index(e.a_range[0])?, lattice_index(e.a_range[1])?];
-    let kb = [lattice_index(e.b_range[0])?, lattice_index(e.b_range[1])?];
-    let (la, lb) = ((ka[1] - ka[0]).abs(), (kb[1] - kb[0]).abs());
-    if la == 0 || lb == 0 {
-        return None;
-    }
-    let ratio_ok = |x: i64, y: i64| x % y == 0 && (x / y).count_ones() == 1;
-    (ratio_ok(la, lb) || ratio_ok(lb, la)).then_some(Link {
+    let (ka, kb) = e.lattice_link()?;
+    Some(Link {
         a: e.a,
         b: e.b,
         ka,

@@ -121,12 +121,42 @@ impl SharedEdge {
         self.b_range[1] < self.b_range[0]
     }
 
+    /// The lattice indices (`base::quadtree::LATTICE` steps along each side) of the shared
+    /// segment's ends on `a` and on `b`, if the two lattices line up there: both ends are
+    /// lattice points of both sides and one side's step is a power of two times the other's,
+    /// so every lattice point of the coarser side along the segment is one of the finer side.
+    /// Only such edges can be joined point for point by the reconstruction.
+    pub fn lattice_link(&self) -> Option<([i64; 2], [i64; 2])> {
+        let ka = [
+            lattice_index(self.a_range[0])?,
+            lattice_index(self.a_range[1])?,
+        ];
+        let kb = [
+            lattice_index(self.b_range[0])?,
+            lattice_index(self.b_range[1])?,
+        ];
+        let (la, lb) = ((ka[1] - ka[0]).abs(), (kb[1] - kb[0]).abs());
+        if la == 0 || lb == 0 {
+            return None;
+        }
+        let ratio_ok = |x: i64, y: i64| x % y == 0 && (x / y).count_ones() == 1;
+        (ratio_ok(la, lb) || ratio_ok(lb, la)).then_some((ka, kb))
+    }
+
     /// The parameter along `b` of the point at parameter `s` along `a` (affine in s).
     pub fn b_of_a(&self, s: f64) -> f64 {
         let [a0, a1] = self.a_range;
         let [b0, b1] = self.b_range;
         b0 + (s - a0) * (b1 - b0) / (a1 - a0)
     }
+}
+
+/// The lattice index of parameter `x` in [0, 1], if it is one (within rounding).
+fn lattice_index(x: f64) -> Option<i64> {
+    let lattice = base::quadtree::LATTICE as f64;
+    let y = x * lattice;
+    let r = y.round();
+    ((y - r).abs() <= 1e-6 && (0.0..=lattice).contains(&r)).then_some(r as i64)
 }
 
 /// Two collinear sides further apart than [`EDGE_TOL`] but within [`NEAR_EDGE`].
@@ -205,6 +235,27 @@ impl Adjacency {
         let ma = &materials[polygons[e.a.polygon as usize].material as usize];
         let mb = &materials[polygons[e.b.polygon as usize].material as usize];
         ma.reflectance == mb.reflectance && ma.emission == mb.emission
+    }
+
+    /// Whether a third polygon meets either side of `e` at an angle over part of `e`'s
+    /// segment: a wall standing on the seam, whose two sides see different light.
+    pub fn stands_on(&self, e: &SharedEdge) -> bool {
+        let overlaps = |r: [f64; 2], q: [f64; 2]| {
+            let (lo, hi) = (r[0].min(r[1]), r[0].max(r[1]));
+            let (ql, qh) = (q[0].min(q[1]), q[0].max(q[1]));
+            qh.min(hi) - ql.max(lo) > 1e-9
+        };
+        self.edges.iter().any(|o| {
+            if matches!(o.junction, Junction::Coplanar) || std::ptr::eq(o, e) {
+                return false;
+            }
+            // The part of `o` on e's a side or b side, in that side's parameter.
+            let on = |side: Side, range: [f64; 2]| {
+                (o.a == side && overlaps(range, o.a_range))
+                    || (o.b == side && overlaps(range, o.b_range))
+            };
+            on(e.a, e.a_range) || on(e.b, e.b_range)
+        })
     }
 
     /// Counts for reports.

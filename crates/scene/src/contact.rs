@@ -187,7 +187,7 @@ fn contact(p: &Polygon, q: &Polygon, tol: f64) -> Option<(DVec3, DVec3)> {
 }
 
 /// The part of segment `a`-`b` (in `p`'s plane) inside `p`, if longer than `tol`.
-fn clip_to_polygon(p: &Polygon, a: DVec3, b: DVec3, tol: f64) -> Option<(DVec3, DVec3)> {
+pub(crate) fn clip_to_polygon(p: &Polygon, a: DVec3, b: DVec3, tol: f64) -> Option<(DVec3, DVec3)> {
     let vs = p.vertices();
     let (mut t0, mut t1) = (0.0f64, 1.0f64);
     let d = b - a;

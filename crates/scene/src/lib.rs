@@ -25,6 +25,7 @@ pub mod camera_path;
 mod coincident;
 pub mod contact;
 pub mod format;
+pub mod junctions;
 pub mod load;
 mod model;
 mod obj;
@@ -431,6 +432,9 @@ pub struct Scene {
     pub contacts: contact::Cuts,
     /// The triangle pairs the loader merged into quads ([`triangle_pairs`]).
     pub merged: triangle_pairs::Merged,
+    /// The polygons the loader cut through T-junctions whose lattices do not line up
+    /// ([`junctions`]); polygon indices in it are those before each pass.
+    pub junctions: contact::Cuts,
 }
 
 /// A polygon more than this many times the diagonal of the rest of the scene is a backdrop
@@ -472,6 +476,7 @@ impl Scene {
             origins: Vec::new(),
             contacts: contact::Cuts::default(),
             merged: triangle_pairs::Merged::default(),
+            junctions: contact::Cuts::default(),
         }
     }
 
@@ -481,6 +486,14 @@ impl Scene {
     pub fn cut_contacts(&mut self) {
         let lines = contact::find(&self.polygons);
         self.contacts = contact::cut(&mut self.polygons, &mut self.origins, lines);
+    }
+
+    /// Cuts polygons through their T-junctions whose lattices do not line up ([`junctions`]),
+    /// keeping `origins` aligned, and records what was cut in `junctions`. The loader does this
+    /// for every scene, after the contact cuts (whose pieces may leave such T-junctions with
+    /// their neighbours); a scene built in code does it when it asks.
+    pub fn cut_t_junctions(&mut self) {
+        self.junctions = junctions::cut(&mut self.polygons, &mut self.origins, &self.materials);
     }
 
     /// Where polygon `i` was written (`file:line: key`), or `polygon i` for a scene built in

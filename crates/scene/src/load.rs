@@ -403,12 +403,23 @@ impl<'a> Cx<'a> {
             origins: std::mem::take(&mut self.origins),
             contacts: crate::contact::Cuts::default(),
             merged,
+            junctions: crate::contact::Cuts::default(),
         };
         if scene.radiosity.cut_contacts {
             scene.cut_contacts();
             if let Some(note) = scene.contacts.note() {
                 scene.notes.push(note);
             }
+        }
+        scene.cut_t_junctions();
+        if !scene.junctions.pieces.is_empty() {
+            let (cut, pieces) = scene.junctions.counts();
+            scene.notes.push(format!(
+                "{} T-junctions whose sides' lattices do not line up (a side split other than \
+                 in halves, quarters, ...): {cut} polygons cut through them into {pieces} pieces, \
+                 so that neighbours share whole sides and their light is joined C1",
+                scene.junctions.lines.len()
+            ));
         }
         Ok(scene)
     }

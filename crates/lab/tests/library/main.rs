@@ -80,5 +80,6 @@ mod truth_camera;
 mod solution_rrps;
 mod scene_loading;
 mod gallery_scene;
+mod t_junctions;
 mod texture_seams;
 mod triangles;
