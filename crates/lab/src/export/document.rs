@@ -2,8 +2,9 @@
 //! model) and one binary buffer.
 //!
 //! Layout: one buffer; one buffer view per vertex attribute, index list and embedded image,
-//! each 4-byte aligned; one mesh with one primitive per (material, atlas page) pair, under one
-//! node in one scene. Application-specific data uses the glTF conventions: the vertex
+//! each 4-byte aligned; one mesh per scene object (an OBJ group, an inline polygon), named
+//! after it, with one primitive per (material, atlas page) pair, each under a node of the same
+//! name, and the scene's camera as a camera node, all in one scene. Application-specific data uses the glTF conventions: the vertex
 //! attribute `_POLYGON` (the scene polygon each vertex belongs to, as a float scalar: exact up
 //! to 2^24 polygons) and `extras` on materials and the asset.
 
@@ -14,6 +15,16 @@ use json::validation::Checked::Valid;
 use json::validation::USize64;
 
 use base::error::{Error, Result};
+
+/// A camera and where its node puts it: glTF cameras look down their node's -Z with +Y up.
+pub struct CameraNode {
+    /// The camera (perspective or orthographic).
+    pub camera: json::Camera,
+    /// The node's translation: the eye.
+    pub translation: [f32; 3],
+    /// The node's rotation, a unit quaternion (x, y, z, w).
+    pub rotation: [f32; 4],
+}
 
 /// A document being built and its binary buffer.
 pub struct Builder {
@@ -278,33 +289,48 @@ impl Builder {
         })
     }
 
-    /// Finishes the document: one mesh of `primitives` under one node in one scene, the
-    /// buffer (embedded for a GLB, `bin_uri` otherwise) and the extensions used.
+    /// Finishes the document: one mesh and one node per object (`meshes`: the object's name
+    /// and its primitives, in order), the camera as a node when given, and the buffer
+    /// (embedded when `bin_uri` is `None`).
     pub fn finish(
         mut self,
-        primitives: Vec<json::mesh::Primitive>,
+        meshes: Vec<(String, Vec<json::mesh::Primitive>)>,
+        camera: Option<CameraNode>,
         bin_uri: Option<String>,
     ) -> (json::Root, Vec<u8>) {
         while !self.bin.len().is_multiple_of(4) {
             self.bin.push(0);
         }
-        let mesh = self.root.push(json::Mesh {
-            extensions: None,
-            extras: Default::default(),
-            name: Some("radiosity".into()),
-            primitives,
-            weights: None,
-        });
-        let node = self.root.push(json::Node {
-            mesh: Some(mesh),
-            name: Some("radiosity".into()),
-            ..Default::default()
-        });
+        let mut nodes = Vec::new();
+        for (name, primitives) in meshes {
+            let mesh = self.root.push(json::Mesh {
+                extensions: None,
+                extras: Default::default(),
+                name: Some(name.clone()),
+                primitives,
+                weights: None,
+            });
+            nodes.push(self.root.push(json::Node {
+                mesh: Some(mesh),
+                name: Some(name),
+                ..Default::default()
+            }));
+        }
+        if let Some(c) = camera {
+            let camera = self.root.push(c.camera);
+            nodes.push(self.root.push(json::Node {
+                camera: Some(camera),
+                name: Some("camera".into()),
+                translation: Some(c.translation),
+                rotation: Some(json::scene::UnitQuaternion(c.rotation)),
+                ..Default::default()
+            }));
+        }
         let scene = self.root.push(json::Scene {
             extensions: None,
             extras: Default::default(),
             name: Some("scene".into()),
-            nodes: vec![node],
+            nodes,
         });
         self.root.scene = Some(scene);
         self.root.push(json::Buffer {

@@ -13,7 +13,9 @@
 //!   vertex colours as `COLOR_0` (linear, after exposure, clamped to [0, 1]) and the unclamped
 //!   radiosity as the attribute `_RADIOSITY`.
 //!
-//! Both bake the lighting, so every material is `KHR_materials_unlit`; each keeps the scene
+//! Both keep the model's structure: a node and a mesh per scene object, named after it, and the
+//! scene's camera as a camera node. Both bake the lighting, so every material is
+//! `KHR_materials_unlit`; each keeps the scene
 //! material's diffuse reflectance and emission in its `extras` for engines that relight. Every
 //! vertex carries `_POLYGON`, the scene polygon it belongs to. The container follows the file
 //! name: `.glb` embeds the buffer and the PNG pages, `.gltf` writes them beside it. All files
@@ -173,20 +175,33 @@ pub fn export_lightmap(
         textures.push(b.png_texture(&format!("lightmap {k}"), png, uri));
     }
     let (groups, shift) = lightmap_groups(scene, &atlas);
-    let mut primitives = Vec::new();
+    let mut materials = BTreeMap::new();
+    let mut meshes: BTreeMap<u32, Vec<json::mesh::Primitive>> = BTreeMap::new();
     let (mut triangles, mut vertices) = (0, 0);
-    for ((m, page), v) in &groups {
-        let name = format!("{} (lightmap {page})", scene.materials[*m as usize].name);
-        let mat = b.unlit_material(
-            &name,
-            Some((textures[*page as usize], 1)),
-            material_extras(scene, *m),
-        )?;
-        primitives.push(b.primitive(v, mat));
+    for ((object, m, page), v) in &groups {
+        let mat = match materials.get(&(*m, *page)) {
+            Some(&mat) => mat,
+            None => {
+                let name = format!("{} (lightmap {page})", scene.materials[*m as usize].name);
+                let texture = Some((textures[*page as usize], 1));
+                let mat = b.unlit_material(&name, texture, material_extras(scene, *m))?;
+                *materials.entry((*m, *page)).or_insert(mat)
+            }
+        };
+        let primitive = b.primitive(v, mat);
+        meshes.entry(*object).or_default().push(primitive);
         triangles += v.indices.len() / 3;
         vertices += v.position.len();
     }
-    finish(b, primitives, container, out, &mut batch, &mut files)?;
+    let meshes = named_meshes(scene, meshes);
+    finish(
+        b,
+        (meshes, camera_node(scene)),
+        container,
+        out,
+        &mut batch,
+        &mut files,
+    )?;
     batch.commit()?;
     Ok(ExportReport {
         kind: "lightmap",
@@ -211,17 +226,17 @@ fn check_polygons(scene: &Scene) -> Result<()> {
     Ok(())
 }
 
-/// The lightmap's vertices grouped by (material, page), in polygon order within each group,
-/// and the largest texel shift of the tessellations.
-fn lightmap_groups(scene: &Scene, atlas: &Atlas) -> (BTreeMap<(u32, u32), Vertices>, f64) {
-    let mut groups: BTreeMap<(u32, u32), Vertices> = BTreeMap::new();
+/// The lightmap's vertices grouped by (object, material, page), in polygon order within each
+/// group, and the largest texel shift of the tessellations.
+fn lightmap_groups(scene: &Scene, atlas: &Atlas) -> (BTreeMap<(u32, u32, u32), Vertices>, f64) {
+    let mut groups: BTreeMap<(u32, u32, u32), Vertices> = BTreeMap::new();
     let mut shift: f64 = 0.0;
     for (p, poly) in scene.polygons.iter().enumerate() {
         let chart = &atlas.charts[p];
         let t = geometry::tessellate(poly, chart.side);
         shift = shift.max(t.shift);
         let v = groups
-            .entry((poly.material, chart.page))
+            .entry((poly.object, poly.material, chart.page))
             .or_insert_with(|| Vertices {
                 tex_coords: vec![Vec::new(), Vec::new()],
                 custom: vec![("POLYGON".into(), json::accessor::Type::Scalar, Vec::new())],
@@ -243,10 +258,93 @@ fn lightmap_groups(scene: &Scene, atlas: &Atlas) -> (BTreeMap<(u32, u32), Vertic
     (groups, shift)
 }
 
+/// Per object with primitives, in object order: its name (the scene's, unique: a repeated name
+/// gets `#2`, `#3`, ...) and its primitives.
+fn named_meshes(
+    scene: &Scene,
+    meshes: BTreeMap<u32, Vec<json::mesh::Primitive>>,
+) -> Vec<(String, Vec<json::mesh::Primitive>)> {
+    let mut seen: BTreeMap<String, u32> = BTreeMap::new();
+    meshes
+        .into_iter()
+        .map(|(o, primitives)| {
+            let base = scene
+                .objects
+                .get(o as usize)
+                .cloned()
+                .unwrap_or_else(|| format!("object {o}"));
+            let n = seen.entry(base.clone()).or_insert(0);
+            *n += 1;
+            let name = if *n == 1 { base } else { format!("{base}#{n}") };
+            (name, primitives)
+        })
+        .collect()
+}
+
+/// The scene's camera as a glTF camera node: a perspective camera keeps the vertical field of
+/// view and the image's aspect ratio, an orthographic one half its width and height (`xmag`,
+/// `ymag`); the node sits at the eye, turned so its -Z looks at `look_at` with +Y towards `up`.
+fn camera_node(scene: &Scene) -> Option<document::CameraNode> {
+    use scene::Projection;
+    let c = &scene.camera;
+    let forward = (c.look_at - c.eye).normalize_or_zero();
+    let right = forward.cross(c.up).normalize_or_zero();
+    if forward == glam::DVec3::ZERO || right == glam::DVec3::ZERO {
+        return None;
+    }
+    let up = right.cross(forward);
+    let rotation = glam::DQuat::from_mat3(&glam::DMat3::from_cols(right, up, -forward));
+    let aspect = scene.width as f64 / scene.height.max(1) as f64;
+    let (type_, perspective, orthographic) = match c.projection {
+        Projection::Perspective { fov_y_deg } => (
+            json::camera::Type::Perspective,
+            Some(json::camera::Perspective {
+                aspect_ratio: Some(aspect as f32),
+                yfov: fov_y_deg.to_radians() as f32,
+                zfar: None,
+                znear: 0.01,
+                extensions: None,
+                extras: Default::default(),
+            }),
+            None,
+        ),
+        Projection::Orthographic { width, height } => (
+            json::camera::Type::Orthographic,
+            None,
+            Some(json::camera::Orthographic {
+                xmag: (width / 2.0) as f32,
+                ymag: (height / 2.0) as f32,
+                zfar: 1e6,
+                znear: 0.0,
+                extensions: None,
+                extras: Default::default(),
+            }),
+        ),
+    };
+    Some(document::CameraNode {
+        camera: json::Camera {
+            name: Some("camera".into()),
+            orthographic,
+            perspective,
+            type_: json::validation::Checked::Valid(type_),
+            extensions: None,
+            extras: Default::default(),
+        },
+        translation: c.eye.as_vec3().to_array(),
+        rotation: rotation.normalize().as_quat().to_array(),
+    })
+}
+
+/// The objects' meshes (name, primitives) and the camera node of a document.
+type Content = (
+    Vec<(String, Vec<json::mesh::Primitive>)>,
+    Option<document::CameraNode>,
+);
+
 /// Finishes the document and stages it (and, for `.gltf`, its buffer) in `batch`.
 fn finish(
     b: Builder,
-    primitives: Vec<json::mesh::Primitive>,
+    (meshes, camera): Content,
     container: Container,
     out: &Path,
     batch: &mut base::output::Batch,
@@ -254,17 +352,66 @@ fn finish(
 ) -> Result<()> {
     match container {
         Container::Glb => {
-            let (root, bin) = b.finish(primitives, None);
+            let (root, bin) = b.finish(meshes, camera, None);
             batch.stage(out, &document::glb(&root, bin)?)
         }
         Container::Gltf => {
             let bin_path = sibling(out, ".bin");
-            let (root, bin) = b.finish(primitives, Some(uri_of(&bin_path)));
+            let (root, bin) = b.finish(meshes, camera, Some(uri_of(&bin_path)));
             batch.stage(&bin_path, &bin)?;
             files.push(bin_path);
             batch.stage(out, &document::gltf_text(&root)?)
         }
     }
+}
+
+/// A vertex of the mesh export, by its bits: the polygon, the position and the radiosity. Two
+/// triangles of one polygon that meet at a point with the same light share the vertex there.
+type VertexKey = (u32, [u32; 3], [u32; 3]);
+
+/// The mesh's triangles grouped by (object, material), each group's vertices shared where
+/// their polygon, position and radiosity agree (with the index of each); `COLOR_0` is the
+/// radiosity times `scale`, clamped to [0, 1].
+fn mesh_groups(
+    scene: &Scene,
+    mesh: &MeshModel,
+    scale: f32,
+) -> BTreeMap<(u32, u32), (Vertices, std::collections::HashMap<VertexKey, u32>)> {
+    let mut groups: BTreeMap<(u32, u32), (Vertices, std::collections::HashMap<VertexKey, u32>)> =
+        BTreeMap::new();
+    for (k, tri) in mesh.scene.polygons.iter().enumerate() {
+        let source = mesh.source_polygon[k];
+        let object = scene.polygons.get(source as usize).map_or(0, |p| p.object);
+        let (v, index) = groups.entry((object, tri.material)).or_insert_with(|| {
+            let v = Vertices {
+                custom: vec![
+                    ("RADIOSITY".into(), json::accessor::Type::Vec3, Vec::new()),
+                    ("POLYGON".into(), json::accessor::Type::Scalar, Vec::new()),
+                ],
+                ..Default::default()
+            };
+            (v, Default::default())
+        });
+        let patch = &mesh.patches[k];
+        let n = tri.normal.normalize_or_zero().as_vec3().to_array();
+        for (corner, (s, t)) in [(0, (0.0, 0.0)), (1, (1.0, 0.0)), (2, (0.0, 1.0))] {
+            let c: Vec3 = patch.eval(s, t);
+            let p = tri.corners[corner].as_vec3().to_array();
+            let key = (source, p.map(f32::to_bits), c.to_array().map(f32::to_bits));
+            let next = v.position.len() as u32;
+            let i = *index.entry(key).or_insert(next);
+            if i == next {
+                v.position.push(p);
+                v.normal.push(n);
+                v.colour
+                    .push((c * scale).clamp(Vec3::ZERO, Vec3::ONE).to_array());
+                v.custom[0].2.extend(c.to_array());
+                v.custom[1].2.push(source as f32);
+            }
+            v.indices.push(i);
+        }
+    }
+    groups
 }
 
 /// Writes the adaptive mesh of a solution (`mesh`, built from `scene`) with Gouraud vertex
@@ -284,42 +431,35 @@ pub fn export_mesh(
         "units": "_RADIOSITY: radiosity in W/m^2 per channel; COLOR_0: linear after 2^exposure, clamped to [0, 1]",
     }});
     let mut b = Builder::new(extras)?;
-    let scale = exposure.exp2() as f32;
-    let mut groups: BTreeMap<u32, Vertices> = BTreeMap::new();
-    for (k, tri) in mesh.scene.polygons.iter().enumerate() {
-        let v = groups.entry(tri.material).or_insert_with(|| Vertices {
-            custom: vec![
-                ("RADIOSITY".into(), json::accessor::Type::Vec3, Vec::new()),
-                ("POLYGON".into(), json::accessor::Type::Scalar, Vec::new()),
-            ],
-            ..Default::default()
-        });
-        let patch = &mesh.patches[k];
-        let n = tri.normal.normalize_or_zero().as_vec3().to_array();
-        let base = v.position.len() as u32;
-        for (corner, (s, t)) in [(0, (0.0, 0.0)), (1, (1.0, 0.0)), (2, (0.0, 1.0))] {
-            let c: Vec3 = patch.eval(s, t);
-            v.position.push(tri.corners[corner].as_vec3().to_array());
-            v.normal.push(n);
-            v.colour
-                .push((c * scale).clamp(Vec3::ZERO, Vec3::ONE).to_array());
-            v.custom[0].2.extend(c.to_array());
-            v.custom[1].2.push(mesh.source_polygon[k] as f32);
-        }
-        v.indices.extend([base, base + 1, base + 2]);
-    }
-    let mut primitives = Vec::new();
+    let groups = mesh_groups(scene, mesh, exposure.exp2() as f32);
+    let mut materials = BTreeMap::new();
+    let mut meshes: BTreeMap<u32, Vec<json::mesh::Primitive>> = BTreeMap::new();
     let (mut triangles, mut vertices) = (0, 0);
-    for (m, v) in &groups {
-        let name = scene.materials[*m as usize].name.clone();
-        let mat = b.unlit_material(&name, None, material_extras(scene, *m))?;
-        primitives.push(b.primitive(v, mat));
+    for ((object, m), (v, _)) in &groups {
+        let mat = match materials.get(m) {
+            Some(&mat) => mat,
+            None => {
+                let name = scene.materials[*m as usize].name.clone();
+                let mat = b.unlit_material(&name, None, material_extras(scene, *m))?;
+                *materials.entry(*m).or_insert(mat)
+            }
+        };
+        let primitive = b.primitive(v, mat);
+        meshes.entry(*object).or_default().push(primitive);
         triangles += v.indices.len() / 3;
         vertices += v.position.len();
     }
     let mut batch = outputs.batch();
     let mut files = vec![out.to_path_buf()];
-    finish(b, primitives, container, out, &mut batch, &mut files)?;
+    let meshes = named_meshes(scene, meshes);
+    finish(
+        b,
+        (meshes, camera_node(scene)),
+        container,
+        out,
+        &mut batch,
+        &mut files,
+    )?;
     batch.commit()?;
     Ok(ExportReport {
         kind: "mesh",

@@ -165,6 +165,73 @@ fn mesh_export_holds_every_triangle() {
         assert!(colours.iter().flatten().all(|c| (0.0..=1.0).contains(c)));
     }
     assert_eq!(triangles, mesh.scene.polygons.len());
+    // Vertices are shared within a polygon where the light agrees: far fewer than three per
+    // triangle (an adaptive mesh's inner vertex has about six triangles round it).
+    assert!(
+        (r.vertices as f64) < 0.5 * 3.0 * r.triangles as f64,
+        "{} vertices for {} triangles",
+        r.vertices,
+        r.triangles
+    );
+}
+
+/// An export keeps the model: a node and a mesh per scene object, named after it, the scene's
+/// materials by name, and the scene's camera as a camera node looking where it looks.
+#[test]
+fn exports_keep_objects_materials_and_the_camera() {
+    let p = crate::shipped("cornell-box");
+    let (set, _) = p.textures().unwrap();
+    let (mesh, _) = p.mesh().unwrap();
+    let dir = tempdir("model");
+    let outputs = base::output::Outputs::new();
+    export_lightmap(&p.scene, set, 4096, 0.0, &dir.join("l.glb"), &outputs).unwrap();
+    export_mesh(&p.scene, mesh, 0.0, &dir.join("m.glb"), &outputs).unwrap();
+    for file in ["l.glb", "m.glb"] {
+        let g = gltf::Gltf::open(dir.join(file)).unwrap();
+        let names: Vec<String> = g
+            .nodes()
+            .filter(|n| n.mesh().is_some())
+            .map(|n| n.name().unwrap().to_string())
+            .collect();
+        let mut objects: Vec<String> = p.scene.objects.clone();
+        objects.retain(|o| {
+            p.scene
+                .polygons
+                .iter()
+                .any(|q| p.scene.objects[q.object as usize] == *o)
+        });
+        assert_eq!(names, objects, "{file}");
+        for m in g.materials() {
+            let name = m.name().unwrap();
+            assert!(
+                p.scene.materials.iter().any(|s| name.starts_with(&s.name)),
+                "{file}: {name}"
+            );
+        }
+        let cam = g
+            .nodes()
+            .find(|n| n.camera().is_some())
+            .expect("a camera node");
+        let (t, r, _) = cam.transform().decomposed();
+        let eye = p.scene.camera.eye;
+        assert!((glam::DVec3::from_array(t.map(f64::from)) - eye).length() < 1e-5);
+        // The node's -Z, turned by its rotation, points from the eye to look_at.
+        let dir = glam::Quat::from_array(r)
+            .mul_vec3(-glam::Vec3::Z)
+            .as_dvec3();
+        let want = (p.scene.camera.look_at - eye).normalize();
+        assert!((dir - want).length() < 1e-5, "{file}: {dir} against {want}");
+        match cam.camera().unwrap().projection() {
+            gltf::camera::Projection::Perspective(q) => {
+                assert!(
+                    (q.yfov().to_degrees() - 39.3076).abs() < 1e-3,
+                    "{}",
+                    q.yfov()
+                );
+            }
+            _ => panic!("{file}: the Cornell box's camera is perspective"),
+        }
+    }
 }
 
 /// An engine samples the page, not the polygon's texture: at a polygon's edge its bilinear
