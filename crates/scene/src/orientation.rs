@@ -248,11 +248,11 @@ fn has_twin(scene: &Scene, i: usize) -> bool {
 }
 
 /// Share of an emitter's light (cosine-weighted) landing within its own size of it from which
-/// [`trapped_lights`] warns.
+/// `trapped_lights` warns.
 pub const TRAPPED_WARN: f64 = 0.5;
 
 /// Distance, as a share of an emitter's size (its bounding sphere's diameter), within which a
-/// surface it faces traps its light ([`trapped_lights`]). Far less than the size itself: a
+/// surface it faces traps its light (`trapped_lights`). Far less than the size itself: a
 /// ceiling lamp as wide as the room is high sends all its light to the floor within its size,
 /// and an uplight 20 cm under a ceiling is a design; a panel a few centimetres from what it
 /// faces sends its light back and forth between the two.
