@@ -397,8 +397,11 @@ pub struct Scene {
     pub objects: Vec<String>,
     /// The polygons.
     pub polygons: Vec<Polygon>,
-    /// Spot lights.
+    /// Spot lights: the `[[spots]]` entries.
     pub spots: Vec<SpotLight>,
+    /// Per spot light, where it was written (the `[[spots]]` entry's position), for messages
+    /// about it; empty for scenes built in code.
+    pub spot_origins: Vec<base::error::Location>,
     /// Radiosity settings.
     pub radiosity: RadiositySettings,
     /// Render settings.
@@ -455,6 +458,7 @@ impl Scene {
             objects: vec!["code".to_string()],
             polygons,
             spots: Vec::new(),
+            spot_origins: Vec::new(),
             radiosity: RadiositySettings::default(),
             render: RenderSettings::default(),
             display: DisplaySettings::default(),
@@ -481,6 +485,14 @@ impl Scene {
         self.origins
             .get(i)
             .map_or_else(|| format!("polygon {i}"), |l| l.to_string())
+    }
+
+    /// Where spot light `k` was written (`file:line: spots[k].position`); `spots[k].position`
+    /// of the scene's file for a scene built in code.
+    pub fn spot_location(&self, k: usize) -> base::error::Location {
+        self.spot_origins.get(k).cloned().unwrap_or_else(|| {
+            base::error::Location::file(&self.source).with_key(format!("spots[{k}].position"))
+        })
     }
 
     /// The material of polygon `i`.

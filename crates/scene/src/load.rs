@@ -344,12 +344,12 @@ impl<'a> Cx<'a> {
         for (i, o) in file.obj.iter().enumerate() {
             super::obj::include(self, o, &format!("obj[{i}]"), &mut surfaces)?;
         }
-        let spots = file
-            .spots
-            .iter()
-            .enumerate()
-            .map(|(i, s)| self.spot(s, &format!("spots[{i}]")))
-            .collect::<Result<Vec<_>>>()?;
+        let (mut spots, mut spot_origins) = (Vec::new(), Vec::new());
+        for (i, s) in file.spots.iter().enumerate() {
+            let key = format!("spots[{i}]");
+            spots.push(self.spot(s, &key)?);
+            spot_origins.push(self.loc(s.get_ref().position.span(), format!("{key}.position")));
+        }
         let radiosity = self.radiosity(file.radiosity.as_ref())?;
         let render = self.render(file.render.as_ref())?;
         let display = self.display(file.display.as_ref())?;
@@ -387,6 +387,7 @@ impl<'a> Cx<'a> {
             objects,
             polygons,
             spots,
+            spot_origins,
             radiosity,
             render,
             display,

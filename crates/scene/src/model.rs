@@ -79,6 +79,7 @@ pub(crate) fn load_model(path: &Path, opts: &LoadOptions) -> Result<Scene> {
     let mut scene = parse_scene_options(&text, path, &base::output::read_text, opts)?;
     // The placeholder light is the last spot; any other was set by the user.
     scene.spots.pop();
+    scene.spot_origins.pop();
     // The polygons' bounds (the spot lights left out) and one BVH for both ray tests.
     let bounds = scene
         .polygons
@@ -107,6 +108,9 @@ pub(crate) fn load_model(path: &Path, opts: &LoadOptions) -> Result<Scene> {
             path.display(),
             fmt(spot.position)
         ));
+        scene.spot_origins.push(
+            Location::file(path).with_key("the default light (the model has none)".to_string()),
+        );
         scene.spots.push(spot);
     }
     Ok(scene)
