@@ -25,6 +25,7 @@ pub mod camera_path;
 mod coincident;
 pub mod contact;
 pub mod format;
+mod gltf;
 pub mod load;
 mod model;
 mod obj;
@@ -32,7 +33,9 @@ pub mod orientation;
 pub mod overrides;
 mod triangulate;
 
-pub use load::{load_scene, load_scene_with, parse_scene, parse_scene_with, LoadOptions};
+pub use load::{
+    load_scene, load_scene_with, parse_scene, parse_scene_with, parse_scene_with_bytes, LoadOptions,
+};
 pub use model::is_model;
 pub use obj::MAX_OBJ_REFLECTANCE;
 
@@ -397,10 +400,10 @@ pub struct Scene {
     pub objects: Vec<String>,
     /// The polygons.
     pub polygons: Vec<Polygon>,
-    /// Spot lights: the `[[spots]]` entries.
+    /// Spot lights: the `[[spots]]` entries, then the lights of the glTF includes.
     pub spots: Vec<SpotLight>,
-    /// Per spot light, where it was written (the `[[spots]]` entry's position), for messages
-    /// about it; empty for scenes built in code.
+    /// Per spot light, where it was written (the `[[spots]]` entry's position, or the glTF node
+    /// and light), for messages about it; empty for scenes built in code.
     pub spot_origins: Vec<base::error::Location>,
     /// Radiosity settings.
     pub radiosity: RadiositySettings,
@@ -487,8 +490,8 @@ impl Scene {
             .map_or_else(|| format!("polygon {i}"), |l| l.to_string())
     }
 
-    /// Where spot light `k` was written (`file:line: spots[k].position`); `spots[k].position`
-    /// of the scene's file for a scene built in code.
+    /// Where spot light `k` was written (`file:line: spots[k].position`, or the glTF light
+    /// it came from); `spots[k].position` of the scene's file for a scene built in code.
     pub fn spot_location(&self, k: usize) -> base::error::Location {
         self.spot_origins.get(k).cloned().unwrap_or_else(|| {
             base::error::Location::file(&self.source).with_key(format!("spots[{k}].position"))
