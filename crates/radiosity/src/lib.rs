@@ -407,7 +407,7 @@ fn check_spot_peaks(scene: &Scene) -> Result<()> {
                     .get(poly.object as usize)
                     .map_or(format!("polygons[{pi}]"), |n| format!("`{n}`"));
                 return Err(Error::input(
-                    Location::file(&scene.source).with_key(format!("spots[{k}].position")),
+                    scene.spot_location(k),
                     format!(
                         "is {d:e} from polygon {name}: its radiosity there could reach \
                          rho I h / d^3 = {peak:e}, beyond {MAX_SPOT_RADIOSITY:e}, the most a \

@@ -46,6 +46,9 @@ pub(crate) struct SceneFile {
     /// `[[obj]]`: OBJ includes.
     #[serde(default)]
     pub obj: Vec<Spanned<ObjSection>>,
+    /// `[[gltf]]`: glTF 2.0 includes (`.gltf` or `.glb`), with the keys of `[[obj]]`.
+    #[serde(default)]
+    pub gltf: Vec<Spanned<ObjSection>>,
     /// `[[spots]]`: spot lights.
     #[serde(default)]
     pub spots: Vec<Spanned<SpotSection>>,
@@ -113,7 +116,7 @@ pub(crate) struct PolygonSection {
     pub material: Spanned<String>,
 }
 
-/// `scale` of an `[[obj]]`: a number or one factor per axis.
+/// `scale` of an `[[obj]]` or `[[gltf]]`: a number or one factor per axis.
 #[derive(Debug, Deserialize)]
 #[serde(untagged, expecting = "a number or three numbers [x, y, z]")]
 pub(crate) enum ScaleSpec {
@@ -123,11 +126,12 @@ pub(crate) enum ScaleSpec {
     PerAxis(Vec3),
 }
 
-/// One `[[obj]]` include.
+/// One `[[obj]]` include, or one `[[gltf]]` include (the same keys: a model file, where it
+/// goes, and how its materials map to the scene's).
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub(crate) struct ObjSection {
-    /// Path of the OBJ file, relative to the scene file's directory.
+    /// Path of the OBJ or glTF file, relative to the scene file's directory.
     pub file: Spanned<String>,
     /// Scale, applied first.
     pub scale: Option<Spanned<ScaleSpec>>,
@@ -135,9 +139,10 @@ pub(crate) struct ObjSection {
     pub rotate: Option<Spanned<Vec3>>,
     /// Translation, applied last.
     pub translate: Option<Spanned<Vec3>>,
-    /// Override map: OBJ (MTL) material name -> scene material name.
+    /// Override map: OBJ (MTL) or glTF material name -> scene material name.
     pub materials: Option<Spanned<BTreeMap<String, String>>>,
-    /// Scene material for faces that have no `usemtl`.
+    /// Scene material for faces that have no material (no `usemtl`; a glTF primitive without
+    /// `material`).
     pub default_material: Option<Spanned<String>>,
 }
 

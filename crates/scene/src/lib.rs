@@ -25,6 +25,7 @@ pub mod camera_path;
 mod coincident;
 pub mod contact;
 pub mod format;
+mod gltf;
 pub mod junctions;
 pub mod load;
 mod model;
@@ -34,7 +35,9 @@ pub mod overrides;
 pub mod triangle_pairs;
 mod triangulate;
 
-pub use load::{load_scene, load_scene_with, parse_scene, parse_scene_with, LoadOptions};
+pub use load::{
+    load_scene, load_scene_with, parse_scene, parse_scene_with, parse_scene_with_bytes, LoadOptions,
+};
 pub use model::is_model;
 pub use obj::MAX_OBJ_REFLECTANCE;
 
@@ -403,8 +406,11 @@ pub struct Scene {
     pub objects: Vec<String>,
     /// The polygons.
     pub polygons: Vec<Polygon>,
-    /// Spot lights.
+    /// Spot lights: the `[[spots]]` entries, then the lights of the glTF includes.
     pub spots: Vec<SpotLight>,
+    /// Per spot light, where it was written (the `[[spots]]` entry's position, or the glTF node
+    /// and light), for messages about it; empty for scenes built in code.
+    pub spot_origins: Vec<base::error::Location>,
     /// Radiosity settings.
     pub radiosity: RadiositySettings,
     /// Render settings.
@@ -466,6 +472,7 @@ impl Scene {
             objects: vec!["code".to_string()],
             polygons,
             spots: Vec::new(),
+            spot_origins: Vec::new(),
             radiosity: RadiositySettings::default(),
             render: RenderSettings::default(),
             display: DisplaySettings::default(),
@@ -502,6 +509,14 @@ impl Scene {
         self.origins
             .get(i)
             .map_or_else(|| format!("polygon {i}"), |l| l.to_string())
+    }
+
+    /// Where spot light `k` was written (`file:line: spots[k].position`, or the glTF light
+    /// it came from); `spots[k].position` of the scene's file for a scene built in code.
+    pub fn spot_location(&self, k: usize) -> base::error::Location {
+        self.spot_origins.get(k).cloned().unwrap_or_else(|| {
+            base::error::Location::file(&self.source).with_key(format!("spots[{k}].position"))
+        })
     }
 
     /// The material of polygon `i`.

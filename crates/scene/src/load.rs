@@ -4,8 +4,9 @@
 //! Loading is two steps. [`super::format`] lets `toml` and serde turn the text into structs that
 //! mirror the file (unknown keys and type errors are caught there, with a span); this module then
 //! checks every value semantically, fills in the defaults of the `Default` impls in [`super`],
-//! resolves material names to indices, loads the `[[obj]]` includes through `scene::obj` and
-//! turns every face into [`Polygon`]s with `build_face`; the materials, objects and polygons
+//! resolves material names to indices, loads the `[[obj]]` includes through `scene::obj` and the
+//! `[[gltf]]` includes through `scene::gltf`, and turns every face into [`Polygon`]s with
+//! `build_face`; the materials, objects and polygons
 //! are collected in file order in `Surfaces`. The rules [`Scene`] promises to later stages
 //! (finite numbers, reflectance in [0, 1), planar convex faces, at least one polygon and one
 //! light) are all established here, and nothing is silently changed except two documented
@@ -80,7 +81,7 @@ pub fn load_scene(path: &Path) -> Result<Scene> {
 }
 
 /// [`load_scene`] with the command line's options: a scene file (TOML) or a bare model (`.obj`,
-/// see `scene::model`), `-D` overrides applied, then the orientation checks of
+/// `.gltf`, `.glb`, see `scene::model`), `-D` overrides applied, then the orientation checks of
 /// `scene::orientation` added to its warnings.
 pub fn load_scene_with(path: &Path, opts: &LoadOptions) -> Result<Scene> {
     let mut scene = if super::model::is_model(path) {
@@ -90,7 +91,14 @@ pub fn load_scene_with(path: &Path, opts: &LoadOptions) -> Result<Scene> {
             Error::input(Location::file(path), format!("cannot read scene file: {e}"))
         })?;
         check_is_toml(&text, path)?;
-        parse_scene_options(&text, path, &base::output::read_text, opts)?
+        let parsed = parse_scene_options(&text, path, Readers::files(), opts)?;
+        let mut scene = parsed.scene;
+        if let Some(c) = parsed.camera {
+            scene
+                .notes
+                .push(format!("{}: not used: the scene's [camera] is", c.origin));
+        }
+        scene
     };
     let facing = super::orientation::warnings(&scene);
     scene.warnings.extend(facing);
@@ -115,8 +123,8 @@ fn check_is_toml(text: &str, path: &Path) -> Result<()> {
                 Location::file(path),
                 format!(
                     "is not a scene file: scenes are TOML (.toml), models Wavefront OBJ (.obj, \
-                     with their .mtl), solutions .pfsol; export other formats as OBJ (the TOML \
-                     parser says, at line {line}: {})",
+                     with their .mtl) or glTF 2.0 (.gltf, .glb), solutions .pfsol; export other \
+                     formats as OBJ or glTF (the TOML parser says, at line {line}: {})",
                     e.message().trim_end()
                 ),
             ))
@@ -126,21 +134,86 @@ fn check_is_toml(text: &str, path: &Path) -> Result<()> {
 }
 
 /// Validates the scene text `text`; `path` names it in messages and is the base of relative
-/// `[[obj]] file` paths.
+/// `[[obj]] file` and `[[gltf]] file` paths.
 pub fn parse_scene(text: &str, path: &Path) -> Result<Scene> {
-    parse_scene_with(text, path, &base::output::read_text)
+    parse_text(text, path, Readers::files(), false).map(|p| p.scene)
 }
 
 /// How [`parse_scene_with`] reads an included OBJ or MTL file: its path (the scene's directory
 /// joined with the include's name) in, its text out.
 pub(crate) type ReadText<'r> = &'r dyn Fn(&Path) -> std::io::Result<String>;
 
+/// How [`parse_scene_with_bytes`] reads an included file (a glTF file, a GLB, a glTF buffer):
+/// its path in, its bytes out.
+pub(crate) type ReadBytes<'r> = &'r dyn Fn(&Path) -> std::io::Result<Vec<u8>>;
+
+/// How the loader reads the files a scene includes: OBJ and MTL files as text, glTF files and
+/// their buffers as bytes.
+#[derive(Clone, Copy)]
+pub(crate) struct Readers<'r> {
+    pub(crate) text: ReadText<'r>,
+    pub(crate) bytes: ReadBytes<'r>,
+}
+
+impl Readers<'static> {
+    /// The file system's, each read capped at [`base::output::input_limit`].
+    pub(crate) fn files() -> Readers<'static> {
+        Readers {
+            text: &base::output::read_text,
+            bytes: &read_bytes,
+        }
+    }
+}
+
+/// The file at `path`, read whole up to [`base::output::input_limit`] bytes.
+pub(crate) fn read_bytes(path: &Path) -> std::io::Result<Vec<u8>> {
+    base::output::read_limited(path, base::output::input_limit())
+}
+
 /// [`parse_scene`], reading the `[[obj]]` includes and their MTL files through `read` instead of
 /// the file system: the entry point for parsing OBJ and MTL text held in memory (the fuzz
 /// targets under `fuzz/` use it). The paths `read` is given are the ones messages name; an `Err`
-/// from it is reported like an unreadable file.
+/// from it is reported like an unreadable file. `[[gltf]]` files and their buffers are read
+/// through it too, so they must be UTF-8 (a `.gltf` with `data:` buffers is; a GLB is not: see
+/// [`parse_scene_with_bytes`]).
 pub fn parse_scene_with(text: &str, path: &Path, read: ReadText<'_>) -> Result<Scene> {
-    parse_text(text, path, read, false)
+    let bytes = |p: &Path| read(p).map(String::into_bytes);
+    parse_text(
+        text,
+        path,
+        Readers {
+            text: read,
+            bytes: &bytes,
+        },
+        false,
+    )
+    .map(|p| p.scene)
+}
+
+/// [`parse_scene_with`] for includes held in memory as bytes: `read` gives every included file's
+/// bytes (OBJ and MTL files must be UTF-8 text; glTF files, GLBs and `.bin` buffers are read as
+/// they are).
+pub fn parse_scene_with_bytes(
+    text: &str,
+    path: &Path,
+    read: &dyn Fn(&Path) -> std::io::Result<Vec<u8>>,
+) -> Result<Scene> {
+    let as_text = |p: &Path| {
+        String::from_utf8(read(p)?)
+            .map_err(|_| std::io::Error::new(std::io::ErrorKind::InvalidData, "not UTF-8 text"))
+    };
+    let readers = Readers {
+        text: &as_text,
+        bytes: read,
+    };
+    parse_text(text, path, readers, false).map(|p| p.scene)
+}
+
+/// A validated scene, and what its includes offer that a scene file does not take from them:
+/// the first camera of its glTF includes (a bare model uses it, see `scene::model`).
+pub(crate) struct Parsed {
+    pub(crate) scene: Scene,
+    pub(crate) camera: Option<super::gltf::ModelCamera>,
 }
 
 /// [`parse_scene_with`] with the `-D` overrides and `--strict` of `opts`. An error of the merged
@@ -149,9 +222,9 @@ pub fn parse_scene_with(text: &str, path: &Path, read: ReadText<'_>) -> Result<S
 pub(crate) fn parse_scene_options(
     text: &str,
     path: &Path,
-    read: ReadText<'_>,
+    read: Readers<'_>,
     opts: &LoadOptions,
-) -> Result<Scene> {
+) -> Result<Parsed> {
     if opts.overrides.is_empty() {
         return parse_text(text, path, read, opts.strict);
     }
@@ -163,7 +236,7 @@ pub(crate) fn parse_scene_options(
 }
 
 /// Parses and validates `text` (see [`parse_scene_with`]); `strict` refuses the repairs.
-fn parse_text(text: &str, path: &Path, read: ReadText<'_>, strict: bool) -> Result<Scene> {
+fn parse_text(text: &str, path: &Path, read: Readers<'_>, strict: bool) -> Result<Parsed> {
     let file: SceneFile = toml::from_str(text).map_err(|e| {
         let mut loc = Location::file(path);
         if let Some(span) = e.span() {
@@ -179,11 +252,18 @@ fn parse_text(text: &str, path: &Path, read: ReadText<'_>, strict: bool) -> Resu
         inputs: vec![path.to_path_buf()],
         origins: Vec::new(),
         newlines: std::cell::OnceCell::new(),
-        read,
+        read: read.text,
+        read_bytes: read.bytes,
         next_suffix: BTreeMap::new(),
         strict,
+        included_spots: Vec::new(),
+        included_camera: None,
     };
-    cx.scene(file)
+    let scene = cx.scene(file)?;
+    Ok(Parsed {
+        scene,
+        camera: cx.included_camera.take(),
+    })
 }
 
 /// 1-based line of byte offset `offset` in `text` (clamped to the text's end).
@@ -211,13 +291,20 @@ pub(crate) struct Cx<'a> {
     pub(crate) newlines: std::cell::OnceCell<Vec<usize>>,
     /// Reads the included OBJ and MTL files.
     pub(crate) read: ReadText<'a>,
+    /// Reads the included glTF files and their buffers.
+    pub(crate) read_bytes: ReadBytes<'a>,
     /// For each `<obj file stem>/<name>` an imported material was renamed to, the next `#k`
     /// suffix to try: every smaller one is taken, so renaming is not quadratic in the number
     /// of includes of one file.
     pub(crate) next_suffix: BTreeMap<String, usize>,
-    /// Refuse what is otherwise repaired with a warning (`--strict`): an OBJ's `Kd` of 1 or
-    /// more.
+    /// Refuse what is otherwise repaired with a warning (`--strict`): an OBJ's `Kd` or a
+    /// glTF's base colour of 1 or more.
     pub(crate) strict: bool,
+    /// The lights of the glTF includes, as spot lights, each with where it was defined: they
+    /// follow the `[[spots]]` entries in [`Scene::spots`].
+    pub(crate) included_spots: Vec<(SpotLight, Location)>,
+    /// The first camera of the glTF includes, for a bare model (`scene::model`).
+    pub(crate) included_camera: Option<super::gltf::ModelCamera>,
 }
 
 /// The polygons one face became, and a warning if it was repaired.
@@ -344,12 +431,19 @@ impl<'a> Cx<'a> {
         for (i, o) in file.obj.iter().enumerate() {
             super::obj::include(self, o, &format!("obj[{i}]"), &mut surfaces)?;
         }
-        let spots = file
-            .spots
-            .iter()
-            .enumerate()
-            .map(|(i, s)| self.spot(s, &format!("spots[{i}]")))
-            .collect::<Result<Vec<_>>>()?;
+        for (i, g) in file.gltf.iter().enumerate() {
+            super::gltf::include(self, g, &format!("gltf[{i}]"), &mut surfaces)?;
+        }
+        let (mut spots, mut spot_origins) = (Vec::new(), Vec::new());
+        for (i, s) in file.spots.iter().enumerate() {
+            let key = format!("spots[{i}]");
+            spots.push(self.spot(s, &key)?);
+            spot_origins.push(self.loc(s.get_ref().position.span(), format!("{key}.position")));
+        }
+        for (spot, origin) in std::mem::take(&mut self.included_spots) {
+            spots.push(spot);
+            spot_origins.push(origin);
+        }
         let radiosity = self.radiosity(file.radiosity.as_ref())?;
         let render = self.render(file.render.as_ref())?;
         let display = self.display(file.display.as_ref())?;
@@ -393,6 +487,7 @@ impl<'a> Cx<'a> {
             objects,
             polygons,
             spots,
+            spot_origins,
             radiosity,
             render,
             display,
@@ -591,7 +686,7 @@ impl<'a> Cx<'a> {
         if surfaces.polygons.is_empty() {
             return Err(Error::input(
                 whole,
-                "the scene has no polygons: add [[polygons]] or [[obj]] entries",
+                "the scene has no polygons: add [[polygons]], [[obj]] or [[gltf]] entries",
             ));
         }
         let has_emitter = surfaces

@@ -1,13 +1,18 @@
-//! A bare model as a scene: `render model.obj` without writing a scene file.
+//! A bare model as a scene: `render model.obj` (or `model.gltf`, `model.glb`) without writing a
+//! scene file.
 //!
-//! A modelling tool exports geometry and materials (OBJ and MTL) but no camera, image size or,
-//! usually, light (Blender's lamps are not part of OBJ). [`load_model`] wraps the OBJ in the scene
-//! file a user would write for it, validates that like any scene (so every rule and message of
-//! `[[obj]]` includes applies: faces, materials, the `Kd` clamp), and then fills in what the
-//! model lacks:
+//! A modelling tool exports geometry and materials (OBJ and MTL, or glTF) but no image size and,
+//! in OBJ, no camera or light (Blender's lamps are not part of OBJ; glTF carries cameras and
+//! lights). [`load_model`] wraps the model in the scene file a user would write for it
+//! (`[[obj]]` or `[[gltf]]`), validates that like any scene (so every rule and message of the
+//! includes applies: faces, materials, the `Kd` and base colour clamp), and then fills in what
+//! the model lacks:
 //! - the **material** `default` (grey, reflectance [`DEFAULT_REFLECTANCE`]) for faces without
-//!   `usemtl` or whose `usemtl` no MTL defines (the MTL is missing);
-//! - a **camera** framing the model, unless `-D camera.*` sets one. Inside it when the model is
+//!   `usemtl` or whose `usemtl` no MTL defines (the MTL is missing), and glTF primitives without
+//!   a material;
+//! - the glTF's first **camera** when it has one (and `-D camera.*` sets none), its
+//!   `aspectRatio` giving the image width; else a **camera** framing the model, unless
+//!   `-D camera.*` sets one. Inside it when the model is
 //!   closed around its centre (a room: nearly every direction from the centre meets a face): at
 //!   mid height, at the most open of a grid of points that see only the fronts of faces (so an
 //!   L-shaped room or one with furniture is handled), looking the way the view is longest, with a
@@ -15,18 +20,20 @@
 //!   wall looking along -z, and the orientation warnings say why the image is dark. Outside
 //!   otherwise, from the front-right-above direction (1.2, 0.9, 2) of y-up models, at the
 //!   distance where the bounding sphere fills a 40 degree view;
-//! - a **light** when no material emits (no `Ke`): a spot light below the top of a room (or
+//! - a **light** when no material emits (no `Ke`, no glTF `emissiveFactor`) and the glTF has no
+//!   light: a spot light below the top of a room (or
 //!   above an open model) pointing down (-y), 85 degree half-angle, cosine falloff, with the
 //!   intensity that makes the irradiance straight below it 1, so a grey floor's radiosity is
 //!   about [`DEFAULT_REFLECTANCE`]. Each default taken is said in a warning, so nothing is
 //!   invented silently.
 //!
-//! The model's up axis is taken as +y (the OBJ convention, and Blender's exporter default).
-//! The scene's path is the OBJ's, so a solution file of a model names the OBJ and renders from
-//! it again with the same defaults.
+//! The model's up axis is taken as +y (the OBJ convention, glTF's rule, and Blender's exporter
+//! default). The scene's path is the model's, so a solution file of a model names the model and
+//! renders from it again with the same defaults.
 
 use super::bvh::{Aabb, Bvh};
-use super::load::{parse_scene_options, LoadOptions};
+use super::gltf::ModelCamera;
+use super::load::{parse_scene_options, LoadOptions, Readers};
 use super::orientation::{cast, sphere_directions};
 use super::{Camera, Projection, Scene, SpotLight};
 use base::error::{Error, Location, Result};
@@ -42,43 +49,91 @@ const IMAGE: (u32, u32) = (800, 600);
 /// Vertical field of view of the outside view, degrees.
 const OUTSIDE_FOV: f64 = 40.0;
 
-/// Whether `path` names a bare model (by its extension, `.obj` in any case).
+/// The model formats, by extension.
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum Format {
+    /// Wavefront OBJ (`.obj`), with its MTL files.
+    Obj,
+    /// glTF 2.0 (`.gltf` with its buffers, or `.glb`).
+    Gltf,
+}
+
+impl Format {
+    /// The format of the model at `path`, by its extension in any case; `None` if it is not a
+    /// model's.
+    fn of(path: &Path) -> Option<Format> {
+        let ext = path.extension()?.to_str()?.to_ascii_lowercase();
+        match ext.as_str() {
+            "obj" => Some(Format::Obj),
+            "gltf" | "glb" => Some(Format::Gltf),
+            _ => None,
+        }
+    }
+
+    /// The name of the format, for messages.
+    fn name(self) -> &'static str {
+        match self {
+            Format::Obj => "OBJ",
+            Format::Gltf => "glTF",
+        }
+    }
+}
+
+/// Whether `path` names a bare model (by its extension, `.obj`, `.gltf` or `.glb` in any case).
 pub fn is_model(path: &Path) -> bool {
-    path.extension()
-        .and_then(|e| e.to_str())
-        .is_some_and(|e| e.eq_ignore_ascii_case("obj"))
+    Format::of(path).is_some()
 }
 
 /// The scene file a model stands for (see the module docs): a placeholder camera and spot light
 /// that [`load_model`] replaces once the model's bounds are known.
-fn scene_text(file_name: &str) -> String {
+fn scene_text(file_name: &str, format: Format) -> String {
     let file = toml::Value::String(file_name.to_string());
     let (w, h) = IMAGE;
+    let include = match format {
+        Format::Obj => "obj",
+        Format::Gltf => "gltf",
+    };
     format!(
         "[camera]\neye = [0, 0, 1]\nlook_at = [0, 0, 0]\nfov_y = {OUTSIDE_FOV}\n\n\
          [image]\nwidth = {w}\nheight = {h}\n\n\
          [[materials]]\nname = \"default\"\nreflectance = [{r}, {r}, {r}]\n\n\
-         [[obj]]\nfile = {file}\ndefault_material = \"default\"\n\n\
+         [[{include}]]\nfile = {file}\ndefault_material = \"default\"\n\n\
          [[spots]]\nposition = [0, 0, 0]\ndirection = [0, -1, 0]\nintensity = [1, 1, 1]\n\
          half_angle = 85\n",
         r = DEFAULT_REFLECTANCE
     )
 }
 
-/// Loads the OBJ at `path` as a scene (see the module docs).
+/// Loads the model at `path` as a scene (see the module docs).
 pub(crate) fn load_model(path: &Path, opts: &LoadOptions) -> Result<Scene> {
+    let format = Format::of(path)
+        .ok_or_else(|| Error::input(Location::file(path), "is not a model (.obj, .gltf, .glb)"))?;
     let name = path
         .file_name()
         .map(|n| n.to_string_lossy().into_owned())
         .ok_or_else(|| Error::input(Location::file(path), "not a file name"))?;
     // Read here first, so that a missing model is named as such and not as a key of the scene
     // this module writes for it.
-    base::output::read_text(path)
-        .map_err(|e| Error::input(Location::file(path), format!("cannot read OBJ file: {e}")))?;
-    let text = scene_text(&name);
-    let mut scene = parse_scene_options(&text, path, &base::output::read_text, opts)?;
-    // The placeholder light is the last spot; any other was set by the user.
-    scene.spots.pop();
+    let readers = Readers::files();
+    let readable = match format {
+        Format::Obj => (readers.text)(path).map(drop),
+        Format::Gltf => (readers.bytes)(path).map(drop),
+    };
+    readable.map_err(|e| {
+        Error::input(
+            Location::file(path),
+            format!("cannot read {} file: {e}", format.name()),
+        )
+    })?;
+    let text = scene_text(&name, format);
+    let parsed = parse_scene_options(&text, path, readers, opts)?;
+    let mut scene = parsed.scene;
+    // The placeholder light is the first spot (the scene text's only `[[spots]]` entry, which
+    // `-D` cannot add to); the glTF's lights follow it.
+    if !scene.spots.is_empty() {
+        scene.spots.remove(0);
+        scene.spot_origins.remove(0);
+    }
     // The polygons' bounds (the spot lights left out) and one BVH for both ray tests.
     let bounds = scene
         .polygons
@@ -88,7 +143,9 @@ pub(crate) fn load_model(path: &Path, opts: &LoadOptions) -> Result<Scene> {
     let bvh = Bvh::build(&scene.polygons);
     let enclosed = is_enclosed(&scene, &bvh, (lo + hi) * 0.5, (hi - lo).length());
     let camera_set = opts.overrides.iter().any(|(k, _)| k.starts_with("camera."));
-    if !camera_set {
+    if let (false, Some(c)) = (camera_set, &parsed.camera) {
+        use_model_camera(&mut scene, c, opts);
+    } else if !camera_set {
         scene.camera = framing_camera(&scene, &bvh, lo, hi, enclosed);
         scene.warnings.push(format!(
             "{}: no camera in a model: looking from {} at {} ({}; set one with -D camera.eye=[x,y,z] \
@@ -101,15 +158,37 @@ pub(crate) fn load_model(path: &Path, opts: &LoadOptions) -> Result<Scene> {
     }
     if scene.emitter_count() == 0 && scene.spots.is_empty() {
         let spot = default_light(lo, hi, enclosed);
+        let (none, fix) = match format {
+            Format::Obj => ("no MTL `Ke`", "give a lamp's material a `Ke`"),
+            Format::Gltf => (
+                "no `emissiveFactor`, no KHR_lights_punctual light",
+                "give a lamp's material an emission (Blender: Emission strength) or add a light",
+            ),
+        };
         scene.warnings.push(format!(
-            "{}: no material emits light (no MTL `Ke`): lit by a default spot light at {} \
-             pointing down; give a lamp's material a `Ke` to light it yourself",
+            "{}: no material emits light ({none}): lit by a default spot light at {} pointing \
+             down; {fix} to light it yourself",
             path.display(),
             fmt(spot.position)
         ));
+        scene.spot_origins.push(
+            Location::file(path).with_key("the default light (the model has none)".to_string()),
+        );
         scene.spots.push(spot);
     }
     Ok(scene)
+}
+
+/// Makes the glTF camera `c` the scene's camera. Its aspect ratio, when it gives one, sets the
+/// image width for the model's image height (unless `-D image.*` sets the size): the glTF's
+/// vertical field of view then shows what the author framed.
+fn use_model_camera(scene: &mut Scene, c: &ModelCamera, opts: &LoadOptions) {
+    scene.camera = c.camera;
+    let size_set = opts.overrides.iter().any(|(k, _)| k.starts_with("image."));
+    if let (false, Some(aspect)) = (size_set, c.aspect) {
+        let width = (f64::from(scene.height) * aspect).round();
+        scene.width = width.clamp(1.0, f64::from(super::MAX_IMAGE_DIM)) as u32;
+    }
 }
 
 /// A point as `[x, y, z]` with 3 decimals.

@@ -121,8 +121,9 @@ fn read_obj(cx: &mut Cx<'_>, o: &ObjSection, key: &str) -> Result<(PathBuf, Stri
     Ok((obj_path, text))
 }
 
-/// Where an include puts the OBJ's points (see the module docs).
-struct Transform {
+/// Where an include puts the model's points (see the module docs); `[[gltf]]` includes use the
+/// same transform, after the glTF's own node transforms.
+pub(crate) struct Transform {
     scale: DVec3,
     rotation: DMat3,
     translate: DVec3,
@@ -130,7 +131,7 @@ struct Transform {
 
 impl Transform {
     /// The include's `scale`, `rotate` and `translate`, checked.
-    fn of(cx: &Cx<'_>, o: &ObjSection, key: &str) -> Result<Transform> {
+    pub(crate) fn of(cx: &Cx<'_>, o: &ObjSection, key: &str) -> Result<Transform> {
         let scale = match &o.scale {
             None => DVec3::ONE,
             Some(s) => scale(cx, s, key)?,
@@ -154,13 +155,18 @@ impl Transform {
     }
 
     /// Whether the transform mirrors (an odd number of negative scale factors).
-    fn mirrors(&self) -> bool {
+    pub(crate) fn mirrors(&self) -> bool {
         self.scale.x * self.scale.y * self.scale.z < 0.0
     }
 
-    /// Where the OBJ point `p` goes.
-    fn apply(&self, p: DVec3) -> DVec3 {
+    /// Where the model's point `p` goes.
+    pub(crate) fn apply(&self, p: DVec3) -> DVec3 {
         self.translate + self.rotation * (self.scale * p)
+    }
+
+    /// What the transform makes of the direction `v` (no translation).
+    pub(crate) fn linear(&self, v: DVec3) -> DVec3 {
+        self.rotation * (self.scale * v)
     }
 }
 
@@ -387,7 +393,7 @@ fn overrides(
 }
 
 /// The include's `default_material`, which must be a scene material.
-fn default_material(
+pub(crate) fn default_material(
     cx: &Cx<'_>,
     o: &ObjSection,
     key: &str,
@@ -603,19 +609,8 @@ impl Converter<'_> {
                 "is missing (diffuse reflectance)",
             ));
         };
-        let mut reflectance = decimal3(kd);
         let kd_loc = mloc(src.and_then(|s| s.kd), "Kd");
-        if !strict && reflectance.is_finite() && reflectance.max_element() >= 1.0 {
-            let clamped = reflectance.min(DVec3::splat(MAX_OBJ_REFLECTANCE));
-            if check_reflectance(clamped).is_ok() {
-                warnings.push(format!(
-                    "{kd_loc}: {reflectance} is 1 or more (a surface reflecting all its light \
-                     or more; a closed room would never converge): clamped to {clamped} \
-                     (`--strict` refuses it)"
-                ));
-                reflectance = clamped;
-            }
-        }
+        let reflectance = clamp_reflectance(decimal3(kd), &kd_loc, strict, warnings);
         check_reflectance(reflectance).map_err(|msg| Error::input(kd_loc, msg))?;
         // tobj 4 parses `Ke` into `emissive` (`check_mtl` made sure it has three values);
         // absent means 0.
@@ -703,12 +698,35 @@ impl Converter<'_> {
     }
 }
 
-/// A name for a material imported from an MTL file: its own name if free, else
-/// `<stem>/<name>`, then `<stem>/<name>#2`, `#3`, ...
+/// A model's diffuse colour as a reflectance: a colour of 1 or more in some channel (modelling
+/// tools write 1 for "white") is clamped to [`MAX_OBJ_REFLECTANCE`] with a warning at `loc`,
+/// unless `strict`; anything else is returned as it is, for [`check_reflectance`] to judge.
+pub(crate) fn clamp_reflectance(
+    reflectance: DVec3,
+    loc: &Location,
+    strict: bool,
+    warnings: &mut Vec<String>,
+) -> DVec3 {
+    if strict || !reflectance.is_finite() || reflectance.max_element() < 1.0 {
+        return reflectance;
+    }
+    let clamped = reflectance.min(DVec3::splat(MAX_OBJ_REFLECTANCE));
+    if check_reflectance(clamped).is_err() {
+        return reflectance;
+    }
+    warnings.push(format!(
+        "{loc}: {reflectance} is 1 or more (a surface reflecting all its light or more; a \
+         closed room would never converge): clamped to {clamped} (`--strict` refuses it)"
+    ));
+    clamped
+}
+
+/// A name for a material imported from a model (an MTL file, a glTF): its own name if free,
+/// else `<stem>/<name>`, then `<stem>/<name>#2`, `#3`, ...
 ///
 /// The search resumes where the last one for the same base stopped (`cx.next_suffix`), so
-/// many includes of one OBJ do not rescan the suffixes already taken.
-fn unique_name(
+/// many includes of one model do not rescan the suffixes already taken.
+pub(crate) fn unique_name(
     cx: &mut Cx<'_>,
     stem: &str,
     mtl_name: &str,
@@ -733,7 +751,7 @@ fn unique_name(
 }
 
 /// [`decimal`] of every component of a tobj triple.
-fn decimal3(v: [f32; 3]) -> DVec3 {
+pub(crate) fn decimal3(v: [f32; 3]) -> DVec3 {
     DVec3::new(
         decimal(v[0] as f64),
         decimal(v[1] as f64),
@@ -743,7 +761,7 @@ fn decimal3(v: [f32; 3]) -> DVec3 {
 
 /// The `f64` nearest to the shortest decimal that round-trips `x` (see the module docs); `x`
 /// itself if that fails (it cannot for a finite `f32`).
-fn decimal(x: f64) -> f64 {
+pub(crate) fn decimal(x: f64) -> f64 {
     let f = x as f32;
     if !f.is_finite() {
         return x;

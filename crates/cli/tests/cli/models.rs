@@ -351,3 +351,78 @@ fn data_files_named_for_another_format_are_refused() {
     }
     assert!(!wrong.exists() && !png.exists());
 }
+
+/// The shipped glTF room (`scenes/gltf/room.glb`, written by `tools/make-room-glb.py`): `check`
+/// finds its panel's light and its camera, and chooses neither; `render` lights the room by the
+/// panel (nothing of the model black).
+#[test]
+fn a_gltf_room_checks_and_renders_lit_by_its_own_panel() {
+    let out = run(&["check", "scenes/gltf/room.glb"]);
+    assert_eq!(out.status.code(), Some(0), "{}", text(&out.stderr));
+    let (o, e) = (text(&out.stdout), text(&out.stderr));
+    assert!(o.contains("emitters        4 polygons"), "{o}");
+    assert!(o.contains("spot lights     0"), "{o}");
+    assert!(o.contains("image           800 x 600"), "{o}");
+    assert!(
+        !e.contains("no camera in a model") && !e.contains("default spot"),
+        "{e}"
+    );
+    let dir = scratch("gltf-room");
+    let png = dir.join("room.png");
+    let mut args = vec![
+        "render",
+        "scenes/gltf/room.glb",
+        "-o",
+        png.to_str().unwrap(),
+    ];
+    args.extend(SMALL);
+    let out = run(&args);
+    assert_eq!(out.status.code(), Some(0), "{}", text(&out.stderr));
+    let e = text(&out.stderr);
+    let line = e
+        .lines()
+        .find(|l| l.contains("luminance min"))
+        .unwrap_or_else(|| panic!("{e}"));
+    assert!(line.contains("0.0 % of the model black"), "{line}");
+    assert_eq!(&std::fs::read(&png).unwrap()[1..4], b"PNG");
+}
+
+/// A damaged glTF exits 2 with the file and the glTF key: a GLB cut short, a `.gltf` whose
+/// buffer file is missing.
+#[test]
+fn a_damaged_gltf_exits_2_naming_the_file_and_key() {
+    let dir = scratch("gltf-damaged");
+    let glb = std::fs::read(format!("{}/scenes/gltf/room.glb", crate::REPO)).unwrap();
+    let cut = dir.join("cut.glb");
+    std::fs::write(&cut, &glb[..glb.len() / 2]).unwrap();
+    let out = run(&["check", cut.to_str().unwrap()]);
+    assert_eq!(out.status.code(), Some(2));
+    let e = text(&out.stderr);
+    assert!(
+        e.contains(&format!("{}: is a truncated GLB", cut.display())),
+        "{e}"
+    );
+    let gltf = dir.join("lost.gltf");
+    std::fs::write(
+        &gltf,
+        r#"{"asset": {"version": "2.0"}, "scene": 0, "scenes": [{"nodes": [0]}],
+            "nodes": [{"mesh": 0}],
+            "meshes": [{"primitives": [{"attributes": {"POSITION": 0}}]}],
+            "accessors": [{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3",
+                           "min": [0, 0, 0], "max": [1, 1, 0]}],
+            "bufferViews": [{"buffer": 0, "byteLength": 36}],
+            "buffers": [{"byteLength": 36, "uri": "lost.bin"}]}"#,
+    )
+    .unwrap();
+    let out = run(&["render", gltf.to_str().unwrap()]);
+    assert_eq!(out.status.code(), Some(2));
+    let e = text(&out.stderr);
+    assert!(
+        e.contains(&format!(
+            "{}: buffers[0].uri: cannot read buffer file {}",
+            gltf.display(),
+            dir.join("lost.bin").display()
+        )),
+        "{e}"
+    );
+}

@@ -242,6 +242,9 @@ impl Builder {
             },
             extensions: Some(json::extensions::material::Material {
                 unlit: Some(json::extensions::material::Unlit {}),
+                // The scene crate reads glTF with more extensions of the same crate (features
+                // are unified across the workspace): their fields stay empty here.
+                ..Default::default()
             }),
             extras: raw(&extras)?,
             ..Default::default()

@@ -131,8 +131,8 @@ impl RenderPlan {
         let frames = if req.walkthrough {
             let path = scene.camera_path.as_ref().ok_or_else(|| {
                 let how = if scene::is_model(&scene.source) {
-                    ": a model has none; write a scene file that includes it ([[obj]]) and give \
-                     it one (docs/tutorial.md)"
+                    ": a model has none; write a scene file that includes it ([[obj]] or \
+                     [[gltf]]) and give it one (docs/tutorial.md)"
                 } else {
                     ""
                 };

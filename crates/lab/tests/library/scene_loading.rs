@@ -749,7 +749,7 @@ fn scenes_without_polygons_or_light_are_refused() {
     let msg = error_of(&no_polys);
     assert_eq!(
         msg,
-        "test.toml: the scene has no polygons: add [[polygons]] or [[obj]] entries"
+        "test.toml: the scene has no polygons: add [[polygons]], [[obj]] or [[gltf]] entries"
     );
     let dark = edit("material = \"lamp\"", "material = \"white\"");
     let msg = error_of(&dark);
