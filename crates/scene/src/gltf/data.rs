@@ -141,6 +141,30 @@ fn validate(gltf: &::gltf::Gltf, at: &dyn Fn(&str, String) -> Error) -> Result<(
             ));
         }
     }
+    // gltf-json's own check of a primitive's POSITION bounds indexes the accessors before
+    // their indices are known to be in range (it panics on an index past the end), so
+    // attribute indices are checked here first.
+    let accessors = root.accessors.len();
+    for (m, mesh) in root.meshes.iter().enumerate() {
+        for (p, prim) in mesh.primitives.iter().enumerate() {
+            for (semantic, index) in &prim.attributes {
+                if index.value() >= accessors {
+                    let name = match semantic {
+                        ::gltf::json::validation::Checked::Valid(s) => s.to_string(),
+                        ::gltf::json::validation::Checked::Invalid => "?".to_string(),
+                    };
+                    return Err(at(
+                        &format!("meshes[{m}].primitives[{p}].attributes.{name}"),
+                        format!(
+                            "accessor {} does not exist (the file has {accessors}; the file is \
+                             not valid glTF 2.0)",
+                            index.value()
+                        ),
+                    ));
+                }
+            }
+        }
+    }
     let mut first: Option<(String, String)> = None;
     root.validate(root, ::gltf::json::Path::new, &mut |path, error| {
         use ::gltf::json::validation::Error as V;

@@ -151,7 +151,7 @@ fn quad(doc: &mut Doc) -> Value {
 fn scene_text(ext: &str, extra: &str) -> String {
     format!(
         "[camera]\neye = [0, 0, 5]\nlook_at = [0, 0, 0]\nfov_y = 60\n\n\
-         [radiosity]\ncut_contacts = false\n\n\
+         [radiosity]\ncut_contacts = false\nmerge_triangles = false\n\n\
          [[materials]]\nname = \"grey\"\nreflectance = [0.5, 0.5, 0.5]\n\n\
          [[gltf]]\nfile = \"m.{ext}\"\ndefault_material = \"grey\"\n{extra}\n\n\
          [[spots]]\nposition = [0, 5, 1]\ndirection = [0, -1, 0]\nintensity = [1, 1, 1]\n\
@@ -540,6 +540,23 @@ fn an_index_beyond_the_positions_names_the_primitive() {
     );
 }
 
+/// gltf-json's check of POSITION's bounds indexed the accessors before their indices were
+/// checked, and panicked on one past the end (found by `a_damaged_glb_never_panics`).
+#[test]
+fn a_position_accessor_that_does_not_exist_is_an_error_not_a_panic() {
+    let mut doc = Doc::default();
+    let _ = doc.positions(&[[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]]);
+    let body = json!({
+        "scene": 0, "scenes": [{ "nodes": [0] }], "nodes": [{ "mesh": 0 }],
+        "meshes": [{ "primitives": [{ "attributes": { "POSITION": 7 } }] }]
+    });
+    let e = error_of("gltf", &[("m.gltf", doc.gltf(body))]);
+    assert!(
+        e.starts_with("/virtual/m.gltf: meshes[0].primitives[0].attributes.POSITION: accessor 7 does not exist"),
+        "{e}"
+    );
+}
+
 #[test]
 fn an_accessor_beyond_its_view_names_the_attribute() {
     let (mut doc, body) = one_quad();
@@ -876,9 +893,11 @@ fn base64_decodes_with_and_without_padding() {
 fn the_shipped_room_is_lit_by_its_panel_and_seen_through_its_camera() {
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes/gltf/room.glb");
     let s = crate::load_scene(&path).unwrap();
-    // 12 room triangles, the panel's 2 and their twins (doubleSided and emitting).
-    assert_eq!(s.polygons.len(), 16, "{:?}", s.notes);
-    assert_eq!(s.emitter_count(), 4);
+    // 12 room triangles and the panel's 2, merged into 7 quads (`triangle_pairs`), and the
+    // panel's twin (doubleSided and emitting).
+    assert_eq!(s.merged.pairs, 7, "{:?}", s.notes);
+    assert_eq!(s.polygons.len(), 8, "{:?}", s.notes);
+    assert_eq!(s.emitter_count(), 2);
     assert!(s.spots.is_empty());
     let panel = s.materials.iter().find(|m| m.name == "Panel").unwrap();
     assert_eq!(panel.emission, DVec3::splat(10.0));
