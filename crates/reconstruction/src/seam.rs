@@ -92,12 +92,13 @@ impl Seams {
         let mut standing = 0;
         let mut folds = 0;
         let mut slants = 0;
-        for e in &adjacency.edges {
+        let stands = adjacency.standing();
+        for (e, &stands) in adjacency.edges.iter().zip(&stands) {
             let fold = is_fold(e, polygons, materials);
             if !fold && !Adjacency::continuous(e, polygons, materials) {
                 continue;
             }
-            if adjacency.stands_on(e) {
+            if stands {
                 standing += 1;
                 continue;
             }

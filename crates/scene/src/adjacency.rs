@@ -237,25 +237,36 @@ impl Adjacency {
         ma.reflectance == mb.reflectance && ma.emission == mb.emission
     }
 
-    /// Whether a third polygon meets either side of `e` at an angle over part of `e`'s
-    /// segment: a wall standing on the seam, whose two sides see different light.
-    pub fn stands_on(&self, e: &SharedEdge) -> bool {
+    /// Per edge (aligned with `edges`): whether a third polygon meets either of its sides at
+    /// an angle over part of its segment (a wall standing on the seam, whose two sides see
+    /// different light). Each side's crossing edges are indexed once, so the cost grows with
+    /// the edges, not their square.
+    pub fn standing(&self) -> Vec<bool> {
+        let mut by_side: std::collections::HashMap<Side, Vec<(usize, [f64; 2])>> =
+            std::collections::HashMap::new();
+        for (i, o) in self.edges.iter().enumerate() {
+            if !matches!(o.junction, Junction::Coplanar) {
+                by_side.entry(o.a).or_default().push((i, o.a_range));
+                by_side.entry(o.b).or_default().push((i, o.b_range));
+            }
+        }
         let overlaps = |r: [f64; 2], q: [f64; 2]| {
             let (lo, hi) = (r[0].min(r[1]), r[0].max(r[1]));
             let (ql, qh) = (q[0].min(q[1]), q[0].max(q[1]));
             qh.min(hi) - ql.max(lo) > 1e-9
         };
-        self.edges.iter().any(|o| {
-            if matches!(o.junction, Junction::Coplanar) || std::ptr::eq(o, e) {
-                return false;
-            }
-            // The part of `o` on e's a side or b side, in that side's parameter.
-            let on = |side: Side, range: [f64; 2]| {
-                (o.a == side && overlaps(range, o.a_range))
-                    || (o.b == side && overlaps(range, o.b_range))
-            };
-            on(e.a, e.a_range) || on(e.b, e.b_range)
-        })
+        self.edges
+            .iter()
+            .enumerate()
+            .map(|(i, e)| {
+                let on = |side: Side, range: [f64; 2]| {
+                    by_side
+                        .get(&side)
+                        .is_some_and(|v| v.iter().any(|&(j, q)| j != i && overlaps(range, q)))
+                };
+                on(e.a, e.a_range) || on(e.b, e.b_range)
+            })
+            .collect()
     }
 
     /// Counts for reports.

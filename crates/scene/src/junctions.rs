@@ -69,12 +69,13 @@ pub fn cut<T: Clone>(
 /// polygon whose side it lies inside, by receiver.
 fn lines(polygons: &[Polygon], materials: &[Material]) -> Vec<ContactLine> {
     let adjacency = Adjacency::of(polygons);
+    let stands = adjacency.standing();
     let mut out = Vec::new();
-    for e in &adjacency.edges {
+    for (e, &stands) in adjacency.edges.iter().zip(&stands) {
         if e.is_full()
+            || stands
             || !Adjacency::continuous(e, polygons, materials)
             || e.lattice_link().is_some()
-            || adjacency.stands_on(e)
         {
             continue;
         }
