@@ -157,3 +157,62 @@ fn export_writes_what_its_name_says_and_refuses_bad_options() {
         );
     }
 }
+
+/// The files an export writes beside its glTF (the `.bin` buffer, the atlas pages) are checked
+/// against its inputs before any work: a solution named like the buffer, or a scene file named
+/// like a page, is refused with exit 2 and left as it was (the export used to replace it).
+#[test]
+fn files_beside_the_export_never_replace_an_input() {
+    let dir = scratch("beside");
+    let scene = dir.join("two-spots.toml");
+    std::fs::copy(Path::new(crate::REPO).join("scenes/two-spots.toml"), &scene).unwrap();
+    let sol = dir.join("s.pfsol");
+    let o = run(&[
+        "solve",
+        scene.to_str().unwrap(),
+        "-o",
+        sol.to_str().unwrap(),
+        "--quiet",
+    ]);
+    assert_eq!(o.status.code(), Some(0), "{}", text(&o.stderr));
+    // The solution copied to the name of the buffer beside `s.gltf`.
+    let bin = dir.join("s.bin");
+    std::fs::copy(&sol, &bin).unwrap();
+    let before = std::fs::read(&bin).unwrap();
+    let gltf = dir.join("s.gltf");
+    let o = run(&[
+        "export",
+        bin.to_str().unwrap(),
+        "-o",
+        gltf.to_str().unwrap(),
+    ]);
+    assert_eq!(o.status.code(), Some(2), "{}", text(&o.stderr));
+    assert!(
+        text(&o.stderr).contains("refusing to overwrite an input"),
+        "{}",
+        text(&o.stderr)
+    );
+    assert_eq!(std::fs::read(&bin).unwrap(), before);
+    assert!(!gltf.exists());
+    // The scene file itself named like a page.
+    let page = dir.join("p.lightmap-0.exr");
+    std::fs::copy(&scene, &page).unwrap();
+    let o = run(&[
+        "export",
+        sol.to_str().unwrap(),
+        "--scene",
+        page.to_str().unwrap(),
+        "-o",
+        dir.join("p.glb").to_str().unwrap(),
+    ]);
+    assert_eq!(o.status.code(), Some(2), "{}", text(&o.stderr));
+    assert!(
+        text(&o.stderr).contains("refusing to overwrite an input"),
+        "{}",
+        text(&o.stderr)
+    );
+    assert_eq!(
+        std::fs::read(&page).unwrap(),
+        std::fs::read(&scene).unwrap()
+    );
+}

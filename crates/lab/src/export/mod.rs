@@ -97,7 +97,7 @@ pub struct ExportReport {
 }
 
 /// A sibling of `out`: its stem followed by `suffix`.
-fn sibling(out: &Path, suffix: &str) -> PathBuf {
+pub fn sibling(out: &Path, suffix: &str) -> PathBuf {
     let stem = out
         .file_stem()
         .map(|s| s.to_string_lossy().into_owned())

@@ -2,7 +2,7 @@
 //! from the textures `render --method texture-*` draws (same sizes, centre-placed texels), or
 //! the Gouraud mesh with `mesh`.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use super::{prepare, Context, Input, TextureOptions};
 use crate::export::{export_lightmap, export_mesh, Container, ExportReport};
@@ -53,6 +53,7 @@ pub fn run_export(ctx: &Context<'_>, req: &ExportRequest) -> Result<ExportReport
         ));
     }
     let input = Input::load_opts(&req.input, req.scene.as_deref(), &req.load)?;
+    check_export_outputs(&input, req)?;
     let policy = req.texture.policy(&input.scene)?;
     let exposure = req.exposure.unwrap_or(input.scene.display.exposure);
     if !exposure.is_finite() {
@@ -77,4 +78,40 @@ pub fn run_export(ctx: &Context<'_>, req: &ExportRequest) -> Result<ExportReport
             &ctx.outputs,
         )
     }
+}
+
+/// Atlas pages whose names are checked before the work: an export writes as many pages as its
+/// atlas needs, known only once the textures are built, and no shipped or generated scene needs
+/// more than a few.
+pub const PAGES_CHECKED: usize = 256;
+
+/// Checks every file an export may write, before any work (`base::output::check_outputs`):
+/// the glTF, its buffer beside it (`.gltf`), and the atlas pages beside it (PNG for `.gltf`,
+/// linear EXR always, up to [`PAGES_CHECKED`] of each), against the scene's and the solution's
+/// files, links, directories and each other.
+fn check_export_outputs(input: &Input, req: &ExportRequest) -> Result<()> {
+    let mut inputs = input.scene.inputs.clone();
+    inputs.extend(input.solution_file.clone());
+    inputs.push(req.input.clone());
+    let container = Container::of(&req.output)?;
+    let mut paths = vec![req.output.clone()];
+    if container == Container::Gltf {
+        paths.push(crate::export::sibling(&req.output, ".bin"));
+    }
+    if !req.mesh {
+        for k in 0..PAGES_CHECKED {
+            paths.push(crate::export::sibling(
+                &req.output,
+                &format!(".lightmap-{k}.exr"),
+            ));
+            if container == Container::Gltf {
+                paths.push(crate::export::sibling(
+                    &req.output,
+                    &format!(".lightmap-{k}.png"),
+                ));
+            }
+        }
+    }
+    let named: Vec<(&str, &Path)> = paths.iter().map(|p| ("-o", p.as_path())).collect();
+    base::output::check_outputs(&inputs, &named)
 }
