@@ -81,10 +81,16 @@ pub fn read_limited(path: &Path, max: u64) -> std::io::Result<Vec<u8>> {
     Ok(out)
 }
 
-/// [`read_limited`] at [`input_limit`], as UTF-8 text.
+/// [`read_limited`] at [`input_limit`], as UTF-8 text, without a leading byte-order mark
+/// (editors on Windows write one; left in, it would make the first line of an OBJ, MTL or scene
+/// file unrecognizable).
 pub fn read_text(path: &Path) -> std::io::Result<String> {
-    String::from_utf8(read_limited(path, input_limit())?)
-        .map_err(|_| std::io::Error::new(std::io::ErrorKind::InvalidData, "not UTF-8 text"))
+    let mut text = String::from_utf8(read_limited(path, input_limit())?)
+        .map_err(|_| std::io::Error::new(std::io::ErrorKind::InvalidData, "not UTF-8 text"))?;
+    if text.starts_with('\u{feff}') {
+        text.drain(..'\u{feff}'.len_utf8());
+    }
+    Ok(text)
 }
 
 /// The directory `path` is written in (its temporary goes there, so the rename stays on one
@@ -575,6 +581,21 @@ mod tests {
         let _ = std::fs::remove_dir_all(&dir);
         std::fs::create_dir_all(&dir).unwrap();
         dir
+    }
+
+    /// A byte-order mark used to hide an OBJ's first line (`\u{feff}v 0 0 0` is no vertex).
+    #[test]
+    fn a_byte_order_mark_is_not_read_as_text() {
+        let dir = fresh_dir("bom");
+        let path = dir.join("m.obj");
+        std::fs::write(&path, "\u{feff}v 0 0 0\n").unwrap();
+        assert_eq!(read_text(&path).unwrap(), "v 0 0 0\n");
+        std::fs::write(&path, "v 0 0 0\n\u{feff}").unwrap();
+        assert_eq!(
+            read_text(&path).unwrap(),
+            "v 0 0 0\n\u{feff}",
+            "only a leading mark"
+        );
     }
 
     #[test]
