@@ -61,8 +61,11 @@ pub fn view(settings: &Settings, args: ViewArgs) -> anyhow::Result<()> {
         let policy = texture.policy(&input.scene)?;
         let placement = texture.placement(&input.scene)?;
         let script = match &args.script {
+            // The script is an input: unreadable or not text is bad input (exit 2).
             Some(path) => Some(Script::parse(
-                &base::output::read_text(path).map_err(|e| base::Error::io(path, e))?,
+                &base::output::read_text(path).map_err(|e| {
+                    base::Error::input(base::error::Location::file(path), e.to_string())
+                })?,
                 path,
             )?),
             None => None,

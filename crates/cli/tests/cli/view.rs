@@ -86,4 +86,19 @@ fn a_replayed_session_draws_what_render_draws() {
     ]);
     assert_eq!(o.status.code(), Some(2), "{}", text(&o.stderr));
     assert!(text(&o.stderr).contains("bad.txt:2"), "{}", text(&o.stderr));
+    // A script that is not text, or missing, is bad input too (it exited 1).
+    let binary = dir.join("binary.txt");
+    std::fs::write(&binary, b"wait 1\n\xff\xfe\n").unwrap();
+    for script in [&binary, &dir.join("missing.txt")] {
+        let o = run(&[
+            "view",
+            sol,
+            "--script",
+            script.to_str().unwrap(),
+            "--screenshot",
+            png.to_str().unwrap(),
+        ]);
+        assert_eq!(o.status.code(), Some(2), "{}", text(&o.stderr));
+        assert!(!png.exists());
+    }
 }
