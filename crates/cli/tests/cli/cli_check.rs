@@ -580,3 +580,27 @@ fn a_guard_stop_is_reported_by_solve_check_stats_and_render() {
         text(&checked.stdout)
     );
 }
+
+/// A scene read from a pipe is read once: the probe for a solution file's magic bytes used to
+/// take the first bytes of the scene (`check <(cat scene.toml)` was refused as "not a scene").
+#[test]
+fn a_scene_from_a_pipe_is_read_once() {
+    use std::io::Write;
+    let scene = std::fs::read(Path::new(crate::REPO).join("scenes/two-spots.toml")).unwrap();
+    let mut child = crate::bin()
+        .current_dir(crate::REPO)
+        .args(["check", "/dev/stdin"])
+        .stdin(std::process::Stdio::piped())
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    child.stdin.take().unwrap().write_all(&scene).unwrap();
+    let out = child.wait_with_output().unwrap();
+    assert_eq!(out.status.code(), Some(0), "{}", text(&out.stderr));
+    assert!(
+        text(&out.stdout).contains("spot lights     2"),
+        "{}",
+        text(&out.stdout)
+    );
+}

@@ -222,9 +222,15 @@ pub fn notes_line(scene: &scene::Scene) -> Option<String> {
 /// The extension of solution files (`solve -o x.pfsol`).
 pub(crate) const SOLUTION_EXTENSION: &str = "pfsol";
 
-/// Whether `path` is a solution file (by its magic bytes) rather than a scene.
+/// Whether `path` is a solution file (by its magic bytes) rather than a scene. Only a regular
+/// file is probed: reading a pipe's first bytes would take them from the scene read next
+/// (`check <(cat scene.toml)`), and a solution names its scene relative to its own folder,
+/// which a pipe does not have.
 pub(crate) fn is_solution_file(path: &Path) -> bool {
     use std::io::Read;
+    if !std::fs::metadata(path).is_ok_and(|m| m.is_file()) {
+        return false;
+    }
     let mut magic = [0u8; 8];
     std::fs::File::open(path)
         .and_then(|mut f| f.read_exact(&mut magic))
