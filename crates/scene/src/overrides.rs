@@ -83,6 +83,14 @@ fn set(table: &mut toml::Table, key: &str, v: toml::Value) -> std::result::Resul
             }
         };
     }
+    let tables =
+        |v: &toml::Value| matches!(v, toml::Value::Array(a) if a.iter().any(toml::Value::is_table));
+    if tables(&v) || t.get(*last).is_some_and(tables) {
+        return Err(format!(
+            "`{key}` is a list of tables (like [[{last}]]), which cannot be set with -D: edit \
+             the scene file"
+        ));
+    }
     t.insert(last.to_string(), v);
     Ok(())
 }

@@ -264,6 +264,18 @@ fn overrides_set_values_and_are_blamed_for_their_errors() {
     assert!(e.to_string().contains("-D"), "{e}");
     let e = load_scene_with(&obj, &opts(&[("obj.file", "x.obj")])).unwrap_err();
     assert!(e.to_string().contains("not a table"), "{e}");
+    // A whole list of tables given as an inline array (it was accepted, against the docs).
+    for (k, v) in [
+        ("obj", "[{file = \"x.obj\"}]"),
+        (
+            "materials",
+            "[{name = \"m\", reflectance = [0.5, 0.5, 0.5]}]",
+        ),
+    ] {
+        let e = load_scene_with(&obj, &opts(&[(k, v)])).unwrap_err();
+        assert!(e.to_string().contains("cannot be set with -D"), "{e}");
+        assert_eq!(e.exit_code(), EXIT_BAD_INPUT);
+    }
     assert!(scene::overrides::parse("novalue").is_err());
     assert!(scene::overrides::parse("a..b=1").is_err());
 }
