@@ -70,14 +70,17 @@ pub fn view(settings: &Settings, args: ViewArgs) -> anyhow::Result<()> {
             )?),
             None => None,
         };
-        let prepared = lab::jobs::prepare(&ctx, input, policy, placement)?;
         let opts = engine::frame::FrameOptions {
-            aa: prepared.scene.render.aa_samples,
+            aa: input.scene.render.aa_samples,
             renderers: args.renderers,
             region: args.region,
             isa: settings.isa(),
             ..engine::frame::FrameOptions::new(args.width, args.height)
         };
+        // The viewer's frame (and the screenshot's PNG) under the memory limit, as `render`'s,
+        // before the solve.
+        lab::jobs::budget::check_frame_options(&opts, (true, false), ctx.memory_limit)?;
+        let prepared = lab::jobs::prepare(&ctx, input, policy, placement)?;
         let mut viewer = Viewer::new(&prepared, opts)?;
         let exposure = prepared.scene.display.exposure;
         match (script, &args.screenshot) {

@@ -102,3 +102,35 @@ fn a_replayed_session_draws_what_render_draws() {
         assert!(!png.exists());
     }
 }
+
+/// A scripted view's frame is held to the memory limit as `render`'s is, before any work (a
+/// 16384 x 16384 frame was drawn under `--memory-limit 100M`: 3.96 GB).
+#[test]
+fn a_view_frame_over_the_memory_limit_is_refused() {
+    let dir = scratch();
+    let script = dir.join("limit.txt");
+    std::fs::write(&script, "wait 0.1\n").unwrap();
+    let png = dir.join("limit.png");
+    let scene = Path::new(crate::REPO).join("scenes/two-spots.toml");
+    let o = run(&[
+        "--memory-limit",
+        "100M",
+        "view",
+        scene.to_str().unwrap(),
+        "--script",
+        script.to_str().unwrap(),
+        "--screenshot",
+        png.to_str().unwrap(),
+        "--width",
+        "16384",
+        "--height",
+        "16384",
+    ]);
+    assert_eq!(o.status.code(), Some(2), "{}", text(&o.stderr));
+    assert!(
+        text(&o.stderr).contains("over the memory limit"),
+        "{}",
+        text(&o.stderr)
+    );
+    assert!(!png.exists());
+}

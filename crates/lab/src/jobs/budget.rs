@@ -403,7 +403,7 @@ pub(crate) fn check_solve(scene: &Scene, limit: u64) -> Result<()> {
 }
 
 /// Refuses frames under `opts` (and outputs: PNG, EXR) over `limit`.
-pub(crate) fn check_frame_options(
+pub fn check_frame_options(
     opts: &engine::frame::FrameOptions,
     outputs: (bool, bool),
     limit: u64,
