@@ -381,10 +381,15 @@ pub fn action(name: &str) -> Option<Action> {
     })
 }
 
+/// Longest a whole script may hold and wait, in seconds (each step of [`SCRIPT_STEP`] costs a
+/// camera update, so the bound keeps a replay's work bounded whatever the file's length).
+pub const MAX_SCRIPT_SECONDS: f64 = 3600.0;
+
 impl Script {
     /// Parses a script; errors name the file's line.
     pub fn parse(text: &str, file: &std::path::Path) -> Result<Script> {
         let mut steps = Vec::new();
+        let mut total = 0.0;
         for (n, raw) in text.lines().enumerate() {
             let line = raw.split('#').next().unwrap_or("").trim();
             if line.is_empty() {
@@ -424,6 +429,18 @@ impl Script {
                     ))
                 }
             });
+            if let Some(Step::Hold(_, s)) = steps.last() {
+                total += s;
+                if total > MAX_SCRIPT_SECONDS {
+                    return Err(Error::input(
+                        at(),
+                        format!(
+                            "the script's holds and waits add up to more than \
+                             {MAX_SCRIPT_SECONDS} s here; replay a shorter session"
+                        ),
+                    ));
+                }
+            }
         }
         Ok(Script { steps })
     }
@@ -515,5 +532,27 @@ mod tests {
                 .to_string();
             assert!(e.contains("s.txt:2") && e.contains(what), "{e}");
         }
+        // Each wait is within its bound, their sum is not (a file of `wait 3600` lines ran for
+        // hours): refused at the line that passes the total.
+        let e = Script::parse(
+            "wait 3000
+hold forward 500
+wait 200
+",
+            f,
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(
+            e.contains("s.txt:3") && e.contains("add up to more than 3600"),
+            "{e}"
+        );
+        assert!(Script::parse(
+            "wait 3000
+hold forward 600
+",
+            f
+        )
+        .is_ok());
     }
 }
