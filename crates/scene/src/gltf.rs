@@ -127,8 +127,8 @@ fn material_name(m: &::gltf::Material<'_>, index: usize) -> String {
         .map_or_else(|| format!("materials[{index}]"), str::to_string)
 }
 
-/// The include's `materials` map: every key must name a material of the glTF, every value a
-/// scene material.
+/// The include's `materials` map ([`super::obj::overrides`]): every key must name a material of
+/// the glTF, every value a scene material.
 fn overrides(
     cx: &Cx<'_>,
     o: &ObjSection,
@@ -136,32 +136,15 @@ fn overrides(
     file: &Opened,
     by_name: &BTreeMap<String, u32>,
 ) -> Result<BTreeMap<String, u32>> {
-    let mut overrides = BTreeMap::new();
-    let Some(map) = &o.materials else {
-        return Ok(overrides);
-    };
-    let names: BTreeSet<String> = file
+    let names: Vec<String> = file
         .gltf
         .document
         .materials()
         .enumerate()
         .map(|(i, m)| material_name(&m, i))
         .collect();
-    for (from, to) in map.get_ref() {
-        let mkey = format!("{key}.materials.{from}");
-        if !names.contains(from) {
-            return Err(cx.err(
-                map.span(),
-                mkey,
-                format!("the glTF has no material `{from}`"),
-            ));
-        }
-        let Some(&idx) = by_name.get(to) else {
-            return Err(cx.err(map.span(), mkey, format!("unknown material `{to}`")));
-        };
-        overrides.insert(from.clone(), idx);
-    }
-    Ok(overrides)
+    let names: BTreeSet<&str> = names.iter().map(String::as_str).collect();
+    super::obj::overrides(cx, o, key, (&names, "the glTF"), by_name)
 }
 
 /// A node with a mesh: its transform to the glTF's frame, its scene object and its name.

@@ -67,7 +67,7 @@ pub(crate) fn include(
     // The MTL materials' names, looked up once per `usemtl` and per override: a scan of the
     // materials for each would make a file with many of both quadratic to load.
     let mtl_names: BTreeSet<&str> = parsed.materials.iter().map(|m| m.name.as_str()).collect();
-    let overrides = overrides(cx, o, key, &mtl_names, &surfaces.by_name)?;
+    let overrides = overrides(cx, o, key, (&mtl_names, "the OBJ's MTL"), &surfaces.by_name)?;
     for (name, line) in &undefined {
         if overrides.contains_key(name) {
             continue;
@@ -362,13 +362,14 @@ impl<'a> MtlLoader<'a> {
     }
 }
 
-/// The include's `materials` map: every key must be an MTL material, every value a scene
-/// material.
-fn overrides(
+/// The include's `materials` map: every key must be a material of the included file (`names`;
+/// `holder` says where they are, "the OBJ's MTL", "the glTF"), every value a scene material.
+/// Shared by the OBJ and glTF includes.
+pub(crate) fn overrides(
     cx: &Cx<'_>,
     o: &ObjSection,
     key: &str,
-    mtl_names: &BTreeSet<&str>,
+    (names, holder): (&BTreeSet<&str>, &str),
     by_name: &BTreeMap<String, u32>,
 ) -> Result<BTreeMap<String, u32>> {
     let mut overrides = BTreeMap::new();
@@ -377,11 +378,11 @@ fn overrides(
     };
     for (from, to) in map.get_ref() {
         let mkey = format!("{key}.materials.{from}");
-        if !mtl_names.contains(from.as_str()) {
+        if !names.contains(from.as_str()) {
             return Err(cx.err(
                 map.span(),
                 mkey,
-                format!("the OBJ's MTL has no material `{from}`"),
+                format!("{holder} has no material `{from}`"),
             ));
         }
         let Some(&idx) = by_name.get(to) else {

@@ -176,7 +176,7 @@ pub fn export_lightmap(
     }
     let (groups, shift) = lightmap_groups(scene, &atlas);
     let mut materials = BTreeMap::new();
-    let mut meshes: BTreeMap<u32, Vec<json::mesh::Primitive>> = BTreeMap::new();
+    let mut meshes = ObjectMeshes::new();
     let (mut triangles, mut vertices) = (0, 0);
     for ((object, m, page), v) in &groups {
         let mat = match materials.get(&(*m, *page)) {
@@ -193,15 +193,7 @@ pub fn export_lightmap(
         triangles += v.indices.len() / 3;
         vertices += v.position.len();
     }
-    let meshes = named_meshes(scene, meshes);
-    finish(
-        b,
-        (meshes, camera_node(scene)),
-        container,
-        out,
-        &mut batch,
-        &mut files,
-    )?;
+    finish(b, scene, meshes, (container, out), &mut batch, &mut files)?;
     batch.commit()?;
     Ok(ExportReport {
         kind: "lightmap",
@@ -260,10 +252,7 @@ fn lightmap_groups(scene: &Scene, atlas: &Atlas) -> (BTreeMap<(u32, u32, u32), V
 
 /// Per object with primitives, in object order: its name (the scene's, unique: a repeated name
 /// gets `#2`, `#3`, ...) and its primitives.
-fn named_meshes(
-    scene: &Scene,
-    meshes: BTreeMap<u32, Vec<json::mesh::Primitive>>,
-) -> Vec<(String, Vec<json::mesh::Primitive>)> {
+fn named_meshes(scene: &Scene, meshes: ObjectMeshes) -> Vec<(String, Vec<json::mesh::Primitive>)> {
     let mut seen: BTreeMap<String, u32> = BTreeMap::new();
     meshes
         .into_iter()
@@ -335,21 +324,20 @@ fn camera_node(scene: &Scene) -> Option<document::CameraNode> {
     })
 }
 
-/// The objects' meshes (name, primitives) and the camera node of a document.
-type Content = (
-    Vec<(String, Vec<json::mesh::Primitive>)>,
-    Option<document::CameraNode>,
-);
+/// The primitives of each scene object, by object index.
+type ObjectMeshes = BTreeMap<u32, Vec<json::mesh::Primitive>>;
 
-/// Finishes the document and stages it (and, for `.gltf`, its buffer) in `batch`.
+/// Finishes the document (a node per object of `meshes`, named as [`named_meshes`] says, and
+/// the scene's camera node) and stages it (and, for `.gltf`, its buffer) in `batch`.
 fn finish(
     b: Builder,
-    (meshes, camera): Content,
-    container: Container,
-    out: &Path,
+    scene: &Scene,
+    meshes: ObjectMeshes,
+    (container, out): (Container, &Path),
     batch: &mut base::output::Batch,
     files: &mut Vec<PathBuf>,
 ) -> Result<()> {
+    let (meshes, camera) = (named_meshes(scene, meshes), camera_node(scene));
     match container {
         Container::Glb => {
             let (root, bin) = b.finish(meshes, camera, None);
@@ -433,7 +421,7 @@ pub fn export_mesh(
     let mut b = Builder::new(extras)?;
     let groups = mesh_groups(scene, mesh, exposure.exp2() as f32);
     let mut materials = BTreeMap::new();
-    let mut meshes: BTreeMap<u32, Vec<json::mesh::Primitive>> = BTreeMap::new();
+    let mut meshes = ObjectMeshes::new();
     let (mut triangles, mut vertices) = (0, 0);
     for ((object, m), (v, _)) in &groups {
         let mat = match materials.get(m) {
@@ -451,15 +439,7 @@ pub fn export_mesh(
     }
     let mut batch = outputs.batch();
     let mut files = vec![out.to_path_buf()];
-    let meshes = named_meshes(scene, meshes);
-    finish(
-        b,
-        (meshes, camera_node(scene)),
-        container,
-        out,
-        &mut batch,
-        &mut files,
-    )?;
+    finish(b, scene, meshes, (container, out), &mut batch, &mut files)?;
     batch.commit()?;
     Ok(ExportReport {
         kind: "mesh",

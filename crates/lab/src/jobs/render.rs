@@ -282,13 +282,14 @@ fn luminance_of(
     exposure::summarize(view, exposure, covered, background)
 }
 
-/// Runs a render job: load the input, plan and check every option, then prepare once and
-/// render one frame or every walkthrough frame, writing PNG, EXR and statistics.
-pub fn run_render(
+/// The first steps of a render job: load the input, plan and check every option and output,
+/// say the scene's warnings and notes, then solve (or read) and prepare once, saying what the
+/// solve warns of.
+fn prepared_for_render(
     ctx: &Context<'_>,
     req: &RenderRequest,
     on: &mut dyn FnMut(RenderEvent<'_>),
-) -> Result<()> {
+) -> Result<(Prepared, RenderPlan)> {
     let mut input = Input::load_opts(&req.input, req.scene.as_deref(), &req.load)?;
     let plan = RenderPlan::new(ctx, req, &input.scene)?;
     if let Some(name) = &req.estimator {
@@ -310,13 +311,21 @@ pub fn run_render(
     if let Some(w) = p.solution.stats.guard_stops.warning(&p.scene) {
         on(RenderEvent::Note(&w));
     }
-    for w in p
-        .solution
-        .stats
-        .light_warnings(p.scene.radiosity.convergence)
-    {
+    let convergence = p.scene.radiosity.convergence;
+    for w in p.solution.stats.light_warnings(convergence) {
         on(RenderEvent::Warning(&w));
     }
+    Ok((p, plan))
+}
+
+/// Runs a render job: load the input, plan and check every option, then prepare once and
+/// render one frame or every walkthrough frame, writing PNG, EXR and statistics.
+pub fn run_render(
+    ctx: &Context<'_>,
+    req: &RenderRequest,
+    on: &mut dyn FnMut(RenderEvent<'_>),
+) -> Result<()> {
+    let (p, plan) = prepared_for_render(ctx, req, on)?;
     let mut exposure = req.exposure.unwrap_or(p.scene.display.exposure);
     let auto_exposure = wants_auto_exposure(req, &p.scene);
     let n = plan.frames.len();
