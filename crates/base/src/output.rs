@@ -93,6 +93,17 @@ pub fn read_text(path: &Path) -> std::io::Result<String> {
     Ok(text)
 }
 
+/// The folder that paths written inside the file at `path` are relative to: the folder of the
+/// file a symbolic link at `path` leads to (a scene linked from elsewhere finds its OBJ files
+/// beside the scene, not beside the link), else `path`'s own folder (also when the link cannot
+/// be followed, so that reading it reports the problem).
+pub fn folder_of(path: &Path) -> PathBuf {
+    let is_link = std::fs::symlink_metadata(path).is_ok_and(|m| m.file_type().is_symlink());
+    let target = is_link.then(|| std::fs::canonicalize(path).ok()).flatten();
+    let file = target.as_deref().unwrap_or(path);
+    file.parent().unwrap_or_else(|| Path::new("")).to_path_buf()
+}
+
 /// The directory `path` is written in (its temporary goes there, so the rename stays on one
 /// file system).
 fn directory_of(path: &Path) -> Result<PathBuf> {

@@ -370,4 +370,40 @@ mod tests {
         assert!(LinearImage::new(0, 4, vec![]).is_err());
         assert!(LinearImage::new(2, 2, vec![Vec3::ONE; 4]).is_ok());
     }
+
+    /// Images smaller than the measures' filters still give finite numbers for every measure
+    /// (the serialised comparison holds no NaN or infinity). What broke: 1 x 1, 1 x 64, 64 x 1
+    /// and 2 x 2 images gave non-finite measures.
+    #[test]
+    fn tiny_images_give_finite_measures() {
+        for (w, h) in [(1, 1), (1, 64), (64, 1), (2, 2), (3, 1), (1, 3), (3, 3)] {
+            let a = img(w, h, |x, y| 0.2 + 0.1 * ((x + 2 * y) % 3) as f32);
+            let b = img(w, h, |x, y| 0.25 + 0.05 * ((x * 3 + y) % 2) as f32);
+            let c = compare(&a, &b, 32.0).unwrap();
+            let json = serde_json::to_string(&c).unwrap();
+            assert!(
+                !json.contains("null") || c.psnr_db.is_none(),
+                "{w}x{h}: {json}"
+            );
+            let v: serde_json::Value = serde_json::from_str(&json).unwrap();
+            fn finite(v: &serde_json::Value) -> bool {
+                match v {
+                    serde_json::Value::Number(n) => n.as_f64().is_some_and(f64::is_finite),
+                    serde_json::Value::Object(m) => m.values().all(finite),
+                    serde_json::Value::Array(a) => a.iter().all(finite),
+                    _ => true,
+                }
+            }
+            assert!(finite(&v), "{w}x{h}: {json}");
+            for x in [
+                c.perceptual_distance,
+                c.rmse,
+                c.mach_band,
+                c.edges.near_share,
+            ] {
+                assert!(x.is_finite(), "{w}x{h}: {c:?}");
+            }
+            assert!(!c.table().contains("NaN"), "{w}x{h}: {}", c.table());
+        }
+    }
 }

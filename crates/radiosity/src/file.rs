@@ -133,14 +133,14 @@ pub fn relative_to(target: &Path, base: &Path) -> Option<std::path::PathBuf> {
 }
 
 /// The scene file a solution file names (checked: magic, version, length, checksum): a relative
-/// stored path is taken from the solution file's folder.
+/// stored path is taken from the solution file's folder (for a symbolic link, the folder of the
+/// file it leads to: see [`base::output::folder_of`]).
 pub fn read_scene_path(path: &Path) -> Result<std::path::PathBuf> {
     let stored = read_stored_scene_path(path)?;
     if stored.is_absolute() {
         return Ok(stored);
     }
-    let folder = path.parent().unwrap_or(Path::new(""));
-    Ok(folder.join(stored))
+    Ok(base::output::folder_of(path).join(stored))
 }
 
 /// The scene path as the solution file stores it.

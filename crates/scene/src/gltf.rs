@@ -41,7 +41,7 @@ use super::{Camera, Material, Polygon};
 use base::error::{Error, Location, Result};
 use glam::{DAffine3, DMat3, DQuat, DVec3};
 use std::collections::{BTreeMap, BTreeSet};
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::rc::Rc;
 use toml::Spanned;
 
@@ -107,8 +107,7 @@ pub(crate) fn include(
 /// The path of the include's glTF file (relative to the scene file's directory) and its bytes,
 /// recorded as an input of the scene.
 fn read_gltf(cx: &mut Cx<'_>, o: &ObjSection, key: &str) -> Result<(PathBuf, Vec<u8>)> {
-    let base = cx.path.parent().unwrap_or_else(|| Path::new(""));
-    let path = base.join(o.file.get_ref());
+    let path = base::output::folder_of(cx.path).join(o.file.get_ref());
     let bytes = (cx.read_bytes)(&path).map_err(|e| {
         cx.err(
             o.file.span(),

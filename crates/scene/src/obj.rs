@@ -108,8 +108,7 @@ pub(crate) fn include(
 /// The path of the include's OBJ file (relative to the scene file's directory) and its text,
 /// which is recorded as an input of the scene.
 fn read_obj(cx: &mut Cx<'_>, o: &ObjSection, key: &str) -> Result<(PathBuf, String)> {
-    let base = cx.path.parent().unwrap_or_else(|| Path::new(""));
-    let obj_path = base.join(o.file.get_ref());
+    let obj_path = base::output::folder_of(cx.path).join(o.file.get_ref());
     let text = (cx.read)(&obj_path).map_err(|e| {
         cx.err(
             o.file.span(),
@@ -295,10 +294,7 @@ impl<'a> MtlLoader<'a> {
     fn new(obj_path: &'a Path, read: ReadText<'a>) -> Self {
         MtlLoader {
             obj_path,
-            dir: obj_path
-                .parent()
-                .unwrap_or_else(|| Path::new(""))
-                .to_path_buf(),
+            dir: base::output::folder_of(obj_path),
             read,
             seen: RefCell::new(BTreeSet::new()),
             problem: RefCell::new(None),

@@ -604,3 +604,50 @@ fn a_scene_from_a_pipe_is_read_once() {
         text(&out.stdout)
     );
 }
+
+/// Paths written inside a file are relative to the file a symbolic link leads to, not to the
+/// link: a scene linked from another folder finds its OBJ beside itself, and a solution linked
+/// from a folder at another depth finds its scene. What broke: a linked solution looked for its
+/// scene beside the link.
+#[test]
+fn links_are_followed_before_relative_paths() {
+    let dir = scratch("links");
+    let real = dir.join("real");
+    let other = dir.join("other").join("deeper");
+    std::fs::create_dir_all(&real).unwrap();
+    std::fs::create_dir_all(&other).unwrap();
+    std::fs::write(
+        real.join("room.obj"),
+        "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 0.4 0.4 0.5\nv 0.6 0.4 0.5\nv 0.6 0.6 0.5\n\
+         v 0.4 0.6 0.5\nusemtl grey\nf 1 2 3 4\nusemtl lamp\nf 8 7 6 5\n",
+    )
+    .unwrap();
+    std::fs::write(
+        real.join("room.toml"),
+        "[camera]\neye = [0.5, -1.0, 1.0]\nlook_at = [0.5, 0.5, 0.0]\nfov_y = 50.0\n\n\
+         [image]\nwidth = 16\nheight = 16\n\n\
+         [[materials]]\nname = \"grey\"\nreflectance = [0.5, 0.5, 0.5]\n\n\
+         [[materials]]\nname = \"lamp\"\nreflectance = [0.0, 0.0, 0.0]\nemission = [1.0, 1.0, 1.0]\n\n\
+         [[obj]]\nfile = \"room.obj\"\nmaterials = { grey = \"grey\", lamp = \"lamp\" }\n\n[radiosity]\nmax_depth = 3\n",
+    )
+    .unwrap();
+    let scene_link = other.join("room-link.toml");
+    std::os::unix::fs::symlink(real.join("room.toml"), &scene_link).unwrap();
+    let out = run(&["check", scene_link.to_str().unwrap()]);
+    assert!(out.status.success(), "{}", text(&out.stderr));
+
+    let sol = real.join("room.pfsol");
+    let s = sol.to_str().unwrap();
+    let out = run(&[
+        "solve",
+        real.join("room.toml").to_str().unwrap(),
+        "-o",
+        s,
+        "--quiet",
+    ]);
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    let sol_link = other.join("room-link.pfsol");
+    std::os::unix::fs::symlink(&sol, &sol_link).unwrap();
+    let out = run(&["check", sol_link.to_str().unwrap()]);
+    assert!(out.status.success(), "{}", text(&out.stderr));
+}

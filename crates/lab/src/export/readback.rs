@@ -76,7 +76,7 @@ impl Default for Found {
 pub fn read(path: &Path, pages: Pages) -> Result<Imported> {
     let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
     let gltf = gltf::Gltf::from_slice(&bytes).map_err(|e| bad(path, format!("not glTF: {e}")))?;
-    let folder = path.parent().unwrap_or(Path::new(""));
+    let folder = &base::output::folder_of(path);
     let buffer = match gltf.blob.clone() {
         Some(b) => b,
         None => {

@@ -279,10 +279,7 @@ fn read_uri(
         ));
     }
     let name = percent_decode(uri);
-    let path = gltf_path
-        .parent()
-        .unwrap_or_else(|| Path::new(""))
-        .join(&name);
+    let path = base::output::folder_of(gltf_path).join(&name);
     let bytes = (cx.read_bytes)(&path)
         .map_err(|e| format!("cannot read buffer file {}: {e}", path.display()))?;
     cx.inputs.push(path.clone());
