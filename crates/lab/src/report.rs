@@ -277,6 +277,15 @@ pub fn budget_text(scene: &Scene, budget: &crate::jobs::budget::SceneBudget, lim
         ),
         ("solve, worst", human_bytes(b.solve_worst)),
         (
+            "past guards",
+            format!(
+                "at most {} nodes per polygon, {} in all (near small lights, cone edges, \
+                 peaks; stopped by the memory limit first)",
+                radiosity::sizes::DIVE_NODES,
+                human_bytes(crate::jobs::budget::dive_bytes(scene))
+            ),
+        ),
+        (
             "frame",
             format!(
                 "{} ({} x {}, aa {}, renderers {}, PNG)",

@@ -52,7 +52,9 @@ mod visible;
 /// jobs' budget): bytes per tree node, vertex and pair, the coarse transfers' cache, and the
 /// depths a solve starts at and can reach.
 pub mod sizes {
-    pub use crate::shoot::{depth_bound, min_element_size, state_bytes, COARSE_CACHE_ENTRIES};
+    pub use crate::shoot::{
+        depth_bound, min_element_size, state_bytes, COARSE_CACHE_ENTRIES, DIVE_NODES,
+    };
     pub use crate::transfer::{pair_table_bound, patch_depth, EDGE_INSET, PAIR_BYTES};
 }
 
@@ -153,7 +155,8 @@ pub struct SolveStats {
 }
 
 /// Where refinement stopped at a guard (`radiosity.max_depth`, or the smallest element the
-/// scene's size allows, [`shoot::min_element_size`]) while the error test still failed: each
+/// scene's size allows, [`shoot::min_element_size`], or the nodes a polygon may hold past
+/// them, [`shoot::DIVE_NODES`]) while the error test still failed: each
 /// leaf that split although its children may not split again counts once. A leaf whose light
 /// deviates from the bilinear prediction counts in `leaves`, with that deviation over the
 /// leaf's level as its excess: an estimate of the relative error its children keep (about a
@@ -241,10 +244,12 @@ impl GuardStops {
         let at = self.worst_origin(scene);
         Some(format!(
             "refinement stopped at radiosity.max_depth = {} (or the smallest element, the \
-             scene's size / 2^max_depth) on {} leaves whose light still fails the error test \
+             scene's size / 2^max_depth, or the {} nodes a polygon may hold past them) on {} \
+             leaves whose light still fails the error test \
              (off the bilinear prediction, or peaking between samples); worst at {at}: {:.1} % \
              of its level (tolerance {:.1} %); raise radiosity.max_depth where memory allows",
             scene.radiosity.max_depth,
+            shoot::DIVE_NODES,
             self.leaves,
             100.0 * self.worst_excess,
             100.0 * scene.radiosity.tolerance

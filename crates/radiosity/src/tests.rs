@@ -919,3 +919,66 @@ fn a_small_close_emitter_is_resolved_at_the_default_depth() {
     // (the lab's closed-form tests); this bounds the loss the depth cap caused (10 %).
     assert!(energy > 0.99 && energy < 1.03, "energy {energy}");
 }
+
+/// Splits past the guards are bounded per polygon ([`shoot::DIVE_NODES`]): a floor at
+/// `max_depth = 3` under a grid of 64 tiny close emitters (each alone dives a few hundred nodes
+/// deep around itself) holds at most that many nodes below its guard depth, plus the graded
+/// neighbours of the last dives, and the solve says refinement stopped short.
+#[test]
+fn splits_past_the_guards_are_bounded_per_polygon() {
+    let c = |x: f64, y: f64, z: f64| DVec3::new(x, y, z);
+    let floor = test_scenes::quad_facing(
+        [
+            c(0.0, 0.0, 0.0),
+            c(1.0, 0.0, 0.0),
+            c(1.0, 1.0, 0.0),
+            c(0.0, 1.0, 0.0),
+        ],
+        c(0.5, 0.5, 1.0),
+        0,
+    );
+    let mut polygons = vec![floor];
+    let (side, height) = (1e-3, 1e-3);
+    for i in 0..64 {
+        let (u, v) = ((i % 8) as f64 / 8.0 + 0.0611, (i / 8) as f64 / 8.0 + 0.0437);
+        let h = 0.5 * side;
+        polygons.push(test_scenes::quad_facing(
+            [
+                c(u - h, v - h, height),
+                c(u + h, v - h, height),
+                c(u + h, v + h, height),
+                c(u - h, v + h, height),
+            ],
+            c(u, v, -1.0),
+            1,
+        ));
+    }
+    let mats = vec![
+        test_scenes::mat("grey", [0.5; 3], [0.0; 3]),
+        test_scenes::mat("lamp", [0.0; 3], [1000.0; 3]),
+    ];
+    let mut s = test_scenes::scene(polygons, mats, Vec::new());
+    s.radiosity.max_depth = 3;
+    let sol = solve_quiet(&s);
+    let bound = shoot::depth_bound(&s, 0, shoot::min_element_size(&s));
+    let below = |sol: &Solution| {
+        sol.polygons[0]
+            .tree
+            .nodes()
+            .iter()
+            .filter(|n| n.cell.level > bound)
+            .count() as u64
+    };
+    let n = below(&sol);
+    eprintln!("floor: {n} nodes below its guard depth {bound}");
+    // The budget is checked before each split; one generation of splits and their graded
+    // neighbours may pass it (at most 4 children and 4 neighbours' 4 per split of the last
+    // generation, a few hundred here).
+    assert!(
+        n <= shoot::DIVE_NODES + 4096,
+        "{n} nodes below the guard depth"
+    );
+    assert!(n >= shoot::DIVE_NODES / 2, "the emitters did not dive: {n}");
+    let g = sol.stats.guard_stops;
+    assert!(g.leaves > 0 && g.worst_polygon == 0, "{g:?}");
+}

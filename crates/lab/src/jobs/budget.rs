@@ -20,7 +20,9 @@
 //!   [`sizes::pair_table_bound`]) and the shooters' sample points, with every tree at its starting
 //!   depth (`min_depth`, or its shooter-patch depth if deeper: what the solve surely allocates,
 //!   checked before it starts) and, as the worst case, every tree as deep as its smallest
-//!   element size lets it refine ([`sizes::depth_bound`]). The worst case is reported, not
+//!   element size lets it refine ([`sizes::depth_bound`]); splits past that depth (near small
+//!   lights, at cone edges, around peaks) add at most [`sizes::DIVE_NODES`] nodes to a polygon,
+//!   reported apart ([`dive_bytes`]). The worst case is reported, not
 //!   refused: adaptive refinement rarely comes near it. Not estimable in advance: the occluder
 //!   candidate lists of occluded pairs, which only the classification finds (the gallery:
 //!   386,000 occluded pairs with 12 candidates each, 18 MB). So the solve also guards itself
@@ -311,6 +313,16 @@ pub(crate) fn solve_estimate(scene: &Scene) -> (Estimate, u64) {
         .iter()
         .fold(0u64, |a, (_, b)| a.saturating_add(*b));
     (e, worst)
+}
+
+/// Bytes the splits past the guards may add to the solve: [`sizes::DIVE_NODES`] nodes (each
+/// split 4 nodes and at most 5 samples) on every reflecting polygon.
+pub(crate) fn dive_bytes(scene: &Scene) -> u64 {
+    let reflecting = (0..scene.polygons.len())
+        .filter(|&i| scene.material_of(i).reflectance.max_element() > 0.0)
+        .count() as u64;
+    let per_polygon = sizes::state_bytes(sizes::DIVE_NODES, sizes::DIVE_NODES / 4 * 5);
+    reflecting.saturating_mul(per_polygon)
 }
 
 /// The worst case of the methods' own data: textures (under `policy`) and mesh with every
