@@ -200,7 +200,13 @@ impl SolveStats {
                 100.0 * total,
                 if error < 0.0 { "created" } else { "lost" },
                 100.0 * error.abs(),
-                if error < 0.0 {
+                if error < 0.0 && self.guard_stops.leaves > 0 {
+                    "elements too coarse for the light where refinement stopped at a guard \
+                     (see the note on refinement: a polygon far larger than its light's detail \
+                     needs splitting into smaller polygons), or light bouncing between \
+                     surfaces closer than the solve resolves (a light facing a wall a few \
+                     centimetres away); `solve --trace` shows the account"
+                } else if error < 0.0 {
                     "light bouncing between surfaces closer than the solve resolves (a light \
                      facing a wall a few centimetres away) is the usual cause; `solve --trace` \
                      shows the account"

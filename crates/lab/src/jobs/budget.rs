@@ -22,7 +22,7 @@
 //!   checked before it starts) and, as the worst case, every tree as deep as its smallest
 //!   element size lets it refine ([`sizes::depth_bound`]); splits past that depth (near small
 //!   lights, at cone edges, around peaks) add at most [`sizes::DIVE_NODES`] nodes to a polygon,
-//!   reported apart ([`dive_bytes`]). The worst case is reported, not
+//!   reported apart (`dive_bytes`). The worst case is reported, not
 //!   refused: adaptive refinement rarely comes near it. Not estimable in advance: the occluder
 //!   candidate lists of occluded pairs, which only the classification finds (the gallery:
 //!   386,000 occluded pairs with 12 candidates each, 18 MB). So the solve also guards itself
@@ -40,7 +40,8 @@
 //!   (`output_bytes`).
 //!
 //! These are the allocations that grow with the scene and the request; the program itself, its
-//! thread stacks and the allocator's slack (about 6 MB resident on Linux) are not counted, nor
+//! thread stacks and the allocator's slack (4-8 MB resident on Linux, where the binary fixes
+//! glibc's mmap threshold so that freed large buffers leave the resident set) are not counted, nor
 //! are short-lived buffers smaller than the largest counted one. docs/performance.md compares
 //! the estimates with measured peaks.
 //!
