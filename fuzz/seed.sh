@@ -3,6 +3,8 @@
 #   scene:    every scenes/*.toml
 #   obj_mtl:  every shipped OBJ with every shipped MTL (OBJ, a 0x00 byte, MTL), each OBJ alone,
 #             and a small hand-written pair
+#   bare_model: every shipped OBJ with its MTL (OBJ, a 0x00 byte, MTL), `mtllib m.mtl`
+#   view_script: two viewer scripts
 #   solution: a solution file of the two smallest scenes the target reads against, solved with
 #             `cargo run --release -- solve`, behind a selector byte (scene index; high bit set:
 #             the target repairs the envelope), with and without the repair bit.
@@ -31,6 +33,21 @@ done
     printf '\000'
     printf 'newmtl lamp\nKd 0.5 0.5 0.5\nKe 2 2 2\n\nnewmtl grey\nKd 0.25 0.25 0.25 # c\nKa 0 0 0\n'
 } > "$corpus/obj_mtl/small"
+
+# bare_model: every shipped OBJ with its own MTL, its `mtllib` renamed to the target's m.mtl.
+# view_script: two scripts of the viewer's three commands.
+mkdir -p "$corpus/bare_model" "$corpus/view_script"
+for obj in scenes/*/*.obj; do
+    mtl=$(sed -n 's/^mtllib[[:space:]]*//p' "$obj" | head -n 1)
+    {
+        sed 's/^mtllib .*/mtllib m.mtl/' "$obj"
+        printf '\000'
+        if [ -n "$mtl" ] && [ -f "$(dirname "$obj")/$mtl" ]; then cat "$(dirname "$obj")/$mtl"; fi
+    } > "$corpus/bare_model/$(basename "$obj" .obj)"
+done
+printf 'press forward\nhold forward,turn-left 1.5\nwait 0.25\npress direct\n# a comment\npress play\n' \
+    > "$corpus/view_script/walk"
+printf 'hold look-up,up 3600\n' > "$corpus/view_script/long"
 
 # The first two scenes of fuzz_targets/solution.rs's SCENES, in its order. Not the others: the
 # 190 kB solution of two-spots-narrow takes 0.5 s per run under the sanitizer (a mutant of it

@@ -445,6 +445,17 @@ impl Script {
         Ok(Script { steps })
     }
 
+    /// The seconds its holds and waits add up to (at most [`MAX_SCRIPT_SECONDS`]).
+    pub fn seconds(&self) -> f64 {
+        self.steps
+            .iter()
+            .map(|s| match s {
+                Step::Hold(_, secs) => *secs,
+                Step::Press(_) => 0.0,
+            })
+            .sum()
+    }
+
     /// Replays the script on `state` at [`SCRIPT_STEP`].
     pub fn play(&self, state: &mut ViewState, scene: &scene::Scene) {
         for s in &self.steps {
@@ -547,12 +558,14 @@ wait 200
             e.contains("s.txt:3") && e.contains("add up to more than 3600"),
             "{e}"
         );
-        assert!(Script::parse(
+        let at_the_bound = Script::parse(
             "wait 3000
 hold forward 600
+press play
 ",
-            f
+            f,
         )
-        .is_ok());
+        .unwrap();
+        assert_eq!(at_the_bound.seconds(), 3600.0);
     }
 }

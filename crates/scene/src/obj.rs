@@ -21,6 +21,12 @@
 //! (by a `[[materials]]` entry or an earlier include) the new material is named
 //! `<obj file stem>/<name>`, then `<obj file stem>/<name>#2`, `#3`, ... until it is unique.
 //!
+//! Memory: a file is read only up to the input cap (half the memory limit), but its parsed form
+//! is larger (tobj's materials with their tables of unknown statements, the scene's polygons and
+//! what loading builds from them), so each OBJ and MTL text is measured by its statements before
+//! tobj sees it ([`check_parse_memory`]) and refused as over the memory limit when the estimate
+//! passes it.
+//!
 //! tobj stores positions as `f32`. Each coordinate is turned back into the `f64` nearest to the
 //! decimal tobj parsed by printing the `f32` in its shortest round-trip form and parsing that as
 //! `f64`: `0.99` in the file becomes exactly `0.99_f64`, not `0.9900000095`. Files written with at
@@ -214,6 +220,7 @@ fn parse_obj(
     obj_path: &Path,
     placeholders: &[String],
 ) -> Result<ParsedObj> {
+    check_parse_memory(text, obj_path, Parse::Obj)?;
     // Untriangulated, so quads stay quads (see the module docs).
     let opts = tobj::LoadOptions {
         triangulate: false,
@@ -349,7 +356,9 @@ impl<'a> MtlLoader<'a> {
                 return Err(tobj::LoadError::OpenFileFailed);
             }
         };
-        if let Err(e) = check_mtl(&mtl_text, &mtl_path) {
+        let checked = check_mtl(&mtl_text, &mtl_path)
+            .and_then(|()| check_parse_memory(&mtl_text, &mtl_path, Parse::Mtl));
+        if let Err(e) = checked {
             self.problem.borrow_mut().get_or_insert(e);
             return Err(tobj::LoadError::MaterialParseError);
         }
@@ -764,6 +773,77 @@ pub(crate) fn decimal(x: f64) -> f64 {
         return x;
     }
     format!("{f}").parse::<f64>().unwrap_or(x)
+}
+
+/// Which text [`check_parse_memory`] measures.
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum Parse {
+    Obj,
+    Mtl,
+}
+
+/// Bytes an MTL material holds once parsed, whatever its statements (tobj's `Material` with its
+/// strings and table of unknown statements): measured, 400,000 two-line materials (11.9 MB)
+/// peaked at 394 MB in `check`.
+const MTL_MATERIAL_BYTES: u64 = 1024;
+
+/// Bytes any other MTL statement may hold (an unknown one is a key and value in its material's
+/// table): measured, 1.5 million one-word statements (15.4 MB) peaked at 224 MB.
+const MTL_STATEMENT_BYTES: u64 = 160;
+
+/// Bytes an OBJ face holds once loaded, before its corners: tobj's index lists, the scene's
+/// polygon, its adjacency and seams as `check` builds them (measured: a grid of a million
+/// quads, 41 MB of OBJ, peaked at 704 MB, 680 bytes a face); plus [`OBJ_CORNER_BYTES`] per
+/// corner.
+const OBJ_FACE_BYTES: u64 = 512;
+
+/// Bytes per corner of an OBJ face (three tobj indices and the `f64` point).
+const OBJ_CORNER_BYTES: u64 = 48;
+
+/// Bytes per OBJ vertex, normal or texture coordinate (tobj's `f32`s, the converter's `f64`s):
+/// 1.5 million `v` lines peaked at 41 MB.
+const OBJ_VERTEX_BYTES: u64 = 32;
+
+/// Refuses the OBJ or MTL `text` of the file at `path` when what parsing and loading it holds
+/// (estimated from its statements, plus the text itself) passes the memory limit: twice the
+/// input cap, [`base::output::input_limit`] (at most 2 GiB for one file).
+fn check_parse_memory(text: &str, path: &Path, kind: Parse) -> Result<()> {
+    let limit = base::output::input_limit().saturating_mul(2);
+    let (mut big, mut small, mut corners) = (0u64, 0u64, 0u64);
+    for line in text.lines() {
+        let mut words = line.split_whitespace();
+        match (kind, words.next()) {
+            (Parse::Mtl, Some("newmtl")) => big += 1,
+            (Parse::Mtl, Some(w)) if !w.starts_with('#') => small += 1,
+            (Parse::Obj, Some("f" | "l" | "p")) => {
+                big += 1;
+                corners += words.count() as u64;
+            }
+            (Parse::Obj, Some("v" | "vn" | "vt")) => small += 1,
+            _ => {}
+        }
+    }
+    let (parsed, detail) = match kind {
+        Parse::Mtl => (
+            big * MTL_MATERIAL_BYTES + small * MTL_STATEMENT_BYTES,
+            format!("{big} materials, {small} other statements"),
+        ),
+        Parse::Obj => (
+            big * OBJ_FACE_BYTES + corners * OBJ_CORNER_BYTES + small * OBJ_VERTEX_BYTES,
+            format!("{big} faces with {corners} corners, {small} vertices"),
+        ),
+    };
+    let estimate = parsed.saturating_add(text.len() as u64);
+    if estimate > limit {
+        return Err(Error::Memory {
+            what: format!("loading {}", path.display()),
+            estimate,
+            limit,
+            detail,
+            hint: "raise --memory-limit, or split the model into smaller files".into(),
+        });
+    }
+    Ok(())
 }
 
 /// Checks what tobj 4.0.5 would panic on rather than refuse: a colour statement (`Ka`, `Kd`,

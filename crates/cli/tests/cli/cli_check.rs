@@ -651,3 +651,61 @@ fn links_are_followed_before_relative_paths() {
     let out = run(&["check", sol_link.to_str().unwrap()]);
     assert!(out.status.success(), "{}", text(&out.stderr));
 }
+
+/// Parsing is held to the memory limit as well as reading: an OBJ and an MTL far smaller than
+/// the input cap (half the limit) but whose parsed form is far larger are refused before they
+/// are parsed, naming the file and what it holds, and the refusal's peak stays under the
+/// limit; with room they load. What broke: MTL
+/// parsing reached 646 MB under a 64 MiB limit.
+#[test]
+fn parsing_an_obj_or_mtl_is_held_to_the_memory_limit() {
+    let dir = scratch("parse-memory");
+    let mut mtl = String::new();
+    for i in 0..60_000 {
+        mtl += &format!("newmtl m{i}\nKd 0.5 0.5 0.5\n");
+    }
+    std::fs::write(dir.join("many.mtl"), &mtl).unwrap();
+    std::fs::write(
+        dir.join("m.obj"),
+        "mtllib many.mtl\nv 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nusemtl m0\nf 1 2 3 4\n",
+    )
+    .unwrap();
+    let mut obj = String::new();
+    let n = 150;
+    for j in 0..=n {
+        for i in 0..=n {
+            obj += &format!("v {i} {j} 0\n");
+        }
+    }
+    for j in 0..n {
+        for i in 0..n {
+            let a = j * (n + 1) + i + 1;
+            obj += &format!("f {a} {} {} {}\n", a + 1, a + n + 2, a + n + 1);
+        }
+    }
+    std::fs::write(dir.join("grid.obj"), &obj).unwrap();
+    for (model, file, what) in [
+        ("m.obj", "many.mtl", "60000 materials"),
+        ("grid.obj", "grid.obj", "22500 faces"),
+    ] {
+        let path = dir.join(model);
+        let p = path.to_str().unwrap();
+        // 2.0 MB of MTL (about 70 MB parsed) and 1.3 MB of OBJ (about 14 MB) under 8 MiB.
+        let small = ["check", p, "--memory-limit", "8M"];
+        let out = run(&small);
+        assert_eq!(out.status.code(), Some(2), "{}", text(&out.stderr));
+        let e = text(&out.stderr);
+        assert!(
+            e.contains(file) && e.contains(what) && e.contains("memory limit"),
+            "{e}"
+        );
+        if crate::can_measure_peaks() {
+            let (code, peak, _) = crate::run_measured(&small);
+            assert_eq!(code, Some(2));
+            let held = peak as f64 / (1 << 20) as f64 - PROGRAM_MIB;
+            assert!(held <= 8.0, "held {held:.1} MiB refusing under 8 MiB");
+        }
+        let out = run(&["check", p, "--memory-limit", "4G"]);
+        assert!(out.status.success(), "{}", text(&out.stderr));
+    }
+}
