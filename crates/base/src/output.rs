@@ -193,6 +193,8 @@ struct Registry {
     /// While a [`Hold`] is open: the `(temporary, target)` pairs every write has staged, renamed
     /// only when the hold commits.
     held: Mutex<Option<Vec<(PathBuf, PathBuf)>>>,
+    /// Set by [`Outputs::interrupt`]: no batch starts its renames after it.
+    interrupted: std::sync::atomic::AtomicBool,
 }
 
 impl Outputs {
@@ -222,6 +224,24 @@ impl Outputs {
             }
         }
         removed
+    }
+
+    /// For a signal handler: marks the run interrupted, so that no batch starts renaming after
+    /// it (a batch already renaming finishes first: all of a batch or none of it), then
+    /// [`Outputs::remove_temporaries`]. The caller exits; a main thread that finishes a batch
+    /// meanwhile checks [`Outputs::interrupted`] before it reports success.
+    pub fn interrupt(&self) -> usize {
+        self.shared
+            .interrupted
+            .store(true, std::sync::atomic::Ordering::SeqCst);
+        self.remove_temporaries()
+    }
+
+    /// Whether [`Outputs::interrupt`] was called.
+    pub fn interrupted(&self) -> bool {
+        self.shared
+            .interrupted
+            .load(std::sync::atomic::Ordering::SeqCst)
     }
 
     /// Writes `bytes` for target `path` to a new temporary in `dir` (created if missing), with
@@ -369,6 +389,15 @@ impl Batch {
         let staged = std::mem::take(&mut self.staged);
         let shared = Arc::clone(&self.outputs.shared);
         let _commit = shared.commit.lock().unwrap_or_else(|e| e.into_inner());
+        if self.outputs.interrupted() {
+            for (t, _) in &staged {
+                let _ = std::fs::remove_file(t);
+                self.outputs.forget(t);
+            }
+            return Err(Error::Runtime(
+                "interrupted before the outputs were written: none was replaced".into(),
+            ));
+        }
         for (k, (tmp, path)) in staged.iter().enumerate() {
             if let Err(e) = std::fs::rename(tmp, path) {
                 for (t, _) in &staged[k..] {
@@ -763,6 +792,40 @@ mod tests {
         assert_eq!(std::fs::read(&a).unwrap(), b"new a");
         assert_eq!(std::fs::read(&b).unwrap(), b"new b");
         assert_eq!(std::fs::read_dir(&dir).unwrap().count(), 2);
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    /// An interrupt that comes before a batch (or a hold) commits stops it whole: no target
+    /// replaced, no temporary left, and the commit says so. What broke: a Ctrl-C during an
+    /// export's final write was dropped and the run exited 0.
+    #[test]
+    fn an_interrupt_before_the_commit_replaces_nothing() {
+        let dir = fresh_dir("interrupt");
+        let (a, b) = (dir.join("a.png"), dir.join("b.exr"));
+        std::fs::write(&a, "old a").unwrap();
+        let outputs = Outputs::new();
+        let mut batch = outputs.batch();
+        batch.stage(&a, b"new a").unwrap();
+        batch.stage(&b, b"new b").unwrap();
+        assert!(!outputs.interrupted());
+        outputs.interrupt();
+        assert!(outputs.interrupted());
+        let e = batch.commit().unwrap_err().to_string();
+        assert!(e.contains("interrupted"), "{e}");
+        // A hold (every write of a run) likewise, the batches that joined it included.
+        let hold = outputs.hold().unwrap();
+        outputs.write_atomic(&dir.join("c.json"), b"{}").unwrap();
+        let mut batch = outputs.batch();
+        batch.stage(&a, b"new a").unwrap();
+        batch.commit().unwrap();
+        assert!(hold.commit().is_err());
+        assert_eq!(std::fs::read(&a).unwrap(), b"old a");
+        let names: Vec<_> = std::fs::read_dir(&dir)
+            .unwrap()
+            .flatten()
+            .map(|e| e.file_name())
+            .collect();
+        assert_eq!(names, vec![std::ffi::OsString::from("a.png")]);
         std::fs::remove_dir_all(&dir).unwrap();
     }
 

@@ -108,12 +108,19 @@ fn main() -> ExitCode {
     // on with the default signal behaviour.
     let outputs = Outputs::new();
     let live = outputs.clone();
+    let watch = outputs.clone();
     let _ = ctrlc::set_handler(move || {
-        live.remove_temporaries();
+        live.interrupt();
         note("interrupted");
         std::process::exit(EXIT_INTERRUPTED);
     });
-    match run(cli, outputs) {
+    let result = run(cli, outputs);
+    // A signal during the last batch of renames waits for it; the run must not then report
+    // success while the handler is still on its way to exit.
+    if watch.interrupted() {
+        std::process::exit(EXIT_INTERRUPTED);
+    }
+    match result {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) if e.is::<StdoutClosed>() => ExitCode::SUCCESS,
         Err(e) => {
