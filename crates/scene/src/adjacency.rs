@@ -202,26 +202,45 @@ pub struct AdjacencySummary {
 
 impl Adjacency {
     /// Finds the shared edges and near misses of `polygons`.
+    ///
+    /// Each polygon's pairs with the later polygons near it are found in parallel (in chunks of
+    /// consecutive polygons) and joined in polygon order, so the result is the same for any thread count.
     pub fn of(polygons: &[Polygon]) -> Adjacency {
+        use rayon::prelude::*;
         let bvh = Bvh::build(polygons);
-        let mut out = Adjacency::default();
-        for (i, p) in polygons.iter().enumerate() {
-            let b = Aabb::of(p.vertices());
-            let grow = NEAR_EDGE * diameter(p);
-            let b = Aabb {
-                lo: b.lo - DVec3::splat(grow),
-                hi: b.hi + DVec3::splat(grow),
-            };
-            let mut later = Vec::new();
-            bvh.for_each_overlapping(&b, |j| {
-                if j as usize > i {
-                    later.push(j as usize);
+        const CHUNK: usize = 1024;
+        let chunks = polygons.len().div_ceil(CHUNK);
+        let parts: Vec<Adjacency> = (0..chunks)
+            .into_par_iter()
+            .map(|c| {
+                let mut part = Adjacency::default();
+                let mut later = Vec::new();
+                for i in c * CHUNK..((c + 1) * CHUNK).min(polygons.len()) {
+                    let p = &polygons[i];
+                    let b = Aabb::of(p.vertices());
+                    let grow = NEAR_EDGE * diameter(p);
+                    let b = Aabb {
+                        lo: b.lo - DVec3::splat(grow),
+                        hi: b.hi + DVec3::splat(grow),
+                    };
+                    later.clear();
+                    bvh.for_each_overlapping(&b, |j| {
+                        if j as usize > i {
+                            later.push(j as usize);
+                        }
+                    });
+                    later.sort_unstable();
+                    for &j in &later {
+                        pair(polygons, i, j, &mut part);
+                    }
                 }
-            });
-            later.sort_unstable();
-            for j in later {
-                pair(polygons, i, j, &mut out);
-            }
+                part
+            })
+            .collect();
+        let mut out = Adjacency::default();
+        for part in parts {
+            out.edges.extend(part.edges);
+            out.near_misses.extend(part.near_misses);
         }
         out
     }
