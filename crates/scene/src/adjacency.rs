@@ -245,6 +245,92 @@ impl Adjacency {
         out
     }
 
+    /// The adjacency of `polygons` after some of the polygons this one was found on were cut
+    /// into pieces in place (`pieces`: per polygon cut, its index before and how many pieces it
+    /// became, ascending; every other polygon keeps its geometry and its order). Equal to
+    /// [`Adjacency::of`] on the new polygons: pairs of uncut polygons keep their edges (their
+    /// indices shift, their order does not), and only the pieces are paired again, under the
+    /// same test of boxes that `of` applies. `tracked` locates the candidates: the boxes the
+    /// previous pass started from ([`Tracked`]), each covering its pieces.
+    pub(crate) fn after_cut(
+        &self,
+        polygons: &[Polygon],
+        pieces: &[(u32, u32)],
+        tracked: &mut Tracked,
+    ) -> Adjacency {
+        let old_n = polygons.len() - pieces.iter().map(|&(_, n)| n as usize - 1).sum::<usize>();
+        // New index of every old polygon's first piece, and whether it was cut.
+        let mut first = Vec::with_capacity(old_n + 1);
+        let mut cut = vec![false; old_n];
+        let (mut next, mut k) = (0usize, 0usize);
+        for (i, was_cut) in cut.iter_mut().enumerate() {
+            first.push(next);
+            let n = match pieces.get(k) {
+                Some(&(at, n)) if at as usize == i => {
+                    k += 1;
+                    *was_cut = true;
+                    n as usize
+                }
+                _ => 1,
+            };
+            next += n;
+        }
+        first.push(next);
+        tracked.remap(&first);
+        let moved = |s: Side| Side {
+            polygon: first[s.polygon as usize] as u32,
+            side: s.side,
+        };
+        let kept = |a: Side, b: Side| !cut[a.polygon as usize] && !cut[b.polygon as usize];
+        let mut out = Adjacency::default();
+        for e in &self.edges {
+            if kept(e.a, e.b) {
+                out.edges.push(SharedEdge {
+                    a: moved(e.a),
+                    b: moved(e.b),
+                    ..*e
+                });
+            }
+        }
+        for m in &self.near_misses {
+            if kept(m.a, m.b) {
+                out.near_misses.push(NearMiss {
+                    a: moved(m.a),
+                    b: moved(m.b),
+                    gap: m.gap,
+                });
+            }
+        }
+        let new_pieces: Vec<usize> = pieces
+            .iter()
+            .flat_map(|&(at, n)| first[at as usize]..first[at as usize] + n as usize)
+            .collect();
+        let is_piece = |i: usize| new_pieces.binary_search(&i).is_ok();
+        let reach = NEAR_EDGE * polygons.iter().map(diameter).fold(0.0, f64::max);
+        for &p in &new_pieces {
+            let b = grown(&polygons[p], reach);
+            let mut near = Vec::new();
+            tracked.for_each_overlapping(&b, |c| near.push(c));
+            near.sort_unstable();
+            near.dedup();
+            for c in near {
+                if c == p || (is_piece(c) && c < p) {
+                    continue;
+                }
+                let (i, j) = (p.min(c), p.max(c));
+                if grown(&polygons[i], NEAR_EDGE * diameter(&polygons[i]))
+                    .overlaps(&Aabb::of(polygons[j].vertices()))
+                {
+                    pair(polygons, i, j, &mut out);
+                }
+            }
+        }
+        let key = |a: Side, b: Side| (a.polygon, b.polygon);
+        out.edges.sort_by_key(|e| key(e.a, e.b));
+        out.near_misses.sort_by_key(|m| key(m.a, m.b));
+        out
+    }
+
     /// Whether the two polygons of `e` carry one continuous radiosity across it: coplanar
     /// neighbours of equal material (same reflectance and emission).
     pub fn continuous(e: &SharedEdge, polygons: &[Polygon], materials: &[crate::Material]) -> bool {
@@ -306,6 +392,51 @@ impl Adjacency {
             s.largest_gap = s.largest_gap.max(e.gap);
         }
         s
+    }
+}
+
+/// The box of polygon `p` grown by `by` on every side.
+fn grown(p: &Polygon, by: f64) -> Aabb {
+    let b = Aabb::of(p.vertices());
+    Aabb {
+        lo: b.lo - DVec3::splat(by),
+        hi: b.hi + DVec3::splat(by),
+    }
+}
+
+/// The boxes of the polygons of a first pass, for finding the neighbours of pieces cut from
+/// them in later passes: a piece lies inside its polygon's box, so the polygons (now ranges of
+/// pieces) whose boxes meet a box include every polygon that does.
+pub(crate) struct Tracked {
+    bvh: Bvh,
+    /// Per polygon of the first pass: the range of current indices it became.
+    ranges: Vec<std::ops::Range<usize>>,
+}
+
+impl Tracked {
+    /// Tracks `polygons` as they are.
+    pub(crate) fn new(polygons: &[Polygon]) -> Tracked {
+        Tracked {
+            bvh: Bvh::build(polygons),
+            ranges: (0..polygons.len()).map(|i| i..i + 1).collect(),
+        }
+    }
+
+    /// Follows a cut whose old polygon `i` became the new indices `first[i]..first[i + 1]`.
+    fn remap(&mut self, first: &[usize]) {
+        for r in &mut self.ranges {
+            *r = first[r.start]..first[r.end];
+        }
+    }
+
+    /// Calls `f` with every current polygon whose first-pass polygon's box meets `b` (a
+    /// superset of the polygons whose own boxes do).
+    fn for_each_overlapping(&self, b: &Aabb, mut f: impl FnMut(usize)) {
+        self.bvh.for_each_overlapping(b, |o| {
+            for i in self.ranges[o as usize].clone() {
+                f(i);
+            }
+        });
     }
 }
 

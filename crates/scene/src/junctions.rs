@@ -26,7 +26,7 @@
 
 use glam::DVec3;
 
-use crate::adjacency::{side_endpoints, Adjacency, SharedEdge};
+use crate::adjacency::{side_endpoints, Adjacency, SharedEdge, Tracked};
 use crate::coincident::diameter;
 use crate::contact::{self, ContactLine, Cuts};
 use crate::{Material, Polygon};
@@ -48,8 +48,10 @@ pub fn cut<T: Clone>(
     materials: &[Material],
 ) -> Cuts {
     let mut all = Cuts::default();
-    for _ in 0..MAX_PASSES {
-        let lines = lines(polygons, materials);
+    let mut tracked = Tracked::new(polygons);
+    let mut adjacency = Adjacency::of(polygons);
+    for pass in 0..MAX_PASSES {
+        let lines = lines(&adjacency, polygons, materials);
         if lines.is_empty() {
             break;
         }
@@ -57,6 +59,11 @@ pub fn cut<T: Clone>(
         if c.pieces.is_empty() {
             // Every line snapped onto a corner (slivers): the next pass would find them again.
             break;
+        }
+        if pass + 1 < MAX_PASSES {
+            // Only the pieces have new neighbours: a million-polygon model's passes cost what
+            // its cuts do, not a whole adjacency each.
+            adjacency = adjacency.after_cut(polygons, &c.pieces, &mut tracked);
         }
         all.lines.extend(c.lines);
         all.pieces.extend(c.pieces);
@@ -67,8 +74,7 @@ pub fn cut<T: Clone>(
 
 /// The cut lines of one pass: one per T-vertex of an unaligned continuous seam, across the
 /// polygon whose side it lies inside, by receiver.
-fn lines(polygons: &[Polygon], materials: &[Material]) -> Vec<ContactLine> {
-    let adjacency = Adjacency::of(polygons);
+fn lines(adjacency: &Adjacency, polygons: &[Polygon], materials: &[Material]) -> Vec<ContactLine> {
     let stands = adjacency.standing();
     let mut out = Vec::new();
     for (e, &stands) in adjacency.edges.iter().zip(&stands) {
@@ -223,5 +229,48 @@ mod tests {
         assert_eq!(cuts.lines.len(), 2);
         assert_eq!(p.len(), 5);
         assert_eq!(unaligned(&p, &grey()), 0);
+    }
+
+    /// The adjacency carried from pass to pass equals the adjacency found afresh, edge for
+    /// edge and in order: on staggered courses of strips (each pass's cut leaves a T-vertex on
+    /// the course below, so every pass runs) beside uncut tiles and a far polygon.
+    #[test]
+    fn the_adjacency_carried_between_passes_is_the_one_found_afresh() {
+        let mut p = Vec::new();
+        for k in 0..5 {
+            let y = -(k as f64);
+            p.push(quad([[0.0, y - 1.0], [7.0, y - 1.0], [7.0, y], [0.0, y]]));
+        }
+        p.push(quad([[0.0, 0.0], [2.3, 0.0], [2.3, 1.0], [0.0, 1.0]]));
+        p.push(quad([[2.3, 0.0], [4.0, 0.0], [4.0, 1.0], [2.3, 1.0]]));
+        for i in 0..6 {
+            let x = 7.0 + i as f64;
+            p.push(quad([
+                [x, -2.0],
+                [x + 1.0, -2.0],
+                [x + 1.0, -1.0],
+                [x, -1.0],
+            ]));
+        }
+        p.push(quad([[30.0, 0.0], [31.0, 0.0], [31.0, 1.0], [30.0, 1.0]]));
+        let materials = grey();
+        let mut origins: Vec<usize> = (0..p.len()).collect();
+        let mut tracked = Tracked::new(&p);
+        let mut adjacency = Adjacency::of(&p);
+        let mut passes = 0;
+        for _ in 0..MAX_PASSES {
+            let lines = lines(&adjacency, &p, &materials);
+            if lines.is_empty() {
+                break;
+            }
+            let c = contact::cut(&mut p, &mut origins, lines);
+            if c.pieces.is_empty() {
+                break;
+            }
+            passes += 1;
+            adjacency = adjacency.after_cut(&p, &c.pieces, &mut tracked);
+            assert_eq!(adjacency, Adjacency::of(&p), "after pass {passes}");
+        }
+        assert!(passes >= 2, "{passes} passes");
     }
 }
