@@ -248,18 +248,53 @@ impl GuardStops {
             return None;
         }
         let at = self.worst_origin(scene);
+        let hint = match self.too_large(scene) {
+            Some((longest, finest, detail)) => format!(
+                "that polygon is {longest:.3e} long: its finest element (1/{} of it, \
+                 {finest:.3e}) is coarser than its light varies ({detail:.3e}), whatever \
+                 max_depth is; cut it into polygons under {:.3e} long",
+                1u64 << MAX_DEPTH,
+                detail * f64::from(1u32 << MAX_DEPTH)
+            ),
+            None => "raise radiosity.max_depth where memory allows".to_string(),
+        };
         Some(format!(
             "refinement stopped at radiosity.max_depth = {} (or the smallest element, the \
              scene's size / 2^max_depth, or the {} nodes a polygon may hold past them) on {} \
              leaves whose light still fails the error test \
              (off the bilinear prediction, or peaking between samples); worst at {at}: {:.1} % \
-             of its level (tolerance {:.1} %); raise radiosity.max_depth where memory allows",
+             of its level (tolerance {:.1} %); {hint}",
             scene.radiosity.max_depth,
             shoot::DIVE_NODES,
             self.leaves,
             100.0 * self.worst_excess,
             100.0 * scene.radiosity.tolerance
         ))
+    }
+
+    /// Whether the worst polygon is too large for any depth to resolve its light: its finest
+    /// element (its longest edge over 2^[`MAX_DEPTH`], the quadtree's deepest level) against
+    /// the scale its nearest light varies over (the light's distance from the polygon's plane
+    /// plus its radius, over `LIGHT_DEPTH_FACTOR`, as refinement judges it). `Some((longest
+    /// edge, finest element, that scale))` when it is.
+    fn too_large(&self, scene: &Scene) -> Option<(f64, f64, f64)> {
+        let r = self.worst_polygon as usize;
+        let p = scene.polygons.get(r)?;
+        let vs = p.vertices();
+        let longest = (0..vs.len())
+            .map(|i| (vs[(i + 1) % vs.len()] - vs[i]).length())
+            .fold(0.0f64, f64::max);
+        let n = p.normal;
+        let spots = scene.spots.iter().map(|s| (s.position, 0.0));
+        let emitters = (0..scene.polygons.len())
+            .filter(|&i| i != r && scene.material_of(i).is_emitter())
+            .map(|i| scene.polygons[i].bounding_sphere());
+        let detail = spots
+            .chain(emitters)
+            .map(|(c, radius)| ((c - vs[0]).dot(n).abs() + radius) / shoot::LIGHT_DEPTH_FACTOR)
+            .fold(f64::INFINITY, f64::min);
+        let finest = longest / f64::from(1u32 << MAX_DEPTH);
+        (detail.is_finite() && finest > detail).then_some((longest, finest, detail))
     }
 
     /// Counts one leaf of polygon `r` split to the guard with its light off the bilinear

@@ -982,3 +982,53 @@ fn splits_past_the_guards_are_bounded_per_polygon() {
     let g = sol.stats.guard_stops;
     assert!(g.leaves > 0 && g.worst_polygon == 0, "{g:?}");
 }
+
+/// A polygon too large for any depth to resolve its light (a floor 2e6 wide under a lamp 1
+/// wide 2 above it: the quadtree's finest element is 30 wide) is named with the real fix,
+/// cutting it, not raising max_depth; a floor the depth can resolve keeps the usual advice.
+/// What broke: a huge floor rendered flat and the warnings blamed the light and the depth.
+#[test]
+fn a_polygon_too_large_for_its_light_is_named_with_the_fix() {
+    let c = |x: f64, y: f64, z: f64| DVec3::new(x, y, z);
+    let floor = |h: f64| {
+        test_scenes::quad_facing(
+            [c(-h, -h, 0.0), c(h, -h, 0.0), c(h, h, 0.0), c(-h, h, 0.0)],
+            c(0.0, 0.0, 1.0),
+            0,
+        )
+    };
+    let lamp = test_scenes::quad_facing(
+        [
+            c(-0.5, -0.5, 2.0),
+            c(0.5, -0.5, 2.0),
+            c(0.5, 0.5, 2.0),
+            c(-0.5, 0.5, 2.0),
+        ],
+        c(0.0, 0.0, -1.0),
+        1,
+    );
+    let mats = || {
+        vec![
+            test_scenes::mat("grey", [0.5; 3], [0.0; 3]),
+            test_scenes::mat("lamp", [0.0; 3], [5.0; 3]),
+        ]
+    };
+    let huge = test_scenes::scene(vec![floor(1e6), lamp.clone()], mats(), Vec::new());
+    let w = solve_quiet(&huge)
+        .stats
+        .guard_stops
+        .warning(&huge)
+        .expect("a warning");
+    assert!(
+        w.contains("cut it into polygons under") && w.contains("polygon 0"),
+        "{w}"
+    );
+    let mut small = test_scenes::scene(vec![floor(2.0), lamp], mats(), Vec::new());
+    small.radiosity.max_depth = 2;
+    let w = solve_quiet(&small)
+        .stats
+        .guard_stops
+        .warning(&small)
+        .expect("a warning");
+    assert!(w.contains("raise radiosity.max_depth"), "{w}");
+}

@@ -90,7 +90,7 @@ use super::transfer::{ShooterKind, Transfer};
 use base::error::{Error, Result};
 use base::progress::Stage;
 use base::quadtree::{Quadtree, VertexKey};
-pub use refine::{depth_bound, min_element_size, DIVE_NODES};
+pub use refine::{depth_bound, min_element_size, DIVE_NODES, LIGHT_DEPTH_FACTOR};
 use scene::Scene;
 pub use shot::COARSE_CACHE_ENTRIES;
 use solver::Solver;
