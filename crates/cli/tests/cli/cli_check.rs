@@ -709,3 +709,36 @@ fn parsing_an_obj_or_mtl_is_held_to_the_memory_limit() {
         assert!(out.status.success(), "{}", text(&out.stderr));
     }
 }
+
+/// Under an address-space cap (`ulimit -v`, whose half is the default memory limit) an MTL
+/// whose parsed form would not fit is refused with exit 2 and the estimate, not aborted by
+/// the allocator. What broke: a 45 MB MTL aborted `check` under a 4 GiB cap.
+#[test]
+fn an_mtl_too_large_to_parse_under_ulimit_v_is_refused_not_aborted() {
+    let dir = scratch("ulimit-mtl");
+    let mut mtl = String::with_capacity(16 << 20);
+    for i in 0..500_000 {
+        mtl += &format!("newmtl m{i}\nKd 0.5 0.5 0.5\n");
+    }
+    std::fs::write(dir.join("many.mtl"), &mtl).unwrap();
+    let obj = dir.join("m.obj");
+    std::fs::write(
+        &obj,
+        "mtllib many.mtl\nv 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nusemtl m0\nf 1 2 3 4\n",
+    )
+    .unwrap();
+    // 768 MiB of address space: a default limit of 384 MiB against an estimate near 600 MiB
+    // (the parse itself holds about 480 MB).
+    let out = std::process::Command::new("sh")
+        .args(["-c", "ulimit -v 786432 && exec \"$0\" check \"$1\""])
+        .arg(env!("CARGO_BIN_EXE_pixelflow-sim"))
+        .arg(&obj)
+        .output()
+        .expect("sh runs");
+    let e = text(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{e}");
+    assert!(
+        e.contains("many.mtl") && e.contains("500000 materials"),
+        "{e}"
+    );
+}
