@@ -44,8 +44,9 @@ impl Settings {
     /// `outputs`.
     pub fn new(memory_limit: Option<u64>, outputs: Outputs) -> anyhow::Result<Settings> {
         let limit = memory_limit.unwrap_or_else(budget::default_limit);
-        // An input file is held at least once as bytes and once parsed: half the limit each.
-        base::output::set_input_limit(limit / 2);
+        // An input file is held at least once as bytes and once parsed: half of what the
+        // program's own memory leaves each.
+        base::output::set_input_limit(budget::data_limit(limit) / 2);
         Ok(Settings {
             limit,
             isa: isa_from_env()?,

@@ -203,21 +203,23 @@ fn the_compare_estimate_brackets_the_measured_peak() {
         0.1 + ((x ^ y) & 15) as f32 * 0.01
     });
     let b = write_pfm("peak-b.pfm", 1024, 1024, |x, _| 0.1 + (x & 7) as f32 * 0.01);
-    // The estimate: refused just under it, accepted at it.
+    // The estimate with the program's own memory: refused just under it, accepted at it.
     let est = 1024 * 1024 * lab::jobs::compare::PERCEPTUAL_PIXEL_BYTES;
+    let program = lab::jobs::budget::PROGRAM_BYTES;
     let refused = run(&[
         "compare",
         s(&a),
         s(&b),
         "--memory-limit",
-        &(est - 1).to_string(),
+        &(est + program - 1).to_string(),
     ]);
     assert_eq!(refused.status.code(), Some(2), "{}", stderr(&refused));
-    let limit = est.to_string();
+    let limit = (est + program).to_string();
     let peak = crate::peak_bytes(&["compare", s(&a), s(&b), "--memory-limit", &limit]);
-    // The peak includes the program itself (about 6 MB resident), which the estimate leaves
-    // out by design; the pixels' share must be within the estimate and above 2/3 of it.
-    let pixels = peak.saturating_sub(8 << 20);
+    // The whole peak is under the limit; the pixels' share (the peak less the program) is
+    // within their estimate and above 2/3 of it.
+    assert!(peak <= est + program, "peak {peak} over the limit {limit}");
+    let pixels = peak.saturating_sub(program);
     assert!(
         pixels <= est,
         "measured {pixels} bytes for the pixels, estimated {est}"

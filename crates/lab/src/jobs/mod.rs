@@ -505,7 +505,7 @@ pub fn prepare(
                 &scene,
                 &SolveOptions {
                     observer: ctx.observer,
-                    memory_limit: limit,
+                    memory_limit: budget::data_limit(limit),
                 },
             )?;
             (solution, None, t.elapsed().as_secs_f64() * 1e3)

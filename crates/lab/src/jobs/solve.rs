@@ -44,7 +44,7 @@ pub fn solve_scene_to_file(
         &scene,
         &SolveOptions {
             observer: ctx.observer,
-            memory_limit: limit,
+            memory_limit: super::budget::data_limit(limit),
         },
     )?;
     let spots = super::spot_light(&scene, &solution, reconstruction::sharp::DEFAULT_LEVELS)?;
