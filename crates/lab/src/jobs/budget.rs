@@ -616,9 +616,15 @@ mod tests {
         assert_eq!(err.exit_code(), base::error::EXIT_BAD_INPUT);
         assert_eq!(
             err.to_string(),
-            "the solve of a.toml needs an estimated 3.0 GiB (quadtrees 3.0 GiB + pair tables \
-             1.0 MiB), over the memory limit of 1.0 GiB; lower it"
+            "the solve of a.toml needs an estimated 3.0 GiB (program 8.0 MiB + quadtrees 3.0 GiB \
+             + pair tables 1.0 MiB), over the memory limit of 1.0 GiB; lower it"
         );
+        // The program's own memory is part of every check.
+        let total = e.total() + PROGRAM_BYTES;
+        assert!(e.check(total).is_ok());
+        assert!(e.check(total - 1).is_err());
+        assert_eq!(data_limit(total), e.total());
+        assert_eq!(data_limit(PROGRAM_BYTES / 2), 0);
     }
 
     #[test]
