@@ -74,7 +74,7 @@ pub fn read_limited(path: &Path, max: u64) -> std::io::Result<Vec<u8>> {
             std::io::ErrorKind::FileTooLarge,
             format!(
                 "larger than {max} bytes, the largest input read (1 GiB at most, and half of \
-                 --memory-limit)"
+                 --memory-limit less the program's own memory)"
             ),
         ));
     }
