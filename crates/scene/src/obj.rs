@@ -22,10 +22,10 @@
 //! `<obj file stem>/<name>`, then `<obj file stem>/<name>#2`, `#3`, ... until it is unique.
 //!
 //! Memory: a file is read only up to the input cap (half of what the memory limit leaves past
-//! the program), but its parsed form is larger (tobj's materials with their tables of unknown statements, the scene's polygons and
-//! what loading builds from them), so each OBJ and MTL text is measured by its statements before
-//! tobj sees it ([`check_parse_memory`]) and refused as over the memory limit when the estimate
-//! passes it.
+//! the program), but its parsed form is larger (tobj's materials with their tables of unknown
+//! statements, the scene's polygons and what loading builds from them), so each OBJ and MTL
+//! text is measured by its statements before tobj sees it ([`check_parse_memory`]) and refused
+//! as over the memory limit when the estimate passes it.
 //!
 //! tobj stores positions as `f32`. Each coordinate is turned back into the `f64` nearest to the
 //! decimal tobj parsed by printing the `f32` in its shortest round-trip form and parsing that as
