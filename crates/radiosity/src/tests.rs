@@ -859,22 +859,28 @@ fn small_emitter(side: f64, height: f64, u: f64, v: f64) -> Scene {
         c(0.5, 0.5, 1.0),
         0,
     );
-    let h = 0.5 * side;
-    let lamp = test_scenes::quad_facing(
-        [
-            c(u - h, v - h, height),
-            c(u + h, v - h, height),
-            c(u + h, v + h, height),
-            c(u - h, v + h, height),
-        ],
-        c(u, v, -1.0),
-        1,
-    );
     let mats = vec![
         test_scenes::mat("grey", [0.5; 3], [0.0; 3]),
         test_scenes::mat("lamp", [0.0; 3], [1000.0; 3]),
     ];
+    let lamp = square_lamp(side, height, u, v);
     test_scenes::scene(vec![floor, lamp], mats, Vec::new())
+}
+
+/// A square of side `side` at `height` centred over (`u`, `v`), facing down, of material 1.
+fn square_lamp(side: f64, height: f64, u: f64, v: f64) -> Polygon {
+    let c = |x: f64, y: f64| DVec3::new(x, y, height);
+    let h = 0.5 * side;
+    test_scenes::quad_facing(
+        [
+            c(u - h, v - h),
+            c(u + h, v - h),
+            c(u + h, v + h),
+            c(u - h, v + h),
+        ],
+        DVec3::new(u, v, -1.0),
+        1,
+    )
 }
 
 /// The piecewise-bilinear value of polygon `r`'s samples at (`u`, `v`): its leaf's corners.
@@ -941,17 +947,7 @@ fn splits_past_the_guards_are_bounded_per_polygon() {
     let (side, height) = (1e-3, 1e-3);
     for i in 0..64 {
         let (u, v) = ((i % 8) as f64 / 8.0 + 0.0611, (i / 8) as f64 / 8.0 + 0.0437);
-        let h = 0.5 * side;
-        polygons.push(test_scenes::quad_facing(
-            [
-                c(u - h, v - h, height),
-                c(u + h, v - h, height),
-                c(u + h, v + h, height),
-                c(u - h, v + h, height),
-            ],
-            c(u, v, -1.0),
-            1,
-        ));
+        polygons.push(square_lamp(side, height, u, v));
     }
     let mats = vec![
         test_scenes::mat("grey", [0.5; 3], [0.0; 3]),
@@ -997,16 +993,7 @@ fn a_polygon_too_large_for_its_light_is_named_with_the_fix() {
             0,
         )
     };
-    let lamp = test_scenes::quad_facing(
-        [
-            c(-0.5, -0.5, 2.0),
-            c(0.5, -0.5, 2.0),
-            c(0.5, 0.5, 2.0),
-            c(-0.5, 0.5, 2.0),
-        ],
-        c(0.0, 0.0, -1.0),
-        1,
-    );
+    let lamp = square_lamp(1.0, 2.0, 0.0, 0.0);
     let mats = || {
         vec![
             test_scenes::mat("grey", [0.5; 3], [0.0; 3]),
