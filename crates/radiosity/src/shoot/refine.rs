@@ -53,10 +53,10 @@ pub const DIVE_NODES: u64 = 16_384;
 ///   `tolerance * level`. Such a leaf splits past the guards, down to the quadtree's deepest
 ///   level: only the few leaves around each peak do, and the peak is otherwise lost.
 ///
-/// Past the guards a polygon holds at most [`DIVE_NODES`] nodes: a spot grazing a large floor
-/// would otherwise refine the whole line of its cone's edge to the deepest level (a fuzzed
-/// two-polygon scene at `max_depth = 3` grew 927,000 elements and 1.3 GB); leaves stopped by it
-/// are reported with the guards' stops.
+/// Past the guards a polygon holds at most [`DIVE_NODES`] nodes, so that `max_depth` and that
+/// bound together limit a solve's growth (a fuzzed two-polygon scene at `max_depth = 3` grew
+/// 927,000 elements and 1.3 GB; a floor under 64 tiny emitters 1 mm above it dives 26,000
+/// nodes deep without the bound); leaves stopped by it are reported with the guards' stops.
 ///
 /// The leaves are judged a generation at a time: the splittable leaves, then the children of
 /// those that split, until none splits. Every G the pass computes is the oracle's gather from
