@@ -279,19 +279,27 @@ impl Outputs {
 
     /// Creates a new temporary in `dir` exclusively (never opening an existing file or
     /// following a link), registered before it exists; another name is drawn on a collision.
+    /// The registry stays locked from the interrupt check to the file's creation, so a signal's
+    /// cleanup either comes first (and nothing is created) or sees and removes the new file:
+    /// a writer thread still running when the handler cleans up leaves nothing behind.
     fn create_temporary(&self, dir: &Path, path: &Path) -> Result<(PathBuf, std::fs::File)> {
         let mut last = None;
         for _ in 0..TEMPORARY_ATTEMPTS {
             let tmp = dir.join(temporary_name());
-            self.live().push(tmp.clone());
-            match std::fs::OpenOptions::new()
+            let mut live = self.live();
+            if self.interrupted() {
+                return Err(Error::io(path, std::io::Error::other("interrupted")));
+            }
+            live.push(tmp.clone());
+            let opened = std::fs::OpenOptions::new()
                 .write(true)
                 .create_new(true)
-                .open(&tmp)
-            {
+                .open(&tmp);
+            match opened {
                 Ok(f) => return Ok((tmp, f)),
                 Err(e) => {
-                    self.forget(&tmp);
+                    live.retain(|t| t != &tmp);
+                    drop(live);
                     if e.kind() != std::io::ErrorKind::AlreadyExists {
                         return Err(Error::io(path, e));
                     }
@@ -812,12 +820,16 @@ mod tests {
         assert!(outputs.interrupted());
         let e = batch.commit().unwrap_err().to_string();
         assert!(e.contains("interrupted"), "{e}");
+        // After the interrupt no new temporary is created at all.
+        assert!(outputs.write_atomic(&dir.join("d.json"), b"{}").is_err());
         // A hold (every write of a run) likewise, the batches that joined it included.
+        let outputs = Outputs::new();
         let hold = outputs.hold().unwrap();
         outputs.write_atomic(&dir.join("c.json"), b"{}").unwrap();
         let mut batch = outputs.batch();
         batch.stage(&a, b"new a").unwrap();
         batch.commit().unwrap();
+        outputs.interrupt();
         assert!(hold.commit().is_err());
         assert_eq!(std::fs::read(&a).unwrap(), b"old a");
         let names: Vec<_> = std::fs::read_dir(&dir)
@@ -826,6 +838,47 @@ mod tests {
             .map(|e| e.file_name())
             .collect();
         assert_eq!(names, vec![std::ffi::OsString::from("a.png")]);
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    /// Regression: a walkthrough's writer thread created a frame's temporary just after the
+    /// signal handler had cleaned up, and the process exited with it left behind.
+    #[test]
+    fn writers_racing_an_interrupt_leave_no_temporary() {
+        let dir = fresh_dir("race");
+        for round in 0..20 {
+            let outputs = Outputs::new();
+            let writers: Vec<_> = (0..4)
+                .map(|w| {
+                    let (outputs, dir) = (outputs.clone(), dir.clone());
+                    std::thread::spawn(move || {
+                        for i in 0.. {
+                            let path = dir.join(format!("r{round}-w{w}-{i}.png"));
+                            if outputs.write_atomic(&path, &[7; 4096]).is_err() {
+                                break;
+                            }
+                        }
+                    })
+                })
+                .collect();
+            std::thread::sleep(std::time::Duration::from_millis(2));
+            outputs.interrupt();
+            // The handler exits right after the cleanup, so the writers never get to remove
+            // what they create later: the directory must hold no temporary from now on, while
+            // they are still running.
+            for _ in 0..50 {
+                let hidden: Vec<_> = std::fs::read_dir(&dir)
+                    .unwrap()
+                    .flatten()
+                    .map(|e| e.file_name().to_string_lossy().into_owned())
+                    .filter(|n| n.starts_with('.'))
+                    .collect();
+                assert!(hidden.is_empty(), "round {round}: {hidden:?}");
+            }
+            for w in writers {
+                w.join().unwrap();
+            }
+        }
         std::fs::remove_dir_all(&dir).unwrap();
     }
 
