@@ -379,7 +379,6 @@ fn scales() {
 fn huge_beside() {
     let path = hard("huge-beside");
     let p = prepared("huge-beside");
-    check_samples("huge-beside", &p);
     // No overlap is reported; the wall's back, which the scene shows and lights on purpose,
     // is: in view and under the lamp.
     let w = &p.scene.warnings;
@@ -389,13 +388,39 @@ fn huge_beside() {
     assert!(
         w[1].contains("lands on its back side, which reflects nothing; most on object `huge wall`")
     );
-    let text = std::fs::read_to_string(&path).unwrap();
-    let cut = text.find("[[polygons]]\nname = \"huge wall\"").unwrap();
-    let small = parse_scene(&text[..cut], &path).unwrap();
-    let small = prepare(
+    huge_beside_at(&path, p);
+    // The same wall at the format's largest coordinate (1e9): the near plane once followed
+    // the scene's extent down to 1e-9 of it, 2.8 units here, and clipped the floor the
+    // camera looks down on (the lower part of the image black).
+    let text = std::fs::read_to_string(&path)
+        .unwrap()
+        .replace("1e6", "1e9");
+    let scene = parse_scene(&text, &path).unwrap();
+    let p = prepare(
         &Context::default(),
         Input {
             path: path.clone(),
+            scene,
+            solution_file: None,
+            estimator: Estimator::default(),
+            sharp_levels: reconstruction::sharp::DEFAULT_LEVELS,
+        },
+        SizePolicy::FromDepth,
+        Placement::Centre,
+    )
+    .unwrap();
+    huge_beside_at(&path, p);
+}
+
+fn huge_beside_at(path: &Path, p: Prepared) {
+    check_samples("huge-beside", &p);
+    let text = std::fs::read_to_string(path).unwrap();
+    let cut = text.find("[[polygons]]\nname = \"huge wall\"").unwrap();
+    let small = parse_scene(&text[..cut], path).unwrap();
+    let small = prepare(
+        &Context::default(),
+        Input {
+            path: path.to_path_buf(),
             scene: small,
             solution_file: None,
             estimator: Estimator::default(),

@@ -40,8 +40,12 @@ pub(crate) const NEAR_RELATIVE: f64 = 1e-4;
 
 /// Smallest near plane distance relative to the scene's extent: where the eye touches a
 /// polygon. Depth is interpolated as 1/w in floating point, whose relative precision is the
-/// same at every distance, so a small near plane costs no depth resolution.
-pub(crate) const MIN_NEAR_RELATIVE: f64 = 1e-9;
+/// same at every distance, so a small near plane costs no depth resolution. 1e-12 keeps the
+/// near plane 1e4 times above the rounding of f64 view coordinates at the extent, and below
+/// any geometry a camera looks at in a scene whose extent is one huge polygon (coordinates go
+/// up to 1e9: at 1e-9 of the extent the near plane was 2.8 units and clipped the floor under
+/// the camera).
+pub(crate) const MIN_NEAR_RELATIVE: f64 = 1e-12;
 
 /// The near plane of a perspective view: half the distance from the eye to the nearest
 /// geometry (`nearest`, a lower bound of the distance to every polygon), so it never clips
