@@ -28,6 +28,8 @@ pub struct SceneSummary {
     pub triangles: usize,
     /// Polygons that are quads.
     pub quads: usize,
+    /// Polygons that receive light by their vertex normals (a surface the model marks smooth).
+    pub smooth: usize,
     /// Materials.
     pub materials: usize,
     /// Polygons with an emitting material.
@@ -147,6 +149,11 @@ pub fn summarize(scene: &Scene) -> SceneSummary {
         polygons: scene.polygons.len(),
         triangles,
         quads: scene.polygons.len() - triangles,
+        smooth: scene
+            .polygons
+            .iter()
+            .filter(|p| p.shading.is_some())
+            .count(),
         materials: scene.materials.len(),
         emitters: scene.emitter_count(),
         spots: scene.spots.len(),
@@ -186,10 +193,14 @@ impl fmt::Display for SceneSummary {
             (
                 "polygons",
                 format!(
-                    "{} ({} quads, {} triangles){}",
+                    "{} ({} quads, {} triangles){}{}",
                     self.polygons,
                     self.quads,
                     self.triangles,
+                    match self.smooth {
+                        0 => String::new(),
+                        n => format!("; {n} smooth (shaded by their vertex normals)"),
+                    },
                     match self.merged {
                         (0, true) => String::new(),
                         (n, true) => format!("; {n} triangle pairs merged into quads"),

@@ -107,13 +107,14 @@ impl<'a> SpotParts<'a> {
         let scene = self.tr.scene;
         let p = &scene.polygons[polygon];
         let l = &scene.spots[spot as usize];
-        let d = l.position - p.point(u, v);
+        let x = p.point(u, v);
+        let d = l.position - x;
         let r2 = d.length_squared();
         if r2 <= 0.0 {
             return DVec3::ZERO;
         }
         let dist = r2.sqrt();
-        let cos = (p.normal.dot(d) / dist).max(0.0);
+        let cos = (p.shading_normal(x).dot(d) / dist).max(0.0);
         let c = (-l.direction.dot(d) / dist).max(0.0);
         let rho = scene.material_of(polygon).reflectance;
         rho * self.totals[spot as usize] * l.intensity * (c.powf(l.falloff) * cos / r2)

@@ -387,6 +387,7 @@ fn pieces(p: &Polygon, lines: &[ContactLine]) -> (Vec<Polygon>, usize) {
                 3 => Polygon::triangle([c3[0], c3[1], c3[2]], p.material, p.object),
                 _ => Polygon::quad([c3[0], c3[1], c3[2], c3[3]], p.material, p.object),
             }
+            .map(|q| q.with_shading(p.shading.clone()))
         })
         .collect();
     (out, skipped)

@@ -415,11 +415,16 @@ impl Converter<'_> {
             }
             return Ok(());
         }
+        let normals = self.normals(cx, prim, key, positions.len(), world)?;
         let mut degenerate = 0;
         for (t, &[a, b, c]) in triangles.iter().enumerate() {
             let mut corners = [placed[a], placed[b], placed[c]];
+            let mut shading = normals.as_ref().map(|n| [n[a], n[b], n[c]]);
             if mirrors {
                 corners.reverse();
+                if let Some(n) = shading.as_mut() {
+                    n.reverse();
+                }
             }
             let in_range = corners
                 .iter()
@@ -430,7 +435,11 @@ impl Converter<'_> {
             }
             self.up.add([local[a], local[b], local[c]]);
             let loc = self.loc(format!("{key} triangle {t} (node `{label}`)"));
+            let first = surfaces.polygons.len();
             cx.add_face(&corners, material, object, loc, &mut surfaces.polygons)?;
+            if let Some(n) = shading {
+                crate::shading::shade_pieces(&mut surfaces.polygons[first..], &corners, &n);
+            }
             self.triangles += 1;
         }
         if degenerate > 0 {
@@ -442,6 +451,41 @@ impl Converter<'_> {
             ));
         }
         Ok(())
+    }
+
+    /// The primitive's vertex normals (`NORMAL`, VEC3 of FLOAT, one per vertex) in the scene's
+    /// frame: through the inverse transpose of the node's transform, then the include's.
+    /// `None` without them, or when they are not one per vertex of the right type (the
+    /// primitive is then flat, as the glTF specification's flat shading has it).
+    fn normals(
+        &mut self,
+        cx: &mut Cx<'_>,
+        prim: &::gltf::Primitive<'_>,
+        key: &str,
+        vertices: usize,
+        world: &glam::DAffine3,
+    ) -> Result<Option<Vec<DVec3>>> {
+        let Some(accessor) = prim.get(&::gltf::Semantic::Normals) else {
+            return Ok(None);
+        };
+        let key = format!("{key}.attributes.NORMAL");
+        let Some(n) = data::read_floats(cx, self.file, &mut self.buffers, &accessor, 3, &key)?
+        else {
+            return Ok(None);
+        };
+        if n.len() != 3 * vertices {
+            return Ok(None);
+        }
+        let m = world.matrix3.inverse().transpose();
+        if !m.is_finite() {
+            return Ok(None);
+        }
+        let transform = &self.transform;
+        Ok(Some(
+            n.chunks_exact(3)
+                .map(|v| transform.normal(m * DVec3::new(v[0] as f64, v[1] as f64, v[2] as f64)))
+                .collect(),
+        ))
     }
 
     /// The polygons this tool's exports carry (`_POLYGON`, the source polygon of each vertex,

@@ -32,6 +32,7 @@ mod model;
 mod obj;
 pub mod orientation;
 pub mod overrides;
+pub mod shading;
 pub mod triangle_pairs;
 mod triangulate;
 
@@ -74,6 +75,9 @@ pub struct Polygon {
     pub area: f64,
     /// Index into [`Scene::objects`]: the inline polygon or OBJ group this came from.
     pub object: u32,
+    /// The model's vertex normals where it marks the surface smooth ([`shading`]); `None` for
+    /// a flat facet. Shared by the pieces a polygon is cut into.
+    pub shading: Option<std::sync::Arc<shading::Shading>>,
 }
 
 impl Polygon {
@@ -109,7 +113,25 @@ impl Polygon {
             normal: n / len,
             area: 0.5 * len,
             object,
+            shading: None,
         })
+    }
+
+    /// This polygon with the shading frame `shading` (a piece of a cut keeps its polygon's).
+    pub fn with_shading(mut self, shading: Option<std::sync::Arc<shading::Shading>>) -> Polygon {
+        self.shading = shading;
+        self
+    }
+
+    /// The normal a receiver at point `x` of this polygon takes for the cosine of the light it
+    /// receives: the interpolated vertex normal of a smooth surface ([`shading`]), else the
+    /// facet's [`Polygon::normal`].
+    #[inline]
+    pub fn shading_normal(&self, x: DVec3) -> DVec3 {
+        match &self.shading {
+            Some(s) => s.at(x, self.normal),
+            None => self.normal,
+        }
     }
 
     /// The distinct corners (3 or 4).

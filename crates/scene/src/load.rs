@@ -1034,6 +1034,7 @@ fn two_sided(polygons: &mut Vec<Polygon>, origins: &mut Vec<Location>, materials
                 }
                 crate::Shape::Quad => Polygon::quad([c[0], c[3], c[2], c[1]], p.material, p.object),
             }
+            .map(|q| q.with_shading(p.shading.clone()))
         });
         polygons.push(p);
         if let Some(o) = old_origins.get(i) {

@@ -81,11 +81,14 @@ pub fn merge(polygons: &mut Vec<Polygon>, origins: &mut Vec<Location>) -> Merged
         if used[c.t] || used[c.s] {
             continue;
         }
+        let p = &polygons[c.t];
+        let Some(shading) = merged_shading(p, &polygons[c.s], &c.corners) else {
+            continue;
+        };
         used[c.t] = true;
         used[c.s] = true;
-        let p = &polygons[c.t];
         if let Some(q) = Polygon::quad(c.corners, p.material, p.object) {
-            polygons[c.t] = q;
+            polygons[c.t] = q.with_shading(shading);
             removed[c.s] = true;
             pairs += 1;
         }
@@ -165,6 +168,38 @@ fn candidates(polygons: &[Polygon], triangles: &[usize]) -> Vec<Candidate> {
     out
 }
 
+/// The shading frame of the quad with `corners` that triangles `a` and `b` merge into: none
+/// when both are flat; the corner normals of their smooth surface when the two agree at the
+/// corners they share; `None` (do not merge) when they do not (a crease the model keeps along
+/// the diagonal) or one is smooth and the other flat.
+fn merged_shading(
+    a: &Polygon,
+    b: &Polygon,
+    corners: &[DVec3; 4],
+) -> Option<Option<std::sync::Arc<crate::shading::Shading>>> {
+    match (&a.shading, &b.shading) {
+        (None, None) => return Some(None),
+        (Some(_), Some(_)) => {}
+        _ => return None,
+    }
+    let on = |p: &Polygon, x: DVec3| p.vertices().iter().any(|v| key(*v) == key(x));
+    let mut normals = [DVec3::ZERO; 4];
+    for (n, &x) in normals.iter_mut().zip(corners) {
+        let (na, nb) = (
+            on(a, x).then(|| a.shading_normal(x)),
+            on(b, x).then(|| b.shading_normal(x)),
+        );
+        *n = match (na, nb) {
+            (Some(na), Some(nb)) if na.distance(nb) <= 1e-9 => na,
+            (Some(_), Some(_)) => return None,
+            (Some(n), None) | (None, Some(n)) => n,
+            (None, None) => return None,
+        };
+    }
+    let face = crate::newell_normal(corners).normalize_or_zero();
+    Some(crate::shading::Shading::new(corners, &normals, face).map(std::sync::Arc::new))
+}
+
 /// One material, one object, facing the same way.
 fn compatible(a: &Polygon, b: &Polygon) -> bool {
     a.material == b.material && a.object == b.object && a.normal.dot(b.normal) > 0.0
@@ -220,6 +255,43 @@ mod tests {
         assert_eq!(p[0].shape, Shape::Quad);
         assert!((p[0].area - 1.0).abs() < 1e-12);
         assert!((p[0].normal - DVec3::Z).length() < 1e-12);
+    }
+
+    /// Smooth triangles merge when their normals agree along the diagonal, and the quad keeps
+    /// them; a diagonal the normals keep sharp, or a smooth triangle beside a flat one, stays.
+    #[test]
+    fn smooth_halves_merge_with_their_normals_and_sharp_diagonals_stay() {
+        let lean = |x: f64, y: f64| DVec3::new(x, y, 1.0).normalize();
+        let c = [DVec3::ZERO, DVec3::X, DVec3::new(1.0, 1.0, 0.0), DVec3::Y];
+        let n = [
+            lean(-0.2, -0.2),
+            lean(0.2, -0.2),
+            lean(0.2, 0.2),
+            lean(-0.2, 0.2),
+        ];
+        let halves = |n2: DVec3, smooth_second: bool| {
+            let mut a = vec![
+                Polygon::triangle([c[0], c[1], c[2]], 0, 0).unwrap(),
+                Polygon::triangle([c[0], c[2], c[3]], 0, 0).unwrap(),
+            ];
+            crate::shading::shade_pieces(&mut a[..1], &[c[0], c[1], c[2]], &[n[0], n[1], n[2]]);
+            if smooth_second {
+                crate::shading::shade_pieces(&mut a[1..], &[c[0], c[2], c[3]], &[n[0], n2, n[3]]);
+            }
+            a
+        };
+        let mut p = halves(n[2], true);
+        assert_eq!(merge(&mut p, &mut Vec::new()).pairs, 1);
+        assert_eq!(p.len(), 1);
+        for k in 0..4 {
+            let got = p[0].shading_normal(c[k]);
+            assert!((got - n[k]).length() < 1e-12, "corner {k}: {got}");
+        }
+        for (n2, smooth) in [(lean(0.0, 0.3), true), (n[2], false)] {
+            let mut p = halves(n2, smooth);
+            assert_eq!(merge(&mut p, &mut Vec::new()).pairs, 0);
+            assert_eq!(p.len(), 2);
+        }
     }
 
     #[test]

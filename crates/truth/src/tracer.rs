@@ -2,8 +2,10 @@
 //! (W/m^2), split into its direct part (light that comes straight from an emitter or a spot) and
 //! its indirect part (light reflected at least once more on the way).
 //!
-//! At each vertex x of a path (on the front side of polygon p, normal n, path weight beta, the
-//! product of the reflectances met so far, rescaled by Russian roulette):
+//! At each vertex x of a path (on the front side of polygon p, normal n: the interpolated
+//! vertex normal of a smooth surface, `scene::shading`, with directions behind the facet itself
+//! seeing nothing; path weight beta, the product of the reflectances met so far, rescaled by
+//! Russian roulette):
 //! - every spot light adds beta * I(w) cos_x / r^2 when x is in front of it, inside its cone
 //!   and unoccluded (a point light: next-event estimation is its only strategy);
 //! - one emitter point y (emitter by power, point uniform by area, density p_A) adds
@@ -138,8 +140,12 @@ impl<'a> Tracer<'a> {
         let (mut p, mut x) = (p, x);
         let mut depth = 0u32;
         while beta.max_element() > 0.0 {
-            let n = self.scene.polygons[p as usize].normal;
-            let o = x + n * self.offset;
+            let poly = &self.scene.polygons[p as usize];
+            let n = Normals {
+                face: poly.normal,
+                shading: poly.shading_normal(x),
+            };
+            let o = x + n.face * self.offset;
             let mut h = self.spots(p, o, n) + self.emitter(p, o, n, rng);
             let next = self.bounce(p, o, n, rng);
             if let Some((_, _, emitted)) = next {
@@ -168,8 +174,8 @@ impl<'a> Tracer<'a> {
         out
     }
 
-    /// The spot lights' irradiance at `o` (normal `n`, on polygon `p`).
-    fn spots(&self, p: u32, o: DVec3, n: DVec3) -> DVec3 {
+    /// The spot lights' irradiance at `o` (normals `n`, on polygon `p`).
+    fn spots(&self, p: u32, o: DVec3, n: Normals) -> DVec3 {
         let mut h = DVec3::ZERO;
         for s in &self.scene.spots {
             let d = s.position - o;
@@ -178,7 +184,7 @@ impl<'a> Tracer<'a> {
                 continue;
             }
             let w = d / r2.sqrt();
-            let cos_x = n.dot(w);
+            let cos_x = n.cos(w);
             if cos_x <= 0.0 {
                 continue;
             }
@@ -192,7 +198,7 @@ impl<'a> Tracer<'a> {
     }
 
     /// One light-strategy sample of the area emitters' irradiance at `o`, MIS-weighted.
-    fn emitter(&self, p: u32, o: DVec3, n: DVec3, rng: &mut Rng) -> DVec3 {
+    fn emitter(&self, p: u32, o: DVec3, n: Normals, rng: &mut Rng) -> DVec3 {
         let Some(s) = self.lights.sample(self.scene, rng) else {
             return DVec3::ZERO;
         };
@@ -205,7 +211,7 @@ impl<'a> Tracer<'a> {
             return DVec3::ZERO;
         }
         let w = d / r2.sqrt();
-        let cos_x = n.dot(w);
+        let cos_x = n.cos(w);
         let cos_y = -self.scene.polygons[s.polygon as usize].normal.dot(w);
         if cos_x <= 0.0 || cos_y <= 0.0 || self.bvh.occluded(o, s.point, p, s.polygon) {
             return DVec3::ZERO;
@@ -219,8 +225,12 @@ impl<'a> Tracer<'a> {
     /// The cosine-distributed bounce from `o`: the front face it reaches, the point, and the
     /// MIS-weighted emission it sees there (as irradiance at `o`); `None` at a miss or a back
     /// face.
-    fn bounce(&self, p: u32, o: DVec3, n: DVec3, rng: &mut Rng) -> Option<(u32, DVec3, DVec3)> {
-        let w = cosine_direction(n, rng.next_f64(), rng.next_f64());
+    fn bounce(&self, p: u32, o: DVec3, n: Normals, rng: &mut Rng) -> Option<(u32, DVec3, DVec3)> {
+        let w = cosine_direction(n.shading, rng.next_f64(), rng.next_f64());
+        if n.face.dot(w) <= 0.0 {
+            // Below the facet (a shading normal leaning off it): the facet sees nothing there.
+            return None;
+        }
         let (surface, dist) = self.first_surface(o, w, self.reach, p);
         let Surface::Front { polygon: k, point } = surface else {
             return None;
@@ -230,12 +240,32 @@ impl<'a> Tracer<'a> {
         if e.max_element() > 0.0 {
             let cos_y = -self.scene.polygons[k as usize].normal.dot(w);
             let p_light = self.lights.pdf_area(k) * dist * dist / cos_y;
-            let p_bsdf = n.dot(w).max(0.0) / PI;
+            let p_bsdf = n.cos(w) / PI;
             if p_bsdf + p_light > 0.0 {
                 emitted = e * (p_bsdf / (p_bsdf + p_light));
             }
         }
         Some((k, point, emitted))
+    }
+}
+
+/// The normals at a path vertex: the facet's (which side is in front, where rays start) and the
+/// one its light is received by (the interpolated vertex normal of a smooth surface,
+/// `scene::shading`, else the facet's).
+#[derive(Clone, Copy)]
+struct Normals {
+    face: DVec3,
+    shading: DVec3,
+}
+
+impl Normals {
+    /// The receiving cosine of direction `w`: by the shading normal, 0 below either plane
+    /// (the facet sees nothing behind itself, whatever its shading normal).
+    fn cos(&self, w: DVec3) -> f64 {
+        if self.face.dot(w) <= 0.0 {
+            return 0.0;
+        }
+        self.shading.dot(w).max(0.0)
     }
 }
 

@@ -139,9 +139,10 @@ fn every_shipped_scene_has_a_golden_test() {
     assert_eq!(stems, SCENES);
 }
 
-const SCENES: [&str; 7] = [
+const SCENES: [&str; 8] = [
     "building",
     "cornell-box",
+    "curved-wall",
     "gallery",
     "studio",
     "two-spots",
@@ -174,6 +175,13 @@ fn golden_building() {
 #[test]
 fn golden_cornell_box() {
     check_scene("cornell-box");
+}
+
+/// A smooth surface: an OBJ wall of 32 facets with vertex normals, which receive light by
+/// them (no step at the creases in any method).
+#[test]
+fn golden_curved_wall() {
+    check_scene("curved-wall");
 }
 
 #[test]

@@ -79,6 +79,7 @@ mod sampled_visibility;
 mod truth_camera;
 mod solution_rrps;
 mod scene_loading;
+mod smooth_surfaces;
 mod gallery_scene;
 mod t_junctions;
 mod texture_seams;

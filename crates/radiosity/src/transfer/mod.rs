@@ -706,7 +706,7 @@ impl<'a> Transfer<'a> {
             return (DVec3::ZERO, 1.0);
         }
         let x = self.receiver(r, u, v);
-        let open = self.unoccluded_at(s, x, self.scene.polygons[r].normal);
+        let open = self.unoccluded_at(s, x, self.scene.polygons[r].shading_normal(x));
         if open == DVec3::ZERO || class != PairClass::Occluded {
             return (open, 1.0);
         }
@@ -730,7 +730,7 @@ impl<'a> Transfer<'a> {
     /// outside a spot's cone. No pair table needed.
     pub(crate) fn unoccluded(&self, s: usize, r: usize, u: f64, v: f64) -> DVec3 {
         let x = self.receiver(r, u, v);
-        self.unoccluded_at(s, x, self.scene.polygons[r].normal)
+        self.unoccluded_at(s, x, self.scene.polygons[r].shading_normal(x))
     }
 
     /// [`Transfer::unoccluded`] at point `x` with normal `n`.
@@ -772,7 +772,7 @@ impl<'a> Transfer<'a> {
         open: f64,
         how: Sampling<'_>,
     ) -> f64 {
-        let n = self.scene.polygons[r].normal;
+        let n = self.scene.polygons[r].shading_normal(x);
         visible::with_arena(|view| {
             let look = self.look(s, r, cands, x, view, how);
             look.fraction(view, x, n, open)
@@ -934,7 +934,7 @@ impl<'a> Transfer<'a> {
         (shape, coherent): Sampling<'_>,
         blocked: impl Fn(DVec3) -> bool,
     ) -> f64 {
-        let n = self.scene.polygons[r].normal;
+        let n = self.scene.polygons[r].shading_normal(x);
         let ns = self.shooters[s].normal;
         let pass = |k: u64| {
             let (mut seen, mut total) = (0.0, 0.0);

@@ -434,7 +434,7 @@ impl Transfer<'_> {
             return (DVec3::ZERO, 0.0, 0.0, Look::Clear);
         }
         let x = self.receiver(r, u, v);
-        let n = self.scene.polygons[r].normal;
+        let n = self.scene.polygons[r].shading_normal(x);
         let f = self.unoccluded_at(s, x, n).x;
         let look = if f == 0.0 || class != PairClass::Occluded {
             Look::Clear
@@ -482,7 +482,7 @@ impl Transfer<'_> {
             return DVec3::ZERO;
         };
         let x = self.receiver(r, u, v);
-        let n = self.scene.polygons[r].normal;
+        let n = self.scene.polygons[r].shading_normal(x);
         let poly = &self.scene.polygons[polygon as usize];
         let geometry = Geometry {
             poly,

@@ -944,3 +944,54 @@ proptest! {
         let _ = load(&scene_text("glb", ""), &[("m.glb", glb)]);
     }
 }
+
+/// `NORMAL` gives the triangles shading frames, turned with the node: a quad whose vertex
+/// normals lean along x receives light by them, the triangles sharing them on the diagonal;
+/// normals equal to the face's leave it flat, as do normals of the wrong count.
+#[test]
+fn vertex_normals_become_shading_frames_through_the_node_transform() {
+    let lean = |x: f32| {
+        let n = glam::Vec3::new(x, 0.0, 1.0).normalize();
+        [n.x, n.y, n.z]
+    };
+    let mut doc = Doc::default();
+    let mut prim = quad(&mut doc);
+    let n = doc.positions(&[lean(-0.2), lean(0.2), lean(0.2), lean(-0.2)]);
+    prim["attributes"]["NORMAL"] = json!(n);
+    let half = std::f64::consts::FRAC_1_SQRT_2;
+    let body = json!({
+        "scene": 0, "scenes": [{ "nodes": [0] }],
+        // Turned 90 degrees about y: +z becomes +x, +x becomes -z.
+        "nodes": [{ "mesh": 0, "rotation": [0.0, half, 0.0, half] }],
+        "meshes": [{ "primitives": [prim] }]
+    });
+    let s = load_gltf(&doc, body, "");
+    assert_eq!(s.polygons.len(), 2);
+    for p in &s.polygons {
+        assert!(p.shading.is_some(), "{p:?}");
+        assert!(close(p.normal, DVec3::X));
+    }
+    // At the corner (0, 0, 0) of the model, now at the origin: lean(-0.2) turned.
+    let want = DVec3::new(1.0, 0.0, 0.2).normalize();
+    let got = s.polygons[0].shading_normal(DVec3::ZERO);
+    assert!(close(got, want), "{got} vs {want}");
+    // Along the shared diagonal both triangles give the same normal.
+    let mid = 0.5 * (s.polygons[0].corners[0] + s.polygons[0].corners[2]);
+    assert!(close(
+        s.polygons[0].shading_normal(mid),
+        s.polygons[1].shading_normal(mid)
+    ));
+    // Flat normals: no frame. Too few normals: ignored.
+    for normals in [vec![[0.0, 0.0, 1.0f32]; 4], vec![lean(0.2); 3]] {
+        let mut doc = Doc::default();
+        let mut prim = quad(&mut doc);
+        let n = doc.positions(&normals);
+        prim["attributes"]["NORMAL"] = json!(n);
+        let body = json!({
+            "scene": 0, "scenes": [{ "nodes": [0] }], "nodes": [{ "mesh": 0 }],
+            "meshes": [{ "primitives": [prim] }]
+        });
+        let s = load_gltf(&doc, body, "");
+        assert!(s.polygons.iter().all(|p| p.shading.is_none()));
+    }
+}
