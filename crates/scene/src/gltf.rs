@@ -533,10 +533,11 @@ impl Converter<'_> {
         }
         let mut out = Vec::with_capacity(corners.len());
         for (id, c) in corners {
-            let [Some(a), Some(b), Some(c2), Some(d)] = c else {
+            // A triangle is exported as itself: its apex is (u, v) = (1, 1) only.
+            let [Some(a), Some(b), Some(c2), d] = c else {
                 return Ok(None);
             };
-            out.push((id, [a, b, c2, d]));
+            out.push((id, [a, b, c2, d.unwrap_or(c2)]));
         }
         Ok(Some(out))
     }

@@ -11,6 +11,15 @@
 //! coordinate of parameter (u, v) is ((x + g + u n) / W, (y + g + v n) / H), which puts texel
 //! centres where the texture methods put them.
 //!
+//! A triangle's chart is laid out affinely instead: chart point (s, t) is the triangle's point
+//! c0 + s (c1 - c0) + t (c2 - c0) (s + t <= 1, the lower-left half of the square), so an
+//! engine's linear interpolation of texture coordinates over the one triangle drawn for it is
+//! exact. Its texels are the RRP evaluated at the collapsed-quad parameters of the same point,
+//! (u, v) = (s / (1 - t), t), the function the texture methods sample; a texel outside the
+//! triangle (the gutter, and the half past the hypotenuse) holds the odd reflection through the
+//! nearest point of the triangle, 2 f(q) - f(2 q - p), so a bilinear lookup on an edge returns
+//! the edge's value to second order, as the square charts' gutters do.
+//!
 //! Packing uses the `crunch` packer (rectangles by decreasing area, best-fit into a split free
 //! list), one page at a time: whatever does not fit in a page of the largest side goes to the
 //! next; each page is then shrunk to the smallest power-of-two rectangle its charts fit in.
@@ -20,7 +29,8 @@ use glam::Vec3;
 
 use base::error::{Error, Result};
 use reconstruction::texture::{Placement, TextureSet};
-use scene::Scene;
+use reconstruction::Reconstruction;
+use scene::{Scene, Shape};
 
 /// One polygon's rectangle in the atlas.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -33,6 +43,8 @@ pub struct Chart {
     pub y: u32,
     /// Side of the polygon's texture (the rectangle is `side + 2 gutter` wide).
     pub side: u32,
+    /// Laid out affinely (a triangle, see the module docs), not by the (u, v) square.
+    pub triangle: bool,
 }
 
 /// One page: linear radiosity texels, row-major, row 0 the top of the image.
@@ -88,7 +100,12 @@ impl Atlas {
     /// most `max_page` x `max_page` texels and copies each texture's level 0 with its gutter
     /// into its chart. Errors for a corner-placed set, a set that does not match the scene, a
     /// page side that is not a power of two in `64..=MAX_PAGE`, or a chart larger than a page.
-    pub fn build(scene: &Scene, set: &TextureSet, max_page: u32) -> Result<Atlas> {
+    pub fn build(
+        scene: &Scene,
+        set: &TextureSet,
+        recon: &Reconstruction,
+        max_page: u32,
+    ) -> Result<Atlas> {
         if set.placement != Placement::Centre {
             return Err(Error::internal(
                 "the atlas holds centre-placed textures only",
@@ -104,7 +121,10 @@ impl Atlas {
         check_page(max_page)?;
         let g = set.gutter;
         let sides: Vec<u32> = set.textures.iter().map(|t| t.width).collect();
-        let (charts, sizes) = pack(&sides, g, max_page)?;
+        let (mut charts, sizes) = pack(&sides, g, max_page)?;
+        for (c, p) in charts.iter_mut().zip(&scene.polygons) {
+            c.triangle = p.shape == Shape::Triangle;
+        }
         let mut pages: Vec<Page> = sizes
             .iter()
             .map(|&(w, h)| Page {
@@ -113,11 +133,19 @@ impl Atlas {
                 texels: vec![Vec3::ZERO; w as usize * h as usize],
             })
             .collect();
-        for (chart, tex) in charts.iter().zip(&set.textures) {
+        for (polygon, (chart, tex)) in charts.iter().zip(&set.textures).enumerate() {
             let level = &tex.levels[0];
             let page = &mut pages[chart.page as usize];
             let stride = level.stride() as usize;
-            for (r, row) in level.texels.chunks_exact(stride).enumerate() {
+            let rows: Vec<Vec3> = if chart.triangle {
+                triangle_chart(chart.side, g, |s, t| {
+                    let (u, v) = square_of_affine(s, t);
+                    recon.eval(polygon as u32, u as f32, v as f32)
+                })
+            } else {
+                level.texels.clone()
+            };
+            for (r, row) in rows.chunks_exact(stride).enumerate() {
                 let start = (chart.y as usize + r) * page.width as usize + chart.x as usize;
                 page.texels[start..start + stride].copy_from_slice(row);
             }
@@ -132,6 +160,11 @@ impl Atlas {
     /// The texture coordinate on its page of parameter (u, v) of `polygon`.
     pub fn uv(&self, polygon: usize, u: f64, v: f64) -> [f32; 2] {
         let c = &self.charts[polygon];
+        let (u, v) = if c.triangle {
+            affine_of_square(u, v)
+        } else {
+            (u, v)
+        };
         let p = &self.pages[c.page as usize];
         let g = self.gutter as f64;
         let n = c.side as f64;
@@ -183,6 +216,121 @@ impl Atlas {
             page_sizes: self.pages.iter().map(|p| (p.width, p.height)).collect(),
         }
     }
+}
+
+/// A triangle's affine chart coordinates (s, t) of its collapsed-quad parameters (u, v): the
+/// barycentric weights of c1 and c2, (u (1 - v), v).
+pub fn affine_of_square(u: f64, v: f64) -> (f64, f64) {
+    (u * (1.0 - v), v)
+}
+
+/// A triangle's collapsed-quad parameters (u, v) of its affine chart coordinates (s, t): (s /
+/// (1 - t), t), u held within the gutter's reach (it grows without bound towards the apex,
+/// where every u is the same point).
+pub fn square_of_affine(s: f64, t: f64) -> (f64, f64) {
+    let u = if t < 1.0 { s / (1.0 - t) } else { 0.5 };
+    (u.clamp(-1.0, 2.0), t)
+}
+
+/// The texels of a triangle's affine chart of side `n` with gutter `g` (see the module docs):
+/// `f(s, t)` at texel centres inside the triangle s, t >= 0, s + t <= 1, the odd reflection
+/// through the nearest point of the triangle outside it (linear extrapolation along the same
+/// line from a nearer point where the mirror point would leave the triangle, [`corner_slope`]
+/// beyond a corner).
+pub fn triangle_chart(n: u32, g: u32, f: impl Fn(f64, f64) -> Vec3) -> Vec<Vec3> {
+    let e = (n + 2 * g) as usize;
+    let (nf, gf) = (n as f64, g as f64);
+    let mut out = Vec::with_capacity(e * e);
+    for j in 0..e {
+        for i in 0..e {
+            let p = ((i as f64 - gf + 0.5) / nf, (j as f64 - gf + 0.5) / nf);
+            let q = nearest_in_triangle(p);
+            if q == p {
+                out.push(f(p.0, p.1));
+                continue;
+            }
+            // The mirror point q - (p - q), or nearer q where that leaves the triangle (by a
+            // corner, across another edge): the extrapolation f(q) + (f(q) - f(m)) / k along
+            // the same line is exact for a linear function whatever k.
+            let mut k = 1.0;
+            let inside = |k: f64| {
+                let m = (q.0 + k * (q.0 - p.0), q.1 + k * (q.1 - p.1));
+                (nearest_in_triangle(m) == m).then_some(m)
+            };
+            let mut m = inside(k);
+            while m.is_none() && k > 0.25 {
+                k *= 0.5;
+                m = inside(k);
+            }
+            let fq = f(q.0, q.1);
+            out.push(match m {
+                Some(m) => fq + (fq - f(m.0, m.1)) / k as f32,
+                None => fq + corner_slope(&f, q, p),
+            });
+        }
+    }
+    out
+}
+
+/// Where no line from `p` through its nearest point `q` runs on inside the triangle (`q` a
+/// corner, `p` across both its edges): `f`'s gradient from differences inside the triangle
+/// (about the point a quarter of the way from `q` to the centroid, steps 0.05 along s and t,
+/// which stay inside) times `p - q`, a linear continuation.
+fn corner_slope(f: &impl Fn(f64, f64) -> Vec3, q: (f64, f64), p: (f64, f64)) -> Vec3 {
+    let third = 1.0 / 3.0;
+    let a = (q.0 + 0.25 * (third - q.0), q.1 + 0.25 * (third - q.1));
+    let h = 0.05;
+    let f0 = f(a.0, a.1);
+    let ds = (f(a.0 + h, a.1) - f0) / h as f32;
+    let dt = (f(a.0, a.1 + h) - f0) / h as f32;
+    ds * (p.0 - q.0) as f32 + dt * (p.1 - q.1) as f32
+}
+
+/// The point of the triangle s, t >= 0, s + t <= 1 nearest `p` (`p` itself inside).
+fn nearest_in_triangle((s, t): (f64, f64)) -> (f64, f64) {
+    if s >= 0.0 && t >= 0.0 && s + t <= 1.0 {
+        return (s, t);
+    }
+    // Onto the hypotenuse's line, then clamped to the triangle's edges in turn: for a right
+    // isosceles triangle this is the Euclidean projection.
+    let (mut s, mut t) = (s, t);
+    if s + t > 1.0 {
+        let d = 0.5 * (s + t - 1.0);
+        (s, t) = (s - d, t - d);
+    }
+    if s < 0.0 {
+        s = 0.0;
+    }
+    if t < 0.0 {
+        t = 0.0;
+    }
+    (s.min(1.0), t.min(1.0 - s.min(1.0)))
+}
+
+/// A level of side `n` with gutter `g` (row-major `texels`, `n + 2g` a side) resampled texel by
+/// texel: texel (i, j) of the result, at coordinates (a, b) = ((i - g + 1/2) / n, (j - g +
+/// 1/2) / n), is the bilinear lookup of the source at `map(a, b)` (texel centres at (k + 1/2) /
+/// n, clamped to the stored texels).
+pub fn resample(texels: &[Vec3], n: u32, g: u32, map: fn(f64, f64) -> (f64, f64)) -> Vec<Vec3> {
+    let e = (n + 2 * g) as usize;
+    let (nf, gf) = (n as f64, g as f64);
+    let at = |i: usize, j: usize| texels[j.min(e - 1) * e + i.min(e - 1)];
+    let mut out = Vec::with_capacity(e * e);
+    for j in 0..e {
+        for i in 0..e {
+            let (a, b) = ((i as f64 - gf + 0.5) / nf, (j as f64 - gf + 0.5) / nf);
+            let (u, v) = map(a, b);
+            // Continuous texel coordinates of the stored level (centre of texel k at k + 1/2).
+            let x = (u * nf + gf - 0.5).clamp(0.0, (e - 1) as f64);
+            let y = (v * nf + gf - 0.5).clamp(0.0, (e - 1) as f64);
+            let (x0, y0) = (x.floor() as usize, y.floor() as usize);
+            let (fx, fy) = ((x - x0 as f64) as f32, (y - y0 as f64) as f32);
+            let top = at(x0, y0) * (1.0 - fx) + at(x0 + 1, y0) * fx;
+            let bottom = at(x0, y0 + 1) * (1.0 - fx) + at(x0 + 1, y0 + 1) * fx;
+            out.push(top * (1.0 - fy) + bottom * fy);
+        }
+    }
+    out
 }
 
 /// Checks a largest page side: a power of two in `64..=MAX_PAGE`.
@@ -251,6 +399,7 @@ fn unplaced(n: usize) -> Vec<Chart> {
         x: 0,
         y: 0,
         side: 0,
+        triangle: false,
     };
     vec![none; n]
 }
@@ -263,6 +412,7 @@ fn place(charts: &mut [Chart], page: u32, items: &[crunch::PackedItem<usize>], s
             x: it.rect.x as u32,
             y: it.rect.y as u32,
             side: sides[it.data],
+            triangle: false,
         };
     }
 }
@@ -389,6 +539,39 @@ mod tests {
             if max == 4096 {
                 assert_eq!(sizes.len(), 1);
             }
+        }
+    }
+
+    /// The odd reflection continues a linear function linearly: every texel of a triangle's
+    /// chart, inside, in the gutter and past the hypotenuse, is the function at its centre, so
+    /// a bilinear lookup anywhere on the triangle, its edges included, is exact.
+    #[test]
+    fn a_triangle_chart_continues_a_linear_function_past_every_edge() {
+        let f = |s: f64, t: f64| Vec3::new((1.0 + 2.0 * s - 3.0 * t) as f32, s as f32, t as f32);
+        let (n, g) = (8, 2);
+        let texels = triangle_chart(n, g, f);
+        let e = (n + 2 * g) as usize;
+        for j in 0..e {
+            for i in 0..e {
+                let (s, t) = ((i as f64 - 1.5) / 8.0, (j as f64 - 1.5) / 8.0);
+                let d = (texels[j * e + i] - f(s, t)).abs().max_element();
+                assert!(d < 1e-5, "texel ({i}, {j}): {d}");
+            }
+        }
+        // The projection onto the triangle: inside unchanged, outside onto the nearest point.
+        for (p, want) in [
+            ((0.2, 0.3), (0.2, 0.3)),
+            ((0.9, 0.3), (0.8, 0.2)),
+            ((-0.5, 1.2), (0.0, 1.0)),
+            ((1.2, 0.1), (1.0, 0.0)),
+            ((-0.1, -0.1), (0.0, 0.0)),
+            ((0.3, -0.5), (0.3, 0.0)),
+        ] {
+            let got = nearest_in_triangle(p);
+            assert!(
+                (got.0 - want.0).abs() + (got.1 - want.1).abs() < 1e-12,
+                "{p:?}: {got:?}"
+            );
         }
     }
 

@@ -3,12 +3,12 @@
 //! The texture methods look a pixel's texture up at the polygon's bilinear parameters (u, v)
 //! (`scene::Polygon::point`); an engine interpolates texture coordinates linearly over each
 //! triangle. The two agree exactly on a parallelogram (the bilinear map is affine there), which
-//! is drawn as two triangles. A triangle (a quad whose last two corners coincide) or any other
-//! quad is drawn as a k x k grid of cells in (u, v), each split in two, with k the smallest
-//! power of two (up to the texture's side) for which the interpolated lookup lands within
-//! [`MAX_SHIFT`] texel widths of the bilinear one at every cell's test points; the largest shift
-//! left is reported. Cells that collapse to a point or a segment (the row at a triangle's apex)
-//! are dropped.
+//! is drawn as two triangles. A triangle (a quad whose last two corners coincide) is drawn as
+//! itself: its chart is laid out affinely (`super::atlas`), so linear interpolation is exact.
+//! Any other quad is drawn as a k x k grid of cells in (u, v), each split in two, with k the
+//! smallest power of two (up to the texture's side) for which the interpolated lookup lands
+//! within [`MAX_SHIFT`] texel widths of the bilinear one at every cell's test points; the
+//! largest shift left is reported.
 
 use glam::DVec3;
 
@@ -126,6 +126,14 @@ pub fn tessellate(p: &Polygon, side: u32) -> Tessellation {
     if affine(p) {
         return grid(p, 1);
     }
+    if p.shape == Shape::Triangle {
+        // Corners c0, c1, c2 at (u, v) = (0, 0), (1, 0), (1, 1) (any u is c2 at v = 1).
+        return Tessellation {
+            uv: vec![[0.0, 0.0], [1.0, 0.0], [1.0, 1.0]],
+            triangles: vec![[0, 1, 2]],
+            shift: 0.0,
+        };
+    }
     // A texel's width on the polygon: its square root of area over the texels across.
     let texel = p.area.sqrt() / side.max(1) as f64;
     let mut k = 1;
@@ -156,22 +164,16 @@ mod tests {
         assert!(largest_shift(&p, &t, 1.0 / 64.0) < 1e-12);
     }
 
-    /// A triangle's bilinear parameters are not linear in its plane: the grid is refined until
-    /// the shift is within the bound, and the apex row keeps only its non-degenerate halves.
+    /// A trapezoid's bilinear parameters are not linear in its plane: the grid is refined
+    /// until the shift is within the bound, and it covers the quad exactly.
     #[test]
-    fn a_triangle_is_refined_until_the_shift_is_bounded() {
-        let p = Polygon::triangle(
-            [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]].map(DVec3::from_array),
-            0,
-            0,
-        )
-        .unwrap();
+    fn a_trapezoid_is_refined_until_the_shift_is_bounded() {
+        let p = quad([[0.0; 3], [1.0, 0.0, 0.0], [0.7, 1.0, 0.0], [0.0, 1.0, 0.0]]);
         let t = tessellate(&p, 16);
         assert!(t.shift <= MAX_SHIFT, "{}", t.shift);
         let k = (t.uv.len() as f64).sqrt() as u32 - 1;
-        assert!(k > 1, "one cell cannot follow a triangle's parameters");
-        // The apex row's cells lose one half each: 2 k^2 - k triangles.
-        assert_eq!(t.triangles.len() as u32, 2 * k * k - k);
+        assert!(k > 1, "one cell cannot follow a trapezoid's parameters");
+        assert_eq!(t.triangles.len() as u32, 2 * k * k);
         let drawn: f64 = t
             .triangles
             .iter()
@@ -181,5 +183,21 @@ mod tests {
             })
             .sum();
         assert!((drawn - p.area).abs() < 1e-12, "{drawn} vs {}", p.area);
+    }
+
+    /// A triangle is drawn as itself: its chart is affine, nothing to refine.
+    #[test]
+    fn a_triangle_is_one_triangle() {
+        let p = Polygon::triangle(
+            [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]].map(DVec3::from_array),
+            0,
+            0,
+        )
+        .unwrap();
+        let t = tessellate(&p, 16);
+        assert_eq!((t.uv.len(), t.triangles.len(), t.shift), (3, 1, 0.0));
+        for (uv, c) in t.uv.iter().zip(p.vertices()) {
+            assert_eq!(p.point(uv[0], uv[1]), *c);
+        }
     }
 }

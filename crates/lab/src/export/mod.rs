@@ -122,12 +122,14 @@ fn material_extras(scene: &Scene, m: u32) -> serde_json::Value {
     }})
 }
 
-/// Writes the lightmap export of `scene` (textures `set`, centre-placed, one per polygon) to
-/// `out` (`.glb` or `.gltf`), its pages at most `page_size` texels a side, PNG pages after
+/// Writes the lightmap export of `scene` (textures `set`, centre-placed, one per polygon, and
+/// the reconstruction `recon` they sample, which fills the triangles' affine charts) to `out`
+/// (`.glb` or `.gltf`), its pages at most `page_size` texels a side, PNG pages after
 /// `exposure` stops.
 pub fn export_lightmap(
     scene: &Scene,
     set: &TextureSet,
+    recon: &reconstruction::Reconstruction,
     page_size: u32,
     exposure: f64,
     out: &Path,
@@ -135,7 +137,7 @@ pub fn export_lightmap(
 ) -> Result<ExportReport> {
     let container = Container::of(out)?;
     check_polygons(scene)?;
-    let atlas = Atlas::build(scene, set, page_size)?;
+    let atlas = Atlas::build(scene, set, recon, page_size)?;
     let mut batch = outputs.batch();
     let mut files = vec![out.to_path_buf()];
     let mut linear = Vec::new();
@@ -235,10 +237,11 @@ fn lightmap_groups(scene: &Scene, atlas: &Atlas) -> (BTreeMap<(u32, u32, u32), V
                 ..Default::default()
             });
         let base = v.position.len() as u32;
-        let n = poly.normal.normalize_or_zero().as_vec3().to_array();
         for &[u, w] in &t.uv {
-            v.position.push(poly.point(u, w).as_vec3().to_array());
-            v.normal.push(n);
+            let x = poly.point(u, w);
+            v.position.push(x.as_vec3().to_array());
+            // A smooth surface's vertex normals go out as they came in.
+            v.normal.push(poly.shading_normal(x).as_vec3().to_array());
             v.tex_coords[0].push([u as f32, w as f32]);
             v.tex_coords[1].push(atlas.uv(p, u, w));
             v.custom[0].2.push(p as f32);

@@ -109,8 +109,11 @@ pub fn read(path: &Path, pages: Pages) -> Result<Imported> {
     for (p, f) in found.values().enumerate() {
         let corner =
             |k: usize| f.corners[k].ok_or_else(|| bad(path, format!("polygon {p} lacks a corner")));
-        let [c0, c1, c2, c3] = [corner(0)?, corner(1)?, corner(2)?, corner(3)?];
-        let poly = if c2.0 == c3.0 {
+        let [c0, c1, c2] = [corner(0)?, corner(1)?, corner(2)?];
+        // A triangle is drawn as itself: its apex is (u, v) = (1, 1) only.
+        let c3 = f.corners[3].unwrap_or(c2);
+        let triangle = c2.0 == c3.0;
+        let poly = if triangle {
             Polygon::triangle([c0.0, c1.0, c2.0], f.material, 0)
         } else {
             Polygon::quad([c0.0, c1.0, c2.0, c3.0], f.material, 0)
@@ -119,7 +122,9 @@ pub fn read(path: &Path, pages: Pages) -> Result<Imported> {
         let (w, h, _) = images
             .get(f.page as usize)
             .ok_or_else(|| bad(path, format!("polygon {p} uses a missing page")))?;
-        let side = ((c2.1[0] - c0.1[0]) as f64 * *w as f64).round() as u32;
+        // c1, at (u, v) = (1, 0), is a chart's far corner along its first axis in both
+        // layouts (a triangle's chart is affine, its apex at the chart's (0, 1)).
+        let side = ((c1.1[0] - c0.1[0]) as f64 * *w as f64).round() as u32;
         let x = (c0.1[0] as f64 * *w as f64).round() as i64 - gutter as i64;
         let y = (c0.1[1] as f64 * *h as f64).round() as i64 - gutter as i64;
         if x < 0 || y < 0 || side == 0 {
@@ -133,6 +138,7 @@ pub fn read(path: &Path, pages: Pages) -> Result<Imported> {
             x: x as u32,
             y: y as u32,
             side,
+            triangle,
         });
     }
     Ok(Imported {
@@ -324,6 +330,12 @@ impl Imported {
             for r in 0..e {
                 let start = ((c.y + r) * w + c.x) as usize;
                 level.extend_from_slice(&texels[start..start + e as usize]);
+            }
+            if c.triangle {
+                // Back from the affine chart to the (u, v) square the texture methods read.
+                level = super::atlas::resample(&level, c.side, g, |u, v| {
+                    super::atlas::affine_of_square(u, v)
+                });
             }
             textures.push(RadiosityTexture::from_stored_level0(MipLevel {
                 width: c.side,

@@ -69,9 +69,11 @@ pub fn run_export(ctx: &Context<'_>, req: &ExportRequest) -> Result<ExportReport
         export_mesh(&p.scene, mesh, exposure, &req.output, &ctx.outputs)
     } else {
         let (set, _) = p.textures()?;
+        let (recon, _) = p.expanded()?;
         export_lightmap(
             &p.scene,
             set,
+            recon,
             req.page_size,
             exposure,
             &req.output,

@@ -36,7 +36,16 @@ fn round_trip(name: &str, p: &Prepared, container: &str) {
     let (set, _) = p.textures().unwrap();
     let exposure = p.scene.display.exposure;
     let outputs = base::output::Outputs::new();
-    let report = export_lightmap(&p.scene, set, 4096, exposure, &out, &outputs).unwrap();
+    let report = export_lightmap(
+        &p.scene,
+        set,
+        p.expanded().unwrap().0,
+        4096,
+        exposure,
+        &out,
+        &outputs,
+    )
+    .unwrap();
     assert!(
         report.files.iter().all(|f| f.is_file()),
         "{:?}",
@@ -90,17 +99,33 @@ fn round_trip(name: &str, p: &Prepared, container: &str) {
         match pages {
             Pages::Linear => {
                 // The same texels (f32 in the EXR), gutters rebuilt to an ulp, f32 corners:
-                // equal to a few ulps of the radiosity.
+                // equal to a few ulps of the radiosity. A triangle's chart is affine; this
+                // reader resamples it back to the (u, v) square the texture method reads, which
+                // is exact to second order but not at a triangle's apex, where the square's u
+                // degenerates: there a few pixels may differ more (at most 0.1 % of them, and
+                // every pixel within 1 % of the scale).
                 let scale = want.iter().fold(1e-3f32, |m, v| m.max(v.max_element()));
-                let worst = want
+                let diffs: Vec<f32> = want
                     .iter()
                     .zip(&got)
-                    .fold(0.0f32, |m, (a, b)| m.max((*a - *b).abs().max_element()));
-                eprintln!("{name}.{container}: linear pages, largest difference {worst:.3e} (largest value {scale:.3e})");
-                assert!(
-                    worst <= 1e-4 * scale,
-                    "{name}: linear pages differ by {worst} (scale {scale})"
+                    .map(|(a, b)| (*a - *b).abs().max_element())
+                    .collect();
+                let worst = diffs.iter().fold(0.0f32, |m, d| m.max(*d));
+                let over = diffs.iter().filter(|d| **d > 1e-4 * scale).count();
+                eprintln!(
+                    "{name}.{container}: linear pages, largest difference {worst:.3e} (largest \
+                     value {scale:.3e}), {over} pixels over 1e-4 of it"
                 );
+                assert!(
+                    worst <= 1e-2 * scale && over as f64 <= 0.001 * want.len() as f64,
+                    "{name}: linear pages differ by {worst} (scale {scale}) on {over} pixels"
+                );
+                let squares_only = p
+                    .scene
+                    .polygons
+                    .iter()
+                    .all(|q| q.shape == scene::Shape::Quad);
+                assert!(!squares_only || over == 0, "{name}: {over} pixels differ");
             }
             Pages::Png => {
                 let e = exposure as f32;
@@ -184,7 +209,16 @@ fn exports_keep_objects_materials_and_the_camera() {
     let (mesh, _) = p.mesh().unwrap();
     let dir = tempdir("model");
     let outputs = base::output::Outputs::new();
-    export_lightmap(&p.scene, set, 4096, 0.0, &dir.join("l.glb"), &outputs).unwrap();
+    export_lightmap(
+        &p.scene,
+        set,
+        p.expanded().unwrap().0,
+        4096,
+        0.0,
+        &dir.join("l.glb"),
+        &outputs,
+    )
+    .unwrap();
     export_mesh(&p.scene, mesh, 0.0, &dir.join("m.glb"), &outputs).unwrap();
     for file in ["l.glb", "m.glb"] {
         let g = gltf::Gltf::open(dir.join(file)).unwrap();
@@ -240,7 +274,8 @@ fn exports_keep_objects_materials_and_the_camera() {
 /// lookup returns what the project's bicubic texture method reads there (no neighbouring chart
 /// reaches into the 4 x 4 footprint). Three texel centres along each of the four edges of every
 /// polygon of the Cornell box; the bound is f32 rounding of the gutter's reflections (relative
-/// 1e-5 of the largest value of the polygon's chart).
+/// 1e-5 of the largest value of the polygon's chart). Triangles' affine charts are held to the
+/// bilinear bound on their three edges (see the end of the test).
 #[test]
 fn atlas_lookups_at_polygon_edges_return_the_rrp_edge_values() {
     let p = crate::shipped("cornell-box");
@@ -249,6 +284,7 @@ fn atlas_lookups_at_polygon_edges_return_the_rrp_edge_values() {
     export_lightmap(
         &p.scene,
         set,
+        p.expanded().unwrap().0,
         4096,
         0.0,
         &out,
@@ -259,6 +295,7 @@ fn atlas_lookups_at_polygon_edges_return_the_rrp_edge_values() {
     let (recon, _) = p.expanded().unwrap();
     let mitchell = reconstruction::texture::Cubic::new(1.0 / 3.0, 1.0 / 3.0);
     let mut checked = 0;
+    let mut worst_triangle = [[0.0f32; 2]; 3];
     for (k, c) in back.charts.iter().enumerate() {
         let (w, h, texels) = &back.pages[c.page as usize];
         let at = |x: i64, y: i64| {
@@ -267,6 +304,11 @@ fn atlas_lookups_at_polygon_edges_return_the_rrp_edge_values() {
         // The page coordinate (in texels, centres at + 0.5) of parameter (u, v).
         let g = back.gutter as f64;
         let xy = |u: f64, v: f64| {
+            let (u, v) = if c.triangle {
+                lab::export::atlas::affine_of_square(u, v)
+            } else {
+                (u, v)
+            };
             (
                 c.x as f64 + g + u * c.side as f64 - 0.5,
                 c.y as f64 + g + v * c.side as f64 - 0.5,
@@ -309,7 +351,10 @@ fn atlas_lookups_at_polygon_edges_return_the_rrp_edge_values() {
         for j in [0, n / 2, n - 1] {
             // Along the edge at texel centres, where bilinear filtering along it is exact.
             let t = (j as f64 + 0.5) / n as f64;
-            for (u, v) in [(0.0, t), (1.0, t), (t, 0.0), (t, 1.0)] {
+            for (edge, (u, v)) in [(0.0, t), (1.0, t), (t, 0.0), (t, 1.0)]
+                .into_iter()
+                .enumerate()
+            {
                 let rrp = recon.eval(k as u32, u as f32, v as f32);
                 let own = tex.sample(0, u as f32, v as f32, Filter::MITCHELL);
                 for (name, got, want) in [
@@ -317,16 +362,36 @@ fn atlas_lookups_at_polygon_edges_return_the_rrp_edge_values() {
                     ("bicubic", bicubic(u, v), own),
                 ] {
                     let d = (got - want).abs().max_element();
-                    assert!(
-                        d <= 1e-5 * largest,
-                        "polygon {k} at ({u}, {v}), {name}: {got} vs {want}"
-                    );
+                    if c.triangle {
+                        if edge < 3 && j < n - 1 {
+                            let w = &mut worst_triangle[edge][usize::from(name == "bicubic")];
+                            *w = w.max(d / largest);
+                        }
+                    } else {
+                        assert!(
+                            d <= 1e-5 * largest,
+                            "polygon {k} at ({u}, {v}), {name}: {got} vs {want}"
+                        );
+                    }
                     checked += 1;
                 }
             }
         }
     }
     assert_eq!(checked, 24 * p.scene.polygons.len());
+    eprintln!(
+        "triangle charts: worst edge lookups [edge][bilinear, bicubic] {worst_triangle:?} of \
+         the chart's largest value"
+    );
+    // A triangle's affine chart: bilinear lookups on its three edges return the RRP's edge
+    // values as exactly as a square chart's (the odd reflection through the edge); its bicubic
+    // lookups differ from the square texture's own by the two layouts' different footprints.
+    // The apex (the square's edge v = 1, one point, where the RRP's u is meaningless) and the
+    // texel beside it are left out.
+    for (edge, [bilinear, bicubic]) in worst_triangle.iter().enumerate() {
+        assert!(*bilinear <= 1e-5, "edge {edge}: bilinear {bilinear}");
+        assert!(*bicubic <= 2e-3, "edge {edge}: bicubic {bicubic}");
+    }
 }
 
 /// An export loads back as the scene it was made of: `render model.glb` rebuilds each polygon
@@ -341,7 +406,16 @@ fn an_export_loads_back_as_the_scene_it_was_made_of() {
     let (mesh, _) = p.mesh().unwrap();
     let dir = tempdir("back");
     let outputs = base::output::Outputs::new();
-    export_lightmap(&p.scene, set, 4096, 0.0, &dir.join("l.glb"), &outputs).unwrap();
+    export_lightmap(
+        &p.scene,
+        set,
+        p.expanded().unwrap().0,
+        4096,
+        0.0,
+        &dir.join("l.glb"),
+        &outputs,
+    )
+    .unwrap();
     export_mesh(&p.scene, mesh, 0.0, &dir.join("m.glb"), &outputs).unwrap();
     let back = scene::load_scene(&dir.join("l.glb")).unwrap();
     assert_eq!(back.polygons.len(), p.scene.polygons.len());
