@@ -256,6 +256,11 @@ impl Bvh {
     /// 1 - `T_EPS`), hits, and its t; ties at equal t go to the smaller index, so the answer
     /// does not depend on the traversal.
     pub fn first_hit(&self, a: DVec3, d: DVec3, skip: u32) -> Option<(u32, f64)> {
+        self.first_hit_skipping(a, d, [skip, u32::MAX])
+    }
+
+    /// [`Bvh::first_hit`] skipping both polygons of `skip` (`u32::MAX` skips nothing).
+    pub fn first_hit_skipping(&self, a: DVec3, d: DVec3, skip: [u32; 2]) -> Option<(u32, f64)> {
         if self.nodes.is_empty() {
             return None;
         }
@@ -280,7 +285,7 @@ impl Bvh {
             if node.count > 0 {
                 let s = node.first as usize;
                 for &pi in &self.order[s..s + node.count as usize] {
-                    if pi == skip {
+                    if pi == skip[0] || pi == skip[1] {
                         continue;
                     }
                     let c = &self.tris[pi as usize];

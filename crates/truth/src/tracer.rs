@@ -47,6 +47,10 @@ pub(crate) const RR_START: u32 = 3;
 /// Ray origins are moved this far off their polygon, relative to the scene's diagonal.
 pub(crate) const OFFSET: f64 = 1e-9;
 
+/// Two hits whose segment parameters differ by at most this are at the same place (coincident
+/// faces): a bounce segment is twice the scene's diagonal, so this is 2e-12 of it.
+const COINCIDENT_T: f64 = 1e-12;
+
 /// One sample of the reflected radiosity at a point, split by where the light came from.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub(crate) struct Reflected {
@@ -118,12 +122,27 @@ impl<'a> Tracer<'a> {
 
     /// The first surface from `origin` along unit `dir` within `reach`, skipping `skip`, and
     /// the distance to it.
+    ///
+    /// A back face with a front face at the same distance behind it (a two-sided emitter's
+    /// reversed twin, `two_sided`, or any pair of coincident opposite faces) is the front
+    /// face: the BVH breaks the tie by index, and the twin comes after the face it copies, so
+    /// without this a bounce would never reach the twin's light.
     fn first_surface(&self, origin: DVec3, dir: DVec3, reach: f64, skip: u32) -> (Surface, f64) {
-        match self.bvh.first_hit(origin, dir * reach, skip) {
+        let back = |k: u32| self.scene.polygons[k as usize].normal.dot(dir) >= 0.0;
+        let hit = self.bvh.first_hit(origin, dir * reach, skip).map(|(k, t)| {
+            if !back(k) {
+                return (k, t);
+            }
+            match self.bvh.first_hit_skipping(origin, dir * reach, [skip, k]) {
+                Some((k2, t2)) if (t2 - t).abs() <= COINCIDENT_T && !back(k2) => (k2, t2),
+                _ => (k, t),
+            }
+        });
+        match hit {
             None => (Surface::Miss, 0.0),
             Some((k, t)) => {
                 let dist = t * reach;
-                if self.scene.polygons[k as usize].normal.dot(dir) >= 0.0 {
+                if back(k) {
                     (Surface::Back, dist)
                 } else {
                     let point = origin + dir * dist;

@@ -98,6 +98,58 @@ fn a_square_emitter_lights_the_floor_by_the_exact_form_factor() {
     assert!((form_factor(0.0, 0.0, [-1e4, 1e4], [-1e4, 1e4], 1.0) - 1.0).abs() < 1e-3);
 }
 
+/// Regression: a two-sided emitter is a face and its reversed twin in the same place; the
+/// BVH broke the tie at equal distance by index, so a bounce always met the face's black back
+/// and never the twin's light (a ceiling over a Blender panel read 0.62 of its light). A probe
+/// facing down above the emitter now receives the twin's light by the exact form factor, as
+/// the probes below receive the face's.
+#[test]
+fn a_two_sided_emitter_lights_both_sides_by_the_exact_form_factor() {
+    let probes = [(0.0, 0.0, 0.05), (0.6, 0.3, 0.05), (-0.3, 0.4, 0.6)];
+    let mut scene = probes_scene(&probes);
+    // Probes mirrored above the emitter (at y = 2, facing down), and the emitter's twin.
+    let n = probes.len();
+    for k in 0..n {
+        let (x, z, side) = probes[k];
+        scene
+            .polygons
+            .insert(n + k, square(DVec3::new(x, 2.0, z), side, false, 0));
+    }
+    let emitter = scene.polygons[2 * n].clone();
+    let [a, b, c, d] = emitter.corners;
+    let twin = scene::Polygon::quad([d, c, b, a], 1, 0).unwrap();
+    scene.polygons.push(twin);
+    let scene = Scene::new(
+        scene.camera,
+        8,
+        8,
+        scene.materials.clone(),
+        scene.polygons.clone(),
+    );
+    let e = scene.materials[1].emission;
+    let opts = TruthOptions {
+        seed: 5,
+        samples_per_polygon: 16384,
+        ..TruthOptions::new(&scene)
+    };
+    let est = polygons(&scene, &opts, &SILENT).unwrap();
+    for (k, &(x, z, side)) in probes.iter().enumerate() {
+        let f = square_average(x, z, side, 64, |px, pz| {
+            form_factor(px, pz, [-0.25, 0.25], [-0.25, 0.25], 1.0)
+        });
+        let want = RHO * e * f;
+        for (which, got) in [("below", &est[k]), ("above", &est[n + k])] {
+            let z = (got.radiosity - want) / got.radiosity_se;
+            assert!(
+                z.abs().max_element() < 4.0,
+                "probe {k} {which}: {} +- {}, want {want}",
+                got.radiosity,
+                got.radiosity_se
+            );
+        }
+    }
+}
+
 #[test]
 fn a_spot_lights_the_floor_by_its_intensity_and_cone() {
     let (h, intensity, cone, falloff) = (1.0, 2.0, 40.0f64, 3.0);
