@@ -100,10 +100,12 @@ fn contacts_text(scene: &Scene) -> String {
         shift += n as i64 - 1;
     }
     let more = at.len().saturating_sub(3);
-    t += &format!(
-        ": {}",
-        at.into_iter().take(3).collect::<Vec<_>>().join(", ")
-    );
+    if !at.is_empty() {
+        t += &format!(
+            ": {}",
+            at.into_iter().take(3).collect::<Vec<_>>().join(", ")
+        );
+    }
     if more > 0 {
         t += &format!(" and {more} more");
     }

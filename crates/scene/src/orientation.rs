@@ -301,7 +301,9 @@ fn trapped_lights(scene: &Scene, bvh: &Bvh, reach: f64) -> Vec<String> {
             .dot(c - scene.polygons[q as usize].corners[0]);
         let fix = if has_twin(scene, i) {
             "its material is two-sided: if only the face toward the scene should shine, make \
-             it one-sided and turn it to face the scene"
+             it one-sided and turn it to face the scene (a glTF material's `doubleSided`: in \
+             Blender, tick the material's Backface Culling before exporting, or map it in the \
+             include's `materials` table to a one-sided scene material)"
         } else {
             "a modelling tool that lights both faces of a panel leaves it so: turn it to face \
              the scene (reverse its corners), or give its material `two_sided = true` to emit \

@@ -157,9 +157,13 @@ const SCENES: [&str; 8] = [
 /// generator's output by the `generate` tests of the CLI.
 #[test]
 fn golden_building() {
-    let scene = crate::building(2, 1, 2);
+    check_built("building", "scenes/building.toml", crate::building(2, 1, 2));
+}
+
+/// Checks the golden images of `scene`, built in code, prepared as if loaded from `path`.
+fn check_built(name: &str, path: &str, scene: scene::Scene) {
     let input = Input {
-        path: root().join("scenes/building.toml"),
+        path: root().join(path),
         scene,
         solution_file: None,
         estimator: Default::default(),
@@ -169,12 +173,31 @@ fn golden_building() {
     let policy = texture.policy(&input.scene).expect("texture policy");
     let placement = texture.placement(&input.scene).expect("texel placement");
     let p = prepare(&Context::default(), input, policy, placement).expect("scene prepares");
-    check_prepared("building", &p);
+    check_prepared(name, &p);
 }
 
 #[test]
 fn golden_cornell_box() {
     check_scene("cornell-box");
+}
+
+/// A triangulated room: the Cornell box as a modelling tool's triangles, kept as triangles
+/// (`merge_triangles = false`), so every method draws triangles joined across their diagonals.
+#[test]
+fn golden_cornell_box_triangles() {
+    let edit = [("seed = 1", "seed = 1\nmerge_triangles = false")];
+    let scene = crate::triangles::triangulated_cornell(true, &edit);
+    let triangles = scene
+        .polygons
+        .iter()
+        .filter(|p| p.shape == scene::Shape::Triangle)
+        .count();
+    // Every face but the pieces of the floor's contact cuts (some of them quads).
+    assert!(
+        triangles > 2 * (scene.polygons.len() - triangles),
+        "{triangles} triangles"
+    );
+    check_built("cornell-box-triangles", "scenes/cornell-box.toml", scene);
 }
 
 /// A smooth surface: an OBJ wall of 32 facets with vertex normals, which receive light by

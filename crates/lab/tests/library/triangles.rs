@@ -12,7 +12,7 @@ const CORNELL: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../../scenes/cornell
 /// The Cornell box with every quad face of its OBJ written as two triangles: along the diagonal
 /// from the first corner when `first` is set, along the other one otherwise (as tools choose
 /// either), and the scene file's lines `edits` (whole line, replacement) changed.
-fn triangulated_cornell(first: bool, edits: &[(&str, &str)]) -> scene::Scene {
+pub(crate) fn triangulated_cornell(first: bool, edits: &[(&str, &str)]) -> scene::Scene {
     let path = Path::new(CORNELL);
     let text = edited(edits);
     let read = move |p: &Path| -> std::io::Result<String> {

@@ -109,8 +109,7 @@ fn a_two_sided_emitter_lights_both_sides_by_the_exact_form_factor() {
     let mut scene = probes_scene(&probes);
     // Probes mirrored above the emitter (at y = 2, facing down), and the emitter's twin.
     let n = probes.len();
-    for k in 0..n {
-        let (x, z, side) = probes[k];
+    for (k, &(x, z, side)) in probes.iter().enumerate() {
         scene
             .polygons
             .insert(n + k, square(DVec3::new(x, 2.0, z), side, false, 0));
