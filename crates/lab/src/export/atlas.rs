@@ -235,8 +235,8 @@ pub fn square_of_affine(s: f64, t: f64) -> (f64, f64) {
 /// The texels of a triangle's affine chart of side `n` with gutter `g` (see the module docs):
 /// `f(s, t)` at texel centres inside the triangle s, t >= 0, s + t <= 1, the odd reflection
 /// through the nearest point of the triangle outside it (linear extrapolation along the same
-/// line from a nearer point where the mirror point would leave the triangle, [`corner_slope`]
-/// beyond a corner).
+/// line from a nearer point where the mirror point would leave the triangle, the gradient
+/// inside the triangle beyond a corner).
 pub fn triangle_chart(n: u32, g: u32, f: impl Fn(f64, f64) -> Vec3) -> Vec<Vec3> {
     let e = (n + 2 * g) as usize;
     let (nf, gf) = (n as f64, g as f64);
