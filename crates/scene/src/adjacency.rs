@@ -492,6 +492,23 @@ struct Match {
 fn match_sides(p0: DVec3, p1: DVec3, q0: DVec3, q1: DVec3) -> Option<Match> {
     let d = p1 - p0;
     let e = q1 - q0;
+    // Cheap rejection first (most side pairs of neighbours are apart): segments that match lie
+    // within NEAR_EDGE times the longer length of each other, and 2 max(|d|, |e|) in the max
+    // norm bounds that length, so boxes apart by more than that never match.
+    let reach = 2.0 * NEAR_EDGE * d.abs().max_element().max(e.abs().max_element());
+    let (plo, phi) = (p0.min(p1), p0.max(p1));
+    let (qlo, qhi) = (q0.min(q1), q0.max(q1));
+    if (plo - qhi).max_element() > reach || (qlo - phi).max_element() > reach {
+        return None;
+    }
+    // And off the line: q0 and q1 within NEAR_EDGE times the longer length of p's line (the
+    // distance of q from it is |d x (q - p0)| / |d|; squared, against 4 NEAR_EDGE^2
+    // max(|d|^2, |e|^2) |d|^2, which the true bound never exceeds).
+    let dd = d.length_squared();
+    let bound = 4.0 * NEAR_EDGE * NEAR_EDGE * dd.max(e.length_squared()) * dd;
+    if d.cross(q0 - p0).length_squared() > bound || d.cross(q1 - p0).length_squared() > bound {
+        return None;
+    }
     let long = d.length().max(e.length());
     if long.is_nan()
         || long <= 0.0

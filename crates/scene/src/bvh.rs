@@ -429,13 +429,19 @@ fn sah_split(idx: &mut [u32], boxes: &[Aabb], cents: &[DVec3]) -> Option<usize> 
             b.0 = b.0.union(boxes[i as usize]);
             b.1 += 1;
         }
+        // Boxes and counts of bins[k..], then one sweep from the left: the same unions (min and
+        // max, exact in any order) as folding each side afresh, in linear time.
+        let mut right = [(Aabb::EMPTY, 0usize); BINS];
+        let mut acc = (Aabb::EMPTY, 0usize);
+        for k in (1..BINS).rev() {
+            acc = (acc.0.union(bins[k].0), acc.1 + bins[k].1);
+            right[k] = acc;
+        }
+        let (mut lb, mut ln) = (Aabb::EMPTY, 0usize);
         for k in 1..BINS {
-            let (lb, ln) = bins[..k]
-                .iter()
-                .fold((Aabb::EMPTY, 0), |(b, n), x| (b.union(x.0), n + x.1));
-            let (rb, rn) = bins[k..]
-                .iter()
-                .fold((Aabb::EMPTY, 0), |(b, n), x| (b.union(x.0), n + x.1));
+            lb = lb.union(bins[k - 1].0);
+            ln += bins[k - 1].1;
+            let (rb, rn) = right[k];
             if ln == 0 || rn == 0 {
                 continue;
             }
