@@ -182,6 +182,9 @@ fn render_exr(input: &Path, exr: &Path, extra: &[&str]) -> Vec<u8> {
 
 #[test]
 fn render_from_a_solution_file_equals_render_from_the_scene() {
+    // One level coarser than shipped, to keep the test short: the same override goes with
+    // every command (a solution file holds the settings it was solved with).
+    let depth = "radiosity.max_depth=6";
     let sol = tmp("cb.pfsol");
     let o = run(&[
         "solve",
@@ -189,10 +192,12 @@ fn render_from_a_solution_file_equals_render_from_the_scene() {
         "-o",
         sol.to_str().unwrap(),
         "--quiet",
+        "-D",
+        depth,
     ]);
     assert!(o.status.success(), "{}", stderr(&o));
     let render = |input: &Path, exr: &Path, estimator: &str| {
-        render_exr(input, exr, &["--estimator", estimator])
+        render_exr(input, exr, &["--estimator", estimator, "-D", depth])
     };
     let a = render(&scene("cornell-box"), &tmp("from-scene.exr"), "hyman");
     let b = render(&sol, &tmp("from-solution.exr"), "hyman");
@@ -715,11 +720,14 @@ fn every_lane_build_renders_the_same_bytes() {
     // each cap of the lane build: the same PNG and EXR bytes (on a CPU without AVX2 or AVX-512
     // the caps fall back to what it has, and the comparison still holds). Drawn from one solve
     // (solution files are checked equal to solving by their own test).
+    // One level coarser than shipped to keep the test short (the override goes with every
+    // command: a solution file holds the settings it was solved with).
+    let depth = "radiosity.max_depth=6";
     let solution = tmp("lanes-cornell-box.pfsol");
     let o = bin()
         .args(["solve", scene("cornell-box").to_str().unwrap(), "-o"])
         .arg(&solution)
-        .arg("--quiet")
+        .args(["--quiet", "-D", depth])
         .output()
         .unwrap();
     assert!(o.status.success(), "solve: {}", stderr(&o));
@@ -733,6 +741,8 @@ fn every_lane_build_renders_the_same_bytes() {
                 .args([
                     "render",
                     solution.to_str().unwrap(),
+                    "-D",
+                    depth,
                     "--method",
                     method,
                     "--aa",
