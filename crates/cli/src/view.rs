@@ -2,9 +2,10 @@
 //! replay that writes the last frame. The frames, the camera and the keys' meaning live in
 //! `lab::viewer`; this module only turns keys into its actions and shows its pixels.
 
+use std::sync::{Arc, Mutex};
 use std::time::Instant;
 
-use minifb::{Key, KeyRepeat, Window, WindowOptions};
+use minifb::{InputCallback, Key, Window, WindowOptions};
 
 use crate::args::ViewArgs;
 use crate::commands::{in_pool, wrote, Settings};
@@ -78,8 +79,11 @@ pub fn view(settings: &Settings, args: ViewArgs) -> anyhow::Result<()> {
             ..engine::frame::FrameOptions::new(args.width, args.height)
         };
         // The viewer's frame (and the screenshot's PNG) under the memory limit, as `render`'s,
-        // before the solve.
+        // before the solve; and, for the window, a display to open it on.
         lab::jobs::budget::check_frame_options(&opts, (true, false), ctx.memory_limit)?;
+        if script.is_none() || args.screenshot.is_none() {
+            check_display()?;
+        }
         let prepared = lab::jobs::prepare(&ctx, input, policy, placement)?;
         let mut viewer = Viewer::new(&prepared, opts)?;
         let exposure = prepared.scene.display.exposure;
@@ -114,6 +118,86 @@ pub fn view(settings: &Settings, args: ViewArgs) -> anyhow::Result<()> {
     })?
 }
 
+/// Key events as the window delivers them, latched between frames: minifb's per-frame key
+/// state loses a key pressed and released within one frame (a tap at 3 fps), so the window's
+/// input callback queues every press and release here and each frame takes them all.
+#[derive(Clone, Default)]
+struct KeyLatch {
+    events: Arc<Mutex<Vec<(Key, bool)>>>,
+}
+
+impl InputCallback for KeyLatch {
+    fn add_char(&mut self, _: u32) {}
+
+    fn set_key_state(&mut self, key: Key, down: bool) {
+        self.events
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .push((key, down));
+    }
+}
+
+/// What one frame does with the keys: the actions of the keys pressed since the last frame
+/// (each press once, however short), and the keys to treat as held (those down now, and those
+/// pressed and released since the last frame, so a tap moves the camera one frame's step).
+#[derive(Debug, Default, PartialEq)]
+struct FrameKeys {
+    pressed: Vec<Key>,
+    held: Vec<Key>,
+}
+
+impl KeyLatch {
+    /// Takes the events since the last frame; `down` is the set of keys down before them,
+    /// updated to after them. A repeated press of a key already down (auto-repeat) is not a
+    /// new press.
+    fn frame(&self, down: &mut Vec<Key>) -> FrameKeys {
+        let events = std::mem::take(&mut *self.events.lock().unwrap_or_else(|e| e.into_inner()));
+        let mut out = FrameKeys {
+            pressed: Vec::new(),
+            held: down.clone(),
+        };
+        for (k, is_down) in events {
+            if is_down {
+                if !down.contains(&k) {
+                    down.push(k);
+                    out.pressed.push(k);
+                    if !out.held.contains(&k) {
+                        out.held.push(k);
+                    }
+                }
+            } else {
+                down.retain(|d| *d != k);
+            }
+        }
+        out
+    }
+}
+
+/// The error when no window opens: what to check, without Rust's debug formatting.
+fn no_window(e: minifb::Error) -> anyhow::Error {
+    let display = match std::env::var("DISPLAY") {
+        Ok(d) if !d.is_empty() => format!("DISPLAY is `{d}`"),
+        Ok(_) => "DISPLAY is empty".to_string(),
+        Err(_) => "DISPLAY is not set".to_string(),
+    };
+    anyhow::anyhow!(
+        "cannot open a window ({display}; `view` needs an X11 display, or run it with \
+         `--script FILE` to replay a session without one): {e}"
+    )
+}
+
+/// On X11 systems, refuses before any work when no display is named (the window could not
+/// open after the solve).
+fn check_display() -> anyhow::Result<()> {
+    if cfg!(all(unix, not(target_os = "macos"))) && std::env::var_os("WAYLAND_DISPLAY").is_none() {
+        match std::env::var("DISPLAY") {
+            Ok(d) if !d.is_empty() => {}
+            _ => return Err(no_window(minifb::Error::WindowCreate("no display".into()))),
+        }
+    }
+    Ok(())
+}
+
 /// The window loop: keys to actions, one frame per window update, until Esc or close.
 fn window(viewer: &mut Viewer<'_>, exposure: f64) -> anyhow::Result<()> {
     let (w, h) = viewer.size();
@@ -123,25 +207,27 @@ fn window(viewer: &mut Viewer<'_>, exposure: f64) -> anyhow::Result<()> {
         h as usize,
         WindowOptions::default(),
     )
-    .map_err(|e| {
-        anyhow::anyhow!(
-            "cannot open a window (is there a display? DISPLAY is {:?}): {e}",
-            std::env::var("DISPLAY").ok()
-        )
-    })?;
+    .map_err(no_window)?;
+    let latch = KeyLatch::default();
+    win.set_input_callback(Box::new(latch.clone()));
+    let mut down = Vec::new();
     let mut buf = vec![0u32; w as usize * h as usize];
     let mut last = Instant::now();
     let mut seconds = 0.0;
     while win.is_open() && !win.is_key_down(Key::Escape) {
-        let shift = win.is_key_down(Key::LeftShift) || win.is_key_down(Key::RightShift);
+        let keys = latch.frame(&mut down);
+        let shift = keys
+            .held
+            .iter()
+            .any(|k| matches!(k, Key::LeftShift | Key::RightShift));
         // The prepared solution outlives the viewer's borrow: the state can change beside it.
         let scene = &viewer.prepared().scene;
-        for k in win.get_keys_pressed(KeyRepeat::No) {
+        for &k in &keys.pressed {
             if let Some(a) = pressed(k, shift) {
                 viewer.state.press(a, scene);
             }
         }
-        let keys: Vec<Action> = win.get_keys().iter().filter_map(held).collect();
+        let keys: Vec<Action> = keys.held.iter().filter_map(held).collect();
         let now = Instant::now();
         let dt = (now - last).as_secs_f64();
         last = now;
@@ -155,4 +241,66 @@ fn window(viewer: &mut Viewer<'_>, exposure: f64) -> anyhow::Result<()> {
         win.update_with_buffer(&buf, w as usize, h as usize)?;
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Events fed through the callback the window calls, as a window would deliver them.
+    fn feed(latch: &KeyLatch, events: &[(Key, bool)]) {
+        let mut cb: Box<dyn InputCallback> = Box::new(latch.clone());
+        for &(k, down) in events {
+            cb.set_key_state(k, down);
+        }
+    }
+
+    /// Regression: a key pressed and released within one frame (a tap at 3 fps) was lost; now
+    /// it acts exactly once, at any frame rate, and moves the camera for one frame.
+    #[test]
+    fn a_tap_within_one_frame_acts_once() {
+        let latch = KeyLatch::default();
+        let mut down = Vec::new();
+        feed(
+            &latch,
+            &[
+                (Key::P, true),
+                (Key::P, false),
+                (Key::W, true),
+                (Key::W, false),
+            ],
+        );
+        let f = latch.frame(&mut down);
+        assert_eq!(f.pressed, [Key::P, Key::W]);
+        assert_eq!(f.held, [Key::P, Key::W]);
+        assert!(down.is_empty());
+        // The next frame: nothing more.
+        assert_eq!(latch.frame(&mut down), FrameKeys::default());
+        // A key held across frames, with auto-repeat presses: one press, held every frame
+        // until released.
+        feed(&latch, &[(Key::M, true), (Key::M, true)]);
+        let f = latch.frame(&mut down);
+        assert_eq!(
+            (f.pressed.as_slice(), f.held.as_slice()),
+            (&[Key::M][..], &[Key::M][..])
+        );
+        feed(&latch, &[(Key::M, true)]);
+        let f = latch.frame(&mut down);
+        assert_eq!((f.pressed.len(), f.held.as_slice()), (0, &[Key::M][..]));
+        feed(&latch, &[(Key::M, false)]);
+        let f = latch.frame(&mut down);
+        assert_eq!((f.pressed.len(), f.held.as_slice()), (0, &[Key::M][..]));
+        assert_eq!(latch.frame(&mut down), FrameKeys::default());
+        // Two taps within one frame are two presses.
+        feed(
+            &latch,
+            &[
+                (Key::P, true),
+                (Key::P, false),
+                (Key::P, true),
+                (Key::P, false),
+            ],
+        );
+        assert_eq!(latch.frame(&mut down).pressed, [Key::P, Key::P]);
+    }
 }

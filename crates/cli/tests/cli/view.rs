@@ -134,3 +134,28 @@ fn a_view_frame_over_the_memory_limit_is_refused() {
     );
     assert!(!png.exists());
 }
+
+/// Without a display the window cannot open: `view` says so before any work (no solve first),
+/// in words, not Rust's debug formatting, and exits 1.
+#[test]
+fn view_without_a_display_refuses_before_solving() {
+    let scene = Path::new(crate::REPO).join("scenes/cornell-box.toml");
+    for display in [None, Some("")] {
+        let mut cmd = crate::bin();
+        cmd.args(["view", scene.to_str().unwrap()])
+            .env_remove("WAYLAND_DISPLAY");
+        match display {
+            None => cmd.env_remove("DISPLAY"),
+            Some(d) => cmd.env("DISPLAY", d),
+        };
+        let o = cmd.output().unwrap();
+        let err = text(&o.stderr);
+        assert_eq!(o.status.code(), Some(1), "{err}");
+        assert!(err.contains("cannot open a window (DISPLAY is"), "{err}");
+        assert!(err.contains("--script"), "{err}");
+        assert!(!err.contains("Some(") && !err.contains("None"), "{err}");
+        // Refused before the solve: none of the solve's notes (the Cornell box's refinement
+        // note) was printed.
+        assert!(!err.contains("refinement stopped"), "{err}");
+    }
+}
