@@ -377,8 +377,9 @@ pub struct RenderArgs {
     /// every frame).
     #[arg(long)]
     pub stats: Option<PathBuf>,
-    /// Render every frame of the scene's `[camera_path]` (files `<output stem>-NNNN.png`) and
-    /// print a frame-rate summary (fps min / median / max, median stage times).
+    /// Render every frame of the scene's `[camera_path]` (files `<output stem>-NNNN.png`; without
+    /// `-o`, in their own folder `out/<scene>-<method>/`) and print a frame-rate summary (fps
+    /// min / median / max, median stage times).
     #[arg(long)]
     pub walkthrough: bool,
     /// The scene of a solution file, when it is no longer where the file says.

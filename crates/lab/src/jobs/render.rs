@@ -124,10 +124,11 @@ impl RenderPlan {
                 "writes one frame; it cannot be combined with --walkthrough",
             ));
         }
-        let png = req
-            .output
-            .clone()
-            .unwrap_or_else(|| default_png_path(req, method, &frame));
+        let png = match &req.output {
+            Some(p) => p.clone(),
+            None if req.walkthrough => walkthrough_folder(&default_png_path(req, method, &frame)),
+            None => default_png_path(req, method, &frame),
+        };
         let frames = if req.walkthrough {
             let path = scene.camera_path.as_ref().ok_or_else(|| {
                 let how = if scene::is_model(&scene.source) {
@@ -608,6 +609,16 @@ pub(crate) fn default_png_path(
     PathBuf::from("out").join(name + ".png")
 }
 
+/// A walkthrough's frames without a name given: in their own folder, named like the default
+/// PNG (`out/<name>/<name>-NNNN.png` for `out/<name>.png`), not among everything else in
+/// `out/`.
+fn walkthrough_folder(png: &Path) -> PathBuf {
+    match (png.file_stem(), png.file_name()) {
+        (Some(stem), Some(name)) => png.with_file_name(stem).join(name),
+        _ => png.to_path_buf(),
+    }
+}
+
 /// The frame file name of walkthrough frame `k`: `<stem>-NNNN.<ext>` beside `png` (the
 /// format of the name given).
 pub(crate) fn walkthrough_frame_path(png: &Path, k: u32) -> PathBuf {
@@ -677,6 +688,11 @@ mod tests {
             ..RenderRequest::default()
         };
         assert_eq!(name(&req, Method::Direct), Path::new("out/x-direct.png"));
+        // A walkthrough without a name: its own folder.
+        assert_eq!(
+            walkthrough_frame_path(&walkthrough_folder(Path::new("out/x-direct.png")), 7),
+            Path::new("out/x-direct/x-direct-0007.png")
+        );
         req.width = Some(64);
         req.height = Some(32);
         req.aa = Some(4);
