@@ -201,6 +201,8 @@ fn check_display() -> anyhow::Result<()> {
 /// The window loop: keys to actions, one frame per window update, until Esc or close.
 fn window(viewer: &mut Viewer<'_>, exposure: f64) -> anyhow::Result<()> {
     let (w, h) = viewer.size();
+    // The status line's strip above the frame.
+    let h = h + lab::viewer::STATUS_STRIP;
     let mut win = Window::new(
         "pixelflow-sim view",
         w as usize,

@@ -281,8 +281,9 @@ impl<'a> Viewer<'a> {
         self.ctx.pixels()
     }
 
-    /// The last frame as sRGB bytes (3 per pixel, after `exposure` stops, as `render`'s PNG),
-    /// with `status` written across its top when given.
+    /// The last frame as sRGB bytes (3 per pixel, after `exposure` stops, as `render`'s PNG);
+    /// with `status`, that frame below a strip of [`STATUS_STRIP`] rows holding the status line
+    /// ([`with_status`]: the window is that much taller, and no pixel of the frame is covered).
     pub fn display(&self, exposure: f64, status: Option<&str>) -> Result<Vec<u8>> {
         let (w, h) = self.size();
         let view = crate::image::ImageView {
@@ -290,11 +291,11 @@ impl<'a> Viewer<'a> {
             height: h,
             pixels: self.pixels(),
         };
-        let mut rgb = crate::image::write::srgb8_bytes(view, exposure as f32);
-        if let Some(text) = status {
-            crate::plot::overlay_text(&mut rgb, w, h, text)?;
+        let rgb = crate::image::write::srgb8_bytes(view, exposure as f32);
+        match status {
+            Some(text) => with_status(&rgb, w, h, text),
+            None => Ok(rgb),
         }
-        Ok(rgb)
     }
 
     /// The prepared solution drawn.
@@ -472,9 +473,37 @@ impl Script {
     }
 }
 
+/// Rows of the strip above the frame that holds the viewer's status line.
+pub const STATUS_STRIP: u32 = 22;
+
+/// The sRGB frame `rgb` (`w` x `h`, 3 bytes per pixel) below a strip of [`STATUS_STRIP`] rows
+/// with `text` in it: a `w` x (`h` + [`STATUS_STRIP`]) image whose rows below the strip are
+/// the frame's, unchanged.
+pub fn with_status(rgb: &[u8], w: u32, h: u32, text: &str) -> Result<Vec<u8>> {
+    let strip = (3 * w * STATUS_STRIP) as usize;
+    let mut out = vec![0u8; strip + rgb.len()];
+    out[strip..].copy_from_slice(rgb);
+    crate::plot::overlay_text(&mut out, w, h + STATUS_STRIP, text)?;
+    Ok(out)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Regression: the status line covered the frame's top 22 rows; it now has its own strip.
+    #[test]
+    fn the_status_line_covers_no_pixel_of_the_frame() {
+        let (w, h) = (64u32, 8u32);
+        let rgb: Vec<u8> = (0..3 * w * h).map(|i| (i % 251) as u8).collect();
+        let out = with_status(&rgb, w, h, "direct  60 fps").unwrap();
+        assert_eq!(out.len() as u32, 3 * w * (h + STATUS_STRIP));
+        let strip = (3 * w * STATUS_STRIP) as usize;
+        assert_eq!(&out[strip..], &rgb[..]);
+        // The strip holds the text: not one flat colour.
+        let first = &out[..3];
+        assert!(out[..strip].chunks_exact(3).any(|p| p != first));
+    }
 
     fn scene() -> scene::Scene {
         let mut s = scene::Scene::new(crate::closed_form::camera(), 8, 8, Vec::new(), Vec::new());
