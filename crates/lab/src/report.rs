@@ -142,7 +142,7 @@ pub fn summarize(scene: &Scene) -> SceneSummary {
         }
     };
     let (start, worst) = crate::jobs::budget::solve_estimate(scene);
-    let adjacency = scene::adjacency::Adjacency::of(&scene.polygons);
+    let adjacency = scene.adjacency();
     let seams = reconstruction::Seams::of(&scene.polygons, &scene.materials, &adjacency);
     SceneSummary {
         source: scene.source.display().to_string(),

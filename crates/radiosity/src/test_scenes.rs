@@ -23,10 +23,9 @@ pub fn scene(polygons: Vec<Polygon>, materials: Vec<Material>, spots: Vec<SpotLi
         up: DVec3::Y,
         projection: Projection::Perspective { fov_y_deg: 45.0 },
     };
-    Scene {
-        spots,
-        ..Scene::new(camera, 64, 64, materials, polygons)
-    }
+    let mut scene = Scene::new(camera, 64, 64, materials, polygons);
+    scene.spots = spots;
+    scene
 }
 
 /// A quad with its winding chosen so the normal points towards `toward`.

@@ -41,15 +41,17 @@ const END_TOL: f64 = 1e-6;
 
 /// Cuts every polygon through its T-vertices whose lattices do not line up (see the module
 /// docs), keeping `origins` aligned; what was cut, over all passes (polygon indices in it are
-/// those before each pass).
+/// those before each pass), and the adjacency of the polygons as they are after it (`None`
+/// when the last pass cut and no adjacency was found after it).
 pub fn cut<T: Clone>(
     polygons: &mut Vec<Polygon>,
     origins: &mut Vec<T>,
     materials: &[Material],
-) -> Cuts {
+) -> (Cuts, Option<Adjacency>) {
     let mut all = Cuts::default();
     let mut tracked = Tracked::new(polygons);
     let mut adjacency = Adjacency::of(polygons);
+    let mut current = true;
     for pass in 0..MAX_PASSES {
         let lines = lines(&adjacency, polygons, materials);
         if lines.is_empty() {
@@ -64,12 +66,14 @@ pub fn cut<T: Clone>(
             // Only the pieces have new neighbours: a million-polygon model's passes cost what
             // its cuts do, not a whole adjacency each.
             adjacency = adjacency.after_cut(polygons, &c.pieces, &mut tracked);
+        } else {
+            current = false;
         }
         all.lines.extend(c.lines);
         all.pieces.extend(c.pieces);
         all.skipped += c.skipped;
     }
-    all
+    (all, current.then_some(adjacency))
 }
 
 /// The cut lines of one pass: one per T-vertex of an unaligned continuous seam, across the
@@ -181,8 +185,10 @@ mod tests {
         let mut p = l_shape(1.0);
         assert_eq!(unaligned(&p, &grey()), 1);
         let mut origins = vec!["strip", "square"];
-        let cuts = cut(&mut p, &mut origins, &grey());
+        let (cuts, adjacency) = cut(&mut p, &mut origins, &grey());
         assert_eq!(cuts.counts(), (1, 2));
+        // The adjacency it ends with is the cut polygons' own.
+        assert_eq!(adjacency, Some(Adjacency::of(&p)));
         assert_eq!(p.len(), 3);
         assert_eq!(origins, ["strip", "strip", "square"]);
         assert_eq!(unaligned(&p, &grey()), 0);
@@ -201,7 +207,10 @@ mod tests {
         for w in [1.5, 0.75] {
             let mut p = l_shape(w);
             assert_eq!(unaligned(&p, &grey()), 0, "{w}");
-            assert!(cut(&mut p, &mut Vec::<u8>::new(), &grey()).lines.is_empty());
+            assert!(cut(&mut p, &mut Vec::<u8>::new(), &grey())
+                .0
+                .lines
+                .is_empty());
             assert_eq!(p.len(), 2);
         }
         // Two materials: the light steps along the seam anyway.
@@ -213,7 +222,7 @@ mod tests {
             reflectance: DVec3::new(0.6, 0.1, 0.1),
             emission: DVec3::ZERO,
         });
-        assert!(cut(&mut p, &mut Vec::<u8>::new(), &m).lines.is_empty());
+        assert!(cut(&mut p, &mut Vec::<u8>::new(), &m).0.lines.is_empty());
     }
 
     #[test]
@@ -225,7 +234,7 @@ mod tests {
             quad([[0.0, 0.0], [3.0, 0.0], [3.0, 1.0], [0.0, 1.0]]),
             quad([[0.0, 1.0], [1.0, 1.0], [1.0, 2.0], [0.0, 2.0]]),
         ];
-        let cuts = cut(&mut p, &mut Vec::<u8>::new(), &grey());
+        let (cuts, _) = cut(&mut p, &mut Vec::<u8>::new(), &grey());
         assert_eq!(cuts.lines.len(), 2);
         assert_eq!(p.len(), 5);
         assert_eq!(unaligned(&p, &grey()), 0);

@@ -463,6 +463,41 @@ pub struct Scene {
     /// The polygons the loader cut through T-junctions whose lattices do not line up
     /// ([`junctions`]); polygon indices in it are those before each pass.
     pub junctions: contact::Cuts,
+    /// The adjacency the T-junction pass ends with, kept for [`Scene::adjacency`].
+    adjacency_cache: AdjacencyCache,
+}
+
+/// An adjacency kept with the fingerprint of the polygons it was found for: used only while
+/// the polygons are still those (a scene's polygons are public, and anyone may change them).
+/// Equal to every other cache: it is a memo, not part of what a scene is.
+#[derive(Debug, Clone, Default)]
+struct AdjacencyCache(Option<(u64, std::sync::Arc<adjacency::Adjacency>)>);
+
+impl PartialEq for AdjacencyCache {
+    fn eq(&self, _: &AdjacencyCache) -> bool {
+        true
+    }
+}
+
+/// A fingerprint of the polygons' geometry (every corner's bits and shape, in order): what
+/// [`adjacency::Adjacency::of`] depends on.
+fn geometry_fingerprint(polygons: &[Polygon]) -> u64 {
+    // FNV-1a over 64-bit words.
+    let mut h: u64 = 0xcbf2_9ce4_8422_2325;
+    let mut word = |w: u64| {
+        h ^= w;
+        h = h.wrapping_mul(0x0000_0100_0000_01b3);
+    };
+    word(polygons.len() as u64);
+    for p in polygons {
+        word(p.shape as u64);
+        for c in &p.corners {
+            for x in c.to_array() {
+                word(x.to_bits());
+            }
+        }
+    }
+    h
 }
 
 /// A polygon more than this many times the diagonal of the rest of the scene is a backdrop
@@ -506,6 +541,7 @@ impl Scene {
             contacts: contact::Cuts::default(),
             merged: triangle_pairs::Merged::default(),
             junctions: contact::Cuts::default(),
+            adjacency_cache: AdjacencyCache::default(),
         }
     }
 
@@ -522,7 +558,24 @@ impl Scene {
     /// for every scene, after the contact cuts (whose pieces may leave such T-junctions with
     /// their neighbours); a scene built in code does it when it asks.
     pub fn cut_t_junctions(&mut self) {
-        self.junctions = junctions::cut(&mut self.polygons, &mut self.origins, &self.materials);
+        let (cuts, adjacency) =
+            junctions::cut(&mut self.polygons, &mut self.origins, &self.materials);
+        self.junctions = cuts;
+        self.adjacency_cache = AdjacencyCache(
+            adjacency.map(|a| (geometry_fingerprint(&self.polygons), std::sync::Arc::new(a))),
+        );
+    }
+
+    /// The shared edges of the polygons ([`adjacency::Adjacency::of`]): the one the T-junction
+    /// pass ended with when the polygons are still those it was found for (checked by a
+    /// fingerprint of their geometry, far cheaper than finding it again), else found now.
+    pub fn adjacency(&self) -> std::sync::Arc<adjacency::Adjacency> {
+        if let Some((f, a)) = &self.adjacency_cache.0 {
+            if *f == geometry_fingerprint(&self.polygons) {
+                return std::sync::Arc::clone(a);
+            }
+        }
+        std::sync::Arc::new(adjacency::Adjacency::of(&self.polygons))
     }
 
     /// Where polygon `i` was written (`file:line: key`), or `polygon i` for a scene built in
@@ -629,6 +682,31 @@ mod tests {
     fn square(x: f64, y: f64, z: f64, w: f64) -> Polygon {
         let c = |dx: f64, dz: f64| DVec3::new(x + dx, y, z + dz);
         Polygon::quad([c(0.0, 0.0), c(w, 0.0), c(w, -w), c(0.0, -w)], 0, 0).unwrap()
+    }
+
+    /// The adjacency kept from the T-junction pass is the polygons' own, and is not used once
+    /// the polygons change.
+    #[test]
+    fn the_kept_adjacency_serves_only_the_polygons_it_was_found_for() {
+        let q = |x0: f64, z0: f64, w: f64, h: f64| {
+            let c = |x: f64, z: f64| DVec3::new(x, 0.0, -z);
+            Polygon::quad(
+                [c(x0, z0), c(x0 + w, z0), c(x0 + w, z0 + h), c(x0, z0 + h)],
+                0,
+                0,
+            )
+            .unwrap()
+        };
+        // A strip with a square on a third of its side: one T-junction cut.
+        let mut s = scene_of(vec![q(0.0, 0.0, 3.0, 1.0), q(0.0, 1.0, 1.0, 1.0)]);
+        s.cut_t_junctions();
+        assert_eq!(s.polygons.len(), 3);
+        assert!(s.adjacency_cache.0.is_some());
+        assert_eq!(*s.adjacency(), adjacency::Adjacency::of(&s.polygons));
+        s.polygons.pop();
+        assert_eq!(*s.adjacency(), adjacency::Adjacency::of(&s.polygons));
+        s.polygons[0].corners[1].x += 0.5;
+        assert_eq!(*s.adjacency(), adjacency::Adjacency::of(&s.polygons));
     }
 
     fn scene_of(polygons: Vec<Polygon>) -> Scene {

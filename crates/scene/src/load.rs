@@ -499,6 +499,7 @@ impl<'a> Cx<'a> {
             contacts: crate::contact::Cuts::default(),
             merged,
             junctions: crate::contact::Cuts::default(),
+            adjacency_cache: Default::default(),
         };
         if scene.radiosity.cut_contacts {
             scene.cut_contacts();

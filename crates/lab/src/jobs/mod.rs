@@ -583,7 +583,7 @@ pub fn prepare(
 /// The seams every reconstruction of `scene` joins: the shared edges of coplanar polygons of one
 /// material ([`scene::adjacency`], [`reconstruction::seam`]).
 pub fn seams_of(scene: &Scene) -> Seams {
-    let adjacency = scene::adjacency::Adjacency::of(&scene.polygons);
+    let adjacency = scene.adjacency();
     Seams::of(&scene.polygons, &scene.materials, &adjacency)
 }
 
