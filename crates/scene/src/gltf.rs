@@ -706,7 +706,9 @@ impl Converter<'_> {
         if m.emissive_texture().is_some() {
             ignored.push("emissiveTexture: texture ignored, its factor used".to_string());
         }
-        if pbr.metallic_factor() > 0.5 {
+        // A black base colour reflects nothing either way (an emission-only material, as
+        // Blender writes an Emission shader's): its metallic factor changes nothing to say.
+        if pbr.metallic_factor() > 0.5 && reflectance.max_element() > 0.0 {
             ignored.push(format!(
                 "metallicFactor {}: drawn as a diffuse surface of its base colour",
                 pbr.metallic_factor()

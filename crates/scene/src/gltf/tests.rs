@@ -995,3 +995,28 @@ fn vertex_normals_become_shading_frames_through_the_node_transform() {
         assert!(s.polygons.iter().all(|p| p.shading.is_none()));
     }
 }
+
+/// An emission-only material with a black base colour (what Blender writes for an Emission
+/// shader) and glTF's default metalness: nothing reflects either way, so no note about it.
+#[test]
+fn a_black_emitting_material_draws_no_metalness_note() {
+    let mut doc = Doc::default();
+    let mut prim = quad(&mut doc);
+    prim["material"] = json!(0);
+    let body = json!({
+        "scene": 0, "scenes": [{ "nodes": [0] }], "nodes": [{ "mesh": 0 }],
+        "meshes": [{ "primitives": [prim] }],
+        "materials": [{
+            "name": "panel",
+            "pbrMetallicRoughness": { "baseColorFactor": [0, 0, 0, 1] },
+            "emissiveFactor": [1, 1, 1]
+        }]
+    });
+    let s = load_gltf(&doc, body, "");
+    assert_eq!(s.material_of(0).emission, DVec3::ONE);
+    assert!(
+        !s.notes.iter().any(|n| n.contains("metallicFactor")),
+        "{:?}",
+        s.notes
+    );
+}
