@@ -22,6 +22,8 @@ pub struct Terminal {
     /// When the terminal was made (the command's start): the clock of `--trace` estimates.
     created: Instant,
     state: Mutex<BarState>,
+    /// The stage and phase of the last estimate printed as a `--trace` line.
+    traced: Mutex<(String, String)>,
 }
 
 /// The running stage: its name, its start, its bar once shown, and its latest estimate of the
@@ -54,7 +56,28 @@ impl Terminal {
             delay: Duration::from_secs(1),
             created: Instant::now(),
             state: Mutex::default(),
+            traced: Mutex::default(),
         }
+    }
+
+    /// The `--trace` line of an estimate of the time left, for the first estimate of each
+    /// phase of a stage only (the later ones of the same phase are progress, the bar's): the
+    /// phase, its estimate and when it came on the command's clock, so that an estimate can be
+    /// checked against when the phase really ended.
+    fn trace_estimate(&self, stage: &str, phase: &str, seconds: f64) -> Option<String> {
+        if !self.trace {
+            return None;
+        }
+        let mut last = self.traced.lock().ok()?;
+        if last.0 == stage && last.1 == phase {
+            return None;
+        }
+        *last = (stage.to_string(), phase.to_string());
+        let at = self.created.elapsed().as_secs_f64();
+        Some(format!(
+            "  {stage} at {at:.1} s: {phase}, about {} left ({seconds:.1} s)",
+            human_seconds(seconds)
+        ))
     }
 }
 
@@ -114,11 +137,8 @@ impl Observer for Terminal {
 
     fn remaining(&self, stage: &str, phase: &str, seconds: f64) {
         let text = format!("{phase}, about {} left", human_seconds(seconds));
-        if self.trace {
-            // With --trace every estimate is also a line, stamped with the stage's clock, so
-            // an estimate can be checked against when the phase really ended.
-            let at = self.created.elapsed().as_secs_f64();
-            self.note(&format!("  {stage} at {at:.1} s: {text} ({seconds:.1} s)"));
+        if let Some(line) = self.trace_estimate(stage, phase, seconds) {
+            self.note(&line);
         }
         let Ok(mut st) = self.state.lock() else {
             return;
@@ -171,7 +191,37 @@ mod tests {
             delay: Duration::ZERO,
             created: Instant::now(),
             state: Mutex::default(),
+            traced: Mutex::default(),
         }
+    }
+
+    /// `--trace` prints the solver's account, not its progress: one estimate line per phase
+    /// (the first), not one per update (a gather's twenty).
+    #[test]
+    fn trace_prints_one_estimate_per_phase() {
+        let t = Terminal {
+            trace: true,
+            ..terminal()
+        };
+        let lines: Vec<String> = [
+            ("solve", "round 1 gather", 3.0),
+            ("solve", "round 1 gather", 2.0),
+            ("solve", "round 1 gather", 1.0),
+            ("solve", "round 1 refinement", 0.5),
+            ("solve", "round 2 gather", 2.0),
+            ("solve", "round 2 gather", 1.0),
+        ]
+        .iter()
+        .filter_map(|(s, p, x)| t.trace_estimate(s, p, *x))
+        .collect();
+        assert_eq!(lines.len(), 3, "{lines:?}");
+        assert!(
+            lines[0].contains("round 1 gather, about 3 s left (3.0 s)"),
+            "{lines:?}"
+        );
+        assert!(lines[2].contains("round 2 gather"), "{lines:?}");
+        // Without --trace, none.
+        assert_eq!(terminal().trace_estimate("solve", "gather", 1.0), None);
     }
 
     fn shown(t: &Terminal) -> Option<(String, u64)> {
