@@ -184,6 +184,10 @@ fn frame(c: &mut Criterion) {
 /// Each stage of a 1024 x 1024 direct frame alone, on reused buffers: geometry and setup,
 /// binning, rasterization with patch location (every region), composition of two renderers'
 /// G-buffers (every region), and the deferred pass (in `deferred`).
+///
+/// One criterion group, kept as one function: its cases share the scene and buffers built at
+/// the top, and each is a short setup followed by its `bench_function`; split, they would pass
+/// that state around without reading any easier.
 fn stages(c: &mut Criterion) {
     let isa = Isa::detect();
     let scene = room(8);
@@ -295,6 +299,9 @@ fn serde_json_like(s: &FrameStats) -> String {
     )
 }
 
+/// The deferred pass alone on G-buffers rasterized once: the patch shader per instruction-set
+/// build, from a warm patch cache, and the other shaders.
+/// One criterion group in one function, for the reason given at [`stages`].
 fn deferred(c: &mut Criterion) {
     let isa = Isa::detect();
     let scene = room(8);

@@ -229,6 +229,40 @@ fn corner(p: &SweepPoint) -> bool {
     p.texture.is_some_and(|t| t.placement == "corner")
 }
 
+/// A sweep plot's title: the scene, the cost axis and the image size.
+fn sweep_title(report: &SweepReport, cost: Cost) -> String {
+    format!(
+        "{}: error against {} ({} x {})",
+        Path::new(&report.scene)
+            .file_stem()
+            .map(|s| s.to_string_lossy().into_owned())
+            .unwrap_or_default(),
+        match cost {
+            Cost::Time => "frame time",
+            Cost::Bytes => "memory",
+        },
+        report.width,
+        report.height
+    )
+}
+
+/// One method's lines: one per texture size and placement (the method's points when it has
+/// neither), through its densities coarse to fine, as (cost, error) points.
+fn method_lines<'a>(
+    of_method: &[&&'a SweepPoint],
+    cost: Cost,
+) -> Vec<(LineKey<'a>, Vec<(f64, f64)>)> {
+    let mut lines: Vec<(LineKey, Vec<(f64, f64)>)> = Vec::new();
+    for p in of_method {
+        let key = p.texture.map(|t| (t.halvings, t.placement));
+        match lines.iter_mut().find(|(k, _)| *k == key) {
+            Some((_, v)) => v.push((cost.of(p), p.error_total)),
+            None => lines.push((key, vec![(cost.of(p), p.error_total)])),
+        }
+    }
+    lines
+}
+
 fn draw<DB: DrawingBackend>(
     area: DrawingArea<DB, plotters::coord::Shift>,
     report: &SweepReport,
@@ -247,19 +281,7 @@ where
     let x = log_range(pts.iter().map(|p| cost.of(p)));
     let y = log_range(pts.iter().map(|p| p.error_total));
     let all: Vec<(f64, f64)> = pts.iter().map(|p| (cost.of(p), p.error_total)).collect();
-    let title = format!(
-        "{}: error against {} ({} x {})",
-        Path::new(&report.scene)
-            .file_stem()
-            .map(|s| s.to_string_lossy().into_owned())
-            .unwrap_or_default(),
-        match cost {
-            Cost::Time => "frame time",
-            Cost::Bytes => "memory",
-        },
-        report.width,
-        report.height
-    );
+    let title = sweep_title(report, cost);
     let axes = Axes {
         title: &title,
         x_label: cost.label(),
@@ -275,17 +297,7 @@ where
     for m in methods {
         let c = colour(m);
         let of_method: Vec<&&SweepPoint> = pts.iter().filter(|p| p.method == m).collect();
-        // One line per texture size and placement (the method's points when it has neither),
-        // through its densities coarse to fine.
-        let mut lines: Vec<(LineKey, Vec<(f64, f64)>)> = Vec::new();
-        for p in &of_method {
-            let key = p.texture.map(|t| (t.halvings, t.placement));
-            match lines.iter_mut().find(|(k, _)| *k == key) {
-                Some((_, v)) => v.push((cost.of(p), p.error_total)),
-                None => lines.push((key, vec![(cost.of(p), p.error_total)])),
-            }
-        }
-        for (_, line) in &lines {
+        for (_, line) in &method_lines(&of_method, cost) {
             chart
                 .draw_series(LineSeries::new(line.iter().copied(), c.stroke_width(1)))
                 .map_err(err)?;

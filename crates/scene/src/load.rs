@@ -451,26 +451,7 @@ impl<'a> Cx<'a> {
             Some(cp) => Some(self.camera_path(cp)?),
             None => None,
         };
-        let (notes, warnings) = super::coincident::merge(&mut surfaces.polygons, &mut self.origins);
-        self.notes.extend(notes);
-        self.warnings.extend(warnings);
-        let merged = if radiosity.merge_triangles {
-            super::triangle_pairs::merge(&mut surfaces.polygons, &mut self.origins)
-        } else {
-            super::triangle_pairs::Merged::default()
-        };
-        self.notes.extend(merged.note());
-        let doubled = two_sided(
-            &mut surfaces.polygons,
-            &mut self.origins,
-            &surfaces.two_sided,
-        );
-        if doubled > 0 {
-            self.notes.push(format!(
-                "{doubled} polygons of two-sided materials given a twin facing the other way, \
-                 so that they emit and reflect on both faces"
-            ));
-        }
+        let merged = self.repair(&mut surfaces, radiosity.merge_triangles);
         self.check_polygons_and_light(&surfaces, &spots)?;
         let Surfaces {
             materials,
@@ -501,23 +482,40 @@ impl<'a> Cx<'a> {
             junctions: crate::contact::Cuts::default(),
             adjacency_cache: Default::default(),
         };
-        if scene.radiosity.cut_contacts {
-            scene.cut_contacts();
-            if let Some(note) = scene.contacts.note() {
-                scene.notes.push(note);
-            }
-        }
-        scene.cut_t_junctions();
-        if !scene.junctions.pieces.is_empty() {
-            let (cut, pieces) = scene.junctions.counts();
-            scene.notes.push(format!(
-                "{} T-junctions whose sides' lattices do not line up (a side split other than \
-                 in halves, quarters, ...): {cut} polygons cut through them into {pieces} pieces, \
-                 so that neighbours share whole sides and their light is joined C1",
-                scene.junctions.lines.len()
+        cut(&mut scene);
+        Ok(scene)
+    }
+
+    /// The repairs of the loaded polygons that change nothing the image shows, each said in a
+    /// note: coincident polygons counted once, coplanar triangle pairs merged into quads (when
+    /// `merge_triangles`), two-sided materials' polygons given reversed twins. Returns what was
+    /// merged.
+    fn repair(
+        &mut self,
+        surfaces: &mut Surfaces,
+        merge_triangles: bool,
+    ) -> super::triangle_pairs::Merged {
+        let (notes, warnings) = super::coincident::merge(&mut surfaces.polygons, &mut self.origins);
+        self.notes.extend(notes);
+        self.warnings.extend(warnings);
+        let merged = if merge_triangles {
+            super::triangle_pairs::merge(&mut surfaces.polygons, &mut self.origins)
+        } else {
+            super::triangle_pairs::Merged::default()
+        };
+        self.notes.extend(merged.note());
+        let doubled = two_sided(
+            &mut surfaces.polygons,
+            &mut self.origins,
+            &surfaces.two_sided,
+        );
+        if doubled > 0 {
+            self.notes.push(format!(
+                "{doubled} polygons of two-sided materials given a twin facing the other way, \
+                 so that they emit and reflect on both faces"
             ));
         }
-        Ok(scene)
+        merged
     }
 
     /// One `[[materials]]` entry: a unique, non-empty name and values in range.
@@ -1014,6 +1012,27 @@ impl<'a> Cx<'a> {
 
 /// What [`in_range`] demands, for messages.
 pub(crate) const FINITE_RULE: &str = "every number must be finite and at most 1e9 in magnitude";
+
+/// The loader's cuts of a built scene, each said in a note: along its contact lines (when
+/// `radiosity.cut_contacts`), then through the T-junctions whose lattices do not line up.
+fn cut(scene: &mut Scene) {
+    if scene.radiosity.cut_contacts {
+        scene.cut_contacts();
+        if let Some(note) = scene.contacts.note() {
+            scene.notes.push(note);
+        }
+    }
+    scene.cut_t_junctions();
+    if !scene.junctions.pieces.is_empty() {
+        let (cut, pieces) = scene.junctions.counts();
+        scene.notes.push(format!(
+            "{} T-junctions whose sides' lattices do not line up (a side split other than \
+             in halves, quarters, ...): {cut} polygons cut through them into {pieces} pieces, \
+             so that neighbours share whole sides and their light is joined C1",
+            scene.junctions.lines.len()
+        ));
+    }
+}
 
 /// Gives every polygon whose material is in `materials` a twin right after it, the same
 /// corners wound the other way (so facing the other way), keeping `origins` aligned; the

@@ -40,9 +40,12 @@ use super::Material;
 use base::error::{Error, Location, Result};
 use glam::{DMat3, DVec3};
 use std::cell::RefCell;
-use std::collections::{BTreeMap, BTreeSet, HashMap};
+use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
 use toml::Spanned;
+
+mod normals;
+use normals::{face_shading, FaceShading};
 
 /// The largest reflectance a `Kd` of 1 or more is clamped to: the brightest diffuse white
 /// paints reflect about 0.9, and a closed room of reflectance r needs about ln(0.01) / ln(r)
@@ -439,70 +442,6 @@ fn face_lines(text: &str, models: &[tobj::Model]) -> Option<Vec<usize>> {
     (faces == lines.len()).then_some(lines)
 }
 
-/// The vertex normals smoothing groups give the faces of one OBJ group (see
-/// [`Converter::smoothing_groups`]), in the scene's coordinates.
-struct Smoothed {
-    sums: HashMap<(u32, u32), DVec3>,
-}
-
-impl Smoothed {
-    /// The normals of a face of smoothing group `group` with vertex indices `idx`, in the
-    /// order of [`Converter::corners`] (reversed under a mirroring transform).
-    fn normals(&self, group: u32, idx: &[u32], mirrors: bool) -> Option<Vec<DVec3>> {
-        let mut n: Vec<DVec3> = idx
-            .iter()
-            .map(|&i| self.sums.get(&(group, i)).copied())
-            .collect::<Option<_>>()?;
-        if mirrors {
-            n.reverse();
-        }
-        Some(n)
-    }
-}
-
-/// What an OBJ face says of its shading.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-struct FaceShading {
-    /// Every corner names a vertex normal (`v//vn` or `v/vt/vn`). tobj makes up an index for a
-    /// corner without one (the previous corner's), so only the text can tell.
-    normals: bool,
-    /// The smoothing group in force (`s N`); 0 for `s off`, `s 0` or none.
-    group: u32,
-}
-
-/// [`FaceShading`] of every `f` or `l` statement of `text`, in order, if they match tobj's
-/// faces one to one (as [`face_lines`]).
-fn face_shading(text: &str, models: &[tobj::Model]) -> Option<Vec<FaceShading>> {
-    let mut group = 0u32;
-    let mut out = Vec::new();
-    for line in text.lines() {
-        let mut words = line.split_whitespace();
-        match words.next() {
-            Some("s") => {
-                group = match words.next() {
-                    Some("off") | None => 0,
-                    Some(w) => w.parse().unwrap_or(0),
-                }
-            }
-            Some("f") => {
-                let corners: Vec<&str> = words.collect();
-                let normals = !corners.is_empty()
-                    && corners
-                        .iter()
-                        .all(|c| c.split('/').nth(2).is_some_and(|n| !n.is_empty()));
-                out.push(FaceShading { normals, group });
-            }
-            Some("l") => out.push(FaceShading {
-                normals: false,
-                group: 0,
-            }),
-            _ => {}
-        }
-    }
-    let faces: usize = models.iter().map(|m| arities(&m.mesh).len()).sum();
-    (faces == out.len()).then_some(out)
-}
-
 /// The `usemtl` names of the OBJ `text` that no MTL file of `parsed` defines, each with the
 /// line of its first use, in order of first use.
 fn undefined_usemtl(text: &str, parsed: &ParsedObj) -> Vec<(String, usize)> {
@@ -747,11 +686,7 @@ impl Converter<'_> {
                 continue;
             }
             let corners = self.corners(mesh, idx, &loc)?;
-            let normals = match shading {
-                Some(f) if f.normals => self.normals(mesh, range),
-                Some(f) if f.group != 0 => smoothed.normals(f.group, idx, self.transform.mirrors()),
-                _ => None,
-            };
+            let normals = self.face_normals(mesh, range, shading, &smoothed);
             let first = surfaces.polygons.len();
             cx.add_face(&corners, material, object, loc, &mut surfaces.polygons)?;
             if let Some(normals) = normals {
@@ -759,60 +694,6 @@ impl Converter<'_> {
             }
         }
         Ok(())
-    }
-
-    /// The shading of face `face_no` of the file, if the text's faces matched tobj's.
-    fn shading_of(&self, face_no: usize) -> Option<FaceShading> {
-        self.face_shading.as_ref()?.get(face_no).copied()
-    }
-
-    /// The vertex normals of the smoothing groups of `model`'s faces that name no `vn`: per
-    /// (group, vertex), the sum of the Newell normals (twice the area times the unit normal)
-    /// of the group's faces around the vertex, so larger faces weigh more.
-    fn smoothing_groups(&self, model: &tobj::Model) -> Smoothed {
-        let mesh = &model.mesh;
-        let mut sums: HashMap<(u32, u32), DVec3> = HashMap::new();
-        let mut start = 0usize;
-        for (local, &arity) in arities(mesh).iter().enumerate() {
-            let range = start..start + arity as usize;
-            start += arity as usize;
-            let Some(f) = self.shading_of(self.face_no + local) else {
-                continue;
-            };
-            let Some(idx) = mesh.indices.get(range) else {
-                continue;
-            };
-            if f.normals || f.group == 0 || idx.len() < 3 {
-                continue;
-            }
-            // A face whose corners fail is reported by the pass that adds it.
-            let Ok(corners) = self.corners(mesh, idx, &Location::file(self.obj_path)) else {
-                continue;
-            };
-            let n = crate::newell_normal(&corners);
-            for &i in idx {
-                *sums.entry((f.group, i)).or_insert(DVec3::ZERO) += n;
-            }
-        }
-        Smoothed { sums }
-    }
-
-    /// The transformed vertex normals (`vn`) of the face whose corners are at `range` of the
-    /// mesh's index lists, in the order of [`Converter::corners`]; `None` when the face has none
-    /// (or one is out of range: the face is then flat, as a face without `vn` is).
-    fn normals(&self, mesh: &tobj::Mesh, range: std::ops::Range<usize>) -> Option<Vec<DVec3>> {
-        let idx = mesh.normal_indices.get(range)?;
-        let mut normals = Vec::with_capacity(idx.len());
-        for &i in idx {
-            let i = i as usize;
-            let n = mesh.normals.get(3 * i..3 * i + 3)?;
-            let n = DVec3::new(n[0] as f64, n[1] as f64, n[2] as f64);
-            normals.push(self.transform.normal(n));
-        }
-        if self.transform.mirrors() {
-            normals.reverse();
-        }
-        Some(normals)
     }
 
     /// The transformed corners of the face with vertex indices `idx`, in the scene's winding.

@@ -395,11 +395,16 @@ fn huge_beside() {
     let text = std::fs::read_to_string(&path)
         .unwrap()
         .replace("1e6", "1e9");
-    let scene = parse_scene(&text, &path).unwrap();
-    let p = prepare(
+    huge_beside_at(&path, prepared_text(&text, &path));
+}
+
+/// The scene of `text` (as if read from `path`) solved and prepared as the hard cases are.
+fn prepared_text(text: &str, path: &Path) -> Prepared {
+    let scene = parse_scene(text, path).unwrap();
+    prepare(
         &Context::default(),
         Input {
-            path: path.clone(),
+            path: path.to_path_buf(),
             scene,
             solution_file: None,
             estimator: Estimator::default(),
@@ -408,28 +413,14 @@ fn huge_beside() {
         SizePolicy::FromDepth,
         Placement::Centre,
     )
-    .unwrap();
-    huge_beside_at(&path, p);
+    .unwrap()
 }
 
 fn huge_beside_at(path: &Path, p: Prepared) {
     check_samples("huge-beside", &p);
     let text = std::fs::read_to_string(path).unwrap();
     let cut = text.find("[[polygons]]\nname = \"huge wall\"").unwrap();
-    let small = parse_scene(&text[..cut], path).unwrap();
-    let small = prepare(
-        &Context::default(),
-        Input {
-            path: path.to_path_buf(),
-            scene: small,
-            solution_file: None,
-            estimator: Estimator::default(),
-            sharp_levels: reconstruction::sharp::DEFAULT_LEVELS,
-        },
-        SizePolicy::FromDepth,
-        Placement::Centre,
-    )
-    .unwrap();
+    let small = prepared_text(&text[..cut], path);
     let cam = p.scene.camera;
     for m in methods() {
         let label = format!("huge-beside {}", m.name());
