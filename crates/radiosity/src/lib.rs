@@ -316,7 +316,8 @@ impl GuardStops {
 pub struct EnergyAccount {
     /// Spots' and emitters' power.
     pub emitted: DVec3,
-    /// Absorbed by the surfaces: (1 - rho) times the power arriving on each.
+    /// Absorbed by the surfaces: (1 - rho) times the power arriving on each front, plus all
+    /// the power arriving on back faces (one-sided polygons' backs are black).
     pub absorbed: DVec3,
     /// Reflected light the solve stopped before shooting.
     pub unshot: DVec3,

@@ -20,11 +20,12 @@ use reconstruction::Estimator;
 use scene::{load_scene, parse_scene, Camera, Projection};
 
 /// Every scene of `scenes/hard/` has a test here: this list is checked against the directory.
-const HARD_SCENES: [&str; 14] = [
+const HARD_SCENES: [&str; 15] = [
     "behind-camera",
     "depth-12",
     "dynamic-range",
     "huge-beside",
+    "lamp-facing-ceiling",
     "light-touching",
     "near-plane",
     "no-polygons",
@@ -722,6 +723,29 @@ fn light_touching() {
 
 // ---------------------------------------------------------------------------------------------
 // 9. Coplanar overlapping polygons.
+
+/// A panel 2 cm under the ceiling of a closed room, facing it: two thirds of its light comes
+/// back to it, the rest lights the room through the gap. The energy account balances within
+/// its warning threshold (the panel's absorption integrated on its own points), every sample
+/// is finite, and every method covers the whole view (the room is closed) and lights it.
+#[test]
+fn lamp_facing_ceiling() {
+    let p = prepared("lamp-facing-ceiling");
+    check_samples("lamp-facing-ceiling", &p);
+    let e = p.solution.stats.energy;
+    assert!(
+        e.error().abs() <= radiosity::ENERGY_ERROR_WARN,
+        "energy error {}: {e:?}",
+        e.error()
+    );
+    let cam = p.scene.camera;
+    for m in methods() {
+        let f = render_in(&p, m, &cam, &opts(32, 32, 1), 2);
+        let label = format!("lamp-facing-ceiling {}", m.name());
+        let lit = check_image(&label, &f, &|_, _| true);
+        assert_eq!(lit, 32 * 32, "{label}: {lit} lit pixels");
+    }
+}
 
 #[test]
 fn z_fighting() {

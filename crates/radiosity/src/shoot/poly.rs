@@ -201,10 +201,9 @@ impl Poly {
         out
     }
 
-    /// The integral over the polygon of the values `g` (one per key), by the trapezoid rule on
-    /// its leaves.
-    pub(super) fn integral_of(&self, g: &[DVec3]) -> DVec3 {
-        self.leaves.iter().map(|l| leaf_integral(l, g, &[])).sum()
+    /// The cells of its leaves.
+    pub(super) fn leaf_cells(&self) -> impl Iterator<Item = Cell> + '_ {
+        self.leaves.iter().map(|l| l.cell)
     }
 
     /// The integral of G over the polygon, Simpson's rule on the leaves the refinement kept.

@@ -171,6 +171,20 @@ pub(crate) fn counted(all: &[u32]) -> Vec<(u32, u32)> {
 /// [`PROBE_RAYS`].
 pub(crate) const LIGHT_PROBE_FACTOR: usize = 4;
 
+/// Ray parameters (a share of the scene's reach) within which two hits are one point: a
+/// polygon and its coincident reversed twin.
+const COINCIDENT_T: f64 = 1e-12;
+
+/// The face a ray meets first.
+enum Face {
+    /// No polygon.
+    Miss,
+    /// A polygon's front, which absorbs and reflects.
+    Front,
+    /// A polygon's back, which absorbs everything.
+    Back,
+}
+
 impl Transfer<'_> {
     /// The candidate receivers of shooter `s`, ascending: the polygons its probe rays hit
     /// first (a reflecting patch: the rays of every patch of its polygon), every polygon
@@ -277,18 +291,22 @@ impl Transfer<'_> {
         }
     }
 
-    /// The share of shooter `s`'s light that leaves the scene, hitting no polygon: the
-    /// weighted share of `n` probe rays (stratified origins paired with stratified cosine
-    /// directions, as [`Transfer::probe_round`] casts them, with a stream of their own) that
-    /// hit nothing, each weighted by the light it carries (the area element at its origin for
-    /// a polygon, the intensity in its direction over the axis's for a spot).
-    pub(crate) fn escape_share(&self, s: usize, n: usize) -> f64 {
+    /// The shares of shooter `s`'s light that leave the scene (hitting no polygon) and that
+    /// land on a polygon's back face, which absorbs all of it (a polygon is one-sided; a
+    /// two-sided one's reversed twin lies in its plane, so a back face with a front face at
+    /// the same distance is that front face): the weighted shares of `n` probe rays
+    /// (stratified origins paired with stratified cosine directions, as
+    /// [`Transfer::probe_round`] casts them, with a stream of their own), each weighted by
+    /// the light it carries (the area element at its origin for a polygon, the intensity in
+    /// its direction over the axis's for a spot; for a shaped patch, times its shape's weight
+    /// there, so that the dark part of a patch half under a box sends no rays into the box).
+    pub(crate) fn escape_share(&self, s: usize, n: usize) -> (f64, f64) {
         let sg = &self.shooters[s];
         let seed = seed_of(&[self.scene.radiosity.seed, s as u64, 0x6573_6361_7065]);
         let grid = (n as f64).sqrt().ceil() as usize;
         let mut rng = Rng::new(seed);
         let perm = strata_pairing(&mut rng, n);
-        let (mut missed, mut total) = (0.0, 0.0);
+        let (mut missed, mut behind, mut total) = (0.0, 0.0, 0.0);
         let g = grid as f64;
         for (i, &j) in perm.iter().enumerate() {
             let (o, d, w) = match sg.kind {
@@ -315,18 +333,40 @@ impl Transfer<'_> {
                     let (t1, t2) = sg.normal.any_orthonormal_pair();
                     let d =
                         (t1 * phi.cos() + t2 * phi.sin()) * a.sqrt() + sg.normal * (1.0 - a).sqrt();
-                    (p.point(u, v), d, p.area_element(u, v))
+                    let shape = super::shape::shape_weight(self.shapes[s].as_ref(), su, sv);
+                    (p.point(u, v), d, p.area_element(u, v) * shape)
                 }
             };
             total += w;
-            if w > 0.0 && self.bvh.first_hit(o, d * self.reach, sg.polygon).is_none() {
-                missed += w;
+            if w > 0.0 {
+                match self.first_face(o, d, sg.polygon) {
+                    Face::Miss => missed += w,
+                    Face::Back => behind += w,
+                    Face::Front => {}
+                }
             }
         }
         if total > 0.0 {
-            missed / total
+            (missed / total, behind / total)
         } else {
-            0.0
+            (0.0, 0.0)
+        }
+    }
+
+    /// Which face the ray from `o` along unit `d` (within the scene's reach, skipping `skip`)
+    /// meets first. A back face with a front face at the same parameter (within
+    /// [`COINCIDENT_T`]) counts as that front face: the BVH breaks the tie by index, and a
+    /// two-sided polygon's twin comes after the face it copies.
+    fn first_face(&self, o: DVec3, d: DVec3, skip: u32) -> Face {
+        let back = |k: u32| self.scene.polygons[k as usize].normal.dot(d) >= 0.0;
+        let ray = d * self.reach;
+        match self.bvh.first_hit(o, ray, skip) {
+            None => Face::Miss,
+            Some((k, _)) if !back(k) => Face::Front,
+            Some((k, t)) => match self.bvh.first_hit_skipping(o, ray, [skip, k]) {
+                Some((k2, t2)) if (t2 - t).abs() <= COINCIDENT_T && !back(k2) => Face::Front,
+                _ => Face::Back,
+            },
         }
     }
 
