@@ -795,6 +795,35 @@ fn the_energy_account_balances_with_a_lamp_facing_a_ceiling() {
     );
 }
 
+/// Regression: a point whose shaped patches' bright parts are hidden from it (the floor under
+/// the lamp facing a ceiling 2 cm away: the ceiling's quarters are bright above the lamp, and
+/// the floor sees only their dim rims) judged their corrections against the light the patches
+/// would give it uniformly, over ten times what it gets, so each correction was held to a
+/// tolerance that much too loose: the floor read up to 3.6 % above the gather with every
+/// correction opened to its cells, 70 times the shape tolerance. Judged again against the
+/// corrected level, the two agree within twice the shape tolerance (the blend and each
+/// patch's node budget use one share each).
+#[test]
+fn a_gather_judges_its_corrections_against_what_it_receives() {
+    let s = lamp_under_ceiling();
+    let sol = solve_quiet(&s);
+    let oracle = Oracle::new(&sol, &s).unwrap();
+    let mut open = Oracle::new(&sol, &s).unwrap();
+    open.tr.scale_shape_tolerance(1e-4);
+    let floor = 0;
+    for (u, v) in [(0.5, 0.5), (0.3, 0.6), (0.1, 0.1)] {
+        let (got, want) = (
+            oracle.irradiance(floor, u, v).x,
+            open.irradiance(floor, u, v).x,
+        );
+        let tau = crate::transfer::shape::shape_tolerance(s.radiosity.tolerance);
+        assert!(
+            (got - want).abs() <= 2.0 * tau * want,
+            "floor at ({u}, {v}): {got} against {want} opened (tau {tau})"
+        );
+    }
+}
+
 /// A floor under an area light as wide as it, with `n` x `n` small quads (0.4 wide, one per
 /// unit cell) floating between them, facing up to the light (`up`) or down to the floor.
 fn floating_grid(n: usize, up: bool) -> Scene {
