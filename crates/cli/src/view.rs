@@ -10,7 +10,7 @@ use minifb::{InputCallback, Key, Window, WindowOptions};
 use crate::args::ViewArgs;
 use crate::commands::{in_pool, wrote, Settings};
 use crate::terminal::Terminal;
-use lab::viewer::{Action, Script, Viewer};
+use lab::viewer::{Action, Script, SolveProgress, Viewer};
 
 /// The action a pressed key triggers (`shift` held).
 fn pressed(k: Key, shift: bool) -> Option<Action> {
@@ -51,7 +51,8 @@ fn held(k: &Key) -> Option<Action> {
 
 pub fn view(settings: &Settings, args: ViewArgs) -> anyhow::Result<()> {
     in_pool(args.threads, || -> anyhow::Result<()> {
-        let observer = Terminal::new(true, false);
+        let terminal = Terminal::new(true, false);
+        let observer = SolveProgress::new(&terminal);
         let ctx = settings.context(&observer);
         let input = lab::jobs::Input::load_opts(
             &args.input,
@@ -84,11 +85,11 @@ pub fn view(settings: &Settings, args: ViewArgs) -> anyhow::Result<()> {
         if script.is_none() || args.screenshot.is_none() {
             check_display()?;
         }
-        let prepared = lab::jobs::prepare(&ctx, input, policy, placement)?;
-        let mut viewer = Viewer::new(&prepared, opts)?;
-        let exposure = prepared.scene.display.exposure;
+        let exposure = input.scene.display.exposure;
         match (script, &args.screenshot) {
             (Some(script), Some(png)) => {
+                let prepared = Arc::new(lab::jobs::prepare(&ctx, input, policy, placement)?);
+                let mut viewer = Viewer::new(Arc::clone(&prepared), opts)?;
                 script.play(&mut viewer.state, &prepared.scene);
                 // Every frame as the window draws it (frame, sRGB, status line), timed.
                 let mut times = Vec::with_capacity(args.frames as usize);
@@ -113,9 +114,52 @@ pub fn view(settings: &Settings, args: ViewArgs) -> anyhow::Result<()> {
                     1.0 / median
                 ))
             }
-            _ => window(&mut viewer, exposure),
+            _ => {
+                // The solve runs beside the window, which opens at once and draws each of its
+                // snapshots as it comes (progressive radiosity's early picture).
+                let (tx, rx) = crossbeam_channel::unbounded();
+                rayon::in_place_scope(|scope| {
+                    let ctx = &ctx;
+                    scope.spawn(move |_| {
+                        let send = |p| {
+                            let _ = tx.send(Update::Snapshot(p));
+                        };
+                        let done = lab::jobs::prepare_progressively(
+                            ctx,
+                            input,
+                            policy,
+                            placement,
+                            Some(&send),
+                        );
+                        let _ = tx.send(Update::Done(done));
+                    });
+                    let shown = window(&rx, &observer, opts, exposure);
+                    if matches!(shown, Ok(Closed::BeforeSolved)) {
+                        // Nothing is written by the window: the solve is left unfinished (it
+                        // cannot be stopped part-way), and the process ends here.
+                        std::process::exit(0);
+                    }
+                    shown.map(|_| ())
+                })
+            }
         }
     })?
+}
+
+/// What the solve beside the window sends it.
+enum Update {
+    /// A snapshot of the solve, reconstructed.
+    Snapshot(lab::jobs::Prepared),
+    /// The final solution, or why there is none.
+    Done(base::error::Result<lab::jobs::Prepared>),
+}
+
+/// How the window was closed.
+enum Closed {
+    /// With the final solution drawn.
+    Solved,
+    /// While the solve still ran.
+    BeforeSolved,
 }
 
 /// Key events as the window delivers them, latched between frames: minifb's per-frame key
@@ -198,11 +242,18 @@ fn check_display() -> anyhow::Result<()> {
     Ok(())
 }
 
-/// The window loop: keys to actions, one frame per window update, until Esc or close.
-fn window(viewer: &mut Viewer<'_>, exposure: f64) -> anyhow::Result<()> {
-    let (w, h) = viewer.size();
+/// The window loop: keys to actions, one frame per window update, until Esc or close. The
+/// picture is the latest solution `updates` brought (the window opens before the first, with
+/// the solve's progress in its status strip); an error of the solve ends the loop with it.
+fn window(
+    updates: &crossbeam_channel::Receiver<Update>,
+    progress: &SolveProgress<'_>,
+    opts: engine::frame::FrameOptions,
+    exposure: f64,
+) -> anyhow::Result<Closed> {
+    let (w, frame_h) = (opts.width, opts.height);
     // The status line's strip above the frame.
-    let h = h + lab::viewer::STATUS_STRIP;
+    let h = frame_h + lab::viewer::STATUS_STRIP;
     let mut win = Window::new(
         "pixelflow-sim view",
         w as usize,
@@ -212,37 +263,86 @@ fn window(viewer: &mut Viewer<'_>, exposure: f64) -> anyhow::Result<()> {
     .map_err(no_window)?;
     let latch = KeyLatch::default();
     win.set_input_callback(Box::new(latch.clone()));
+    let mut viewer: Option<Viewer> = None;
+    let mut solved = false;
     let mut down = Vec::new();
     let mut buf = vec![0u32; w as usize * h as usize];
     let mut last = Instant::now();
     let mut seconds = 0.0;
     while win.is_open() && !win.is_key_down(Key::Escape) {
-        let keys = latch.frame(&mut down);
-        let shift = keys
-            .held
-            .iter()
-            .any(|k| matches!(k, Key::LeftShift | Key::RightShift));
-        // The prepared solution outlives the viewer's borrow: the state can change beside it.
-        let scene = &viewer.prepared().scene;
-        for &k in &keys.pressed {
-            if let Some(a) = pressed(k, shift) {
-                viewer.state.press(a, scene);
+        if let Some(p) = latest(updates, &mut solved)? {
+            match viewer.as_mut() {
+                Some(v) => v.replace(Arc::new(p)),
+                None => viewer = Some(Viewer::new(Arc::new(p), opts.clone())?),
             }
         }
-        let keys: Vec<Action> = keys.held.iter().filter_map(held).collect();
+        let keys = latch.frame(&mut down);
         let now = Instant::now();
         let dt = (now - last).as_secs_f64();
         last = now;
         seconds = 0.9 * seconds + 0.1 * dt;
-        viewer.state.advance(&keys, dt.min(0.25), scene);
-        viewer.frame()?;
-        let rgb = viewer.display(exposure, Some(&viewer.status(seconds)))?;
+        let rgb = match viewer.as_mut() {
+            Some(v) => {
+                act(v, &keys, dt);
+                v.frame()?;
+                let mut status = v.status(seconds);
+                if let Some(line) = progress.line().filter(|_| !solved) {
+                    status = format!("{line}  |  {status}");
+                }
+                v.display(exposure, Some(&status))?
+            }
+            None => {
+                let black = vec![0u8; 3 * (w * frame_h) as usize];
+                let line = progress.line().unwrap_or_else(|| "loading".into());
+                lab::viewer::with_status(&black, w, frame_h, &line)?
+            }
+        };
         for (px, c) in buf.iter_mut().zip(rgb.chunks_exact(3)) {
             *px = (c[0] as u32) << 16 | (c[1] as u32) << 8 | c[2] as u32;
         }
         win.update_with_buffer(&buf, w as usize, h as usize)?;
     }
-    Ok(())
+    Ok(if solved {
+        Closed::Solved
+    } else {
+        Closed::BeforeSolved
+    })
+}
+
+/// The newest solution among the updates waiting (older snapshots are dropped unseen), setting
+/// `solved` when it is the final one; the solve's error if it failed.
+fn latest(
+    updates: &crossbeam_channel::Receiver<Update>,
+    solved: &mut bool,
+) -> anyhow::Result<Option<lab::jobs::Prepared>> {
+    let mut newest = None;
+    while let Ok(u) = updates.try_recv() {
+        match u {
+            Update::Snapshot(p) => newest = Some(p),
+            Update::Done(done) => {
+                newest = Some(done?);
+                *solved = true;
+            }
+        }
+    }
+    Ok(newest)
+}
+
+/// Applies one frame's keys to the viewer: presses once each, held keys for `dt` seconds.
+fn act(viewer: &mut Viewer, keys: &FrameKeys, dt: f64) {
+    let shift = keys
+        .held
+        .iter()
+        .any(|k| matches!(k, Key::LeftShift | Key::RightShift));
+    let prepared = Arc::clone(viewer.prepared());
+    let scene = &prepared.scene;
+    for &k in &keys.pressed {
+        if let Some(a) = pressed(k, shift) {
+            viewer.state.press(a, scene);
+        }
+    }
+    let held: Vec<Action> = keys.held.iter().filter_map(held).collect();
+    viewer.state.advance(&held, dt.min(0.25), scene);
 }
 
 #[cfg(test)]

@@ -133,6 +133,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             &SolveOptions {
                 observer: &stamps,
                 memory_limit: u64::MAX,
+                snapshots: None,
             },
         )?;
         let log = stamps.log.into_inner().expect("log lock");

@@ -14,12 +14,14 @@
 //! and turns are 60 degrees per second, so a step depends on the time held, not the frame rate.
 
 use std::f64::consts::PI;
+use std::sync::{Arc, Mutex};
 
 use glam::{DQuat, DVec3};
 
 use crate::jobs::{build_method_data, render_frame_in, reserve_frames, Prepared};
 use base::error::{Error, Result};
 use base::method::{Filter, Method};
+use base::progress::Observer;
 use engine::frame::{FrameContext, FrameOptions, FrameStats};
 use scene::Camera;
 
@@ -222,8 +224,8 @@ fn orbit(c: &mut Camera, dolly: f64, sideways: f64, yaw: f64, pitch: f64) {
 
 /// A viewer: the state, the prepared solution it draws and the frame context kept across
 /// frames.
-pub struct Viewer<'a> {
-    prepared: &'a Prepared,
+pub struct Viewer {
+    prepared: Arc<Prepared>,
     /// The view.
     pub state: ViewState,
     ctx: FrameContext,
@@ -234,10 +236,10 @@ pub struct Viewer<'a> {
     reserved: Option<(Method, u32, u32)>,
 }
 
-impl<'a> Viewer<'a> {
+impl Viewer {
     /// A viewer of `prepared` with frames of `opts` (its renderers and region are the state's
     /// starting values).
-    pub fn new(prepared: &'a Prepared, opts: FrameOptions) -> Result<Viewer<'a>> {
+    pub fn new(prepared: Arc<Prepared>, opts: FrameOptions) -> Result<Viewer> {
         opts.validate()?;
         let mut state = ViewState::new(&prepared.scene);
         state.renderers = opts.renderers;
@@ -262,13 +264,13 @@ impl<'a> Viewer<'a> {
         };
         let key = (method, opts.renderers, opts.region);
         if self.reserved != Some(key) {
-            build_method_data(self.prepared, method)?;
-            reserve_frames(&mut self.ctx, self.prepared, method, &opts)?;
+            build_method_data(&self.prepared, method)?;
+            reserve_frames(&mut self.ctx, &self.prepared, method, &opts)?;
             self.reserved = Some(key);
         }
         let stats = render_frame_in(
             &mut self.ctx,
-            self.prepared,
+            &self.prepared,
             method,
             &self.state.camera,
             &opts,
@@ -299,8 +301,17 @@ impl<'a> Viewer<'a> {
     }
 
     /// The prepared solution drawn.
-    pub fn prepared(&self) -> &'a Prepared {
-        self.prepared
+    pub fn prepared(&self) -> &Arc<Prepared> {
+        &self.prepared
+    }
+
+    /// Draws `prepared` from the next frame on, the view unchanged: a later snapshot of the
+    /// same scene's solve ([`crate::jobs::prepare_progressively`]). Its method's data is built
+    /// again on the next frame.
+    pub fn replace(&mut self, prepared: Arc<Prepared>) {
+        self.prepared = prepared;
+        self.reserved = None;
+        self.last = None;
     }
 
     /// The frame size.
@@ -473,6 +484,93 @@ impl Script {
     }
 }
 
+/// What a solve running beside the window has reported: an observer that passes everything
+/// on to another (the terminal) and keeps the latest progress, phase and time left for the
+/// window's status line ([`SolveProgress::line`]).
+pub struct SolveProgress<'a> {
+    inner: &'a dyn Observer,
+    latest: Mutex<Latest>,
+}
+
+/// The latest report of the solve stage.
+#[derive(Default)]
+struct Latest {
+    fraction: f64,
+    phase: String,
+    seconds: Option<f64>,
+    finished: bool,
+}
+
+/// The stage a [`SolveProgress`] reports on.
+const SOLVE_STAGE: &str = radiosity::STAGE;
+
+impl<'a> SolveProgress<'a> {
+    /// A tap on `inner`.
+    pub fn new(inner: &'a dyn Observer) -> SolveProgress<'a> {
+        SolveProgress {
+            inner,
+            latest: Mutex::new(Latest::default()),
+        }
+    }
+
+    /// The solve's progress as the status line shows it while it runs (`None` once it has
+    /// finished): its share done, its phase and the time it expects to take still.
+    pub fn line(&self) -> Option<String> {
+        let l = self.latest.lock().ok()?;
+        if l.finished {
+            return None;
+        }
+        let mut s = format!("solving {:.0} %", 100.0 * l.fraction);
+        if !l.phase.is_empty() {
+            s += &format!(" ({})", l.phase);
+        }
+        if let Some(t) = l.seconds {
+            s += &format!(", about {t:.0} s left");
+        }
+        Some(s)
+    }
+
+    fn update(&self, f: impl FnOnce(&mut Latest)) {
+        if let Ok(mut l) = self.latest.lock() {
+            f(&mut l);
+        }
+    }
+}
+
+impl Observer for SolveProgress<'_> {
+    fn progress(&self, stage: &str, fraction: f64) {
+        if stage == SOLVE_STAGE {
+            self.update(|l| l.fraction = fraction);
+        }
+        self.inner.progress(stage, fraction);
+    }
+
+    fn finished(&self, stage: &str) {
+        if stage == SOLVE_STAGE {
+            self.update(|l| l.finished = true);
+        }
+        self.inner.finished(stage);
+    }
+
+    fn remaining(&self, stage: &str, phase: &str, seconds: f64) {
+        if stage == SOLVE_STAGE {
+            self.update(|l| {
+                l.phase = phase.to_string();
+                l.seconds = seconds.is_finite().then_some(seconds.max(0.0));
+            });
+        }
+        self.inner.remaining(stage, phase, seconds);
+    }
+
+    fn tracing(&self) -> bool {
+        self.inner.tracing()
+    }
+
+    fn trace(&self, line: &str) {
+        self.inner.trace(line);
+    }
+}
+
 /// Rows of the strip above the frame that holds the viewer's status line.
 pub const STATUS_STRIP: u32 = 22;
 
@@ -490,6 +588,52 @@ pub fn with_status(rgb: &[u8], w: u32, h: u32, text: &str) -> Result<Vec<u8>> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The viewer of a solve in progress: each snapshot is a prepared solution of the scene it
+    /// draws like any other, and once the final solution replaces the last snapshot the frame
+    /// is the final solution's, bit for bit as a viewer opened on it alone draws it (what
+    /// `render` writes for that camera).
+    #[test]
+    fn a_viewer_draws_the_snapshots_then_the_final_solution_as_it_is() {
+        let path =
+            std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes/cornell-box.toml");
+        let mut input = crate::jobs::Input::load(&path).unwrap();
+        input.scene.radiosity.max_depth = 4;
+        let texture = crate::jobs::TextureOptions::default();
+        let policy = texture.policy(&input.scene).unwrap();
+        let placement = texture.placement(&input.scene).unwrap();
+        let snaps = Mutex::new(Vec::new());
+        let keep = |p: Prepared| snaps.lock().unwrap().push(p);
+        let ctx = crate::jobs::Context::default();
+        let done = crate::jobs::prepare_progressively(&ctx, input, policy, placement, Some(&keep))
+            .unwrap();
+        let snaps = snaps.into_inner().unwrap();
+        assert!(snaps.len() >= 2, "{} snapshots", snaps.len());
+        let opts = FrameOptions::new(48, 32);
+        let done = Arc::new(done);
+        let mut alone = Viewer::new(Arc::clone(&done), opts.clone()).unwrap();
+        alone.frame().unwrap();
+        let mut v = None::<Viewer>;
+        let mut means = Vec::new();
+        for p in snaps {
+            assert_eq!(p.compact.polygon_count(), done.scene.polygons.len());
+            match v.as_mut() {
+                Some(v) => v.replace(Arc::new(p)),
+                None => v = Some(Viewer::new(Arc::new(p), opts.clone()).unwrap()),
+            }
+            let v = v.as_mut().unwrap();
+            v.frame().unwrap();
+            let px = v.pixels();
+            assert!(px.iter().all(|c| c.is_finite() && c.min_element() >= 0.0));
+            means.push(px.iter().map(|c| c.x as f64).sum::<f64>());
+        }
+        let mut v = v.unwrap();
+        v.replace(Arc::clone(&done));
+        v.frame().unwrap();
+        assert!(v.pixels() == alone.pixels(), "the final frame differs");
+        // The indirect light only adds: each snapshot is at least as bright as the one before.
+        assert!(means.windows(2).all(|w| w[1] >= w[0]), "{means:?}");
+    }
 
     /// Regression: the status line covered the frame's top 22 rows; it now has its own strip.
     #[test]

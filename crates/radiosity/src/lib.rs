@@ -74,7 +74,7 @@ use transfer::Transfer;
 
 /// The stage name under which [`solve`] reports progress. Its fraction is the solve's distance
 /// to convergence on a log scale: -ln(unshot fraction) / -ln(`convergence`).
-pub(crate) const STAGE: &str = "solve";
+pub const STAGE: &str = "solve";
 
 /// Options of one solve that are not part of the scene. None of them changes the solution.
 #[derive(Clone, Copy)]
@@ -85,6 +85,12 @@ pub struct SolveOptions<'a> {
     /// [`shoot::state_bytes`]): a refinement pass that would pass it ends the solve with
     /// [`Error::Memory`]. It never changes a solution that fits.
     pub memory_limit: u64,
+    /// Receives the solution so far each time every sample holds the light of the history
+    /// so far: after the direct light and its refinement, then after every indirect round but
+    /// the last (the solve returns that one). Progressive radiosity's promise, a usable
+    /// picture early that refines while one looks: the viewer draws each as it comes. A
+    /// snapshot's energy account is empty; sending one changes nothing in the solve.
+    pub snapshots: Option<&'a (dyn Fn(Solution) + Sync)>,
 }
 
 impl Default for SolveOptions<'_> {
@@ -93,6 +99,7 @@ impl Default for SolveOptions<'_> {
         SolveOptions {
             observer: &SILENT,
             memory_limit: u64::MAX,
+            snapshots: None,
         }
     }
 }
@@ -530,9 +537,23 @@ pub fn solve(scene: &Scene, opts: &SolveOptions<'_>) -> Result<Solution> {
     let start = Instant::now();
     let mut stage = Stage::start(opts.observer, STAGE);
     let mut tr = Transfer::new(scene);
-    let out = shoot::run(scene, &mut tr, &mut stage, opts.memory_limit)?;
+    let snapshot = opts
+        .snapshots
+        .map(|send| move |out: shoot::Outcome| send(solution_of(scene, out, start)));
+    let out = shoot::run(
+        scene,
+        &mut tr,
+        &mut stage,
+        opts.memory_limit,
+        snapshot.as_ref().map(|f| f as &dyn Fn(shoot::Outcome)),
+    )?;
     drop(stage);
-    // Every vertex's G was gathered from the final history by the oracle's own function, so
+    Ok(solution_of(scene, out, start))
+}
+
+/// The solution of `scene` a solve started at `start` holds in its outcome `out`.
+fn solution_of(scene: &Scene, out: shoot::Outcome, start: Instant) -> Solution {
+    // Every vertex's G was gathered from the history by the oracle's own function, so
     // E + rho * G here is the oracle's answer at that vertex, bit for bit.
     let mut polygons = Vec::with_capacity(out.trees.len());
     for (r, (tree, keys, g)) in out.trees.into_iter().enumerate() {
@@ -542,7 +563,7 @@ pub fn solve(scene: &Scene, opts: &SolveOptions<'_>) -> Result<Solution> {
     }
     let mut stats = SolveStats {
         shots: out.shots,
-        rays_cast: tr.rays.load(std::sync::atomic::Ordering::Relaxed),
+        rays_cast: out.rays,
         refined_after: out.refined_after,
         guard_stops: out.guard_stops,
         emitted_power: out.emitted,
@@ -564,12 +585,12 @@ pub fn solve(scene: &Scene, opts: &SolveOptions<'_>) -> Result<Solution> {
             shape,
         })
         .collect();
-    Ok(Solution {
+    Solution {
         polygons,
         shooters,
         stats,
         scene_hash: scene_hash(scene),
-    })
+    }
 }
 
 /// Fills elements, vertices, T-vertices and the depth histogram from the trees.

@@ -749,6 +749,68 @@ fn the_energy_account_balances_on_a_closed_scene() {
     assert!(lost > 0.2 && lost < 0.5, "the open box loses {lost}");
 }
 
+/// A solve that sends snapshots returns the solution it returns without them, bit for bit;
+/// it sends one after the direct light and one per indirect round but the last, each a
+/// solution of the scene (finite, non-negative samples on trees the final one refines
+/// further), the first with only the emitters' light shot and the later ones lit more.
+#[test]
+fn snapshots_change_nothing_and_come_after_every_phase() {
+    let (s, plain) = cornell_solution();
+    let seen = std::sync::Mutex::new(Vec::new());
+    let keep = |sol: Solution| seen.lock().unwrap().push(sol);
+    let opts = SolveOptions {
+        snapshots: Some(&keep),
+        ..SolveOptions::default()
+    };
+    let sol = solve(s, &opts).expect("solve");
+    assert_eq!(sol.polygons, plain.polygons);
+    assert_eq!(sol.shooters, plain.shooters);
+    let seen = seen.into_inner().unwrap();
+    let rounds = plain.stats.refined_after.len();
+    assert_eq!(
+        seen.len(),
+        rounds - 1,
+        "one after the direct light, one per round but the last"
+    );
+    // The light on the box's faces: the face means times their areas, summed.
+    let light = |sol: &Solution| -> f64 {
+        crate::face_means(sol, s)
+            .unwrap()
+            .iter()
+            .map(|f| f.total.x * f.area)
+            .sum::<f64>()
+    };
+    for (k, snap) in seen.iter().enumerate() {
+        assert_eq!(snap.scene_hash, plain.scene_hash);
+        assert_eq!(snap.polygons.len(), plain.polygons.len());
+        for p in &snap.polygons {
+            assert_eq!(p.values.len(), p.keys.len());
+            assert!(p
+                .values
+                .iter()
+                .all(|v| v.is_finite() && v.min_element() >= 0.0));
+        }
+        let reflected = snap
+            .shooters
+            .iter()
+            .filter(|sh| matches!(sh.kind, ShooterKind::Patch { .. }))
+            .filter(|sh| sh.total != DVec3::ZERO)
+            .count();
+        if k == 0 {
+            assert_eq!(
+                reflected, 0,
+                "the first snapshot holds the direct light only"
+            );
+        } else {
+            assert!(
+                light(snap) > light(&seen[k - 1]),
+                "snapshot {k} is no brighter"
+            );
+        }
+    }
+    assert!(light(plain) > light(seen.last().unwrap()));
+}
+
 /// A closed 3 m room lit only by a 1 m lamp 2 cm under its ceiling, facing the ceiling (what a
 /// modelling tool that lights both faces leaves), with a white one-sided 1 m quad floating at
 /// mid-height facing the floor (its back to the ceiling's light).

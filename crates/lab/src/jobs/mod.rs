@@ -485,6 +485,20 @@ pub fn prepare(
     texture_policy: SizePolicy,
     texture_placement: Placement,
 ) -> Result<Prepared> {
+    prepare_progressively(ctx, input, texture_policy, texture_placement, None)
+}
+
+/// [`prepare`], handing every snapshot of the solve ([`SolveOptions::snapshots`]) to
+/// `snapshots` reconstructed as the final solution will be (a solution read from a file has
+/// none): what a viewer draws while the solve runs. A snapshot that cannot be reconstructed
+/// is skipped (the final solution reports the error).
+pub fn prepare_progressively(
+    ctx: &Context<'_>,
+    input: Input,
+    texture_policy: SizePolicy,
+    texture_placement: Placement,
+    snapshots: Option<&(dyn Fn(Prepared) + Sync)>,
+) -> Result<Prepared> {
     let Input {
         scene,
         solution_file: file,
@@ -501,11 +515,40 @@ pub fn prepare(
             let limit = ctx.memory_limit;
             budget::check_solve(&scene, limit)?;
             let t = Instant::now();
+            let seams = seams_of(&scene);
+            let snapshot = snapshots.map(|send| {
+                let (scene, seams) = (&scene, &seams);
+                move |solution: Solution| {
+                    let t = Instant::now();
+                    let Ok(compact) = reconstruct(scene, &solution, estimator, sharp_levels, seams)
+                    else {
+                        return;
+                    };
+                    send(Prepared {
+                        solution_file: None,
+                        texture_policy,
+                        texture_placement,
+                        memory_limit: ctx.memory_limit,
+                        scene: scene.clone(),
+                        solve_ms: solution.stats.solve_ms,
+                        solution,
+                        compact,
+                        reconstruction_ms: t.elapsed().as_secs_f64() * 1e3,
+                        estimator,
+                        seams: seams.clone(),
+                        sharp_levels,
+                        expanded: OnceLock::new(),
+                        textures: OnceLock::new(),
+                        mesh: OnceLock::new(),
+                    })
+                }
+            });
             let solution = radiosity::solve(
                 &scene,
                 &SolveOptions {
                     observer: ctx.observer,
                     memory_limit: budget::data_limit(limit),
+                    snapshots: snapshot.as_ref().map(|f| f as &(dyn Fn(Solution) + Sync)),
                 },
             )?;
             (solution, None, t.elapsed().as_secs_f64() * 1e3)
@@ -515,11 +558,7 @@ pub fn prepare(
     let seams = seams_of(&scene);
     let defaults =
         estimator == Estimator::default() && sharp_levels == reconstruction::sharp::DEFAULT_LEVELS;
-    let build = || -> Result<CompactReconstruction> {
-        let spots = spot_light(&scene, &solution, sharp_levels)?;
-        let sharp = spots.as_ref().map(SpotLight::sharp);
-        CompactReconstruction::build_with(&solution.polygons, estimator, &seams, sharp)
-    };
+    let build = || reconstruct(&scene, &solution, estimator, sharp_levels, &seams);
     // A solution file stores the compact RRPs its solve built with the default estimator and
     // sharp levels: decode them (checked) instead of building again; a file without them,
     // other settings or a fresh solve builds them from the samples.
@@ -578,6 +617,20 @@ pub fn prepare(
         textures: OnceLock::new(),
         mesh: OnceLock::new(),
     })
+}
+
+/// The compact RRPs of `solution` on `scene` with `estimator`, following the spots' edges
+/// `sharp_levels` below the leaves, joined along `seams`.
+fn reconstruct(
+    scene: &Scene,
+    solution: &Solution,
+    estimator: Estimator,
+    sharp_levels: u32,
+    seams: &Seams,
+) -> Result<CompactReconstruction> {
+    let spots = spot_light(scene, solution, sharp_levels)?;
+    let sharp = spots.as_ref().map(SpotLight::sharp);
+    CompactReconstruction::build_with(&solution.polygons, estimator, seams, sharp)
 }
 
 /// The seams every reconstruction of `scene` joins: the shared edges of coplanar polygons of one

@@ -45,6 +45,7 @@ pub fn solve_scene_to_file(
         &SolveOptions {
             observer: ctx.observer,
             memory_limit: super::budget::data_limit(limit),
+            snapshots: None,
         },
     )?;
     let spots = super::spot_light(&scene, &solution, reconstruction::sharp::DEFAULT_LEVELS)?;

@@ -10,6 +10,7 @@ fn solve_quiet(scene: &Scene) -> Solution {
     let opts = SolveOptions {
         observer: &SILENT,
         memory_limit: u64::MAX,
+        snapshots: None,
     };
     solve(scene, &opts).expect("solve")
 }

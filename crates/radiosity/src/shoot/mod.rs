@@ -112,6 +112,7 @@ pub fn lum(c: DVec3) -> f64 {
 }
 
 /// What the solver hands back to `solve`.
+#[derive(Clone)]
 pub(crate) struct Outcome {
     /// Per polygon: tree, keys, and G at every key gathered from the final history (zero for a
     /// polygon that does not reflect).
@@ -136,6 +137,8 @@ pub(crate) struct Outcome {
     pub refined_after: Vec<u64>,
     /// Leaves refined to a guard with the error test failing.
     pub guard_stops: crate::GuardStops,
+    /// Shadow rays cast.
+    pub rays: u64,
 }
 
 /// Runs the whole solve and returns trees and the shooting history. `tr` must be built on `scene`.
@@ -144,17 +147,25 @@ pub(crate) struct Outcome {
 /// `memory_limit` bounds the bytes of the solve's state ([`state_bytes`] plus the pair tables
 /// built so far): a refinement pass that would pass it stops the solve with
 /// [`Error::Memory`] before it allocates.
+///
+/// `snapshot`, if given, receives the state of the solve each time every vertex holds G from
+/// the history so far: after the direct pass and its refinement, and after every indirect
+/// round but the last (whose state is the outcome); its energy account is left empty.
 pub fn run(
     scene: &Scene,
     tr: &mut Transfer<'_>,
     stage: &mut Stage<'_>,
     memory_limit: u64,
+    snapshot: Option<&dyn Fn(Outcome)>,
 ) -> Result<Outcome> {
-    run_with_cache(scene, tr, stage, COARSE_CACHE_ENTRIES, memory_limit)
+    Solver::new(scene, tr, stage, COARSE_CACHE_ENTRIES, memory_limit)
+        .with_snapshots(snapshot)
+        .solve()
 }
 
 /// [`run`] with at most `cache_entries` cached coarse transfers (the result does not depend on
 /// it; tests compare 0 with the default).
+#[cfg(test)]
 pub(crate) fn run_with_cache(
     scene: &Scene,
     tr: &mut Transfer<'_>,

@@ -76,6 +76,9 @@ pub(super) struct Solver<'a, 't, 'o> {
     clock: Clock,
     /// The remaining-time estimate while shooting.
     eta: Eta,
+    /// Receives the state of the solve at the end of each phase but the last
+    /// ([`super::run`]).
+    snapshot: Option<&'a dyn Fn(Outcome)>,
 }
 
 /// Wall-clock times for the trace lines.
@@ -132,7 +135,14 @@ impl<'a, 't, 'o> Solver<'a, 't, 'o> {
                 shots: 0.0,
             },
             eta: Eta::new(),
+            snapshot: None,
         }
+    }
+
+    /// Sends the state of the solve to `snapshot` at the end of each phase but the last.
+    pub(super) fn with_snapshots(mut self, snapshot: Option<&'a dyn Fn(Outcome)>) -> Self {
+        self.snapshot = snapshot;
+        self
     }
 
     /// Runs every phase. With nothing emitted, only the direct pass runs (it shoots nothing) and
@@ -142,6 +152,7 @@ impl<'a, 't, 'o> Solver<'a, 't, 'o> {
         if self.unshot.emitted > 0.0 {
             self.enter(Phase::Refine);
             self.refine_and_reestimate()?;
+            self.send_snapshot();
             self.trace(|sv| {
                 format!(
                     "direct + refine {:.0} ms, shots {}, vertices {}, unshot {}",
@@ -246,8 +257,35 @@ impl<'a, 't, 'o> Solver<'a, 't, 'o> {
         }
         if self.round < MAX_ROUNDS {
             self.install_shapes(new);
+            self.send_snapshot();
         }
         Ok(false)
+    }
+
+    /// The state of the solve as an outcome (its energy account empty), to the snapshot
+    /// receiver if there is one. Every vertex holds G from the history so far.
+    fn send_snapshot(&self) {
+        let Some(send) = self.snapshot else { return };
+        send(Outcome {
+            energy: crate::EnergyAccount::default(),
+            trees: self
+                .polys
+                .iter()
+                .map(|p| (p.tree.clone(), p.keys.clone(), p.g.clone()))
+                .collect(),
+            totals: self.totals.clone(),
+            kinds: self.tr.shooters.iter().map(|s| s.kind).collect(),
+            shapes: (0..self.tr.shooters.len())
+                .map(|s| self.tr.shape(s).cloned())
+                .collect(),
+            shots: self.shots,
+            history: self.history.clone(),
+            unshot: self.fraction,
+            emitted: self.unshot.emitted,
+            refined_after: self.refined_after.clone(),
+            guard_stops: self.guard_stops,
+            rays: self.rays(),
+        });
     }
 
     /// Gathers from now on distribute each patch's light by its shape in `new`, and so do the
@@ -589,6 +627,7 @@ impl<'a, 't, 'o> Solver<'a, 't, 'o> {
 
     /// The trees with their gathered G, and the history.
     fn into_outcome(self) -> Outcome {
+        let rays = self.rays();
         let energy = energy::account(
             self.tr,
             &self.polys,
@@ -632,8 +671,9 @@ impl<'a, 't, 'o> Solver<'a, 't, 'o> {
             history: self.history,
             unshot: self.fraction,
             emitted: self.unshot.emitted,
-            refined_after: self.refined_after,
             guard_stops: self.guard_stops,
+            rays,
+            refined_after: self.refined_after,
         }
     }
 }
