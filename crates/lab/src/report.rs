@@ -403,16 +403,21 @@ pub fn model_stats_text(s: &crate::jobs::stats::ModelStats) -> String {
     let g = &s.guard_stops;
     t += &match &g.worst {
         Some(at) => format!(
-            "guard stops: {} leaves split to max_depth with the error test still failing, worst \
-             at {at} ({:.1} % of its level); {} more only for a shadow boundary\n",
+            "guard stops: {} leaves split to max_depth with the error test still failing, \
+             which may misplace up to {:.2} % of the light the scene reflects, worst at {at} \
+             ({:.1} % of its level); {} more only for a shadow boundary, {} at a spot's cone \
+             edge\n",
             grouped(g.leaves),
+            100.0 * g.error_share,
             100.0 * g.worst_excess,
-            grouped(g.shadow_leaves)
+            grouped(g.shadow_leaves),
+            grouped(g.edge_leaves)
         ),
         None => format!(
             "guard stops: none with the error test failing; {} leaves only for a shadow \
-             boundary\n",
-            grouped(g.shadow_leaves)
+             boundary, {} at a spot's cone edge\n",
+            grouped(g.shadow_leaves),
+            grouped(g.edge_leaves)
         ),
     };
     if let Some(r0) = s.frames.first() {

@@ -43,9 +43,10 @@ pub const MAGIC: &[u8; 8] = b"PFSOLN\r\n";
 /// the T-vertices' data (`PFRRPC02`); version 7 stores RRPs that follow the spot lights' edges
 /// (split three levels deeper where a spot's rim or hard shadow crosses a leaf), so an older
 /// file's RRPs would be silently smoother there; version 8 stores the light that escaped the
-/// scene in the energy account, from solves with exact visibility. Older files are refused
-/// (solve again).
-pub const FORMAT_VERSION: u32 = 8;
+/// scene in the energy account, from solves with exact visibility; version 9 stores how much
+/// light the leaves refinement stopped at a guard may misplace, and the light the scene
+/// reflects. Older files are refused (solve again).
+pub const FORMAT_VERSION: u32 = 9;
 /// Most nodes a stored patch shape may have: a full tree of [`MAX_SHAPE_LEVELS`] levels.
 const MAX_SHAPE_NODES: usize = ((1 << (2 * (MAX_SHAPE_LEVELS + 1))) - 1) / 3;
 const HEADER: usize = 8 + 4 + 4 + 8 + 8;
@@ -417,6 +418,9 @@ impl W {
         self.u32(st.guard_stops.worst_polygon);
         self.f64(st.guard_stops.worst_excess);
         self.u64(st.guard_stops.shadow_leaves);
+        self.u64(st.guard_stops.edge_leaves);
+        self.f64(st.guard_stops.error_power);
+        self.f64(st.guard_stops.reflected_power);
         let e = &st.energy;
         for v in [e.emitted, e.absorbed, e.unshot, e.lost, e.escaped] {
             self.f64(v.x);
@@ -625,6 +629,9 @@ impl R<'_> {
             worst_polygon: self.u32()?,
             worst_excess: self.f64()?,
             shadow_leaves: self.u64()?,
+            edge_leaves: self.u64()?,
+            error_power: self.f64()?,
+            reflected_power: self.f64()?,
         };
         let mut v = [DVec3::ZERO; 5];
         for x in v.iter_mut() {

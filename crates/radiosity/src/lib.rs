@@ -181,6 +181,18 @@ pub struct GuardStops {
     pub worst_excess: f64,
     /// Leaves split to the guard only for a shadow boundary crossing them.
     pub shadow_leaves: u64,
+    /// Leaves split to the guard with the error test failing where a spot's cone edge crosses
+    /// them: a step at any depth, which the reconstruction draws exactly from the spot's own
+    /// light ([`SpotParts`]); not in `leaves`, nor in the light they may misplace.
+    pub edge_leaves: u64,
+    /// The light the stopped leaves may still misplace, summed over them, in luminance watts:
+    /// a quarter of each one's excess (what its children keep where the light is smooth)
+    /// times its level (the luminance of rho G) times its area; an estimate, checked against
+    /// a deeper solve on the gallery (`KEPT_SHARE` in the refinement).
+    pub error_power: f64,
+    /// The light the scene's surfaces reflect (the luminance of rho G integrated over every
+    /// polygon), what [`GuardStops::error_power`] is judged against.
+    pub reflected_power: f64,
 }
 
 /// A solve whose energy account lost more than this share of the emitted power (in a channel)
@@ -251,7 +263,8 @@ impl GuardStops {
     /// The warning a solve of `scene` that stopped at a guard where its light is still off
     /// the bilinear prediction gives (`None` if none did; shadow boundaries alone give none).
     pub fn warning(&self, scene: &Scene) -> Option<String> {
-        if self.leaves == 0 {
+        let share = self.error_share();
+        if self.leaves == 0 || share <= scene.radiosity.tolerance {
             return None;
         }
         let at = self.worst_origin(scene);
@@ -269,14 +282,29 @@ impl GuardStops {
             "refinement stopped at radiosity.max_depth = {} (or the smallest element, the \
              scene's size / 2^max_depth, or the {} nodes a polygon may hold past them) on {} \
              leaves whose light still fails the error test \
-             (off the bilinear prediction, or peaking between samples); worst at {at}: {:.1} % \
-             of its level (tolerance {:.1} %); {hint}",
+             (off the bilinear prediction, or peaking between samples), which may misplace up \
+             to {:.1} % of the light the scene reflects (tolerance {:.1} %); worst at {at}: \
+             {:.1} % of its level; {hint}",
             scene.radiosity.max_depth,
             shoot::DIVE_NODES,
             self.leaves,
+            100.0 * share,
+            100.0 * scene.radiosity.tolerance,
             100.0 * self.worst_excess,
-            100.0 * scene.radiosity.tolerance
         ))
+    }
+
+    /// [`GuardStops::error_power`] over [`GuardStops::reflected_power`]: the share of the
+    /// scene's reflected light the stopped leaves may misplace (infinite when they hold light
+    /// in a scene that reflects none, 0 when they hold none).
+    pub fn error_share(&self) -> f64 {
+        if self.error_power <= 0.0 {
+            0.0
+        } else if self.reflected_power > 0.0 {
+            self.error_power / self.reflected_power
+        } else {
+            f64::INFINITY
+        }
     }
 
     /// Whether the worst polygon is too large for any depth to resolve its light: its finest
@@ -304,10 +332,17 @@ impl GuardStops {
         (detail.is_finite() && finest > detail).then_some((longest, finest, detail))
     }
 
+    /// Counts one leaf split to the guard with its light off the bilinear prediction where a
+    /// spot's cone edge crosses it.
+    pub(crate) fn record_edge(&mut self) {
+        self.edge_leaves += 1;
+    }
+
     /// Counts one leaf of polygon `r` split to the guard with its light off the bilinear
-    /// prediction by `excess` of its level.
-    pub(crate) fn record(&mut self, r: u32, excess: f64) {
+    /// prediction by `excess` of its level, `power` the light it may misplace.
+    pub(crate) fn record(&mut self, r: u32, excess: f64, power: f64) {
         self.leaves += 1;
+        self.error_power += power;
         if excess > self.worst_excess {
             self.worst_excess = excess;
             self.worst_polygon = r;

@@ -537,6 +537,7 @@ fn a_guard_stop_is_reported_by_solve_check_stats_and_render() {
     assert!(g["leaves"].as_u64().unwrap() > 0, "{g}");
     assert_eq!(g["worst"].as_str(), Some(floor_at.as_str()), "{g}");
     assert!(g["worst_excess"].as_f64().unwrap() > 0.01, "{g}");
+    assert!(g["error_share"].as_f64().unwrap() > 0.01, "{g}");
     let report = dir.join("frame.json");
     let png = dir.join("frame.png");
     let rendered = run(&[

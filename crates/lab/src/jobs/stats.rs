@@ -104,10 +104,16 @@ pub struct GuardReport {
     pub leaves: u64,
     /// Leaves split to a guard only because a shadow boundary crosses them (not warned about).
     pub shadow_leaves: u64,
+    /// Leaves split to a guard with the test failing where a spot's cone edge crosses them
+    /// (drawn exactly from the spot's light; not warned about).
+    pub edge_leaves: u64,
     /// The worst leaf's polygon, as file:line (`None` when no leaf stopped).
     pub worst: Option<String>,
     /// Its estimated error relative to the leaf's level.
     pub worst_excess: f64,
+    /// The share of the scene's reflected light the stopped leaves may misplace (an upper
+    /// bound; the warning fires above `radiosity.tolerance`).
+    pub error_share: f64,
     /// The warning `solve` and `render` print (`None` when no leaf stopped).
     pub warning: Option<String>,
 }
@@ -118,8 +124,10 @@ impl GuardReport {
         GuardReport {
             leaves: g.leaves,
             shadow_leaves: g.shadow_leaves,
+            edge_leaves: g.edge_leaves,
             worst: (g.leaves > 0).then(|| g.worst_origin(scene)),
             worst_excess: g.worst_excess,
+            error_share: g.error_share(),
             warning: g.warning(scene),
         }
     }

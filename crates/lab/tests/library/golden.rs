@@ -139,6 +139,20 @@ fn every_shipped_scene_has_a_golden_test() {
     assert_eq!(stems, SCENES);
 }
 
+/// The shipped scenes solve at their own settings with nothing to warn about: no leaf where
+/// refinement stopped at a guard misplaces more than the tolerance of the scene's light, the
+/// energy account balances, and the light converged (what `render` and `solve` would print).
+#[test]
+fn shipped_scenes_solve_without_a_warning() {
+    for name in SCENES.iter().filter(|&&n| n != "building") {
+        let p = crate::shipped(name);
+        let st = &p.solution.stats;
+        assert_eq!(st.guard_stops.warning(&p.scene), None, "{name}");
+        let light = st.light_warnings(p.scene.radiosity.convergence);
+        assert!(light.is_empty(), "{name}: {light:?}");
+    }
+}
+
 const SCENES: [&str; 8] = [
     "building",
     "cornell-box",

@@ -262,6 +262,15 @@ impl<'a, 't, 'o> Solver<'a, 't, 'o> {
         Ok(false)
     }
 
+    /// The luminance of the light every polygon reflects, rho G integrated over it, summed.
+    fn reflected_power(&self) -> f64 {
+        self.polys
+            .iter()
+            .filter(|p| p.reflects())
+            .map(|p| super::lum(p.rho * p.integral()))
+            .sum()
+    }
+
     /// The state of the solve as an outcome (its energy account empty), to the snapshot
     /// receiver if there is one. Every vertex holds G from the history so far.
     fn send_snapshot(&self) {
@@ -283,7 +292,10 @@ impl<'a, 't, 'o> Solver<'a, 't, 'o> {
             unshot: self.fraction,
             emitted: self.unshot.emitted,
             refined_after: self.refined_after.clone(),
-            guard_stops: self.guard_stops,
+            guard_stops: crate::GuardStops {
+                reflected_power: self.reflected_power(),
+                ..self.guard_stops
+            },
             rays: self.rays(),
         });
     }
@@ -626,8 +638,9 @@ impl<'a, 't, 'o> Solver<'a, 't, 'o> {
     }
 
     /// The trees with their gathered G, and the history.
-    fn into_outcome(self) -> Outcome {
+    fn into_outcome(mut self) -> Outcome {
         let rays = self.rays();
+        self.guard_stops.reflected_power = self.reflected_power();
         let energy = energy::account(
             self.tr,
             &self.polys,
