@@ -11,7 +11,7 @@
 //! floor, one per corner quadrant, so the cross of corridors between the doorways stays clear:
 //! the generated camera stands in the first room and sees down the row of rooms through them.
 //!
-//! Invariants (tested in `crates/cli/tests/cli/generate.rs`):
+//! Invariants (tested in `tests/cli/generate.rs`):
 //! - the polygon count is known before anything is built ([`BuildingOptions::polygon_count`], a
 //!   closed form), so a request over [`MAX_POLYGONS`] is refused in microseconds;
 //! - every face is an axis-aligned rectangle written counter-clockwise seen from the air it faces

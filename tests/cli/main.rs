@@ -1,7 +1,7 @@
 //! The cli integration tests, one test binary (one link) for all of them.
 
 /// The repository root (scenes, docs), from this crate's directory.
-pub const REPO: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../..");
+pub const REPO: &str = env!("CARGO_MANIFEST_DIR");
 
 /// The binary under test, run from the repository root (as a user runs it after cloning).
 pub fn bin() -> std::process::Command {
