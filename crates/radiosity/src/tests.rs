@@ -811,6 +811,23 @@ fn snapshots_change_nothing_and_come_after_every_phase() {
     assert!(light(plain) > light(seen.last().unwrap()));
 }
 
+/// `radiosity.visibility = "auto"` (the default) is not part of the scene's hash; `exact` and
+/// `sampled` are (they change the solution).
+#[test]
+fn the_visibility_setting_is_hashed_unless_auto() {
+    let base = cornell();
+    let with = |v: scene::Visibility| {
+        let mut s = base.clone();
+        s.radiosity.visibility = v;
+        scene_hash(&s)
+    };
+    use scene::Visibility::{Auto, Exact, Sampled};
+    assert_eq!(with(Auto), scene_hash(&base));
+    assert_ne!(with(Auto), with(Exact));
+    assert_ne!(with(Exact), with(Sampled));
+    assert_ne!(with(Auto), with(Sampled));
+}
+
 /// A closed 3 m room lit only by a 1 m lamp 2 cm under its ceiling, facing the ceiling (what a
 /// modelling tool that lights both faces leaves), with a white one-sided 1 m quad floating at
 /// mid-height facing the floor (its back to the ceiling's light).

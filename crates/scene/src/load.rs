@@ -16,7 +16,7 @@
 //!
 //! Every input is untrusted: no value reaches arithmetic that could panic (indices, casts,
 //! divisions) before it has been checked, and the property tests in
-//! `crates/lab/tests/library/scene_loading.rs` feed random and mutated files to
+//! `crates/scene/tests/loading.rs` feed random and mutated files to
 //! [`parse_scene`].
 
 use super::format::{

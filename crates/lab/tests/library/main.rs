@@ -78,7 +78,6 @@ mod render;
 mod sampled_visibility;
 mod truth_camera;
 mod solution_rrps;
-mod scene_loading;
 mod smooth_surfaces;
 mod gallery_scene;
 mod t_junctions;
