@@ -166,7 +166,7 @@ const SCENES: [&str; 8] = [
 
 /// The shipped building's generator and options (doorways, ceiling panels, furniture, shell
 /// cut, camera down the first row of rooms) at 2 x 1 rooms, two rooms through a doorway: 64
-/// rooms take three minutes to solve on 2 cores, 2 x 2 rooms 51 s and 2 x 1 14 s, and the test
+/// rooms take about ten minutes to solve on 2 cores, 2 x 2 rooms 51 s and 2 x 1 14 s, and the test
 /// command's budget is ten minutes for everything; the shipped file is held equal to the
 /// generator's output by the `generate` tests of the CLI.
 #[test]
