@@ -815,7 +815,12 @@ fn introduction(r: &ResultsReport) -> String {
           the coarser ones, down to 0; density 0 is the coarsest); every \
           method is drawn at each, the texture methods at four \
           texture sizes (the quadtree-depth sides halved 0-3 times) and both texel placements. \
-          **Error recon.** is the perceptual distance ([metrics.md](metrics.md)) to the same \
+          **The methods do not all draw the same data**: by default (`--sharp-levels 3`) the \
+          direct and texture methods take the spot lights' direct light from the light model \
+          exactly, along the cones' edges, and only the rest from the solver's samples; the \
+          mesh draws everything from the samples. On scenes with spots (two-spots, the \
+          gallery) that decides part of their ranking (`render --sharp-levels 0` draws every \
+          method from the samples alone; the sweep has no such switch). **Error recon.** is the perceptual distance ([metrics.md](metrics.md)) to the same \
           solution's exact image (the method's own error), **error total** to a converged \
           solution's (tolerance 1/4, two levels deeper: the solver's convergence), **physics \
           error** to the independent path tracer's image (`pixelflow-sim truth`, its noise taken \
