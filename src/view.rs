@@ -2,6 +2,7 @@
 //! replay that writes the last frame. The frames, the camera and the keys' meaning live in
 //! `lab::viewer`; this module only turns keys into its actions and shows its pixels.
 
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::Instant;
 
@@ -118,8 +119,9 @@ pub fn view(settings: &Settings, args: ViewArgs) -> anyhow::Result<()> {
                 // The solve runs beside the window, which opens at once and draws each of its
                 // snapshots as it comes (progressive radiosity's early picture).
                 let (tx, rx) = crossbeam_channel::unbounded();
+                let finished = AtomicBool::new(false);
                 rayon::in_place_scope(|scope| {
-                    let ctx = &ctx;
+                    let (ctx, finished) = (&ctx, &finished);
                     scope.spawn(move |_| {
                         let send = |p| {
                             let _ = tx.send(Update::Snapshot(p));
@@ -132,14 +134,13 @@ pub fn view(settings: &Settings, args: ViewArgs) -> anyhow::Result<()> {
                             Some(&send),
                         );
                         let _ = tx.send(Update::Done(done));
+                        finished.store(true, Ordering::Release);
                     });
                     let shown = window(&rx, &observer, opts, exposure);
-                    if matches!(shown, Ok(Closed::BeforeSolved)) {
-                        // Nothing is written by the window: the solve is left unfinished (it
-                        // cannot be stopped part-way), and the process ends here.
-                        std::process::exit(0);
+                    if !finished.load(Ordering::Acquire) {
+                        leave_the_solve(shown);
                     }
-                    shown.map(|_| ())
+                    shown
                 })
             }
         }
@@ -154,12 +155,18 @@ enum Update {
     Done(base::error::Result<lab::jobs::Prepared>),
 }
 
-/// How the window was closed.
-enum Closed {
-    /// With the final solution drawn.
-    Solved,
-    /// While the solve still ran.
-    BeforeSolved,
+/// Ends the process when the window closed (or failed) while the solve still ran: the window
+/// writes nothing, and the solve cannot be stopped part-way, so nothing is left to wait for.
+/// Its error, if any, is reported as `main` reports one, with its exit code.
+fn leave_the_solve(shown: anyhow::Result<()>) -> ! {
+    match shown {
+        Ok(()) => std::process::exit(0),
+        Err(e) => {
+            crate::note(&format!("error: {e:#}"));
+            let code = e.downcast_ref::<base::Error>().map_or(1, |e| e.exit_code());
+            std::process::exit(code)
+        }
+    }
 }
 
 /// Key events as the window delivers them, latched between frames: minifb's per-frame key
@@ -250,7 +257,7 @@ fn window(
     progress: &SolveProgress<'_>,
     opts: engine::frame::FrameOptions,
     exposure: f64,
-) -> anyhow::Result<Closed> {
+) -> anyhow::Result<()> {
     let (w, frame_h) = (opts.width, opts.height);
     // The status line's strip above the frame.
     let h = frame_h + lab::viewer::STATUS_STRIP;
@@ -302,11 +309,7 @@ fn window(
         }
         win.update_with_buffer(&buf, w as usize, h as usize)?;
     }
-    Ok(if solved {
-        Closed::Solved
-    } else {
-        Closed::BeforeSolved
-    })
+    Ok(())
 }
 
 /// The newest solution among the updates waiting (older snapshots are dropped unseen), setting
