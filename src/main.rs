@@ -125,10 +125,14 @@ fn main() -> ExitCode {
         Err(e) if e.is::<StdoutClosed>() => ExitCode::SUCCESS,
         Err(e) => {
             note(&format!("error: {e:#}"));
-            let code = e
-                .downcast_ref::<base::Error>()
-                .map_or(EXIT_FAILURE, |e| e.exit_code());
-            ExitCode::from(u8::try_from(code).unwrap_or(1))
+            ExitCode::from(u8::try_from(exit_code(&e)).unwrap_or(1))
         }
     }
+}
+
+/// The exit code of a run that ended with `e`: the library error's own (2 for bad input), 1
+/// for anything else.
+fn exit_code(e: &anyhow::Error) -> i32 {
+    e.downcast_ref::<base::Error>()
+        .map_or(EXIT_FAILURE, |e| e.exit_code())
 }

@@ -163,8 +163,7 @@ fn leave_the_solve(shown: anyhow::Result<()>) -> ! {
         Ok(()) => std::process::exit(0),
         Err(e) => {
             crate::note(&format!("error: {e:#}"));
-            let code = e.downcast_ref::<base::Error>().map_or(1, |e| e.exit_code());
-            std::process::exit(code)
+            std::process::exit(crate::exit_code(&e))
         }
     }
 }

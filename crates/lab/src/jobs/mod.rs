@@ -506,63 +506,138 @@ pub fn prepare_progressively(
         sharp_levels,
         ..
     } = input;
+    let recipe = Recipe {
+        texture_policy,
+        texture_placement,
+        memory_limit: ctx.memory_limit,
+        estimator,
+        sharp_levels,
+    };
+    let seams = seams_of(&scene);
     let (solution, stored, solve_ms) = match &file {
         Some(path) => {
             let (solution, rrps) = solution_file::read_solution(path, &scene)?;
-            (solution, Some((path, rrps)), 0.0)
+            (solution, Some((path.as_path(), rrps)), 0.0)
         }
         None => {
-            let limit = ctx.memory_limit;
-            budget::check_solve(&scene, limit)?;
             let t = Instant::now();
-            let seams = seams_of(&scene);
-            let snapshot = snapshots.map(|send| {
-                let (scene, seams) = (&scene, &seams);
-                move |solution: Solution| {
-                    let t = Instant::now();
-                    let Ok(compact) = reconstruct(scene, &solution, estimator, sharp_levels, seams)
-                    else {
-                        return;
-                    };
-                    send(Prepared {
-                        solution_file: None,
-                        texture_policy,
-                        texture_placement,
-                        memory_limit: ctx.memory_limit,
-                        scene: scene.clone(),
-                        solve_ms: solution.stats.solve_ms,
-                        solution,
-                        compact,
-                        reconstruction_ms: t.elapsed().as_secs_f64() * 1e3,
-                        estimator,
-                        seams: seams.clone(),
-                        sharp_levels,
-                        expanded: OnceLock::new(),
-                        textures: OnceLock::new(),
-                        mesh: OnceLock::new(),
-                    })
-                }
-            });
-            let solution = radiosity::solve(
-                &scene,
-                &SolveOptions {
-                    observer: ctx.observer,
-                    memory_limit: budget::data_limit(limit),
-                    snapshots: snapshot.as_ref().map(|f| f as &(dyn Fn(Solution) + Sync)),
-                },
-            )?;
+            let solution = solve_sending(ctx, &scene, &seams, recipe, snapshots)?;
             (solution, None, t.elapsed().as_secs_f64() * 1e3)
         }
     };
     let t = Instant::now();
-    let seams = seams_of(&scene);
-    let defaults =
-        estimator == Estimator::default() && sharp_levels == reconstruction::sharp::DEFAULT_LEVELS;
-    let build = || reconstruct(&scene, &solution, estimator, sharp_levels, &seams);
-    // A solution file stores the compact RRPs its solve built with the default estimator and
-    // sharp levels: decode them (checked) instead of building again; a file without them,
-    // other settings or a fresh solve builds them from the samples.
-    let compact = match stored {
+    let compact = compact_of(&scene, &solution, stored, recipe, &seams)?;
+    let reconstruction_ms = t.elapsed().as_secs_f64() * 1e3;
+    let mut p = recipe.prepared(
+        scene,
+        seams,
+        solution,
+        compact,
+        (solve_ms, reconstruction_ms),
+    );
+    p.solution_file = file;
+    Ok(p)
+}
+
+/// What every [`Prepared`] of one job holds beside its scene, solution and RRPs.
+#[derive(Clone, Copy)]
+struct Recipe {
+    texture_policy: SizePolicy,
+    texture_placement: Placement,
+    memory_limit: u64,
+    estimator: Estimator,
+    sharp_levels: u32,
+}
+
+impl Recipe {
+    /// A prepared solution solved in this run, `(solve, reconstruction)` its times in ms.
+    fn prepared(
+        self,
+        scene: Scene,
+        seams: Seams,
+        solution: Solution,
+        compact: CompactReconstruction,
+        (solve_ms, reconstruction_ms): (f64, f64),
+    ) -> Prepared {
+        Prepared {
+            solution_file: None,
+            texture_policy: self.texture_policy,
+            texture_placement: self.texture_placement,
+            memory_limit: self.memory_limit,
+            scene,
+            solution,
+            compact,
+            solve_ms,
+            reconstruction_ms,
+            estimator: self.estimator,
+            seams,
+            sharp_levels: self.sharp_levels,
+            expanded: OnceLock::new(),
+            textures: OnceLock::new(),
+            mesh: OnceLock::new(),
+        }
+    }
+}
+
+/// Solves `scene` under the job's memory limit, handing each snapshot of the solve to
+/// `snapshots` reconstructed as `recipe` says (a snapshot that cannot be reconstructed is
+/// skipped: the final solution reports the error).
+fn solve_sending(
+    ctx: &Context<'_>,
+    scene: &Scene,
+    seams: &Seams,
+    recipe: Recipe,
+    snapshots: Option<&(dyn Fn(Prepared) + Sync)>,
+) -> Result<Solution> {
+    budget::check_solve(scene, ctx.memory_limit)?;
+    let snapshot = snapshots.map(|send| {
+        move |solution: Solution| {
+            let t = Instant::now();
+            let Recipe {
+                estimator,
+                sharp_levels,
+                ..
+            } = recipe;
+            let Ok(compact) = reconstruct(scene, &solution, estimator, sharp_levels, seams) else {
+                return;
+            };
+            let times = (solution.stats.solve_ms, t.elapsed().as_secs_f64() * 1e3);
+            send(recipe.prepared(scene.clone(), seams.clone(), solution, compact, times))
+        }
+    });
+    radiosity::solve(
+        scene,
+        &SolveOptions {
+            observer: ctx.observer,
+            memory_limit: budget::data_limit(ctx.memory_limit),
+            snapshots: snapshot.as_ref().map(|f| f as &(dyn Fn(Solution) + Sync)),
+        },
+    )
+}
+
+/// The compact RRPs of `solution`. A solution file stores the compact RRPs its solve built
+/// with the default estimator and sharp levels (`stored`: the file and its RRPs): they are
+/// decoded (checked) instead of built again; a file without them, other settings or a fresh
+/// solve builds them from the samples.
+fn compact_of(
+    scene: &Scene,
+    solution: &Solution,
+    stored: Option<(&Path, Vec<u8>)>,
+    recipe: Recipe,
+    seams: &Seams,
+) -> Result<CompactReconstruction> {
+    let defaults = recipe.estimator == Estimator::default()
+        && recipe.sharp_levels == reconstruction::sharp::DEFAULT_LEVELS;
+    let build = || {
+        reconstruct(
+            scene,
+            solution,
+            recipe.estimator,
+            recipe.sharp_levels,
+            seams,
+        )
+    };
+    match stored {
         Some((path, rrps)) if !rrps.is_empty() && defaults => {
             let corrupt = |m: String| {
                 Error::solution(
@@ -579,7 +654,7 @@ pub fn prepare_progressively(
                     scene.polygons.len()
                 )));
             }
-            c
+            Ok(c)
         }
         // Samples read from a file that cannot be reconstructed (values so large the patches
         // overflow f32) are a bad file, exit 2, like any other inconsistency behind a valid
@@ -591,32 +666,14 @@ pub fn prepare_progressively(
                 format!("corrupt solution file: its samples cannot be reconstructed: {m}"),
             ),
             e => e,
-        })?,
+        }),
         None => build().map_err(|e| match e {
             Error::Inconsistent(m) => {
                 Error::internal(format!("this run's own solution is inconsistent: {m}"))
             }
             e => e,
-        })?,
-    };
-    let reconstruction_ms = t.elapsed().as_secs_f64() * 1e3;
-    Ok(Prepared {
-        solution_file: file,
-        texture_policy,
-        texture_placement,
-        memory_limit: ctx.memory_limit,
-        scene,
-        solution,
-        compact,
-        solve_ms,
-        reconstruction_ms,
-        estimator,
-        seams,
-        sharp_levels,
-        expanded: OnceLock::new(),
-        textures: OnceLock::new(),
-        mesh: OnceLock::new(),
-    })
+        }),
+    }
 }
 
 /// The compact RRPs of `solution` on `scene` with `estimator`, following the spots' edges
