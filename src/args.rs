@@ -7,10 +7,10 @@
 
 use std::path::PathBuf;
 
+use app::context::TextureOptions;
 use base::Error;
 use clap::{Args, Parser, Subcommand};
-use lab::generate;
-use lab::jobs::TextureOptions;
+use fixtures::generate;
 
 /// Most frames a timing option (`--frames` of stats, bench, sweep, results, experiment)
 /// accepts: hours of timing at the largest sizes, not days.
@@ -40,7 +40,7 @@ pub struct Cli {
 }
 
 fn parse_memory_limit(text: &str) -> Result<u64, String> {
-    lab::jobs::budget::parse_size(text)
+    app::budget::parse_size(text)
 }
 
 #[derive(Subcommand, Debug)]
@@ -170,7 +170,7 @@ pub struct ExportArgs {
     pub mesh: bool,
     /// Largest atlas page side, a power of two from 64 to 16384; charts that do not fit one
     /// page go to more.
-    #[arg(long, default_value_t = lab::jobs::export::DEFAULT_PAGE)]
+    #[arg(long, default_value_t = app::commands::export::DEFAULT_PAGE)]
     pub page_size: u32,
     /// Exposure in stops of the PNG pages and vertex colours (default: the scene's
     /// `[display] exposure`).
@@ -529,7 +529,7 @@ pub struct SweepArgs {
     /// A scene file or a solution file (its scene is solved again at every density).
     pub input: PathBuf,
     /// Methods, comma-separated (default: direct and every texture method, and mesh).
-    #[arg(long, value_delimiter = ',', default_values_t = lab::jobs::sweep::DEFAULT_METHODS.map(String::from))]
+    #[arg(long, value_delimiter = ',', default_values_t = study::sweep::DEFAULT_METHODS.map(String::from))]
     pub methods: Vec<String>,
     /// Image size, `WxH`.
     #[arg(long, default_value = "256x256", value_parser = parse_size)]
@@ -537,7 +537,7 @@ pub struct SweepArgs {
     /// Density levels as factors f of the scene's solver tolerance, coarse to fine; each also
     /// moves radiosity.max_depth by -round(log2 f) levels (and, for f > 1, min_depth likewise,
     /// down to 0).
-    #[arg(long, value_delimiter = ',', default_values_t = lab::jobs::sweep::DEFAULT_DENSITIES)]
+    #[arg(long, value_delimiter = ',', default_values_t = study::sweep::DEFAULT_DENSITIES)]
     pub densities: Vec<f64>,
     /// Tolerance factor of the converged reference solution (its depth limit moved likewise:
     /// two levels deeper at 1/4).
@@ -554,7 +554,7 @@ pub struct SweepArgs {
     pub repeats: u32,
     /// Separate processes each point is timed in (its time: the median over them, with a 95 %
     /// confidence interval from 6 on); 0: the repeats of this process alone.
-    #[arg(long, default_value_t = lab::jobs::timing::DEFAULT_PROCESSES, value_parser = clap::value_parser!(u32).range(0..=MAX_TIMING_PROCESSES))]
+    #[arg(long, default_value_t = study::timing::DEFAULT_PROCESSES, value_parser = clap::value_parser!(u32).range(0..=MAX_TIMING_PROCESSES))]
     pub processes: u32,
     /// Pixels per degree of the perceptual metric.
     #[arg(long, default_value_t = metric::DEFAULT_PPD)]
@@ -575,7 +575,7 @@ pub struct SweepArgs {
     pub no_equal_error: bool,
     /// Samples per pixel of the path-traced truth image the error budget is measured against
     /// (physics error, solution error, the truth's noise); 0: no truth image.
-    #[arg(long, default_value_t = lab::jobs::sweep::DEFAULT_TRUTH_SAMPLES)]
+    #[arg(long, default_value_t = study::sweep::DEFAULT_TRUTH_SAMPLES)]
     pub truth_samples: u32,
     /// Worker threads (default: all cores).
     #[arg(long)]
@@ -611,10 +611,10 @@ pub struct ResultsArgs {
     pub repeats: u32,
     /// Separate processes each sweep point is timed in (the median over them, with a 95 %
     /// confidence interval from 6 on); 0: the repeats of this process alone.
-    #[arg(long, default_value_t = lab::jobs::timing::DEFAULT_PROCESSES, value_parser = clap::value_parser!(u32).range(0..=MAX_TIMING_PROCESSES))]
+    #[arg(long, default_value_t = study::timing::DEFAULT_PROCESSES, value_parser = clap::value_parser!(u32).range(0..=MAX_TIMING_PROCESSES))]
     pub processes: u32,
     /// Samples per pixel of each sweep's path-traced truth image (the error budget); 0: none.
-    #[arg(long, default_value_t = lab::jobs::sweep::DEFAULT_TRUTH_SAMPLES)]
+    #[arg(long, default_value_t = study::sweep::DEFAULT_TRUTH_SAMPLES)]
     pub truth_samples: u32,
     /// Worker threads (default: all cores).
     #[arg(long)]

@@ -4,18 +4,18 @@
 
 use std::path::{Path, PathBuf};
 
+use app::budget;
+use app::commands::bench::{bench_table, run_bench, BenchRequest};
+use app::commands::render::{run_render, RenderEvent, RenderRequest};
+use app::commands::solve::solve_scene_to_file;
+use app::commands::stats::{run_stats, StatsRequest};
+use app::commands::truth::{run_truth, TruthEvent, TruthRequest};
 use base::output::Outputs;
 use base::progress::Observer;
 use base::Error;
 use engine::frame::FrameOptions;
-use lab::experiment;
-use lab::jobs::bench::{bench_table, run_bench, BenchRequest};
-use lab::jobs::budget;
-use lab::jobs::render::{run_render, RenderEvent, RenderRequest};
-use lab::jobs::solve::solve_scene_to_file;
-use lab::jobs::stats::{run_stats, StatsRequest};
-use lab::jobs::sweep;
-use lab::jobs::truth::{run_truth, TruthEvent, TruthRequest};
+use study::experiment;
+use study::sweep;
 
 use crate::args::{
     BenchArgs, BuildingArgs, CheckArgs, CompareArgs, ExperimentArgs, ExportArgs, RenderArgs,
@@ -60,8 +60,8 @@ impl Settings {
     }
 
     /// A job context reporting progress to `observer`.
-    pub(crate) fn context<'a>(&self, observer: &'a dyn Observer) -> lab::jobs::Context<'a> {
-        lab::jobs::Context::new(observer)
+    pub(crate) fn context<'a>(&self, observer: &'a dyn Observer) -> app::context::Context<'a> {
+        app::context::Context::new(observer)
             .with_memory_limit(self.limit)
             .with_isa(self.isa)
             .with_outputs(self.outputs.clone())
@@ -139,7 +139,7 @@ fn check_json_path(json: &Option<PathBuf>, inputs: &[&Path]) -> anyhow::Result<(
     if let Some(path) = json.as_deref().filter(|p| *p != Path::new("-")) {
         let inputs: Vec<PathBuf> = inputs.iter().map(|p| p.to_path_buf()).collect();
         base::output::check_outputs(&inputs, &[("--json", path)])?;
-        lab::jobs::render::check_extension("--json", path, "json", "JSON")?;
+        app::commands::render::check_extension("--json", path, "json", "JSON")?;
     }
     Ok(())
 }
@@ -153,7 +153,7 @@ pub(crate) fn wrote(path: &Path, quiet: bool) {
 
 /// `check`: the scene's warnings, summary and memory estimate against the limit.
 pub fn check(settings: &Settings, args: CheckArgs) -> anyhow::Result<()> {
-    let input = lab::jobs::Input::load_opts(&args.scene, None, &args.options.load_options())?;
+    let input = app::context::Input::load_opts(&args.scene, None, &args.options.load_options())?;
     let s = &input.scene;
     for w in &s.warnings {
         note(&format!("warning: {w}"));
@@ -161,11 +161,11 @@ pub fn check(settings: &Settings, args: CheckArgs) -> anyhow::Result<()> {
     for n in &s.notes {
         note(&format!("note: {n}"));
     }
-    let summary = lab::report::summarize(s);
+    let summary = app::report::summarize(s);
     let b = budget::scene_budget(s)?;
-    let text = lab::report::budget_text(s, &b, settings.limit);
+    let text = app::report::budget_text(s, &b, settings.limit);
     out(&format!("{summary}{text}"))?;
-    if let Some(g) = lab::jobs::stats::solution_guards(&input)? {
+    if let Some(g) = app::commands::stats::solution_guards(&input)? {
         match &g.warning {
             Some(w) => note(&format!("warning: {w}")),
             None => out(&format!(
@@ -285,7 +285,7 @@ pub fn stats(settings: &Settings, args: StatsArgs) -> anyhow::Result<()> {
         if let Some(path) = &args.json {
             emit_json(settings, path, &stats)
         } else {
-            out(&lab::report::model_stats_text(&stats))
+            out(&app::report::model_stats_text(&stats))
         }
     })?
 }
@@ -294,7 +294,7 @@ pub fn stats(settings: &Settings, args: StatsArgs) -> anyhow::Result<()> {
 pub fn export(settings: &Settings, args: ExportArgs) -> anyhow::Result<()> {
     check_json_path(&args.json, &[&args.input, &args.output])?;
     in_pool(args.threads, || -> anyhow::Result<()> {
-        let req = lab::jobs::export::ExportRequest {
+        let req = app::commands::export::ExportRequest {
             load: args.options.load_options(),
             input: args.input,
             scene: args.scene,
@@ -304,15 +304,17 @@ pub fn export(settings: &Settings, args: ExportArgs) -> anyhow::Result<()> {
             texture: args.texture.options(),
             exposure: args.exposure,
         };
-        let report =
-            lab::jobs::export::run_export(&settings.context(&Terminal::new(false, false)), &req)?;
+        let report = app::commands::export::run_export(
+            &settings.context(&Terminal::new(false, false)),
+            &req,
+        )?;
         if let Some(path) = &args.json {
             return emit_json(settings, path, &report);
         }
         for f in &report.files {
             wrote(f, false);
         }
-        out(&lab::report::export_text(&report))
+        out(&app::report::export_text(&report))
     })?
 }
 
@@ -430,7 +432,7 @@ pub fn sweep(settings: &Settings, args: SweepArgs) -> anyhow::Result<()> {
 /// the scene's includes (through the scene the plan loads) before the sweep's minutes of work.
 fn check_sweep_outputs(args: &SweepArgs) -> anyhow::Result<()> {
     let mut inputs = vec![args.input.clone()];
-    if let Ok(i) = lab::jobs::Input::load(&args.input) {
+    if let Ok(i) = app::context::Input::load(&args.input) {
         inputs.extend(i.scene.inputs);
     }
     let outputs: Vec<(&str, &Path)> = args
@@ -444,7 +446,7 @@ fn check_sweep_outputs(args: &SweepArgs) -> anyhow::Result<()> {
     let plots: Vec<PathBuf> = args
         .plots
         .iter()
-        .flat_map(|dir| lab::plot::sweep_plot_files(dir))
+        .flat_map(|dir| study::plot::sweep_plot_files(dir))
         .collect();
     let outputs: Vec<(&str, &Path)> = outputs
         .into_iter()
@@ -452,10 +454,10 @@ fn check_sweep_outputs(args: &SweepArgs) -> anyhow::Result<()> {
         .collect();
     base::output::check_outputs(&inputs, &outputs)?;
     if let Some(j) = args.json.as_deref().filter(|p| *p != Path::new("-")) {
-        lab::jobs::render::check_extension("--json", j, "json", "JSON")?;
+        app::commands::render::check_extension("--json", j, "json", "JSON")?;
     }
     if let Some(c) = &args.csv {
-        lab::jobs::render::check_extension("--csv", c, "csv", "CSV")?;
+        app::commands::render::check_extension("--csv", c, "csv", "CSV")?;
     }
     Ok(())
 }
@@ -475,31 +477,31 @@ fn write_sweep_outputs(
         files.write_atomic(path, sweep::csv(report).as_bytes())?;
     }
     if let Some(dir) = &args.plots {
-        lab::plot::sweep_plots(files, report, dir)?;
+        study::plot::sweep_plots(files, report, dir)?;
     }
     Ok(())
 }
 
 /// `count` timing processes of this very binary (none for 0).
-fn timing_processes(count: u32) -> anyhow::Result<Option<lab::jobs::timing::TimingProcesses>> {
+fn timing_processes(count: u32) -> anyhow::Result<Option<study::timing::TimingProcesses>> {
     if count == 0 {
         return Ok(None);
     }
     let exe = std::env::current_exe()
         .map_err(|e| anyhow::anyhow!("cannot find this program to start timing processes: {e}"))?;
-    Ok(Some(lab::jobs::timing::TimingProcesses { exe, count }))
+    Ok(Some(study::timing::TimingProcesses { exe, count }))
 }
 
 /// `time-worker`: one timing process of a sweep; its reply (JSON) on stdout.
 pub fn time_worker(settings: &Settings, args: TimeWorkerArgs) -> anyhow::Result<()> {
     let observer = Terminal::new(false, false);
-    let reply = lab::jobs::timing::run_worker(&settings.context(&observer), &args.request)?;
+    let reply = study::worker::run_worker(&settings.context(&observer), &args.request)?;
     out(&(reply + "\n"))
 }
 
 /// `results`: writes the results page and its data, then a one-line summary.
 pub fn results(settings: &Settings, args: ResultsArgs) -> anyhow::Result<()> {
-    use lab::experiment::results;
+    use study::experiment::results;
     in_pool(args.threads, || -> anyhow::Result<()> {
         let mut req = results::ResultsRequest::new(args.doc);
         if !args.scenes.is_empty() {
@@ -530,7 +532,7 @@ pub fn results(settings: &Settings, args: ResultsArgs) -> anyhow::Result<()> {
 
 /// `generate building`: writes the scene and its OBJ and MTL, then the polygon count.
 pub fn generate_building(settings: &Settings, args: BuildingArgs) -> anyhow::Result<()> {
-    use lab::generate::{write_building, BuildingOptions};
+    use fixtures::generate::{write_building, BuildingOptions};
     let options = BuildingOptions {
         rooms_x: args.rooms_x,
         rooms_z: args.rooms_z,
@@ -553,8 +555,8 @@ pub fn generate_building(settings: &Settings, args: BuildingArgs) -> anyhow::Res
 /// naming every failed check.
 pub fn compare(settings: &Settings, args: CompareArgs) -> anyhow::Result<()> {
     if let Some(d) = &args.diff {
-        use lab::image::OutputFormat::{Exr, Png};
-        if !matches!(lab::image::OutputFormat::of(d), Some(Png | Exr)) {
+        use imageio::OutputFormat::{Exr, Png};
+        if !matches!(imageio::OutputFormat::of(d), Some(Png | Exr)) {
             return Err(Error::invalid_option(
                 "--diff",
                 d.display().to_string(),
@@ -564,7 +566,7 @@ pub fn compare(settings: &Settings, args: CompareArgs) -> anyhow::Result<()> {
         }
     }
     check_json_path(&args.json, &[&args.a, &args.b])?;
-    use lab::jobs::compare::{run_compare, CompareRequest};
+    use app::commands::compare::{run_compare, CompareRequest};
     if let Some(path) = &args.diff {
         base::output::check_outputs(&[args.a.clone(), args.b.clone()], &[("--diff", path)])?;
     }
@@ -608,9 +610,9 @@ fn write_diff(files: &Outputs, path: &Path, d: &metric::pixels::PixelDiff) -> an
         .extension()
         .is_some_and(|e| e.eq_ignore_ascii_case("exr"));
     if exr {
-        lab::image::write_exr(files, path, d.image.view())?;
+        imageio::write_exr(files, path, d.image.view())?;
     } else {
-        lab::image::write_png(files, path, d.normalized_image().view(), 0.0)?;
+        imageio::write_png(files, path, d.normalized_image().view(), 0.0)?;
     }
     Ok(())
 }

@@ -1,6 +1,6 @@
 //! `view`: the interactive walkthrough window (minifb, X11), or with `--script` a headless
 //! replay that writes the last frame. The frames, the camera and the keys' meaning live in
-//! `lab::viewer`; this module only turns keys into its actions and shows its pixels.
+//! `app::viewer`; this module only turns keys into its actions and shows its pixels.
 
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
@@ -11,7 +11,7 @@ use minifb::{InputCallback, Key, Window, WindowOptions};
 use crate::args::ViewArgs;
 use crate::commands::{in_pool, wrote, Settings};
 use crate::terminal::Terminal;
-use lab::viewer::{Action, Script, SolveProgress, Viewer};
+use app::viewer::{Action, Script, SolveProgress, Viewer};
 
 /// The action a pressed key triggers (`shift` held).
 fn pressed(k: Key, shift: bool) -> Option<Action> {
@@ -55,7 +55,7 @@ pub fn view(settings: &Settings, args: ViewArgs) -> anyhow::Result<()> {
         let terminal = Terminal::new(true, false);
         let observer = SolveProgress::new(&terminal);
         let ctx = settings.context(&observer);
-        let input = lab::jobs::Input::load_opts(
+        let input = app::context::Input::load_opts(
             &args.input,
             args.scene.as_deref(),
             &args.options.load_options(),
@@ -82,14 +82,14 @@ pub fn view(settings: &Settings, args: ViewArgs) -> anyhow::Result<()> {
         };
         // The viewer's frame (and the screenshot's PNG) under the memory limit, as `render`'s,
         // before the solve; and, for the window, a display to open it on.
-        lab::jobs::budget::check_frame_options(&opts, (true, false), ctx.memory_limit)?;
+        app::budget::check_frame_options(&opts, (true, false), ctx.memory_limit)?;
         if script.is_none() || args.screenshot.is_none() {
             check_display()?;
         }
         let exposure = input.scene.display.exposure;
         match (script, &args.screenshot) {
             (Some(script), Some(png)) => {
-                let prepared = Arc::new(lab::jobs::prepare(&ctx, input, policy, placement)?);
+                let prepared = Arc::new(app::prepare::prepare(&ctx, input, policy, placement)?);
                 let mut viewer = Viewer::new(Arc::clone(&prepared), opts)?;
                 script.play(&mut viewer.state, &prepared.scene);
                 // Every frame as the window draws it (frame, sRGB, status line), timed.
@@ -103,7 +103,7 @@ pub fn view(settings: &Settings, args: ViewArgs) -> anyhow::Result<()> {
                     times.push(seconds);
                 }
                 let rgb = viewer.display(exposure, None)?;
-                lab::image::write::write_srgb_png(&ctx.outputs, png, args.width, args.height, rgb)?;
+                imageio::write::write_srgb_png(&ctx.outputs, png, args.width, args.height, rgb)?;
                 wrote(png, false);
                 times.sort_by(f64::total_cmp);
                 let median = times[times.len() / 2];
@@ -126,7 +126,7 @@ pub fn view(settings: &Settings, args: ViewArgs) -> anyhow::Result<()> {
                         let send = |p| {
                             let _ = tx.send(Update::Snapshot(p));
                         };
-                        let done = lab::jobs::prepare_progressively(
+                        let done = app::prepare::prepare_progressively(
                             ctx,
                             input,
                             policy,
@@ -150,9 +150,9 @@ pub fn view(settings: &Settings, args: ViewArgs) -> anyhow::Result<()> {
 /// What the solve beside the window sends it.
 enum Update {
     /// A snapshot of the solve, reconstructed.
-    Snapshot(lab::jobs::Prepared),
+    Snapshot(app::prepare::Prepared),
     /// The final solution, or why there is none.
-    Done(base::error::Result<lab::jobs::Prepared>),
+    Done(base::error::Result<app::prepare::Prepared>),
 }
 
 /// Ends the process when the window closed (or failed) while the solve still ran: the window
@@ -259,7 +259,7 @@ fn window(
 ) -> anyhow::Result<()> {
     let (w, frame_h) = (opts.width, opts.height);
     // The status line's strip above the frame.
-    let h = frame_h + lab::viewer::STATUS_STRIP;
+    let h = frame_h + app::viewer::STATUS_STRIP;
     let mut win = Window::new(
         "pixelflow-sim view",
         w as usize,
@@ -300,7 +300,7 @@ fn window(
             None => {
                 let black = vec![0u8; 3 * (w * frame_h) as usize];
                 let line = progress.line().unwrap_or_else(|| "loading".into());
-                lab::viewer::with_status(&black, w, frame_h, &line)?
+                app::viewer::with_status(&black, w, frame_h, &line)?
             }
         };
         for (px, c) in buf.iter_mut().zip(rgb.chunks_exact(3)) {
@@ -316,7 +316,7 @@ fn window(
 fn latest(
     updates: &crossbeam_channel::Receiver<Update>,
     solved: &mut bool,
-) -> anyhow::Result<Option<lab::jobs::Prepared>> {
+) -> anyhow::Result<Option<app::prepare::Prepared>> {
     let mut newest = None;
     while let Ok(u) = updates.try_recv() {
         match u {

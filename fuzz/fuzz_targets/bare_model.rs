@@ -30,6 +30,6 @@ fuzz_target!(|data: &[u8]| {
     std::fs::write(&obj_path, obj).expect("writes the OBJ");
     std::fs::write(&mtl_path, mtl).expect("writes the MTL");
     if let Ok(scene) = scene::load_scene_with(&obj_path, &scene::LoadOptions::default()) {
-        let _ = lab::report::summarize(&scene);
+        let _ = app::report::summarize(&scene);
     }
 });

@@ -55,7 +55,7 @@ fuzz_target!(|data: &[u8]| {
     let path = Path::new("fuzz-dir/fuzz.toml");
     match scene::parse_scene_with(SCENE, path, &read) {
         Ok(scene) => {
-            let _ = lab::report::summarize(&scene).to_string();
+            let _ = app::report::summarize(&scene).to_string();
         }
         Err(e) => assert!(!e.to_string().is_empty()),
     }

@@ -54,7 +54,7 @@ fuzz_target!(|data: &[u8]| {
     let path = scenes_dir().join("fuzz.toml");
     match scene::parse_scene_with(text, &path, &read) {
         Ok(scene) => {
-            let _ = lab::report::summarize(&scene).to_string();
+            let _ = app::report::summarize(&scene).to_string();
         }
         Err(e) => assert!(!e.to_string().is_empty()),
     }

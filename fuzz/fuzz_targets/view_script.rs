@@ -8,7 +8,7 @@ fuzz_target!(|data: &[u8]| {
     let Ok(text) = std::str::from_utf8(data) else {
         return;
     };
-    if let Ok(script) = lab::viewer::Script::parse(text, std::path::Path::new("fuzz.script")) {
-        assert!(script.seconds() <= lab::viewer::MAX_SCRIPT_SECONDS + 1e-9);
+    if let Ok(script) = app::viewer::Script::parse(text, std::path::Path::new("fuzz.script")) {
+        assert!(script.seconds() <= app::viewer::MAX_SCRIPT_SECONDS + 1e-9);
     }
 });

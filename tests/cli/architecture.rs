@@ -25,7 +25,11 @@ const CRATES: &[(&str, &str)] = &[
     ("reconstruction", "pixelflow-reconstruction"),
     ("engine", "pixelflow-engine"),
     ("metric", "pixelflow-metric"),
-    ("lab", "pixelflow-lab"),
+    ("imageio", "pixelflow-imageio"),
+    ("export", "pixelflow-export"),
+    ("fixtures", "pixelflow-fixtures"),
+    ("app", "pixelflow-app"),
+    ("study", "pixelflow-study"),
     (".", "pixelflow-sim"),
 ];
 
@@ -39,17 +43,24 @@ const MODULES: &[(&str, &[&str])] = &[
     ),
     ("engine", &["raster", "composition", "shading", "frame"]),
     (
-        "lab",
+        "app",
         &[
-            "image",
-            "export",
-            "jobs",
-            "report",
+            "context", "budget", "prepare", "memory", "frames", "rates", "commands", "report",
+            "text", "viewer",
+        ],
+    ),
+    (
+        "study",
+        &[
+            "timing",
+            "physics",
+            "equal_error",
+            "equal_views",
+            "sweep",
+            "walk_timing",
+            "worker",
             "plot",
-            "viewer",
             "experiment",
-            "generate",
-            "closed_form",
         ],
     ),
 ];
@@ -508,4 +519,298 @@ fn k<'a>(x: &'a str) -> &'a str { crate::e::id(x) }
     // Line numbers survive stripping.
     let lines: Vec<usize> = crate_refs(&code).into_iter().map(|(_, l)| l).collect();
     assert_eq!(lines, [2, 3, 3, 4, 11]);
+}
+
+/// A crate's module tree: each module's path (`["commands", "render"]`) and its file.
+fn module_files(src: &Path) -> Vec<(Vec<String>, PathBuf)> {
+    let mut files = Vec::new();
+    rust_files(src, &mut files);
+    files
+        .into_iter()
+        .filter_map(|f| {
+            let rel = f.strip_prefix(src).ok()?.with_extension("");
+            let mut path: Vec<String> = rel
+                .components()
+                .map(|c| c.as_os_str().to_string_lossy().into_owned())
+                .collect();
+            if matches!(
+                path.last().map(String::as_str),
+                Some("mod" | "lib" | "main")
+            ) {
+                path.pop();
+            }
+            Some((path, f))
+        })
+        .collect()
+}
+
+/// The paths a `use` tree or expression path names after its root (`a::{b, c::d}` ->
+/// `[a::b, a::c::d]`), as segment lists; `self` members name the prefix itself.
+fn expand_tree(text: &str) -> Vec<Vec<String>> {
+    fn ident(s: &str) -> (&str, &str) {
+        let n = s
+            .find(|c: char| !(c.is_ascii_alphanumeric() || c == '_'))
+            .unwrap_or(s.len());
+        (&s[..n], &s[n..])
+    }
+    fn tree(s: &str, prefix: &[String], out: &mut Vec<Vec<String>>) -> usize {
+        let mut path = prefix.to_vec();
+        let mut at = 0;
+        loop {
+            let rest = s[at..].trim_start();
+            at = s.len() - rest.len();
+            if rest.starts_with('{') {
+                at += 1;
+                loop {
+                    let inner = &s[at..];
+                    let t = inner.trim_start();
+                    at += inner.len() - t.len();
+                    if t.starts_with('}') || t.is_empty() {
+                        return at + 1;
+                    }
+                    at += tree(&s[at..], &path, out);
+                    let t = s[at..].trim_start();
+                    at = s.len() - t.len();
+                    if t.starts_with(',') {
+                        at += 1;
+                    }
+                }
+            }
+            let (name, after) = ident(rest);
+            if name.is_empty() {
+                out.push(path);
+                return at;
+            }
+            at += name.len();
+            if name != "self" {
+                path.push(name.to_string());
+            }
+            if after.starts_with("::") {
+                at += 2;
+            } else {
+                out.push(path);
+                return at;
+            }
+        }
+    }
+    let mut out = Vec::new();
+    tree(text, &[], &mut out);
+    out
+}
+
+/// The module paths the non-test code of a file names through `crate::`, `super::` and
+/// `self::` paths, resolved against the file's own module path `here`.
+fn named_modules(code: &str, here: &[String]) -> Vec<Vec<String>> {
+    let b = code.as_bytes();
+    let mut out = Vec::new();
+    for root in ["crate::", "super::", "self::"] {
+        let mut from = 0;
+        while let Some(k) = code[from..].find(root) {
+            let at = from + k;
+            from = at + root.len();
+            let before = if at > 0 { b[at - 1] } else { b' ' };
+            if before.is_ascii_alphanumeric() || before == b'_' || before == b'$' || before == b':'
+            {
+                continue;
+            }
+            // `super::` is the parent of the file's module; `self::` the module itself.
+            let mut base: Vec<String> = match root {
+                "crate::" => Vec::new(),
+                _ => here.to_vec(),
+            };
+            let mut rest = &code[from..];
+            if root == "super::" {
+                base.pop();
+                while let Some(r) = rest.strip_prefix("super::") {
+                    base.pop();
+                    rest = r;
+                }
+            }
+            for p in expand_tree(rest) {
+                let mut full = base.clone();
+                full.extend(p);
+                out.push(full);
+            }
+        }
+    }
+    out
+}
+
+/// The file-level import graph of the crate in `src`: an edge from each file to each file whose
+/// module (or an item in it) its non-test code names, except a module naming its own
+/// submodules (a parent declares and re-exports its children: that is the tree, not a use).
+fn file_graph(src: &Path) -> Vec<(PathBuf, PathBuf)> {
+    let modules = module_files(src);
+    let mut test_only: BTreeSet<PathBuf> = BTreeSet::new();
+    let mut codes = Vec::new();
+    for (_, f) in &modules {
+        let (code, children) = remove_test_items(&strip(&std::fs::read_to_string(f).unwrap()));
+        for c in children {
+            let dir = child_dir(f);
+            test_only.insert(dir.join(format!("{c}.rs")));
+            test_only.insert(dir.join(&c).join("mod.rs"));
+        }
+        codes.push(code);
+    }
+    let mut edges = BTreeSet::new();
+    for ((here, f), code) in modules.iter().zip(&codes) {
+        if test_only.contains(f) {
+            continue;
+        }
+        for named in named_modules(code, here) {
+            // The longest module path that prefixes the named path.
+            let Some((target, file)) = modules
+                .iter()
+                .filter(|(m, _)| named.starts_with(m))
+                .max_by_key(|(m, _)| m.len())
+            else {
+                continue;
+            };
+            let own_descendant = target.len() > here.len() && target.starts_with(here);
+            if file != f && !own_descendant && !test_only.contains(file) {
+                edges.insert((f.clone(), file.clone()));
+            }
+        }
+    }
+    edges.into_iter().collect()
+}
+
+/// The cycles of a directed graph, each as its strongly connected component of two or more
+/// nodes (Tarjan's algorithm), sorted.
+fn cycles(edges: &[(PathBuf, PathBuf)]) -> Vec<Vec<PathBuf>> {
+    let nodes: Vec<PathBuf> = edges
+        .iter()
+        .flat_map(|(a, b)| [a.clone(), b.clone()])
+        .collect::<BTreeSet<_>>()
+        .into_iter()
+        .collect();
+    let index = |p: &PathBuf| nodes.binary_search(p).unwrap();
+    let mut next: Vec<Vec<usize>> = vec![Vec::new(); nodes.len()];
+    for (a, b) in edges {
+        next[index(a)].push(index(b));
+    }
+    struct Tarjan<'a> {
+        next: &'a [Vec<usize>],
+        index: Vec<Option<usize>>,
+        low: Vec<usize>,
+        on_stack: Vec<bool>,
+        stack: Vec<usize>,
+        counter: usize,
+        out: Vec<Vec<usize>>,
+    }
+    impl Tarjan<'_> {
+        fn visit(&mut self, v: usize) {
+            self.index[v] = Some(self.counter);
+            self.low[v] = self.counter;
+            self.counter += 1;
+            self.stack.push(v);
+            self.on_stack[v] = true;
+            for k in 0..self.next[v].len() {
+                let w = self.next[v][k];
+                match self.index[w] {
+                    None => {
+                        self.visit(w);
+                        self.low[v] = self.low[v].min(self.low[w]);
+                    }
+                    Some(i) if self.on_stack[w] => self.low[v] = self.low[v].min(i),
+                    Some(_) => {}
+                }
+            }
+            if Some(self.low[v]) == self.index[v] {
+                let mut component = Vec::new();
+                while let Some(w) = self.stack.pop() {
+                    self.on_stack[w] = false;
+                    component.push(w);
+                    if w == v {
+                        break;
+                    }
+                }
+                if component.len() > 1 {
+                    component.sort();
+                    self.out.push(component);
+                }
+            }
+        }
+    }
+    let n = nodes.len();
+    let mut t = Tarjan {
+        next: &next,
+        index: vec![None; n],
+        low: vec![0; n],
+        on_stack: vec![false; n],
+        stack: Vec::new(),
+        counter: 0,
+        out: Vec::new(),
+    };
+    for v in 0..n {
+        if t.index[v].is_none() {
+            t.visit(v);
+        }
+    }
+    let mut out: Vec<Vec<PathBuf>> = t
+        .out
+        .into_iter()
+        .map(|c| c.into_iter().map(|i| nodes[i].clone()).collect())
+        .collect();
+    out.sort();
+    out
+}
+
+/// No two files of any crate (the binary's included) name each other, directly or through
+/// others: every crate's files form a graph without cycles, so each can be read, tested and
+/// moved from what it names alone.
+#[test]
+fn no_file_imports_reach_back_to_themselves() {
+    let mut srcs = vec![Path::new(crate::REPO).join("src")];
+    for (dir, _) in CRATES.iter().filter(|(d, _)| *d != ".") {
+        srcs.push(crates_dir().join(dir).join("src"));
+    }
+    let mut found = Vec::new();
+    let mut total = 0;
+    for src in &srcs {
+        let graph = file_graph(src);
+        total += graph.len();
+        for c in cycles(&graph) {
+            let names: Vec<String> = c
+                .iter()
+                .map(|f| {
+                    f.strip_prefix(Path::new(crate::REPO))
+                        .unwrap_or(f)
+                        .display()
+                        .to_string()
+                })
+                .collect();
+            found.push(names.join(" <-> "));
+        }
+    }
+    assert!(total > 150, "the scan found only {total} file edges");
+    assert!(
+        found.is_empty(),
+        "files that import each other:\n{}",
+        found.join("\n")
+    );
+}
+
+/// The file-level scan: it resolves `crate::`, `super::` and `self::` paths (grouped and
+/// nested) to the longest module that holds them, and finds a cycle through three files but
+/// none in a chain.
+#[test]
+fn the_file_scan_resolves_paths_and_finds_cycles() {
+    let here = vec!["a".to_string(), "b".to_string()];
+    let code = "use crate::x::{y::Z, w}; use super::c::D; use super::super::e; self::f::g();";
+    let named: Vec<String> = named_modules(code, &here)
+        .into_iter()
+        .map(|p| p.join("::"))
+        .collect();
+    assert_eq!(named, ["x::y::Z", "x::w", "a::c::D", "e", "a::b::f::g"]);
+    let p = |s: &str| PathBuf::from(s);
+    let chain = [(p("a"), p("b")), (p("b"), p("c"))];
+    assert!(cycles(&chain).is_empty());
+    let ring = [
+        (p("a"), p("b")),
+        (p("b"), p("c")),
+        (p("c"), p("a")),
+        (p("c"), p("d")),
+    ];
+    assert_eq!(cycles(&ring), [vec![p("a"), p("b"), p("c")]]);
 }

@@ -204,8 +204,8 @@ fn the_compare_estimate_brackets_the_measured_peak() {
     });
     let b = write_pfm("peak-b.pfm", 1024, 1024, |x, _| 0.1 + (x & 7) as f32 * 0.01);
     // The estimate with the program's own memory: refused just under it, accepted at it.
-    let est = 1024 * 1024 * lab::jobs::compare::PERCEPTUAL_PIXEL_BYTES;
-    let program = lab::jobs::budget::PROGRAM_BYTES;
+    let est = 1024 * 1024 * app::commands::compare::PERCEPTUAL_PIXEL_BYTES;
+    let program = app::budget::PROGRAM_BYTES;
     let refused = run(&[
         "compare",
         s(&a),

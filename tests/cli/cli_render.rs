@@ -931,10 +931,10 @@ fn the_image_format_follows_the_output_name() {
     assert_eq!(&render(&pfm)[..3], b"PF\n");
     let hdr = tmp("fmt.hdr");
     assert_eq!(&render(&hdr)[..10], b"#?RADIANCE");
-    let a = lab::image::read_image(&exr).unwrap();
-    let b = lab::image::read_image(&pfm).unwrap();
+    let a = imageio::read_image(&exr).unwrap();
+    let b = imageio::read_image(&pfm).unwrap();
     assert_eq!(a.pixels, b.pixels);
-    let c = lab::image::read_image(&hdr).unwrap();
+    let c = imageio::read_image(&hdr).unwrap();
     for (x, y) in a.pixels.iter().zip(&c.pixels) {
         let tol = x.max_element() / 128.0 + 1e-30;
         assert!((*x - *y).abs().max_element() <= tol, "{x} {y}");

@@ -4,11 +4,11 @@
 //! T-junctions, the shipped `scenes/building.toml` equal to the generator's output, and the
 //! command line (exit codes, the polygon count printed, the files written).
 
-use glam::DVec3;
-use lab::generate::{
+use fixtures::generate::{
     generate_building, room_box, write_building, BuildingOptions, BuildingPaths, DOOR_HEIGHT,
     DOOR_WIDTH, MAX_POLYGONS, ROOM_DEPTH, ROOM_HEIGHT, ROOM_WIDTH, WALL,
 };
+use glam::DVec3;
 use scene::{parse_scene_with, Scene, Shape};
 use std::path::{Path, PathBuf};
 use std::process::Output;
@@ -23,7 +23,7 @@ fn options(rooms_x: u32, rooms_z: u32, floors: u32, cut: u32) -> BuildingOptions
 
 /// Generates `o` as `/virtual/b.toml` and loads it through the project's loader, the OBJ and MTL
 /// read from memory.
-fn load(o: &BuildingOptions) -> (lab::generate::Building, Scene) {
+fn load(o: &BuildingOptions) -> (fixtures::generate::Building, Scene) {
     let paths = BuildingPaths::for_output(Path::new("/virtual/b.toml")).unwrap();
     let b = generate_building(o, &paths).unwrap();
     let (obj, mtl) = (b.obj.clone(), b.mtl.clone());
@@ -175,7 +175,7 @@ fn same_options_give_the_same_bytes() {
     // A room's furniture does not depend on the size of the grid: room (0, 0)'s group lines
     // and vertices are the same in a 1 x 1 and a 3 x 2 building.
     let small = generate_building(&options(1, 1, 1, 2), &paths).unwrap();
-    let crates = |b: &lab::generate::Building| -> Vec<String> {
+    let crates = |b: &fixtures::generate::Building| -> Vec<String> {
         b.obj
             .lines()
             .filter(|l| l.starts_with("g s0_x0_z0_crate") || l.starts_with("g s0_x0_z0_pillar"))

@@ -6,15 +6,20 @@
 //! pixel is a hole), and visibly lit where light is known to fall. Scene-specific checks follow
 //! each scene's header comment.
 
-use lab::jobs::Context;
+use app::context::Context;
 use std::path::{Path, PathBuf};
 
 use glam::{DVec3, Vec3};
 
+use app::commands::render::{run_render, RenderEvent, RenderRequest};
+use app::context::Input;
+use app::context::TextureOptions;
+use app::frames::render_frame;
+use app::prepare::prepare;
+use app::prepare::prepare_path;
+use app::prepare::Prepared;
 use base::method::{Method, Placement};
 use engine::frame::{Frame, FrameOptions};
-use lab::jobs::render::{run_render, RenderEvent, RenderRequest};
-use lab::jobs::{prepare, prepare_path, render_frame, Input, Prepared, TextureOptions};
 use reconstruction::texture::SizePolicy;
 use reconstruction::Estimator;
 use scene::{load_scene, parse_scene, Camera, Projection};

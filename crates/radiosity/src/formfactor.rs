@@ -108,12 +108,17 @@ pub(crate) fn point_to_polygon(x: DVec3, n: DVec3, poly: &SmallPoly, poly_normal
     lambert(x, n, p.verts())
 }
 
+/// Most vertices of a convex polygon [`polygon_form_factor`] takes (the visible pieces of exact
+/// visibility are bounded by it: an occluder quad clipped by a quad's pyramid has at most 9, a
+/// piece gains at most one per cut).
+pub(crate) const MAX_VERTS: usize = 12;
+
 /// Exact unoccluded form factor from a differential area at `x` (unit normal `n`) to the convex
-/// planar polygon `vs` of any length (at most [`crate::visible::MAX_VERTS`] vertices), which the
+/// planar polygon `vs` of any length (at most [`MAX_VERTS`] vertices), which the
 /// caller knows `x` to be in front of: clipped to the receiver's front half-space, then
 /// Lambert's formula; in [0, 1].
 pub(crate) fn polygon_form_factor(x: DVec3, n: DVec3, vs: &[DVec3]) -> f64 {
-    const CAP: usize = crate::visible::MAX_VERTS + 1;
+    const CAP: usize = MAX_VERTS + 1;
     let (mut front, mut behind) = (false, false);
     for p in vs {
         let d = n.dot(*p - x);

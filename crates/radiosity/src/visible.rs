@@ -36,9 +36,8 @@ use std::ops::Range;
 
 use glam::{DVec2, DVec3};
 
-/// Most vertices of one convex polygon here (an occluder quad clipped by a quad's pyramid has
-/// at most 9; a piece gains at most one per cut).
-pub(crate) const MAX_VERTS: usize = 12;
+// A convex polygon here has at most as many vertices as the form factor takes.
+use crate::formfactor::{polygon_form_factor, MAX_VERTS};
 
 /// Most pieces of a visible region, and most holes (projected occluders) in one query (at most
 /// 64: [`View::classify`] keeps a mask of them).
@@ -546,7 +545,7 @@ fn form_factor_2d(frame: &Frame, x: DVec3, n: DVec3, piece: &[DVec2]) -> f64 {
     for (out, q) in v.iter_mut().zip(piece) {
         *out = frame.to3(*q);
     }
-    crate::formfactor::polygon_form_factor(x, n, &v[..piece.len().min(MAX_VERTS)])
+    polygon_form_factor(x, n, &v[..piece.len().min(MAX_VERTS)])
 }
 
 /// Calls `f` with this thread's arena view, for a query whose region is used at once.

@@ -46,7 +46,7 @@
 //! | spot      | 3.6 %           | 2.0e-3    | 0.18 %             | 1.5e-3       | 0.42 %          | 8.2e-4    |
 //! | two-spots | 0.09 %          | 8.5e-5    | 0.03 %             | 1.1e-4       | 0.05 %          | 7.3e-5    |
 //!
-//! and on real solutions (`cargo test --release -p pixelflow-lab --test library closed_form`
+//! and on real solutions (`cargo test --release -p pixelflow-app --test library closed_form`
 //! and `… reconstruction_scenes`, `--nocapture`): an area light over a floor, largest error
 //! 3.1e-4 of the peak with Hyman, 2.9e-4 plain, 2.6e-3 Fritsch-Butland (whose harmonic mean
 //! flattens every smooth maximum); the largest overshoot over every polygon of the shipped

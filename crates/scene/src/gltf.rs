@@ -35,9 +35,9 @@
 //! converted there (candela over pi, matching the emission's scale).
 
 use super::format::ObjSection;
-use super::load::{check_emission, check_reflectance, in_range, Cx, Surfaces};
 use super::obj::{clamp_reflectance, decimal, decimal3, default_material, unique_name, Transform};
-use super::{Camera, Material, Polygon};
+use super::{Material, Polygon};
+use crate::checks::{check_emission, check_reflectance, in_range, Cx, Surfaces};
 use base::error::{Error, Location, Result};
 use glam::{DAffine3, DMat3, DQuat, DVec3};
 use std::collections::{BTreeMap, BTreeSet};
@@ -50,19 +50,8 @@ mod lights;
 #[cfg(test)]
 mod tests;
 
+pub(crate) use crate::checks::ModelCamera;
 use data::{Buffers, Opened};
-
-/// The first camera of a glTF include, for a bare model to look through (`scene::model`).
-#[derive(Debug, Clone)]
-pub(crate) struct ModelCamera {
-    /// The camera, in scene coordinates.
-    pub(crate) camera: Camera,
-    /// Width over height of its view, when the file gives it.
-    pub(crate) aspect: Option<f64>,
-    /// Where it is defined (`room.glb: nodes[3] camera "Camera"`, with the name in
-    /// backticks), for messages.
-    pub(crate) origin: String,
-}
 
 /// Loads one `[[gltf]]` include, appending to the scene's materials, objects, polygons and
 /// (through `cx`) spot lights and camera.
@@ -273,7 +262,7 @@ impl Converter<'_> {
                 if !m.iter().flatten().all(|x| in_range(*x)) {
                     return Err(Error::input(
                         self.loc(key),
-                        format!("has {m:?}; {}", super::load::FINITE_RULE),
+                        format!("has {m:?}; {}", crate::checks::FINITE_RULE),
                     ));
                 }
                 let last_row = [m[0][3], m[1][3], m[2][3], m[3][3]];
@@ -690,7 +679,7 @@ impl Converter<'_> {
             .and_then(|()| {
                 finite
                     .then_some(())
-                    .ok_or_else(|| super::load::FINITE_RULE.to_string())
+                    .ok_or_else(|| crate::checks::FINITE_RULE.to_string())
             })
             .map_err(|msg| {
                 Error::input(

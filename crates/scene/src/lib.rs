@@ -22,8 +22,10 @@ use base::method::{Method, Placement};
 pub mod adjacency;
 pub mod bvh;
 pub mod camera_path;
+mod checks;
 mod coincident;
 pub mod contact;
+mod face;
 pub mod format;
 mod gltf;
 pub mod junctions;
@@ -32,15 +34,15 @@ mod model;
 mod obj;
 pub mod orientation;
 pub mod overrides;
+mod parse;
 pub mod shading;
 pub mod triangle_pairs;
 mod triangulate;
 
-pub use load::{
-    load_scene, load_scene_with, parse_scene, parse_scene_with, parse_scene_with_bytes, LoadOptions,
-};
+pub use load::{load_scene, load_scene_with, LoadOptions};
 pub use model::is_model;
 pub use obj::MAX_OBJ_REFLECTANCE;
+pub use parse::{parse_scene, parse_scene_with, parse_scene_with_bytes};
 
 /// Largest image width or height accepted, in pixels.
 pub const MAX_IMAGE_DIM: u32 = 16384;

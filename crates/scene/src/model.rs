@@ -32,10 +32,12 @@
 //! renders from it again with the same defaults.
 
 use super::bvh::{Aabb, Bvh};
-use super::gltf::ModelCamera;
-use super::load::{parse_scene_options, LoadOptions, Readers};
 use super::orientation::{cast, sphere_directions};
 use super::{Camera, Projection, Scene, SpotLight};
+use crate::checks::LoadOptions;
+use crate::checks::ModelCamera;
+use crate::checks::Readers;
+use crate::parse::parse_scene_options;
 use base::error::{Error, Location, Result};
 use glam::DVec3;
 use std::path::Path;

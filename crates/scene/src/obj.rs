@@ -6,7 +6,7 @@
 //! live in each polygon's (u, v) domain, and a quad split into two triangles would double the
 //! work and put a C1 seam across a flat face. Faces with more than four corners are
 //! fan-triangulated if convex and planar and refused otherwise (see
-//! [`super::load::build_face`]). Each face of an OBJ is numbered in file order and reported with
+//! [`crate::face::build_face`]). Each face of an OBJ is numbered in file order and reported with
 //! its line, found by matching the n-th `f`/`l` line of the text: tobj emits exactly one face per
 //! such line when it does not triangulate.
 //!
@@ -33,10 +33,10 @@
 //! most 7 significant digits therefore load as written.
 
 use super::format::{ObjSection, ScaleSpec};
-use super::load::{
+use super::Material;
+use crate::checks::{
     check_emission, check_reflectance, in_range, Cx, ReadText, Surfaces, MAX_MTL_FILES,
 };
-use super::Material;
 use base::error::{Error, Location, Result};
 use glam::{DMat3, DVec3};
 use std::cell::RefCell;
@@ -606,7 +606,7 @@ impl Converter<'_> {
     /// The reflectance (`Kd`) and emission (`Ke`) of the MTL material `m`, checked; a problem
     /// is the MTL file's, at the line of the statement. A `Kd` of 1 or more in some channel
     /// (modelling tools write `Kd 1 1 1` for "white") is clamped to [`MAX_OBJ_REFLECTANCE`] with
-    /// a warning, unless `strict`; values above [`super::load::MAX_MAGNITUDE`] or negative are
+    /// a warning, unless `strict`; values above [`crate::checks::MAX_MAGNITUDE`] or negative are
     /// refused as before.
     fn material_values(
         &self,

@@ -53,7 +53,7 @@ pub(crate) fn apply(text: &str, path: &Path, overrides: &[(String, String)]) -> 
     let mut table: toml::Table = toml::from_str(text).map_err(|e| {
         let mut loc = Location::file(path);
         if let Some(span) = e.span() {
-            loc = loc.at_line(super::load::line_of(text, span.start));
+            loc = loc.at_line(crate::checks::line_of(text, span.start));
         }
         Error::input(loc, e.message().trim_end().to_string())
     })?;

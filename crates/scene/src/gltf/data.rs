@@ -7,7 +7,7 @@
 //! glTF key, never a panic or an allocation the file's own size does not bound (an accessor's
 //! elements must lie in its buffer, so a read is at most as large as the files read).
 
-use super::super::load::Cx;
+use crate::checks::Cx;
 use base::error::{Error, Location, Result};
 use glam::DVec3;
 use gltf::accessor::{DataType, Dimensions};

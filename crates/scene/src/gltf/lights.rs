@@ -28,10 +28,10 @@
 //! is the vertical field of view, an orthographic one's `xmag` and `ymag` half its width and
 //! height. A camera that cannot be used is skipped with a note saying why.
 
-use super::super::load::{in_range, Cx, FINITE_RULE, MIN_FOV_Y};
 use super::super::obj::{decimal, decimal3};
 use super::super::{Camera, Projection, SpotLight};
 use super::{scene_axis, Converter, ModelCamera};
+use crate::checks::{in_range, Cx, FINITE_RULE, MIN_FOV_Y};
 use base::error::{Error, Result};
 use glam::{DAffine3, DVec3};
 use std::f64::consts::{FRAC_PI_2, PI};

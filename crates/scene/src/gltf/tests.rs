@@ -3,7 +3,9 @@
 //! scene loader with the files held in memory, and checked value by value.
 
 use super::lights::cone_falloff;
-use crate::load::{parse_scene_options, LoadOptions, Readers};
+use crate::checks::LoadOptions;
+use crate::checks::Readers;
+use crate::parse::parse_scene_options;
 use crate::{parse_scene_with_bytes, Scene};
 use base::error::{Error, EXIT_BAD_INPUT};
 use glam::DVec3;

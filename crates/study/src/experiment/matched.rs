@@ -1,0 +1,245 @@
+//! The paper's Table 1 at matched error. The paper compared its mesh, RAT and RRP models at
+//! whatever error each had; here every method is taken at the point of the sweep where it is as
+//! accurate as the direct method at the scene's own density, and its geometry, frame rate and
+//! memory are read there. Accuracy is the physics error (against the path tracer) when the sweep
+//! has a truth image, else the total error (against the converged solution, a consistency
+//! check); "as accurate" is within [`MATCH_SLACK`] of the direct method's error.
+//!
+//! Invariant: every number is a sweep point's; a method that reaches the target nowhere is
+//! shown at its most accurate point and said so; a speed comparison is stated only where the
+//! confidence intervals of the two frame times do not overlap.
+
+use crate::sweep::{SweepPoint, SweepReport};
+
+/// How much above the direct method's error a point may be and still match it.
+pub const MATCH_SLACK: f64 = 1.1;
+
+/// The error the matching uses: physics when measured, else total.
+fn error_of(p: &SweepPoint) -> f64 {
+    p.error_physics.unwrap_or(p.error_total)
+}
+
+/// One method at matched error.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Matched<'a> {
+    /// The point chosen.
+    pub point: &'a SweepPoint,
+    /// Whether it is within [`MATCH_SLACK`] of the target (else it is the method's most accurate).
+    pub reached: bool,
+}
+
+/// The direct method's point at the scene's own density: the target.
+pub fn target(sw: &SweepReport) -> Option<&SweepPoint> {
+    sw.points
+        .iter()
+        .find(|p| p.method == "direct" && p.density == sw.own_density)
+}
+
+/// For `method`, the point with the fewest stored bytes (then the fastest) among those within
+/// [`MATCH_SLACK`] of `target_error`; else its most accurate point.
+pub fn matched<'a>(sw: &'a SweepReport, method: &str, target_error: f64) -> Option<Matched<'a>> {
+    let of_method = || sw.points.iter().filter(move |p| p.method == method);
+    let within = of_method()
+        .filter(|p| error_of(p) <= target_error * MATCH_SLACK)
+        .min_by(|a, b| {
+            a.bytes
+                .cmp(&b.bytes)
+                .then(a.frame_ms.total_cmp(&b.frame_ms))
+        });
+    match within {
+        Some(point) => Some(Matched {
+            point,
+            reached: true,
+        }),
+        None => of_method()
+            .min_by(|a, b| error_of(a).total_cmp(&error_of(b)))
+            .map(|point| Matched {
+                point,
+                reached: false,
+            }),
+    }
+}
+
+/// Frames per second of a point, with the interval of its frame time turned into rates.
+fn fps(p: &SweepPoint) -> String {
+    let rate = app::rates::fps;
+    format!(
+        "{:.0} ({:.0}-{:.0})",
+        rate(p.frame_ms),
+        rate(p.frame_ms_interval[1]),
+        rate(p.frame_ms_interval[0])
+    )
+}
+
+/// How `a` compares with `b` in speed: faster or slower where the intervals are apart, else
+/// no claim.
+pub fn speed_words(a: &SweepPoint, b: &SweepPoint) -> &'static str {
+    if a.frame_ms_interval[1] < b.frame_ms_interval[0] {
+        "faster than"
+    } else if b.frame_ms_interval[1] < a.frame_ms_interval[0] {
+        "slower than"
+    } else {
+        "not distinguishable in speed (intervals overlap) from"
+    }
+}
+
+/// The section: per scene, one row per method at matched error, then the speed findings.
+pub fn section(scenes: &[(&str, &SweepReport)]) -> String {
+    let mut s = String::from("## Table 1 at matched error\n\n");
+    s += &format!(
+        "The paper's Table 1 compares its models at whatever error each had. Here each method \
+         is read where it is as accurate as the direct method at the scene's own density \
+         (within {:.0} %): the sweep point with the fewest bytes stored among those (over every \
+         density, texture size and placement), or, when none is, its most accurate point \
+         (*not reached*). Accuracy is the physics error (against the path tracer), or the total \
+         error where a scene has no truth image. Triangles and vertices are what the method \
+         draws (the mesh's, or the original polygons with their own corners); frames per \
+         second at the sweep's image size, with the confidence interval of the frame time.\n\n",
+        100.0 * (MATCH_SLACK - 1.0)
+    );
+    s += "| scene | method | point | error (target) | triangles | vertices | fps (interval) | \
+          texture bytes | bytes stored | bytes held drawing |\n\
+          |---|---|---|---|---|---|---|---|---|---|\n";
+    let mut findings = Vec::new();
+    for (name, sw) in scenes {
+        let Some(t) = target(sw) else { continue };
+        let target_error = error_of(t);
+        // The direct method at matched error (its cheapest point as accurate as the target).
+        let direct = matched(sw, "direct", target_error).map_or(t, |d| d.point);
+        for m in sw.methods() {
+            let Some(mt) = matched(sw, m, target_error) else {
+                continue;
+            };
+            let p = mt.point;
+            s += &format!(
+                "| {} | {} | density {}, {} | {:.3} ({:.3}){} | {} | {} | {} | {} | {} | {} |\n",
+                name,
+                m,
+                p.density,
+                super::labels::texture_label(p),
+                error_of(p),
+                target_error,
+                if mt.reached { "" } else { " *not reached*" },
+                app::report::grouped(p.triangles),
+                app::report::grouped(p.vertices),
+                fps(p),
+                p.texture.map_or("-".into(), |_| super::labels::mb(p.bytes)),
+                super::labels::mb(p.bytes),
+                super::labels::mb(p.working_bytes),
+            );
+            if m != "direct" && mt.reached {
+                findings.push(format!(
+                    "on {name}, direct is {} {m}",
+                    speed_words(direct, p)
+                ));
+            }
+        }
+    }
+    if !findings.is_empty() {
+        s += &format!(
+            "\nSpeed at matched error, each method's row against the direct method's (a claim \
+             only where the frame-time intervals are apart): {}.\n",
+            findings.join("; ")
+        );
+    }
+    s + "\n"
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::sweep::{Errors, Timing};
+
+    fn point(method: &str, density: usize, bytes: u64, ms: [f64; 2], error: f64) -> SweepPoint {
+        let e = Errors {
+            perceptual: error,
+            rmse: 0.0,
+            max_abs: 0.0,
+            mach_band: 0.0,
+        };
+        SweepPoint {
+            method: method.into(),
+            density,
+            tolerance: 0.01,
+            samples: 100,
+            texture: None,
+            frame_ms: 0.5 * (ms[0] + ms[1]),
+            frame_ms_interval: ms,
+            triangles: 2,
+            vertices: 4,
+            bytes,
+            working_bytes: bytes,
+            error_reconstruction: error,
+            error_total: error,
+            reconstruction: e,
+            total: e,
+            error_physics: None,
+            physics: None,
+            pareto_time: false,
+            pareto_memory: false,
+        }
+    }
+
+    fn report(points: Vec<SweepPoint>) -> SweepReport {
+        SweepReport {
+            scene: "x.toml".into(),
+            width: 8,
+            height: 8,
+            threads: 1,
+            densities: Vec::new(),
+            reference: crate::sweep::SolutionLevel {
+                tolerance: 0.01,
+                max_depth: 4,
+                samples: 1,
+                solution: None,
+                converged: None,
+            },
+            truth: None,
+            points,
+            equal_error: None,
+            timing: Timing {
+                processes: 6,
+                samples: 6,
+                coverage: 0.96875,
+                load: Vec::new(),
+            },
+            own_density: 1,
+            equal_views: Vec::new(),
+        }
+    }
+
+    #[test]
+    fn the_cheapest_point_within_the_slack_is_chosen() {
+        let sw = report(vec![
+            point("direct", 1, 100, [1.0, 2.0], 1.0),
+            point("mesh", 0, 10, [5.0, 6.0], 2.0),  // too wrong
+            point("mesh", 1, 50, [5.0, 6.0], 1.09), // within 10 %: cheapest that matches
+            point("mesh", 2, 80, [5.0, 6.0], 0.5),
+        ]);
+        let t = target(&sw).unwrap();
+        let m = matched(&sw, "mesh", error_of(t)).unwrap();
+        assert!(m.reached);
+        assert_eq!(m.point.bytes, 50);
+        assert_eq!(speed_words(t, m.point), "faster than");
+        assert_eq!(speed_words(m.point, t), "slower than");
+    }
+
+    #[test]
+    fn an_unreached_target_gives_the_most_accurate_point() {
+        let sw = report(vec![
+            point("direct", 1, 100, [1.0, 2.0], 1.0),
+            point("texture-bilinear", 1, 10, [1.5, 2.5], 3.0),
+            point("texture-bilinear", 1, 20, [1.5, 2.5], 2.0),
+        ]);
+        let m = matched(&sw, "texture-bilinear", 1.0).unwrap();
+        assert!(!m.reached);
+        assert_eq!(m.point.bytes, 20);
+        assert_eq!(
+            speed_words(target(&sw).unwrap(), m.point),
+            "not distinguishable in speed (intervals overlap) from"
+        );
+        let page = section(&[("x", &sw)]);
+        assert!(page.contains("*not reached*"), "{page}");
+        assert!(!page.contains("Speed at matched error"), "{page}");
+    }
+}
