@@ -404,13 +404,8 @@ mod tests {
     #[test]
     fn merging_records_then_locating_patches_equals_merging_tables() {
         // Three renderers' reports of a 16 x 3 region with ties, hidden samples and empty ones.
-        let mut seed = 5u64;
-        let mut rnd = |n: u64| {
-            seed = seed
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (seed >> 33) % n
-        };
+        let mut seed = base::rng::Rng::new(5);
+        let mut rnd = |n: u64| seed.below(n as u32) as u64;
         for _ in 0..50 {
             let parts: Vec<RegionGBuffer> = (0..3)
                 .map(|_| {
@@ -456,13 +451,8 @@ mod tests {
         // ordered comparisons); polygon ids with the top bit set (the comparison is unsigned).
         const DEPTHS: [f32; 6] = [1.0, 2.0, -0.0, 0.0, f32::INFINITY, f32::NAN];
         const IDS: [u32; 4] = [3, 7, 0x8000_0001, NO_POLYGON];
-        let mut seed = 11u64;
-        let mut rnd = |n: usize| {
-            seed = seed
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (seed >> 33) as usize % n
-        };
+        let mut seed = base::rng::Rng::new(11);
+        let mut rnd = |n: usize| seed.below(n as u32) as usize;
         for width in [8, 16, 24] {
             for _ in 0..40 {
                 let mut make = || {

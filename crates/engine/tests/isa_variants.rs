@@ -402,13 +402,8 @@ fn check_texture(isa: Isa) -> usize {
 fn check_merge(isa: Isa) -> usize {
     const DEPTHS: [f32; 6] = [1.0, 2.0, -0.0, 0.0, f32::INFINITY, f32::NAN];
     const IDS: [u32; 4] = [3, 7, 0x8000_0001, NO_POLYGON];
-    let mut seed = 11u64;
-    let mut rnd = |n: usize| {
-        seed = seed
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
-        (seed >> 33) as usize % n
-    };
+    let mut seed = base::rng::Rng::new(11);
+    let mut rnd = |n: usize| seed.below(n as u32) as usize;
     let mut checked = 0;
     for width in [8, 16, 24, 40] {
         for _ in 0..100 {

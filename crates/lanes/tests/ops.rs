@@ -37,16 +37,12 @@ const U: [u32; 8] = [
     u32::MAX,
 ];
 
-/// A deterministic stream of indices.
-struct Rng(u64);
+/// A deterministic stream of indices, from the project's seeded generator.
+struct Rng(base::rng::Rng);
 
 impl Rng {
     fn next(&mut self, n: usize) -> usize {
-        self.0 = self
-            .0
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
-        (self.0 >> 33) as usize % n
+        self.0.below(n as u32) as usize
     }
 }
 
@@ -57,7 +53,7 @@ impl Kernel for Checks {
     type Output = usize;
     fn run<S: Simd>(self, s: S) -> usize {
         let n = S::LANES;
-        let mut rng = Rng(7);
+        let mut rng = Rng(base::rng::Rng::new(7));
         let mut checked = 0;
         for _ in 0..2000 {
             let a: Vec<f32> = (0..n).map(|_| F[rng.next(F.len())]).collect();

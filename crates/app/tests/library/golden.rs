@@ -175,7 +175,11 @@ const SCENES: [&str; 8] = [
 /// generator's output by the `generate` tests of the CLI.
 #[test]
 fn golden_building() {
-    check_built("building", "scenes/building.toml", crate::building(2, 1, 2));
+    check_built(
+        "building",
+        "scenes/building.toml",
+        fixtures::generate::building_scene(2, 1, 2).unwrap(),
+    );
 }
 
 /// Checks the golden images of `scene`, built in code, prepared as if loaded from `path`.

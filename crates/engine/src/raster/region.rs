@@ -634,13 +634,8 @@ mod tests {
     fn thirty_two_bit_edge_lanes_cover_exactly_what_sixty_four_bit_lanes_do() {
         // Small random triangles, some far off screen with a small visible part (their edge
         // values are large although the clamped box is small: they must stay on 64 bits).
-        let mut seed = 99u64;
-        let mut rnd = |scale: f64| {
-            seed = seed
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (seed >> 11) as f64 / (1u64 << 53) as f64 * scale
-        };
+        let mut seed = base::rng::Rng::new(99);
+        let mut rnd = |scale: f64| seed.next_f64() * scale;
         let (mut small, mut checked, mut three) = (0, 0, 0);
         for i in 0..3000 {
             let far = i % 5 == 0;

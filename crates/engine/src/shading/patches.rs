@@ -309,13 +309,8 @@ mod tests {
     /// opposite values that cancel, large magnitudes.
     fn bilinear_coeffs(seed: u64) -> [[f32; 16]; 3] {
         const VALUES: [f32; 10] = [0.0, -0.0, 1.0, -1.0, 0.3, -0.7, 1e-40, -3e38, 3e38, 2.5];
-        let mut x = seed;
-        let mut next = || {
-            x = x
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            VALUES[(x >> 33) as usize % VALUES.len()]
-        };
+        let mut x = base::rng::Rng::new(seed);
+        let mut next = || VALUES[x.below(VALUES.len() as u32) as usize];
         let mut c = [[0.0f32; 16]; 3];
         for k in c.iter_mut() {
             for i in [0, 1, 4, 5] {

@@ -7,6 +7,9 @@ use glam::DVec3;
 use scene::{load_scene, load_scene_with, LoadOptions, Projection, Scene};
 use std::path::{Path, PathBuf};
 
+/// The repository root (scenes), from this crate's directory.
+const REPO: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../..");
+
 fn scratch(name: &str) -> PathBuf {
     let d = std::env::temp_dir().join(format!("pfs-models-{}-{name}", std::process::id()));
     let _ = std::fs::remove_dir_all(&d);
@@ -304,7 +307,7 @@ fn an_error_of_the_file_itself_keeps_its_line_under_overrides() {
 #[test]
 fn shipped_scenes_raise_no_orientation_warning() {
     for name in ["cornell-box", "gallery", "two-spots"] {
-        let s = load_scene(&Path::new(crate::REPO).join(format!("scenes/{name}.toml"))).unwrap();
+        let s = load_scene(&Path::new(REPO).join(format!("scenes/{name}.toml"))).unwrap();
         for w in &s.warnings {
             assert!(
                 !w.contains("back side") && !w.contains("enclosed") && !w.contains("upside down"),

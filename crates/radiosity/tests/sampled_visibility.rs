@@ -45,7 +45,7 @@ fn polygon_difference(scene_a: &Scene, a: &Solution, scene_b: &Scene, b: &Soluti
 /// 0.09 %, a new seed by 0.76 %, and 16 rays per round (so at most 512) by 2.4 %.
 #[test]
 fn sampled_visibility_moves_less_than_a_new_seed() {
-    let mut exact = crate::building(2, 2, 1);
+    let mut exact = fixtures::generate::building_scene(2, 2, 1).unwrap();
     exact.radiosity.max_depth = 4;
     exact.radiosity.visibility = scene::Visibility::Exact;
     let mut sampled = exact.clone();
@@ -73,7 +73,7 @@ fn sampled_visibility_moves_less_than_a_new_seed() {
 /// Sampled visibility keeps determinism: the same file from pools of 1 and 2 threads.
 #[test]
 fn sampled_visibility_is_deterministic() {
-    let mut s = crate::building(2, 1, 1);
+    let mut s = fixtures::generate::building_scene(2, 1, 1).unwrap();
     s.radiosity.max_depth = 3;
     s.radiosity.visibility = scene::Visibility::Sampled;
     let bytes = |threads: usize| {

@@ -12,6 +12,9 @@ use base::progress::SILENT;
 use radiosity::{face_means, solve, SolveOptions};
 use truth::TruthOptions;
 
+/// The repository root (scenes), from this crate's directory.
+const REPO: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../..");
+
 fn lum(c: DVec3) -> f64 {
     0.2126 * c.x + 0.7152 * c.y + 0.0722 * c.z
 }
@@ -183,7 +186,7 @@ fn wall_lit_ceiling() -> String {
 /// of this scene casts now: the solution is the same at every seed.
 #[test]
 fn the_cornell_box_matches_the_path_tracer_face_by_face() {
-    let path = Path::new(crate::REPO).join("scenes/cornell-box.toml");
+    let path = Path::new(REPO).join("scenes/cornell-box.toml");
     let scene = scene::load_scene(&path).expect("scene");
     let r = ratios(&scene, 262_144);
     check("cornell", &r, 0.01, 0.02);
