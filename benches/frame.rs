@@ -5,6 +5,9 @@
 //!
 //! Run briefly: `cargo bench -p pixelflow-bench --bench frame -- --warm-up-time 1 --measurement-time 3`.
 
+// `criterion_group!` defines a public function it cannot document.
+#![allow(missing_docs)]
+
 use base::method::Method;
 use criterion::{criterion_group, criterion_main, BatchSize, BenchmarkId, Criterion, Throughput};
 use engine::composition::{composite_in_place, merge_records_in_place, MergeScratch};

@@ -1,6 +1,9 @@
 //! Reconstruction benchmarks: construction of a depth-7 adaptive two-spots tree, and eval_many
 //! throughput on a coherent scanline-like point stream.
 
+// `criterion_group!` defines a public function it cannot document.
+#![allow(missing_docs)]
+
 use base::quadtree::{Quadtree, SampledQuadtree};
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 use glam::Vec3;

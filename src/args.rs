@@ -14,10 +14,10 @@ use fixtures::generate;
 
 /// Most frames a timing option (`--frames` of stats, bench, sweep, results, experiment)
 /// accepts: hours of timing at the largest sizes, not days.
-pub const MAX_TIMED_FRAMES: i64 = 100_000;
+pub(crate) const MAX_TIMED_FRAMES: i64 = 100_000;
 
 /// Most timing processes `--processes` accepts (each one loads the solution again).
-pub const MAX_TIMING_PROCESSES: i64 = 1_000;
+pub(crate) const MAX_TIMING_PROCESSES: i64 = 1_000;
 
 /// Renders radiosity solutions with C1 bicubic Hermite reconstruction (Bastos, Goslin, Zhang).
 #[derive(Parser, Debug)]
@@ -27,7 +27,7 @@ pub const MAX_TIMING_PROCESSES: i64 = 1_000;
     about,
     after_help = "Environment: PIXELFLOW_SIM_LANES=portable|avx2|avx512|auto caps the SIMD build of the hot loops (default auto: the widest the CPU has); the images are the same."
 )]
-pub struct Cli {
+pub(crate) struct Cli {
     #[command(subcommand)]
     pub command: Command,
     /// Memory the job may use: bytes, or a number with K, M, G or T (binary units, `1.5G`), or
@@ -44,7 +44,7 @@ fn parse_memory_limit(text: &str) -> Result<u64, String> {
 }
 
 #[derive(Subcommand, Debug)]
-pub enum Command {
+pub(crate) enum Command {
     /// Load and validate a scene file, print its warnings and a summary.
     ///
     /// Reads the TOML scene (and its OBJ/MTL includes), checks every value, and prints a table
@@ -157,7 +157,7 @@ pub enum Command {
 }
 
 #[derive(Args, Debug)]
-pub struct ExportArgs {
+pub(crate) struct ExportArgs {
     /// A scene file or a solution file (a scene is solved first).
     pub input: PathBuf,
     #[command(flatten)]
@@ -191,7 +191,7 @@ pub struct ExportArgs {
 }
 
 #[derive(Args, Debug)]
-pub struct ViewArgs {
+pub(crate) struct ViewArgs {
     /// A scene file or a solution file (a scene is solved first).
     pub input: PathBuf,
     #[command(flatten)]
@@ -230,14 +230,14 @@ pub struct ViewArgs {
 }
 
 #[derive(Args, Debug)]
-pub struct TimeWorkerArgs {
+pub(crate) struct TimeWorkerArgs {
     /// The parent's request (JSON).
     pub request: String,
 }
 
 /// The scene's command-line options: values set over the scene file's, and strictness.
 #[derive(Args, Debug, Clone, Default)]
-pub struct SceneOptions {
+pub(crate) struct SceneOptions {
     /// Set a scene value: a dotted key of the scene file and a TOML value
     /// (`-D camera.eye=[0,1,3]`, `-D image.width=800`, `-D radiosity.max_depth=8`,
     /// `-D display.exposure=1`); repeatable, later ones win. Checked like the file's own values.
@@ -255,7 +255,7 @@ pub struct SceneOptions {
 
 impl SceneOptions {
     /// The library's load options.
-    pub fn load_options(&self) -> scene::LoadOptions {
+    pub(crate) fn load_options(&self) -> scene::LoadOptions {
         let mut overrides = self.define.clone();
         if let Some(c) = self.camera {
             overrides.push((
@@ -291,7 +291,7 @@ fn parse_camera(s: &str) -> Result<[f64; 6], String> {
 }
 
 #[derive(Args, Debug)]
-pub struct CheckArgs {
+pub(crate) struct CheckArgs {
     /// The scene file (`scenes/cornell-box.toml`), a model (`room.obj`: a camera, material
     /// and light are chosen for it), or a solution file (`.pfsol`): then also where its solve's
     /// guards stopped refinement with the error test still failing.
@@ -301,7 +301,7 @@ pub struct CheckArgs {
 }
 
 #[derive(Args, Debug)]
-pub struct SolveArgs {
+pub(crate) struct SolveArgs {
     /// The scene file, or a model (`room.obj`).
     pub scene: PathBuf,
     #[command(flatten)]
@@ -321,7 +321,7 @@ pub struct SolveArgs {
 }
 
 #[derive(Args, Debug)]
-pub struct RenderArgs {
+pub(crate) struct RenderArgs {
     /// A scene file (`.toml`), a model (`room.obj`, with its MTL: a camera framing it, a grey
     /// default material and, if nothing emits, a default light are chosen and said), or a
     /// solution file written by `solve`.
@@ -408,7 +408,7 @@ pub struct RenderArgs {
 }
 
 #[derive(Args, Debug)]
-pub struct StatsArgs {
+pub(crate) struct StatsArgs {
     /// A scene file or a solution file.
     pub input: PathBuf,
     #[command(flatten)]
@@ -443,7 +443,7 @@ pub struct StatsArgs {
 }
 
 #[derive(Args, Debug)]
-pub struct ExperimentArgs {
+pub(crate) struct ExperimentArgs {
     /// `fig5`, `fig6`, `table1` or `all`.
     pub which: String,
     /// Directory for the images (default: `out/experiments`).
@@ -483,7 +483,7 @@ pub struct ExperimentArgs {
 }
 
 #[derive(Args, Debug)]
-pub struct BenchArgs {
+pub(crate) struct BenchArgs {
     /// A scene file or a solution file.
     pub input: PathBuf,
     #[command(flatten)]
@@ -525,7 +525,7 @@ pub struct BenchArgs {
 }
 
 #[derive(Args, Debug)]
-pub struct SweepArgs {
+pub(crate) struct SweepArgs {
     /// A scene file or a solution file (its scene is solved again at every density).
     pub input: PathBuf,
     /// Methods, comma-separated (default: direct and every texture method, and mesh).
@@ -589,7 +589,7 @@ pub struct SweepArgs {
 }
 
 #[derive(Args, Debug)]
-pub struct ResultsArgs {
+pub(crate) struct ResultsArgs {
     /// The Markdown page to write (no default: in a checkout, `docs/results.md` is the committed
     /// page, replaced only when asked for by name).
     #[arg(long)]
@@ -628,7 +628,7 @@ pub struct ResultsArgs {
 }
 
 #[derive(Args, Debug)]
-pub struct TruthArgs {
+pub(crate) struct TruthArgs {
     /// A scene file (`.toml`), or a solution file (its scene is traced).
     pub input: PathBuf,
     #[command(flatten)]
@@ -687,7 +687,7 @@ pub struct TruthArgs {
 }
 
 #[derive(Args, Debug)]
-pub struct CompareArgs {
+pub(crate) struct CompareArgs {
     /// The image under test.
     pub a: PathBuf,
     /// The reference image.
@@ -736,7 +736,7 @@ pub struct CompareArgs {
 
 /// The scenes `generate` makes.
 #[derive(Subcommand, Debug)]
-pub enum Generate {
+pub(crate) enum Generate {
     /// A building: a grid of closed rooms on one or more storeys, doorways between all
     /// neighbours on a storey, one or two emissive ceiling panels and up to four boxes or
     /// pillars per room.
@@ -749,7 +749,7 @@ pub enum Generate {
 }
 
 #[derive(Args, Debug)]
-pub struct BuildingArgs {
+pub(crate) struct BuildingArgs {
     /// Rooms along x on each storey.
     #[arg(long, value_name = "N")]
     pub rooms_x: u32,
@@ -789,7 +789,7 @@ fn parse_tolerance(text: &str) -> Result<f32, String> {
 
 /// Options of the texture methods (ignored by the others).
 #[derive(clap::Args, Debug, Clone)]
-pub struct TextureArgs {
+pub(crate) struct TextureArgs {
     /// Texture methods: one texture side for every polygon, a power of two (default: the
     /// scene's `[render] texture_size`; 0 there = per polygon from its quadtree depth).
     #[arg(long)]
@@ -811,7 +811,7 @@ pub struct TextureArgs {
 }
 
 impl TextureArgs {
-    pub fn options(&self) -> TextureOptions {
+    pub(crate) fn options(&self) -> TextureOptions {
         TextureOptions {
             size: self.texture_size,
             budget: self.texture_budget,

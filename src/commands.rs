@@ -32,7 +32,7 @@ const LANES_ENV: &str = "PIXELFLOW_SIM_LANES";
 const MAX_THREADS: usize = 1024;
 
 /// What every job runs with: the memory limit and the instruction set of the frames' kernels.
-pub struct Settings {
+pub(crate) struct Settings {
     limit: u64,
     isa: lanes::Isa,
     outputs: Outputs,
@@ -42,7 +42,7 @@ impl Settings {
     /// The limit of `--memory-limit` (default: [`budget::default_limit`]) and the widest
     /// instruction set of this CPU, capped by [`LANES_ENV`]; every file is written through
     /// `outputs`.
-    pub fn new(memory_limit: Option<u64>, outputs: Outputs) -> anyhow::Result<Settings> {
+    pub(crate) fn new(memory_limit: Option<u64>, outputs: Outputs) -> anyhow::Result<Settings> {
         let limit = memory_limit.unwrap_or_else(budget::default_limit);
         // An input file is held at least once as bytes and once parsed: half of what the
         // program's own memory leaves each.
@@ -152,7 +152,7 @@ pub(crate) fn wrote(path: &Path, quiet: bool) {
 }
 
 /// `check`: the scene's warnings, summary and memory estimate against the limit.
-pub fn check(settings: &Settings, args: CheckArgs) -> anyhow::Result<()> {
+pub(crate) fn check(settings: &Settings, args: CheckArgs) -> anyhow::Result<()> {
     let input = app::context::Input::load_opts(&args.scene, None, &args.options.load_options())?;
     let s = &input.scene;
     for w in &s.warnings {
@@ -181,7 +181,7 @@ pub fn check(settings: &Settings, args: CheckArgs) -> anyhow::Result<()> {
 }
 
 /// `solve`: solves the scene into the solution file and reports the solver's statistics.
-pub fn solve(settings: &Settings, args: SolveArgs) -> anyhow::Result<()> {
+pub(crate) fn solve(settings: &Settings, args: SolveArgs) -> anyhow::Result<()> {
     let observer = Terminal::new(!args.quiet, args.trace);
     let opts = args.options.load_options();
     let sol = in_pool(args.threads, || {
@@ -220,7 +220,7 @@ pub fn solve(settings: &Settings, args: SolveArgs) -> anyhow::Result<()> {
 }
 
 /// `render`: one image or a walkthrough, with its warnings, "wrote" lines and statistics.
-pub fn render(settings: &Settings, args: RenderArgs) -> anyhow::Result<()> {
+pub(crate) fn render(settings: &Settings, args: RenderArgs) -> anyhow::Result<()> {
     let req = RenderRequest {
         input: args.input,
         output: args.output,
@@ -266,7 +266,7 @@ pub fn render(settings: &Settings, args: RenderArgs) -> anyhow::Result<()> {
 }
 
 /// `stats`: the paper's Table 1 for one scene, as a table or JSON.
-pub fn stats(settings: &Settings, args: StatsArgs) -> anyhow::Result<()> {
+pub(crate) fn stats(settings: &Settings, args: StatsArgs) -> anyhow::Result<()> {
     check_json_path(&args.json, &[&args.input])?;
     in_pool(args.threads, || -> anyhow::Result<()> {
         let req = StatsRequest {
@@ -291,7 +291,7 @@ pub fn stats(settings: &Settings, args: StatsArgs) -> anyhow::Result<()> {
 }
 
 /// `export`: a scene or solution to glTF, then what was written and how well the atlas packs.
-pub fn export(settings: &Settings, args: ExportArgs) -> anyhow::Result<()> {
+pub(crate) fn export(settings: &Settings, args: ExportArgs) -> anyhow::Result<()> {
     check_json_path(&args.json, &[&args.input, &args.output])?;
     in_pool(args.threads, || -> anyhow::Result<()> {
         let req = app::commands::export::ExportRequest {
@@ -319,7 +319,7 @@ pub fn export(settings: &Settings, args: ExportArgs) -> anyhow::Result<()> {
 }
 
 /// `experiment`: reruns the paper's figures and tables, printing the results.
-pub fn experiment(settings: &Settings, args: ExperimentArgs) -> anyhow::Result<()> {
+pub(crate) fn experiment(settings: &Settings, args: ExperimentArgs) -> anyhow::Result<()> {
     check_json_path(&args.json, &[&args.scene])?;
     in_pool(args.threads, || -> anyhow::Result<()> {
         let req = experiment::Request {
@@ -361,7 +361,7 @@ pub fn experiment(settings: &Settings, args: ExperimentArgs) -> anyhow::Result<(
 }
 
 /// `bench`: frame times of the methods at every size, as a table or JSON.
-pub fn bench(settings: &Settings, args: BenchArgs) -> anyhow::Result<()> {
+pub(crate) fn bench(settings: &Settings, args: BenchArgs) -> anyhow::Result<()> {
     check_json_path(&args.json, &[&args.input])?;
     in_pool(args.threads, || -> anyhow::Result<()> {
         let req = BenchRequest {
@@ -395,7 +395,7 @@ pub fn bench(settings: &Settings, args: BenchArgs) -> anyhow::Result<()> {
 
 /// `sweep`: speed against error over densities and methods; the table on stdout, the points
 /// and plots in the files asked for.
-pub fn sweep(settings: &Settings, args: SweepArgs) -> anyhow::Result<()> {
+pub(crate) fn sweep(settings: &Settings, args: SweepArgs) -> anyhow::Result<()> {
     in_pool(args.threads, || -> anyhow::Result<()> {
         check_sweep_outputs(&args)?;
         let req = sweep::SweepRequest {
@@ -493,14 +493,14 @@ fn timing_processes(count: u32) -> anyhow::Result<Option<study::timing::TimingPr
 }
 
 /// `time-worker`: one timing process of a sweep; its reply (JSON) on stdout.
-pub fn time_worker(settings: &Settings, args: TimeWorkerArgs) -> anyhow::Result<()> {
+pub(crate) fn time_worker(settings: &Settings, args: TimeWorkerArgs) -> anyhow::Result<()> {
     let observer = Terminal::new(false, false);
     let reply = study::worker::run_worker(&settings.context(&observer), &args.request)?;
     out(&(reply + "\n"))
 }
 
 /// `results`: writes the results page and its data, then a one-line summary.
-pub fn results(settings: &Settings, args: ResultsArgs) -> anyhow::Result<()> {
+pub(crate) fn results(settings: &Settings, args: ResultsArgs) -> anyhow::Result<()> {
     use study::experiment::results;
     in_pool(args.threads, || -> anyhow::Result<()> {
         let mut req = results::ResultsRequest::new(args.doc);
@@ -531,7 +531,7 @@ pub fn results(settings: &Settings, args: ResultsArgs) -> anyhow::Result<()> {
 }
 
 /// `generate building`: writes the scene and its OBJ and MTL, then the polygon count.
-pub fn generate_building(settings: &Settings, args: BuildingArgs) -> anyhow::Result<()> {
+pub(crate) fn generate_building(settings: &Settings, args: BuildingArgs) -> anyhow::Result<()> {
     use fixtures::generate::{write_building, BuildingOptions};
     let options = BuildingOptions {
         rooms_x: args.rooms_x,
@@ -553,7 +553,7 @@ pub fn generate_building(settings: &Settings, args: BuildingArgs) -> anyhow::Res
 /// `compare`: the pixel-by-pixel check (with `--tolerance`) and the perceptual measures
 /// (without it, or with a distance threshold), as one table or one JSON document; an error
 /// naming every failed check.
-pub fn compare(settings: &Settings, args: CompareArgs) -> anyhow::Result<()> {
+pub(crate) fn compare(settings: &Settings, args: CompareArgs) -> anyhow::Result<()> {
     if let Some(d) = &args.diff {
         use imageio::OutputFormat::{Exr, Png};
         if !matches!(imageio::OutputFormat::of(d), Some(Png | Exr)) {
@@ -619,7 +619,7 @@ fn write_diff(files: &Outputs, path: &Path, d: &metric::pixels::PixelDiff) -> an
 
 /// `truth`: the path tracer's image and per-polygon estimates; "wrote" lines and a summary on
 /// stderr, the polygon table on stdout.
-pub fn truth(settings: &Settings, args: TruthArgs) -> anyhow::Result<()> {
+pub(crate) fn truth(settings: &Settings, args: TruthArgs) -> anyhow::Result<()> {
     let req = TruthRequest {
         load: args.options.load_options(),
         input: args.input,

@@ -14,7 +14,7 @@ use crate::note;
 /// for a second, only if asked for and stderr is a terminal; with `--trace`, the library's trace
 /// lines on stderr (printed above the bar when one is shown). Each stage gets its own bar (a
 /// render's `solve`, then its `walkthrough`).
-pub struct Terminal {
+pub(crate) struct Terminal {
     bar: bool,
     trace: bool,
     /// How long a stage runs before its bar appears.
@@ -49,7 +49,7 @@ impl BarState {
 }
 
 impl Terminal {
-    pub fn new(bar: bool, trace: bool) -> Self {
+    pub(crate) fn new(bar: bool, trace: bool) -> Self {
         Terminal {
             bar: bar && std::io::stderr().is_terminal(),
             trace,
@@ -83,7 +83,7 @@ impl Terminal {
 
 impl Terminal {
     /// A line on standard error, printed above the bar when one is shown.
-    pub fn note(&self, line: &str) {
+    pub(crate) fn note(&self, line: &str) {
         let st = self.state.lock().ok();
         match st.as_ref().and_then(|st| st.bar.as_ref()) {
             Some(bar) => bar.suspend(|| note(line)),

@@ -50,7 +50,7 @@ fn held(k: &Key) -> Option<Action> {
     })
 }
 
-pub fn view(settings: &Settings, args: ViewArgs) -> anyhow::Result<()> {
+pub(crate) fn view(settings: &Settings, args: ViewArgs) -> anyhow::Result<()> {
     in_pool(args.threads, || -> anyhow::Result<()> {
         let terminal = Terminal::new(true, false);
         let observer = SolveProgress::new(&terminal);

@@ -11,7 +11,7 @@
 //! reports progress through [`base::progress::Observer`]. The studies built on it live in the
 //! `study` crate, file formats in `imageio` and `export`.
 
-#![warn(missing_docs)]
+#![forbid(unsafe_code)]
 
 pub mod context;
 pub mod budget;

@@ -7,7 +7,7 @@
 //! Invariants: nothing here knows a scene or a renderer, and nothing here prints or reads the
 //! environment; every other crate depends on this one and this one on none of them.
 
-#![warn(missing_docs)]
+#![forbid(unsafe_code)]
 
 pub mod error;
 pub mod output;

@@ -24,7 +24,7 @@
 //! Invariants: the output is a pure function of the scene, the solution and the options (the
 //! packer is deterministic, groups are ordered); every number written is finite.
 
-#![warn(missing_docs)]
+#![forbid(unsafe_code)]
 
 pub mod atlas;
 pub mod document;

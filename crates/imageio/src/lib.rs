@@ -6,7 +6,7 @@
 //! part of the project that needs the `image` crate, and only the application and its studies
 //! write or read image files.
 
-#![warn(missing_docs)]
+#![forbid(unsafe_code)]
 
 pub mod exposure;
 pub mod read;

@@ -39,7 +39,6 @@
 //! interleaved by permutation), and measured against `pulp` on the patch shader's arithmetic
 //! (`tools/compare-pulp`) the set kept here is as fast with AVX2 and faster with AVX-512.
 
-#![warn(missing_docs)]
 // Lane loops index several fixed-width arrays with one lane index on purpose: that is the form
 // the compiler vectorizes and the reader checks lane by lane.
 #![allow(clippy::needless_range_loop)]

@@ -34,6 +34,8 @@
 //! divide by 0) are errors. No output is NaN or infinite; the one number that would be infinite,
 //! the PSNR of identical images, is `None` (JSON `null`).
 
+#![forbid(unsafe_code)]
+
 pub mod edges;
 pub mod mach;
 pub mod perceptual;

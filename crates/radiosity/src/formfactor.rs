@@ -29,7 +29,7 @@ pub(crate) struct SmallPoly {
 impl SmallPoly {
     /// Builds a polygon from 3 or 4 corners, dropping consecutive duplicates (a collapsed quad
     /// corner of a triangle) so that the result has no zero-length edge.
-    pub fn from_corners(c: &[DVec3]) -> SmallPoly {
+    pub(crate) fn from_corners(c: &[DVec3]) -> SmallPoly {
         let mut p = SmallPoly {
             v: [DVec3::ZERO; MAX_CLIPPED],
             len: 0,
@@ -47,7 +47,7 @@ impl SmallPoly {
     }
 
     /// The vertices as a slice.
-    pub fn verts(&self) -> &[DVec3] {
+    pub(crate) fn verts(&self) -> &[DVec3] {
         &self.v[..self.len]
     }
 

@@ -38,6 +38,8 @@
 //! [`SolveOptions`], which receives the solve's progress (stage `STAGE`) and, when it asks for
 //! them, the solver's trace lines (phase times, shots, vertices, unshot fraction).
 
+#![forbid(unsafe_code)]
+
 mod faces;
 pub mod file;
 mod formfactor;

@@ -7,7 +7,7 @@ use glam::DVec3;
 use scene::{Camera, Material, Polygon, Projection, Scene, SpotLight, PLANARITY_TOLERANCE};
 
 /// A material.
-pub fn mat(name: &str, rho: [f64; 3], e: [f64; 3]) -> Material {
+pub(crate) fn mat(name: &str, rho: [f64; 3], e: [f64; 3]) -> Material {
     Material {
         name: name.to_string(),
         reflectance: DVec3::from_array(rho),
@@ -16,7 +16,7 @@ pub fn mat(name: &str, rho: [f64; 3], e: [f64; 3]) -> Material {
 }
 
 /// A scene from parts, with default settings.
-pub fn scene(polygons: Vec<Polygon>, materials: Vec<Material>, spots: Vec<SpotLight>) -> Scene {
+pub(crate) fn scene(polygons: Vec<Polygon>, materials: Vec<Material>, spots: Vec<SpotLight>) -> Scene {
     let camera = Camera {
         eye: DVec3::new(0.0, 0.0, 5.0),
         look_at: DVec3::ZERO,
@@ -101,7 +101,7 @@ pub(crate) fn box_faces(lo: DVec3, hi: DVec3, inward: bool) -> Vec<Polygon> {
 }
 
 /// The furnace: a closed unit cube, every face E = 1, rho = 0.5.
-pub fn furnace() -> Scene {
+pub(crate) fn furnace() -> Scene {
     let polys = box_faces(DVec3::ZERO, DVec3::ONE, true);
     let mut s = scene(polys, vec![mat("f", [0.5; 3], [1.0; 3])], vec![]);
     s.radiosity.convergence = 1e-3;
@@ -135,7 +135,7 @@ pub(crate) fn spot_over_plane() -> Scene {
 }
 
 /// A room 6 x 6 x 3 (inward faces, grey) with two narrow spots on the floor.
-pub fn two_spots() -> Scene {
+pub(crate) fn two_spots() -> Scene {
     let polys = box_faces(DVec3::new(-3.0, -3.0, 0.0), DVec3::new(3.0, 3.0, 3.0), true);
     let spot = |x: f64| SpotLight {
         position: DVec3::new(x, 0.0, 2.9),
@@ -323,7 +323,7 @@ const CORNELL_QUADS: [(u32, [[f64; 3]; 4]); 18] = [
 /// triangles like the loader does; the short box's bottom face, which the OBJ writes with the
 /// right face's vertices, is built from its own corner list instead (it lies on the floor and
 /// receives nothing either way).
-pub fn cornell() -> Scene {
+pub(crate) fn cornell() -> Scene {
     let quads = CORNELL_QUADS
         .iter()
         .map(|&(m, c)| (m, c.map(DVec3::from_array)));

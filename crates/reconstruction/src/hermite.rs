@@ -64,7 +64,7 @@ pub(crate) struct PatchPoly {
 impl PatchPoly {
     /// The patch over `cell` interpolating `corners`, given in the order (0,0), (1,0), (0,1),
     /// (1,1) (index x + 2 y).
-    pub fn from_corners(cell: Cell, corners: &[HermiteData; 4]) -> Self {
+    pub(crate) fn from_corners(cell: Cell, corners: &[HermiteData; 4]) -> Self {
         let (u0, v0, _, _) = cell.bounds();
         let w = cell.width();
         let mut c = [[0.0f64; 16]; 3];

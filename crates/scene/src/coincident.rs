@@ -22,11 +22,11 @@ use crate::Polygon;
 use base::error::Location;
 
 /// Corners closer than this fraction of the polygon's diameter are the same point.
-pub const SAME_POINT: f64 = 1e-6;
+pub(crate) const SAME_POINT: f64 = 1e-6;
 
 /// Coplanar, same-facing polygons overlapping by more than this fraction of the smaller one's
 /// area are reported. Neighbours that share an edge overlap by rounding only (~1e-12).
-pub const OVERLAP_WARN: f64 = 1e-4;
+pub(crate) const OVERLAP_WARN: f64 = 1e-4;
 
 /// Drops every polygon that repeats an earlier one (keeping `origins` aligned) and returns the
 /// messages as (notes, warnings): a note per polygon dropped that repeats one of its material (a

@@ -15,6 +15,8 @@
 //! Geometry is kept in `f64`: the radiosity solver integrates over it and the rasterizer converts to
 //! its own fixed-point form. Colours are linear RGB; nothing here knows about sRGB.
 
+#![forbid(unsafe_code)]
+
 use glam::DVec3;
 
 use base::method::{Method, Placement};

@@ -43,7 +43,7 @@ use glam::DVec3;
 use std::path::Path;
 
 /// Reflectance of the `default` material.
-pub const DEFAULT_REFLECTANCE: f64 = 0.6;
+pub(crate) const DEFAULT_REFLECTANCE: f64 = 0.6;
 
 /// Image width and height of a model's scene (4:3).
 const IMAGE: (u32, u32) = (800, 600);

@@ -25,7 +25,7 @@ fn cross(a: DVec2, b: DVec2, c: DVec2) -> f64 {
 }
 
 /// Twice the signed area of the polygon `p` (positive when counter-clockwise).
-pub fn area2(p: &[DVec2]) -> f64 {
+pub(crate) fn area2(p: &[DVec2]) -> f64 {
     let n = p.len();
     (0..n).map(|i| p[i].perp_dot(p[(i + 1) % n])).sum()
 }
@@ -33,7 +33,7 @@ pub fn area2(p: &[DVec2]) -> f64 {
 /// Whether the closed polygon `p` is simple: no two of its edges that are not neighbours
 /// touch or cross (neighbouring edges share only their common corner unless they fold back).
 /// O(n^2) segment tests.
-pub fn is_simple(p: &[DVec2]) -> bool {
+pub(crate) fn is_simple(p: &[DVec2]) -> bool {
     let n = p.len();
     let seg = |i: usize| (p[i], p[(i + 1) % n]);
     for i in 0..n {
@@ -84,7 +84,7 @@ fn in_triangle(q: DVec2, a: DVec2, b: DVec2, c: DVec2) -> bool {
 /// counter-clockwise; `eps` is the twice-area below which a corner counts as collinear with its
 /// neighbours (scaled by the caller to the polygon's size). `None` when no ear can be found
 /// (the polygon crosses itself or is clockwise).
-pub fn ear_clip(p: &[DVec2], eps: f64) -> Option<Vec<[usize; 3]>> {
+pub(crate) fn ear_clip(p: &[DVec2], eps: f64) -> Option<Vec<[usize; 3]>> {
     let mut left: Vec<usize> = (0..p.len()).collect();
     let mut out = Vec::with_capacity(p.len().saturating_sub(2));
     while left.len() > 3 {

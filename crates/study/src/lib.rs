@@ -11,7 +11,7 @@
 //! it, a study prints nothing and reports progress through [`base::progress::Observer`]. It is
 //! the one crate that draws plots.
 
-#![warn(missing_docs)]
+#![forbid(unsafe_code)]
 
 pub mod timing;
 pub mod physics;

@@ -29,7 +29,7 @@
 //! is estimated from the samples themselves (per-pixel sample variance; per-polygon variance of
 //! stratified pairs) and is an honest one-sigma error of the mean it accompanies.
 
-#![warn(missing_docs)]
+#![forbid(unsafe_code)]
 
 pub mod camera;
 mod lights;
@@ -145,9 +145,9 @@ impl TruthOptions {
 /// polygon's streams never coincide.
 pub(crate) mod stream {
     /// Camera samples: `[seed, PIXEL, pixel index, sample index]`.
-    pub const PIXEL: u64 = 0x0070_6978_656c;
+    pub(crate) const PIXEL: u64 = 0x0070_6978_656c;
     /// Polygon samples: `[seed, POLYGON, polygon index, sample index]`.
-    pub const POLYGON: u64 = 0x0070_6f6c_7967_6f6e;
+    pub(crate) const POLYGON: u64 = 0x0070_6f6c_7967_6f6e;
 }
 
 /// Luminance (Rec. 709) of a linear RGB value: what the error targets compare.

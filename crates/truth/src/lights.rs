@@ -38,7 +38,7 @@ pub(crate) struct Lights {
 
 impl Lights {
     /// The emitters of `scene`.
-    pub fn new(scene: &Scene) -> Lights {
+    pub(crate) fn new(scene: &Scene) -> Lights {
         let mut lights = Lights {
             pdf_area: vec![0.0; scene.polygons.len()],
             ..Lights::default()
@@ -72,12 +72,12 @@ impl Lights {
 
     /// The density with respect to area at which [`Lights::sample`] draws points of polygon
     /// `i` (0 if it does not emit).
-    pub fn pdf_area(&self, i: u32) -> f64 {
+    pub(crate) fn pdf_area(&self, i: u32) -> f64 {
         self.pdf_area[i as usize]
     }
 
     /// A point on an emitter, `None` when the scene has none.
-    pub fn sample(&self, scene: &Scene, rng: &mut Rng) -> Option<LightSample> {
+    pub(crate) fn sample(&self, scene: &Scene, rng: &mut Rng) -> Option<LightSample> {
         if self.polygons.is_empty() {
             return None;
         }

@@ -94,7 +94,7 @@ pub(crate) struct Tracer<'a> {
 impl<'a> Tracer<'a> {
     /// The tracer of `scene`; paths follow at most `max_bounces` reflections (`None`: no
     /// limit but Russian roulette).
-    pub fn new(scene: &'a Scene, max_bounces: Option<u32>) -> Tracer<'a> {
+    pub(crate) fn new(scene: &'a Scene, max_bounces: Option<u32>) -> Tracer<'a> {
         let (lo, hi) = scene.bounds();
         let diagonal = (hi - lo).length();
         let diagonal = if diagonal > 0.0 && diagonal.is_finite() {
@@ -115,7 +115,7 @@ impl<'a> Tracer<'a> {
     }
 
     /// The first surface the ray from `origin` along the unit `dir` meets (no polygon skipped).
-    pub fn trace_from_outside(&self, origin: DVec3, dir: DVec3) -> Surface {
+    pub(crate) fn trace_from_outside(&self, origin: DVec3, dir: DVec3) -> Surface {
         let reach = (origin - self.centre).length() + self.diagonal * 1.01;
         self.first_surface(origin, dir, reach, u32::MAX).0
     }
@@ -153,7 +153,7 @@ impl<'a> Tracer<'a> {
     }
 
     /// One sample of rho * H at `x` on the front of polygon `p`.
-    pub fn reflected(&self, p: u32, x: DVec3, rng: &mut Rng) -> Reflected {
+    pub(crate) fn reflected(&self, p: u32, x: DVec3, rng: &mut Rng) -> Reflected {
         let mut out = Reflected::default();
         let mut beta = self.scene.material_of(p as usize).reflectance;
         let (mut p, mut x) = (p, x);

@@ -98,7 +98,7 @@ impl RenderPlan {
     /// image size, antialiasing, renderers, region, texture size or budget, texel placement,
     /// `--exr` with
     /// `--walkthrough`, and that a walkthrough has a camera path.
-    pub fn new(ctx: &Context<'_>, req: &RenderRequest, scene: &Scene) -> Result<RenderPlan> {
+    pub(crate) fn new(ctx: &Context<'_>, req: &RenderRequest, scene: &Scene) -> Result<RenderPlan> {
         let method = match &req.method {
             Some(name) => Method::parse(name)?,
             None => scene.render.method,

@@ -152,7 +152,7 @@ impl View {
     /// Orthographic views map the camera's width x height rectangle onto the image exactly (pixels
     /// are not square when the two aspect ratios differ). Perspective views take the vertical field
     /// of view from the camera and the horizontal one from the image's aspect ratio.
-    pub fn new(
+    pub(crate) fn new(
         camera: &Camera,
         width: u32,
         height: u32,
@@ -250,7 +250,7 @@ impl View {
     }
 
     /// Screen position (pixels) of a view-space point in front of the near plane.
-    pub fn project(&self, v: DVec3) -> [f64; 2] {
+    pub(crate) fn project(&self, v: DVec3) -> [f64; 2] {
         if self.perspective {
             [self.sx * v.x / v.z + self.ox, self.sy * v.y / v.z + self.oy]
         } else {
@@ -261,7 +261,7 @@ impl View {
     /// Transforms, clips and sets up polygon `id`; `None` when nothing of it can be seen (behind
     /// the near plane, outside the guard band, or edge-on: a plane through the eye projects to a
     /// line and covers no pixel centre).
-    pub fn transform(&self, poly: &Polygon, id: u32) -> Option<ScreenPolygon> {
+    pub(crate) fn transform(&self, poly: &Polygon, id: u32) -> Option<ScreenPolygon> {
         let cv: [DVec3; 4] = poly.corners.map(|c| self.view_coords(c));
         let k = poly.shape.corner_count();
         // Trivial rejection before any setup: every corner behind the near plane (the clip

@@ -7,7 +7,7 @@ use engine::shading::{PatchCoeffs, PatchSource};
 use glam::DVec3;
 use scene::{Camera, Material, Polygon, Projection, Scene};
 
-pub fn scene_with(polygons: Vec<Polygon>, camera: Camera, width: u32, height: u32) -> Scene {
+pub(crate) fn scene_with(polygons: Vec<Polygon>, camera: Camera, width: u32, height: u32) -> Scene {
     let grey = Material {
         name: "grey".into(),
         reflectance: DVec3::splat(0.5),
@@ -17,13 +17,13 @@ pub fn scene_with(polygons: Vec<Polygon>, camera: Camera, width: u32, height: u3
 }
 
 /// n x n patches per polygon, each with its own (discontinuous) bicubic coefficients.
-pub struct GridSource {
+pub(crate) struct GridSource {
     pub n: u32,
     pub patches: Vec<PatchCoeffs>,
 }
 
 impl GridSource {
-    pub fn new(polygons: u32, n: u32) -> Self {
+    pub(crate) fn new(polygons: u32, n: u32) -> Self {
         let mut patches = Vec::new();
         for p in 0..polygons {
             for j in 0..n {
@@ -62,7 +62,7 @@ impl PatchSource for GridSource {
 }
 
 /// Orthographic camera looking down -z at the z = 0 plane, world (x, y) -> pixel (x, h - y).
-pub fn ortho_pixels(w: u32, h: u32) -> Camera {
+pub(crate) fn ortho_pixels(w: u32, h: u32) -> Camera {
     let (cx, cy) = (w as f64 / 2.0, h as f64 / 2.0);
     Camera {
         eye: DVec3::new(cx, cy, 10.0),
@@ -77,7 +77,7 @@ pub fn ortho_pixels(w: u32, h: u32) -> Camera {
 
 /// A mesh of quads and triangles over [-8, w + 8] x [-8, h + 8] with jittered vertices; `centre`
 /// puts every vertex on a pixel centre (world x = i + 0.5, y = h - (j + 0.5)).
-pub fn mesh(
+pub(crate) fn mesh(
     w: u32,
     h: u32,
     cell: i32,
@@ -123,7 +123,7 @@ pub fn mesh(
 
 /// Overlapping quads and triangles at several depths, two of them coplanar and overlapping
 /// (the polygon-id tie-break decides), one crossing the near plane.
-pub fn busy_scene(w: u32, h: u32) -> Scene {
+pub(crate) fn busy_scene(w: u32, h: u32) -> Scene {
     let mut polys = Vec::new();
     for k in 0..24 {
         let f = k as f64;
@@ -186,7 +186,7 @@ pub fn busy_scene(w: u32, h: u32) -> Scene {
 
 /// busy_scene (perspective: quads, triangles, a floor clipped at the near plane), the jittered
 /// mesh seen orthographically (with a parallelogram over it) and the same mesh seen obliquely.
-pub fn lane_test_scenes() -> Vec<(&'static str, Scene)> {
+pub(crate) fn lane_test_scenes() -> Vec<(&'static str, Scene)> {
     let (w, h) = (97, 61);
     let mut flat = mesh(w, h, 8, false, |x, y| DVec3::new(x, y, 0.0));
     // A parallelogram in front of the mesh: the orthographic linear-inverse kernel.
@@ -221,7 +221,7 @@ impl GridSource {
     /// (1, 1) (flagged `bilinear`, the Gouraud mesh's form), and one patch in 7 has an
     /// infinite, a NaN or a huge coefficient (the shaders' clamp must give 0 for what is not
     /// finite and positive, alike in every build).
-    pub fn with_awkward_patches(mut self) -> Self {
+    pub(crate) fn with_awkward_patches(mut self) -> Self {
         let n2 = (self.n * self.n) as usize;
         for (k, p) in self.patches.iter_mut().enumerate() {
             if (k / n2) % 5 == 1 {

@@ -90,7 +90,8 @@ use super::transfer::{ShooterKind, Transfer};
 use base::error::{Error, Result};
 use base::progress::Stage;
 use base::quadtree::{Quadtree, VertexKey};
-pub use refine::{depth_bound, min_element_size, DIVE_NODES, LIGHT_DEPTH_FACTOR};
+pub use refine::{depth_bound, min_element_size, DIVE_NODES};
+pub(crate) use refine::LIGHT_DEPTH_FACTOR;
 use scene::Scene;
 pub use shot::COARSE_CACHE_ENTRIES;
 use solver::Solver;
@@ -107,7 +108,7 @@ pub(crate) const SHOOT_MARGIN: f64 = 0.5;
 
 /// Luminance of linear RGB (Rec. 709 weights).
 #[inline]
-pub fn lum(c: DVec3) -> f64 {
+pub(crate) fn lum(c: DVec3) -> f64 {
     0.2126 * c.x + 0.7152 * c.y + 0.0722 * c.z
 }
 
@@ -151,7 +152,7 @@ pub(crate) struct Outcome {
 /// `snapshot`, if given, receives the state of the solve each time every vertex holds G from
 /// the history so far: after the direct pass and its refinement, and after every indirect
 /// round but the last (whose state is the outcome); its energy account is left empty.
-pub fn run(
+pub(crate) fn run(
     scene: &Scene,
     tr: &mut Transfer<'_>,
     stage: &mut Stage<'_>,

@@ -40,7 +40,7 @@ use scene::{Polygon, Scene};
 /// (at the default 0.01 an area light's floor comes out within 3e-4 of the peak); at a peak
 /// missed by every sample there is nothing to recover (the limited reconstruction does not rise
 /// above its samples), so the test there asks ten times more: 1e-3 of the level at the default.
-pub const PEAK_SHARE: f64 = 0.1;
+pub(crate) const PEAK_SHARE: f64 = 0.1;
 
 /// Grid of starting points per axis.
 const GRID: usize = 5;

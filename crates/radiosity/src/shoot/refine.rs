@@ -20,7 +20,7 @@ use scene::Scene;
 /// (luminance) sampled so far: an element's variation is judged relative to its own level, but
 /// never to a level below this fraction of the peak, so that dark regions (where any noise is a
 /// large relative change) do not refine to the depth limit.
-pub const REFINE_FLOOR: f64 = 0.01;
+pub(crate) const REFINE_FLOOR: f64 = 0.01;
 
 /// Most quadtree nodes one polygon may hold below its guard depth ([`depth_bound`]): splits
 /// past the guards (near a small or close light, at a spot's cone edge, around a light's peak,
@@ -714,7 +714,7 @@ pub fn min_element_size(scene: &Scene) -> f64 {
 /// 0.8 % of its peak and 0.9 % of its energy (`a_small_close_emitter_is_resolved_at_the_default_depth`);
 /// h / 8 gains 0.4 % there and doubles the generated building's solve (its ceiling panels light
 /// the walls beside them).
-pub const LIGHT_DEPTH_FACTOR: f64 = 4.0;
+pub(crate) const LIGHT_DEPTH_FACTOR: f64 = 4.0;
 
 /// How many times finer than the radius of its footprint (its distance times the tangent of
 /// its cone's half-angle, at most the distance) a leaf that a spot's cone edge crosses may be
@@ -723,7 +723,7 @@ pub const LIGHT_DEPTH_FACTOR: f64 = 4.0;
 /// from a wall (footprint 5.8 mm across) drew 3.9 % too much light at elements of a quarter of
 /// its distance, within 0.1 % at a sixteenth of the footprint
 /// (`a_spot_one_centimetre_from_a_wall_peaks_within_two_percent`).
-pub const SPOT_EDGE_FACTOR: f64 = 16.0;
+pub(crate) const SPOT_EDGE_FACTOR: f64 = 16.0;
 
 /// The share of a stopped leaf's excess its children keep, for the light it may misplace
 /// ([`GuardStops::error_power`]): the bilinear prediction's error of smooth light falls four

@@ -37,7 +37,7 @@
 //!   the receiver's shooters in id order, the order the sums were always taken in.
 
 mod receivers;
-pub mod shape;
+pub(crate) mod shape;
 
 use std::sync::atomic::{AtomicU64, Ordering};
 
@@ -48,7 +48,8 @@ use super::visible::{self, Sight};
 use base::quadtree::Cell;
 use base::rng::{seed_of, Rng};
 use receivers::corner_neighbours;
-pub use receivers::{pair_table_bound, sampled_visibility, Pairs, PAIR_BYTES};
+pub use receivers::{pair_table_bound, PAIR_BYTES};
+pub(crate) use receivers::{sampled_visibility, Pairs};
 use scene::bvh::{Aabb, Bvh};
 use scene::{Polygon, Scene, Shape};
 use shape::{shape_tolerance, PatchShape};
@@ -332,7 +333,7 @@ pub(crate) struct Transfer<'a> {
 
 impl<'a> Transfer<'a> {
     /// Builds the BVH and the shooters of `scene`.
-    pub fn new(scene: &'a Scene) -> Self {
+    pub(crate) fn new(scene: &'a Scene) -> Self {
         let (shooters, _, _) = build_shooters(scene);
         let n = shooters.len();
         let mut patches_of = vec![Vec::new(); scene.polygons.len()];
@@ -393,7 +394,7 @@ impl<'a> Transfer<'a> {
 
     /// Whether receivers are found by probe rays (see [`Visibility`](scene::Visibility)).
     #[cfg(test)]
-    pub fn sampled(&self) -> bool {
+    pub(crate) fn sampled(&self) -> bool {
         self.sampled
     }
 
@@ -616,7 +617,7 @@ impl<'a> Transfer<'a> {
 
     /// The receiver point and normal of polygon `r` at (u, v) (pulled inside by [`EDGE_INSET`]).
     #[inline]
-    pub fn receiver(&self, r: usize, u: f64, v: f64) -> DVec3 {
+    pub(crate) fn receiver(&self, r: usize, u: f64, v: f64) -> DVec3 {
         let p = &self.scene.polygons[r];
         let u = u.clamp(EDGE_INSET, 1.0 - EDGE_INSET);
         let v = v.clamp(EDGE_INSET, 1.0 - EDGE_INSET);
@@ -626,7 +627,7 @@ impl<'a> Transfer<'a> {
     /// Irradiance at the receiver point of polygon `r` at (u, v) per unit radiosity of shooter `s`
     /// (per unit intensity scale for a spot). Requires [`Transfer::ensure_pairs`] for `s`.
     #[cfg(test)]
-    pub fn transfer(&self, s: usize, r: usize, u: f64, v: f64) -> DVec3 {
+    pub(crate) fn transfer(&self, s: usize, r: usize, u: f64, v: f64) -> DVec3 {
         self.transfer_with(s, r, self.pair_of(s, r), u, v)
     }
 
@@ -1035,7 +1036,7 @@ impl<'a> Transfer<'a> {
     /// so a gather costs what the point can see. Every shooter with a non-zero total must have
     /// its pairs ([`Transfer::ensure_pairs`]) and the index must be sorted
     /// ([`Transfer::index_receivers`]).
-    pub fn gather(&self, totals: &[DVec3], r: usize, u: f64, v: f64) -> DVec3 {
+    pub(crate) fn gather(&self, totals: &[DVec3], r: usize, u: f64, v: f64) -> DVec3 {
         debug_assert!(!self.unsorted, "index_receivers after new pairs");
         visible::with_pool(|pool| self.gather_in(totals, r, (u, v), pool))
     }

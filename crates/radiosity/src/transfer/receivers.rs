@@ -29,7 +29,7 @@ pub const PAIR_BYTES: u64 = 12;
 /// with its class and the polygons that may occlude it. Sparse, so that its size grows with
 /// what the shooter reaches, not with the scene.
 #[derive(Debug, Clone, Default)]
-pub struct Pairs {
+pub(crate) struct Pairs {
     /// Receiver polygons, ascending.
     pub(super) recv: Vec<u32>,
     /// Per entry of `recv`, the range of its candidates in `cands` (none: the pair is open).
@@ -43,7 +43,7 @@ impl Pairs {
         self.recv.binary_search(&(r as u32)).ok()
     }
     /// Class of receiver polygon `r`.
-    pub fn class(&self, r: usize) -> PairClass {
+    pub(crate) fn class(&self, r: usize) -> PairClass {
         match self.find(r) {
             None => PairClass::Culled,
             Some(i) if self.range[i].1 == 0 => PairClass::Open,
@@ -55,7 +55,7 @@ impl Pairs {
         self.find(r).map_or(0, |i| self.range[i].1 as usize)
     }
     /// Every receiver that is not culled, ascending, with its class.
-    pub fn receivers(&self) -> impl Iterator<Item = (usize, PairClass)> + '_ {
+    pub(crate) fn receivers(&self) -> impl Iterator<Item = (usize, PairClass)> + '_ {
         self.recv.iter().zip(&self.range).map(|(&r, &(_, n))| {
             let c = if n == 0 {
                 PairClass::Open
@@ -84,12 +84,12 @@ impl Pairs {
 /// rays. 1 M pairs is about 1,000 polygons: the gallery (912,000 pairs) and the Cornell box
 /// stay exact; a building of 3 x 3 rooms (1,233 polygons, 1.5 M pairs) solves in 14.5 s exact
 /// and about 6 s sampled.
-pub const EXACT_PAIRS_LIMIT: u64 = 1 << 20;
+pub(crate) const EXACT_PAIRS_LIMIT: u64 = 1 << 20;
 
 /// Whether a scene with `shooters` shooters finds receivers by probe rays: its
 /// `radiosity.visibility`, and for `auto` whether shooters x polygons passes
 /// [`EXACT_PAIRS_LIMIT`].
-pub fn sampled_visibility(scene: &Scene, shooters: u64) -> bool {
+pub(crate) fn sampled_visibility(scene: &Scene, shooters: u64) -> bool {
     match scene.radiosity.visibility {
         Visibility::Exact => false,
         Visibility::Sampled => true,
@@ -121,7 +121,7 @@ pub fn pair_table_bound(scene: &Scene, shooters: u64, lights: u64) -> u64 {
 
 /// Probe rays per reflecting patch in sampled visibility (spots and emitters cast
 /// [`LIGHT_PROBE_FACTOR`] times as many). See [`Transfer::probe`].
-pub const PROBE_RAYS: usize = 2048;
+pub(crate) const PROBE_RAYS: usize = 2048;
 
 /// A shooter keeps casting rounds of probe rays until it has cast at least this many per
 /// distinct polygon hit, and until the light it has not found is bounded ([`MISSED_LIGHT`]).
@@ -209,7 +209,7 @@ impl Transfer<'_> {
     /// patches of its polygon; and since light a missed polygon would receive is shared with
     /// its neighbours' (a wall cut into pieces), adding the neighbours of every hit recovers
     /// small pieces among visible ones.
-    pub fn probe(&self, s: usize, found: &[(u32, u32)]) -> Option<Vec<u32>> {
+    pub(crate) fn probe(&self, s: usize, found: &[(u32, u32)]) -> Option<Vec<u32>> {
         let sg = &self.shooters[s];
         let hits = match sg.kind {
             ShooterKind::Patch { .. } => found.to_vec(),

@@ -46,7 +46,7 @@ use scene::Polygon;
 
 /// Most levels a shape's tree may have below its patch (4,096 leaves at most): the source
 /// polygon's leaves deeper than this are merged.
-pub const MAX_SHAPE_LEVELS: u32 = 6;
+pub(crate) const MAX_SHAPE_LEVELS: u32 = 6;
 
 /// A patch's shape: a quadtree over the patch (the source polygon's own leaves under it, so
 /// it is as fine as the solution where the light varies) with a weight per leaf.

@@ -4,7 +4,7 @@ use glam::DVec3;
 use scene::{Camera, Material, Polygon, Projection, Scene, SpotLight};
 
 /// A material named `name`.
-pub fn material(name: &str, reflectance: DVec3, emission: DVec3) -> Material {
+pub(crate) fn material(name: &str, reflectance: DVec3, emission: DVec3) -> Material {
     Material {
         name: name.to_string(),
         reflectance,
@@ -14,7 +14,7 @@ pub fn material(name: &str, reflectance: DVec3, emission: DVec3) -> Material {
 
 /// The quad through `corners`, turned (corner order reversed) so that its normal points to the
 /// side of `toward`.
-pub fn quad_facing(corners: [DVec3; 4], toward: DVec3, material: u32) -> Polygon {
+pub(crate) fn quad_facing(corners: [DVec3; 4], toward: DVec3, material: u32) -> Polygon {
     let q = Polygon::quad(corners, material, 0).expect("a valid quad");
     if q.normal.dot(toward - q.centroid()) > 0.0 {
         return q;
@@ -24,7 +24,7 @@ pub fn quad_facing(corners: [DVec3; 4], toward: DVec3, material: u32) -> Polygon
 }
 
 /// A horizontal square of side `side` centred at (`x`, `y`, `z`), facing up (+y) or down.
-pub fn square(centre: DVec3, side: f64, up: bool, material: u32) -> Polygon {
+pub(crate) fn square(centre: DVec3, side: f64, up: bool, material: u32) -> Polygon {
     let h = 0.5 * side;
     let c = |dx: f64, dz: f64| centre + DVec3::new(dx, 0.0, dz);
     let toward = centre + if up { DVec3::Y } else { -DVec3::Y };
@@ -32,7 +32,7 @@ pub fn square(centre: DVec3, side: f64, up: bool, material: u32) -> Polygon {
 }
 
 /// A perspective camera at `eye` looking at `look_at`.
-pub fn camera(eye: DVec3, look_at: DVec3) -> Camera {
+pub(crate) fn camera(eye: DVec3, look_at: DVec3) -> Camera {
     Camera {
         eye,
         look_at,
@@ -43,7 +43,7 @@ pub fn camera(eye: DVec3, look_at: DVec3) -> Camera {
 
 /// The unit cube's six faces, facing in, all of material 0; a camera inside looking at the
 /// back face.
-pub fn furnace(reflectance: DVec3, emission: DVec3) -> Scene {
+pub(crate) fn furnace(reflectance: DVec3, emission: DVec3) -> Scene {
     let v = |x: f64, y: f64, z: f64| DVec3::new(x, y, z);
     let centre = DVec3::splat(0.5);
     let faces = [
@@ -65,7 +65,7 @@ pub fn furnace(reflectance: DVec3, emission: DVec3) -> Scene {
 }
 
 /// A spot light at `position` pointing straight down.
-pub fn spot_down(position: DVec3, intensity: f64, half_angle_deg: f64, falloff: f64) -> SpotLight {
+pub(crate) fn spot_down(position: DVec3, intensity: f64, half_angle_deg: f64, falloff: f64) -> SpotLight {
     SpotLight {
         position,
         direction: -DVec3::Y,
@@ -76,13 +76,13 @@ pub fn spot_down(position: DVec3, intensity: f64, half_angle_deg: f64, falloff: 
 }
 
 /// The mean of the squared z-scores: about 1 when the standard errors are honest.
-pub fn mean_square(z: &[f64]) -> f64 {
+pub(crate) fn mean_square(z: &[f64]) -> f64 {
     z.iter().map(|z| z * z).sum::<f64>() / z.len() as f64
 }
 
 /// The midpoint rule over the square of side `side` centred at (`cx`, `cz`) with `n` x `n`
 /// cells: the average of `f(x, z)`.
-pub fn square_average(cx: f64, cz: f64, side: f64, n: usize, f: impl Fn(f64, f64) -> f64) -> f64 {
+pub(crate) fn square_average(cx: f64, cz: f64, side: f64, n: usize, f: impl Fn(f64, f64) -> f64) -> f64 {
     let mut s = 0.0;
     for i in 0..n {
         for j in 0..n {
