@@ -9,7 +9,6 @@
 //! options, never on the thread count, the renderer count or the instruction set the kernels
 //! ran with ([`frame::FrameOptions::isa`]); the shading pass never sees the scene.
 
-
 pub mod raster;
 pub mod composition;
 pub mod shading;
