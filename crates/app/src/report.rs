@@ -376,6 +376,15 @@ pub fn model_stats_text(s: &crate::commands::stats::ModelStats) -> String {
         grouped(s.rat_vertices),
         mb(s.rat_bytes)
     );
+    t += &memory_lines(s);
+    t += &guard_line(&s.guard_stops);
+    t += &frame_lines(&s.frames);
+    t
+}
+
+/// The texture and RRP memory lines of [`model_stats_text`].
+fn memory_lines(s: &crate::commands::stats::ModelStats) -> String {
+    let mut t = String::new();
     let m = &s.texture_memory;
     t += &format!(
         "texture memory: {} textures, {} texels; {:.3} / {:.3} / {:.3} MB at 8 / 12 / 32 bits \
@@ -400,8 +409,12 @@ pub fn model_stats_text(s: &crate::commands::stats::ModelStats) -> String {
         mb(s.rrp_cache_bytes),
         mb(s.rrp_samples_bytes)
     );
-    let g = &s.guard_stops;
-    t += &match &g.worst {
+    t
+}
+
+/// The guard stops line of [`model_stats_text`].
+fn guard_line(g: &crate::commands::stats::GuardReport) -> String {
+    match &g.worst {
         Some(at) => format!(
             "guard stops: {} leaves split to max_depth with the error test still failing, \
              which may misplace up to {:.2} % of the light the scene reflects, worst at {at} \
@@ -419,41 +432,42 @@ pub fn model_stats_text(s: &crate::commands::stats::ModelStats) -> String {
             grouped(g.shadow_leaves),
             grouped(g.edge_leaves)
         ),
+    }
+}
+
+/// The frame times and ratios of [`model_stats_text`] (nothing without frames).
+fn frame_lines(frames: &[crate::commands::bench::BenchRow]) -> String {
+    let mut t = String::new();
+    let Some(r0) = frames.first() else {
+        return t;
     };
-    if let Some(r0) = s.frames.first() {
+    t += &format!(
+        "frame times at {} x {}, AA {}, median of {} frames:\n",
+        r0.width, r0.height, r0.aa, r0.frames
+    );
+    for r in frames {
         t += &format!(
-            "frame times at {} x {}, AA {}, median of {} frames:\n",
-            r0.width, r0.height, r0.aa, r0.frames
-        );
-        for r in &s.frames {
-            t += &format!(
-                "  {:<17} {:>9.2} ms {:>8.1} fps   (raster {:.2} ms, shading {:.2} ms)\n",
-                r.method, r.frame_ms, r.fps, r.raster_ms, r.shading_ms
-            );
-        }
-        let ms = |name: &str| {
-            s.frames
-                .iter()
-                .find(|r| r.method == name)
-                .map(|r| r.frame_ms)
-        };
-        let ratio = |a: Option<f64>, b: Option<f64>| match (a, b) {
-            (Some(a), Some(b)) if b > 0.0 => format!("{:.2}", a / b),
-            _ => "-".into(),
-        };
-        let (d, bl, bc, me) = (
-            ms("direct"),
-            ms("texture-bilinear"),
-            ms("texture-bicubic"),
-            ms("mesh"),
-        );
-        t += &format!(
-            "  ratios: direct/bilinear {}, direct/bicubic {}, mesh/direct {}\n",
-            ratio(d, bl),
-            ratio(d, bc),
-            ratio(me, d)
+            "  {:<17} {:>9.2} ms {:>8.1} fps   (raster {:.2} ms, shading {:.2} ms)\n",
+            r.method, r.frame_ms, r.fps, r.raster_ms, r.shading_ms
         );
     }
+    let ms = |name: &str| frames.iter().find(|r| r.method == name).map(|r| r.frame_ms);
+    let ratio = |a: Option<f64>, b: Option<f64>| match (a, b) {
+        (Some(a), Some(b)) if b > 0.0 => format!("{:.2}", a / b),
+        _ => "-".into(),
+    };
+    let (d, bl, bc, me) = (
+        ms("direct"),
+        ms("texture-bilinear"),
+        ms("texture-bicubic"),
+        ms("mesh"),
+    );
+    t += &format!(
+        "  ratios: direct/bilinear {}, direct/bicubic {}, mesh/direct {}\n",
+        ratio(d, bl),
+        ratio(d, bc),
+        ratio(me, d)
+    );
     t
 }
 

@@ -16,7 +16,11 @@ pub(crate) fn mat(name: &str, rho: [f64; 3], e: [f64; 3]) -> Material {
 }
 
 /// A scene from parts, with default settings.
-pub(crate) fn scene(polygons: Vec<Polygon>, materials: Vec<Material>, spots: Vec<SpotLight>) -> Scene {
+pub(crate) fn scene(
+    polygons: Vec<Polygon>,
+    materials: Vec<Material>,
+    spots: Vec<SpotLight>,
+) -> Scene {
     let camera = Camera {
         eye: DVec3::new(0.0, 0.0, 5.0),
         look_at: DVec3::ZERO,

@@ -65,7 +65,12 @@ pub(crate) fn furnace(reflectance: DVec3, emission: DVec3) -> Scene {
 }
 
 /// A spot light at `position` pointing straight down.
-pub(crate) fn spot_down(position: DVec3, intensity: f64, half_angle_deg: f64, falloff: f64) -> SpotLight {
+pub(crate) fn spot_down(
+    position: DVec3,
+    intensity: f64,
+    half_angle_deg: f64,
+    falloff: f64,
+) -> SpotLight {
     SpotLight {
         position,
         direction: -DVec3::Y,
@@ -82,7 +87,13 @@ pub(crate) fn mean_square(z: &[f64]) -> f64 {
 
 /// The midpoint rule over the square of side `side` centred at (`cx`, `cz`) with `n` x `n`
 /// cells: the average of `f(x, z)`.
-pub(crate) fn square_average(cx: f64, cz: f64, side: f64, n: usize, f: impl Fn(f64, f64) -> f64) -> f64 {
+pub(crate) fn square_average(
+    cx: f64,
+    cz: f64,
+    side: f64,
+    n: usize,
+    f: impl Fn(f64, f64) -> f64,
+) -> f64 {
     let mut s = 0.0;
     for i in 0..n {
         for j in 0..n {
