@@ -814,3 +814,94 @@ fn the_file_scan_resolves_paths_and_finds_cycles() {
     ];
     assert_eq!(cycles(&ring), [vec![p("a"), p("b"), p("c")]]);
 }
+
+/// Longest function body allowed outside tests, in lines (signature to closing brace).
+const MAX_FUNCTION_LINES: usize = 100;
+
+/// Every function of `code` (stripped, test items removed) longer than [`MAX_FUNCTION_LINES`]:
+/// its name, first line and length.
+fn long_functions(code: &str) -> Vec<(String, usize, usize)> {
+    let b = code.as_bytes();
+    let mut out = Vec::new();
+    let mut from = 0;
+    while let Some(k) = code[from..].find("fn ") {
+        let at = from + k;
+        from = at + 3;
+        if at > 0 && (b[at - 1].is_ascii_alphanumeric() || b[at - 1] == b'_') {
+            continue;
+        }
+        let name: String = code[at + 3..]
+            .chars()
+            .take_while(|c| c.is_ascii_alphanumeric() || *c == '_')
+            .collect();
+        // The body opens at the first `{` before any `;` (a declaration has none).
+        let rest = &code[at..];
+        let (Some(open), semi) = (rest.find('{'), rest.find(';')) else {
+            continue;
+        };
+        if semi.is_some_and(|s| s < open) || name.is_empty() {
+            continue;
+        }
+        let mut depth = 0;
+        let mut end = None;
+        for (i, ch) in rest[open..].char_indices() {
+            match ch {
+                '{' => depth += 1,
+                '}' => {
+                    depth -= 1;
+                    if depth == 0 {
+                        end = Some(open + i);
+                        break;
+                    }
+                }
+                _ => {}
+            }
+        }
+        let Some(end) = end else { continue };
+        let first = code[..at].matches('\n').count() + 1;
+        let lines = rest[..end].matches('\n').count() + 1;
+        if lines > MAX_FUNCTION_LINES {
+            out.push((name, first, lines));
+        }
+    }
+    out
+}
+
+/// No function of non-test code, in any crate or the binary, runs past [`MAX_FUNCTION_LINES`]:
+/// each can be read in one screen or two.
+#[test]
+fn no_function_is_longer_than_a_hundred_lines() {
+    let mut files = Vec::new();
+    rust_files(&Path::new(crate::REPO).join("src"), &mut files);
+    for (dir, _) in CRATES.iter().filter(|(d, _)| *d != ".") {
+        rust_files(&crates_dir().join(dir).join("src"), &mut files);
+    }
+    let mut long = Vec::new();
+    for f in &files {
+        let name = f.file_name().unwrap().to_string_lossy();
+        if name == "tests.rs" || f.components().any(|c| c.as_os_str() == "tests") {
+            continue;
+        }
+        let (code, _) = remove_test_items(&strip(&std::fs::read_to_string(f).unwrap()));
+        for (name, line, lines) in long_functions(&code) {
+            let rel = f.strip_prefix(Path::new(crate::REPO)).unwrap_or(f);
+            long.push(format!("{}:{line}: {name} ({lines} lines)", rel.display()));
+        }
+    }
+    assert!(
+        long.is_empty(),
+        "functions over {MAX_FUNCTION_LINES} lines:\n{}",
+        long.join("\n")
+    );
+    // The scan measures what it should.
+    let body = format!(
+        "fn f() {{\n{}}}\nfn g();\n",
+        "x;\n".repeat(MAX_FUNCTION_LINES)
+    );
+    assert_eq!(
+        long_functions(&body),
+        [("f".to_string(), 1, MAX_FUNCTION_LINES + 2)]
+    );
+    let short = format!("fn f() {{\n{}}}\n", "x;\n".repeat(MAX_FUNCTION_LINES - 2));
+    assert!(long_functions(&short).is_empty());
+}
