@@ -4,124 +4,21 @@
 //! ([`CompactReconstruction::expand`]), the way the direct method asks for it (once per distinct
 //! patch per screen region per frame).
 //!
-//! **Invariants.** Leaf ids, their order (polygon order, then the final tree's node order) and
-//! [`CompactReconstruction::locate`] are exactly [`Reconstruction`]'s, and so are the cells
-//! ([`PatchSource::cell`]); the trees are the same trees. A vertex's data are 12 quantities
-//! (f, f_u, f_v, f_uv per RGB channel, global parameter units), held as f32. Vertices are of two
-//! kinds, told apart by the tree alone:
+//! **Invariants.** Leaf ids, their order and [`CompactReconstruction::locate`] are exactly
+//! [`Reconstruction`]'s, and so are the cells ([`PatchSource::cell`]). A vertex holds 12
+//! quantities (f, f_u, f_v, f_uv per RGB channel) as f32: a **stored** vertex quantized (per
+//! polygon and quantity an f64 scale, per vertex a 4-bit shift and a normalized i16 mantissa),
+//! a **derived** vertex (a T-vertex inside a larger leaf's edge) evaluated from that leaf's
+//! patch, so quantization opens no jump anywhere and two patches sharing an edge are C1 across
+//! it to f32 rounding. Every held value and expanded coefficient is finite;
+//! [`CompactReconstruction::decode`] accepts only the canonical encoding
+//! (`encode(decode(b)) == b`) and never panics.
 //!
-//! - a **derived** vertex (T-vertex) lies strictly inside an edge of some leaf X (exactly one:
-//!   the leaves touching it from X's side are X alone, and on the other side it is a corner).
-//!   Its data are X's patch polynomial and its derivatives at the vertex, evaluated in f64 from
-//!   X's four corners' held data and rounded to f32; nothing of it is stored.
-//! - a **stored** vertex (every other one) holds its quantities quantized. Per polygon and
-//!   quantity q there is one f64 scale `S_q = M_q / 32767`, M_q the largest |x| of q over the
-//!   polygon's stored vertices; per stored vertex and quantity a 4-bit shift s and an i16
-//!   mantissa m: s is the largest in 0..=15 with `|x| / S_q * 2^s < 32767.5` and
-//!   `m = round(|x| / S_q * 2^s)` with x's sign, so |m| >= 16384 whenever s < 15 (the mantissa
-//!   is normalized: its half-step is at most 2^-15 of |x| for every |x| >= S_q / 2, that is
-//!   down to 2^-16 of the polygon's largest |x|). The held value is `((m * S_q) * 2^-s) as f32`
-//!   (the power-of-two multiply is exact). Two clamps store a quantity as m = 0: a held value
-//!   that would be below the smallest normal f32 (2^-126; every nonzero held value then carries
-//!   24 significant bits, which is what lets `encode` recover m and s from it), and a polygon
-//!   whose M_q / 32767 underflows f64 (S_q = 0).
-//!
-//! Because the scales are not powers of two, multiplying every input by k > 0 multiplies each
-//! S_q by k (to f64 rounding) and leaves every m and s unchanged, unless |x| / S_q * 2^s lies
-//! within f64 rounding of a rounding boundary: the patches scale by k to f32 rounding when the
-//! unquantized data do. Inputs that are themselves rounded to f32 after scaling differ from k
-//! times the unscaled ones by up to 2^-24 relative, and the estimated derivatives, differences
-//! of samples, by more; a mantissa within that distance of a rounding boundary then rounds the
-//! other way, moving its quantity by one step (at most 2^-14 of itself when normalized).
-//! Measured on five test polygons (3,223 stored vertices) scaled by 0.37 or 3.1 and rounded to
-//! f32: 2-7 of the 9,669 values flip, and about 4,270 of the 29,007 derivative quantities.
-//!
-//! Leaves are processed larger first (ascending level), so X's own corners, possibly derived
-//! from an even larger leaf, are known before X's derived vertices: a corner of X strictly inside
-//! an edge of a leaf Z makes Z larger than X (a dyadic edge of X's size or longer cannot contain
-//! X's corner in its interior). The vertices inside X's edge are found by a midpoint search on
-//! the sorted vertex keys: if a vertex lies strictly inside an edge, the same-size cell across
-//! it is split, so the edge's midpoint is a vertex (refine.rs's argument), and the search
-//! recurses into both halves. [`CompactReconstruction::expand`] is a pure function of the held
-//! f32 data, and those are a pure function of the stored integers and scales. Every held value
-//! and every expanded coefficient is finite (checked at build and decode).
-//!
-//! **Continuity.** Two patches whose common edge has the same two end vertices see identical
-//! data there and are C1 across it (to f64 rounding). Along an edge of a larger leaf X, the
-//! smaller leaves' edge endpoints are X's corners or derived vertices, whose data lie on X's
-//! edge cubics up to their rounding to f32; Hermite interpolation reproduces a cubic from its
-//! endpoint data on any sub-interval (refine.rs), so value and first derivatives agree along the
-//! whole edge to within that rounding (2^-24 of the data). Quantization opens no jump anywhere.
-//!
-//! **Error bound** ([`CompactReconstruction::error_bound`]), against the *reference*: the
-//! unquantized vertex data with derived vertices taken from the larger leaf's unquantized patch
-//! by the same rule. (The expanded [`Reconstruction`] keeps its own data at those vertices,
-//! which refinement put on the larger leaf's cubics up to its merge tolerance, 1e-7 of the
-//! polygon's largest value per merged level.) A stored quantity errs by at most its half-step
-//! `S_q 2^-s / 2` plus the f32 rounding of the held value (2^-23 |x'| over-bounds 2^-24 |x'|
-//! and the f64 products), or, for m = 0, by `S_q 2^-15 + 2^-124` (the rounding at s = 15 or a
-//! clamp). A derived quantity errs by X's corner errors propagated through the Hermite basis
-//! and its derivatives with absolute values (the triangle inequality), plus 2^-23 of its held
-//! value and 2^-40 of the same |basis|-weighted sum of X's held data (f64 evaluation). A patch
-//! of width w is `f(s, t) = sum_ab H_a(s) H_b(t) g_ab` with (H_0, H_1, H_2, H_3) = (h00, h01,
-//! h10, h11) and the geometry g holding corner values, `w f_u`, `w f_v` and `w^2 f_uv`. On
-//! [0, 1], h00 and h01 are non-negative with sum 1 and |h10| + |h11| = s(1-s) <= 1/4, so with dq
-//! the largest error of quantity q over the leaf's four corners, per channel
-//! `|value error| <= df + (w/4)(dfu + dfv) + (w^2/16) dfuv`, plus the f32 rounding of the two
-//! expansions (at most 2^-24 times the sum of |coefficients| of each patch, the monomials
-//! lying in [0, 1]). The property tests check the bound, and that the value is within 1e-3 of
-//! itself (relative) wherever it is at least 1e-4 of the polygon's peak.
-//!
-//! **Layout, and why.** In memory: the locate tree as [`Reconstruction`] stores it (4 B per
-//! node: `LEAF | leaf id` or the first child's index), so `locate` is the same code; one 24-byte
-//! record per leaf (its four corners' global vertex indices in patch corner order, its cell's
-//! lattice origin, level and polygon); 48 bytes of held f32 data per vertex, derived ones
-//! included; per polygon its root, first vertex and 12 f64 scales. `expand` is therefore one
-//! record read, four independent 48-byte vertex reads and the Hermite-to-power product: no
-//! search and no dequantization (holding the 16-bit form would save 24 B per vertex and cost
-//! 48 multiplies and the shift decoding per expand). The alternative, sorted vertex keys per
-//! polygon (8 B per vertex) instead of the corner indices (16 B per leaf), found by four binary
-//! searches per expand; direct indices keep `expand` free of searches.
-//!
-//! **Measured** (release build; the first three by the tests named, `--nocapture`):
-//!
-//! - `dark_values_keep_relative_precision` (a 1/(r^2+h^2)^2 falloff from 1 down to 7.7e-6 of
-//!   its peak, 13,348 leaves, 301^2 points): largest relative error 3.3e-5 at every level down
-//!   to 1e-4 of the peak, largest relative bound 1.2e-4. One power-of-two scale per polygon and
-//!   quantity (absolute steps of 2^-16 of the largest value) gives 1.4e-4 above 1e-1 of the
-//!   peak, 1.4e-3 at 1e-2..1e-1, 1.4e-2 at 1e-3..1e-2 and 0.17 at 1e-4..1e-3.
-//! - `t_vertex_edges_are_c1_to_rounding` (random unrestricted trees of depth <= 12): jumps of
-//!   at most 4.3e-8 of the sample range in value and 1.3e-7 in size-scaled derivative over 64
-//!   trees and three estimators; T-vertex data quantized on their own give 1.4e-4 and 7.8e-3.
-//! - `scaling_the_input_scales_the_compact_patches` (inputs scaled exactly by 0.369 and 3.09):
-//!   identical integers, patch values k times the unscaled ones to 1.8e-7 of the peak (the
-//!   unquantized patches: 1.0e-7); power-of-two scales give 4.1e-5. With the scaled inputs
-//!   rounded to f32, the mantissas that flip give 3.1e-5 of the peak at worst (power-of-two
-//!   scales: 3.9e-5; the unquantized patches: 2.6e-7).
-//! - The shipped scenes' solutions (two-spots, cornell-box, gallery; every patch on a 5 x 5
-//!   grid, against [`Reconstruction`]): largest error 1.5e-5 of the scene's largest sample (the
-//!   half-step of the brightest vertex, 2^-16 of it), largest bound 1.6-2.7e-5; relative error
-//!   wherever the value is at least 1e-4 of its polygon's peak at most 4.3e-4 (1.3e-4 above
-//!   1e-3 of the peak), against 5.8e-2 and 0.18 (cornell-box, gallery) with power-of-two scales.
-//! - Bytes: 76-101 B held per original sample on those scenes (140-263 B expanded); encoded
-//!   2-2.8x smaller than held (docs/performance.md has the table). `expand` of a
-//!   13,348-leaf polygon: 120-160 ns per patch against 180-220 ns when dequantizing 16-bit data
-//!   (a shared two-core machine, best of 7 runs of 20 passes).
-//!
-//! **Encoding** ([`CompactReconstruction::encode`], little-endian): the 8-byte magic
-//! `PFRRPC02`, the polygon count (u32), then per polygon its node count (u32), one bit per node
-//! in the tree's node order (1 = split; LSB first, zero-padded to a byte), its 12 scales (f64),
-//! then per stored vertex, in sorted key order, 6 bytes of shifts (4 bits per quantity in
-//! quantity order, low nibble first) and 12 i16 mantissas: 30 bytes. The node order is
-//! [`Quadtree::grow`]'s canonical order, which refinement produces, so the bits rebuild the tree
-//! with identical node (and therefore leaf) indices; vertex keys, leaf corners and which
-//! vertices are derived follow from the tree. [`CompactReconstruction::decode`] accepts only the
-//! canonical form (below), so `encode(decode(b)) == b` for every `b` it accepts, and returns an
-//! error, never panics, on anything else: wrong magic, truncation, trailing bytes, split bits
-//! that are not a quadtree of depth <= 16 in canonical order, nonzero padding bits, a scale that
-//! is negative, -0 or not finite, and per quantity: |m| > 32767, m = 0 with s != 0, s < 15 with
-//! |m| < 16384, m != 0 with S_q = 0, a nonzero held value below 2^-126 or not finite; then held
-//! or expanded data that are not finite.
+//! **Why this layout.** One 24-byte record per leaf and 48 bytes of held f32 data per vertex make
+//! `expand` one record read, four vertex reads and the Hermite-to-power product: no search and
+//! no dequantization. The quantization, the T-vertex rule, the error bound
+//! ([`CompactReconstruction::error_bound`]) with its derivation, the encoding and the measured
+//! errors and sizes are in `docs/compact-rrps.md`.
 
 use rayon::prelude::*;
 
@@ -134,6 +31,9 @@ use super::{
 };
 use base::error::{Error, Result};
 use base::quadtree::{Cell, Quadtree, SampledQuadtree, VertexKey, MAX_DEPTH};
+
+mod bound;
+mod encoding;
 
 /// Quantities per vertex: index `3 * kind + channel`, kind 0 = f, 1 = f_u, 2 = f_v, 3 = f_uv.
 pub(crate) const QUANTITIES: usize = 12;
@@ -633,56 +533,6 @@ fn limit_error() -> Error {
     Error::Inconsistent("compact reconstruction: more than 2^31 leaves, nodes or vertices".into())
 }
 
-/// The cubic Hermite basis (h00, h01, h10, h11) at s and its derivative, in absolute value.
-fn abs_basis(s: f64) -> ([f64; 4], [f64; 4]) {
-    let (s2, s3) = (s * s, s * s * s);
-    let h = [
-        2.0 * s3 - 3.0 * s2 + 1.0,
-        -2.0 * s3 + 3.0 * s2,
-        s3 - 2.0 * s2 + s,
-        s3 - s2,
-    ];
-    let d = [
-        6.0 * s2 - 6.0 * s,
-        -6.0 * s2 + 6.0 * s,
-        3.0 * s2 - 4.0 * s + 1.0,
-        3.0 * s2 - 2.0 * s,
-    ];
-    (h.map(f64::abs), d.map(f64::abs))
-}
-
-/// `sum_ab |B_a(s)| |B_b(t)| e_ab` for the value and the partials (f, f_u, f_v, f_uv, global
-/// units) of a patch of width `w` at local (s, t), where e holds non-negative per-corner
-/// magnitudes (corner order x + 2y) of one channel's (f, f_u, f_v, f_uv): the triangle
-/// inequality's bound on the change of the patch's Hermite data at (s, t) when each corner
-/// quantity changes by at most its e.
-fn hermite_abs(w: f64, s: f64, t: f64, e: &[[f64; 4]; 4]) -> [f64; 4] {
-    let ((hs, ds), (ht, dt)) = (abs_basis(s), abs_basis(t));
-    let mut out = [0.0f64; 4];
-    for (c, ec) in e.iter().enumerate() {
-        let (x, y) = (c & 1, c >> 1);
-        // Geometry entries (s basis index, t basis index, magnitude).
-        let g = [
-            (x, y, ec[0]),
-            (2 + x, y, w * ec[1]),
-            (x, 2 + y, w * ec[2]),
-            (2 + x, 2 + y, w * w * ec[3]),
-        ];
-        for (a, b, m) in g {
-            out[0] += hs[a] * ht[b] * m;
-            out[1] += ds[a] * ht[b] * m;
-            out[2] += hs[a] * dt[b] * m;
-            out[3] += ds[a] * dt[b] * m;
-        }
-    }
-    [out[0], out[1] / w, out[2] / w, out[3] / (w * w)]
-}
-
-/// One channel's (f, f_u, f_v, f_uv) of 12 per-vertex numbers.
-fn channel(x: &[f64; QUANTITIES], ch: usize) -> [f64; 4] {
-    [x[ch], x[3 + ch], x[6 + ch], x[9 + ch]]
-}
-
 impl CompactReconstruction {
     fn empty() -> Self {
         CompactReconstruction {
@@ -775,6 +625,15 @@ impl CompactReconstruction {
         Ok(())
     }
 
+    /// The locate tree nodes of polygon `p`.
+    fn polygon_nodes(&self, p: usize) -> &[u32] {
+        let end = self
+            .roots
+            .get(p + 1)
+            .map_or(self.nodes.len(), |&r| r as usize);
+        &self.nodes[self.roots[p] as usize..end]
+    }
+
     /// Number of polygons.
     pub fn polygon_count(&self) -> usize {
         self.roots.len()
@@ -831,94 +690,6 @@ impl CompactReconstruction {
         })
     }
 
-    /// Per vertex of polygon `p` (local indices) and quantity, a bound on |held - reference|:
-    /// `seed(global vertex, q)` at stored vertices; at derived ones the larger leaf's corner
-    /// bounds through [`hermite_abs`], plus `rounding` times the held value and 2^-40 times
-    /// the |basis|-weighted sum of the larger leaf's held data (its f64 evaluation).
-    pub(crate) fn propagated_errors(
-        &self,
-        p: usize,
-        seed: impl Fn(usize, usize) -> f64,
-        rounding: f64,
-    ) -> Vec<[f64; QUANTITIES]> {
-        let layout = Layout::of(&self.polygon_tree(p));
-        let first = self.first_vertex[p] as usize;
-        let held = |v: usize| self.vertices[first + v].map(|x| (x as f64).abs());
-        let mut err: Vec<[f64; QUANTITIES]> = (0..layout.keys.len())
-            .map(|v| std::array::from_fn(|q| seed(first + v, q)))
-            .collect();
-        for &(l, v) in &layout.derived {
-            let (cell, corners) = layout.leaves[l as usize];
-            let (u0, v0, _, _) = cell.bounds();
-            let w = cell.width();
-            let k = layout.keys[v as usize];
-            let (s, t) = ((k.u() - u0) / w, (k.v() - v0) / w);
-            let own = held(v as usize);
-            let mut out = [0.0f64; QUANTITIES];
-            for ch in 0..3 {
-                let e = corners.map(|c| channel(&err[c as usize], ch));
-                let m = corners.map(|c| channel(&held(c as usize), ch));
-                let (pe, pm) = (hermite_abs(w, s, t, &e), hermite_abs(w, s, t, &m));
-                for kind in 0..4 {
-                    let q = 3 * kind + ch;
-                    out[q] = pe[kind] + rounding * own[q] + 2f64.powi(-40) * pm[kind];
-                }
-            }
-            err[v as usize] = out;
-        }
-        err
-    }
-
-    /// Per vertex of polygon `p`, the module docs' bound on |held - reference| per quantity.
-    fn vertex_errors(&self, p: usize) -> Vec<[f64; QUANTITIES]> {
-        let scales = self.scales[p];
-        let seed = |v: usize, q: usize| {
-            let x = self.vertices[v][q] as f64;
-            match quantize(x, scales[q]) {
-                (0, _) => scales[q] * 2f64.powi(-15) + 2f64.powi(-124),
-                (_, s) => 0.5 * scales[q] * pow2_neg(s) + 2f64.powi(-23) * x.abs(),
-            }
-        };
-        self.propagated_errors(p, seed, 2f64.powi(-23))
-    }
-
-    /// The module docs' bound on |expanded patch - reference patch| per channel over leaf `id`'s
-    /// cell, in exact arithmetic (f32 rounding of the expansions not included):
-    /// `df + (w/4)(dfu + dfv) + (w^2/16) dfuv`, dq the largest error of quantity q over the
-    /// leaf's corners. Computed on demand from the whole polygon (for tests and measurements;
-    /// [`Self::error_bounds`] gives every leaf of a polygon at once).
-    pub fn error_bound(&self, id: u32) -> [f64; 3] {
-        let p = self.leaves[id as usize].polygon();
-        self.leaf_bound(id, &self.vertex_errors(p))
-    }
-
-    /// [`Self::error_bound`] of every leaf of `polygon`, in leaf id order.
-    pub fn error_bounds(&self, polygon: u32) -> Vec<[f64; 3]> {
-        let p = polygon as usize;
-        let err = self.vertex_errors(p);
-        self.polygon_nodes(p)
-            .iter()
-            .filter(|&&e| e & LEAF != 0)
-            .map(|&e| self.leaf_bound(e & !LEAF, &err))
-            .collect()
-    }
-
-    /// The bound of leaf `id` from its polygon's vertex errors.
-    fn leaf_bound(&self, id: u32, err: &[[f64; QUANTITIES]]) -> [f64; 3] {
-        let l = &self.leaves[id as usize];
-        let first = self.first_vertex[l.polygon()];
-        let w = l.cell().width();
-        let worst = |q: usize| {
-            l.corners
-                .iter()
-                .map(|&c| err[(c - first) as usize][q])
-                .fold(0.0f64, f64::max)
-        };
-        std::array::from_fn(|ch| {
-            worst(ch) + w / 4.0 * (worst(3 + ch) + worst(6 + ch)) + w * w / 16.0 * worst(9 + ch)
-        })
-    }
-
     /// The half-open rectangle `[u_lo, u_hi, v_lo, v_hi]` where `locate` answers `id`, computed
     /// exactly as [`Reconstruction`]'s [`PatchSource::cell`].
     #[inline]
@@ -957,23 +728,6 @@ impl CompactReconstruction {
         self.stats().total_bytes
     }
 
-    fn polygon_nodes(&self, p: usize) -> &[u32] {
-        let end = self
-            .roots
-            .get(p + 1)
-            .map_or(self.nodes.len(), |&r| r as usize);
-        &self.nodes[self.roots[p] as usize..end]
-    }
-
-    /// Length of [`Self::encode`]'s output, without encoding.
-    pub fn encoded_len(&self) -> usize {
-        let mut n = MAGIC.len() + 4 + RECORD_BYTES * self.stored_vertices;
-        for p in 0..self.roots.len() {
-            n += 4 + self.polygon_nodes(p).len().div_ceil(8) + SCALE_BYTES;
-        }
-        n
-    }
-
     /// Mantissas and shifts of polygon `p`'s stored vertices in sorted key order, recovered
     /// from the held data (see [`quantize`]).
     pub(crate) fn stored_integers(&self, p: usize) -> Vec<([i16; QUANTITIES], [u8; QUANTITIES])> {
@@ -990,164 +744,6 @@ impl CompactReconstruction {
             })
             .collect()
     }
-
-    /// The little-endian encoding described in the module docs.
-    pub fn encode(&self) -> Vec<u8> {
-        let mut out = Vec::with_capacity(self.encoded_len());
-        out.extend_from_slice(MAGIC);
-        out.extend_from_slice(&(self.roots.len() as u32).to_le_bytes());
-        for p in 0..self.roots.len() {
-            let nodes = self.polygon_nodes(p);
-            out.extend_from_slice(&(nodes.len() as u32).to_le_bytes());
-            for chunk in nodes.chunks(8) {
-                let byte = chunk
-                    .iter()
-                    .enumerate()
-                    .fold(0u8, |b, (k, &e)| b | (u8::from(e & LEAF == 0) << k));
-                out.push(byte);
-            }
-            for s in self.scales[p] {
-                out.extend_from_slice(&s.to_le_bytes());
-            }
-            for (m, s) in self.stored_integers(p) {
-                for pair in s.chunks(2) {
-                    out.push(pair[0] | pair[1] << 4);
-                }
-                for x in m {
-                    out.extend_from_slice(&x.to_le_bytes());
-                }
-            }
-        }
-        debug_assert_eq!(out.len(), self.encoded_len());
-        out
-    }
-
-    /// Decodes [`Self::encode`]'s output. Anything but the canonical form (module docs,
-    /// Encoding) is an [`Error::Inconsistent`], never a panic.
-    pub fn decode(bytes: &[u8]) -> Result<CompactReconstruction> {
-        let mut r = Reader { bytes, at: 0 };
-        if r.take(MAGIC.len())? != MAGIC {
-            return Err(bad("not a compact reconstruction (wrong magic)"));
-        }
-        let count = r.u32()? as usize;
-        // Each polygon takes at least 4 + 1 + 96 bytes: bound the count before allocating.
-        if count > MAX_POLYGONS || count > r.left() / (5 + SCALE_BYTES) {
-            return Err(bad("polygon count larger than the data"));
-        }
-        let mut out = CompactReconstruction::empty();
-        for index in 0..count {
-            let part = decode_part(&mut r)?;
-            part.check(index)
-                .map_err(|_| bad("a patch coefficient overflows f32"))?;
-            out.push(part)?;
-        }
-        if r.left() != 0 {
-            return Err(bad("trailing bytes"));
-        }
-        out.content_id = out.content_hash();
-        Ok(out)
-    }
-}
-
-fn bad(msg: &str) -> Error {
-    Error::Inconsistent(format!("compact reconstruction decode: {msg}"))
-}
-
-struct Reader<'a> {
-    bytes: &'a [u8],
-    at: usize,
-}
-
-impl<'a> Reader<'a> {
-    fn left(&self) -> usize {
-        self.bytes.len() - self.at
-    }
-
-    fn take(&mut self, n: usize) -> Result<&'a [u8]> {
-        if n > self.left() {
-            return Err(bad("truncated"));
-        }
-        let s = &self.bytes[self.at..self.at + n];
-        self.at += n;
-        Ok(s)
-    }
-
-    fn u32(&mut self) -> Result<u32> {
-        let b = self.take(4)?;
-        Ok(u32::from_le_bytes([b[0], b[1], b[2], b[3]]))
-    }
-}
-
-/// The tree of one polygon from its node count and split bits.
-fn decode_tree(r: &mut Reader) -> Result<Quadtree> {
-    let n = r.u32()? as usize;
-    if n % 4 != 1 || n.div_ceil(8) > r.left() {
-        return Err(bad(
-            "node count is not that of a quadtree or exceeds the data",
-        ));
-    }
-    let bits = r.take(n.div_ceil(8))?;
-    let bit = |k: usize| bits[k / 8] >> (k % 8) & 1 == 1;
-    if (n..bits.len() * 8).any(bit) {
-        return Err(bad("nonzero padding bits"));
-    }
-    let mut malformed = false;
-    let tree = Quadtree::grow((), |id, cell, ()| {
-        let id = id as usize;
-        if id >= n || malformed {
-            malformed = true;
-            return None;
-        }
-        if !bit(id) {
-            return None;
-        }
-        if cell.level >= MAX_DEPTH {
-            malformed = true;
-            return None;
-        }
-        Some([(); 4])
-    });
-    if malformed || tree.nodes().len() != n {
-        return Err(bad("split bits do not describe a quadtree of depth <= 16"));
-    }
-    Ok(tree)
-}
-
-fn decode_part(r: &mut Reader) -> Result<Part> {
-    let tree = decode_tree(r)?;
-    let b = r.take(SCALE_BYTES)?;
-    let scales: [f64; QUANTITIES] =
-        std::array::from_fn(|q| f64::from_le_bytes(std::array::from_fn(|k| b[8 * q + k])));
-    if scales
-        .iter()
-        .any(|s| !s.is_finite() || s.is_sign_negative())
-    {
-        return Err(bad("a scale is negative, -0 or not finite"));
-    }
-    let layout = Layout::of(&tree);
-    let stored = layout.stored();
-    if stored > r.left() / RECORD_BYTES {
-        return Err(bad("truncated"));
-    }
-    let mut held = Vec::with_capacity(stored);
-    for _ in 0..stored {
-        let rec = r.take(RECORD_BYTES)?;
-        let shift = |q: usize| rec[q / 2] >> (4 * (q % 2)) & 15;
-        let at = QUANTITIES / 2;
-        let mantissa = |q: usize| i16::from_le_bytes([rec[at + 2 * q], rec[at + 2 * q + 1]]);
-        let mut h = [0.0f32; QUANTITIES];
-        for (q, x) in h.iter_mut().enumerate() {
-            let (m, s) = (mantissa(q), shift(q));
-            if !canonical(m, s, scales[q]) {
-                return Err(bad(
-                    "a stored quantity is not in canonical form or overflows f32",
-                ));
-            }
-            *x = held_value(m, s, scales[q]);
-        }
-        held.push(h);
-    }
-    Part::assemble(tree, layout, scales, held).map_err(bad)
 }
 
 impl CompactReconstruction {
