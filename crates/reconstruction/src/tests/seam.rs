@@ -256,7 +256,7 @@ fn compact_and_expanded_rrps_join_alike() {
             worst = worst.max((a - rec.eval(p, u, v).x as f64).abs());
         }
     }
-    // Quantized vertex data: at most 2^-15 of each quantity (compact.rs's bound), here well
+    // Quantized vertex data: at most 2^-15 of each quantity (the compact RRPs' bound, docs/compact-rrps.md), here well
     // below 1e-4 of the peak.
     assert!(
         worst <= 1e-4,
