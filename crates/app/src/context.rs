@@ -22,7 +22,7 @@ use scene::{load_scene_with, LoadOptions, Scene};
 /// set frames run with, and the observer progress goes to.
 #[derive(Clone)]
 pub struct Context<'a> {
-    /// Bytes a job may hold ([`budget`]'s estimates are refused above it); `u64::MAX`: none.
+    /// Bytes a job may hold ([`crate::budget`]'s estimates are refused above it); `u64::MAX`: none.
     pub memory_limit: u64,
     /// The instruction set the frames' kernels run with (a choice of speed: the images are the
     /// same for every one).

@@ -1,7 +1,7 @@
 //! The application: what pixelflow-sim's commands run on top of the stages. A job starts from
 //! its [`context`] (the memory limit, the instruction set and the observer, passed down
 //! explicitly; an [`Input`] loaded and checked before any solve), makes the scene ready to draw
-//! ([`prepare`]: the solution and its RRPs, the textures and mesh built on first use), draws
+//! ([`mod@prepare`]: the solution and its RRPs, the textures and mesh built on first use), draws
 //! [`frames`], and runs one of the [`commands`]. Beside them: the memory [`budget`] every job is
 //! checked against before it allocates ([`memory`] estimates it), the [`viewer`]'s frame source,
 //! the text [`report`]s the binary prints, the [`rates`] timing commands share and the [`text`]

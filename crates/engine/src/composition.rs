@@ -7,7 +7,7 @@
 //! concurrently with rasterization; here the merge runs inside each region's task
 //! ([`crate::frame::FrameContext::render`]), on whichever worker rasterized the region, while
 //! the other workers rasterize other regions: the network is as parallel as the regions are, and
-//! its buffers are still in cache when it merges them ([`composite_in_place`]).
+//! its buffers are still in cache when it merges them ([`merge_records_into`]).
 //!
 //! Invariants: the merge is commutative and associative (depth, then polygon id, is a total order
 //! on distinct polygons), and after merging the patch table is renumbered in memory order of first
@@ -15,9 +15,10 @@
 //! order. With one report for a region the report is passed through unchanged: the renderer built
 //! its table in the same canonical order.
 //!
-//! Two merges: [`composite_in_place`] merges reports that carry patch tables and rebuilds the
-//! table; [`merge_records_in_place`] merges pixel records only, for the frame stage, which
-//! locates the patches once in the merged region. Both give the same composited region (tested),
+//! Two merges: `composite_in_place` merges reports that carry patch tables and rebuilds the
+//! table (the reference the frame's merge is tested against, and a stage the benchmarks time:
+//! compiled only for tests and with the `bench` feature); [`merge_records_into`] merges pixel
+//! records only, for the frame stage, which locates the patches once in the merged region. Both give the same composited region (tested),
 //! and the second does not locate the samples every renderer drew but another one hid: with R
 //! renderers the frame costs the rasterization plus a records merge, not R patch locations and a
 //! table rebuild.
@@ -36,12 +37,16 @@
 
 use lanes::{Isa, Kernel, Simd, LANES};
 
-use crate::raster::gbuffer::{IdMap, RegionGBuffer, NO_POLYGON};
+use crate::raster::gbuffer::RegionGBuffer;
+#[cfg(any(test, feature = "bench"))]
+use crate::raster::gbuffer::{IdMap, NO_POLYGON};
+#[cfg(any(test, feature = "bench"))]
 use reconstruction::PatchCoeffs;
 
 pub use crate::raster::gbuffer::PIXEL_RECORD_BYTES;
 
-/// Working memory of [`composite_in_place`], kept across regions and frames by the frame stage.
+/// Working memory of [`composite_in_place`], kept across regions by its caller.
+#[cfg(any(test, feature = "bench"))]
 #[derive(Debug, Default)]
 pub struct MergeScratch {
     /// Per sample: which part the composited sample came from.
@@ -57,6 +62,7 @@ pub struct MergeScratch {
 /// order), into `parts[0]`, by depth then polygon id, and rebuilds its patch table in canonical
 /// order. `parts[1..]` are left as they were. With one part nothing changes: its renderer built
 /// the table in canonical order already.
+#[cfg(any(test, feature = "bench"))]
 pub fn composite_in_place(isa: Isa, parts: &mut [RegionGBuffer], scratch: &mut MergeScratch) {
     if parts.len() <= 1 {
         return;
@@ -261,6 +267,7 @@ fn merge_step<S: Simd, const TABLES: bool>(
 /// [`composite_in_place`] would have rebuilt (memory order of first use, and each sample's patch
 /// is a function of its polygon and (u, v)) without locating the hidden samples of every report.
 /// `parts[1..]` are left as they were; slots are not merged.
+#[cfg(any(test, feature = "bench"))]
 pub fn merge_records_in_place(isa: Isa, parts: &mut [RegionGBuffer]) {
     if parts.len() <= 1 {
         return;
@@ -272,7 +279,7 @@ pub fn merge_records_in_place(isa: Isa, parts: &mut [RegionGBuffer]) {
 }
 
 /// Merges one report's pixel records into the running composite `out` (as
-/// [`merge_records_in_place`] does for each of `parts[1..]`): a streaming merge, one report at a
+/// `merge_records_in_place` does for each of `parts[1..]`): a streaming merge, one report at a
 /// time as each renderer finishes, so the frame stage needs two G-buffers per region whatever
 /// the number of renderers. The merge being commutative and associative, the composite is the
 /// same for any order of the reports.

@@ -556,7 +556,7 @@ struct RegionInputs<'a> {
 ///
 /// Patches are located once, after the merge, rather than by every renderer in its own share:
 /// the table and slots are those the per-renderer tables merged in canonical order would give
-/// (see [`composition::merge_records_in_place`]), so the image is the same, and with R renderers
+/// (see [`composition::merge_records_into`]), so the image is the same, and with R renderers
 /// the samples each renderer drew but another one hid are not located at all. Traffic is counted
 /// as the composition module's model has it, with the region's table crossing the network once
 /// on the way in (with the reports) and once on the way out.

@@ -125,7 +125,7 @@ fn level_by_bucket(b: &Buckets, t: &[f32; 255], x: f32) -> u8 {
 }
 
 /// The 8-bit sRGB bytes of a frame (RGB, row-major) after exposure `exposure` (stops), exactly
-/// [`to_srgb8`] per channel, computed by [`Buckets`] and in parallel over rows (the bytes do not
+/// [`to_srgb8`] per channel, computed by `Buckets` and in parallel over rows (the bytes do not
 /// depend on the split).
 pub fn srgb8_bytes(frame: ImageView<'_>, exposure: f32) -> Vec<u8> {
     use rayon::prelude::*;

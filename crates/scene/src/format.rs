@@ -1,9 +1,9 @@
 //! The scene file as written: serde structs that mirror the TOML sections one to one.
 //!
-//! This is the first half of loading a scene ([`crate::parse`] is the second): `toml` turns the
+//! This is the first half of loading a scene (`scene::parse` is the second): `toml` turns the
 //! text into these structs, and nothing more. Every struct denies unknown fields, so a misspelt key
 //! is an error with a line number instead of a silently ignored setting. Every field that
-//! [`crate::parse`] checks semantically is wrapped in [`Spanned`], so the loader can name the line
+//! `scene::parse` checks semantically is wrapped in [`Spanned`], so the loader can name the line
 //! of a bad value as well as its key path. Defaults are not filled in here: an absent optional key
 //! stays `None` and the loader takes the default from the `Default` impls in [`super`], so there
 //! is exactly one place where each default lives. `docs/scene-format.md` documents every key.

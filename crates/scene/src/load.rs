@@ -1,7 +1,7 @@
 //! Loading a scene file: TOML text in, a validated [`Scene`] out, or an [`Error::Input`] that
 //! names the file, the line and the key of the first problem.
 //!
-//! This is the entry point: a scene file ([`crate::parse`] validates its text and reads its
+//! This is the entry point: a scene file (`scene::parse` validates its text and reads its
 //! includes) or a bare model from a modelling tool (`scene::model`: an OBJ or glTF file given
 //! directly, lit and framed by guess), with the command line's `-D` overrides and `--strict`.
 //! The rules [`Scene`] promises to later stages (finite numbers, reflectance in [0, 1), planar

@@ -170,7 +170,7 @@ pub fn rat_geometry(scene: &scene::Scene) -> (u64, u64) {
         })
 }
 
-/// Table 1 for a prepared scene; with `frames > 0`, each of [`STATS_METHODS`] is rendered
+/// Table 1 for a prepared scene; with `frames > 0`, each of `STATS_METHODS` is rendered
 /// `frames` times (after a warm-up) at `opts`'s size and the medians are reported. The bicubic
 /// filter is `bicubic`'s (Mitchell–Netravali unless given).
 pub fn model_stats(
