@@ -254,7 +254,7 @@ pub(crate) struct SceneOptions {
 }
 
 impl SceneOptions {
-    /// The library's load options.
+    /// The library's load options (the input cap is the run's: `Settings::load_options`).
     pub(crate) fn load_options(&self) -> scene::LoadOptions {
         let mut overrides = self.define.clone();
         if let Some(c) = self.camera {
@@ -270,6 +270,7 @@ impl SceneOptions {
         scene::LoadOptions {
             overrides,
             strict: self.strict,
+            ..scene::LoadOptions::default()
         }
     }
 }

@@ -44,14 +44,26 @@ impl Settings {
     /// `outputs`.
     pub(crate) fn new(memory_limit: Option<u64>, outputs: Outputs) -> anyhow::Result<Settings> {
         let limit = memory_limit.unwrap_or_else(budget::default_limit);
-        // An input file is held at least once as bytes and once parsed: half of what the
-        // program's own memory leaves each.
-        base::output::set_input_limit(budget::data_limit(limit) / 2);
         Ok(Settings {
             limit,
             isa: isa_from_env()?,
             outputs,
         })
+    }
+
+    /// The largest input file read: an input file is held at least once as bytes and once
+    /// parsed, so half of what the program's own memory leaves each.
+    pub(crate) fn input_limit(&self) -> u64 {
+        base::output::input_limit_for(budget::data_limit(self.limit))
+    }
+
+    /// The library's scene load options: `options` (`-D`, `--camera`, `--strict`) with this
+    /// run's input cap.
+    pub(crate) fn load_options(&self, options: &crate::args::SceneOptions) -> scene::LoadOptions {
+        scene::LoadOptions {
+            input_limit: self.input_limit(),
+            ..options.load_options()
+        }
     }
 
     /// The instruction set frames run with.
@@ -153,7 +165,8 @@ pub(crate) fn wrote(path: &Path, quiet: bool) {
 
 /// `check`: the scene's warnings, summary and memory estimate against the limit.
 pub(crate) fn check(settings: &Settings, args: CheckArgs) -> anyhow::Result<()> {
-    let input = app::context::Input::load_opts(&args.scene, None, &args.options.load_options())?;
+    let input =
+        app::context::Input::load_opts(&args.scene, None, &settings.load_options(&args.options))?;
     let s = &input.scene;
     for w in &s.warnings {
         note(&format!("warning: {w}"));
@@ -183,7 +196,7 @@ pub(crate) fn check(settings: &Settings, args: CheckArgs) -> anyhow::Result<()> 
 /// `solve`: solves the scene into the solution file and reports the solver's statistics.
 pub(crate) fn solve(settings: &Settings, args: SolveArgs) -> anyhow::Result<()> {
     let observer = Terminal::new(!args.quiet, args.trace);
-    let opts = args.options.load_options();
+    let opts = settings.load_options(&args.options);
     let sol = in_pool(args.threads, || {
         solve_scene_to_file(
             &settings.context(&observer),
@@ -237,7 +250,7 @@ pub(crate) fn render(settings: &Settings, args: RenderArgs) -> anyhow::Result<()
         texture: args.texture.options(),
         estimator: args.estimator,
         sharp_levels: args.sharp_levels,
-        load: args.options.load_options(),
+        load: settings.load_options(&args.options),
         exposure: args.exposure,
         auto_exposure: args.auto_exposure,
     };
@@ -270,7 +283,7 @@ pub(crate) fn stats(settings: &Settings, args: StatsArgs) -> anyhow::Result<()> 
     check_json_path(&args.json, &[&args.input])?;
     in_pool(args.threads, || -> anyhow::Result<()> {
         let req = StatsRequest {
-            load: args.options.load_options(),
+            load: settings.load_options(&args.options),
             input: args.input,
             scene: args.scene,
             frames: args.frames,
@@ -295,7 +308,7 @@ pub(crate) fn export(settings: &Settings, args: ExportArgs) -> anyhow::Result<()
     check_json_path(&args.json, &[&args.input, &args.output])?;
     in_pool(args.threads, || -> anyhow::Result<()> {
         let req = app::commands::export::ExportRequest {
-            load: args.options.load_options(),
+            load: settings.load_options(&args.options),
             input: args.input,
             scene: args.scene,
             output: args.output,
@@ -365,7 +378,7 @@ pub(crate) fn bench(settings: &Settings, args: BenchArgs) -> anyhow::Result<()> 
     check_json_path(&args.json, &[&args.input])?;
     in_pool(args.threads, || -> anyhow::Result<()> {
         let req = BenchRequest {
-            load: args.options.load_options(),
+            load: settings.load_options(&args.options),
             input: args.input,
             scene: args.scene,
             methods: args.methods,
@@ -621,7 +634,7 @@ fn write_diff(files: &Outputs, path: &Path, d: &metric::pixels::PixelDiff) -> an
 /// stderr, the polygon table on stdout.
 pub(crate) fn truth(settings: &Settings, args: TruthArgs) -> anyhow::Result<()> {
     let req = TruthRequest {
-        load: args.options.load_options(),
+        load: settings.load_options(&args.options),
         input: args.input,
         output: args.output,
         json: args.json,

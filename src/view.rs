@@ -58,7 +58,7 @@ pub(crate) fn view(settings: &Settings, args: ViewArgs) -> anyhow::Result<()> {
         let input = app::context::Input::load_opts(
             &args.input,
             args.scene.as_deref(),
-            &args.options.load_options(),
+            &settings.load_options(&args.options),
         )?;
         let texture = args.texture.options();
         let policy = texture.policy(&input.scene)?;
@@ -66,7 +66,7 @@ pub(crate) fn view(settings: &Settings, args: ViewArgs) -> anyhow::Result<()> {
         let script = match &args.script {
             // The script is an input: unreadable or not text is bad input (exit 2).
             Some(path) => Some(Script::parse(
-                &base::output::read_text(path).map_err(|e| {
+                &base::output::read_text(path, settings.input_limit()).map_err(|e| {
                     base::Error::input(base::error::Location::file(path), e.to_string())
                 })?,
                 path,

@@ -15,7 +15,6 @@ fn folder() -> &'static PathBuf {
     DIR.get_or_init(|| {
         let d = std::env::temp_dir().join(format!("pfs-fuzz-model-{}", std::process::id()));
         std::fs::create_dir_all(&d).expect("a scratch folder");
-        base::output::set_input_limit(256 << 20);
         d
     })
 }
@@ -29,7 +28,13 @@ fuzz_target!(|data: &[u8]| {
     let (obj_path, mtl_path) = (dir.join("m.obj"), dir.join("m.mtl"));
     std::fs::write(&obj_path, obj).expect("writes the OBJ");
     std::fs::write(&mtl_path, mtl).expect("writes the MTL");
-    if let Ok(scene) = scene::load_scene_with(&obj_path, &scene::LoadOptions::default()) {
+    if let Ok(scene) = scene::load_scene_with(
+        &obj_path,
+        &scene::LoadOptions {
+            input_limit: 256 << 20,
+            ..scene::LoadOptions::default()
+        },
+    ) {
         let _ = app::report::summarize(&scene);
     }
 });

@@ -330,6 +330,7 @@ fn scales() {
         solution_file: None,
         estimator: Estimator::default(),
         sharp_levels: reconstruction::sharp::DEFAULT_LEVELS,
+        input_limit: base::output::MAX_INPUT_BYTES,
     };
     let tiny = prepare(
         &Context::default(),
@@ -415,6 +416,7 @@ fn prepared_text(text: &str, path: &Path) -> Prepared {
             solution_file: None,
             estimator: Estimator::default(),
             sharp_levels: reconstruction::sharp::DEFAULT_LEVELS,
+            input_limit: base::output::MAX_INPUT_BYTES,
         },
         SizePolicy::FromDepth,
         Placement::Centre,
@@ -947,6 +949,7 @@ fn a_spot_beyond_the_f32_range_is_refused() {
             solution_file: None,
             estimator: Estimator::default(),
             sharp_levels: reconstruction::sharp::DEFAULT_LEVELS,
+            input_limit: base::output::MAX_INPUT_BYTES,
         };
         prepare(
             &Context::default(),

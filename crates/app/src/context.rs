@@ -53,6 +53,12 @@ impl<'a> Context<'a> {
         }
     }
 
+    /// The largest input file a job of this context reads, bytes: half of what its memory
+    /// limit leaves for data ([`base::output::input_limit_for`]).
+    pub fn input_limit(&self) -> u64 {
+        base::output::input_limit_for(crate::budget::data_limit(self.memory_limit))
+    }
+
     /// This context with progress going to `observer`.
     pub fn with_observer<'b>(&self, observer: &'b dyn Observer) -> Context<'b> {
         Context {
@@ -109,6 +115,9 @@ pub struct Input {
     /// light is reconstructed from the samples like any other). A solution file's stored RRPs
     /// were built with the default; another value rebuilds them.
     pub sharp_levels: u32,
+    /// The largest input file read for it, bytes (its load options'; a solution file is read
+    /// whole under the same cap).
+    pub input_limit: u64,
 }
 
 impl Input {
@@ -136,7 +145,7 @@ impl Input {
         if named_solution || is_solution_file(path) {
             let scene_path = match scene {
                 Some(s) => s.to_path_buf(),
-                None => solution_file::read_scene_path(path)?,
+                None => solution_file::read_scene_path_up_to(path, opts.input_limit)?,
             };
             Ok(Input {
                 path: path.to_path_buf(),
@@ -144,6 +153,7 @@ impl Input {
                 solution_file: Some(path.to_path_buf()),
                 estimator: Estimator::default(),
                 sharp_levels: reconstruction::sharp::DEFAULT_LEVELS,
+                input_limit: opts.input_limit,
             })
         } else {
             if let Some(s) = scene {
@@ -162,6 +172,7 @@ impl Input {
                 solution_file: None,
                 estimator: Estimator::default(),
                 sharp_levels: reconstruction::sharp::DEFAULT_LEVELS,
+                input_limit: opts.input_limit,
             })
         }
     }

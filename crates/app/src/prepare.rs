@@ -218,6 +218,7 @@ pub fn prepare_progressively(
         solution_file: file,
         estimator,
         sharp_levels,
+        input_limit,
         ..
     } = input;
     let recipe = Recipe {
@@ -230,7 +231,7 @@ pub fn prepare_progressively(
     let seams = seams_of(&scene);
     let (solution, stored, solve_ms) = match &file {
         Some(path) => {
-            let (solution, rrps) = solution_file::read_solution(path, &scene)?;
+            let (solution, rrps) = solution_file::read_solution_up_to(path, &scene, input_limit)?;
             (solution, Some((path.as_path(), rrps)), 0.0)
         }
         None => {

@@ -29,11 +29,10 @@
 //! or a power cut, which no handler sees, can split them).
 //!
 //! The other direction lives here too: every input file (scene, OBJ, MTL, solution, image) is
-//! read through [`read_limited`] at [`input_limit`], so a path to an endless file (`/dev/zero`,
-//! a FIFO that never closes) ends in an error at [`MAX_INPUT_BYTES`], or at the smaller cap the
-//! binary sets from its memory limit ([`set_input_limit`]: the one process-wide setting here,
-//! as a resource limit of the process is), instead of growing memory until the allocator
-//! aborts.
+//! read through [`read_limited`] at a cap its caller passes, so a path to an endless file
+//! (`/dev/zero`, a FIFO that never closes) ends in an error at [`MAX_INPUT_BYTES`], or at the
+//! smaller cap a job's memory limit gives ([`input_limit_for`]), instead of growing memory until
+//! the allocator aborts.
 
 use std::io::{Read, Write};
 use std::path::{Path, PathBuf};
@@ -45,22 +44,13 @@ use crate::error::{Error, Result};
 /// and what this machine reads in about a second.
 pub const MAX_INPUT_BYTES: u64 = 1 << 30;
 
-static INPUT_LIMIT: std::sync::atomic::AtomicU64 =
-    std::sync::atomic::AtomicU64::new(MAX_INPUT_BYTES);
-
-/// Caps every input read at `bytes` (at most [`MAX_INPUT_BYTES`], at least 1 MiB, so that a
-/// tiny limit still reads a scene file and refuses the job by its estimate): the binary sets
-/// half its memory limit, so a read cannot pass the limit on its own.
-pub fn set_input_limit(bytes: u64) {
-    INPUT_LIMIT.store(
-        bytes.clamp(1 << 20, MAX_INPUT_BYTES),
-        std::sync::atomic::Ordering::Relaxed,
-    );
-}
-
-/// The largest input file read (see [`set_input_limit`]).
-pub fn input_limit() -> u64 {
-    INPUT_LIMIT.load(std::sync::atomic::Ordering::Relaxed)
+/// The input cap for a job that may hold `bytes` of data: an input file is held at least once
+/// as bytes and once parsed, so half of it, at most [`MAX_INPUT_BYTES`] and at least 1 MiB (so
+/// that a tiny limit still reads a scene file and refuses the job by its estimate). The cap
+/// travels with the job (a scene's load options, a solution or image read), never as
+/// process-wide state.
+pub fn input_limit_for(bytes: u64) -> u64 {
+    (bytes / 2).clamp(1 << 20, MAX_INPUT_BYTES)
 }
 
 /// Reads the whole file at `path`, failing with [`std::io::ErrorKind::FileTooLarge`] once it
@@ -81,11 +71,11 @@ pub fn read_limited(path: &Path, max: u64) -> std::io::Result<Vec<u8>> {
     Ok(out)
 }
 
-/// [`read_limited`] at [`input_limit`], as UTF-8 text, without a leading byte-order mark
-/// (editors on Windows write one; left in, it would make the first line of an OBJ, MTL or scene
-/// file unrecognizable).
-pub fn read_text(path: &Path) -> std::io::Result<String> {
-    let mut text = String::from_utf8(read_limited(path, input_limit())?)
+/// [`read_limited`] at `max` bytes, as UTF-8 text, without a leading byte-order mark (editors
+/// on Windows write one; left in, it would make the first line of an OBJ, MTL or scene file
+/// unrecognizable).
+pub fn read_text(path: &Path, max: u64) -> std::io::Result<String> {
+    let mut text = String::from_utf8(read_limited(path, max)?)
         .map_err(|_| std::io::Error::new(std::io::ErrorKind::InvalidData, "not UTF-8 text"))?;
     if text.starts_with('\u{feff}') {
         text.drain(..'\u{feff}'.len_utf8());
@@ -637,10 +627,10 @@ mod tests {
         let dir = fresh_dir("bom");
         let path = dir.join("m.obj");
         std::fs::write(&path, "\u{feff}v 0 0 0\n").unwrap();
-        assert_eq!(read_text(&path).unwrap(), "v 0 0 0\n");
+        assert_eq!(read_text(&path, MAX_INPUT_BYTES).unwrap(), "v 0 0 0\n");
         std::fs::write(&path, "v 0 0 0\n\u{feff}").unwrap();
         assert_eq!(
-            read_text(&path).unwrap(),
+            read_text(&path, MAX_INPUT_BYTES).unwrap(),
             "v 0 0 0\n\u{feff}",
             "only a leading mark"
         );

@@ -14,7 +14,8 @@ pub mod write;
 
 pub use base::image::*;
 pub use read::{
-    decode_image, decode_pfm, read_image, read_image_header, srgb_decode, ImageHeader, MAX_PFM_DIM,
+    decode_image, decode_pfm, read_image, read_image_header, read_image_up_to, srgb_decode,
+    ImageHeader, MAX_PFM_DIM,
 };
 pub use write::{
     encode_exr, encode_hdr, encode_pfm, encode_png, srgb_encode, to_srgb8, write_exr, write_png,

@@ -42,9 +42,16 @@ pub fn srgb_decode(c: f64) -> f64 {
     }
 }
 
-/// Reads an image file (EXR, Radiance HDR, PFM or PNG) as linear RGB. Errors name the file.
+/// Reads an image file (EXR, Radiance HDR, PFM or PNG) as linear RGB. Errors name the file; a
+/// file over [`base::output::MAX_INPUT_BYTES`] is refused ([`read_image_up_to`] takes a job's
+/// smaller cap).
 pub fn read_image(path: &Path) -> Result<LinearImage> {
-    let bytes = base::output::read_limited(path, base::output::input_limit())
+    read_image_up_to(path, base::output::MAX_INPUT_BYTES)
+}
+
+/// [`read_image`] refusing a file over `max` bytes before it is read whole.
+pub fn read_image_up_to(path: &Path, max: u64) -> Result<LinearImage> {
+    let bytes = base::output::read_limited(path, max)
         .map_err(|e| Error::input(Location::file(path), format!("cannot read the image: {e}")))?;
     decode_image(&bytes, path)
 }

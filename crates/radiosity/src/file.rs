@@ -137,7 +137,12 @@ pub fn relative_to(target: &Path, base: &Path) -> Option<std::path::PathBuf> {
 /// stored path is taken from the solution file's folder (for a symbolic link, the folder of the
 /// file it leads to: see [`base::output::folder_of`]).
 pub fn read_scene_path(path: &Path) -> Result<std::path::PathBuf> {
-    let stored = read_stored_scene_path(path)?;
+    read_scene_path_up_to(path, base::output::MAX_INPUT_BYTES)
+}
+
+/// [`read_scene_path`] refusing a file over `max` bytes before it is read whole.
+pub fn read_scene_path_up_to(path: &Path, max: u64) -> Result<std::path::PathBuf> {
+    let stored = read_stored_scene_path(path, max)?;
     if stored.is_absolute() {
         return Ok(stored);
     }
@@ -145,8 +150,8 @@ pub fn read_scene_path(path: &Path) -> Result<std::path::PathBuf> {
 }
 
 /// The scene path as the solution file stores it.
-fn read_stored_scene_path(path: &Path) -> Result<std::path::PathBuf> {
-    let bytes = read(path)?;
+fn read_stored_scene_path(path: &Path, max: u64) -> Result<std::path::PathBuf> {
+    let bytes = read(path, max)?;
     let env = envelope(&bytes).map_err(|b| b.at(path))?;
     let name = &bytes[HEADER..HEADER + env.path_len];
     if name.is_empty() {
@@ -197,14 +202,21 @@ fn path_of_bytes(bytes: &[u8]) -> Option<std::path::PathBuf> {
     }
 }
 
-/// Reads a solution of `scene` from `path`, with the stored RRP bytes (empty if none).
+/// Reads a solution of `scene` from `path`, with the stored RRP bytes (empty if none); a file
+/// over [`base::output::MAX_INPUT_BYTES`] is refused ([`read_solution_up_to`] takes a job's
+/// smaller cap).
 pub fn read_solution(path: &Path, scene: &Scene) -> Result<(Solution, Vec<u8>)> {
-    let bytes = read(path)?;
+    read_solution_up_to(path, scene, base::output::MAX_INPUT_BYTES)
+}
+
+/// [`read_solution`] refusing a file over `max` bytes before it is read whole.
+pub fn read_solution_up_to(path: &Path, scene: &Scene, max: u64) -> Result<(Solution, Vec<u8>)> {
+    let bytes = read(path, max)?;
     decode(&bytes, scene).map_err(|b| b.at(path))
 }
 
-fn read(path: &Path) -> Result<Vec<u8>> {
-    base::output::read_limited(path, base::output::input_limit()).map_err(|e| {
+fn read(path: &Path, max: u64) -> Result<Vec<u8>> {
+    base::output::read_limited(path, max).map_err(|e| {
         Error::solution(
             path,
             SolutionProblem::NotASolution,

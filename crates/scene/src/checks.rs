@@ -57,21 +57,19 @@ pub(crate) type ReadBytes<'r> = &'r dyn Fn(&Path) -> std::io::Result<Vec<u8>>;
 pub(crate) struct Readers<'r> {
     pub(crate) text: ReadText<'r>,
     pub(crate) bytes: ReadBytes<'r>,
+    /// The largest file read, bytes (what parsing one may hold is bounded by twice this).
+    pub(crate) limit: u64,
 }
 
-impl Readers<'static> {
-    /// The file system's, each read capped at [`base::output::input_limit`].
-    pub(crate) fn files() -> Readers<'static> {
-        Readers {
-            text: &base::output::read_text,
-            bytes: &read_bytes,
-        }
-    }
-}
-
-/// The file at `path`, read whole up to [`base::output::input_limit`] bytes.
-pub(crate) fn read_bytes(path: &Path) -> std::io::Result<Vec<u8>> {
-    base::output::read_limited(path, base::output::input_limit())
+/// Runs `f` with the file system's readers, each read capped at `limit` bytes.
+pub(crate) fn with_files<T>(limit: u64, f: impl FnOnce(Readers<'_>) -> T) -> T {
+    let text = move |p: &Path| base::output::read_text(p, limit);
+    let bytes = move |p: &Path| base::output::read_limited(p, limit);
+    f(Readers {
+        text: &text,
+        bytes: &bytes,
+        limit,
+    })
 }
 
 /// 1-based line of byte offset `offset` in `text` (clamped to the text's end).
@@ -85,13 +83,26 @@ pub(crate) fn line_of(text: &str, offset: usize) -> usize {
 }
 
 /// How a scene is loaded beyond its own text: the command line's part.
-#[derive(Debug, Clone, Default)]
+#[derive(Debug, Clone)]
 pub struct LoadOptions {
     /// `-D key=value`: TOML values set over the file's, in order (see `scene::overrides`).
     pub overrides: Vec<(String, String)>,
     /// `--strict`: refuse what is otherwise repaired with a warning (an OBJ's `Kd` of 1 or
     /// more).
     pub strict: bool,
+    /// The largest input file read, bytes ([`base::output::input_limit_for`] of the job's
+    /// memory limit; by default [`base::output::MAX_INPUT_BYTES`]).
+    pub input_limit: u64,
+}
+
+impl Default for LoadOptions {
+    fn default() -> Self {
+        LoadOptions {
+            overrides: Vec::new(),
+            strict: false,
+            input_limit: base::output::MAX_INPUT_BYTES,
+        }
+    }
 }
 
 /// The first camera of a glTF include, for a bare model to look through (`scene::model`);
@@ -124,6 +135,8 @@ pub(crate) struct Cx<'a> {
     pub(crate) read: ReadText<'a>,
     /// Reads the included glTF files and their buffers.
     pub(crate) read_bytes: ReadBytes<'a>,
+    /// The largest file read, bytes (of [`Readers::limit`]).
+    pub(crate) input_limit: u64,
     /// For each `<obj file stem>/<name>` an imported material was renamed to, the next `#k`
     /// suffix to try: every smaller one is taken, so renaming is not quadratic in the number
     /// of includes of one file.

@@ -16,7 +16,7 @@
 //! [`crate::parse_scene`].
 
 use super::Scene;
-use crate::checks::{line_of, Readers};
+use crate::checks::{line_of, with_files};
 pub use crate::checks::{LoadOptions, MAX_FACE_CORNERS, MAX_MTL_FILES, MAX_SHADOW_RAYS};
 use crate::parse::parse_scene_options;
 use base::error::{Error, Location, Result};
@@ -36,11 +36,13 @@ pub fn load_scene_with(path: &Path, opts: &LoadOptions) -> Result<Scene> {
     let mut scene = if super::model::is_model(path) {
         super::model::load_model(path, opts)?
     } else {
-        let text = base::output::read_text(path).map_err(|e| {
+        let text = base::output::read_text(path, opts.input_limit).map_err(|e| {
             Error::input(Location::file(path), format!("cannot read scene file: {e}"))
         })?;
         check_is_toml(&text, path)?;
-        let parsed = parse_scene_options(&text, path, Readers::files(), opts)?;
+        let parsed = with_files(opts.input_limit, |r| {
+            parse_scene_options(&text, path, r, opts)
+        })?;
         let mut scene = parsed.scene;
         if let Some(c) = parsed.camera {
             scene

@@ -34,10 +34,11 @@
 use super::bvh::{Aabb, Bvh};
 use super::orientation::{cast, sphere_directions};
 use super::{Camera, Projection, Scene, SpotLight};
+use crate::checks::with_files;
 use crate::checks::LoadOptions;
 use crate::checks::ModelCamera;
-use crate::checks::Readers;
 use crate::parse::parse_scene_options;
+use crate::parse::Parsed;
 use base::error::{Error, Location, Result};
 use glam::DVec3;
 use std::path::Path;
@@ -116,19 +117,26 @@ pub(crate) fn load_model(path: &Path, opts: &LoadOptions) -> Result<Scene> {
         .ok_or_else(|| Error::input(Location::file(path), "not a file name"))?;
     // Read here first, so that a missing model is named as such and not as a key of the scene
     // this module writes for it.
-    let readers = Readers::files();
-    let readable = match format {
-        Format::Obj => (readers.text)(path).map(drop),
-        Format::Gltf => (readers.bytes)(path).map(drop),
-    };
-    readable.map_err(|e| {
-        Error::input(
-            Location::file(path),
-            format!("cannot read {} file: {e}", format.name()),
-        )
-    })?;
-    let text = scene_text(&name, format);
-    let parsed = parse_scene_options(&text, path, readers, opts)?;
+    with_files(opts.input_limit, |readers| {
+        let readable = match format {
+            Format::Obj => (readers.text)(path).map(drop),
+            Format::Gltf => (readers.bytes)(path).map(drop),
+        };
+        readable.map_err(|e| {
+            Error::input(
+                Location::file(path),
+                format!("cannot read {} file: {e}", format.name()),
+            )
+        })?;
+        let text = scene_text(&name, format);
+        parse_scene_options(&text, path, readers, opts)
+    })
+    .and_then(|parsed| finish_model(path, format, opts, parsed))
+}
+
+/// A bare model's parsed scene made whole: the placeholder light dropped, then lit and framed
+/// (see the module docs).
+fn finish_model(path: &Path, format: Format, opts: &LoadOptions, parsed: Parsed) -> Result<Scene> {
     let mut scene = parsed.scene;
     // The placeholder light is the first spot (the scene text's only `[[spots]]` entry, which
     // `-D` cannot add to); the glTF's lights follow it.

@@ -230,14 +230,14 @@ fn parse_obj(
     obj_path: &Path,
     placeholders: &[String],
 ) -> Result<ParsedObj> {
-    check_parse_memory(text, obj_path, Parse::Obj)?;
+    check_parse_memory(text, obj_path, Parse::Obj, cx.input_limit)?;
     // Untriangulated, so quads stay quads (see the module docs).
     let opts = tobj::LoadOptions {
         triangulate: false,
         single_index: false,
         ..Default::default()
     };
-    let mut loader = MtlLoader::new(obj_path, cx.read);
+    let mut loader = MtlLoader::new(obj_path, cx.read, cx.input_limit);
     loader.placeholders = placeholders.to_vec();
     let prefixed;
     let text = if placeholders.is_empty() {
@@ -289,6 +289,8 @@ struct MtlLoader<'a> {
     /// The OBJ file's directory, which MTL names are relative to.
     dir: PathBuf,
     read: ReadText<'a>,
+    /// The largest file read, bytes.
+    input_limit: u64,
     /// The MTL paths named so far, by their components.
     seen: RefCell<BTreeSet<PathBuf>>,
     /// The first problem found in an MTL file (or in the OBJ's list of them).
@@ -308,11 +310,12 @@ struct MtlLoader<'a> {
 const PLACEHOLDER_MTL: &str = "\u{0}pixelflow-sim-undefined-materials";
 
 impl<'a> MtlLoader<'a> {
-    fn new(obj_path: &'a Path, read: ReadText<'a>) -> Self {
+    fn new(obj_path: &'a Path, read: ReadText<'a>, input_limit: u64) -> Self {
         MtlLoader {
             obj_path,
             dir: base::output::folder_of(obj_path),
             read,
+            input_limit,
             seen: RefCell::new(BTreeSet::new()),
             problem: RefCell::new(None),
             unreadable: RefCell::new(None),
@@ -367,7 +370,7 @@ impl<'a> MtlLoader<'a> {
             }
         };
         let checked = check_mtl(&mtl_text, &mtl_path)
-            .and_then(|()| check_parse_memory(&mtl_text, &mtl_path, Parse::Mtl));
+            .and_then(|()| check_parse_memory(&mtl_text, &mtl_path, Parse::Mtl, self.input_limit));
         if let Err(e) = checked {
             self.problem.borrow_mut().get_or_insert(e);
             return Err(tobj::LoadError::MaterialParseError);
@@ -826,9 +829,9 @@ const OBJ_VERTEX_BYTES: u64 = 32;
 
 /// Refuses the OBJ or MTL `text` of the file at `path` when what parsing and loading it holds
 /// (estimated from its statements, plus the text itself) passes the memory limit: twice the
-/// input cap, [`base::output::input_limit`] (at most 2 GiB for one file).
-fn check_parse_memory(text: &str, path: &Path, kind: Parse) -> Result<()> {
-    let limit = base::output::input_limit().saturating_mul(2);
+/// input cap `input_limit` (at most 2 GiB for one file).
+fn check_parse_memory(text: &str, path: &Path, kind: Parse, input_limit: u64) -> Result<()> {
+    let limit = input_limit.saturating_mul(2);
     let (mut big, mut small, mut corners) = (0u64, 0u64, 0u64);
     for line in text.lines() {
         let mut words = line.split_whitespace();

@@ -14,8 +14,8 @@ use super::{
 };
 use crate::checks::LoadOptions;
 use crate::checks::{
-    check_emission, check_reflectance, in_range, known_names, line_of, Cx, ReadText, Readers,
-    Surfaces, DEFAULT_IMAGE_DIM, FINITE_RULE, MAX_FRAMES, MAX_SHADOW_RAYS, MIN_FOV_Y,
+    check_emission, check_reflectance, in_range, known_names, line_of, with_files, Cx, ReadText,
+    Readers, Surfaces, DEFAULT_IMAGE_DIM, FINITE_RULE, MAX_FRAMES, MAX_SHADOW_RAYS, MIN_FOV_Y,
 };
 use base::error::{Error, Location, Result};
 use base::method::{Method, Placement, AA_SAMPLE_COUNTS, MAX_TEXTURE_SIZE};
@@ -28,7 +28,10 @@ use toml::Spanned;
 /// Validates the scene text `text`; `path` names it in messages and is the base of relative
 /// `[[obj]] file` and `[[gltf]] file` paths.
 pub fn parse_scene(text: &str, path: &Path) -> Result<Scene> {
-    parse_text(text, path, Readers::files(), false).map(|p| p.scene)
+    with_files(base::output::MAX_INPUT_BYTES, |r| {
+        parse_text(text, path, r, false)
+    })
+    .map(|p| p.scene)
 }
 
 /// [`parse_scene`], reading the `[[obj]]` includes and their MTL files through `read` instead of
@@ -45,6 +48,7 @@ pub fn parse_scene_with(text: &str, path: &Path, read: ReadText<'_>) -> Result<S
         Readers {
             text: read,
             bytes: &bytes,
+            limit: base::output::MAX_INPUT_BYTES,
         },
         false,
     )
@@ -66,6 +70,7 @@ pub fn parse_scene_with_bytes(
     let readers = Readers {
         text: &as_text,
         bytes: read,
+        limit: base::output::MAX_INPUT_BYTES,
     };
     parse_text(text, path, readers, false).map(|p| p.scene)
 }
@@ -115,6 +120,7 @@ fn parse_text(text: &str, path: &Path, read: Readers<'_>, strict: bool) -> Resul
         newlines: std::cell::OnceCell::new(),
         read: read.text,
         read_bytes: read.bytes,
+        input_limit: read.limit,
         next_suffix: BTreeMap::new(),
         strict,
         included_spots: Vec::new(),

@@ -457,6 +457,7 @@ fn solve_at(ctx: &Context<'_>, input: &Input, scene: Scene) -> Result<Prepared> 
         solution_file: None,
         estimator: input.estimator,
         sharp_levels: input.sharp_levels,
+        input_limit: input.input_limit,
     };
     prepare(ctx, input, SizePolicy::FromDepth, Placement::Centre)
 }

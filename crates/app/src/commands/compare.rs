@@ -290,8 +290,9 @@ pub fn run_compare(req: &CompareRequest, limit: u64) -> Result<CompareReport> {
     let perceptual = req.perceptual();
     check_compare(&req.a, &req.b, req.tolerance.is_some(), perceptual, limit)?;
     let converted = encodings_agree(&req.a, &req.b, req.convert)?;
-    let ia = imageio::read_image(&req.a)?;
-    let ib = imageio::read_image(&req.b)?;
+    let most = base::output::input_limit_for(crate::budget::data_limit(limit));
+    let ia = imageio::read_image_up_to(&req.a, most)?;
+    let ib = imageio::read_image_up_to(&req.b, most)?;
     sizes_agree(&req.a, &req.b, (ia.width, ia.height), (ib.width, ib.height))?;
     let mut checks = Vec::new();
     let pixels = match req.tolerance {

@@ -142,7 +142,7 @@ pub fn solution_guards(input: &Input) -> Result<Option<GuardReport>> {
     let Some(path) = &input.solution_file else {
         return Ok(None);
     };
-    let (sol, _) = radiosity::file::read_solution(path, &input.scene)?;
+    let (sol, _) = radiosity::file::read_solution_up_to(path, &input.scene, input.input_limit)?;
     Ok(Some(GuardReport::of(&sol.stats.guard_stops, &input.scene)))
 }
 

@@ -36,6 +36,7 @@ fn centre_pixels(scene: Scene) -> Vec<(String, f32)> {
         solution_file: None,
         estimator: Estimator::default(),
         sharp_levels: reconstruction::sharp::DEFAULT_LEVELS,
+        input_limit: base::output::MAX_INPUT_BYTES,
     };
     let p = prepare(
         &Context::default(),

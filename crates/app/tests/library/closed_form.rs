@@ -347,6 +347,7 @@ fn a_sharp_shadow_is_refined_to_the_depth_limit_and_never_negative() {
         solution_file: None,
         estimator: Estimator::default(),
         sharp_levels: reconstruction::sharp::DEFAULT_LEVELS,
+        input_limit: base::output::MAX_INPUT_BYTES,
     };
     let p = prepare(
         &Context::default(),

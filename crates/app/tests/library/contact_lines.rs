@@ -38,6 +38,7 @@ fn prepared(text: &str) -> Prepared {
         solution_file: None,
         estimator: Default::default(),
         sharp_levels: reconstruction::sharp::DEFAULT_LEVELS,
+        input_limit: base::output::MAX_INPUT_BYTES,
     };
     let tex = app::context::TextureOptions::default();
     let policy = tex.policy(&input.scene).expect("policy");

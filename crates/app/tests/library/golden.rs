@@ -190,6 +190,7 @@ fn check_built(name: &str, path: &str, scene: scene::Scene) {
         solution_file: None,
         estimator: Default::default(),
         sharp_levels: reconstruction::sharp::DEFAULT_LEVELS,
+        input_limit: base::output::MAX_INPUT_BYTES,
     };
     let texture = TextureOptions::default();
     let policy = texture.policy(&input.scene).expect("texture policy");

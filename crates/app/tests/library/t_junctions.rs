@@ -53,6 +53,7 @@ fn prepared(scene: &Scene) -> app::prepare::Prepared {
         solution_file: None,
         estimator: Estimator::default(),
         sharp_levels: reconstruction::sharp::DEFAULT_LEVELS,
+        input_limit: base::output::MAX_INPUT_BYTES,
     };
     prepare(
         &Context::default(),

@@ -36,6 +36,7 @@ fn prepared(scene: &Scene, placement: Placement) -> Prepared {
         solution_file: None,
         estimator: Estimator::default(),
         sharp_levels: reconstruction::sharp::DEFAULT_LEVELS,
+        input_limit: base::output::MAX_INPUT_BYTES,
     };
     prepare(&Context::default(), input, SizePolicy::FromDepth, placement).expect("solves")
 }

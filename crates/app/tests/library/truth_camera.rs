@@ -64,6 +64,7 @@ fn truth_pixels_see_the_polygons_the_rasterizer_sees() {
         solution_file: None,
         estimator: Default::default(),
         sharp_levels: reconstruction::sharp::DEFAULT_LEVELS,
+        input_limit: base::output::MAX_INPUT_BYTES,
     };
     let ctx = Context::default();
     let policy = reconstruction::texture::SizePolicy::Fixed(1);

@@ -388,6 +388,7 @@ fn a_white_base_colour_is_clamped_and_textures_are_noted() {
     let readers = Readers {
         text: &text,
         bytes: &read,
+        limit: base::output::MAX_INPUT_BYTES,
     };
     let e = parse_scene_options(
         &scene_text("gltf", ""),
@@ -762,6 +763,7 @@ fn the_first_camera_is_offered_with_its_pose_and_field() {
     let readers = Readers {
         text: &text,
         bytes: &read,
+        limit: base::output::MAX_INPUT_BYTES,
     };
     let parsed = parse_scene_options(
         &scene_text("gltf", ""),
