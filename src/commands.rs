@@ -425,6 +425,7 @@ pub(crate) fn sweep(settings: &Settings, args: SweepArgs) -> anyhow::Result<()> 
             ppd: args.ppd,
             equal_error: !args.no_equal_error,
             truth_samples: args.truth_samples,
+            sharp_levels: args.sharp_levels,
         };
         let observer = Terminal::new(!args.quiet, args.trace);
         let report = sweep::run_sweep(&settings.context(&observer), &req)?;

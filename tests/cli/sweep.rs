@@ -329,3 +329,38 @@ fn the_plots_are_png_and_svg_of_the_documented_size() {
         }
     }
 }
+
+/// `--sharp-levels 0` gives every method the same data (the spots' light from the solver's
+/// samples, as the mesh draws it), and the report says which data the methods drew; a level
+/// past the lattice's depth is refused before any solve.
+#[test]
+fn the_sweep_says_which_sharp_levels_its_methods_drew() {
+    let (report, _) = sweep(
+        "sharp0",
+        &[
+            "--sharp-levels",
+            "0",
+            "--methods",
+            "direct,mesh",
+            "--truth-samples",
+            "0",
+            "--no-equal-error",
+            "--processes",
+            "0",
+        ],
+    );
+    assert_eq!(report["sharp_levels"], 0);
+    let scene = Path::new(crate::REPO).join("scenes/two-spots.toml");
+    let o = crate::bin()
+        .args([
+            "sweep",
+            scene.to_str().unwrap(),
+            "--sharp-levels",
+            "17",
+            "--quiet",
+        ])
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("--sharp-levels"));
+}

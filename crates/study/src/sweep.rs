@@ -100,6 +100,11 @@ pub struct SweepRequest {
     /// Camera samples per pixel of the path-traced truth image the error budget is measured
     /// against ([`crate::physics`]); 0: no truth image, no budget.
     pub truth_samples: u32,
+    /// How many levels below the solver's leaves the direct and texture methods' RRPs follow the
+    /// edges of the spot lights' light (`--sharp-levels`; `None`: the default,
+    /// [`reconstruction::sharp::DEFAULT_LEVELS`]; 0: every method draws the spots' light from
+    /// the solver's samples, as the mesh does).
+    pub sharp_levels: Option<u32>,
 }
 
 /// Samples per pixel of a sweep's truth image by default: its noise is then well under the
@@ -124,6 +129,7 @@ impl SweepRequest {
             ppd: DEFAULT_PPD,
             equal_error: true,
             truth_samples: DEFAULT_TRUTH_SAMPLES,
+            sharp_levels: None,
         }
     }
 }
@@ -260,6 +266,9 @@ pub struct SweepReport {
     pub height: u32,
     /// Worker threads.
     pub threads: usize,
+    /// The levels the RRPs follow the spots' light edges to (0: the spots' light drawn from
+    /// the samples by every method; [`SweepRequest::sharp_levels`]).
+    pub sharp_levels: u32,
     /// Each density level's solution, coarse to fine.
     pub densities: Vec<SolutionLevel>,
     /// The converged reference solution.
@@ -523,6 +532,7 @@ pub fn run_sweep(job: &Context<'_>, req: &SweepRequest) -> Result<SweepReport> {
         width: req.width,
         height: req.height,
         threads: rayon::current_num_threads(),
+        sharp_levels: sweep.input.sharp_levels,
         densities,
         reference,
         truth: truth.map(|t| t.noise),
@@ -589,7 +599,10 @@ impl<'a> Sweep<'a> {
     /// limit: everything before the first solve.
     fn new(job: &'a Context<'a>, req: &'a SweepRequest) -> Result<Sweep<'a>> {
         let methods = check(req)?;
-        let input = Input::load(&req.input)?;
+        let mut input = Input::load(&req.input)?;
+        if let Some(levels) = req.sharp_levels {
+            input.sharp_levels = app::commands::render::check_sharp_levels(levels)?;
+        }
         let opts = job.frame_options(req.width, req.height);
         opts.validate()?;
         app::budget::check_frame_options(&opts, (false, false), job.memory_limit)?;
@@ -668,6 +681,8 @@ pub struct WorkerRequest {
     pub frames: u32,
     /// Repeats.
     pub repeats: u32,
+    /// The sweep's sharp levels ([`SweepRequest::sharp_levels`]).
+    pub sharp_levels: u32,
     /// Worker threads (the parent's).
     pub threads: usize,
 }
@@ -697,6 +712,7 @@ fn worker_times(job: &Context<'_>, w: &WorkerRequest) -> Result<Vec<Vec<f64>>> {
         repeats: w.repeats,
         truth_samples: 0,
         equal_error: false,
+        sharp_levels: Some(w.sharp_levels),
         ..SweepRequest::new(w.scene.clone())
     };
     let sweep = Sweep::new(job, &req)?;
@@ -772,6 +788,7 @@ impl AtDensity<'_> {
                 texture_levels: s.req.texture_levels,
                 frames: s.req.frames,
                 repeats: s.req.repeats,
+                sharp_levels: s.input.sharp_levels,
                 threads: rayon::current_num_threads(),
             };
             timing::in_processes(tp, &request, candidates.len(), &what, s.job.observer)
@@ -1044,13 +1061,15 @@ fn truth_line(report: &SweepReport) -> String {
 /// The points as a fixed-width table.
 pub fn table(report: &SweepReport) -> String {
     let mut s = format!(
-        "{}: {} x {}, {} threads; reference: tolerance {}, max depth {}, {} samples\n\
+        "{}: {} x {}, {} threads, sharp levels {}; reference: tolerance {}, max depth {}, {} \
+         samples\n\
          {}\
          method            dens  samples  texture   frame_ms       bytes  err_recon  err_total   err_phys  front\n",
         report.scene,
         report.width,
         report.height,
         report.threads,
+        report.sharp_levels,
         report.reference.tolerance,
         report.reference.max_depth,
         report.reference.samples,

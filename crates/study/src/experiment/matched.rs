@@ -186,6 +186,7 @@ mod tests {
             width: 8,
             height: 8,
             threads: 1,
+            sharp_levels: 3,
             densities: Vec::new(),
             reference: crate::sweep::SolutionLevel {
                 tolerance: 0.01,

@@ -808,8 +808,8 @@ fn introduction(r: &ResultsReport) -> String {
           direct and texture methods take the spot lights' direct light from the light model \
           exactly, along the cones' edges, and only the rest from the solver's samples; the \
           mesh draws everything from the samples. On scenes with spots (two-spots, the \
-          gallery) that decides part of their ranking (`render --sharp-levels 0` draws every \
-          method from the samples alone; the sweep has no such switch). **Error recon.** is the perceptual distance ([metrics.md](metrics.md)) to the same \
+          gallery) that decides part of their ranking (`sweep --sharp-levels 0` draws every \
+          method from the samples alone, as `render --sharp-levels 0` does). **Error recon.** is the perceptual distance ([metrics.md](metrics.md)) to the same \
           solution's exact image (the method's own error), **error total** to a converged \
           solution's (tolerance 1/4, two levels deeper: the solver's convergence), **physics \
           error** to the independent path tracer's image (`pixelflow-sim truth`, its noise taken \
