@@ -53,12 +53,6 @@ impl<'a> Context<'a> {
         }
     }
 
-    /// The largest input file a job of this context reads, bytes: half of what its memory
-    /// limit leaves for data ([`base::output::input_limit_for`]).
-    pub fn input_limit(&self) -> u64 {
-        base::output::input_limit_for(crate::budget::data_limit(self.memory_limit))
-    }
-
     /// This context with progress going to `observer`.
     pub fn with_observer<'b>(&self, observer: &'b dyn Observer) -> Context<'b> {
         Context {
