@@ -198,7 +198,7 @@ fn stages(c: &mut Criterion) {
     let (w, h) = (1024, 1024);
     let opts = FrameOptions::new(w, h);
     let grid = RegionGrid::new(w, h, opts.region);
-    let offsets = sample_offsets(1).unwrap();
+    let offsets = sample_offsets(base::method::Aa::ONE);
     let mut g = c.benchmark_group("stages");
     g.sample_size(20);
     g.throughput(Throughput::Elements((w * h) as u64));
@@ -314,7 +314,7 @@ fn deferred(c: &mut Criterion) {
     let prims = build_primitives(&scene, &scene.camera, w, h, false).unwrap();
     let grid = RegionGrid::new(w, h, opts.region);
     let bins = grid.bin(prims.iter().enumerate());
-    let offsets = sample_offsets(1).unwrap();
+    let offsets = sample_offsets(base::method::Aa::ONE);
     let regions: Vec<RegionGBuffer> = (0..grid.count() as u32)
         .map(|r| {
             let (x0, y0, rw, rh) = grid.rect(r);

@@ -288,7 +288,7 @@ pub(crate) fn stats(settings: &Settings, args: StatsArgs) -> anyhow::Result<()> 
             scene: args.scene,
             frames: args.frames,
             frame: FrameOptions {
-                aa: args.aa,
+                aa: base::method::Aa::new("--aa", args.aa)?,
                 isa: settings.isa,
                 ..FrameOptions::new(args.width, args.height)
             },

@@ -75,7 +75,7 @@ fn render_in(p: &Prepared, m: Method, cam: &Camera, opts: &FrameOptions, threads
 
 fn opts(w: u32, h: u32, aa: u32) -> FrameOptions {
     let mut o = FrameOptions::new(w, h);
-    o.aa = aa;
+    o.aa = base::method::Aa::new("--aa", aa).unwrap();
     o
 }
 

@@ -439,7 +439,7 @@ pub fn check_frame_options(
 ) -> Result<()> {
     check_frame(
         (opts.width, opts.height, opts.region),
-        opts.aa,
+        opts.aa.samples(),
         opts.renderers,
         outputs,
         limit,
@@ -512,7 +512,7 @@ pub fn scene_budget(scene: &Scene) -> Result<SceneBudget> {
     let opts = engine::frame::FrameOptions::new(scene.width, scene.height);
     let frame = frame_estimate(
         (scene.width, scene.height, opts.region),
-        scene.render.aa_samples,
+        scene.render.aa_samples.samples(),
         opts.renderers,
         (true, false),
     );

@@ -305,7 +305,7 @@ pub fn budget_text(scene: &Scene, budget: &crate::budget::SceneBudget, limit: u6
                 human_bytes(b.frame.total()),
                 scene.width,
                 scene.height,
-                scene.render.aa_samples,
+                scene.render.aa_samples.samples(),
                 b.renderers
             ),
         ),

@@ -195,16 +195,38 @@ impl Method {
     }
 }
 
-/// Checks an antialiasing sample count named `option` (`--aa`, `render.aa`).
-pub fn check_aa(option: &str, aa: u32) -> Result<()> {
-    if AA_SAMPLE_COUNTS.contains(&aa) {
-        Ok(())
-    } else {
-        Err(Error::invalid_option(
-            option,
-            aa.to_string(),
-            "antialiasing takes 1, 4 or 16 samples per pixel",
-        ))
+/// Samples per pixel of the renderer's patterns: 1, 4 or 16, checked once where the value enters
+/// (an option or a scene key, [`Aa::new`]), so the stages that take one never check it again.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub struct Aa(u32);
+
+impl Aa {
+    /// One sample per pixel, at its centre.
+    pub const ONE: Aa = Aa(1);
+
+    /// `samples` per pixel, or an [`Error::InvalidOption`] naming `option` unless it is one of
+    /// [`AA_SAMPLE_COUNTS`].
+    pub fn new(option: &str, samples: u32) -> Result<Aa> {
+        if AA_SAMPLE_COUNTS.contains(&samples) {
+            Ok(Aa(samples))
+        } else {
+            Err(Error::invalid_option(
+                option,
+                samples.to_string(),
+                "antialiasing takes 1, 4 or 16 samples per pixel",
+            ))
+        }
+    }
+
+    /// The number of samples per pixel (1, 4 or 16).
+    pub fn samples(self) -> u32 {
+        self.0
+    }
+}
+
+impl Default for Aa {
+    fn default() -> Self {
+        Aa::ONE
     }
 }
 
@@ -328,9 +350,10 @@ mod tests {
     #[test]
     fn option_checks() {
         for aa in AA_SAMPLE_COUNTS {
-            check_aa("--aa", aa).unwrap();
+            assert_eq!(Aa::new("--aa", aa).unwrap().samples(), aa);
         }
-        assert!(check_aa("--aa", 3).is_err());
+        let e = Aa::new("render.aa", 3).unwrap_err();
+        assert!(e.to_string().contains("render.aa"), "{e}");
         check_texture_side("--texture-size", 1).unwrap();
         check_texture_side("--texture-size", MAX_TEXTURE_SIZE).unwrap();
         for bad in [0, 3, 2 * MAX_TEXTURE_SIZE] {

@@ -45,7 +45,7 @@ use crate::raster::{self, sample_offsets, DEFAULT_REGION, MAX_RENDERERS};
 use crate::shading::{self, Rows, ShadeCounts, Shader};
 use base::error::{Error, Result};
 use base::image::ImageView;
-use base::method::Method;
+use base::method::{Aa, Method};
 use reconstruction::PatchSource;
 use scene::{Camera, Scene, MAX_IMAGE_DIM};
 
@@ -56,8 +56,8 @@ pub struct FrameOptions {
     pub width: u32,
     /// Image height in pixels.
     pub height: u32,
-    /// Samples per pixel: 1, 4 or 16.
-    pub aa: u32,
+    /// Samples per pixel (checked where it was made).
+    pub aa: Aa,
     /// Virtual renderers (1 to `MAX_RENDERERS`).
     pub renderers: u32,
     /// Region side in pixels: a multiple of 8 in 8..=1024.
@@ -75,7 +75,7 @@ impl FrameOptions {
         FrameOptions {
             width,
             height,
-            aa: 1,
+            aa: Aa::ONE,
             renderers: 1,
             region: DEFAULT_REGION,
             cull_back_faces: false,
@@ -94,7 +94,6 @@ impl FrameOptions {
                 return Err(Error::limit(name, v.into(), MAX_IMAGE_DIM.into()));
             }
         }
-        base::method::check_aa("--aa", self.aa)?;
         if self.renderers == 0 {
             return Err(Error::invalid_option(
                 "--renderers",
@@ -362,7 +361,7 @@ impl FrameContext {
                 Default::default,
             );
             for gb in ws.parts.iter_mut().take(opts.renderers.min(2) as usize) {
-                gb.reset(0, 0, 0, side, side, opts.aa);
+                gb.reset(0, 0, 0, side, side, opts.aa.samples());
                 gb.u.fill(0.0);
                 gb.v.fill(0.0);
                 gb.slot.fill(0);
@@ -448,7 +447,7 @@ impl FrameContext {
         let source = shader.patch_source();
         opts.validate()?;
         let t_frame = Instant::now();
-        let offsets = sample_offsets(opts.aa)?;
+        let offsets = sample_offsets(opts.aa);
         let background = scene.display.background.as_vec3();
         let background = if background.is_finite() {
             background
@@ -516,7 +515,7 @@ impl FrameContext {
             method: method.name().into(),
             threads: rayon::current_num_threads(),
             renderers: opts.renderers,
-            aa: opts.aa,
+            aa: opts.aa.samples(),
             region_size: opts.region,
             primitives,
             geometry_ms,

@@ -378,8 +378,8 @@ impl Default for RadiositySettings {
 pub struct RenderSettings {
     /// Method used when the command line names none (`direct`, `texture-bilinear`, ...).
     pub method: Method,
-    /// Supersamples per pixel (1 = no antialiasing).
-    pub aa_samples: u32,
+    /// Supersamples per pixel (1 = no antialiasing; checked at load).
+    pub aa_samples: base::method::Aa,
     /// Texture size for the texture methods (0 = chosen per polygon from its quadtree depth).
     pub texture_size: u32,
     /// Where the texture methods place their texels (`--texel-placement` overrides it).
@@ -390,7 +390,7 @@ impl Default for RenderSettings {
     fn default() -> Self {
         RenderSettings {
             method: Method::Direct,
-            aa_samples: 1,
+            aa_samples: base::method::Aa::ONE,
             texture_size: 0,
             texel_placement: Placement::Centre,
         }

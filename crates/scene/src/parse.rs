@@ -18,7 +18,7 @@ use crate::checks::{
     Readers, Surfaces, DEFAULT_IMAGE_DIM, FINITE_RULE, MAX_FRAMES, MAX_SHADOW_RAYS, MIN_FOV_Y,
 };
 use base::error::{Error, Location, Result};
-use base::method::{Method, Placement, AA_SAMPLE_COUNTS, MAX_TEXTURE_SIZE};
+use base::method::{Aa, Method, Placement, MAX_TEXTURE_SIZE};
 use glam::DVec3;
 use std::collections::BTreeMap;
 use std::ops::Range;
@@ -595,14 +595,16 @@ impl<'a> Cx<'a> {
         }
         if let Some(v) = &r.aa {
             let x = *v.get_ref();
-            if !AA_SAMPLE_COUNTS.iter().any(|&n| i64::from(n) == x) {
-                return Err(self.err(
+            let checked = u32::try_from(x)
+                .ok()
+                .and_then(|n| Aa::new("render.aa", n).ok());
+            s.aa_samples = checked.ok_or_else(|| {
+                self.err(
                     v.span(),
                     "render.aa",
                     format!("is {x}, must be 1, 4 or 16 samples per pixel"),
-                ));
-            }
-            s.aa_samples = x as u32;
+                )
+            })?;
         }
         if let Some(v) = &r.texture_size {
             let max = i64::from(MAX_TEXTURE_SIZE);

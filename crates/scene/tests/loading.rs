@@ -1211,7 +1211,7 @@ fn documented_example_loads() {
     check_invariants(&s);
     assert_eq!(s.polygons.len(), 4);
     assert_eq!(s.emitter_count(), 1);
-    assert_eq!(s.render.aa_samples, 4);
+    assert_eq!(s.render.aa_samples.samples(), 4);
     assert_eq!(s.camera_path.as_ref().unwrap().keyframes.len(), 2);
     // The chair's seat: 0.5 x 0.5 after scale 0.01, overridden to `red`, facing up.
     let seat = &s.polygons[3];

@@ -89,7 +89,7 @@ pub fn trace(
             width: opts.width,
             height: opts.height,
             samples_per_pixel: half,
-            filter: PixelFilter::from_aa(Some(opts.aa))?,
+            filter: PixelFilter::from_aa(Some(opts.aa)),
             ..TruthOptions::new(scene)
         };
         halves.push(truth::render(scene, &o, job.observer)?);

@@ -23,6 +23,7 @@
 use glam::DVec3;
 
 use base::error::{Error, Result};
+use base::method::Aa;
 use scene::{Camera, Projection};
 
 /// Where in its pixel each camera sample lies.
@@ -32,7 +33,7 @@ pub enum PixelFilter {
     Box,
     /// One of the renderer's `--aa` positions (1, 4 or 16), drawn uniformly: the expected value
     /// is the mean over the pattern, what `render --aa N` computes.
-    Pattern(u32),
+    Pattern(Aa),
 }
 
 /// The pixel centre: `render --aa 1`.
@@ -57,24 +58,9 @@ const STRATIFIED_16: [(f64, f64); 16] = {
 };
 
 impl PixelFilter {
-    /// The filter of `--aa`: `None` is the box, 1, 4 or 16 the renderer's pattern.
-    pub fn from_aa(aa: Option<u32>) -> Result<PixelFilter> {
-        let f = aa.map_or(PixelFilter::Box, PixelFilter::Pattern);
-        f.validate()?;
-        Ok(f)
-    }
-
-    /// Errors unless a pattern has 1, 4 or 16 positions.
-    pub fn validate(&self) -> Result<()> {
-        match self {
-            PixelFilter::Pattern(n) if pattern(*n).is_none() => Err(Error::invalid_option(
-                "--aa",
-                n.to_string(),
-                "the renderer's patterns have 1, 4 or 16 samples per pixel (leave --aa out for \
-                 the box filter)",
-            )),
-            _ => Ok(()),
-        }
+    /// The filter of `--aa`: `None` is the box, otherwise the renderer's pattern.
+    pub fn from_aa(aa: Option<Aa>) -> PixelFilter {
+        aa.map_or(PixelFilter::Box, PixelFilter::Pattern)
     }
 
     /// The renderer's sample positions of this pattern (offsets from the pixel's top-left
@@ -82,7 +68,7 @@ impl PixelFilter {
     pub fn positions(&self) -> Option<&'static [(f64, f64)]> {
         match self {
             PixelFilter::Box => None,
-            PixelFilter::Pattern(n) => pattern(*n),
+            PixelFilter::Pattern(n) => Some(pattern(*n)),
         }
     }
 
@@ -96,12 +82,11 @@ impl PixelFilter {
     }
 }
 
-fn pattern(n: u32) -> Option<&'static [(f64, f64)]> {
-    match n {
-        1 => Some(&CENTRE),
-        4 => Some(&ROTATED_GRID),
-        16 => Some(&STRATIFIED_16),
-        _ => None,
+fn pattern(aa: Aa) -> &'static [(f64, f64)] {
+    match aa.samples() {
+        1 => &CENTRE,
+        4 => &ROTATED_GRID,
+        _ => &STRATIFIED_16,
     }
 }
 
@@ -289,12 +274,16 @@ mod tests {
 
     #[test]
     fn patterns_are_the_renderers_and_others_are_refused() {
-        assert_eq!(PixelFilter::Pattern(1).positions().unwrap(), &[(0.5, 0.5)]);
-        assert_eq!(PixelFilter::Pattern(4).positions().unwrap().len(), 4);
-        let p16 = PixelFilter::Pattern(16).positions().unwrap();
+        let aa = |n| Aa::new("--aa", n).unwrap();
+        assert_eq!(
+            PixelFilter::Pattern(aa(1)).positions().unwrap(),
+            &[(0.5, 0.5)]
+        );
+        assert_eq!(PixelFilter::Pattern(aa(4)).positions().unwrap().len(), 4);
+        let p16 = PixelFilter::Pattern(aa(16)).positions().unwrap();
         assert_eq!(p16[5], (0.375, 0.375));
-        assert!(PixelFilter::from_aa(Some(3)).is_err());
-        assert_eq!(PixelFilter::from_aa(None).unwrap(), PixelFilter::Box);
+        assert!(Aa::new("--aa", 3).is_err());
+        assert_eq!(PixelFilter::from_aa(None), PixelFilter::Box);
         let bad = Camera {
             up: DVec3::new(-0.5, -0.2, -4.0),
             ..camera(Projection::Perspective { fov_y_deg: 40.0 })

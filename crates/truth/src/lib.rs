@@ -137,7 +137,7 @@ impl TruthOptions {
                 ));
             }
         }
-        self.filter.validate()
+        Ok(())
     }
 }
 

@@ -18,7 +18,7 @@ use crate::prepare::prepare;
 use crate::prepare::Prepared;
 use crate::rates::fps;
 use base::error::{Error, Result};
-use base::method::Method;
+use base::method::{Aa, Method};
 use engine::frame::{FrameContext, FrameOptions, FrameStats};
 use scene::MAX_IMAGE_DIM;
 
@@ -131,7 +131,7 @@ pub fn run_bench(ctx: &Context<'_>, req: &BenchRequest) -> Result<BenchReport> {
         }
     }
     let base = FrameOptions {
-        aa: req.aa,
+        aa: Aa::new("--aa", req.aa)?,
         renderers: req.renderers,
         region: req.region,
         ..ctx.frame_options(input.scene.width, input.scene.height)
@@ -140,7 +140,7 @@ pub fn run_bench(ctx: &Context<'_>, req: &BenchRequest) -> Result<BenchReport> {
     for &size in &req.sizes {
         crate::budget::check_frame(
             (size, size, base.region),
-            base.aa,
+            base.aa.samples(),
             base.renderers,
             (false, false),
             ctx.memory_limit,
@@ -252,7 +252,7 @@ pub fn bench(
             simd: opts.isa.name(),
             width: w,
             height: h,
-            aa: opts.aa,
+            aa: opts.aa.samples(),
             frames,
             frame_ms,
             cold_frame_ms: cold_ms,

@@ -18,7 +18,7 @@ use crate::context::TextureOptions;
 use crate::prepare::prepare;
 use crate::prepare::Prepared;
 use base::error::{Error, Result};
-use base::method::Method;
+use base::method::{Aa, Method};
 use base::progress::Stage;
 use engine::frame::{FrameContext, FrameOptions, FrameStats};
 use imageio::exposure::{self, LuminanceSummary};
@@ -107,7 +107,10 @@ impl RenderPlan {
         let frame = FrameOptions {
             width: req.width.unwrap_or(scene.width),
             height: req.height.unwrap_or(scene.height),
-            aa: req.aa.unwrap_or(scene.render.aa_samples),
+            aa: match req.aa {
+                Some(n) => Aa::new("--aa", n)?,
+                None => scene.render.aa_samples,
+            },
             renderers: req.renderers,
             region: req.region,
             cull_back_faces: false,
@@ -280,7 +283,7 @@ fn luminance_of(
     scene: &Scene,
     exposure: f64,
 ) -> LuminanceSummary {
-    let samples = frame.width as f64 * frame.height as f64 * frame.aa as f64;
+    let samples = frame.width as f64 * frame.height as f64 * frame.aa.samples() as f64;
     let covered = stats.pixels_shaded as f64 / samples.max(1.0);
     let background = base::image::luminance(scene.display.background.as_vec3());
     exposure::summarize(view, exposure, covered, background)

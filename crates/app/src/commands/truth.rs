@@ -23,6 +23,7 @@ use serde::Serialize;
 
 use crate::context::Context;
 use base::error::{Error, Result};
+use base::method::Aa;
 use scene::Scene;
 use truth::{PixelFilter, PolygonEstimate, TruthImage, TruthOptions};
 
@@ -106,7 +107,7 @@ impl TruthPlan {
             width: req.width.unwrap_or(scene.width),
             height: req.height.unwrap_or(scene.height),
             samples_per_pixel: req.spp.unwrap_or(defaults.samples_per_pixel),
-            filter: PixelFilter::from_aa(req.aa)?,
+            filter: PixelFilter::from_aa(req.aa.map(|n| Aa::new("--aa", n)).transpose()?),
             samples_per_polygon: req.polygon_samples.unwrap_or(defaults.samples_per_polygon),
             strata: req.strata.unwrap_or(defaults.strata),
             max_error: req.max_error,

@@ -73,7 +73,7 @@ fn check_prepared(scene: &str, p: &Prepared) {
         let size = size_of(scene, method);
         let opts = FrameOptions {
             renderers: 2,
-            aa: 1,
+            aa: base::method::Aa::ONE,
             ..FrameOptions::new(size, size)
         };
         let frame = render_frame(p, method, &p.scene.camera, &opts).expect("frame renders");

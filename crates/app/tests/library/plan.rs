@@ -141,7 +141,6 @@ fn bad_bench_and_stats_options_are_refused_before_the_solve() {
         assert!(rec.stages().is_empty(), "{e}: the solve started");
         option_of(&e)
     };
-    assert_eq!(stats(|r| r.frame.aa = 5), "--aa");
     assert_eq!(stats(|r| r.frame.width = 0), "--width");
     assert_eq!(stats(|r| r.texture.budget = Some(3)), "--texture-budget");
     assert_eq!(

@@ -44,12 +44,13 @@ fn coloured_cornell() -> scene::Scene {
 
 #[test]
 fn truth_sample_patterns_are_the_renderers() {
-    for aa in [1, 4, 16] {
+    for n in [1, 4, 16] {
+        let aa = base::method::Aa::new("--aa", n).unwrap();
         let ours = PixelFilter::Pattern(aa).positions().unwrap();
-        let theirs = engine::raster::sample_offsets(aa).unwrap();
+        let theirs = engine::raster::sample_offsets(aa);
         assert_eq!(ours.len(), theirs.len());
         for (a, b) in ours.iter().zip(theirs) {
-            assert_eq!((a.0 as f32, a.1 as f32), *b, "aa {aa}");
+            assert_eq!((a.0 as f32, a.1 as f32), *b, "aa {n}");
         }
     }
 }
@@ -80,7 +81,7 @@ fn truth_pixels_see_the_polygons_the_rasterizer_sees() {
         width: w,
         height: h,
         samples_per_pixel: 1,
-        filter: PixelFilter::Pattern(1),
+        filter: PixelFilter::Pattern(base::method::Aa::ONE),
         ..TruthOptions::new(&scene)
     };
     let img = truth::render(&scene, &opts, &SILENT).expect("traces");

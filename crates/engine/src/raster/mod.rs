@@ -31,7 +31,8 @@ use glam::DVec3;
 use lanes::Isa;
 use rayon::prelude::*;
 
-use base::error::{Error, Result};
+use base::error::Result;
+use base::method::Aa;
 use reconstruction::PatchSource;
 use scene::{Camera, Scene};
 
@@ -63,17 +64,12 @@ const STRATIFIED_16: [(f32, f32); 16] = {
     o
 };
 
-/// The sample pattern for `aa` samples per pixel (1, 4 or 16): offsets within the pixel.
-pub fn sample_offsets(aa: u32) -> Result<&'static [(f32, f32)]> {
-    match aa {
-        1 => Ok(&CENTRE),
-        4 => Ok(&ROTATED_GRID),
-        16 => Ok(&STRATIFIED_16),
-        _ => Err(Error::invalid_option(
-            "--aa",
-            aa.to_string(),
-            "antialiasing takes 1, 4 or 16 samples per pixel",
-        )),
+/// The sample pattern for `aa` samples per pixel: offsets within the pixel.
+pub fn sample_offsets(aa: Aa) -> &'static [(f32, f32)] {
+    match aa.samples() {
+        1 => &CENTRE,
+        4 => &ROTATED_GRID,
+        _ => &STRATIFIED_16,
     }
 }
 

@@ -99,7 +99,7 @@ fn the_centre_pattern_sees_each_pixel_centres_polygon() {
         width: w,
         height: h,
         samples_per_pixel: 2,
-        filter: PixelFilter::Pattern(1),
+        filter: PixelFilter::Pattern(base::method::Aa::ONE),
         ..TruthOptions::new(&scene)
     };
     let img = render(&scene, &opts, &SILENT).unwrap();
