@@ -88,9 +88,22 @@ pub fn composite_in_place(isa: Isa, parts: &mut [RegionGBuffer], scratch: &mut M
         out.slot.fill(0);
         return;
     }
-    // Canonical table: memory order of first use. Each (part, old slot) pair asks the id map
-    // once; later samples of the same pair read the per-part remap.
-    let remap = &mut scratch.remap;
+    renumber_table(out, rest, scratch);
+}
+
+/// The table rebuild of [`composite_in_place`]: `out`'s merged samples, each from the part
+/// `scratch.src` names, get their patches numbered in memory order of first use (the canonical
+/// table). Each (part, old slot) pair asks the id map once; later samples of the same pair read
+/// the per-part remap.
+#[cfg(any(test, feature = "bench"))]
+fn renumber_table(out: &mut RegionGBuffer, rest: &[RegionGBuffer], scratch: &mut MergeScratch) {
+    let MergeScratch {
+        src,
+        remap,
+        index,
+        table,
+        ids,
+    } = scratch;
     if remap.len() < rest.len() + 1 {
         remap.resize_with(rest.len() + 1, Vec::new);
     }
@@ -100,7 +113,6 @@ pub fn composite_in_place(isa: Isa, parts: &mut [RegionGBuffer], scratch: &mut M
         remap[k + 1].clear();
         remap[k + 1].resize(part.table_ids.len(), u32::MAX);
     }
-    let (index, table, ids) = (&mut scratch.index, &mut scratch.table, &mut scratch.ids);
     index.clear();
     table.clear();
     ids.clear();
