@@ -6,6 +6,7 @@
 
 use ab_glyph::{point, Font, FontRef, PxScale, ScaleFont};
 use base::error::{Error, Result};
+use std::sync::OnceLock;
 
 /// DejaVu Sans (its licence is beside it in `assets/fonts/`).
 pub static FONT: &[u8] = include_bytes!("../assets/fonts/DejaVuSans.ttf");
@@ -16,12 +17,20 @@ const STRIP: [u8; 3] = [20, 20, 20];
 /// Glyph height in pixels.
 const SIZE: f32 = 14.0;
 
+/// The shipped font, parsed once (the viewer draws a status line every frame).
+fn font() -> Result<&'static FontRef<'static>> {
+    static FONT_REF: OnceLock<Option<FontRef<'static>>> = OnceLock::new();
+    FONT_REF
+        .get_or_init(|| FontRef::try_from_slice(FONT).ok())
+        .as_ref()
+        .ok_or_else(|| Error::internal("the shipped font does not load"))
+}
+
 /// Writes `text` in white on a dark strip across the top `strip` rows of an sRGB image (`rgb`,
 /// 3 bytes per pixel, `w` x `h`). Text past the right edge is cut; rows below the strip are not
 /// touched.
 pub fn overlay_text(rgb: &mut [u8], w: u32, h: u32, strip: u32, text: &str) -> Result<()> {
-    let font = FontRef::try_from_slice(FONT)
-        .map_err(|e| Error::internal(format!("the shipped font does not load: {e}")))?;
+    let font = font()?;
     let strip = strip.min(h);
     let (w, strip_rows) = (w as usize, strip as usize);
     if rgb.len() < 3 * w * h as usize {
