@@ -123,11 +123,45 @@ fn main() -> ExitCode {
     match result {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) if e.is::<StdoutClosed>() => ExitCode::SUCCESS,
-        Err(e) => {
+        Err(mut e) => {
+            spell_options(&mut e);
             note(&format!("error: {e:#}"));
             ExitCode::from(u8::try_from(exit_code(&e)).unwrap_or(1))
         }
     }
+}
+
+/// Names the library's options as the user typed them: a setting the library calls `aa` is
+/// the flag `--aa`, `output` is `-o` (a flag's short form where it has one); names of no flag
+/// (scene keys such as `render.aa`) stay as they are. The library never spells a flag, so this
+/// table, made from the argument definitions, is the one place flags and settings meet.
+fn spell_options(e: &mut anyhow::Error) {
+    let Some(e) = e.downcast_mut::<base::Error>() else {
+        return;
+    };
+    let mut flags = std::collections::HashMap::new();
+    let mut stack = vec![<Cli as clap::CommandFactory>::command()];
+    while let Some(c) = stack.pop() {
+        for a in c.get_arguments() {
+            let spelt = match (a.get_short(), a.get_long()) {
+                (Some(s), _) => format!("-{s}"),
+                (None, Some(l)) => format!("--{l}"),
+                (None, None) => continue,
+            };
+            flags.insert(a.get_id().to_string(), spelt.clone());
+            if let Some(l) = a.get_long() {
+                flags.insert(l.to_string(), spelt);
+            }
+        }
+        stack.extend(c.get_subcommands().cloned());
+    }
+    // A name may say which of a flag's values it means (`doc (data)`): the flag, then the rest.
+    e.name_options(|name| {
+        flags.get(name).cloned().or_else(|| {
+            let (head, rest) = name.split_once(' ')?;
+            Some(format!("{} {rest}", flags.get(head)?))
+        })
+    });
 }
 
 /// The exit code of a run that ended with `e`: the library error's own (2 for bad input), 1

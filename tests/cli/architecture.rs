@@ -905,3 +905,59 @@ fn no_function_is_longer_than_a_hundred_lines() {
     let short = format!("fn f() {{\n{}}}\n", "x;\n".repeat(MAX_FUNCTION_LINES - 2));
     assert!(long_functions(&short).is_empty());
 }
+
+/// Literals in `code` that are a flag by themselves (`"--aa"`, `"-o"`): what a library would
+/// pass as the name of an option, with the line of each.
+fn flag_literals(code: &str) -> Vec<(usize, String)> {
+    let mut found = Vec::new();
+    for (n, line) in code.lines().enumerate() {
+        if line.trim_start().starts_with("//") {
+            continue;
+        }
+        for piece in line.split('"').skip(1).step_by(2) {
+            let name = piece.trim_start_matches('-');
+            let dashes = piece.len() - name.len();
+            let word = name
+                .chars()
+                .all(|c| c.is_ascii_lowercase() || c.is_ascii_digit() || c == '-');
+            if (dashes == 2 || (dashes == 1 && name.len() == 1)) && word && !name.is_empty() {
+                found.push((n + 1, piece.to_string()));
+            }
+        }
+    }
+    found
+}
+
+/// The libraries name options and settings as they know them (`aa`, `texture-size`); only the
+/// binary spells them as flags (`--aa`), so a library caller reads the setting it passed and a
+/// renamed flag changes one file.
+#[test]
+fn libraries_name_settings_not_flags() {
+    let mut flags = Vec::new();
+    for (dir, _) in CRATES.iter().filter(|(d, _)| *d != ".") {
+        let mut files = Vec::new();
+        rust_files(&crates_dir().join(dir).join("src"), &mut files);
+        for f in files {
+            if f.file_name().is_some_and(|n| n == "tests.rs") {
+                continue;
+            }
+            let text = std::fs::read_to_string(&f).unwrap();
+            let code = text.split("#[cfg(test)]").next().unwrap_or("");
+            for (line, flag) in flag_literals(code) {
+                let rel = f.strip_prefix(Path::new(crate::REPO)).unwrap_or(&f);
+                flags.push(format!("{}:{line}: \"{flag}\"", rel.display()));
+            }
+        }
+    }
+    assert!(
+        flags.is_empty(),
+        "flags named in libraries:\n{}",
+        flags.join("\n")
+    );
+    // The scan sees a flag passed as a name, and not a command line or a setting.
+    let code = "f(\"--aa\", 1);\ng(\"-o\");\nh(\"aa\", \"run --aa 4\", \"-\");\n// \"--x\"\n";
+    assert_eq!(
+        flag_literals(code),
+        [(1, "--aa".to_string()), (2, "-o".to_string())]
+    );
+}

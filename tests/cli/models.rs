@@ -99,7 +99,7 @@ fn render_a_bare_model_exposes_it_and_summarizes_its_luminance() {
     args.extend(SMALL);
     let e = text(&run(&args).stderr);
     assert!(
-        e.contains("washed out") && e.contains("--auto-exposure"),
+        e.contains("washed out") && e.contains("auto-exposure"),
         "{e}"
     );
 }

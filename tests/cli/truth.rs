@@ -146,7 +146,10 @@ fn truth_refuses_bad_requests_with_exit_2() {
             vec!["truth", "no/such/scene.toml", "-o", out],
             "no/such/scene.toml",
         ),
-        (vec!["truth", scene], "-o / --json"),
+        (
+            vec!["truth", scene],
+            "give -o out.exr for the image, --json out.json",
+        ),
         (vec!["truth", scene, "-o", out, "--aa", "3"], "--aa 3"),
         (vec!["truth", scene, "-o", out, "--spp", "1"], "--spp 1"),
         (vec!["truth", scene, "-o", "x.png"], "name it .exr"),

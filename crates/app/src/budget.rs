@@ -321,7 +321,7 @@ pub(crate) fn solve_parts(scene: &Scene, depth: Depth) -> Vec<(String, u64)> {
 pub(crate) fn solve_estimate(scene: &Scene) -> (Estimate, u64) {
     let mut e = Estimate::new(
         format!("the solve of {}", scene.source.display()),
-        "lower radiosity.min_depth, use fewer polygons, or raise --memory-limit",
+        "lower radiosity.min_depth, use fewer polygons, or raise `memory-limit`",
     );
     for (name, b) in solve_parts(scene, Depth::Start) {
         e.add(name, b);
@@ -456,7 +456,7 @@ pub(crate) fn frame_estimate(
 ) -> Estimate {
     let mut e = Estimate::new(
         format!("a {width} x {height} frame with {samples} samples per pixel"),
-        "lower --width/--height, --aa or --renderers, or raise --memory-limit",
+        "lower `width`/`height`, `aa` or `renderers`, or raise `memory-limit`",
     );
     e.add(
         "G-buffers and image",

@@ -152,7 +152,7 @@ impl Input {
         } else {
             if let Some(s) = scene {
                 return Err(Error::invalid_option(
-                    "--scene",
+                    "scene",
                     s.display().to_string(),
                     format!(
                         "names the scene of a solution file, and {} is a scene file",
@@ -229,13 +229,13 @@ impl TextureOptions {
         let policy = match (self.size, self.budget) {
             (Some(n), Some(_)) => {
                 return Err(Error::invalid_option(
-                    "--texture-size",
+                    "texture-size",
                     n.to_string(),
-                    "excludes --texture-budget; give one of them",
+                    "excludes `texture-budget`; give one of them",
                 ))
             }
             (Some(n), None) => {
-                check_texture_side("--texture-size", n)?;
+                check_texture_side("texture-size", n)?;
                 SizePolicy::Fixed(n)
             }
             (None, Some(b)) => SizePolicy::Budget(b),
@@ -251,7 +251,7 @@ impl TextureOptions {
     /// [`Error::InvalidOption`] naming it), else the scene's `[render] texel_placement`.
     pub fn placement(&self, scene: &Scene) -> Result<Placement> {
         match &self.placement {
-            Some(name) => Placement::parse_option("--texel-placement", name),
+            Some(name) => Placement::parse_option("texel-placement", name),
             None => Ok(scene.render.texel_placement),
         }
     }

@@ -132,8 +132,8 @@ impl Prepared {
             let cs = self.compact.stats();
             let mut e = budget::Estimate::new(
                 "the radiosity textures",
-                "lower --texture-size or [render] texture_size, give --texture-budget, or \
-                 raise --memory-limit",
+                "lower `texture-size` or [render] texture_size, give `texture-budget`, or \
+                 raise `memory-limit`",
             );
             e.add("held", self.held_bytes()).add(
                 "textures and expanded RRPs",
@@ -172,7 +172,7 @@ impl Prepared {
             let st = &self.solution.stats;
             let mut e = budget::Estimate::new(
                 "the Gouraud mesh",
-                "raise radiosity.tolerance or lower radiosity.max_depth, or raise --memory-limit",
+                "raise radiosity.tolerance or lower radiosity.max_depth, or raise `memory-limit`",
             );
             e.add("held", self.held_bytes())
                 .add("mesh", budget::mesh_bytes(st.elements, st.t_vertices));

@@ -14,6 +14,11 @@
 //! overflow f32). Read from a solution file, the file is corrupt (the jobs report it as
 //! [`Error::Solution`], exit 2); produced by this run's own solve, it is a bug (the jobs report
 //! it as [`Error::Internal`]). Library code never panics on bad input; a panic is a bug.
+//!
+//! Options and settings are named as the library knows them (`aa`, `width`, `page-size`,
+//! `render.aa`), never as one front end spells them: the command line turns the names of its
+//! own flags into the flags (`--aa`) with [`Error::name_options`], so flag names live in the
+//! binary alone and a library caller reads the setting it passed.
 
 use std::fmt;
 use std::path::{Path, PathBuf};
@@ -110,7 +115,8 @@ pub enum Error {
     /// other. Displayed as `option value: reason`.
     #[error("{option}{}: {reason}", spaced(value))]
     InvalidOption {
-        /// The option as the user wrote it (`--aa`, `--method`).
+        /// The option or setting by its library name (`aa`, `method`, `render.aa`); a front
+        /// end shows it as the user wrote it ([`Error::name_options`]).
         option: String,
         /// The value given.
         value: String,
@@ -120,7 +126,7 @@ pub enum Error {
     /// A request larger than a limit of the tool (image side, renderers, texture memory).
     #[error("{what}: {requested} exceeds the limit of {limit}")]
     ResourceLimit {
-        /// What was asked for (`--width`, `texture budget`).
+        /// What was asked for (`width`, `texture-budget`), named as an option is.
         what: String,
         /// The amount asked for.
         requested: u64,
@@ -140,7 +146,7 @@ pub enum Error {
         limit: u64,
         /// What the estimate is made of (`quadtrees 1.2 GiB + pair tables 300 MiB`).
         detail: String,
-        /// What to change (`lower radiosity.max_depth or raise --memory-limit`).
+        /// What to change (`lower radiosity.max_depth`); options in backticks, as [`Error::name_options`] spells them.
         hint: String,
     },
     /// A solution file that cannot be used: not a solution, truncated, corrupt, another format
@@ -207,6 +213,29 @@ impl Error {
         }
     }
 
+    /// Renames the option of an [`Error::InvalidOption`] or the quantity of an
+    /// [`Error::ResourceLimit`] through `spell` (the command line maps `aa` to `--aa`); names
+    /// `spell` returns `None` for, and every other variant, are left as they are.
+    /// An option's reason and a memory error's hint may name options in backticks
+    /// (`` `memory-limit` ``): those are spelt too, without the backticks.
+    pub fn name_options(&mut self, spell: impl Fn(&str) -> Option<String>) {
+        let (name, reason) = match self {
+            Error::InvalidOption { option, reason, .. } => (option, Some(reason)),
+            Error::ResourceLimit { what, .. } => (what, None),
+            Error::Memory { hint, .. } => {
+                *hint = spell_quoted(hint, &spell);
+                return;
+            }
+            _ => return,
+        };
+        if let Some(spelt) = spell(name) {
+            *name = spelt;
+        }
+        if let Some(reason) = reason {
+            *reason = spell_quoted(reason, &spell);
+        }
+    }
+
     /// A solution file error on `path`.
     pub fn solution(
         path: impl AsRef<Path>,
@@ -258,6 +287,26 @@ impl Error {
     }
 }
 
+/// `text` with every backticked name that `spell` knows replaced by its spelling.
+fn spell_quoted(text: &str, spell: &impl Fn(&str) -> Option<String>) -> String {
+    let mut out = String::with_capacity(text.len());
+    let mut rest = text;
+    while let Some(open) = rest.find('`') {
+        let Some(len) = rest[open + 1..].find('`') else {
+            break;
+        };
+        let name = &rest[open + 1..open + 1 + len];
+        out.push_str(&rest[..open]);
+        match spell(name) {
+            Some(spelt) => out.push_str(&spelt),
+            None => out.push_str(&rest[open..open + len + 2]),
+        }
+        rest = &rest[open + len + 2..];
+    }
+    out.push_str(rest);
+    out
+}
+
 /// `1.5 MiB` style: bytes in binary units with one decimal (whole bytes below 1 KiB).
 pub fn human_bytes(b: u64) -> String {
     const UNITS: [&str; 6] = ["B", "KiB", "MiB", "GiB", "TiB", "PiB"];
@@ -305,6 +354,26 @@ mod tests {
     }
 
     #[test]
+    fn a_front_end_spells_only_the_names_it_knows() {
+        let flag = |name: &str| (name == "aa" || name == "width").then(|| format!("--{name}"));
+        let mut e = Error::invalid_option("aa", "3", "takes 1, 4 or 16");
+        e.name_options(flag);
+        assert_eq!(e.to_string(), "--aa 3: takes 1, 4 or 16");
+        let mut e = Error::limit("width", 70000, 65536);
+        e.name_options(flag);
+        assert_eq!(e.to_string(), "--width: 70000 exceeds the limit of 65536");
+        let mut e = Error::invalid_option("render.aa", "3", "takes 1, 4 or 16");
+        e.name_options(flag);
+        assert_eq!(e.to_string(), "render.aa 3: takes 1, 4 or 16");
+        let mut e = Error::invalid_option("exr", "a.png", "is also `output`, not `render.aa`");
+        e.name_options(|n| (n == "output").then(|| "-o".to_string()));
+        assert_eq!(e.to_string(), "exr a.png: is also -o, not `render.aa`");
+        let mut e = Error::Runtime("aa".into());
+        e.name_options(flag);
+        assert_eq!(e.to_string(), Error::Runtime("aa".into()).to_string());
+    }
+
+    #[test]
     fn an_internal_error_says_it_is_a_bug_and_exits_1() {
         let e = Error::internal("mesh missing after build");
         assert_eq!(e.exit_code(), EXIT_FAILURE);
@@ -324,13 +393,13 @@ mod tests {
     fn every_variant_displays_one_line_with_its_exit_code() {
         let cases = [
             (
-                Error::invalid_option("--aa", "3", "antialiasing takes 1, 4 or 16 samples"),
-                "--aa 3: antialiasing takes 1, 4 or 16 samples",
+                Error::invalid_option("aa", "3", "antialiasing takes 1, 4 or 16 samples"),
+                "aa 3: antialiasing takes 1, 4 or 16 samples",
                 EXIT_BAD_INPUT,
             ),
             (
-                Error::limit("--width", 70000, 65536),
-                "--width: 70000 exceeds the limit of 65536",
+                Error::limit("width", 70000, 65536),
+                "width: 70000 exceeds the limit of 65536",
                 EXIT_BAD_INPUT,
             ),
             (

@@ -160,7 +160,7 @@ impl Method {
 
     /// [`Method::parse_option`] for the command line's `--method`.
     pub fn parse(name: &str) -> Result<Method> {
-        Method::parse_option("--method", name)
+        Method::parse_option("method", name)
     }
 
     /// The method's name.
@@ -182,7 +182,7 @@ impl Method {
         for (name, x) in [("B", b), ("C", c)] {
             if !(0.0..=1.0).contains(&x) {
                 return Err(Error::invalid_option(
-                    "--bicubic",
+                    "bicubic",
                     format!("{b},{c}"),
                     format!("{name} = {x} must be in [0, 1]"),
                 ));
@@ -299,13 +299,13 @@ pub fn parse_bicubic(text: &str) -> Result<(f32, f32)> {
         [b, c] => match (b.parse::<f32>(), c.parse::<f32>()) {
             (Ok(b), Ok(c)) => Ok((b, c)),
             _ => Err(Error::invalid_option(
-                "--bicubic",
+                "bicubic",
                 text,
                 "B and C must be numbers",
             )),
         },
         _ => Err(Error::invalid_option(
-            "--bicubic",
+            "bicubic",
             text,
             "expected B,C (Mitchell-Netravali 0.333,0.333; Catmull-Rom 0,0.5)",
         )),
@@ -325,13 +325,13 @@ mod tests {
         assert!(matches!(e, Error::InvalidOption { .. }));
         assert!(e
             .to_string()
-            .starts_with("--method texturebilinear: is not a method"));
+            .starts_with("method texturebilinear: is not a method"));
         for name in Placement::NAMES {
-            assert_eq!(Placement::parse_option("--p", name).unwrap().name(), *name);
+            assert_eq!(Placement::parse_option("p", name).unwrap().name(), *name);
         }
-        let e = Placement::parse_option("--texel-placement", "edge").unwrap_err();
+        let e = Placement::parse_option("texel-placement", "edge").unwrap_err();
         assert!(matches!(e, Error::InvalidOption { .. }));
-        assert!(e.to_string().starts_with("--texel-placement edge:"));
+        assert!(e.to_string().starts_with("texel-placement edge:"));
         assert_eq!(Placement::default(), Placement::Centre);
     }
 
@@ -350,24 +350,24 @@ mod tests {
     #[test]
     fn option_checks() {
         for aa in AA_SAMPLE_COUNTS {
-            assert_eq!(Aa::new("--aa", aa).unwrap().samples(), aa);
+            assert_eq!(Aa::new("aa", aa).unwrap().samples(), aa);
         }
         let e = Aa::new("render.aa", 3).unwrap_err();
         assert!(e.to_string().contains("render.aa"), "{e}");
-        check_texture_side("--texture-size", 1).unwrap();
-        check_texture_side("--texture-size", MAX_TEXTURE_SIZE).unwrap();
+        check_texture_side("texture-size", 1).unwrap();
+        check_texture_side("texture-size", MAX_TEXTURE_SIZE).unwrap();
         for bad in [0, 3, 2 * MAX_TEXTURE_SIZE] {
-            assert!(check_texture_side("--texture-size", bad).is_err());
+            assert!(check_texture_side("texture-size", bad).is_err());
         }
-        assert_eq!(parse_bytes("--b", "4M").unwrap(), 4 << 20);
-        assert_eq!(parse_bytes("--b", "512k").unwrap(), 512 << 10);
-        assert_eq!(parse_bytes("--b", "17").unwrap(), 17);
+        assert_eq!(parse_bytes("b", "4M").unwrap(), 4 << 20);
+        assert_eq!(parse_bytes("b", "512k").unwrap(), 512 << 10);
+        assert_eq!(parse_bytes("b", "17").unwrap(), 17);
         // One syntax for every size option: units with and without B, decimals, spaces.
-        assert_eq!(parse_bytes("--b", "2MB").unwrap(), 2 << 20);
-        assert_eq!(parse_bytes("--b", "1.5M").unwrap(), 3 << 19);
-        assert_eq!(parse_bytes("--b", "8 GiB").unwrap(), 8 << 30);
+        assert_eq!(parse_bytes("b", "2MB").unwrap(), 2 << 20);
+        assert_eq!(parse_bytes("b", "1.5M").unwrap(), 3 << 19);
+        assert_eq!(parse_bytes("b", "8 GiB").unwrap(), 8 << 30);
         for bad in ["", "M", "-1", "0.1", "5X", "99999999999G"] {
-            assert!(parse_bytes("--b", bad).is_err(), "{bad}");
+            assert!(parse_bytes("b", bad).is_err(), "{bad}");
         }
         assert_eq!(parse_bicubic("0, 0.5").unwrap(), (0.0, 0.5));
         assert!(parse_bicubic("1").is_err());

@@ -64,7 +64,7 @@ pub fn read_limited(path: &Path, max: u64) -> std::io::Result<Vec<u8>> {
             std::io::ErrorKind::FileTooLarge,
             format!(
                 "larger than {max} bytes, the largest input read (1 GiB at most, and half of \
-                 --memory-limit less the program's own memory)"
+                 the memory limit less the program's own memory)"
             ),
         ));
     }
@@ -602,7 +602,7 @@ pub fn check_outputs(inputs: &[PathBuf], outputs: &[(&str, &Path)]) -> Result<()
             return refuse(
                 option,
                 path,
-                format!("is also the output of {other}; give each output its own file"),
+                format!("is also the output of `{other}`; give each output its own file"),
             );
         }
         seen.insert(r, option);
@@ -643,7 +643,7 @@ mod tests {
         std::fs::write(&input, "x").unwrap();
         let ins = vec![input.clone()];
         let refused = |path: &Path| -> String {
-            match check_outputs(&ins, &[("-o", path)]) {
+            match check_outputs(&ins, &[("output", path)]) {
                 Err(e @ Error::InvalidOption { .. }) => {
                     assert_eq!(e.exit_code(), 2);
                     e.to_string()
@@ -670,22 +670,26 @@ mod tests {
         assert!(refused(Path::new("some/dir/")).contains("directory"));
         // Two outputs naming one file.
         let a = dir.join("a.png");
-        let e = check_outputs(&ins, &[("-o", &a), ("--exr", &dir.join("./a.png"))]).unwrap_err();
-        assert!(e.to_string().contains("also the output of -o"), "{e}");
+        let e = check_outputs(&ins, &[("output", &a), ("exr", &dir.join("./a.png"))]).unwrap_err();
+        assert!(e.to_string().contains("also the output of `output`"), "{e}");
         // Fresh files, and a replaceable regular file, are fine.
         std::fs::write(dir.join("old.png"), "old").unwrap();
-        check_outputs(&ins, &[("-o", &a), ("--exr", &dir.join("old.png"))]).unwrap();
-        check_outputs(&ins, &[("-o", &dir.join("new/dir/out.png"))]).unwrap();
+        check_outputs(&ins, &[("output", &a), ("exr", &dir.join("old.png"))]).unwrap();
+        check_outputs(&ins, &[("output", &dir.join("new/dir/out.png"))]).unwrap();
         std::fs::remove_dir_all(&dir).unwrap();
     }
 
     #[test]
     fn names_that_can_never_be_written_are_refused_up_front() {
         let dir = fresh_dir("names");
-        let refused = |path: &Path| check_outputs(&[], &[("-o", path)]).unwrap_err().to_string();
+        let refused = |path: &Path| {
+            check_outputs(&[], &[("output", path)])
+                .unwrap_err()
+                .to_string()
+        };
         // The longest legal name is fine (its temporary's name is short); one byte more is not.
         let legal = dir.join("a".repeat(MAX_NAME_BYTES));
-        check_outputs(&[], &[("-o", &legal)]).unwrap();
+        check_outputs(&[], &[("output", &legal)]).unwrap();
         Outputs::new().write_atomic(&legal, b"x").unwrap();
         assert_eq!(std::fs::read(&legal).unwrap(), b"x");
         let e = refused(&dir.join("a".repeat(MAX_NAME_BYTES + 1)));

@@ -86,7 +86,7 @@ impl FrameOptions {
     /// Checks every option; a bad value is an [`Error::InvalidOption`] naming the command-line
     /// option, a size or renderer count over the limit an [`Error::ResourceLimit`].
     pub fn validate(&self) -> Result<()> {
-        for (name, v) in [("--width", self.width), ("--height", self.height)] {
+        for (name, v) in [("width", self.width), ("height", self.height)] {
             if v == 0 {
                 return Err(Error::invalid_option(name, "0", "must be at least 1"));
             }
@@ -96,21 +96,21 @@ impl FrameOptions {
         }
         if self.renderers == 0 {
             return Err(Error::invalid_option(
-                "--renderers",
+                "renderers",
                 "0",
                 "must be at least 1",
             ));
         }
         if self.renderers > MAX_RENDERERS {
             return Err(Error::limit(
-                "--renderers",
+                "renderers",
                 self.renderers.into(),
                 MAX_RENDERERS.into(),
             ));
         }
         if self.region < 8 || self.region > 1024 || !self.region.is_multiple_of(8) {
             return Err(Error::invalid_option(
-                "--region",
+                "region",
                 self.region.to_string(),
                 "must be a multiple of 8 in 8..=1024",
             ));

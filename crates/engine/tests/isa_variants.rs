@@ -98,7 +98,7 @@ fn check_raster(isa: Isa) -> usize {
         for aa in [1, 4, 16] {
             let opts = FrameOptions {
                 region: 64, // a narrower last column and row of regions
-                aa: base::method::Aa::new("--aa", aa).expect("a sample count"),
+                aa: base::method::Aa::new("aa", aa).expect("a sample count"),
                 ..FrameOptions::new(scene.width, scene.height)
             };
             let prims = build_primitives(&scene, &scene.camera, opts.width, opts.height, false)
@@ -106,8 +106,7 @@ fn check_raster(isa: Isa) -> usize {
             for p in &prims {
                 kernels.insert((p.perspective, format!("{:?}", p.kind), p.n_edges > 4));
             }
-            let offsets =
-                sample_offsets(base::method::Aa::new("--aa", aa).expect("a sample count"));
+            let offsets = sample_offsets(base::method::Aa::new("aa", aa).expect("a sample count"));
             let grid = RegionGrid::new(opts.width, opts.height, opts.region);
             for (r, bin) in grid.bin(prims.iter().enumerate()).iter().enumerate() {
                 let (x0, y0, w, h) = grid.rect(r as u32);
@@ -208,7 +207,7 @@ fn rasterize_scalar(prim: &Prim, gb: &mut RegionGBuffer, offsets: &[(f32, f32)])
 fn regions_of(scene: &Scene, region: u32, aa: u32) -> Vec<RegionGBuffer> {
     let prims =
         build_primitives(scene, &scene.camera, scene.width, scene.height, false).expect("prims");
-    let offsets = sample_offsets(base::method::Aa::new("--aa", aa).expect("a sample count"));
+    let offsets = sample_offsets(base::method::Aa::new("aa", aa).expect("a sample count"));
     let grid = RegionGrid::new(scene.width, scene.height, region);
     let mut out = Vec::new();
     for (r, bin) in grid.bin(prims.iter().enumerate()).iter().enumerate() {

@@ -337,7 +337,7 @@ pub fn resample(texels: &[Vec3], n: u32, g: u32, map: fn(f64, f64) -> (f64, f64)
 pub fn check_page(side: u32) -> Result<()> {
     if !(64..=MAX_PAGE).contains(&side) || !side.is_power_of_two() {
         return Err(Error::invalid_option(
-            "--page-size",
+            "page-size",
             side.to_string(),
             format!("must be a power of two from 64 to {MAX_PAGE}"),
         ));
@@ -365,7 +365,7 @@ fn pack(sides: &[u32], g: u32, max_page: u32) -> Result<Packing> {
         .find(|(_, &s)| edge(s) > max_page as usize)
     {
         return Err(Error::invalid_option(
-            "--page-size",
+            "page-size",
             max_page.to_string(),
             format!(
                 "is smaller than polygon {p}'s chart ({} texels with its gutter)",
@@ -578,7 +578,7 @@ mod tests {
     #[test]
     fn a_chart_larger_than_a_page_is_refused() {
         let e = pack(&[64], 2, 64).unwrap_err();
-        assert!(e.to_string().contains("--page-size"), "{e}");
+        assert!(e.to_string().contains("page-size"), "{e}");
         assert!(check_page(100).is_err() && check_page(32).is_err() && check_page(128).is_ok());
     }
 }

@@ -68,7 +68,7 @@ impl Container {
             Some(e) if e == "glb" => Ok(Container::Glb),
             Some(e) if e == "gltf" => Ok(Container::Gltf),
             _ => Err(Error::invalid_option(
-                "-o",
+                "output",
                 path.display().to_string(),
                 "must end in .glb (one binary file) or .gltf (JSON with its files beside it)",
             )),

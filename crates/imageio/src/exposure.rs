@@ -136,9 +136,9 @@ impl LuminanceSummary {
 /// naming the fix (`auto`: the exposure was chosen automatically, so the fix is not to).
 pub fn exposure_warning(s: &LuminanceSummary, auto: bool) -> Option<String> {
     let fix = if auto {
-        "the light is very uneven; set --exposure N"
+        "the light is very uneven; set an exposure (display.exposure)"
     } else {
-        "set --exposure N or use --auto-exposure"
+        "set another exposure (display.exposure), or choose it automatically (auto-exposure)"
     };
     if s.clipped >= EXTREME_SHARE {
         Some(format!(

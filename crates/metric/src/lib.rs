@@ -163,7 +163,7 @@ pub(crate) const MAX_PPD: f64 = 1e6;
 fn validate(a: &LinearImage, b: &LinearImage, ppd: f64) -> Result<()> {
     if !(ppd.is_finite() && ppd > 0.0 && ppd <= MAX_PPD) {
         return Err(Error::invalid_option(
-            "--ppd",
+            "ppd",
             ppd.to_string(),
             format!("pixels per degree must be a number > 0 and at most {MAX_PPD}"),
         ));

@@ -131,7 +131,7 @@ pub fn diff(
     }
     if !(tolerance.is_finite() && tolerance >= 0.0 && floor.is_finite() && floor >= 0.0) {
         return Err(Error::invalid_option(
-            "--tolerance",
+            "tolerance",
             format!("{tolerance}"),
             "must be a finite number >= 0",
         ));

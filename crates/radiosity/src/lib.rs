@@ -226,11 +226,11 @@ impl SolveStats {
                      (see the note on refinement: a polygon far larger than its light's detail \
                      needs splitting into smaller polygons), or light bouncing between \
                      surfaces closer than the solve resolves (a light facing a wall a few \
-                     centimetres away); `solve --trace` shows the account"
+                     centimetres away); the solve's trace shows the account"
                 } else if error < 0.0 {
                     "light bouncing between surfaces closer than the solve resolves (a light \
-                     facing a wall a few centimetres away) is the usual cause; `solve --trace` \
-                     shows the account"
+                     facing a wall a few centimetres away) is the usual cause; the solve's \
+                     trace shows the account"
                 } else {
                     "raise radiosity.max_depth or lower radiosity.tolerance"
                 }

@@ -158,12 +158,16 @@ fn finish_model(path: &Path, format: Format, opts: &LoadOptions, parsed: Parsed)
     } else if !camera_set {
         scene.camera = framing_camera(&scene, &bvh, lo, hi, enclosed);
         scene.warnings.push(format!(
-            "{}: no camera in a model: looking from {} at {} ({}; set one with -D camera.eye=[x,y,z] \
-             -D camera.look_at=[x,y,z], or --camera)",
+            "{}: no camera in a model: looking from {} at {} ({}; set one with camera.eye and \
+             camera.look_at)",
             path.display(),
             fmt(scene.camera.eye),
             fmt(scene.camera.look_at),
-            if enclosed { "inside: the model is closed around its centre" } else { "outside" }
+            if enclosed {
+                "inside: the model is closed around its centre"
+            } else {
+                "outside"
+            }
         ));
     }
     if scene.emitter_count() == 0 && scene.spots.is_empty() {

@@ -745,7 +745,7 @@ pub(crate) fn clamp_reflectance(
     }
     warnings.push(format!(
         "{loc}: {reflectance} is 1 or more (a surface reflecting all its light or more; a \
-         closed room would never converge): clamped to {clamped} (`--strict` refuses it)"
+         closed room would never converge): clamped to {clamped} (strict loading refuses it)"
     ));
     clamped
 }
@@ -863,7 +863,7 @@ fn check_parse_memory(text: &str, path: &Path, kind: Parse, input_limit: u64) ->
             estimate,
             limit,
             detail,
-            hint: "raise --memory-limit, or split the model into smaller files".into(),
+            hint: "raise `memory-limit`, or split the model into smaller files".into(),
         });
     }
     Ok(())

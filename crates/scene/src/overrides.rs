@@ -16,7 +16,7 @@ use base::error::{Error, Location, Result};
 use std::path::Path;
 
 /// The option name overrides are reported under.
-const OPTION: &str = "-D";
+const OPTION: &str = "define";
 
 /// Parses one `key=value` argument.
 pub fn parse(arg: &str) -> Result<(String, String)> {

@@ -259,12 +259,12 @@ fn overrides_set_values_and_are_blamed_for_their_errors() {
     // An invalid value is refused as the option's, not at a line of a text the user never saw.
     let e = load_scene_with(&obj, &opts(&[("image.width", "0")])).unwrap_err();
     assert!(
-        matches!(&e, Error::InvalidOption { option, .. } if option == "-D"),
+        matches!(&e, Error::InvalidOption { option, .. } if option == "define"),
         "{e}"
     );
     assert_eq!(e.exit_code(), EXIT_BAD_INPUT);
     let e = load_scene_with(&obj, &opts(&[("camera.fov", "50")])).unwrap_err();
-    assert!(e.to_string().contains("-D"), "{e}");
+    assert!(e.to_string().starts_with("define camera.fov=50:"), "{e}");
     let e = load_scene_with(&obj, &opts(&[("obj.file", "x.obj")])).unwrap_err();
     assert!(e.to_string().contains("not a table"), "{e}");
     // A whole list of tables given as an inline array (it was accepted, against the docs).

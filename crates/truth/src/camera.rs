@@ -274,7 +274,7 @@ mod tests {
 
     #[test]
     fn patterns_are_the_renderers_and_others_are_refused() {
-        let aa = |n| Aa::new("--aa", n).unwrap();
+        let aa = |n| Aa::new("aa", n).unwrap();
         assert_eq!(
             PixelFilter::Pattern(aa(1)).positions().unwrap(),
             &[(0.5, 0.5)]
@@ -282,7 +282,7 @@ mod tests {
         assert_eq!(PixelFilter::Pattern(aa(4)).positions().unwrap().len(), 4);
         let p16 = PixelFilter::Pattern(aa(16)).positions().unwrap();
         assert_eq!(p16[5], (0.375, 0.375));
-        assert!(Aa::new("--aa", 3).is_err());
+        assert!(Aa::new("aa", 3).is_err());
         assert_eq!(PixelFilter::from_aa(None), PixelFilter::Box);
         let bad = Camera {
             up: DVec3::new(-0.5, -0.2, -4.0),

@@ -109,21 +109,21 @@ impl TruthOptions {
         }
         if !(1..=MAX_SAMPLES_PER_PIXEL).contains(&self.samples_per_pixel) {
             return Err(Error::invalid_option(
-                "--spp",
+                "spp",
                 self.samples_per_pixel.to_string(),
                 format!("samples per pixel must be in 1..={MAX_SAMPLES_PER_PIXEL}"),
             ));
         }
         if !(1..=MAX_SAMPLES_PER_POLYGON).contains(&self.samples_per_polygon) {
             return Err(Error::invalid_option(
-                "--polygon-samples",
+                "polygon-samples",
                 self.samples_per_polygon.to_string(),
                 format!("samples per polygon must be in 1..={MAX_SAMPLES_PER_POLYGON}"),
             ));
         }
         if !(1..=MAX_STRATA).contains(&self.strata) {
             return Err(Error::invalid_option(
-                "--strata",
+                "strata",
                 self.strata.to_string(),
                 format!("strata per side must be in 1..={MAX_STRATA}"),
             ));
@@ -131,7 +131,7 @@ impl TruthOptions {
         if let Some(e) = self.max_error {
             if !(e > 0.0 && e.is_finite()) {
                 return Err(Error::invalid_option(
-                    "--max-error",
+                    "max-error",
                     e.to_string(),
                     "the target relative standard error must be positive and finite",
                 ));

@@ -124,14 +124,14 @@ pub fn run_bench(ctx: &Context<'_>, req: &BenchRequest) -> Result<BenchReport> {
     let placement = req.texture.placement(&input.scene)?;
     for &s in &req.sizes {
         if s == 0 {
-            return Err(Error::invalid_option("--sizes", "0", "must be at least 1"));
+            return Err(Error::invalid_option("sizes", "0", "must be at least 1"));
         }
         if s > MAX_IMAGE_DIM {
-            return Err(Error::limit("--sizes", s.into(), MAX_IMAGE_DIM.into()));
+            return Err(Error::limit("sizes", s.into(), MAX_IMAGE_DIM.into()));
         }
     }
     let base = FrameOptions {
-        aa: Aa::new("--aa", req.aa)?,
+        aa: Aa::new("aa", req.aa)?,
         renderers: req.renderers,
         region: req.region,
         ..ctx.frame_options(input.scene.width, input.scene.height)

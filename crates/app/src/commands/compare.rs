@@ -180,17 +180,17 @@ fn non_negative(option: &str, value: f64, most: f64) -> Result<()> {
 
 /// Checks every option of `req` that needs no file.
 fn check_options(req: &CompareRequest) -> Result<()> {
-    non_negative("--fail-percent", req.fail_percent, 100.0)?;
+    non_negative("fail-percent", req.fail_percent, 100.0)?;
     if let Some(d) = req.max_distance {
-        non_negative("--max-distance", d, f64::MAX)?;
+        non_negative("max-distance", d, f64::MAX)?;
     }
     if let Some(d) = req.max_distance_per_pixel {
-        non_negative("--max-distance-per-pixel", d, f64::MAX)?;
+        non_negative("max-distance-per-pixel", d, f64::MAX)?;
     }
     if let Some(deg) = req.view_degrees {
         if !(deg.is_finite() && deg > 0.0 && deg <= 360.0) {
             return Err(Error::invalid_option(
-                "--view-degrees",
+                "view-degrees",
                 deg.to_string(),
                 "the visual angle of the image's width must be a number of degrees in (0, 360]",
             ));
@@ -220,7 +220,7 @@ pub fn check_compare(a: &Path, b: &Path, pixels: bool, perceptual: bool, limit: 
     }
     let mut e = crate::budget::Estimate::new(
         format!("comparing {} with {}", a.display(), b.display()),
-        "compare smaller images, or raise --memory-limit",
+        "compare smaller images, or raise `memory-limit`",
     );
     e.add(
         format!("{} x {} pixels", ha.width, ha.height),
@@ -247,7 +247,7 @@ fn encodings_agree(a: &Path, b: &Path, convert: bool) -> Result<Option<String>> 
                 "{} is a PNG and {} a linear float image: different encodings (the PNG holds \
                  sRGB code values after the render's exposure and clamping, quantised to 8 or \
                  16 bits), so their values do not compare; compare the float image with a \
-                 float image (render --exr), or give --convert to decode the PNG from sRGB to \
+                 float image (render `exr`), or give `convert` to decode the PNG from sRGB to \
                  linear anyway",
                 png.display(),
                 float.display()

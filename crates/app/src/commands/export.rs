@@ -50,7 +50,7 @@ pub fn run_export(ctx: &Context<'_>, req: &ExportRequest) -> Result<ExportReport
         .is_some_and(|p| p != "centre")
     {
         return Err(Error::invalid_option(
-            "--texel-placement",
+            "texel-placement",
             req.texture.placement.clone().unwrap_or_default(),
             "an atlas holds centre-placed texels (texel centres at (i + 0.5) / n, as engines sample)",
         ));
@@ -61,7 +61,7 @@ pub fn run_export(ctx: &Context<'_>, req: &ExportRequest) -> Result<ExportReport
     let exposure = req.exposure.unwrap_or(input.scene.display.exposure);
     if !exposure.is_finite() {
         return Err(Error::invalid_option(
-            "--exposure",
+            "exposure",
             exposure.to_string(),
             "must be finite",
         ));
@@ -111,6 +111,6 @@ fn check_export_outputs(input: &Input, req: &ExportRequest) -> Result<()> {
             }
         }
     }
-    let named: Vec<(&str, &Path)> = paths.iter().map(|p| ("-o", p.as_path())).collect();
+    let named: Vec<(&str, &Path)> = paths.iter().map(|p| ("output", p.as_path())).collect();
     base::output::check_outputs(&inputs, &named)
 }

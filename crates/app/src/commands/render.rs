@@ -108,7 +108,7 @@ impl RenderPlan {
             width: req.width.unwrap_or(scene.width),
             height: req.height.unwrap_or(scene.height),
             aa: match req.aa {
-                Some(n) => Aa::new("--aa", n)?,
+                Some(n) => Aa::new("aa", n)?,
                 None => scene.render.aa_samples,
             },
             renderers: req.renderers,
@@ -122,12 +122,12 @@ impl RenderPlan {
         let texture_placement = req.texture.placement(scene)?;
         if req.walkthrough && req.exr.is_some() {
             return Err(Error::invalid_option(
-                "--exr",
+                "exr",
                 req.exr
                     .as_deref()
                     .map(|p| p.display().to_string())
                     .unwrap_or_default(),
-                "writes one frame; it cannot be combined with --walkthrough",
+                "writes one frame; it cannot be combined with `walkthrough`",
             ));
         }
         let png = match &req.output {
@@ -144,7 +144,7 @@ impl RenderPlan {
                     ""
                 };
                 Error::invalid_option(
-                    "--walkthrough",
+                    "walkthrough",
                     "",
                     format!("{} has no [camera_path]{how}", scene.source.display()),
                 )
@@ -210,7 +210,7 @@ pub(crate) struct WalkthroughReport<'a> {
 pub fn check_sharp_levels(levels: u32) -> Result<u32> {
     if levels > base::quadtree::MAX_DEPTH {
         return Err(Error::invalid_option(
-            "--sharp-levels",
+            "sharp-levels",
             levels.to_string(),
             "expected 0 (off) to 16",
         ));
@@ -228,16 +228,16 @@ fn check_render_outputs(req: &RenderRequest, plan: &RenderPlan, scene: &Scene) -
     let mut outputs: Vec<(&str, &Path)> = plan
         .frames
         .iter()
-        .map(|(_, png)| ("-o", png.as_path()))
+        .map(|(_, png)| ("output", png.as_path()))
         .collect();
-    outputs.extend(plan.exr.as_deref().map(|e| ("--exr", e)));
-    outputs.extend(plan.stats.as_deref().map(|s| ("--stats", s)));
+    outputs.extend(plan.exr.as_deref().map(|e| ("exr", e)));
+    outputs.extend(plan.stats.as_deref().map(|s| ("stats", s)));
     base::output::check_outputs(&inputs, &outputs)?;
     // Then the format follows the name (after the data-loss checks, whose messages say more).
     if let Some(o) = &req.output {
         if OutputFormat::of(o).is_none() {
             return Err(Error::invalid_option(
-                "-o",
+                "output",
                 o.display().to_string(),
                 "must end in .png (8-bit sRGB after the exposure), .exr, .hdr or .pfm (linear \
                  radiosity): the format follows the name",
@@ -247,7 +247,7 @@ fn check_render_outputs(req: &RenderRequest, plan: &RenderPlan, scene: &Scene) -
     if let Some(e) = req.exposure {
         if !e.is_finite() || e.abs() > exposure::MAX_AUTO_STOPS {
             return Err(Error::invalid_option(
-                "--exposure",
+                "exposure",
                 e.to_string(),
                 format!("stops, from -{0} to {0}", exposure::MAX_AUTO_STOPS),
             ));
@@ -255,10 +255,10 @@ fn check_render_outputs(req: &RenderRequest, plan: &RenderPlan, scene: &Scene) -
     }
     if let Some(e) = &req.exr {
         let what = "an OpenEXR file (linear float); the sRGB image goes to -o";
-        check_extension("--exr", e, "exr", what)?;
+        check_extension("exr", e, "exr", what)?;
     }
     if let Some(s) = &req.stats {
-        check_extension("--stats", s, "json", "JSON (the frame statistics)")?;
+        check_extension("stats", s, "json", "JSON (the frame statistics)")?;
     }
     Ok(())
 }
@@ -300,7 +300,7 @@ fn prepared_for_render(
     let mut input = Input::load_opts(&req.input, req.scene.as_deref(), &req.load)?;
     let plan = RenderPlan::new(ctx, req, &input.scene)?;
     if let Some(name) = &req.estimator {
-        input.estimator = reconstruction::Estimator::parse_option("--estimator", name)?;
+        input.estimator = reconstruction::Estimator::parse_option("estimator", name)?;
     }
     if let Some(levels) = req.sharp_levels {
         input.sharp_levels = check_sharp_levels(levels)?;

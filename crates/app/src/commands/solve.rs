@@ -28,10 +28,15 @@ pub fn solve_scene_to_file(
     on_warning: &mut dyn FnMut(&str),
 ) -> Result<Solution> {
     let scene = load_scene_with(scene_path, opts)?;
-    base::output::check_outputs(&scene.inputs, &[("-o", out)])?;
+    base::output::check_outputs(&scene.inputs, &[("output", out)])?;
     // A solution file is named for what it is (renders also recognise it by its magic bytes).
     let what = "a solution file (binary, versioned and checksummed)";
-    crate::commands::render::check_extension("-o", out, crate::context::SOLUTION_EXTENSION, what)?;
+    crate::commands::render::check_extension(
+        "output",
+        out,
+        crate::context::SOLUTION_EXTENSION,
+        what,
+    )?;
     for w in &scene.warnings {
         on_warning(&format!("warning: {w}"));
     }

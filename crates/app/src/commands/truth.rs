@@ -89,16 +89,16 @@ impl TruthPlan {
     pub fn new(ctx: &Context<'_>, req: &TruthRequest, scene: &Scene) -> Result<TruthPlan> {
         if req.output.is_none() && req.json.is_none() {
             return Err(Error::invalid_option(
-                "-o / --json",
+                "output",
                 "",
-                "give -o out.exr for the image, --json out.json for the polygons, or both",
+                "give `output` out.exr for the image, `json` out.json for the polygons, or both",
             ));
         }
         if req.compare_solver && req.json.is_none() {
             return Err(Error::invalid_option(
-                "--compare-solver",
+                "compare-solver",
                 "",
-                "compares per polygon: give --json out.json too",
+                "compares per polygon: give `json` out.json too",
             ));
         }
         let defaults = TruthOptions::new(scene);
@@ -107,7 +107,7 @@ impl TruthPlan {
             width: req.width.unwrap_or(scene.width),
             height: req.height.unwrap_or(scene.height),
             samples_per_pixel: req.spp.unwrap_or(defaults.samples_per_pixel),
-            filter: PixelFilter::from_aa(req.aa.map(|n| Aa::new("--aa", n)).transpose()?),
+            filter: PixelFilter::from_aa(req.aa.map(|n| Aa::new("aa", n)).transpose()?),
             samples_per_polygon: req.polygon_samples.unwrap_or(defaults.samples_per_polygon),
             strata: req.strata.unwrap_or(defaults.strata),
             max_error: req.max_error,
@@ -116,7 +116,7 @@ impl TruthPlan {
         options.validate()?;
         if req.output.is_some() && options.samples_per_pixel < 2 {
             return Err(Error::invalid_option(
-                "--spp",
+                "spp",
                 options.samples_per_pixel.to_string(),
                 "a pixel's standard error needs at least 2 samples",
             ));
@@ -127,7 +127,7 @@ impl TruthPlan {
                 .is_some_and(|e| e.eq_ignore_ascii_case("exr"));
             if !exr {
                 return Err(Error::invalid_option(
-                    "-o",
+                    "output",
                     out.display().to_string(),
                     "the truth image is OpenEXR: name it .exr",
                 ));
@@ -149,15 +149,15 @@ impl TruthPlan {
         inputs.push(req.input.clone());
         let mut outputs: Vec<(&str, &Path)> = Vec::new();
         if let Some((mean, se)) = &self.image {
-            outputs.push(("-o", mean));
+            outputs.push(("output", mean));
             outputs.push(("-o (its standard errors)", se));
         }
         let file = self.json.as_deref().filter(|j| *j != Path::new("-"));
-        outputs.extend(file.map(|j| ("--json", j)));
+        outputs.extend(file.map(|j| ("json", j)));
         base::output::check_outputs(&inputs, &outputs)?;
         if let Some(j) = file {
             crate::commands::render::check_extension(
-                "--json",
+                "json",
                 j,
                 "json",
                 "JSON (every polygon's estimates)",
@@ -171,7 +171,7 @@ impl TruthPlan {
     fn memory(&self, scene: &Scene) -> crate::budget::Estimate {
         let mut e = crate::budget::Estimate::new(
             "the truth run",
-            "lower --width / --height or --strata, or raise --memory-limit",
+            "lower `width` / `height` or `strata`, or raise `memory-limit`",
         );
         let polygons = scene.polygons.len() as u64;
         e.add("scene and BVH", polygons.saturating_mul(600));

@@ -63,7 +63,7 @@ fn check_scene_methods(rel: &str, with_reference: bool) {
         reserve_frames(&mut ctx, &p, m, &FrameOptions::new(96, 64)).unwrap();
         for &(w, h, aa, r, k) in &frames {
             let mut o = FrameOptions::new(w, h);
-            o.aa = base::method::Aa::new("--aa", aa).unwrap();
+            o.aa = base::method::Aa::new("aa", aa).unwrap();
             o.renderers = r;
             o.region = 32;
             let cam = moved(&p.scene.camera, k);

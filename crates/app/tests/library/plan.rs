@@ -60,31 +60,31 @@ fn option_of(e: &Error) -> String {
 fn bad_render_options_are_refused_before_the_solve() {
     type Edit = fn(&mut RenderRequest);
     let cases: [(&str, Edit); 14] = [
-        ("--method", |r| r.method = Some("texturebilinear".into())),
-        ("--aa", |r| r.aa = Some(3)),
-        ("--texture-size", |r| r.texture.size = Some(3)),
-        ("--texture-size", |r| r.texture.size = Some(8192)),
-        ("--texture-budget", |r| r.texture.budget = Some(1)),
-        ("--texture-size", |r| {
+        ("method", |r| r.method = Some("texturebilinear".into())),
+        ("aa", |r| r.aa = Some(3)),
+        ("texture-size", |r| r.texture.size = Some(3)),
+        ("texture-size", |r| r.texture.size = Some(8192)),
+        ("texture-budget", |r| r.texture.budget = Some(1)),
+        ("texture-size", |r| {
             r.texture.size = Some(8);
             r.texture.budget = Some(1 << 20);
         }),
-        ("--bicubic", |r| {
+        ("bicubic", |r| {
             r.method = Some("texture-bicubic".into());
             r.texture.bicubic = Some((2.0, 0.0));
         }),
-        ("--width", |r| r.width = Some(0)),
-        ("--height", |r| r.height = Some(1 << 20)),
-        ("--renderers", |r| r.renderers = 0),
-        ("--renderers", |r| r.renderers = 1000),
-        ("--region", |r| r.region = 12),
-        ("--exr", |r| {
+        ("width", |r| r.width = Some(0)),
+        ("height", |r| r.height = Some(1 << 20)),
+        ("renderers", |r| r.renderers = 0),
+        ("renderers", |r| r.renderers = 1000),
+        ("region", |r| r.region = 12),
+        ("exr", |r| {
             r.walkthrough = true;
             r.exr = Some(PathBuf::from("x.exr"));
         }),
         // gallery-fine has a camera path; a walkthrough of a scene without one is refused too
         // (tested on the CLI with two-spots).
-        ("--method", |r| r.method = Some(String::new())),
+        ("method", |r| r.method = Some(String::new())),
     ];
     for (option, edit) in cases {
         let mut req = request();
@@ -118,13 +118,13 @@ fn bad_bench_and_stats_options_are_refused_before_the_solve() {
         assert!(rec.stages().is_empty(), "{e}: the solve started");
         option_of(&e)
     };
-    assert_eq!(bench(|r| r.methods.push("phong".into())), "--method");
-    assert_eq!(bench(|r| r.sizes = vec![64, 0]), "--sizes");
-    assert_eq!(bench(|r| r.sizes = vec![1 << 20]), "--sizes");
-    assert_eq!(bench(|r| r.aa = 2), "--aa");
-    assert_eq!(bench(|r| r.renderers = 0), "--renderers");
-    assert_eq!(bench(|r| r.region = 12), "--region");
-    assert_eq!(bench(|r| r.texture.size = Some(5)), "--texture-size");
+    assert_eq!(bench(|r| r.methods.push("phong".into())), "method");
+    assert_eq!(bench(|r| r.sizes = vec![64, 0]), "sizes");
+    assert_eq!(bench(|r| r.sizes = vec![1 << 20]), "sizes");
+    assert_eq!(bench(|r| r.aa = 2), "aa");
+    assert_eq!(bench(|r| r.renderers = 0), "renderers");
+    assert_eq!(bench(|r| r.region = 12), "region");
+    assert_eq!(bench(|r| r.texture.size = Some(5)), "texture-size");
 
     let stats = |edit: fn(&mut StatsRequest)| {
         let mut req = StatsRequest {
@@ -141,12 +141,9 @@ fn bad_bench_and_stats_options_are_refused_before_the_solve() {
         assert!(rec.stages().is_empty(), "{e}: the solve started");
         option_of(&e)
     };
-    assert_eq!(stats(|r| r.frame.width = 0), "--width");
-    assert_eq!(stats(|r| r.texture.budget = Some(3)), "--texture-budget");
-    assert_eq!(
-        stats(|r| r.texture.bicubic = Some((0.0, -1.0))),
-        "--bicubic"
-    );
+    assert_eq!(stats(|r| r.frame.width = 0), "width");
+    assert_eq!(stats(|r| r.texture.budget = Some(3)), "texture-budget");
+    assert_eq!(stats(|r| r.texture.bicubic = Some((0.0, -1.0))), "bicubic");
 }
 
 /// The recorder does see a solve that starts: without this the tests above could pass with an

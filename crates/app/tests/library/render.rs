@@ -94,7 +94,7 @@ fn shipped_scenes_render_finite_and_in_range() {
     for name in ["two-spots", "cornell-box", "gallery"] {
         let p = prepared(name);
         let mut opts = FrameOptions::new(p.scene.width, p.scene.height);
-        opts.aa = base::method::Aa::new("--aa", 4).unwrap();
+        opts.aa = base::method::Aa::new("aa", 4).unwrap();
         let f = render_with(p, &opts, 2);
         assert_in_range(p, &f);
     }
@@ -104,7 +104,7 @@ fn shipped_scenes_render_finite_and_in_range() {
 fn cornell_pixels_are_identical_for_any_threads_and_renderers() {
     let p = prepared("cornell-box");
     let mut opts = FrameOptions::new(160, 120);
-    opts.aa = base::method::Aa::new("--aa", 4).unwrap();
+    opts.aa = base::method::Aa::new("aa", 4).unwrap();
     opts.region = 32;
     let reference = render_with(p, &opts, 1);
     for (threads, renderers) in [(2, 1), (1, 3), (2, 3)] {
@@ -161,7 +161,7 @@ fn every_method_is_identical_for_any_threads_and_renderers() {
         Method::Reference,
     ] {
         let mut opts = FrameOptions::new(64, 48);
-        opts.aa = base::method::Aa::new("--aa", 4).unwrap();
+        opts.aa = base::method::Aa::new("aa", 4).unwrap();
         opts.region = 16;
         let run = |opts: &FrameOptions, threads: usize| {
             rayon::ThreadPoolBuilder::new()

@@ -45,7 +45,7 @@ fn coloured_cornell() -> scene::Scene {
 #[test]
 fn truth_sample_patterns_are_the_renderers() {
     for n in [1, 4, 16] {
-        let aa = base::method::Aa::new("--aa", n).unwrap();
+        let aa = base::method::Aa::new("aa", n).unwrap();
         let ours = PixelFilter::Pattern(aa).positions().unwrap();
         let theirs = engine::raster::sample_offsets(aa);
         assert_eq!(ours.len(), theirs.len());

@@ -300,7 +300,7 @@ fn sixteen_samples_resolve_a_pixel_centred_edge_to_half_coverage() {
     // AA 1: the centre lies exactly on the quad's right edge, which the top-left rule excludes.
     for (aa, expect) in [(16u32, 0.5f32), (4, 0.5), (1, 0.0)] {
         let mut opts = FrameOptions::new(w, h);
-        opts.aa = base::method::Aa::new("--aa", aa).unwrap();
+        opts.aa = base::method::Aa::new("aa", aa).unwrap();
         let f = render_frame(&scene, &scene.camera, &Const(PatchCoeffs::whole(c)), &opts).unwrap();
         for y in 0..h {
             // Exact: sample weights are 1/aa and the values dyadic.
@@ -327,7 +327,7 @@ fn image_is_bit_identical_across_threads_and_renderers() {
             .build()
             .unwrap();
         let mut opts = FrameOptions::new(w, h);
-        opts.aa = base::method::Aa::new("--aa", 4).unwrap();
+        opts.aa = base::method::Aa::new("aa", 4).unwrap();
         opts.renderers = renderers;
         opts.region = 64;
         pool.install(|| render_frame(&scene, &scene.camera, &source, &opts))
@@ -370,9 +370,9 @@ fn bad_options_are_usage_errors() {
     let src = UvSource::new();
     // A sample count other than 1, 4 or 16 cannot reach a frame: it is refused where it is
     // made, naming the option.
-    let e = base::method::Aa::new("--aa", 3).unwrap_err();
+    let e = base::method::Aa::new("aa", 3).unwrap_err();
     assert_eq!(e.exit_code(), 2, "{e}");
-    assert!(e.to_string().contains("--aa"), "{e}");
+    assert!(e.to_string().contains("aa"), "{e}");
     for f in [
         |o: &mut FrameOptions| o.renderers = 0,
         |o: &mut FrameOptions| o.region = 12,

@@ -222,7 +222,7 @@ fn memory_error(scene: &Scene, need: u64, limit: u64, detail: String) -> Error {
         estimate: need,
         limit,
         detail,
-        hint: "raise radiosity.tolerance, lower radiosity.max_depth, or raise --memory-limit"
+        hint: "raise radiosity.tolerance, lower radiosity.max_depth, or raise `memory-limit`"
             .into(),
     }
 }

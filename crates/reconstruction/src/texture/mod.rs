@@ -555,7 +555,7 @@ fn check_gutter(g: u32) -> Result<()> {
 }
 
 fn check_side(n: u32) -> Result<()> {
-    base::method::check_texture_side("--texture-size", n)
+    base::method::check_texture_side("texture-size", n)
 }
 
 /// Side chosen by [`SizePolicy::FromDepth`] for a quadtree of the given depth: the smallest power
@@ -686,7 +686,7 @@ impl TextureSet {
                     }
                 }
                 Err(Error::invalid_option(
-                    "--texture-budget",
+                    "texture-budget",
                     bytes.to_string(),
                     format!(
                         "is below {} bytes, the size of {} 1 x 1 textures at 12 bits per channel",

@@ -330,7 +330,7 @@ impl Panels<'_> {
 fn check(opts: &FigureOptions) -> Result<()> {
     if opts.size == 0 || opts.size > 4096 {
         return Err(Error::invalid_option(
-            "--size",
+            "size",
             opts.size.to_string(),
             "must be in 1..=4096",
         ));

@@ -58,7 +58,7 @@ pub const SHIPPED_SCENES: [&str; 4] = [
 
 /// Parses an estimator's name (`plain`, `monotone` or `hyman`), for `--estimator`.
 pub fn parse_estimator(s: &str) -> Result<Estimator> {
-    Estimator::parse_option("--estimator", s)
+    Estimator::parse_option("estimator", s)
 }
 
 /// Which experiment to run.
@@ -213,7 +213,7 @@ fn check_doc(req: &Request) -> Result<()> {
             Err(_) => inputs.push(scene.clone()),
         }
     }
-    base::output::check_outputs(&inputs, &[("--doc", doc)])
+    base::output::check_outputs(&inputs, &[("doc", doc)])
 }
 
 /// Every table of `r` as text.

@@ -179,16 +179,16 @@ fn check(req: &SweepRequest) -> Result<Vec<Method>> {
         .map(|m| Method::parse(m))
         .collect::<Result<Vec<_>>>()?;
     if methods.is_empty() {
-        return Err(Error::invalid_option("--methods", "", "names no method"));
+        return Err(Error::invalid_option("methods", "", "names no method"));
     }
     if let Some(m) = methods.iter().find(|m| **m == Method::Reference) {
         return Err(Error::invalid_option(
-            "--methods",
+            "methods",
             m.name(),
             "is the sweep's error reference, not a swept method",
         ));
     }
-    for (name, v) in [("--size", req.width), ("--size", req.height)] {
+    for (name, v) in [("size", req.width), ("size", req.height)] {
         if v == 0 {
             return Err(Error::invalid_option(name, "0", "must be at least 1"));
         }
@@ -197,21 +197,21 @@ fn check(req: &SweepRequest) -> Result<Vec<Method>> {
         }
     }
     if req.densities.is_empty() {
-        return Err(Error::invalid_option("--densities", "", "names no level"));
+        return Err(Error::invalid_option("densities", "", "names no level"));
     }
     for &d in req.densities.iter().chain([&req.reference_density]) {
         if !(d.is_finite() && d > 0.0) {
             return Err(Error::invalid_option(
-                "--densities",
+                "densities",
                 d.to_string(),
                 "tolerance factors must be finite and > 0",
             ));
         }
     }
     for (name, v) in [
-        ("--texture-levels", req.texture_levels),
-        ("--frames", req.frames),
-        ("--repeats", req.repeats),
+        ("texture-levels", req.texture_levels),
+        ("frames", req.frames),
+        ("repeats", req.repeats),
     ] {
         if v == 0 {
             return Err(Error::invalid_option(name, "0", "must be at least 1"));
@@ -219,28 +219,28 @@ fn check(req: &SweepRequest) -> Result<Vec<Method>> {
     }
     if req.processes.as_ref().is_some_and(|t| t.count == 0) {
         return Err(Error::invalid_option(
-            "--processes",
+            "processes",
             "0",
             "names no timing process (leave them out to time in this process)",
         ));
     }
     if req.texture_levels > 12 {
         return Err(Error::limit(
-            "--texture-levels",
+            "texture-levels",
             req.texture_levels.into(),
             12,
         ));
     }
     if req.truth_samples > truth::MAX_SAMPLES_PER_PIXEL {
         return Err(Error::limit(
-            "--truth-samples",
+            "truth-samples",
             req.truth_samples.into(),
             truth::MAX_SAMPLES_PER_PIXEL.into(),
         ));
     }
     if !(req.ppd.is_finite() && req.ppd > 0.0) {
         return Err(Error::invalid_option(
-            "--ppd",
+            "ppd",
             req.ppd.to_string(),
             "must be finite and > 0",
         ));
@@ -870,13 +870,13 @@ mod tests {
         let base = SweepRequest::new(PathBuf::from("none.toml"));
         type Edit = fn(&mut SweepRequest);
         let cases: [(&str, Edit); 7] = [
-            ("--method", |r| r.methods = vec!["phong".into()]),
-            ("--methods", |r| r.methods = vec!["reference".into()]),
-            ("--methods", |r| r.methods.clear()),
-            ("--size", |r| r.width = 0),
-            ("--densities", |r| r.densities = vec![1.0, -2.0]),
-            ("--frames", |r| r.frames = 0),
-            ("--texture-levels", |r| r.texture_levels = 40),
+            ("method", |r| r.methods = vec!["phong".into()]),
+            ("methods", |r| r.methods = vec!["reference".into()]),
+            ("methods", |r| r.methods.clear()),
+            ("size", |r| r.width = 0),
+            ("densities", |r| r.densities = vec![1.0, -2.0]),
+            ("frames", |r| r.frames = 0),
+            ("texture-levels", |r| r.texture_levels = 40),
         ];
         for (option, edit) in cases {
             let mut r = base.clone();

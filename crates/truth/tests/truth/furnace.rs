@@ -95,7 +95,7 @@ fn every_pixel_inside_the_furnace_is_e_over_one_minus_rho() {
     assert!(ms > 0.8 && ms < 1.25, "mean square z {ms}");
     // The renderer's pattern: the same expected value.
     let centre = TruthOptions {
-        filter: PixelFilter::Pattern(base::method::Aa::new("--aa", 4).unwrap()),
+        filter: PixelFilter::Pattern(base::method::Aa::new("aa", 4).unwrap()),
         ..opts
     };
     let img = render(&scene, &centre, &SILENT).unwrap();

@@ -224,11 +224,11 @@ pub struct ResultsReport {
 
 fn check(req: &ResultsRequest) -> Result<()> {
     if req.scenes.is_empty() {
-        return Err(Error::invalid_option("--scenes", "", "names no scene"));
+        return Err(Error::invalid_option("scenes", "", "names no scene"));
     }
     if !(16..=1024).contains(&req.gallery_width) {
         return Err(Error::invalid_option(
-            "--gallery-width",
+            "gallery-width",
             req.gallery_width.to_string(),
             "must be in 16..=1024",
         ));
@@ -237,7 +237,7 @@ fn check(req: &ResultsRequest) -> Result<()> {
     names.sort();
     if let Some(w) = names.windows(2).find(|w| w[0] == w[1]) {
         return Err(Error::invalid_option(
-            "--scenes",
+            "scenes",
             &w[0],
             "names two scenes with the same file name (their results would overwrite each other)",
         ));
@@ -277,15 +277,14 @@ pub fn run_results(
     }
     let root = data_dir(&req.doc);
     let data = root.join("results.json");
-    let mut outputs: Vec<(&str, PathBuf)> =
-        vec![("--doc", req.doc.clone()), ("--doc (data)", data)];
+    let mut outputs: Vec<(&str, PathBuf)> = vec![("doc", req.doc.clone()), ("doc (data)", data)];
     for scene in &req.scenes {
         let dir = root.join(stem(scene));
         for f in ["sweep.json", "sweep.csv"] {
-            outputs.push(("--doc (data)", dir.join(f)));
+            outputs.push(("doc (data)", dir.join(f)));
         }
         for f in crate::plot::sweep_plot_files(&dir) {
-            outputs.push(("--doc (data)", f));
+            outputs.push(("doc (data)", f));
         }
     }
     let named: Vec<(&str, &Path)> = outputs.iter().map(|(o, p)| (*o, p.as_path())).collect();
