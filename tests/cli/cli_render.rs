@@ -363,11 +363,11 @@ fn walkthrough_renders_every_frame_of_the_camera_path() {
 /// one line on stderr unless `--quiet`.
 #[test]
 fn walkthrough_summarizes_the_frame_rates() {
-    let png = tmp("gallery-walk.png");
-    let stats = tmp("gallery-walk.json");
+    let png = tmp("studio-walk.png");
+    let stats = tmp("studio-walk.json");
     let o = run(&[
         "render",
-        scene("gallery").to_str().unwrap(),
+        scene("studio").to_str().unwrap(),
         "--walkthrough",
         "--width",
         "32",
@@ -379,7 +379,7 @@ fn walkthrough_summarizes_the_frame_rates() {
         stats.to_str().unwrap(),
     ]);
     assert!(o.status.success(), "{}", stderr(&o));
-    // The gallery's camera path has 48 frames.
+    // The studio's camera path has 48 frames.
     let n = 48;
     let json: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(&stats).unwrap()).unwrap();
@@ -456,7 +456,7 @@ fn walkthrough_summarizes_the_frame_rates() {
     ] {
         assert!(line.contains(part), "{line}");
     }
-    assert!(err.contains("gallery-walk-0047.png"), "{err}");
+    assert!(err.contains("studio-walk-0047.png"), "{err}");
 }
 
 #[test]

@@ -937,7 +937,7 @@ fn floating_grid(n: usize, up: bool) -> Scene {
 /// Regression: with sampled visibility 1,600 small quads floating under a 40 x 40 area light
 /// got 44 % of their light (each was missed by the light's one round of probe rays with
 /// probability 0.55, which the rule of 4 rays per polygon hit accepted), and facing down, lit
-/// only by the floor's patches, 29 %. Against exact visibility on a 24 x 24 grid: facing the
+/// only by the floor's patches, 29 %. Against exact visibility on a 16 x 16 grid: facing the
 /// light, every quad gets its light to rounding (the light's rays go on until the unseen share
 /// is bounded, and every polygon around a hit joins); facing the floor, every patch takes the
 /// receivers of the patches around it, which leaves at most a few misses of one patch's light
@@ -945,7 +945,7 @@ fn floating_grid(n: usize, up: bool) -> Scene {
 #[test]
 fn sampled_visibility_finds_every_quad_of_a_floating_grid() {
     for up in [true, false] {
-        let mut exact = floating_grid(24, up);
+        let mut exact = floating_grid(16, up);
         exact.radiosity.visibility = scene::Visibility::Exact;
         let mut sampled = exact.clone();
         sampled.radiosity.visibility = scene::Visibility::Sampled;
