@@ -11,26 +11,6 @@ use std::path::Path;
 
 use libfuzzer_sys::fuzz_target;
 
-const SCENE: &str = r#"
-[camera]
-eye = [0.0, 1.0, 4.0]
-look_at = [0.0, 1.0, 0.0]
-fov_y = 40.0
-
-[[materials]]
-name = "fallback"
-reflectance = [0.5, 0.5, 0.5]
-
-[[obj]]
-file = "fuzz.obj"
-default_material = "fallback"
-
-[[spots]]
-position = [0.0, 3.0, 0.0]
-direction = [0.0, -1.0, 0.0]
-intensity = [1.0, 1.0, 1.0]
-half_angle = 60.0
-"#;
 
 fn utf8(b: &[u8]) -> std::io::Result<String> {
     String::from_utf8(b.to_vec())
@@ -53,7 +33,7 @@ fuzz_target!(|data: &[u8]| {
         }
     };
     let path = Path::new("fuzz-dir/fuzz.toml");
-    match scene::parse_scene_with(SCENE, path, &read) {
+    match scene::parse_scene_with(&fixtures::hostile::obj_host_scene("fuzz.obj"), path, &read) {
         Ok(scene) => {
             let _ = app::report::summarize(&scene).to_string();
         }

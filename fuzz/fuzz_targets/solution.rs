@@ -17,7 +17,7 @@ use std::path::Path;
 use std::sync::OnceLock;
 
 use libfuzzer_sys::fuzz_target;
-use radiosity::{file, scene_hash, Fnv};
+use radiosity::file;
 use reconstruction::compact::CompactReconstruction;
 use reconstruction::Estimator;
 use scene::{load_scene, Scene};
@@ -41,27 +41,6 @@ fn scenes() -> &'static Vec<Scene> {
     })
 }
 
-/// Header: magic 8, version 4, path_len 4, payload_len 8, scene_hash 8.
-const HEADER: usize = 32;
-
-/// Makes the envelope of `b` valid for `scene`: version, lengths, hash and checksum.
-fn repair(b: &mut [u8], scene: &Scene) {
-    if b.len() < HEADER + 8 {
-        return;
-    }
-    let avail = b.len() - HEADER - 8;
-    let path_len = (u32::from_le_bytes([b[12], b[13], b[14], b[15]]) as usize).min(avail);
-    b[..8].copy_from_slice(file::MAGIC);
-    b[8..12].copy_from_slice(&file::FORMAT_VERSION.to_le_bytes());
-    b[12..16].copy_from_slice(&(path_len as u32).to_le_bytes());
-    b[16..24].copy_from_slice(&((avail - path_len) as u64).to_le_bytes());
-    b[24..32].copy_from_slice(&scene_hash(scene).to_le_bytes());
-    let body = b.len() - 8;
-    let mut h = Fnv::default();
-    h.bytes(&b[..body]);
-    b[body..].copy_from_slice(&h.0.to_le_bytes());
-}
-
 fuzz_target!(|data: &[u8]| {
     let Some((&selector, rest)) = data.split_first() else {
         return;
@@ -70,7 +49,7 @@ fuzz_target!(|data: &[u8]| {
     let scene = &scenes[(selector & 0x7f) as usize % scenes.len()];
     let mut bytes = rest.to_vec();
     if selector & 0x80 != 0 {
-        repair(&mut bytes, scene);
+        fixtures::hostile::reseal_solution(&mut bytes, scene);
     }
     let (solution, rrps) = match file::decode(&bytes, scene) {
         Ok(d) => d,

@@ -31,7 +31,7 @@ use std::time::{Duration, Instant};
 use app::context::TextureOptions;
 use app::prepare::prepare_path;
 use base::error::{Error, EXIT_BAD_INPUT};
-use radiosity::{self, file, scene_hash, Fnv, SolveOptions};
+use radiosity::{self, file, SolveOptions};
 use reconstruction::compact::CompactReconstruction;
 use reconstruction::Estimator;
 use scene::{load_scene, parse_scene, Scene};
@@ -460,28 +460,6 @@ fn mutated_scene_files_are_loaded_or_refused_with_their_file() {
     );
 }
 
-/// The scene that includes a mutated OBJ: a default material for faces without `usemtl` and a
-/// spot light, so that a mutant that keeps any face loads.
-const OBJ_SCENE: &str = r#"[camera]
-eye = [0.0, 1.0, 4.0]
-look_at = [0.0, 1.0, 0.0]
-fov_y = 40.0
-
-[[materials]]
-name = "fallback"
-reflectance = [0.5, 0.5, 0.5]
-
-[[obj]]
-file = "m.obj"
-default_material = "fallback"
-
-[[spots]]
-position = [0.0, 3.0, 0.0]
-direction = [0.0, -1.0, 0.0]
-intensity = [1.0, 1.0, 1.0]
-half_angle = 60.0
-"#;
-
 #[test]
 fn mutated_obj_and_mtl_files_are_loaded_or_refused_with_their_file() {
     let pairs = obj_pairs();
@@ -495,7 +473,7 @@ fn mutated_obj_and_mtl_files_are_loaded_or_refused_with_their_file() {
     let extremes = extremes();
     let dir = Scratch::new("obj");
     let scene = dir.0.join("s.toml");
-    std::fs::write(&scene, OBJ_SCENE).unwrap();
+    std::fs::write(&scene, fixtures::hostile::obj_host_scene("m.obj")).unwrap();
     let obj = dir.0.join("m.obj");
     let mut rng = Rng(base::rng::Rng::new(0x5eed_0002));
     let mut loaded = 0;
@@ -573,26 +551,6 @@ shadow_rays = 1
 seed = 1
 "#;
 
-/// Makes the envelope of the solution bytes `b` valid for `scene` (version, lengths, scene hash,
-/// checksum), so that only the payload is damaged.
-fn repair(b: &mut [u8], scene: &Scene) {
-    const HEADER: usize = 32;
-    if b.len() < HEADER + 8 {
-        return;
-    }
-    let avail = b.len() - HEADER - 8;
-    let path_len = (u32::from_le_bytes([b[12], b[13], b[14], b[15]]) as usize).min(avail);
-    b[..8].copy_from_slice(file::MAGIC);
-    b[8..12].copy_from_slice(&file::FORMAT_VERSION.to_le_bytes());
-    b[12..16].copy_from_slice(&(path_len as u32).to_le_bytes());
-    b[16..24].copy_from_slice(&((avail - path_len) as u64).to_le_bytes());
-    b[24..32].copy_from_slice(&scene_hash(scene).to_le_bytes());
-    let body = b.len() - 8;
-    let mut h = Fnv::default();
-    h.bytes(&b[..body]);
-    b[body..].copy_from_slice(&h.0.to_le_bytes());
-}
-
 #[test]
 fn mutated_solution_files_are_read_or_refused_as_bad_solutions() {
     let dir = Scratch::new("solution");
@@ -621,7 +579,7 @@ fn mutated_solution_files_are_read_or_refused_as_bad_solutions() {
             mutate_bytes(&mut rng, &mut b);
         }
         if case % 4 != 3 {
-            repair(&mut b, &scene);
+            fixtures::hostile::reseal_solution(&mut b, &scene);
         }
         let what = || format!("solution case {case} ({} bytes): {b:?}", b.len());
         // In memory: decode, then what `render` and `--estimator` reconstruct from it.

@@ -1,0 +1,216 @@
+//! What a solve writes: the oracle returns its samples, threads and caches change no byte, the
+//! solution file round-trips and refuses what is not one, settings are checked.
+
+use super::*;
+
+/// The oracle reproduces every stored sample bit for bit (they are the same computation).
+#[test]
+fn oracle_returns_stored_samples_exactly() {
+    let (s, sol) = cornell_solution();
+    let o = Oracle::new(sol, s).expect("oracle");
+    let mut n = 0;
+    for (p, k, v) in samples(sol).step_by(53) {
+        let got = o.radiosity(p, k.u(), k.v());
+        assert_eq!(
+            got.to_array().map(f32::to_bits),
+            v.to_array().map(f32::to_bits)
+        );
+        n += 1;
+    }
+    assert!(n > 50);
+    let (p, k, v) = samples(sol).nth(17).expect("a sample");
+    assert_eq!(sol.radiosity(s, p, k.u(), k.v()), v);
+    // Between samples the oracle still answers, finite and non-negative.
+    let b = o.radiosity(0, 0.123, 0.456);
+    assert!(b.is_finite() && b.min_element() >= 0.0 && b.max_element() > 0.0);
+}
+
+/// A smaller Cornell box solved in pools of 1 and 2 threads gives byte-identical files.
+#[test]
+fn one_and_two_threads_give_identical_files() {
+    let mut s = cornell();
+    s.radiosity.max_depth = 5;
+    s.radiosity.shadow_rays = 8;
+    let bytes = |threads: usize| {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .expect("pool");
+        let sol = pool.install(|| solve_quiet(&s));
+        file::encode(&sol)
+    };
+    let a = bytes(1);
+    let b = bytes(2);
+    assert!(a.len() > 1000);
+    assert!(a == b, "1- and 2-thread solutions differ");
+}
+
+/// The coarse-shot cache changes nothing: the Cornell box solved with no cache room gives the
+/// same trees, samples, shot count and history totals, bit for bit (a cached shot adds the same
+/// f32-rounded transfers a computed one does), while patches do shoot more than once (so the
+/// default run really reuses cached transfers).
+#[test]
+fn coarse_cache_changes_nothing() {
+    let mut s = cornell();
+    s.radiosity.max_depth = 4;
+    let run = |entries: usize| {
+        let mut tr = transfer::Transfer::new(&s);
+        shoot::run_with_cache(
+            &s,
+            &mut tr,
+            &mut Stage::start(&SILENT, STAGE),
+            entries,
+            u64::MAX,
+        )
+        .expect("solve")
+    };
+    let a = run(0);
+    let b = run(shoot::COARSE_CACHE_ENTRIES);
+    assert_eq!(a.shots, b.shots);
+    assert_eq!(a.totals, b.totals);
+    assert_eq!(a.history, b.history);
+    assert!(a
+        .trees
+        .iter()
+        .zip(&b.trees)
+        .all(|(x, y)| x.1 == y.1 && x.2 == y.2));
+    let shooters_with_total = a.totals.iter().filter(|t| **t != DVec3::ZERO).count() as u64;
+    assert!(a.shots > shooters_with_total, "{} shots", a.shots);
+}
+
+fn tmp(name: &str) -> std::path::PathBuf {
+    std::env::temp_dir()
+        .join(format!("pfs-solver-{}", std::process::id()))
+        .join(name)
+}
+
+fn input_message(e: Error) -> String {
+    match e {
+        Error::Input { message, .. } => message,
+        other => panic!("expected an input error, got {other:?}"),
+    }
+}
+
+fn solution_problem(e: Error) -> (base::error::SolutionProblem, String) {
+    match e {
+        Error::Solution {
+            problem, message, ..
+        } => (problem, message),
+        other => panic!("expected a solution file error, got {other:?}"),
+    }
+}
+
+#[test]
+fn solution_file_round_trip_and_errors() {
+    let mut s = two_spots();
+    s.radiosity.max_depth = 4;
+    let mut sol = solve_quiet(&s);
+    let path = tmp("a.pfsol");
+    // The RRP bytes are opaque to this module: any bytes round-trip.
+    let rrps: Vec<u8> = (0..=255u8).collect();
+    file::write_solution(&base::output::Outputs::new(), &path, &sol, None, &rrps).expect("write");
+    let (back, back_rrps) = file::read_solution(&path, &s).expect("read");
+    sol.stats.solve_ms = 0.0;
+    assert_eq!(back, sol);
+    assert_eq!(back_rrps, rrps);
+    let bytes = std::fs::read(&path).expect("bytes");
+
+    use base::error::SolutionProblem as P;
+    let p = tmp("trunc.pfsol");
+    std::fs::write(&p, &bytes[..bytes.len() - 10]).expect("w");
+    let (k, m) = solution_problem(file::read_solution(&p, &s).unwrap_err());
+    assert!(k == P::Truncated && m.contains("truncated"), "{m}");
+
+    let mut flipped = bytes.clone();
+    flipped[bytes.len() / 2] ^= 0x10;
+    std::fs::write(&p, &flipped).expect("w");
+    let (k, m) = solution_problem(file::read_solution(&p, &s).unwrap_err());
+    assert!(k == P::Corrupt && m.contains("checksum"), "{m}");
+
+    let mut other = bytes.clone();
+    other[8] = 99;
+    std::fs::write(&p, &other).expect("w");
+    let (k, m) = solution_problem(file::read_solution(&p, &s).unwrap_err());
+    assert_eq!(
+        k,
+        P::Version {
+            found: 99,
+            supported: file::FORMAT_VERSION
+        }
+    );
+    assert!(m.contains("version 99"), "{m}");
+
+    // Older versions (1: before the stored RRPs; 2: before the local refinement criterion,
+    // per-channel convergence and the Hyman estimator) are refused with the same clear message.
+    for old in [1u32, 2] {
+        let mut v = bytes.clone();
+        v[8..12].copy_from_slice(&old.to_le_bytes());
+        std::fs::write(&p, &v).expect("w");
+        let (k, m) = solution_problem(file::read_solution(&p, &s).unwrap_err());
+        assert_eq!(
+            k,
+            P::Version {
+                found: old,
+                supported: file::FORMAT_VERSION
+            }
+        );
+        assert!(m.contains("solve the scene again"), "{m}");
+    }
+    let mut v1 = bytes.clone();
+    v1[8..12].copy_from_slice(&1u32.to_le_bytes());
+    std::fs::write(&p, &v1).expect("w");
+    let (_, m) = solution_problem(file::read_solution(&p, &s).unwrap_err());
+    assert!(
+        m.contains("version 1") && m.contains("solve the scene again"),
+        "{m}"
+    );
+
+    let mut s2 = s.clone();
+    s2.materials[0].reflectance.x = 0.4;
+    let (k, m) = solution_problem(file::read_solution(&path, &s2).unwrap_err());
+    assert!(k == P::SceneMismatch && m.contains("another scene"), "{m}");
+
+    std::fs::write(&p, b"hello").expect("w");
+    let (k, m) = solution_problem(file::read_solution(&p, &s).unwrap_err());
+    assert!(k == P::NotASolution && m.contains("magic"), "{m}");
+    let _ = std::fs::remove_dir_all(path.parent().expect("dir"));
+}
+
+#[test]
+fn bad_settings_are_input_errors() {
+    let mut s = spot_over_plane();
+    s.radiosity.shadow_rays = 0;
+    let m = input_message(solve(&s, &SolveOptions::default()).unwrap_err());
+    assert!(m.contains("shadow_rays") || m.contains("1..="), "{m}");
+    let mut s = spot_over_plane();
+    s.radiosity.min_depth = 9;
+    s.radiosity.max_depth = 3;
+    // Rejected before the stage starts: the observer hears nothing.
+    let r = Recorder::tracing();
+    assert!(solve(
+        &s,
+        &SolveOptions {
+            observer: &r,
+            ..SolveOptions::default()
+        }
+    )
+    .is_err());
+    assert!(r.events().is_empty(), "{:?}", r.events());
+}
+
+/// `radiosity.visibility = "auto"` (the default) is not part of the scene's hash; `exact` and
+/// `sampled` are (they change the solution).
+#[test]
+fn the_visibility_setting_is_hashed_unless_auto() {
+    let base = cornell();
+    let with = |v: scene::Visibility| {
+        let mut s = base.clone();
+        s.radiosity.visibility = v;
+        scene_hash(&s)
+    };
+    use scene::Visibility::{Auto, Exact, Sampled};
+    assert_eq!(with(Auto), scene_hash(&base));
+    assert_ne!(with(Auto), with(Exact));
+    assert_ne!(with(Exact), with(Sampled));
+    assert_ne!(with(Auto), with(Sampled));
+}
