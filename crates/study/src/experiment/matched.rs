@@ -14,9 +14,18 @@ use crate::sweep::{SweepPoint, SweepReport};
 /// How much above the direct method's error a point may be and still match it.
 pub const MATCH_SLACK: f64 = 1.1;
 
-/// The error the matching uses: physics when measured, else total.
-fn error_of(p: &SweepPoint) -> f64 {
-    p.error_physics.unwrap_or(p.error_total)
+/// The error the matching uses: the physics error where the truth resolves it at every point
+/// of the sweep (an unresolved one is within the truth's noise, and matching on it would rank
+/// noise), else the total error for all of them, so that one scene's rows share one measure.
+fn error_of(sw: &SweepReport, p: &SweepPoint) -> f64 {
+    let resolved = sw
+        .points
+        .iter()
+        .all(|q| q.physics.is_some_and(|e| e.resolved));
+    match p.physics {
+        Some(e) if resolved => e.perceptual,
+        _ => p.error_total,
+    }
 }
 
 /// One method at matched error.
@@ -40,7 +49,7 @@ pub fn target(sw: &SweepReport) -> Option<&SweepPoint> {
 pub fn matched<'a>(sw: &'a SweepReport, method: &str, target_error: f64) -> Option<Matched<'a>> {
     let of_method = || sw.points.iter().filter(move |p| p.method == method);
     let within = of_method()
-        .filter(|p| error_of(p) <= target_error * MATCH_SLACK)
+        .filter(|p| error_of(sw, p) <= target_error * MATCH_SLACK)
         .min_by(|a, b| {
             a.bytes
                 .cmp(&b.bytes)
@@ -52,7 +61,7 @@ pub fn matched<'a>(sw: &'a SweepReport, method: &str, target_error: f64) -> Opti
             reached: true,
         }),
         None => of_method()
-            .min_by(|a, b| error_of(a).total_cmp(&error_of(b)))
+            .min_by(|a, b| error_of(sw, a).total_cmp(&error_of(sw, b)))
             .map(|point| Matched {
                 point,
                 reached: false,
@@ -91,8 +100,8 @@ pub fn section(scenes: &[(&str, &SweepReport)]) -> String {
          is read where it is as accurate as the direct method at the scene's own density \
          (within {:.0} %): the sweep point with the fewest bytes stored among those (over every \
          density, texture size and placement), or, when none is, its most accurate point \
-         (*not reached*). Accuracy is the physics error (against the path tracer), or the total \
-         error where a scene has no truth image. Triangles and vertices are what the method \
+         (*not reached*). Accuracy is the physics error (against the path tracer) where the truth \
+         resolves it at every point of the scene's sweep, else the total error. Triangles and vertices are what the method \
          draws (the mesh's, or the original polygons with their own corners); frames per \
          second at the sweep's image size, with the confidence interval of the frame time.\n\n",
         100.0 * (MATCH_SLACK - 1.0)
@@ -103,7 +112,7 @@ pub fn section(scenes: &[(&str, &SweepReport)]) -> String {
     let mut findings = Vec::new();
     for (name, sw) in scenes {
         let Some(t) = target(sw) else { continue };
-        let target_error = error_of(t);
+        let target_error = error_of(sw, t);
         // The direct method at matched error (its cheapest point as accurate as the target).
         let direct = matched(sw, "direct", target_error).map_or(t, |d| d.point);
         for m in sw.methods() {
@@ -117,7 +126,7 @@ pub fn section(scenes: &[(&str, &SweepReport)]) -> String {
                 m,
                 p.density,
                 super::labels::texture_label(p),
-                error_of(p),
+                error_of(sw, p),
                 target_error,
                 if mt.reached { "" } else { " *not reached*" },
                 app::report::grouped(p.triangles),
@@ -218,7 +227,7 @@ mod tests {
             point("mesh", 2, 80, [5.0, 6.0], 0.5),
         ]);
         let t = target(&sw).unwrap();
-        let m = matched(&sw, "mesh", error_of(t)).unwrap();
+        let m = matched(&sw, "mesh", error_of(&sw, t)).unwrap();
         assert!(m.reached);
         assert_eq!(m.point.bytes, 50);
         assert_eq!(speed_words(t, m.point), "faster than");

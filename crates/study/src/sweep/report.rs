@@ -254,14 +254,12 @@ fn truth_line(report: &SweepReport) -> String {
         .densities
         .iter()
         .chain([&report.reference])
-        .map(|d| {
-            d.solution
-                .map_or("-".into(), |e| format!("{:.4}", e.perceptual))
-        })
+        .map(|d| d.solution.map_or("-".into(), |e| e.perceptual_text(4)))
         .collect();
     format!(
         "truth: {} samples per pixel, noise {:.4} (perceptual), {:.3e} (rmse); \
-         solution error per density, then the converged reference: {}\n",
+         solution error per density, then the converged reference (≤: within the truth's \
+         noise, measured distance shown): {}\n",
         t.samples_per_pixel,
         t.perceptual,
         t.rmse,
@@ -307,9 +305,8 @@ pub fn table(report: &SweepReport) -> String {
             p.bytes,
             p.error_reconstruction,
             p.error_total,
-            p.error_physics
-                .map(|e| format!("{e:.4}"))
-                .unwrap_or_else(|| "-".into()),
+            p.physics
+                .map_or_else(|| "-".into(), |e| e.perceptual_text(4)),
             front
         );
     }

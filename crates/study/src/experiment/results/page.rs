@@ -27,7 +27,7 @@ fn point_row(p: &SweepPoint) -> String {
         mb(p.working_bytes),
         p.error_reconstruction,
         p.error_total,
-        p.error_physics.map_or("-".into(), |e| format!("{e:.3}")),
+        p.physics.map_or("-".into(), |e| e.perceptual_text(3)),
         fronts(p)
     )
 }
@@ -372,13 +372,15 @@ fn budget_section(sw: &SweepReport) -> String {
         "**Error budget against physics** (perceptual distance; truth: {} samples per pixel, its \
          noise {:.3} taken out in quadrature, see [sweep.md](sweep.md#error-budget)). Each cell \
          is *physics error (reconstruction error)*; the solution error is the same solution's \
-         exact image against the truth. Converged reference (tolerance {}): solution error {}.\n\n",
+         exact image against the truth. A value marked ≤ is within the truth's noise: the \
+         correction does not resolve it, so the measured distance is given as its bound and no \
+         comparison is made on it. Converged reference (tolerance {}): solution error {}.\n\n",
         t.samples_per_pixel,
         t.perceptual,
         sw.reference.tolerance,
         sw.reference
             .solution
-            .map_or("-".into(), |e| format!("{:.3}", e.perceptual)),
+            .map_or("-".into(), |e| e.perceptual_text(3)),
     );
     s += &format!(
         "| density | tolerance | solution error | {} |\n",
@@ -386,9 +388,7 @@ fn budget_section(sw: &SweepReport) -> String {
     );
     s += &format!("|---|---|---|{}\n", "---|".repeat(methods.len()));
     for (level, d) in sw.densities.iter().enumerate() {
-        let sol = d
-            .solution
-            .map_or("-".into(), |e| format!("{:.3}", e.perceptual));
+        let sol = d.solution.map_or("-".into(), |e| e.perceptual_text(3));
         s += &format!("| {level} | {} | {sol} |", d.tolerance);
         for m in &methods {
             let best = sw
@@ -398,7 +398,11 @@ fn budget_section(sw: &SweepReport) -> String {
                 .filter(|p| p.texture.is_none_or(|l| l.halvings == 0))
                 .min_by(|a, b| physics_of(a).total_cmp(&physics_of(b)));
             s += &match best {
-                Some(p) => format!(" {:.3} ({:.3}) |", physics_of(p), p.error_reconstruction),
+                Some(p) => format!(
+                    " {} ({:.3}) |",
+                    p.physics.map_or("-".into(), |e| e.perceptual_text(3)),
+                    p.error_reconstruction
+                ),
                 None => " - |".into(),
             };
         }
@@ -415,10 +419,12 @@ fn physics_of(p: &SweepPoint) -> f64 {
 /// Which term of the budget dominates: at how many points (every method, density and texture
 /// size) the solution error exceeds the reconstruction error, and per method where it does not.
 fn budget_finding(sw: &SweepReport) -> String {
+    // Only resolved solution errors are compared (see `PhysicsErrors::resolved`).
     let solution = |p: &SweepPoint| {
         sw.densities
             .get(p.density)
             .and_then(|d| d.solution)
+            .filter(|e| e.resolved)
             .map(|e| e.perceptual)
     };
     let mut by_method = Vec::new();
@@ -446,8 +452,8 @@ fn budget_finding(sw: &SweepReport) -> String {
          nearer the light; only a better solution can."
     };
     format!(
-        "The solution error is the larger term at {sol_wins} of {all} points (every density and \
-         texture size; per method: {}). {verdict}",
+        "The solution error is the larger term at {sol_wins} of {all} points where the truth \
+         resolves it (every density and texture size; per method: {}). {verdict}",
         by_method.join(", ")
     )
 }
