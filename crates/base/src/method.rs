@@ -63,7 +63,7 @@ impl Placement {
     /// Every placement's name.
     pub const NAMES: &'static [&'static str] = &["centre", "corner"];
 
-    /// Parses a placement name for `option` (`--texel-placement`, `render.texel_placement`);
+    /// Parses a placement name for the setting `option` (`texel-placement`, `render.texel_placement`);
     /// an unknown name is an [`Error::InvalidOption`] listing the known ones.
     pub fn parse_option(option: &str, name: &str) -> Result<Placement> {
         match name {
@@ -140,8 +140,8 @@ impl Method {
 
     /// Parses a method name (as on the command line and in `[render] method`);
     /// `texture-bicubic` is Mitchell–Netravali B = C = 1/3 (see [`Method::with_bicubic`]).
-    /// An unknown name is an [`Error::InvalidOption`] for `option` (`--method`,
-    /// `render.method`) listing the implemented ones.
+    /// An unknown name is an [`Error::InvalidOption`] for the setting `option`
+    /// (`method`, `render.method`) listing the implemented ones.
     pub fn parse_option(option: &str, name: &str) -> Result<Method> {
         match name {
             "direct" => Ok(Method::Direct),
@@ -230,7 +230,7 @@ impl Default for Aa {
     }
 }
 
-/// Checks a texture side named `option` (`--texture-size`): a power of two in
+/// Checks a texture side named `option` (`texture-size`): a power of two in
 /// `1..=`[`MAX_TEXTURE_SIZE`].
 pub fn check_texture_side(option: &str, n: u32) -> Result<()> {
     if n == 0 || !n.is_power_of_two() || n > MAX_TEXTURE_SIZE {
@@ -244,8 +244,8 @@ pub fn check_texture_side(option: &str, n: u32) -> Result<()> {
     }
 }
 
-/// Parses a byte count, the one size syntax of every option (`--texture-budget`,
-/// `--memory-limit`): a number, decimals allowed, optionally followed by K, M, G or T (powers of
+/// Parses a byte count, the one size syntax of every option (`texture-budget`,
+/// `memory-limit`): a number, decimals allowed, optionally followed by K, M, G or T (powers of
 /// 1024), with or without `B` or `iB`, any case, spaces allowed before the unit (`2MB`, `1.5M`,
 /// `8 GiB`, `4096`). At least 1 byte and below 2^64; the error names `option`.
 pub fn parse_bytes(option: &str, text: &str) -> Result<u64> {

@@ -83,8 +83,8 @@ impl FrameOptions {
         }
     }
 
-    /// Checks every option; a bad value is an [`Error::InvalidOption`] naming the command-line
-    /// option, a size or renderer count over the limit an [`Error::ResourceLimit`].
+    /// Checks every option; a bad value is an [`Error::InvalidOption`] naming the setting
+    /// (`width`, `renderers`), a size or renderer count over the limit an [`Error::ResourceLimit`].
     pub fn validate(&self) -> Result<()> {
         for (name, v) in [("width", self.width), ("height", self.height)] {
             if v == 0 {

@@ -138,7 +138,7 @@ impl Estimator {
         Estimator::ALL.into_iter().find(|e| e.name() == name)
     }
 
-    /// The estimator named `name` given to command-line option `option`; an unknown name is an
+    /// The estimator named `name` given as the setting `option`; an unknown name is an
     /// [`Error::InvalidOption`] listing the names.
     pub fn parse_option(option: &str, name: &str) -> Result<Estimator> {
         Estimator::from_name(name)

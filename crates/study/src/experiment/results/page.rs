@@ -441,6 +441,14 @@ fn budget_finding(sw: &SweepReport) -> String {
         sol_wins += w;
         all += n;
     }
+    if all == 0 {
+        let noise = sw.truth.as_ref().map_or(0.0, |t| t.perceptual);
+        return format!(
+            "The truth's noise ({noise:.3}) is larger than the solution error at every point, so \
+             this budget cannot tell which term dominates; a truth with more samples per pixel \
+             (`--truth-samples`) would."
+        );
+    }
     let verdict = if sol_wins == 0 {
         "The reconstruction error dominates everywhere: at this image size every method's \
          distance from the light is mostly how it draws the solution, not the solution."
