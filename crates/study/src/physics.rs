@@ -182,6 +182,18 @@ mod tests {
         LinearImage::new(n, n, pixels).unwrap()
     }
 
+    /// `img` brightened by `1 + gain(t)` at `t`, the column over the width (0 to 1).
+    fn brightened(img: &LinearImage, gain: impl Fn(f32) -> f32) -> LinearImage {
+        let w = img.width as usize;
+        let pixels = img
+            .pixels
+            .iter()
+            .enumerate()
+            .map(|(i, p)| *p * (1.0 + gain((i % w) as f32 / w as f32)))
+            .collect();
+        LinearImage::new(img.width, img.height, pixels).unwrap()
+    }
+
     /// `img` with independent zero-mean noise of relative amplitude `amp` (uniform, so
     /// standard deviation `amp / sqrt(3)`) from `seed`.
     fn noisy(img: &LinearImage, amp: f32, seed: u64) -> LinearImage {
@@ -205,16 +217,7 @@ mod tests {
         let x = clean(128);
         let ppd = metric::DEFAULT_PPD;
         // A smooth 5 % brightening of the right half: the image under test.
-        let y = LinearImage::new(
-            128,
-            128,
-            x.pixels
-                .iter()
-                .enumerate()
-                .map(|(i, p)| *p * (1.0 + 0.05 * ((i % 128) as f32 / 128.0).powi(2)))
-                .collect(),
-        )
-        .unwrap();
+        let y = brightened(&x, |t| 0.05 * t * t);
         let exact = compare(&y, &x, ppd).unwrap().perceptual_distance;
         // Noise per half chosen so the averaged truth's noise is comparable to the distance.
         let t = TruthReference::from_halves(&noisy(&x, 0.01, 1), &noisy(&x, 0.01, 2), ppd).unwrap();
@@ -268,16 +271,7 @@ mod tests {
     fn skewed_noise_is_flagged_where_it_exceeds_the_distance() {
         let x = clean(128);
         let ppd = metric::DEFAULT_PPD;
-        let y = LinearImage::new(
-            128,
-            128,
-            x.pixels
-                .iter()
-                .enumerate()
-                .map(|(i, p)| *p * (1.0 + 0.2 * ((i % 128) as f32 / 128.0)))
-                .collect(),
-        )
-        .unwrap();
+        let y = brightened(&x, |t| 0.2 * t);
         let exact = compare(&y, &x, ppd).unwrap().perceptual_distance;
         let at = |spp| {
             let t =
