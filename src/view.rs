@@ -161,7 +161,8 @@ enum Update {
 fn leave_the_solve(shown: anyhow::Result<()>) -> ! {
     match shown {
         Ok(()) => std::process::exit(0),
-        Err(e) => {
+        Err(mut e) => {
+            crate::spell_options(&mut e);
             crate::note(&format!("error: {e:#}"));
             std::process::exit(crate::exit_code(&e))
         }
