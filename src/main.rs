@@ -155,11 +155,12 @@ fn spell_options(e: &mut anyhow::Error) {
         }
         stack.extend(c.get_subcommands().cloned());
     }
-    // A name may say which of a flag's values it means (`doc (data)`): the flag, then the rest.
+    // A name may say in parentheses which of a flag's values it means (`doc (data)`): the
+    // flag, then the rest. Other names with spaces (`generated polygons`) are not flags.
     e.name_options(|name| {
         flags.get(name).cloned().or_else(|| {
-            let (head, rest) = name.split_once(' ')?;
-            Some(format!("{} {rest}", flags.get(head)?))
+            let (head, rest) = name.split_once(" (")?;
+            Some(format!("{} ({rest}", flags.get(head)?))
         })
     });
 }

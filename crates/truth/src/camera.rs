@@ -110,7 +110,7 @@ impl CameraRays {
     /// would refuse too (look-at at the eye, up along the view, a field of view outside
     /// (0, 180) degrees, an empty orthographic rectangle).
     pub fn new(camera: &Camera, width: u32, height: u32) -> Result<CameraRays> {
-        let bad = |why: &str| Error::invalid_option("camera", "", why);
+        let bad = |why: &str| Error::invalid_option("the camera", "", why);
         if width == 0 || height == 0 {
             return Err(bad("the image needs at least one pixel"));
         }

@@ -169,7 +169,7 @@ impl View {
         let f = camera.look_at - camera.eye;
         if !f.is_finite() || !camera.eye.is_finite() || f.length() == 0.0 {
             return Err(Error::invalid_option(
-                "camera",
+                "the camera",
                 "",
                 "look_at must be finite and differ from eye",
             ));
@@ -178,7 +178,7 @@ impl View {
         let r = forward.cross(camera.up);
         if !r.is_finite() || r.length() <= 1e-9 * camera.up.length() || r.length() == 0.0 {
             return Err(Error::invalid_option(
-                "camera",
+                "the camera",
                 "",
                 "up must not be parallel to the view direction",
             ));
@@ -195,7 +195,7 @@ impl View {
             Projection::Perspective { fov_y_deg } => {
                 if !(fov_y_deg > 0.0 && fov_y_deg < 180.0) {
                     return Err(Error::invalid_option(
-                        "camera",
+                        "the camera",
                         "",
                         format!("field of view {fov_y_deg} must be in (0, 180) degrees"),
                     ));
@@ -215,7 +215,7 @@ impl View {
             } => {
                 if !(vw > 0.0 && vh > 0.0 && vw.is_finite() && vh.is_finite()) {
                     return Err(Error::invalid_option(
-                        "camera",
+                        "the camera",
                         "",
                         "orthographic width and height must be positive",
                     ));
