@@ -49,7 +49,7 @@ fuzz_target!(|data: &[u8]| {
     let scene = &scenes[(selector & 0x7f) as usize % scenes.len()];
     let mut bytes = rest.to_vec();
     if selector & 0x80 != 0 {
-        fixtures::hostile::reseal_solution(&mut bytes, scene);
+        file::reseal(&mut bytes, scene);
     }
     let (solution, rrps) = match file::decode(&bytes, scene) {
         Ok(d) => d,

@@ -79,6 +79,28 @@ pub fn encode_with_scene(sol: &Solution, scene_path: Option<&Path>, rrps: &[u8])
     out
 }
 
+/// Makes the envelope of the damaged solution file bytes `b` valid for `scene` (magic, format
+/// version, the path and payload lengths, the scene hash, the checksum), so that only the
+/// payload stays damaged: the hostile-input tests and the fuzz target use it to reach the
+/// payload's decoder instead of stopping at the checksum. Bytes too short to hold a header and
+/// a checksum are left as they are.
+pub fn reseal(b: &mut [u8], scene: &Scene) {
+    if b.len() < HEADER + 8 {
+        return;
+    }
+    let avail = b.len() - HEADER - 8;
+    let path_len = (u32::from_le_bytes([b[12], b[13], b[14], b[15]]) as usize).min(avail);
+    b[..8].copy_from_slice(MAGIC);
+    b[8..12].copy_from_slice(&FORMAT_VERSION.to_le_bytes());
+    b[12..16].copy_from_slice(&(path_len as u32).to_le_bytes());
+    b[16..24].copy_from_slice(&((avail - path_len) as u64).to_le_bytes());
+    b[24..32].copy_from_slice(&scene_hash(scene).to_le_bytes());
+    let body = b.len() - 8;
+    let mut h = Fnv::default();
+    h.bytes(&b[..body]);
+    b[body..].copy_from_slice(&h.0.to_le_bytes());
+}
+
 /// Writes `sol` and `rrps` (the compact reconstruction's encoding, or empty) to `path`
 /// atomically through `outputs`. `scene_path`, if given, is stored relative to the solution
 /// file's folder ([`relative_to`]; absolute when they share no root) so that the solution file

@@ -579,7 +579,7 @@ fn mutated_solution_files_are_read_or_refused_as_bad_solutions() {
             mutate_bytes(&mut rng, &mut b);
         }
         if case % 4 != 3 {
-            fixtures::hostile::reseal_solution(&mut b, &scene);
+            file::reseal(&mut b, &scene);
         }
         let what = || format!("solution case {case} ({} bytes): {b:?}", b.len());
         // In memory: decode, then what `render` and `--estimator` reconstruct from it.

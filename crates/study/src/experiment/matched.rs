@@ -14,17 +14,37 @@ use crate::sweep::{SweepPoint, SweepReport};
 /// How much above the direct method's error a point may be and still match it.
 pub const MATCH_SLACK: f64 = 1.1;
 
-/// The error the matching uses: the physics error where the truth resolves it at every point
-/// of the sweep (an unresolved one is within the truth's noise, and matching on it would rank
+/// The error the matching uses for one sweep: the physics error where the truth resolves it at
+/// every point (an unresolved one is within the truth's noise, and matching on it would rank
 /// noise), else the total error for all of them, so that one scene's rows share one measure.
-fn error_of(sw: &SweepReport, p: &SweepPoint) -> f64 {
-    let resolved = sw
-        .points
-        .iter()
-        .all(|q| q.physics.is_some_and(|e| e.resolved));
-    match p.physics {
-        Some(e) if resolved => e.perceptual,
-        _ => p.error_total,
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Measure {
+    /// Every point's physics error, all resolved.
+    Physics,
+    /// Every point's total error.
+    Total,
+}
+
+impl Measure {
+    /// The measure of `sw`, decided once over all its points.
+    fn of(sw: &SweepReport) -> Measure {
+        let resolved = sw
+            .points
+            .iter()
+            .all(|q| q.physics.is_some_and(|e| e.resolved));
+        if resolved {
+            Measure::Physics
+        } else {
+            Measure::Total
+        }
+    }
+
+    /// Point `p`'s error in this measure.
+    fn error(self, p: &SweepPoint) -> f64 {
+        match (self, p.physics) {
+            (Measure::Physics, Some(e)) => e.perceptual,
+            _ => p.error_total,
+        }
     }
 }
 
@@ -47,9 +67,10 @@ pub fn target(sw: &SweepReport) -> Option<&SweepPoint> {
 /// For `method`, the point with the fewest stored bytes (then the fastest) among those within
 /// [`MATCH_SLACK`] of `target_error`; else its most accurate point.
 pub fn matched<'a>(sw: &'a SweepReport, method: &str, target_error: f64) -> Option<Matched<'a>> {
+    let measure = Measure::of(sw);
     let of_method = || sw.points.iter().filter(move |p| p.method == method);
     let within = of_method()
-        .filter(|p| error_of(sw, p) <= target_error * MATCH_SLACK)
+        .filter(|p| measure.error(p) <= target_error * MATCH_SLACK)
         .min_by(|a, b| {
             a.bytes
                 .cmp(&b.bytes)
@@ -61,7 +82,7 @@ pub fn matched<'a>(sw: &'a SweepReport, method: &str, target_error: f64) -> Opti
             reached: true,
         }),
         None => of_method()
-            .min_by(|a, b| error_of(sw, a).total_cmp(&error_of(sw, b)))
+            .min_by(|a, b| measure.error(a).total_cmp(&measure.error(b)))
             .map(|point| Matched {
                 point,
                 reached: false,
@@ -112,7 +133,8 @@ pub fn section(scenes: &[(&str, &SweepReport)]) -> String {
     let mut findings = Vec::new();
     for (name, sw) in scenes {
         let Some(t) = target(sw) else { continue };
-        let target_error = error_of(sw, t);
+        let measure = Measure::of(sw);
+        let target_error = measure.error(t);
         // The direct method at matched error (its cheapest point as accurate as the target).
         let direct = matched(sw, "direct", target_error).map_or(t, |d| d.point);
         for m in sw.methods() {
@@ -126,7 +148,7 @@ pub fn section(scenes: &[(&str, &SweepReport)]) -> String {
                 m,
                 p.density,
                 super::labels::texture_label(p),
-                error_of(sw, p),
+                measure.error(p),
                 target_error,
                 if mt.reached { "" } else { " *not reached*" },
                 app::report::grouped(p.triangles),
@@ -227,7 +249,7 @@ mod tests {
             point("mesh", 2, 80, [5.0, 6.0], 0.5),
         ]);
         let t = target(&sw).unwrap();
-        let m = matched(&sw, "mesh", error_of(&sw, t)).unwrap();
+        let m = matched(&sw, "mesh", Measure::of(&sw).error(t)).unwrap();
         assert!(m.reached);
         assert_eq!(m.point.bytes, 50);
         assert_eq!(speed_words(t, m.point), "faster than");
