@@ -49,13 +49,16 @@ fn check_cornell_lists_its_repairs_as_notes_and_exits_0() {
     assert!(!stderr.contains("warning:"), "{stderr}");
     assert!(stderr.contains("split into two triangles"), "{stderr}");
     assert!(
-        stderr.contains("8 contact lines") && stderr.contains("cut 1 polygons into 30 pieces"),
+        stderr.contains("12 contact lines")
+            && stderr.contains("4 of them sides of polygons lying close over another")
+            && stderr.contains("cut 2 polygons into 39 pieces"),
         "{stderr}"
     );
     let stdout = text(&out.stdout);
-    // 17 faces, the floor among them cut into 30 pieces (10 of them triangles).
+    // 17 faces, the floor among them cut into 30 pieces (10 of them triangles), the ceiling
+    // into 9 along the lamp's outline.
     assert!(
-        stdout.contains("polygons        46 (36 quads, 10 triangles)"),
+        stdout.contains("polygons        54 (44 quads, 10 triangles)"),
         "{stdout}"
     );
     assert!(stdout.contains("emitters        1 polygons"), "{stdout}");

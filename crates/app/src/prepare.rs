@@ -406,10 +406,10 @@ fn reconstruct(
 }
 
 /// The seams every reconstruction of `scene` joins: the shared edges of coplanar polygons of one
-/// material ([`scene::adjacency`], [`reconstruction::seam`]).
+/// material ([`scene::adjacency`], [`reconstruction::seam`]), but not those along the lines the
+/// loader cut because the light steps there ([`Seams::of_scene`]).
 pub fn seams_of(scene: &Scene) -> Seams {
-    let adjacency = scene.adjacency();
-    Seams::of(&scene.polygons, &scene.materials, &adjacency)
+    Seams::of_scene(scene)
 }
 
 /// The spot lights of a scene as sharp light for its RRPs ([`reconstruction::sharp`]): their

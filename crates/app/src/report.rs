@@ -89,15 +89,10 @@ fn contacts_text(scene: &Scene) -> String {
         c.lines.len(),
         c.length()
     );
-    // Where each cut polygon's first piece now is: the polygons before it less the pieces
-    // they lost, plus those they gained.
     let mut at = Vec::new();
-    let mut shift = 0i64;
-    for &(orig, n) in &c.pieces {
-        let first = (orig as i64 + shift) as usize;
+    for (&(orig, _), place) in c.pieces.iter().zip(&c.places) {
         let lines = c.lines.iter().filter(|l| l.receiver == orig).count();
-        at.push(format!("{} ({lines} lines)", scene.origin(first)));
-        shift += n as i64 - 1;
+        at.push(format!("{place} ({lines} lines)"));
     }
     let more = at.len().saturating_sub(3);
     if !at.is_empty() {
@@ -143,7 +138,7 @@ pub fn summarize(scene: &Scene) -> SceneSummary {
     };
     let (start, worst) = crate::budget::solve_estimate(scene);
     let adjacency = scene.adjacency();
-    let seams = reconstruction::Seams::of(&scene.polygons, &scene.materials, &adjacency);
+    let seams = reconstruction::Seams::of_scene(scene);
     SceneSummary {
         source: scene.source.display().to_string(),
         image: (scene.width, scene.height),

@@ -24,27 +24,32 @@ type Ratio = (f64, f64);
 
 /// Per polygon: (solver total / truth total, the truth's relative standard error), and the
 /// same for the indirect part (reflected light that bounced before), in luminance. A polygon
-/// the loader cut along contact lines counts once, its pieces' means merged by their areas
-/// (the truth traces it whole: the same surface).
-fn ratios(scene: &scene::Scene, samples: u64) -> Vec<(Ratio, Ratio)> {
+/// the loader cut along contact lines counts once, its pieces' means merged by their areas;
+/// the truth traces `whole`, the same scene loaded without the cuts (the same surfaces).
+fn ratios(scene: &scene::Scene, whole: &scene::Scene, samples: u64) -> Vec<(Ratio, Ratio)> {
     let sol = solve(scene, &SolveOptions::default()).expect("solves");
-    ratios_of(scene, &sol, samples)
+    ratios_of(scene, whole, &sol, samples)
+}
+
+/// Scene `text` as the solver loads it (cut along its contact lines), and whole.
+fn parsed(text: &str, name: &str) -> (scene::Scene, scene::Scene) {
+    let scene = scene::parse_scene(text, Path::new(name)).expect("scene");
+    let whole = format!("{text}\n[radiosity]\ncut_contacts = false\n");
+    let whole = scene::parse_scene(&whole, Path::new(name)).expect("the whole scene");
+    (scene, whole)
 }
 
 /// [`ratios`] of the solution `sol` of `scene`.
-fn ratios_of(scene: &scene::Scene, sol: &radiosity::Solution, samples: u64) -> Vec<(Ratio, Ratio)> {
+fn ratios_of(
+    scene: &scene::Scene,
+    whole: &scene::Scene,
+    sol: &radiosity::Solution,
+    samples: u64,
+) -> Vec<(Ratio, Ratio)> {
     let ours = merged(scene, &face_means(sol, scene).expect("means"));
-    let mut whole = scene.clone();
-    if !scene.contacts.pieces.is_empty() {
-        let opts = scene::LoadOptions {
-            overrides: vec![("radiosity.cut_contacts".into(), "false".into())],
-            ..scene::LoadOptions::default()
-        };
-        whole = scene::load_scene_with(&scene.source, &opts).expect("the whole scene");
-    }
-    let mut opts = TruthOptions::new(&whole);
+    let mut opts = TruthOptions::new(whole);
     opts.samples_per_polygon = samples;
-    let truth = truth::polygons(&whole, &opts, &SILENT).expect("traces");
+    let truth = truth::polygons(whole, &opts, &SILENT).expect("traces");
     assert_eq!(ours.len(), truth.len());
     ours.iter()
         .zip(&truth)
@@ -115,8 +120,8 @@ fn check(name: &str, r: &[(Ratio, Ratio)], total_tol: f64, indirect_tol: f64) {
 /// measured now within 0.3 %.
 #[test]
 fn one_bounce_between_a_floor_and_a_wall_matches_the_path_tracer() {
-    let scene = scene::parse_scene(ONE_BOUNCE, Path::new("one-bounce.toml")).expect("scene");
-    let r = ratios(&scene, 65_536);
+    let (scene, whole) = parsed(ONE_BOUNCE, "one-bounce.toml");
+    let r = ratios(&scene, &whole, 65_536);
     check("one bounce", &r, 0.01, 0.015);
 }
 
@@ -129,8 +134,8 @@ fn one_bounce_between_a_floor_and_a_wall_matches_the_path_tracer() {
 /// convergence that leaves part of it).
 #[test]
 fn a_box_over_a_floor_in_a_closed_room_matches_the_path_tracer() {
-    let scene = scene::parse_scene(&closed_room(), Path::new("closed-room.toml")).expect("scene");
-    let r = ratios(&scene, 16_384);
+    let (scene, whole) = parsed(&closed_room(), "closed-room.toml");
+    let r = ratios(&scene, &whole, 16_384);
     let (bottom, rest): (Vec<_>, Vec<_>) = r.iter().enumerate().partition(|(i, _)| *i == 6);
     check(
         "closed room",
@@ -151,8 +156,8 @@ fn a_box_over_a_floor_in_a_closed_room_matches_the_path_tracer() {
 /// (0.5 % plus three standard errors, 1.3 % in all) holds the old error out.
 #[test]
 fn walls_lighting_a_ceiling_match_the_path_tracer() {
-    let scene = scene::parse_scene(&wall_lit_ceiling(), Path::new("wall-lit.toml")).expect("scene");
-    let r = ratios(&scene, 262_144);
+    let (scene, whole) = parsed(&wall_lit_ceiling(), "wall-lit.toml");
+    let r = ratios(&scene, &whole, 262_144);
     // Polygons: floor, ceiling, four walls, lamp.
     check("ceiling", &r[1..2], 0.005, 0.005);
     check("walls", &r[2..6], 0.01, 0.01);
@@ -193,8 +198,13 @@ fn wall_lit_ceiling() -> String {
 fn the_cornell_box_matches_the_path_tracer_face_by_face() {
     let path = Path::new(REPO).join("scenes/cornell-box.toml");
     let scene = scene::load_scene(&path).expect("scene");
+    let opts = scene::LoadOptions {
+        overrides: vec![("radiosity.cut_contacts".into(), "false".into())],
+        ..scene::LoadOptions::default()
+    };
+    let whole = scene::load_scene_with(&path, &opts).expect("the whole scene");
     let a = solve(&scene, &SolveOptions::default()).expect("solves");
-    let r = ratios_of(&scene, &a, 262_144);
+    let r = ratios_of(&scene, &whole, &a, 262_144);
     check("cornell", &r, 0.01, 0.02);
     let mut other = scene.clone();
     other.radiosity.seed = 4;

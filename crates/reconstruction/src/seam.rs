@@ -47,7 +47,13 @@ use super::hermite::{HermiteData, PatchPoly};
 use super::Estimator;
 use base::quadtree::{SampledQuadtree, VertexKey, LATTICE};
 use scene::adjacency::{side_endpoints, Adjacency, Junction, SharedEdge, Side};
+use scene::contact::LineKind;
 use scene::{Material, Polygon};
+
+/// A shared side lies along a step when its middle is within this share of the step's length
+/// of it: the loader snaps corners to a cut line within `scene::contact::SNAP` of the cut
+/// polygon's size, and a piece's side along a step is never shorter than that.
+const STEP_TOL: f64 = 2e-4;
 
 /// A shared side joined by the reconstruction, in lattice units.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -87,6 +93,35 @@ impl Seams {
     /// slanted), and the gentle folds between polygons of equal material (creases of at most
     /// [`MAX_FOLD_DEGREES`]), joined C0.
     pub fn of(polygons: &[Polygon], materials: &[Material], adjacency: &Adjacency) -> Seams {
+        Seams::apart_along(polygons, materials, adjacency, &[])
+    }
+
+    /// The seams of a loaded scene: [`Seams::of`] its polygons, left apart along the lines the
+    /// loader cut them along because the light steps there (`scene::contact`: a polygon
+    /// standing on or passing through a receiver, or lying close over it as a lamp under a
+    /// ceiling). The pieces on either side of such a line share whole edges, coplanar and of
+    /// one material, and nothing else tells them from a tiling of a flat wall; joined, the
+    /// seam's mean would draw the lamp's outline half lit from both sides.
+    pub fn of_scene(scene: &scene::Scene) -> Seams {
+        let steps: Vec<(DVec3, DVec3)> = scene
+            .contacts
+            .lines
+            .iter()
+            .filter(|l| l.kind != LineKind::Junction)
+            .map(|l| (l.a, l.b))
+            .collect();
+        let adjacency = scene.adjacency();
+        Seams::apart_along(&scene.polygons, &scene.materials, &adjacency, &steps)
+    }
+
+    /// [`Seams::of`], leaving apart every shared side that lies along one of `steps` (segments
+    /// across which the light steps), counted with [`Seams::standing`].
+    pub fn apart_along(
+        polygons: &[Polygon],
+        materials: &[Material],
+        adjacency: &Adjacency,
+        steps: &[(DVec3, DVec3)],
+    ) -> Seams {
         let mut links = Vec::new();
         let mut unjoined = 0;
         let mut standing = 0;
@@ -98,7 +133,7 @@ impl Seams {
             if !fold && !Adjacency::continuous(e, polygons, materials) {
                 continue;
             }
-            if stands {
+            if stands || on_step(e, polygons, steps) {
                 standing += 1;
                 continue;
             }
@@ -150,8 +185,9 @@ impl Seams {
         self.slants
     }
 
-    /// Continuous shared sides left unjoined because another polygon stands on them at an angle
-    /// (a wall on the line where two floor polygons meet: the light is discontinuous there).
+    /// Continuous shared sides left unjoined because the light steps across them: another
+    /// polygon stands on them at an angle (a wall on the line where two floor polygons meet), or
+    /// they lie along a step the loader cut along ([`Seams::of_scene`]).
     pub fn standing(&self) -> usize {
         self.standing
     }
@@ -213,6 +249,26 @@ enum Shape {
     /// A sliver or needle (cross axis under [`MIN_CROSS_RATIO`] of the side, or at an angle
     /// to it whose sine is under that ratio, or a side of length 0): left apart.
     Degenerate,
+}
+
+/// Whether the shared segment of `e` lies along one of `steps`: its middle within a small
+/// share of the step's length of the step (the loader's cut put the pieces' corners on the
+/// line, to rounding and its snap), and its direction along the step's.
+fn on_step(e: &SharedEdge, polygons: &[Polygon], steps: &[(DVec3, DVec3)]) -> bool {
+    if steps.is_empty() {
+        return false;
+    }
+    let (s0, s1) = side_endpoints(&polygons[e.a.polygon as usize], e.a.side);
+    let (a, b) = (s0 + (s1 - s0) * e.a_range[0], s0 + (s1 - s0) * e.a_range[1]);
+    let (mid, dir) = (0.5 * (a + b), (b - a).normalize_or_zero());
+    steps.iter().any(|&(p, q)| {
+        let d = q - p;
+        let len = d.length();
+        let t = ((mid - p).dot(d) / (len * len).max(f64::MIN_POSITIVE)).clamp(0.0, 1.0);
+        let tol = STEP_TOL * len.max((b - a).length());
+        (p + d * t).distance(mid) <= tol
+            && dir.cross(d / len.max(f64::MIN_POSITIVE)).length() <= 1e-3
+    })
 }
 
 /// How well `side` of `p` carries a seam over `range`, the worst of its two ends and its

@@ -23,6 +23,16 @@
 //! by side always share whole edges, never a T-junction. Pieces with more than four corners
 //! are cut into quads (and a triangle) along diagonals.
 //!
+//! A polygon lying close over another without touching it (a lamp hung a centimetre under the
+//! ceiling, a picture on a wall, a rug on a floor) makes the same kind of step: the receiver
+//! under it sees almost nothing, the receiver beside it sees the room, and the light between
+//! the two changes within a few gaps' width of the outline. A smooth patch or a texel across
+//! that outline blends the two sides (a bright ring of the hidden ceiling drawn beside a lamp).
+//! So a polygon nearly parallel to a receiver and in front of it, by at most [`OUTLINE_GAP`] of
+//! its half-width, cuts the receiver along its outline projected onto the receiver's plane, as
+//! a contact line does ([`LineKind::Outline`]). Farther away the step widens into a penumbra
+//! the quadtree follows by refinement.
+//!
 //! Invariants: the cut depends only on the polygons (candidates are sorted, lines are applied
 //! in a fixed order), so the scene is the same for any thread count; every piece is planar
 //! (its corners lie in P's plane), convex, and wound like P; the pieces tile P. A vertex within
@@ -49,6 +59,40 @@ pub const SNAP: f64 = 1e-4;
 /// [`Cuts::skipped`].
 pub const MAX_LINES: usize = 48;
 
+/// A polygon in front of a receiver by at most this share of its half-width (twice its area
+/// over its perimeter: a square's half side, a long strip's half width) and nowhere behind it
+/// cuts the receiver along its projected outline. The light under such a polygon falls from
+/// the step at its outline to almost nothing within a few gaps (a point a distance `x` inside
+/// sees the room only below an elevation of about `gap / x`, a cosine-weighted share of about
+/// `(gap / x)^2 / 2`), so the outline is a step on the scale of the polygon; the Cornell box's
+/// lamp, 1 cm under a ceiling, is at 0.05 of its 0.21 half-width, a gallery's 1 m ceiling
+/// panels at 0.02. By a quarter of the half-width the ramps from both sides fill most of the
+/// shadow, a soft penumbra that refinement follows (a box floating 10 cm over a floor, at 0.25,
+/// is left whole).
+pub const OUTLINE_GAP: f64 = 0.125;
+
+/// The share of a close polygon's area that must lie over the receiver for its outline to
+/// cut it: a lamp straddling two ceiling polygons cuts both, a neighbour folded up by a hair
+/// from the receiver's side (whose projection overlaps it in slivers) cuts neither.
+pub const OUTLINE_OVER: f64 = 0.01;
+
+/// Why a line cuts its receiver.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum LineKind {
+    /// A polygon stands on the receiver or passes through it.
+    Contact,
+    /// A polygon lies close over the receiver ([`OUTLINE_GAP`]); the line is a side of its
+    /// outline projected onto the receiver, and `gap` that side's mean distance from the
+    /// receiver's plane: the width over which the light beside the line changes.
+    Outline {
+        /// See the variant.
+        gap: f64,
+    },
+    /// A corner of a coplanar neighbour meets the receiver's side inside it (a T-junction,
+    /// `crate::junctions`).
+    Junction,
+}
+
 /// One contact line: where polygon `by` touches or crosses polygon `receiver` (indices of the
 /// polygons before cutting), from `a` to `b`, inside the receiver.
 #[derive(Debug, Clone, PartialEq)]
@@ -61,6 +105,8 @@ pub struct ContactLine {
     pub a: DVec3,
     /// See `a`.
     pub b: DVec3,
+    /// Why it cuts.
+    pub kind: LineKind,
 }
 
 /// What cutting along the contact lines did to a scene.
@@ -72,12 +118,23 @@ pub struct Cuts {
     pub pieces: Vec<(u32, u32)>,
     /// Contact lines not cut along (a polygon touched along more than [`MAX_LINES`] lines).
     pub skipped: usize,
+    /// Per polygon cut (aligned with `pieces`, filled by `Scene::cut_contacts`): where it was
+    /// written, for reports; kept here because later cuts move the pieces' indices.
+    pub places: Vec<String>,
 }
 
 impl Cuts {
     /// Total length of the contact lines.
     pub fn length(&self) -> f64 {
         self.lines.iter().map(|l| (l.b - l.a).length()).sum()
+    }
+
+    /// How many lines are the outlines of polygons lying close over their receivers.
+    pub fn outlines(&self) -> usize {
+        self.lines
+            .iter()
+            .filter(|l| matches!(l.kind, LineKind::Outline { .. }))
+            .count()
     }
 
     /// Polygons cut, and the pieces they became.
@@ -100,11 +157,20 @@ impl Cuts {
         } else {
             String::new()
         };
+        let outlines = self.outlines();
+        let outlines = if outlines > 0 {
+            format!(
+                ", {outlines} of them sides of polygons lying close over another, as a lamp \
+                 under a ceiling"
+            )
+        } else {
+            String::new()
+        };
         Some(format!(
-            "{} contact lines (where a polygon stands on or passes through another, {:.3} long \
-             in all) cut {cut} polygons into {pieces} pieces, so that no patch, texel or \
-             triangle carries light across them{skipped} (radiosity.cut_contacts = false keeps \
-             them whole)",
+            "{} contact lines (where a polygon stands on or passes through another{outlines}, \
+             {:.3} long in all) cut {cut} polygons into {pieces} pieces, so that no patch, \
+             texel or triangle carries light across them{skipped} (radiosity.cut_contacts = \
+             false keeps them whole)",
             self.lines.len(),
             self.length()
         ))
@@ -138,11 +204,97 @@ pub fn find(polygons: &[Polygon]) -> Vec<ContactLine> {
                     by: q,
                     a,
                     b,
+                    kind: LineKind::Contact,
                 });
             }
         }
     }
+    outlines(polygons, &bvh, &mut lines);
+    // Stable: a pair's contact lines stay ahead of its outline's.
+    lines.sort_by_key(|l| (l.receiver, l.by));
     lines
+}
+
+/// Twice `p`'s area over its perimeter: the radius of a circle or a square's inscribed circle,
+/// half a long strip's width.
+fn half_width(p: &Polygon) -> f64 {
+    let vs = p.vertices();
+    let perimeter: f64 = (0..vs.len())
+        .map(|i| vs[i].distance(vs[(i + 1) % vs.len()]))
+        .sum();
+    2.0 * p.area / perimeter.max(f64::MIN_POSITIVE)
+}
+
+/// Appends the outline lines of every polygon lying close over another ([`OUTLINE_GAP`]):
+/// each polygon's box, grown by the gap it may leave, finds its receivers.
+fn outlines(polygons: &[Polygon], bvh: &Bvh, lines: &mut Vec<ContactLine>) {
+    for (qi, q) in polygons.iter().enumerate() {
+        let reach = OUTLINE_GAP * half_width(q);
+        let b = Aabb::of(q.vertices());
+        let b = Aabb {
+            lo: b.lo - DVec3::splat(reach),
+            hi: b.hi + DVec3::splat(reach),
+        };
+        let mut near = Vec::new();
+        bvh.for_each_overlapping(&b, |p| {
+            if p as usize != qi {
+                near.push(p);
+            }
+        });
+        near.sort_unstable();
+        for pi in near {
+            let p = &polygons[pi as usize];
+            let tol = PLANE_TOL * diameter(p).max(diameter(q));
+            for (a, b, gap) in outline(p, q, reach, tol) {
+                lines.push(ContactLine {
+                    receiver: pi,
+                    by: qi as u32,
+                    a,
+                    b,
+                    kind: LineKind::Outline { gap },
+                });
+            }
+        }
+    }
+}
+
+/// The sides of `q`'s outline projected onto `p`, clipped to `p`, if `q` lies in front of `p`
+/// within `reach` of its plane and nowhere behind it; sides on `p`'s border, and sides `q`
+/// touches `p` along (contact lines), are left out. Each side comes with its mean gap.
+fn outline(p: &Polygon, q: &Polygon, reach: f64, tol: f64) -> Vec<(DVec3, DVec3, f64)> {
+    let n = p.normal;
+    let p0 = p.corners[0];
+    let qv = q.vertices();
+    let d: Vec<f64> = qv.iter().map(|v| n.dot(*v - p0)).collect();
+    if d.iter().any(|&x| x < -tol || x > reach) || d.iter().all(|&x| x <= tol) {
+        return Vec::new();
+    }
+    // Over the receiver, not beside it: a neighbour folded up from `p`'s side by a hair (two
+    // triangles of a quad that is not quite planar) projects onto `p` in slivers only.
+    let frame = Frame::of(p);
+    let footprint: Vec<DVec2> = qv
+        .iter()
+        .zip(&d)
+        .map(|(v, dv)| frame.to2(*v - n * *dv))
+        .collect();
+    let receiver: Vec<DVec2> = p.vertices().iter().map(|v| frame.to2(*v)).collect();
+    if area2(&clip_convex(&footprint, &receiver)) < OUTLINE_OVER * area2(&footprint) {
+        return Vec::new();
+    }
+    let mut out = Vec::new();
+    for i in 0..qv.len() {
+        let j = (i + 1) % qv.len();
+        if d[i] <= tol && d[j] <= tol {
+            continue;
+        }
+        let (a, b) = (qv[i] - n * d[i], qv[j] - n * d[j]);
+        if let Some((a, b)) = clip_to_polygon(p, a, b, tol) {
+            if !on_border(p, a, b, tol) {
+                out.push((a, b, 0.5 * (d[i] + d[j]).max(0.0)));
+            }
+        }
+    }
+    out
 }
 
 /// The segment along which `q` meets `p`'s plane inside `p`, if `q` reaches `p`'s front there
@@ -391,6 +543,42 @@ fn pieces(p: &Polygon, lines: &[ContactLine]) -> (Vec<Polygon>, usize) {
         })
         .collect();
     (out, skipped)
+}
+
+/// The area of the counter-clockwise polygon `f` (0 for fewer than three corners).
+fn area2(f: &[DVec2]) -> f64 {
+    if f.len() < 3 {
+        return 0.0;
+    }
+    0.5 * (0..f.len())
+        .map(|i| f[i].perp_dot(f[(i + 1) % f.len()]))
+        .sum::<f64>()
+        .abs()
+}
+
+/// The part of polygon `f` inside the convex counter-clockwise polygon `c` (Sutherland and
+/// Hodgman's clipping).
+fn clip_convex(f: &[DVec2], c: &[DVec2]) -> Vec<DVec2> {
+    let mut out = f.to_vec();
+    for i in 0..c.len() {
+        if out.is_empty() {
+            break;
+        }
+        let (a, b) = (c[i], c[(i + 1) % c.len()]);
+        let side = |x: DVec2| (b - a).perp_dot(x - a);
+        let input = std::mem::take(&mut out);
+        for k in 0..input.len() {
+            let (x, y) = (input[k], input[(k + 1) % input.len()]);
+            let (sx, sy) = (side(x), side(y));
+            if sx >= 0.0 {
+                out.push(x);
+            }
+            if (sx >= 0.0) != (sy >= 0.0) {
+                out.push(x + (y - x) * (sx / (sx - sy)));
+            }
+        }
+    }
+    out
 }
 
 /// The distance from `x` to the segment `a`-`b`.

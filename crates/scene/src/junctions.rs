@@ -126,6 +126,7 @@ fn t_vertex_lines(e: &SharedEdge, polygons: &[Polygon], out: &mut Vec<ContactLin
                     by: other.polygon,
                     a,
                     b,
+                    kind: contact::LineKind::Junction,
                 });
             }
         }

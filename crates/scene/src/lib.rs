@@ -555,6 +555,15 @@ impl Scene {
     pub fn cut_contacts(&mut self) {
         let lines = contact::find(&self.polygons);
         self.contacts = contact::cut(&mut self.polygons, &mut self.origins, lines);
+        // Each cut polygon's first piece: the polygons before it, less the pieces they lost
+        // plus those they gained.
+        let mut shift = 0i64;
+        let mut places = Vec::with_capacity(self.contacts.pieces.len());
+        for &(orig, n) in &self.contacts.pieces {
+            places.push(self.origin((orig as i64 + shift) as usize));
+            shift += n as i64 - 1;
+        }
+        self.contacts.places = places;
     }
 
     /// Cuts polygons through their T-junctions whose lattices do not line up ([`junctions`]),

@@ -310,6 +310,27 @@ fn a_wall_standing_on_the_seam_keeps_the_floors_apart() {
     assert_eq!((seams.joined(), seams.standing()), (0, 1));
 }
 
+/// Two floor polygons side by side are one surface unless the light steps where they meet:
+/// along a step the loader cut (a lamp's outline on a ceiling, `scene::contact`) they stay
+/// apart, whether the step covers the shared side or reaches past it; a step beside the side,
+/// across it, or along only its continuation past the polygons joins them as before.
+#[test]
+fn a_cut_step_along_the_seam_keeps_the_floors_apart() {
+    let polys = [floor(0.0, 0.0, 1.0, 1.0, 0), floor(1.0, 0.0, 1.0, 1.0, 0)];
+    let adjacency = Adjacency::of(&polys);
+    let joined = |steps: &[(DVec3, DVec3)]| {
+        let s = Seams::apart_along(&polys, &materials(1), &adjacency, steps);
+        (s.joined(), s.standing())
+    };
+    let p = |x: f64, z: f64| DVec3::new(x, 0.0, z);
+    assert_eq!(joined(&[]), (1, 0));
+    assert_eq!(joined(&[(p(1.0, 0.0), p(1.0, 1.0))]), (0, 1));
+    assert_eq!(joined(&[(p(1.0, 1.5), p(1.0, -0.5))]), (0, 1));
+    assert_eq!(joined(&[(p(1.01, 0.0), p(1.01, 1.0))]), (1, 0));
+    assert_eq!(joined(&[(p(0.5, 0.5), p(1.5, 0.5))]), (1, 0));
+    assert_eq!(joined(&[(p(1.0, 1.2), p(1.0, 3.0))]), (1, 0));
+}
+
 #[test]
 fn a_shadow_line_on_the_seam_keeps_the_floors_apart() {
     // Lit left of x = 1, a tenth as bright right of it: the samples on the seam disagree, so

@@ -200,3 +200,94 @@ proptest! {
         }
     }
 }
+
+/// A 4 x 4 ceiling at height 2 facing down, and a lamp of half-side `w` hung `gap` under its
+/// middle, facing down; everything times `scale`.
+fn ceiling_and_lamp(gap: f64, w: f64, scale: f64) -> Vec<Polygon> {
+    let s = |c: [[f64; 3]; 4]| quad(c.map(|v| v.map(|x| x * scale)));
+    let y = 2.0 - gap;
+    vec![
+        s([
+            [-2.0, 2.0, -2.0],
+            [2.0, 2.0, -2.0],
+            [2.0, 2.0, 2.0],
+            [-2.0, 2.0, 2.0],
+        ]),
+        s([[-w, y, -w], [w, y, -w], [w, y, w], [-w, y, w]]),
+    ]
+}
+
+/// What broke: a lamp hung 1 cm under a ceiling left the ceiling whole, so a texel of its
+/// texture straddled the lamp's outline and blended the dark ceiling above the lamp with the
+/// lit ceiling beside it. The ceiling is cut along the lamp's outline (four lines, each
+/// carrying the gap), into a 3 x 3 grid whose middle piece lies over the lamp, at any scale.
+#[test]
+fn a_lamp_hung_under_a_ceiling_cuts_it_along_its_outline() {
+    for scale in [1e-3, 1.0, 1e3] {
+        let mut polys = ceiling_and_lamp(0.01, 0.5, scale);
+        assert!((polys[0].normal + DVec3::Y).length() < 1e-12);
+        let lines = find(&polys);
+        assert_eq!(lines.len(), 4, "{lines:?}");
+        for l in &lines {
+            assert_eq!((l.receiver, l.by), (0, 1));
+            let LineKind::Outline { gap } = l.kind else {
+                panic!("{l:?} is not an outline");
+            };
+            assert!((gap - 0.01 * scale).abs() <= 1e-9 * scale, "{gap}");
+            assert!(((l.b - l.a).length() - scale).abs() <= 1e-9 * scale);
+            assert!(l.a.y == 2.0 * scale && l.b.y == 2.0 * scale);
+        }
+        let mut origins: Vec<()> = Vec::new();
+        let cuts = cut(&mut polys, &mut origins, lines);
+        assert_eq!(cuts.pieces, vec![(0, 9)]);
+        assert_eq!(cuts.outlines(), 4);
+        let pieces = &polys[..9];
+        assert!((area(pieces) - 16.0 * scale * scale).abs() < 1e-9 * 16.0 * scale * scale);
+        // Exactly one piece lies over the lamp, and it is the lamp's footprint.
+        let over: Vec<&Polygon> = pieces
+            .iter()
+            .filter(|p| {
+                p.vertices().iter().all(|v| {
+                    v.x.abs() <= 0.5 * scale * (1.0 + 1e-9)
+                        && v.z.abs() <= 0.5 * scale * (1.0 + 1e-9)
+                })
+            })
+            .collect();
+        assert_eq!(over.len(), 1);
+        assert!((over[0].area - scale * scale).abs() < 1e-9 * scale * scale);
+        for p in pieces {
+            assert!((p.normal + DVec3::Y).length() < 1e-12);
+            for l in &cuts.lines {
+                assert!(one_side(p, l.a, l.b, 1e-9 * scale));
+            }
+        }
+        assert!(cuts
+            .note()
+            .is_some_and(|n| n.contains("4 of them sides of polygons lying close")));
+    }
+}
+
+/// Only a polygon close in front of the receiver cuts it: a lamp farther than
+/// [`OUTLINE_GAP`] of its half-width (a 1 m lamp 6.5 cm down, the limit 6.25 cm), one above the
+/// ceiling (behind it), and one tilted through the ceiling's plane draw no outline; 6 cm down
+/// does.
+#[test]
+fn only_a_polygon_close_in_front_draws_its_outline() {
+    let outlines = |polys: &[Polygon]| {
+        find(polys)
+            .iter()
+            .filter(|l| matches!(l.kind, LineKind::Outline { .. }))
+            .count()
+    };
+    assert_eq!(outlines(&ceiling_and_lamp(0.06, 0.5, 1.0)), 4);
+    assert_eq!(outlines(&ceiling_and_lamp(0.065, 0.5, 1.0)), 0);
+    assert_eq!(outlines(&ceiling_and_lamp(-0.01, 0.5, 1.0)), 0);
+    let mut tilted = ceiling_and_lamp(0.01, 0.5, 1.0);
+    tilted[1] = quad([
+        [-0.5, 2.01, -0.5],
+        [0.5, 2.01, -0.5],
+        [0.5, 1.97, 0.5],
+        [-0.5, 1.97, 0.5],
+    ]);
+    assert_eq!(outlines(&tilted), 0);
+}

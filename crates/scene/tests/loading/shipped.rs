@@ -87,10 +87,12 @@ fn cornell_box_loads_with_its_quirks() {
     let s = load_scene(&scenes().join("cornell-box.toml")).unwrap();
     check_invariants(&s);
     // The floor cut along the 8 lines where the boxes' sides stand on it (the arrangement of
-    // their lines inside it): 30 pieces, of equal total area.
-    assert_eq!(s.contacts.lines.len(), 8);
-    assert_eq!(s.contacts.pieces, vec![(0, 30)]);
-    assert_eq!(s.polygons.len(), 17 - 1 + 30);
+    // their lines inside it): 30 pieces, of equal total area; the ceiling along the outline of
+    // the lamp hanging 1 cm under it: a 3 x 3 grid.
+    assert_eq!(s.contacts.lines.len(), 12);
+    assert_eq!(s.contacts.outlines(), 4);
+    assert_eq!(s.contacts.pieces, vec![(0, 30), (1, 9)]);
+    assert_eq!(s.polygons.len(), 17 - 2 + 30 + 9);
     let floor: f64 = s.polygons[..30].iter().map(|p| p.area).sum();
     assert!((floor - uncut.polygons[0].area).abs() < 1e-12 * floor);
     let s = uncut;
@@ -188,9 +190,11 @@ fn gallery_loads() {
     check_invariants(&s);
     assert!(s.warnings.is_empty());
     // 946 quads, of which the floors and the pedestals' tops under what stands on them are cut
-    // along 144 contact lines into 286 pieces.
+    // along 144 contact lines, and the ceiling tiles over the six 1 m light panels hung 1 cm
+    // under them along the panels' outlines (48 lines), into 390 pieces.
     let (cut, pieces) = s.contacts.counts();
-    assert_eq!((s.contacts.lines.len(), cut, pieces), (144, 72, 286));
+    assert_eq!((s.contacts.lines.len(), cut, pieces), (192, 88, 390));
+    assert_eq!(s.contacts.outlines(), 48);
     // The cut pieces' T-junctions with the tiles beside them do not line up: those tiles are
     // cut through them (`scene::junctions`).
     let (t_cut, t_pieces) = s.junctions.counts();
