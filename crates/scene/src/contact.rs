@@ -30,8 +30,9 @@
 //! that outline blends the two sides (a bright ring of the hidden ceiling drawn beside a lamp).
 //! So a polygon nearly parallel to a receiver and in front of it, by at most [`OUTLINE_GAP`] of
 //! its half-width, cuts the receiver along its outline projected onto the receiver's plane, as
-//! a contact line does ([`LineKind::Outline`]). Farther away the step widens into a penumbra
-//! the quadtree follows by refinement.
+//! a contact line does ([`LineKind::Outline`]; a lamp modelled as a fan of triangles counts as
+//! one polygon, module `outline`). Farther away the step widens into a penumbra the quadtree
+//! follows by refinement.
 //!
 //! Invariants: the cut depends only on the polygons (candidates are sorted, lines are applied
 //! in a fixed order), so the scene is the same for any thread count; every piece is planar
@@ -59,22 +60,7 @@ pub const SNAP: f64 = 1e-4;
 /// [`Cuts::skipped`].
 pub const MAX_LINES: usize = 48;
 
-/// A polygon in front of a receiver by at most this share of its half-width (twice its area
-/// over its perimeter: a square's half side, a long strip's half width) and nowhere behind it
-/// cuts the receiver along its projected outline. The light under such a polygon falls from
-/// the step at its outline to almost nothing within a few gaps (a point a distance `x` inside
-/// sees the room only below an elevation of about `gap / x`, a cosine-weighted share of about
-/// `(gap / x)^2 / 2`), so the outline is a step on the scale of the polygon; the Cornell box's
-/// lamp, 1 cm under a ceiling, is at 0.05 of its 0.21 half-width, a gallery's 1 m ceiling
-/// panels at 0.02. By a quarter of the half-width the ramps from both sides fill most of the
-/// shadow, a soft penumbra that refinement follows (a box floating 10 cm over a floor, at 0.25,
-/// is left whole).
-pub const OUTLINE_GAP: f64 = 0.125;
-
-/// The share of a close polygon's area that must lie over the receiver for its outline to
-/// cut it: a lamp straddling two ceiling polygons cuts both, a neighbour folded up by a hair
-/// from the receiver's side (whose projection overlaps it in slivers) cuts neither.
-pub const OUTLINE_OVER: f64 = 0.01;
+pub use outline::{OUTLINE_GAP, OUTLINE_OVER};
 
 /// Why a line cuts its receiver.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -209,92 +195,10 @@ pub fn find(polygons: &[Polygon]) -> Vec<ContactLine> {
             }
         }
     }
-    outlines(polygons, &bvh, &mut lines);
+    outline::outlines(polygons, &bvh, &mut lines);
     // Stable: a pair's contact lines stay ahead of its outline's.
     lines.sort_by_key(|l| (l.receiver, l.by));
     lines
-}
-
-/// Twice `p`'s area over its perimeter: the radius of a circle or a square's inscribed circle,
-/// half a long strip's width.
-fn half_width(p: &Polygon) -> f64 {
-    let vs = p.vertices();
-    let perimeter: f64 = (0..vs.len())
-        .map(|i| vs[i].distance(vs[(i + 1) % vs.len()]))
-        .sum();
-    2.0 * p.area / perimeter.max(f64::MIN_POSITIVE)
-}
-
-/// Appends the outline lines of every polygon lying close over another ([`OUTLINE_GAP`]):
-/// each polygon's box, grown by the gap it may leave, finds its receivers.
-fn outlines(polygons: &[Polygon], bvh: &Bvh, lines: &mut Vec<ContactLine>) {
-    for (qi, q) in polygons.iter().enumerate() {
-        let reach = OUTLINE_GAP * half_width(q);
-        let b = Aabb::of(q.vertices());
-        let b = Aabb {
-            lo: b.lo - DVec3::splat(reach),
-            hi: b.hi + DVec3::splat(reach),
-        };
-        let mut near = Vec::new();
-        bvh.for_each_overlapping(&b, |p| {
-            if p as usize != qi {
-                near.push(p);
-            }
-        });
-        near.sort_unstable();
-        for pi in near {
-            let p = &polygons[pi as usize];
-            let tol = PLANE_TOL * diameter(p).max(diameter(q));
-            for (a, b, gap) in outline(p, q, reach, tol) {
-                lines.push(ContactLine {
-                    receiver: pi,
-                    by: qi as u32,
-                    a,
-                    b,
-                    kind: LineKind::Outline { gap },
-                });
-            }
-        }
-    }
-}
-
-/// The sides of `q`'s outline projected onto `p`, clipped to `p`, if `q` lies in front of `p`
-/// within `reach` of its plane and nowhere behind it; sides on `p`'s border, and sides `q`
-/// touches `p` along (contact lines), are left out. Each side comes with its mean gap.
-fn outline(p: &Polygon, q: &Polygon, reach: f64, tol: f64) -> Vec<(DVec3, DVec3, f64)> {
-    let n = p.normal;
-    let p0 = p.corners[0];
-    let qv = q.vertices();
-    let d: Vec<f64> = qv.iter().map(|v| n.dot(*v - p0)).collect();
-    if d.iter().any(|&x| x < -tol || x > reach) || d.iter().all(|&x| x <= tol) {
-        return Vec::new();
-    }
-    // Over the receiver, not beside it: a neighbour folded up from `p`'s side by a hair (two
-    // triangles of a quad that is not quite planar) projects onto `p` in slivers only.
-    let frame = Frame::of(p);
-    let footprint: Vec<DVec2> = qv
-        .iter()
-        .zip(&d)
-        .map(|(v, dv)| frame.to2(*v - n * *dv))
-        .collect();
-    let receiver: Vec<DVec2> = p.vertices().iter().map(|v| frame.to2(*v)).collect();
-    if area2(&clip_convex(&footprint, &receiver)) < OUTLINE_OVER * area2(&footprint) {
-        return Vec::new();
-    }
-    let mut out = Vec::new();
-    for i in 0..qv.len() {
-        let j = (i + 1) % qv.len();
-        if d[i] <= tol && d[j] <= tol {
-            continue;
-        }
-        let (a, b) = (qv[i] - n * d[i], qv[j] - n * d[j]);
-        if let Some((a, b)) = clip_to_polygon(p, a, b, tol) {
-            if !on_border(p, a, b, tol) {
-                out.push((a, b, 0.5 * (d[i] + d[j]).max(0.0)));
-            }
-        }
-    }
-    out
 }
 
 /// The segment along which `q` meets `p`'s plane inside `p`, if `q` reaches `p`'s front there
@@ -369,7 +273,7 @@ pub(crate) fn clip_to_polygon(p: &Polygon, a: DVec3, b: DVec3, tol: f64) -> Opti
 }
 
 /// Whether segment `a`-`b` lies along one of `p`'s sides (within `tol`).
-fn on_border(p: &Polygon, a: DVec3, b: DVec3, tol: f64) -> bool {
+pub(crate) fn on_border(p: &Polygon, a: DVec3, b: DVec3, tol: f64) -> bool {
     let vs = p.vertices();
     (0..vs.len()).any(|i| {
         let (e0, e1) = (vs[i], vs[(i + 1) % vs.len()]);
@@ -425,14 +329,14 @@ pub fn cut<T: Clone>(
 
 /// `p`'s plane as 2-D coordinates: origin `c0`, `e1` along its first side, `e2 = n x e1` (so
 /// `p`, counter-clockwise seen from its front, is counter-clockwise in 2-D).
-struct Frame {
+pub(crate) struct Frame {
     o: DVec3,
     e1: DVec3,
     e2: DVec3,
 }
 
 impl Frame {
-    fn of(p: &Polygon) -> Frame {
+    pub(crate) fn of(p: &Polygon) -> Frame {
         let o = p.corners[0];
         let e1 = (p.corners[1] - o).normalize();
         Frame {
@@ -442,7 +346,7 @@ impl Frame {
         }
     }
 
-    fn to2(&self, x: DVec3) -> DVec2 {
+    pub(crate) fn to2(&self, x: DVec3) -> DVec2 {
         DVec2::new((x - self.o).dot(self.e1), (x - self.o).dot(self.e2))
     }
 }
@@ -545,42 +449,6 @@ fn pieces(p: &Polygon, lines: &[ContactLine]) -> (Vec<Polygon>, usize) {
     (out, skipped)
 }
 
-/// The area of the counter-clockwise polygon `f` (0 for fewer than three corners).
-fn area2(f: &[DVec2]) -> f64 {
-    if f.len() < 3 {
-        return 0.0;
-    }
-    0.5 * (0..f.len())
-        .map(|i| f[i].perp_dot(f[(i + 1) % f.len()]))
-        .sum::<f64>()
-        .abs()
-}
-
-/// The part of polygon `f` inside the convex counter-clockwise polygon `c` (Sutherland and
-/// Hodgman's clipping).
-fn clip_convex(f: &[DVec2], c: &[DVec2]) -> Vec<DVec2> {
-    let mut out = f.to_vec();
-    for i in 0..c.len() {
-        if out.is_empty() {
-            break;
-        }
-        let (a, b) = (c[i], c[(i + 1) % c.len()]);
-        let side = |x: DVec2| (b - a).perp_dot(x - a);
-        let input = std::mem::take(&mut out);
-        for k in 0..input.len() {
-            let (x, y) = (input[k], input[(k + 1) % input.len()]);
-            let (sx, sy) = (side(x), side(y));
-            if sx >= 0.0 {
-                out.push(x);
-            }
-            if (sx >= 0.0) != (sy >= 0.0) {
-                out.push(x + (y - x) * (sx / (sx - sy)));
-            }
-        }
-    }
-    out
-}
-
 /// The distance from `x` to the segment `a`-`b`.
 fn distance_to_segment(x: DVec2, a: DVec2, b: DVec2) -> f64 {
     let d = b - a;
@@ -669,6 +537,8 @@ fn aligned(c: Vec<Corner>, u_axis: DVec2) -> Vec<Corner> {
         .unwrap_or(0);
     (0..n).map(|i| c[(best + i) % n]).collect()
 }
+
+mod outline;
 
 #[cfg(test)]
 mod tests;

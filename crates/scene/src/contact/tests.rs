@@ -291,3 +291,52 @@ fn only_a_polygon_close_in_front_draws_its_outline() {
     ]);
     assert_eq!(outlines(&tilted), 0);
 }
+
+/// What a modelling tool exports for a round ceiling light: a fan of thin triangles 1 cm under
+/// the ceiling. Each triangle alone is too thin for the gap to count as close (half-width 5 cm
+/// for a 0.3 m disc of 16), and its spokes are no step in the light; the fan is one sheet, and
+/// the ceiling is cut along the 16 sides of its rim only. A 2 m lamp split into two triangles
+/// cuts along its 4 sides, not its diagonal.
+#[test]
+fn a_lamp_of_triangles_cuts_along_its_rim_only() {
+    let (r, y, n) = (0.3, 1.99, 16);
+    let rim: Vec<DVec3> = (0..n)
+        .map(|k| {
+            let t = std::f64::consts::TAU * k as f64 / n as f64;
+            DVec3::new(r * t.cos(), y, r * t.sin())
+        })
+        .collect();
+    let mut polys = vec![ceiling_and_lamp(0.01, 0.5, 1.0).remove(0)];
+    for k in 0..n {
+        let c = DVec3::new(0.0, y, 0.0);
+        polys.push(Polygon::triangle([c, rim[k], rim[(k + 1) % n]], 0, 0).expect("triangle"));
+    }
+    assert!(
+        (polys[1].normal + DVec3::Y).length() < 1e-12,
+        "the fan faces down"
+    );
+    let lines = find(&polys);
+    assert_eq!(lines.len(), n, "{lines:?}");
+    for l in &lines {
+        assert_eq!(l.receiver, 0);
+        // On the rim: both ends at the disc's radius (a spoke would reach the centre).
+        for e in [l.a, l.b] {
+            assert!((DVec2::new(e.x, e.z).length() - r).abs() < 1e-9, "{l:?}");
+        }
+    }
+    let mut two = vec![polys[0].clone()];
+    let c = [
+        DVec3::new(-1.0, y, -1.0),
+        DVec3::new(1.0, y, -1.0),
+        DVec3::new(1.0, y, 1.0),
+        DVec3::new(-1.0, y, 1.0),
+    ];
+    for t in [[c[0], c[3], c[2]], [c[0], c[2], c[1]]] {
+        two.push(Polygon::triangle(t, 0, 0).expect("triangle"));
+    }
+    let lines = find(&two);
+    assert_eq!(lines.len(), 4, "{lines:?}");
+    assert!(lines.iter().all(|l| (l.a.x.abs() - 1.0).abs() < 1e-12
+        && (l.b.x.abs() - 1.0).abs() < 1e-12
+        || (l.a.z.abs() - 1.0).abs() < 1e-12 && (l.b.z.abs() - 1.0).abs() < 1e-12));
+}
