@@ -13,7 +13,8 @@
 //! pieces of one polygon meet along the rest of the cut lines (their extensions, and the
 //! diagonals that make the pieces triangles and quads), where the light is continuous; those
 //! edges are whole shared edges of coplanar polygons of one material, which the reconstruction
-//! joins into one C1 function (`reconstruction::seam`).
+//! joins into one C1 function (`reconstruction::seam`). Along the lines themselves it leaves
+//! them apart: a polygon stands there, or the line is in [`Cuts::lines`].
 //!
 //! How: for every polygon P, the polygons whose boxes meet P's are tested; one that reaches
 //! P's front side and meets P's plane (a side standing on it, or a face crossing it) meets it
@@ -85,7 +86,8 @@ pub enum LineKind {
 pub struct ContactLine {
     /// The polygon whose light steps along the line.
     pub receiver: u32,
-    /// The polygon standing on it or passing through it.
+    /// The polygon standing on it or passing through it; for an outline, the polygon whose
+    /// side it is.
     pub by: u32,
     /// The segment's ends.
     pub a: DVec3,

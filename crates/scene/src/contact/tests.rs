@@ -340,3 +340,51 @@ fn a_lamp_of_triangles_cuts_along_its_rim_only() {
         && (l.b.x.abs() - 1.0).abs() < 1e-12
         || (l.a.z.abs() - 1.0).abs() < 1e-12 && (l.b.z.abs() - 1.0).abs() < 1e-12));
 }
+
+prop_compose! {
+    /// A rectangular lamp of random size, place and turn, hung under the ceiling of
+    /// [`ceiling_and_lamp`] by a random share of the outline gap, facing down; and that share.
+    fn hung_lamp()(cx in -1.0f64..1.0, cz in -1.0f64..1.0, w in 0.05f64..0.6, d in 0.05f64..0.6,
+                   turn in 0.0f64..1.57, share in 0.02f64..0.95) -> (Polygon, f64) {
+        let (s, c) = turn.sin_cos();
+        // Half-width of a w x d rectangle (sides 2w, 2d): 2 * area / perimeter.
+        let half = 2.0 * (4.0 * w * d) / (4.0 * (w + d));
+        let y = 2.0 - share * OUTLINE_GAP * half;
+        let at = |x: f64, z: f64| [cx + c * x - s * z, y, cz + s * x + c * z];
+        // Clockwise seen from above: facing down.
+        (quad([at(-w, -d), at(w, -d), at(w, d), at(-w, d)]), share)
+    }
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 64, ..ProptestConfig::default() })]
+
+    /// A random lamp closer than the outline gap cuts the ceiling along its four sides, with
+    /// their gap; the pieces tile the ceiling, face down with it, and none straddles a side.
+    #[test]
+    fn a_hung_lamp_cuts_the_ceiling_along_its_sides((lamp, share) in hung_lamp()) {
+        prop_assert!((lamp.normal + DVec3::Y).length() < 1e-9);
+        let gap = 2.0 - lamp.corners[0].y;
+        let mut polys = vec![ceiling_and_lamp(0.01, 0.5, 1.0).remove(0), lamp];
+        let lines = find(&polys);
+        prop_assert_eq!(lines.len(), 4, "share {}: {:?}", share, lines);
+        for l in &lines {
+            prop_assert_eq!((l.receiver, l.by), (0, 1));
+            let LineKind::Outline { gap: g } = l.kind else {
+                panic!("{l:?} is not an outline");
+            };
+            prop_assert!((g - gap).abs() <= 1e-12, "{} against {}", g, gap);
+        }
+        let mut origins: Vec<()> = Vec::new();
+        let cuts = cut(&mut polys, &mut origins, lines);
+        let n = cuts.pieces.first().map_or(1, |(_, n)| *n as usize);
+        let pieces = &polys[..n];
+        prop_assert!((area(pieces) - 16.0).abs() < 1e-9 * 16.0, "area {}", area(pieces));
+        for p in pieces {
+            prop_assert!((p.normal + DVec3::Y).length() < 1e-9);
+            for l in &cuts.lines {
+                prop_assert!(one_side(p, l.a, l.b, SNAP * 6.0));
+            }
+        }
+    }
+}
