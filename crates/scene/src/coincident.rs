@@ -155,7 +155,7 @@ fn coplanar_overlap(a: &Polygon, b: &Polygon) -> Option<f64> {
 }
 
 /// `subject` clipped to the convex, counter-clockwise `window` (Sutherland-Hodgman).
-fn clip(subject: &[DVec2], window: &[DVec2]) -> Vec<DVec2> {
+pub(crate) fn clip(subject: &[DVec2], window: &[DVec2]) -> Vec<DVec2> {
     let mut out = subject.to_vec();
     for i in 0..window.len() {
         let (p, q) = (window[i], window[(i + 1) % window.len()]);

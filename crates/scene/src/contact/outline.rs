@@ -22,7 +22,7 @@ use glam::{DVec2, DVec3};
 
 use super::{clip_to_polygon, on_border, ContactLine, Frame, LineKind, PLANE_TOL};
 use crate::bvh::{Aabb, Bvh};
-use crate::coincident::diameter;
+use crate::coincident::{clip, diameter};
 use crate::Polygon;
 
 /// A sheet in front of a receiver by at most this share of its half-width (twice its area
@@ -214,7 +214,7 @@ fn outline(
             .iter()
             .map(|v| frame.to2(*v - n * height(*v)))
             .collect();
-        over += area2(&clip_convex(&footprint, &receiver));
+        over += area2(&clip(&footprint, &receiver));
         all += area2(&footprint);
     }
     if over < OUTLINE_OVER * all {
@@ -237,7 +237,7 @@ fn outline(
     out
 }
 
-/// The area of the polygon `f` (0 for fewer than three corners).
+/// The area of the polygon `f`, wound either way (0 for fewer than three corners).
 fn area2(f: &[DVec2]) -> f64 {
     if f.len() < 3 {
         return 0.0;
@@ -246,29 +246,4 @@ fn area2(f: &[DVec2]) -> f64 {
         .map(|i| f[i].perp_dot(f[(i + 1) % f.len()]))
         .sum::<f64>()
         .abs()
-}
-
-/// The part of polygon `f` inside the convex counter-clockwise polygon `c` (Sutherland and
-/// Hodgman's clipping).
-fn clip_convex(f: &[DVec2], c: &[DVec2]) -> Vec<DVec2> {
-    let mut out = f.to_vec();
-    for i in 0..c.len() {
-        if out.is_empty() {
-            break;
-        }
-        let (a, b) = (c[i], c[(i + 1) % c.len()]);
-        let side = |x: DVec2| (b - a).perp_dot(x - a);
-        let input = std::mem::take(&mut out);
-        for k in 0..input.len() {
-            let (x, y) = (input[k], input[(k + 1) % input.len()]);
-            let (sx, sy) = (side(x), side(y));
-            if sx >= 0.0 {
-                out.push(x);
-            }
-            if (sx >= 0.0) != (sy >= 0.0) {
-                out.push(x + (y - x) * (sx / (sx - sy)));
-            }
-        }
-    }
-    out
 }
