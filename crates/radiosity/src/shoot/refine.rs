@@ -12,6 +12,7 @@ mod reach;
 use super::peaks::{light_peaks, PEAK_SHARE};
 use super::poly::{cell_order, PatchLayout, Poly};
 use super::{lum, memory_error, state_bytes};
+use crate::transfer::seen::SeenCache;
 use crate::transfer::{sub_area, PairClass, ShooterKind, Transfer};
 use crate::GuardStops;
 use base::error::{human_bytes, Result};
@@ -69,21 +70,23 @@ pub const DIVE_NODES: u64 = 16_384;
 ///
 /// The leaves are judged a generation at a time: the splittable leaves, then the children of
 /// those that split, until none splits. Every G the pass computes is the oracle's gather from
-/// `totals`, and the new vertices keep it.
+/// `totals` (taking the geometry `seen` keeps of the points gathered before, and keeping the
+/// new points'), and the new vertices keep it. The pass holds its state under `memory_limit`,
+/// `seen` giving its room back if the state needs it.
 pub(super) fn refine(
     scene: &Scene,
     tr: &Transfer<'_>,
     polys: &mut [Poly],
     totals: &[DVec3],
     patches: &PatchLayout,
-    memory_limit: u64,
+    (memory_limit, seen): (u64, &mut SeenCache),
     guarded: &mut GuardStops,
 ) -> Result<usize> {
     let tolerance = scene.radiosity.tolerance;
     if tolerance <= 0.0 || !tolerance.is_finite() {
         return Ok(0);
     }
-    let mut pass = Refinement::new(scene, tr, polys, totals, memory_limit);
+    let mut pass = Refinement::new(scene, tr, polys, totals, memory_limit, seen);
 
     let mut pending = pass.splittable_leaves(polys);
     let mut splits = 0;
@@ -94,7 +97,8 @@ pub(super) fn refine(
         let probes = pass.probe(polys, &pending);
         let split_now = pass.leaves_to_split(polys, &pending, &probes, guarded);
         keep_tests(polys, &pending, &split_now, &probes);
-        pass.memory.admit(scene, split_now.len() as u64)?;
+        pass.memory
+            .admit(scene, split_now.len() as u64, &mut *pass.seen)?;
         splits += split_now.len();
         pending = pass.split(polys, &split_now, &probes, patches);
     }
@@ -156,6 +160,9 @@ struct Refinement<'r, 't> {
     /// [`DIVE_NODES`] bounds.
     dives: Vec<(u32, u64)>,
     memory: MemoryGuard,
+    /// What the gathers saw of the geometry at each point (the test points' gathers keep
+    /// theirs here for when the points are gathered again).
+    seen: &'r mut SeenCache,
 }
 
 /// The memory guard of a refinement pass: nodes and samples held, and the pair tables built so
@@ -170,10 +177,11 @@ struct MemoryGuard {
 impl MemoryGuard {
     /// Admits `splits` more splits, each adding 4 nodes and at most 5 samples (4 edge midpoints
     /// and the centre), or stops the solve with [`base::error::Error::Memory`] before they
-    /// allocate.
-    fn admit(&mut self, scene: &Scene, splits: u64) -> Result<()> {
+    /// allocate; the gathers' cache (`seen`) gives its room back first if they need it.
+    fn admit(&mut self, scene: &Scene, splits: u64, seen: &mut SeenCache) -> Result<()> {
         let (nodes, vertices) = (self.nodes + 4 * splits, self.vertices + 5 * splits);
         let need = state_bytes(nodes, vertices).saturating_add(self.pair_bytes);
+        seen.yield_to(need, self.limit);
         if need > self.limit {
             return Err(memory_error(
                 scene,
@@ -258,6 +266,7 @@ impl<'r, 't> Refinement<'r, 't> {
         polys: &[Poly],
         totals: &'r [DVec3],
         memory_limit: u64,
+        seen: &'r mut SeenCache,
     ) -> Self {
         let tolerance = scene.radiosity.tolerance;
         let peak = peak_reflected(polys);
@@ -282,6 +291,7 @@ impl<'r, 't> Refinement<'r, 't> {
                 pair_bytes: tr.pair_bytes(),
                 limit: memory_limit,
             },
+            seen,
         }
     }
 
@@ -328,11 +338,7 @@ impl<'r, 't> Refinement<'r, 't> {
         keys.dedup();
         shadow_keys.sort_unstable();
         shadow_keys.dedup();
-        let (tr, totals) = (self.tr, self.totals);
-        let g: Vec<DVec3> = keys
-            .par_iter()
-            .map(|&(r, k)| tr.gather(totals, r as usize, k.u(), k.v()))
-            .collect();
+        let g = self.tr.gather_points(self.totals, &keys, self.seen);
         let shadows = shadow_keys
             .par_iter()
             .map(|&(r, k)| self.shadows(polys[r as usize].rho, r as usize, k))

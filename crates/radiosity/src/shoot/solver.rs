@@ -6,7 +6,6 @@ use std::sync::atomic::Ordering;
 use std::time::Instant;
 
 use glam::DVec3;
-use rayon::prelude::*;
 
 use super::energy;
 use super::eta::{Eta, Phase};
@@ -16,10 +15,12 @@ use super::shapes;
 use super::shot::{shoot, CoarseCache, Plan, PlanTransfers, Shot};
 use super::unshot::{self, Unshot};
 use super::{elapsed_ms, memory_error, state_bytes, Outcome, MAX_ROUNDS, SHOOT_MARGIN};
+use crate::transfer::seen::SeenCache;
 use crate::transfer::shape::PatchShape;
 use crate::transfer::{PairClass, ShooterKind, Transfer};
 use base::error::{human_bytes, Result};
 use base::progress::Stage;
+use base::quadtree::VertexKey;
 use scene::Scene;
 
 /// The final gather runs in this many chunks, so that its remaining time can be reported.
@@ -58,6 +59,8 @@ pub(super) struct Solver<'a, 't, 'o> {
     concentrated: Vec<DVec3>,
     /// The patches' coarse transfers, kept from their first shot.
     cache: CoarseCache,
+    /// What the gathers saw of the geometry at each point, for the next gather there.
+    seen: SeenCache,
     /// Shots taken, and the most the solve takes.
     shots: u64,
     max_shots: u64,
@@ -122,6 +125,8 @@ impl<'a, 't, 'o> Solver<'a, 't, 'o> {
             // The cache is a speed-up, not part of the result: it takes at most an eighth of
             // the memory limit, and its bytes count against the limit in every refinement.
             cache: CoarseCache::new(ns, cache_entries.min(cache_budget(memory_limit))),
+            // Also a speed-up only: it gives its room back when the solve's state needs it.
+            seen: SeenCache::new(scene.polygons.len(), seen_budget(memory_limit)),
             shots: 0,
             max_shots: 100 * ns as u64 + 100,
             round: 0,
@@ -137,6 +142,13 @@ impl<'a, 't, 'o> Solver<'a, 't, 'o> {
             eta: Eta::new(),
             snapshot: None,
         }
+    }
+
+    /// The same solver keeping at most `bytes` of what its gathers see ([`SeenCache`]).
+    #[cfg(test)]
+    pub(super) fn with_seen_budget(mut self, bytes: u64) -> Self {
+        self.seen = SeenCache::new(self.polys.len(), bytes);
+        self
     }
 
     /// Sends the state of the solve to `snapshot` at the end of each phase but the last.
@@ -230,7 +242,13 @@ impl<'a, 't, 'o> Solver<'a, 't, 'o> {
         self.trace_shooting_done();
         self.flush_unshot()?;
         self.gather();
-        self.trace(|sv| format!("  gather done {:.0} ms", elapsed_ms(sv.clock.start)));
+        self.trace(|sv| {
+            format!(
+                "  gather done {:.0} ms, kept {}",
+                elapsed_ms(sv.clock.start),
+                human_bytes(sv.seen.bytes())
+            )
+        });
         self.enter(Phase::Refine);
         let splits = self.refine_and_reestimate()?;
         self.trace(|sv| {
@@ -424,6 +442,7 @@ impl<'a, 't, 'o> Solver<'a, 't, 'o> {
         let (nodes, vertices) = (self.nodes(), self.vertices());
         let pair_bytes = self.tr.pair_bytes();
         let need = state_bytes(nodes, vertices as u64).saturating_add(pair_bytes);
+        self.seen.yield_to(need, self.memory_limit);
         if need > self.memory_limit {
             return Err(memory_error(
                 self.scene,
@@ -445,27 +464,25 @@ impl<'a, 't, 'o> Solver<'a, 't, 'o> {
     fn gather(&mut self) {
         self.tr.index_receivers();
         self.enter(Phase::Gather);
-        let work: Vec<(u32, u32)> = self
+        let work: Vec<(u32, VertexKey)> = self
             .polys
             .iter()
             .enumerate()
             .filter(|(_, p)| p.reflects())
-            .flat_map(|(r, p)| (0..p.keys.len() as u32).map(move |k| (r as u32, k)))
+            .flat_map(|(r, p)| p.keys.iter().map(move |&k| (r as u32, k)))
             .collect();
-        let (tr, polys, totals) = (&*self.tr, &self.polys, &self.totals);
         let chunk = work.len().div_ceil(GATHER_CHUNKS).max(1);
         let mut g: Vec<DVec3> = Vec::with_capacity(work.len());
         for part in work.chunks(chunk) {
-            g.par_extend(part.par_iter().map(|&(r, k)| {
-                let key = polys[r as usize].keys[k as usize];
-                tr.gather(totals, r as usize, key.u(), key.v())
-            }));
+            g.extend(self.tr.gather_points(&self.totals, part, &mut self.seen));
             let done = g.len() as f64 / work.len() as f64;
             let now = self.clock.start.elapsed().as_secs_f64();
             self.eta.gather_chunk(self.stage, now, done);
         }
-        for (&(r, k), g) in work.iter().zip(g) {
-            self.polys[r as usize].g[k as usize] = g;
+        let mut g = g.into_iter();
+        for p in self.polys.iter_mut().filter(|p| p.reflects()) {
+            p.g.iter_mut()
+                .for_each(|gk| *gk = g.next().expect("one G per vertex"));
         }
     }
 
@@ -483,7 +500,10 @@ impl<'a, 't, 'o> Solver<'a, 't, 'o> {
             &mut self.polys,
             &self.totals,
             &self.patches,
-            self.memory_limit.saturating_sub(self.cache.bytes()),
+            (
+                self.memory_limit.saturating_sub(self.cache.bytes()),
+                &mut self.seen,
+            ),
             &mut self.guard_stops,
         )?;
         let all = 0..self.polys.len();
@@ -726,6 +746,17 @@ impl PairCounts {
 fn percent(fraction: f64) -> String {
     format!("{:.2} % of emitted", fraction * 100.0)
 }
+
+/// Most bytes the gathers keep of what they saw ([`SeenCache`]) under `memory_limit`: an
+/// eighth of it, and at most [`SEEN_BYTES`].
+fn seen_budget(memory_limit: u64) -> u64 {
+    (memory_limit / 8).min(SEEN_BYTES)
+}
+
+/// The most bytes the gathers keep of what they saw, whatever the memory limit. At their
+/// shipped settings the Cornell box keeps 30 MiB and the studio 26 MiB; the gallery would keep
+/// 291 MiB, and keeps this much.
+const SEEN_BYTES: u64 = 256 << 20;
 
 /// Most coarse-cache entries (4 bytes each) under `memory_limit`: an eighth of it.
 fn cache_budget(memory_limit: u64) -> usize {

@@ -1,6 +1,8 @@
 //! What a solve writes: the oracle returns its samples, threads and caches change no byte, the
 //! solution file round-trips and refuses what is not one, settings are checked.
 
+use std::sync::atomic::Ordering;
+
 use super::*;
 
 /// The oracle reproduces every stored sample bit for bit (they are the same computation).
@@ -55,17 +57,82 @@ fn coarse_cache_changes_nothing() {
     s.radiosity.max_depth = 4;
     let run = |entries: usize| {
         let mut tr = transfer::Transfer::new(&s);
-        shoot::run_with_cache(
+        shoot::run_with_caches(
             &s,
             &mut tr,
             &mut Stage::start(&SILENT, STAGE),
-            entries,
+            (entries, 0),
             u64::MAX,
         )
         .expect("solve")
     };
     let a = run(0);
     let b = run(shoot::COARSE_CACHE_ENTRIES);
+    assert_same_solve(&a, &b);
+    let shooters_with_total = a.totals.iter().filter(|t| **t != DVec3::ZERO).count() as u64;
+    assert!(a.shots > shooters_with_total, "{} shots", a.shots);
+}
+
+/// What the gathers keep of the geometry at each point changes nothing: solved with no room
+/// for it, the Cornell box and a room whose ceiling light falls through a grid of 36 tiles
+/// (more occluders than the exact query takes: shadow rays decide there) give the same trees,
+/// samples, shots and history, bit for bit; with room, they answer fewer visibility queries.
+#[test]
+fn kept_geometry_changes_nothing() {
+    let mut cornell = cornell();
+    cornell.radiosity.max_depth = 4;
+    let mut grid = closed_room_with_box();
+    grid.polygons.truncate(6);
+    for i in 0..6 {
+        for j in 0..6 {
+            let (x, y) = (0.2 + 0.3 * i as f64, 0.2 + 0.3 * j as f64);
+            let c = [
+                DVec3::new(x, y, 1.4),
+                DVec3::new(x + 0.2, y, 1.4),
+                DVec3::new(x + 0.2, y + 0.2, 1.4),
+                DVec3::new(x, y + 0.2, 1.4),
+            ];
+            grid.polygons
+                .push(quad_facing(c, DVec3::new(1.0, 1.0, 0.0), 2));
+        }
+    }
+    grid.radiosity.max_depth = 4;
+    for s in [&cornell, &grid] {
+        let run = |seen: u64| {
+            let mut tr = transfer::Transfer::new(s);
+            let out = shoot::run_with_caches(
+                s,
+                &mut tr,
+                &mut Stage::start(&SILENT, STAGE),
+                (shoot::COARSE_CACHE_ENTRIES, seen),
+                u64::MAX,
+            )
+            .expect("solve");
+            let counts = (
+                tr.exact_queries.load(Ordering::Relaxed),
+                tr.ray_fallbacks.load(Ordering::Relaxed),
+            );
+            (out, counts)
+        };
+        let (a, (exact_a, rays_a)) = run(0);
+        let (b, (exact_b, rays_b)) = run(64 << 20);
+        assert_same_solve(&a, &b);
+        assert!(
+            exact_b < exact_a && rays_b <= rays_a,
+            "queries {exact_a} -> {exact_b}, ray fallbacks {rays_a} -> {rays_b}"
+        );
+        if std::ptr::eq(s, &grid) {
+            assert!(
+                rays_b < rays_a,
+                "the grid's rays are kept: {rays_a} -> {rays_b}"
+            );
+        }
+    }
+}
+
+/// Two solves of one scene gave the same shots, totals, history, trees and samples, bit for
+/// bit.
+fn assert_same_solve(a: &shoot::Outcome, b: &shoot::Outcome) {
     assert_eq!(a.shots, b.shots);
     assert_eq!(a.totals, b.totals);
     assert_eq!(a.history, b.history);
@@ -74,8 +141,6 @@ fn coarse_cache_changes_nothing() {
         .iter()
         .zip(&b.trees)
         .all(|(x, y)| x.1 == y.1 && x.2 == y.2));
-    let shooters_with_total = a.totals.iter().filter(|t| **t != DVec3::ZERO).count() as u64;
-    assert!(a.shots > shooters_with_total, "{} shots", a.shots);
 }
 
 fn tmp(name: &str) -> std::path::PathBuf {

@@ -3,7 +3,11 @@
 //! shape puts its light unevenly, the corrections of its shape, judged again against the level
 //! they bring the point to.
 
+use rayon::prelude::*;
+
+use super::seen::{Seen, SeenCache};
 use super::*;
+use base::quadtree::VertexKey;
 
 impl Transfer<'_> {
     /// Total irradiance G at polygon `r`, (u, v) from every shooter with a non-zero total, in
@@ -15,84 +19,176 @@ impl Transfer<'_> {
     /// ([`Transfer::index_receivers`]).
     pub(crate) fn gather(&self, totals: &[DVec3], r: usize, u: f64, v: f64) -> DVec3 {
         debug_assert!(!self.unsorted, "index_receivers after new pairs");
-        visible::with_pool(|pool| self.gather_in(totals, r, (u, v), pool))
+        visible::with_pool(|pool| {
+            self.gather_in(totals, r, (u, v), pool, &Seen::default(), None)
+                .0
+        })
+    }
+
+    /// [`Transfer::gather`] at lattice point `k` of polygon `r`, taking each shooter's
+    /// geometry from `kept` (what the point's earlier gather saw, [`seen`]) where it holds it.
+    /// The same G, bit for bit; and, if `record` and anything had to be computed, the
+    /// point's entries to keep in place of `kept`.
+    fn gather_kept(
+        &self,
+        totals: &[DVec3],
+        r: usize,
+        k: VertexKey,
+        (kept, record): (&Seen, bool),
+    ) -> (DVec3, Option<Seen>) {
+        debug_assert!(!self.unsorted, "index_receivers after new pairs");
+        let mut out = Seen::default();
+        let (g, fresh) = visible::with_pool(|pool| {
+            let out = record.then_some(&mut out);
+            self.gather_in(totals, r, (k.u(), k.v()), pool, kept, out)
+        });
+        (g, (fresh && record).then_some(out))
+    }
+
+    /// G at each of `points` (polygon, lattice point), gathered in parallel with what `seen`
+    /// holds of them, keeping what the gathers compute while it has room. The points go in
+    /// runs of [`KEEP_RUN`] while it does, so that the entries waiting to be kept stay a small
+    /// share of what it may keep (a whole refinement generation's at once passed a 22 MiB
+    /// limit by 4 MiB).
+    pub(crate) fn gather_points(
+        &self,
+        totals: &[DVec3],
+        points: &[(u32, VertexKey)],
+        seen: &mut SeenCache,
+    ) -> Vec<DVec3> {
+        let mut g = Vec::with_capacity(points.len());
+        let mut rest = points;
+        while !rest.is_empty() {
+            let record = seen.has_room();
+            let run = if record { KEEP_RUN } else { rest.len() };
+            let (now, later) = rest.split_at(run.min(rest.len()));
+            let kept = &*seen;
+            let found: Vec<_> = now
+                .par_iter()
+                .map(|&(r, k)| {
+                    self.gather_kept(totals, r as usize, k, (kept.get(r as usize, k), record))
+                })
+                .collect();
+            for (&(r, k), (gk, fresh)) in now.iter().zip(found) {
+                g.push(gk);
+                if let Some(fresh) = fresh {
+                    seen.keep(r as usize, k, fresh);
+                }
+            }
+            rest = later;
+        }
+        g
     }
 
     /// [`Transfer::gather`] with the pool of views its shaped patches' regions are kept in
-    /// between the two passes (found once per point and patch).
+    /// between the two passes (found once per point and patch), the entries `kept` from an
+    /// earlier gather at the point, and where to record the entries of this one (`out`).
+    /// Returns G and whether anything was computed that `kept` did not hold.
     pub(super) fn gather_in(
         &self,
         totals: &[DVec3],
         r: usize,
         (u, v): (f64, f64),
         pool: &mut Vec<visible::View>,
-    ) -> DVec3 {
+        kept: &Seen,
+        mut out: Option<&mut Seen>,
+    ) -> (DVec3, bool) {
+        let x = self.receiver(r, u, v);
         let mut g = DVec3::ZERO;
         let mut pending: Vec<shape::Pending> = Vec::new();
         let mut used = 0usize;
+        let (mut walk, mut fresh) = (kept.walk(), false);
         for &(s, i) in &self.by_receiver[r] {
             let t = totals[s as usize];
             if t == DVec3::ZERO {
                 continue;
             }
-            match &self.shapes[s as usize] {
-                None => g += t * self.transfer_at(s as usize, r, i as usize, u, v),
-                Some(shape) => {
-                    if pool.len() == used {
-                        pool.push(visible::View::default());
-                    }
-                    let (uniform, error, f, look) = self.uniform_with_error(
-                        s as usize,
-                        r,
-                        i as usize,
-                        shape,
-                        (u, v),
-                        &mut pool[used],
-                    );
-                    g += t * uniform;
-                    if error > 0.0 {
-                        pending.push(shape::Pending {
-                            s,
-                            i,
-                            uniform,
-                            error,
-                            f,
-                            look,
-                            slot: used as u32,
-                        });
-                        // A part seen keeps its region for the second pass.
-                        used += usize::from(look == Look::Exact(Sight::Part));
-                    }
+            if matches!(self.shooters[s as usize].kind, ShooterKind::Spot { .. }) {
+                g += t * self.transfer_at(s as usize, r, i as usize, u, v);
+                continue;
+            }
+            if pool.len() == used {
+                pool.push(visible::View::default());
+            }
+            // An emitter's or a patch's transfer is its uniform one (`transfer_at` computes
+            // the same); a kept look has no region built yet.
+            let (uniform, f, look, ready) = match walk.find(s) {
+                Some((t, f, look)) => (DVec3::splat(t), f, look, false),
+                None => {
+                    fresh = true;
+                    let (t, f, look) =
+                        self.uniform_look(s as usize, r, i as usize, (u, v), &mut pool[used]);
+                    (t, f, look, true)
                 }
+            };
+            if let Some(out) = out.as_deref_mut() {
+                out.push(s, uniform.x, f, look);
+            }
+            g += t * uniform;
+            let Some(shape) = &self.shapes[s as usize] else {
+                continue;
+            };
+            let error = self.uniform_error(s as usize, shape, (uniform, f, look), x);
+            if error > 0.0 {
+                let part = look == Look::Exact(Sight::Part);
+                pending.push(shape::Pending {
+                    s,
+                    i,
+                    uniform,
+                    error,
+                    f,
+                    look,
+                    slot: used as u32,
+                    ready: ready || !part,
+                });
+                // A part seen keeps its region for the second pass.
+                used += usize::from(part);
             }
         }
-        // Second pass: the shaped patches whose uniform light may be off by more than the
-        // tolerance of what this point receives are refined (see `shape`). What it receives
-        // is first judged from the uniform light; where the corrections bring it below
-        // [`LEVEL_DROP`] of that, they are judged again against the corrected level.
+        (
+            g + self.corrected(totals, r, (u, v), g, &mut pending, pool),
+            fresh,
+        )
+    }
+
+    /// The second pass of a gather that found `g` from the shooters' uniform light: the
+    /// shaped patches whose uniform light may be off by more than the tolerance of what this
+    /// point receives are refined (see `shape`). What it receives is first judged from the
+    /// uniform light; where the corrections bring it below [`LEVEL_DROP`] of that, they are
+    /// judged again against the corrected level. Returns the sum of the corrections.
+    fn corrected(
+        &self,
+        totals: &[DVec3],
+        r: usize,
+        (u, v): (f64, f64),
+        g: DVec3,
+        pending: &mut [shape::Pending],
+        pool: &mut [visible::View],
+    ) -> DVec3 {
         let mut level = lum(g);
-        let mut corrected = self.shaped_corrections(totals, r, (u, v), &pending, pool, level);
+        let mut corrected = self.shaped_corrections(totals, r, (u, v), pending, pool, level);
         for _ in 0..LEVEL_PASSES {
             let seen = lum(g + corrected);
             if seen >= LEVEL_DROP * level {
                 break;
             }
             level = seen;
-            corrected = self.shaped_corrections(totals, r, (u, v), &pending, pool, level);
+            corrected = self.shaped_corrections(totals, r, (u, v), pending, pool, level);
         }
-        g + corrected
+        corrected
     }
 
     /// The sum of the shaped corrections of the `pending` patches at the receiver point of
     /// polygon `r` at (u, v), each judged against `level`, the luminance of what the point
-    /// receives (see [`Transfer::gather`]).
+    /// receives (see [`Transfer::gather`]). A part seen whose region is not built yet (its
+    /// look kept from an earlier gather) is built in its view when its correction needs it.
     pub(super) fn shaped_corrections(
         &self,
         totals: &[DVec3],
         r: usize,
         (u, v): (f64, f64),
-        pending: &[shape::Pending],
-        pool: &[visible::View],
+        pending: &mut [shape::Pending],
+        pool: &mut [visible::View],
         level: f64,
     ) -> DVec3 {
         let mut g = DVec3::ZERO;
@@ -106,17 +202,23 @@ impl Transfer<'_> {
             let tau = self.shape_tau * level / lt;
             let a = shape::blend(p.error, tau);
             if a > 0.0 {
-                let shape = self.shapes[p.s as usize]
-                    .as_ref()
-                    .expect("pending is shaped");
+                let (s, i, slot) = (p.s as usize, p.i as usize, p.slot as usize);
+                if !p.ready {
+                    let cands = self.pairs[s].as_ref().expect("the pair's table exists");
+                    let x = self.receiver(r, u, v);
+                    let look = self.look(s, r, cands.at(i).1, x, &mut pool[slot], (None, false));
+                    debug_assert_eq!(look, p.look, "a kept look is what the point sees");
+                    p.ready = true;
+                }
+                let shape = self.shapes[s].as_ref().expect("pending is shaped");
                 let shaped = self.shaped_in_view(
-                    p.s as usize,
+                    s,
                     r,
-                    p.i as usize,
+                    i,
                     shape,
                     (u, v),
                     (p.f, shape::NODE_BUDGET * tau),
-                    (p.look, &pool[p.slot as usize]),
+                    (p.look, &pool[slot]),
                 );
                 g += a * t * (shaped - p.uniform);
             }
@@ -124,6 +226,9 @@ impl Transfer<'_> {
         g
     }
 }
+
+/// Points a [`Transfer::gather_points`] run gathers while it keeps what they see.
+const KEEP_RUN: usize = 256;
 
 /// A gather whose shaped corrections leave it below this share of the level they were judged
 /// against judges them again against the corrected level: the uniform light over-states what

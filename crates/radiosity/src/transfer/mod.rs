@@ -38,6 +38,7 @@
 
 mod gather;
 mod receivers;
+pub(crate) mod seen;
 pub(crate) mod shape;
 mod visibility;
 

@@ -342,9 +342,12 @@ pub(crate) struct Pending {
     pub error: f64,
     pub f: f64,
     /// What the point sees of the patch, its region (if part of it) in the gather's view
-    /// `slot` (`visible::with_pool`).
+    /// `slot` (`visible::with_pool`) ...
     pub look: Look,
     pub slot: u32,
+    /// ... once built there: a look kept from an earlier gather ([`super::seen`]) builds its
+    /// region only when a correction needs it.
+    pub ready: bool,
 }
 
 /// A coarse shot takes a patch's light by its shape only where the shape concentrates it: a
@@ -428,10 +431,26 @@ impl Transfer<'_> {
         (u, v): (f64, f64),
         view: &mut View,
     ) -> (DVec3, f64, f64, Look) {
+        let (t, f, look) = self.uniform_look(s, r, i, (u, v), view);
+        let x = self.receiver(r, u, v);
+        (t, self.uniform_error(s, shape, (t, f, look), x), f, look)
+    }
+
+    /// The geometric part of [`Transfer::uniform_with_error`]: patch `s`'s uniform transfer
+    /// to the receiver point of polygon `r` at (u, v), its unoccluded form factor, and what
+    /// the point sees of it (its region left in `view`). Nothing in it depends on the light.
+    pub(crate) fn uniform_look(
+        &self,
+        s: usize,
+        r: usize,
+        i: usize,
+        (u, v): (f64, f64),
+        view: &mut View,
+    ) -> (DVec3, f64, Look) {
         let p = self.pairs[s].as_ref().expect("the pair's table exists");
         let (class, cands) = p.at(i);
         if class == PairClass::Culled {
-            return (DVec3::ZERO, 0.0, 0.0, Look::Clear);
+            return (DVec3::ZERO, 0.0, Look::Clear);
         }
         let x = self.receiver(r, u, v);
         let n = self.scene.polygons[r].shading_normal(x);
@@ -441,22 +460,28 @@ impl Transfer<'_> {
         } else {
             self.look(s, r, cands, x, view, (None, false))
         };
-        let t = DVec3::splat(f * look.fraction(view, x, n, f));
+        (DVec3::splat(f * look.fraction(view, x, n, f)), f, look)
+    }
+
+    /// The error estimate of taking patch `s`'s light as uniform at receiver point `x`, given
+    /// its uniform transfer `t`, unoccluded form factor `f` and `look` there (see
+    /// [`Transfer::uniform_with_error`]).
+    pub(crate) fn uniform_error(
+        &self,
+        s: usize,
+        shape: &PatchShape,
+        (t, f, look): (DVec3, f64, Look),
+        x: DVec3,
+    ) -> f64 {
         if t == DVec3::ZERO || shape.spread <= 0.0 {
-            return (t, 0.0, f, look);
+            return 0.0;
         }
-        let sg = &self.shooters[s];
         let part = match look {
             Look::Clear | Look::Exact(Sight::All | Sight::Nothing) => false,
             Look::Exact(_) => true,
             Look::Rays(v) => v > 0.0 && v < 1.0,
         };
-        (
-            t,
-            error_estimate(shape.spread, f, &sg.outline, (x, part)),
-            f,
-            look,
-        )
+        error_estimate(shape.spread, f, &self.shooters[s].outline, (x, part))
     }
 
     /// Shooter `s`'s transfer to the receiver point of polygon `r` at (u, v), per unit of the
