@@ -126,7 +126,7 @@ impl<'a, 't, 'o> Solver<'a, 't, 'o> {
             // the memory limit, and its bytes count against the limit in every refinement.
             cache: CoarseCache::new(ns, cache_entries.min(cache_budget(memory_limit))),
             // Also a speed-up only: it gives its room back when the solve's state needs it.
-            seen: SeenCache::new(scene.polygons.len(), seen_budget(memory_limit)),
+            seen: SeenCache::new(scene.polygons.len(), ns, seen_budget(memory_limit)),
             shots: 0,
             max_shots: 100 * ns as u64 + 100,
             round: 0,
@@ -147,7 +147,7 @@ impl<'a, 't, 'o> Solver<'a, 't, 'o> {
     /// The same solver keeping at most `bytes` of what its gathers see ([`SeenCache`]).
     #[cfg(test)]
     pub(super) fn with_seen_budget(mut self, bytes: u64) -> Self {
-        self.seen = SeenCache::new(self.polys.len(), bytes);
+        self.seen = SeenCache::new(self.polys.len(), self.totals.len(), bytes);
         self
     }
 

@@ -168,12 +168,14 @@ static NONE: Seen = Seen {
 };
 
 impl SeenCache {
-    /// An empty cache for `polygons` polygons holding at most `budget` bytes.
-    pub(crate) fn new(polygons: usize, budget: u64) -> SeenCache {
+    /// An empty cache for `polygons` polygons and `shooters` shooters holding at most `budget`
+    /// bytes (none if a shooter's id would not fit beside its kind).
+    pub(crate) fn new(polygons: usize, shooters: usize, budget: u64) -> SeenCache {
+        let fits = shooters <= (u32::MAX >> HOW_BITS) as usize;
         SeenCache {
             points: (0..polygons).map(|_| HashMap::new()).collect(),
             bytes: 0,
-            budget,
+            budget: if fits { budget } else { 0 },
         }
     }
 
@@ -214,5 +216,76 @@ impl SeenCache {
             self.bytes = 0;
             self.budget = 0;
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Every kind of entry reads back as written (a fraction found by rays by its class), a
+    /// walk skips the shooters it is not asked for, and a shooter not kept reads as none.
+    #[test]
+    fn entries_read_back_as_written() {
+        let written = [
+            (2, 0.0, 0.7, Look::Exact(Sight::Nothing)),
+            (3, 0.25, 0.25, Look::Clear),
+            (5, 0.5, 0.5, Look::Exact(Sight::All)),
+            (8, 0.125, 0.375, Look::Exact(Sight::Part)),
+            (9, 0.2, 0.8, Look::Rays(0.25)),
+            (11, 0.3, 0.3, Look::Rays(1.0)),
+        ];
+        let mut seen = Seen::default();
+        for &(s, t, f, look) in &written {
+            seen.push(s, t, f, look);
+        }
+        assert_eq!(seen.ids.len(), 6);
+        assert_eq!(
+            seen.vals.len(),
+            1 + 1 + 2 + 2 + 1,
+            "no value for a zero transfer"
+        );
+        let mut walk = seen.walk();
+        assert_eq!(walk.find(1), None);
+        assert_eq!(walk.find(3), Some((0.25, 0.25, Look::Clear)));
+        assert_eq!(walk.find(4), None);
+        assert_eq!(walk.find(8), Some((0.125, 0.375, Look::Exact(Sight::Part))));
+        assert_eq!(walk.find(9), Some((0.2, 0.8, Look::Rays(0.5))));
+        assert_eq!(walk.find(11), Some((0.3, 0.3, Look::Rays(1.0))));
+        assert_eq!(walk.find(12), None);
+        let mut walk = seen.walk();
+        assert_eq!(walk.find(2).map(|e| e.0), Some(0.0));
+        assert_eq!(walk.find(5), Some((0.5, 0.5, Look::Exact(Sight::All))));
+    }
+
+    /// The cache keeps no more than its budget, replaces a point's entries in place, and gives
+    /// everything back when the solve's state needs the room.
+    #[test]
+    fn the_cache_holds_its_budget_and_yields() {
+        let entry = |n: u32| {
+            let mut s = Seen::default();
+            for k in 0..n {
+                s.push(k, 0.5, 0.5, Look::Clear);
+            }
+            s
+        };
+        let one = entry(10).bytes();
+        let mut cache = SeenCache::new(2, 100, 2 * one);
+        let k = |i| VertexKey::new(i, 0);
+        cache.keep(0, k(0), entry(10));
+        cache.keep(1, k(0), entry(10));
+        assert_eq!(cache.bytes(), 2 * one);
+        cache.keep(0, k(1), entry(10));
+        assert_eq!(cache.get(0, k(1)).ids.len(), 0, "over the budget: not kept");
+        cache.keep(0, k(0), entry(4));
+        assert_eq!(cache.get(0, k(0)).ids.len(), 4, "replaced in place");
+        assert!(cache.bytes() < 2 * one && cache.has_room());
+        // Room for the state and the whole budget: kept.
+        cache.yield_to(10 * one, 12 * one);
+        assert_eq!(cache.bytes(), 2 * one - one + entry(4).bytes());
+        cache.yield_to(10 * one, 12 * one - 1);
+        assert_eq!((cache.bytes(), cache.has_room()), (0, false));
+        assert_eq!(cache.get(1, k(0)).ids.len(), 0);
+        assert_eq!(SeenCache::new(1, 1 << 30, 1 << 20).budget, 0);
     }
 }
