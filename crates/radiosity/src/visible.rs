@@ -163,11 +163,10 @@ fn split(
 ) -> Result<(), Overflow> {
     pos.len = 0;
     neg.len = 0;
-    // A distance of eps from the line, in the units of m's dot products.
-    let tol = eps * (m.x.abs() + m.y.abs());
+    let (d, _) = sides(src, a, m, eps)?;
     for i in 0..src.len() {
-        let (p, q) = (src[i], src[next(i, src.len())]);
-        let (dp, dq) = (snap(m.dot(p - a), tol), snap(m.dot(q - a), tol));
+        let j = next(i, src.len());
+        let (p, q, dp, dq) = (src[i], src[j], d[i], d[j]);
         if dp >= 0.0 {
             pos.push(p)?;
         }
@@ -183,14 +182,36 @@ fn split(
     Ok(())
 }
 
-/// The part of the convex polygon `src` where `m . (p - a) >= 0` (vertices within `eps` of the
-/// line on it), written to `out`.
-fn clip_half(src: &[DVec2], a: DVec2, m: DVec2, eps: f64, out: &mut Buf) -> Result<(), Overflow> {
-    out.len = 0;
+/// The signed distances `m . (p - a)` of the vertices of `src` from the line through `a` with
+/// normal `m`, snapped to 0 within `eps` (in `m`'s units: eps times its L1 norm), each computed
+/// once for the two edges it ends; and whether none is negative (nothing to cut).
+#[inline]
+fn sides(
+    src: &[DVec2],
+    a: DVec2,
+    m: DVec2,
+    eps: f64,
+) -> Result<([f64; MAX_VERTS], bool), Overflow> {
+    if src.len() > MAX_VERTS {
+        return Err(Overflow);
+    }
     let tol = eps * (m.x.abs() + m.y.abs());
+    let mut d = [0.0; MAX_VERTS];
+    let mut inside = true;
+    for (d, &p) in d.iter_mut().zip(src) {
+        *d = snap(m.dot(p - a), tol);
+        inside &= *d >= 0.0;
+    }
+    Ok((d, inside))
+}
+
+/// The part of the convex polygon `src` on the non-negative side of the line whose signed
+/// distances `d` ([`sides`]) it has, written to `out`.
+fn clip_half(src: &[DVec2], d: &[f64; MAX_VERTS], out: &mut Buf) -> Result<(), Overflow> {
+    out.len = 0;
     for i in 0..src.len() {
-        let (p, q) = (src[i], src[next(i, src.len())]);
-        let (dp, dq) = (snap(m.dot(p - a), tol), snap(m.dot(q - a), tol));
+        let j = next(i, src.len());
+        let (p, q, dp, dq) = (src[i], src[j], d[i], d[j]);
         if dp >= 0.0 {
             out.push(p)?;
         }
@@ -202,7 +223,8 @@ fn clip_half(src: &[DVec2], a: DVec2, m: DVec2, eps: f64, out: &mut Buf) -> Resu
 }
 
 /// The convex polygon `src` clipped to the counter-clockwise convex polygon `clip` (vertices
-/// within `eps` of a clip line on it), in `out` (fewer than three vertices: nothing left).
+/// within `eps` of a clip line on it), in `out` (fewer than three vertices: nothing left). A
+/// line with every vertex on its inner side leaves the polygon as it is.
 fn clip_convex(src: &[DVec2], clip: &[DVec2], eps: f64, out: &mut Buf) -> Result<(), Overflow> {
     let mut other = Buf::new();
     out.len = 0;
@@ -212,7 +234,11 @@ fn clip_convex(src: &[DVec2], clip: &[DVec2], eps: f64, out: &mut Buf) -> Result
     for i in 0..clip.len() {
         let (a, b) = (clip[i], clip[next(i, clip.len())]);
         let e = b - a;
-        clip_half(out.verts(), a, DVec2::new(-e.y, e.x), eps, &mut other)?;
+        let (d, inside) = sides(out.verts(), a, DVec2::new(-e.y, e.x), eps)?;
+        if inside {
+            continue;
+        }
+        clip_half(out.verts(), &d, &mut other)?;
         std::mem::swap(out, &mut other);
         if out.len < 3 {
             return Ok(());
@@ -784,17 +810,21 @@ fn dedup(p: &mut Buf, eps: f64) {
 }
 
 /// Clips the polygon `src[..len]` to `d(p) >= 0` into `dst` (Sutherland-Hodgman); the new
-/// length.
+/// length. Each vertex's `d` is computed once, for both edges it ends.
 fn clip3(
     src: &[DVec3; MAX_VERTS],
     len: usize,
     dst: &mut [DVec3; MAX_VERTS],
     d: impl Fn(DVec3) -> f64,
 ) -> Result<usize, Overflow> {
+    let mut dist = [0.0; MAX_VERTS];
+    for (di, &p) in dist.iter_mut().zip(&src[..len]) {
+        *di = d(p);
+    }
     let mut n = 0;
     for i in 0..len {
-        let (a, b) = (src[i], src[next(i, len)]);
-        let (da, db) = (d(a), d(b));
+        let j = next(i, len);
+        let (a, b, da, db) = (src[i], src[j], dist[i], dist[j]);
         if da >= 0.0 {
             if n == MAX_VERTS {
                 return Err(Overflow);
