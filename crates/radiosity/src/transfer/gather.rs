@@ -37,12 +37,16 @@ impl Transfer<'_> {
         (kept, record): (&Seen, bool),
     ) -> (DVec3, Option<Seen>) {
         debug_assert!(!self.unsorted, "index_receivers after new pairs");
-        let mut out = Seen::default();
-        let (g, fresh) = visible::with_pool(|pool| {
-            let out = record.then_some(&mut out);
-            self.gather_in(totals, r, (k.u(), k.v()), pool, kept, out)
-        });
-        (g, (fresh && record).then_some(out))
+        SCRATCH.with(|scratch| {
+            let mut scratch = scratch.borrow_mut();
+            scratch.clear();
+            let (g, fresh) = visible::with_pool(|pool| {
+                let out = record.then_some(&mut *scratch);
+                self.gather_in(totals, r, (k.u(), k.v()), pool, kept, out)
+            });
+            // A copy at its exact size: the scratch grew to it, the copy is allocated once.
+            (g, (fresh && record).then(|| scratch.clone()))
+        })
     }
 
     /// G at each of `points` (polygon, lattice point), gathered in parallel with what `seen`
@@ -225,6 +229,11 @@ impl Transfer<'_> {
         }
         g
     }
+}
+
+thread_local! {
+    /// Each thread's entries of the point it gathers, before they are copied to be kept.
+    static SCRATCH: std::cell::RefCell<Seen> = std::cell::RefCell::new(Seen::default());
 }
 
 /// Points a [`Transfer::gather_points`] run gathers while it keeps what they see.

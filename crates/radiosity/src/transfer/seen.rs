@@ -58,7 +58,7 @@ const HOW_BITS: u32 = 3;
 
 /// The entries of one point, ascending by shooter: one id per shooter (shooter and
 /// [`How`]), and the values the kinds need, in the same order.
-#[derive(Debug, Default)]
+#[derive(Debug, Default, Clone)]
 pub(crate) struct Seen {
     ids: Vec<u32>,
     vals: Vec<f64>,
@@ -89,6 +89,12 @@ impl Seen {
             }
             How::Part | How::RaysPart => self.vals.extend([t, f]),
         }
+    }
+
+    /// Empties it, keeping its capacity.
+    pub(crate) fn clear(&mut self) {
+        self.ids.clear();
+        self.vals.clear();
     }
 
     /// Bytes it holds once kept.
@@ -186,14 +192,12 @@ impl SeenCache {
 
     /// Keeps `seen` at point `k` of polygon `r`, in place of what the point held, if the
     /// budget allows.
-    pub(crate) fn keep(&mut self, r: usize, k: VertexKey, mut seen: Seen) {
+    pub(crate) fn keep(&mut self, r: usize, k: VertexKey, seen: Seen) {
         let old = self.points[r].get(&k).map_or(0, Seen::bytes);
         let new = seen.bytes();
         if self.bytes - old + new > self.budget {
             return;
         }
-        seen.ids.shrink_to_fit();
-        seen.vals.shrink_to_fit();
         self.bytes = self.bytes - old + new;
         self.points[r].insert(k, seen);
     }
