@@ -12,6 +12,7 @@
 //! planar quad is covered exactly once and a collapsed-quad triangle is one triangle.
 
 use glam::DVec3;
+use std::ops::ControlFlow;
 
 use crate::{Polygon, Shape};
 
@@ -218,6 +219,20 @@ impl Bvh {
     /// tests reject everything outside the same half-spaces see exactly the polygons they would
     /// have accepted from the plain box query, found with far fewer node visits.
     pub fn for_each_in(&self, b: &Aabb, planes: &[(DVec3, DVec3, f64)], mut f: impl FnMut(u32)) {
+        self.try_for_each_in(b, planes, |q| {
+            f(q);
+            ControlFlow::Continue(())
+        });
+    }
+
+    /// [`Bvh::for_each_in`] that stops at the first call of `f` that breaks (a caller that has
+    /// found what it looks for need not walk the rest of the tree).
+    pub fn try_for_each_in(
+        &self,
+        b: &Aabb,
+        planes: &[(DVec3, DVec3, f64)],
+        mut f: impl FnMut(u32) -> ControlFlow<()>,
+    ) {
         if self.nodes.is_empty() {
             return;
         }
@@ -240,8 +255,8 @@ impl Bvh {
                 let s = node.first as usize;
                 for &pi in &self.order[s..s + node.count as usize] {
                     let pb = &self.boxes[pi as usize];
-                    if pb.overlaps(b) && !outside(pb) {
-                        f(pi);
+                    if pb.overlaps(b) && !outside(pb) && f(pi).is_break() {
+                        return;
                     }
                 }
             } else if sp + 2 <= stack.len() {
@@ -524,6 +539,31 @@ mod tests {
             |_| n += 1,
         );
         assert_eq!(n, 2);
+    }
+
+    /// `try_for_each_in` visits what `for_each_in` visits, in the same order, and stops at the
+    /// first call that breaks: the k-th polygon found is the last one seen.
+    #[test]
+    fn a_query_that_breaks_stops_there() {
+        let polys = grid(12);
+        let bvh = Bvh::build(&polys);
+        let b = Aabb::of(&[DVec3::new(1.5, 1.5, -9.0), DVec3::new(8.5, 7.5, 9.0)]);
+        let planes = [(DVec3::new(1.0, 1.0, 0.0), DVec3::new(6.0, 6.0, 0.0), 1e-9)];
+        let mut all = Vec::new();
+        bvh.for_each_in(&b, &planes, |q| all.push(q));
+        assert!(all.len() > 10, "{} found", all.len());
+        for k in [1, 5, all.len()] {
+            let mut seen = Vec::new();
+            bvh.try_for_each_in(&b, &planes, |q| {
+                seen.push(q);
+                if seen.len() == k {
+                    ControlFlow::Break(())
+                } else {
+                    ControlFlow::Continue(())
+                }
+            });
+            assert_eq!(seen, all[..k]);
+        }
     }
 
     /// `first_hit` finds the nearest polygon a brute-force loop finds (smallest t, ties to the

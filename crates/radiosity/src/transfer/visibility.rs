@@ -5,6 +5,7 @@
 //! shooter's light shape where it has one.
 
 use super::*;
+use std::ops::ControlFlow;
 
 impl Transfer<'_> {
     /// [`Transfer::transfer`] in two factors: the transfer without occluders, and the visible
@@ -148,9 +149,10 @@ impl Transfer<'_> {
             many: false,
         };
         let sides = pyramid_sides(x, &sg.outline);
+        // Whether there are more than MAX_NEAR once `q` is considered.
         let mut consider = |q: u32| {
             if near.many || !self.may_block(q, x, sg, &sides) {
-                return;
+                return near.many;
             }
             if near.len < MAX_NEAR {
                 near.ids[near.len] = q;
@@ -158,9 +160,12 @@ impl Transfer<'_> {
             } else {
                 near.many = true;
             }
+            near.many
         };
         if cands.len() <= LONG_CANDIDATE_LIST {
-            cands.iter().for_each(|&q| consider(q));
+            cands.iter().for_each(|&q| {
+                consider(q);
+            });
         } else {
             // A long list (a large room): only polygons whose boxes meet the pyramid's box can
             // meet the pyramid; the BVH finds them without walking the whole list.
@@ -173,9 +178,12 @@ impl Transfer<'_> {
             for (k, pl) in planes.iter_mut().enumerate().take(sides.len) {
                 *pl = (sides.n[k], x, sides.tol[k]);
             }
-            self.bvh.for_each_in(&b, &planes[..sides.len], |q| {
-                if cands.binary_search(&q).is_ok() {
-                    consider(q);
+            // Past MAX_NEAR of them the answer is `many` whatever else the tree holds.
+            self.bvh.try_for_each_in(&b, &planes[..sides.len], |q| {
+                if cands.binary_search(&q).is_ok() && consider(q) {
+                    ControlFlow::Break(())
+                } else {
+                    ControlFlow::Continue(())
                 }
             });
         }
