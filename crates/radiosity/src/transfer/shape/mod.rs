@@ -1,0 +1,353 @@
+//! The shape of a reflecting patch's light: how its radiosity varies over the patch, so that a
+//! receiver close to the patch is lit by the light where it is, not by the patch's average.
+//!
+//! A patch shoots its reflected radiosity as one number per channel (its total, the history the
+//! gathers sum). Taken as uniform over the patch, that number lights a receiver next to the
+//! patch with the patch's mean: a box face beside a floor patch half in its shadow received the
+//! lit half's light (measured against a path tracer, +35 % on the Cornell box's short box, and
+//! -10 % on the tall one, whose floor patch held the dark floor under the box). A [`PatchShape`]
+//! splits the patch into a `2^k x 2^k` grid of cells, each with a weight per channel: the mean
+//! radiosity over the cell over the mean over the patch (so the area-weighted mean of the
+//! weights is 1 and a shape never changes the power a patch shoots).
+//!
+//! With weights `w_c = b + d_c` (`b` the area-weighted median weight, so that most cells
+//! deviate little), the patch's transfer to a point is `b F_v + sum_c d_c F_c,v`: the exact
+//! form factor `F_v` of the part of the patch the point sees (see `visible`), corrected by
+//! each cell's deviation times the form factor of its part seen, summed in one pass over the
+//! seen part (a difference of two sums, the whole patch's less the hidden part's, would be
+//! mostly their errors where a bright spot is hidden). Where the region is beyond the exact
+//! clipper, `(b F + sum_c d_c F_c) V_w` instead, with the visible fraction `V_w` of shadow rays
+//! weighted by the shape where they land as well as by the kernel. A cell's form
+//! factor is exact (Lambert's formula) where the point is closer than twice the cell's size,
+//! and the point-to-point kernel `A_c cos cos / (pi r^2)` farther, where it is within a few
+//! per cent of exact: only the correction uses it, and only the correction's own error
+//! (`d_c` times a few per cent of `F_c`) comes from it. The correction costs a gather the
+//! cells it looks at, so a gather applies it only where it matters, judged as hierarchical
+//! radiosity judges a link (Hanrahan, Salzman and Aupperle 1991, brightness-weighted): the
+//! shape's spread `s` (largest weight minus smallest) times `F` times `min(1, 2 h / d)` (size
+//! over distance: the deviation integrates to zero over the patch, so far away its effect
+//! fades) times the patch's total, against a fraction of what the point receives
+//! ([`Transfer::gather`](super::Transfer::gather)); between `tau` and `2 tau` the corrected and
+//! the uniform transfer are blended linearly, so the light stays a continuous function of the
+//! point.
+//!
+//! Invariants: the weights are stored as `f32` and everything derived from them (the spread,
+//! the cells' geometry) is a pure function of them and of the polygon, so the solver and an
+//! [`Oracle`](crate::Oracle) built from a saved solution compute the same gather bit for bit.
+//!
+//! Code: the shape itself (its tree, weights, median and moments) is here; applying it to a
+//! transfer (the uniform look and its error estimate, the correction over the part seen, the
+//! coarse shots' rule) is in `shaped`.
+
+use glam::{DVec3, Vec3};
+
+use super::Look;
+use super::{cell_corners, sub_area, PairClass, ShooterKind, Transfer};
+use crate::formfactor::{point_to_polygon, SmallPoly};
+use crate::visible::{self, CellIn, Region, Sight, View};
+use base::quadtree::{Cell, Quadtree};
+use scene::Polygon;
+
+mod shaped;
+
+pub(crate) use shaped::{blend, concentrates, Pending};
+
+/// Relative margin of the geometric thresholds of the correction (`shaped`): a distance that equals a
+/// threshold in exact arithmetic lands on one side of it whatever its rounding (which differs
+/// between two scales of one scene, where the light must be the same).
+const TIE: f64 = 1e-9;
+
+/// Most levels a shape's tree may have below its patch (4,096 leaves at most): the source
+/// polygon's leaves deeper than this are merged.
+pub(crate) const MAX_SHAPE_LEVELS: u32 = 6;
+
+/// A patch's shape: a quadtree over the patch (the source polygon's own leaves under it, so
+/// it is as fine as the solution where the light varies) with a weight per leaf.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PatchShape {
+    /// The tree, its root the whole patch (cells relative to the patch).
+    pub tree: Quadtree,
+    /// Per leaf, in node order, its weight per channel.
+    pub leaves: Vec<[f32; 3]>,
+    /// Per node: the area-weighted mean weight of its leaves and its area (derived).
+    mean: Vec<(DVec3, f64)>,
+    /// Per channel, the area-weighted median of the leaves' weights (derived): the weight
+    /// [`correction`] measures deviations from. Most of the patch's area lies near it, so the
+    /// far nodes' terms are small; measured from the mean (1), a patch whose light is one
+    /// bright spot had every node around the spot count as a large negative deviation, and
+    /// the far-field errors of those terms outgrew the light a point beside the spot receives.
+    base: DVec3,
+    /// Per node, per channel: the first moment of its leaves' deviations about the node's
+    /// centre, `sum_c A_c (w_c - base) (p_c - centre)` (derived; 0 for a leaf). With it a far
+    /// node counts as a dipole, not only a monopole (see [`correction`]).
+    moment: Vec<[Vec3; 3]>,
+    /// Per node: the index of its weight in `leaves` (leaves only; derived).
+    leaf_index: Vec<u32>,
+    /// Per node: the largest difference between two of its leaves' weights in one channel
+    /// (derived; 0 for a leaf): how far the light of a part of it can stand from its mean.
+    node_spread: Vec<f32>,
+    /// Largest difference between two leaves' weights in one channel.
+    spread: f64,
+}
+
+impl PatchShape {
+    /// The shape with tree `tree` (relative to cell `patch` of polygon `poly`) and leaf weights
+    /// `leaves` (node order); `None` if their counts differ.
+    pub fn new(poly: &Polygon, patch: Cell, tree: Quadtree, leaves: Vec<[f32; 3]>) -> Option<Self> {
+        let nodes = tree.nodes();
+        let mut leaf_index = vec![u32::MAX; nodes.len()];
+        let mut k = 0u32;
+        for (i, n) in nodes.iter().enumerate() {
+            if n.is_leaf() {
+                leaf_index[i] = k;
+                k += 1;
+            }
+        }
+        if k as usize != leaves.len() {
+            return None;
+        }
+        let mut mean = vec![(DVec3::ZERO, 0.0); nodes.len()];
+        // Children always come after their parent: from the last node back, every node's
+        // children are done before it.
+        for i in (0..nodes.len()).rev() {
+            let n = nodes[i];
+            mean[i] = if n.is_leaf() {
+                let w = leaves[leaf_index[i] as usize];
+                let area = sub_area(poly, absolute(patch, n.cell));
+                (DVec3::new(w[0] as f64, w[1] as f64, w[2] as f64), area)
+            } else {
+                let f = n.first_child as usize;
+                let (mut w, mut a) = (DVec3::ZERO, 0.0);
+                for &(cw, ca) in &mean[f..f + 4] {
+                    w += ca * cw;
+                    a += ca;
+                }
+                (if a > 0.0 { w / a } else { DVec3::ONE }, a)
+            };
+        }
+        let base = median_weight(&leaves, &leaf_index, &mean);
+        let moment = moments(poly, patch, &tree, &mean, base);
+        let node_spread = node_spreads(&tree, &leaves, &leaf_index);
+        let mut lo = [f32::INFINITY; 3];
+        let mut hi = [f32::NEG_INFINITY; 3];
+        for c in &leaves {
+            for k in 0..3 {
+                lo[k] = lo[k].min(c[k]);
+                hi[k] = hi[k].max(c[k]);
+            }
+        }
+        let spread = (0..3)
+            .map(|k| (hi[k] - lo[k]) as f64)
+            .fold(0.0f64, f64::max)
+            .max(0.0);
+        Some(PatchShape {
+            tree,
+            leaves,
+            mean,
+            moment,
+            leaf_index,
+            node_spread,
+            spread,
+            base,
+        })
+    }
+
+    /// The weight of the leaf at unit-square position (su, sv) of the patch.
+    #[inline]
+    pub(crate) fn weight_at(&self, su: f64, sv: f64) -> [f32; 3] {
+        let id = self.tree.find_leaf(su, sv) as usize;
+        self.leaves[self.leaf_index[id] as usize]
+    }
+
+    /// Luminance of the weight of the leaf at unit-square position (su, sv) of the patch.
+    #[inline]
+    fn luminance_at(&self, su: f64, sv: f64) -> f64 {
+        let c = self.weight_at(su, sv);
+        0.2126 * c[0] as f64 + 0.7152 * c[1] as f64 + 0.0722 * c[2] as f64
+    }
+}
+
+/// Per node, the largest difference between two of its leaves' weights in one channel (0 for
+/// a leaf), from each node's lowest and highest leaf weight per channel.
+fn node_spreads(tree: &Quadtree, leaves: &[[f32; 3]], leaf_index: &[u32]) -> Vec<f32> {
+    let nodes = tree.nodes();
+    let mut range = vec![([f32::INFINITY; 3], [f32::NEG_INFINITY; 3]); nodes.len()];
+    for i in (0..nodes.len()).rev() {
+        let n = nodes[i];
+        range[i] = if n.is_leaf() {
+            let w = leaves[leaf_index[i] as usize];
+            (w, w)
+        } else {
+            let f = n.first_child as usize;
+            let mut r = range[f];
+            for c in &range[f + 1..f + 4] {
+                for k in 0..3 {
+                    r.0[k] = r.0[k].min(c.0[k]);
+                    r.1[k] = r.1[k].max(c.1[k]);
+                }
+            }
+            r
+        };
+    }
+    range
+        .iter()
+        .map(|(lo, hi)| (0..3).map(|k| hi[k] - lo[k]).fold(0.0f32, f32::max))
+        .collect()
+}
+
+/// Per channel, the area-weighted median of the leaves' weights (`leaf_index` maps nodes to
+/// `leaves`; `mean` holds each node's area): the smallest weight at which the leaves at or
+/// below it cover more than half the patch.
+fn median_weight(leaves: &[[f32; 3]], leaf_index: &[u32], mean: &[(DVec3, f64)]) -> DVec3 {
+    let area: Vec<(usize, f64)> = leaf_index
+        .iter()
+        .enumerate()
+        .filter(|(_, &k)| k != u32::MAX)
+        .map(|(i, &k)| (k as usize, mean[i].1))
+        .collect();
+    let total: f64 = area.iter().map(|(_, a)| a).sum();
+    let mut base = DVec3::ONE;
+    for ch in 0..3 {
+        let mut by: Vec<(f32, f64)> = area.iter().map(|&(k, a)| (leaves[k][ch], a)).collect();
+        by.sort_by(|a, b| a.0.total_cmp(&b.0));
+        let mut acc = 0.0;
+        for (w, a) in by {
+            acc += a;
+            // Equal cells reach half the area exactly at a leaf's end: the margin puts that
+            // tie on the same side at any scale (see `TIE`).
+            if acc >= 0.5 * total * (1.0 + TIE) {
+                base[ch] = w as f64;
+                break;
+            }
+        }
+    }
+    base
+}
+
+/// Each node's first moment of deviation from `base` about its centre (see
+/// [`PatchShape::moment`]), from the nodes' mean weights and areas: a leaf's is 0 (its light
+/// is taken as at its centre); a parent's is its children's, each moved to the parent's
+/// centre, `sum_children (D_child + A_child (w_child - base) (centre_child - centre))`.
+fn moments(
+    poly: &Polygon,
+    patch: Cell,
+    tree: &Quadtree,
+    mean: &[(DVec3, f64)],
+    base: DVec3,
+) -> Vec<[Vec3; 3]> {
+    let nodes = tree.nodes();
+    let centre: Vec<DVec3> = nodes
+        .iter()
+        .map(|n| {
+            let c = cell_corners(poly, absolute(patch, n.cell));
+            0.25 * (c[0] + c[1] + c[2] + c[3])
+        })
+        .collect();
+    let mut moment = vec![[DVec3::ZERO; 3]; nodes.len()];
+    for i in (0..nodes.len()).rev() {
+        let n = nodes[i];
+        if n.is_leaf() {
+            continue;
+        }
+        let f = n.first_child as usize;
+        let mut m = [DVec3::ZERO; 3];
+        for c in f..f + 4 {
+            let (w, a) = mean[c];
+            let arm = centre[c] - centre[i];
+            for k in 0..3 {
+                m[k] += moment[c][k] + a * (w[k] - base[k]) * arm;
+            }
+        }
+        moment[i] = m;
+    }
+    moment
+        .iter()
+        .map(|m| [m[0].as_vec3(), m[1].as_vec3(), m[2].as_vec3()])
+        .collect()
+}
+
+/// [`kernel`](super::kernel) `c_x c_y / r^4` and its gradient with respect to the source point `y`, from one
+/// set of dot products: with `d = y - x`, `c_x = n . d`, `c_y = -n_y . d`,
+/// `grad = (n c_y - n_y c_x - 4 c_x c_y d / |d|^2) / |d|^4`. `None` where a cosine is not
+/// positive (the kernel is 0 there).
+#[inline]
+fn kernel_and_gradient(x: DVec3, n: DVec3, y: DVec3, ny: DVec3) -> Option<(f64, DVec3)> {
+    let d = y - x;
+    let r2 = d.length_squared();
+    let (cx, cy) = (n.dot(d), -ny.dot(d));
+    if cx <= 0.0 || cy <= 0.0 || r2 <= 0.0 {
+        return None;
+    }
+    let r4 = r2 * r2;
+    Some((
+        cx * cy / r4,
+        (n * cy - ny * cx - d * (4.0 * cx * cy / r2)) / r4,
+    ))
+}
+
+/// The cell of the polygon's domain that cell `rel` of a tree rooted at `patch` covers.
+#[inline]
+pub(crate) fn absolute(patch: Cell, rel: Cell) -> Cell {
+    Cell {
+        level: patch.level + rel.level,
+        x: (patch.x << rel.level) + rel.x,
+        y: (patch.y << rel.level) + rel.y,
+    }
+}
+
+/// Weights of a patch's leaves from the integrals of its radiosity over them (`sums`) and their
+/// areas: each leaf's mean over the patch's mean, per channel (1 in a channel the patch does
+/// not reflect), rounded to `f32`. `None` when every weight is within `flat` of 1: the patch is
+/// as good as uniform and costs a gather nothing more.
+pub(crate) fn weights(sums: &[DVec3], areas: &[f64], flat: f64) -> Option<Vec<[f32; 3]>> {
+    let total: DVec3 = sums.iter().sum();
+    let area: f64 = areas.iter().sum();
+    if area.is_nan() || area <= 0.0 {
+        return None;
+    }
+    let mean = total / area;
+    let mut spread = 0.0f64;
+    let cells: Vec<[f32; 3]> = sums
+        .iter()
+        .zip(areas)
+        .map(|(s, &a)| {
+            let m = if a > 0.0 { *s / a } else { mean };
+            let ch = |k: usize| {
+                if mean[k] > 0.0 && m[k].is_finite() {
+                    (m[k] / mean[k]).max(0.0) as f32
+                } else {
+                    1.0
+                }
+            };
+            let w = [ch(0), ch(1), ch(2)];
+            for x in w {
+                spread = spread.max((x as f64 - 1.0).abs());
+            }
+            w
+        })
+        .collect();
+    (spread > flat).then_some(cells)
+}
+
+/// Share of a gather's tolerance for one patch ([`SHAPE_TAU`]) that one far, partly hidden
+/// node of its shape may leave (see `correction`): nodes along a hole's outline are opened
+/// until each one's possible error is below it.
+pub(crate) const NODE_BUDGET: f64 = 4.0;
+
+/// A gather corrects a shaped patch's transfer where its error estimate passes this fraction
+/// of the scene's `radiosity.tolerance` times what the point receives (see
+/// [`Transfer::gather`](super::Transfer::gather)). A point sees tens of patches whose errors
+/// can share a sign, so the budget per patch is a small part of the tolerance.
+pub(crate) const SHAPE_TAU: f64 = 0.05;
+
+/// See [`SHAPE_TAU`].
+pub(crate) fn shape_tolerance(tolerance: f64) -> f64 {
+    SHAPE_TAU * tolerance
+}
+
+/// Luminance of the shape's weight where the ray target at unit-square position (su, sv) of
+/// the patch lands (1 without a shape): the visibility estimate's extra weight.
+#[inline]
+pub(crate) fn shape_weight(shape: Option<&PatchShape>, su: f64, sv: f64) -> f64 {
+    shape.map_or(1.0, |s| s.luminance_at(su, sv))
+}
