@@ -28,15 +28,21 @@ fn blocks(x: DVec3, y: DVec3, q: &[DVec3]) -> bool {
 }
 
 /// The visible form factor by brute force: the kernel cos cos / (pi r^2) times the visibility
-/// of an `m x m` midpoint grid over the parallelogram.
+/// of one point in each cell of an `m x m` grid over the parallelogram, placed at random in its
+/// cell (fixed seed). A cell a shadow edge crosses then errs either way, independently of its
+/// neighbours; at the cells' midpoints an edge running along a row of cells made every one of
+/// them err the same way (a 240-cell grid read 2.1e-3 of the light's form factor off, where
+/// 1,920 cells agree with the exact value to 1.1e-6).
 fn brute_force(x: DVec3, n: DVec3, s: &[DVec3; 4], occluders: &[Vec<DVec3>], m: usize) -> f64 {
     let (o, e1, e2) = (s[0], s[1] - s[0], s[3] - s[0]);
     let ns = e1.cross(e2).normalize();
     let da = e1.cross(e2).length() / (m * m) as f64;
+    let mut rng = base::rng::Rng::new(11);
     let mut f = 0.0;
     for i in 0..m {
         for j in 0..m {
-            let y = o + e1 * ((i as f64 + 0.5) / m as f64) + e2 * ((j as f64 + 0.5) / m as f64);
+            let (a, b) = (rng.next_f64(), rng.next_f64());
+            let y = o + e1 * ((i as f64 + a) / m as f64) + e2 * ((j as f64 + b) / m as f64);
             let d = y - x;
             let r2 = d.length_squared();
             let (cx, cy) = (n.dot(d), -ns.dot(d));
@@ -190,10 +196,10 @@ proptest! {
     #![proptest_config(ProptestConfig { cases: 64, ..ProptestConfig::default() })]
 
     /// The exact visible form factor equals a brute-force integral of the kernel times the
-    /// visibility of a 240 x 240 grid over the light, past 1 to 4 random occluders. The grid
-    /// counts each cell a shadow edge crosses as wholly seen or hidden: an error of at most the
-    /// cell's weight, about 1/240^2 of the light's form factor (the kernel varies by less than
-    /// 3x over the light), of either sign. 4 occluders' outlines cross at most about
+    /// visibility of a jittered 240 x 240 grid over the light, past 1 to 4 random occluders.
+    /// The grid counts each cell a shadow edge crosses as wholly seen or hidden: an error of
+    /// at most the cell's weight, about 1/240^2 of the light's form factor (the kernel varies
+    /// by less than 3x over the light), of either sign. 4 occluders' outlines cross at most about
     /// 4 x 4 x 240 = 3,840 cells, so the sum of those errors, of independent signs, has a
     /// standard deviation near sqrt(3840) / 240^2 = 1.1e-3 of the form factor: 2e-3 allows
     /// about two of them (the largest seen in 64 cases was below 2e-4). A hole lost or
