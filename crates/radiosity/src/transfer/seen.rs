@@ -53,6 +53,27 @@ enum How {
     RaysWhole,
 }
 
+impl How {
+    /// Every kind, indexed by its bits.
+    const ALL: [How; 6] = [
+        How::Zero,
+        How::Clear,
+        How::All,
+        How::Part,
+        How::RaysPart,
+        How::RaysWhole,
+    ];
+
+    /// How many values an entry of this kind holds.
+    fn values(self) -> usize {
+        match self {
+            How::Zero => 0,
+            How::Clear | How::All | How::RaysWhole => 1,
+            How::Part | How::RaysPart => 2,
+        }
+    }
+}
+
 /// Bits of an entry's id that hold its [`How`]; the shooter is the rest.
 const HOW_BITS: u32 = 3;
 
@@ -81,13 +102,13 @@ impl Seen {
         };
         debug_assert!(s < u32::MAX >> HOW_BITS, "shooter ids fit beside the kind");
         self.ids.push(s << HOW_BITS | how as u32);
-        match how {
-            How::Zero => {}
-            How::Clear | How::All | How::RaysWhole => {
+        match how.values() {
+            0 => {}
+            1 => {
                 debug_assert_eq!(t, f, "a shooter seen whole sends its form factor");
                 self.vals.push(f);
             }
-            How::Part | How::RaysPart => self.vals.extend([t, f]),
+            _ => self.vals.extend([t, f]),
         }
     }
 
@@ -128,15 +149,12 @@ impl Walk<'_> {
     /// fraction itself, a gather reads only the class.
     pub(crate) fn find(&mut self, s: u32) -> Option<(f64, f64, Look)> {
         while let Some(&id) = self.ids.get(self.at) {
-            let (shooter, how) = (id >> HOW_BITS, id & ((1 << HOW_BITS) - 1));
+            let shooter = id >> HOW_BITS;
             if shooter > s {
                 return None;
             }
-            let take = match how {
-                0 => 0,
-                1 | 2 | 5 => 1,
-                _ => 2,
-            };
+            let how = How::ALL[(id & ((1 << HOW_BITS) - 1)) as usize];
+            let take = how.values();
             let vals = &self.vals[self.val..self.val + take];
             self.at += 1;
             self.val += take;
@@ -144,12 +162,12 @@ impl Walk<'_> {
                 continue;
             }
             return Some(match how {
-                0 => (0.0, 0.0, Look::Clear),
-                1 => (vals[0], vals[0], Look::Clear),
-                2 => (vals[0], vals[0], Look::Exact(Sight::All)),
-                5 => (vals[0], vals[0], Look::Rays(1.0)),
-                3 => (vals[0], vals[1], Look::Exact(Sight::Part)),
-                _ => (vals[0], vals[1], Look::Rays(0.5)),
+                How::Zero => (0.0, 0.0, Look::Clear),
+                How::Clear => (vals[0], vals[0], Look::Clear),
+                How::All => (vals[0], vals[0], Look::Exact(Sight::All)),
+                How::RaysWhole => (vals[0], vals[0], Look::Rays(1.0)),
+                How::Part => (vals[0], vals[1], Look::Exact(Sight::Part)),
+                How::RaysPart => (vals[0], vals[1], Look::Rays(0.5)),
             });
         }
         None
