@@ -6,11 +6,10 @@
 //! path and payload lengths, the scene hash, the checksum) so that mutations reach the payload
 //! decoder instead of stopping at the checksum. The rest is the solution file's bytes.
 //!
-//! When the file decodes, the target does what `render` does with it: decode the stored
-//! compact RRPs (checking their polygon count against the scene), or when there are none build
-//! them from the samples; and it builds the compact RRPs from the samples in any case (what
-//! `--estimator` other than the default does) and expands every patch. A file that decodes but
-//! is inconsistent must give an `Err`, never a panic.
+//! When the file decodes, the target does what `render` does with it: build the compact RRPs
+//! from the samples (a file stores no RRPs), expand every patch, and round-trip them through
+//! their own encoding (which `stats` measures). A file that decodes but is inconsistent must give
+//! an `Err`, never a panic.
 #![no_main]
 
 use std::path::Path;
@@ -51,7 +50,7 @@ fuzz_target!(|data: &[u8]| {
     if selector & 0x80 != 0 {
         file::reseal(&mut bytes, scene);
     }
-    let (solution, rrps) = match file::decode(&bytes, scene) {
+    let solution = match file::decode(&bytes, scene) {
         Ok(d) => d,
         Err(file::Bad(_, message)) => {
             assert!(!message.is_empty());
@@ -59,28 +58,21 @@ fuzz_target!(|data: &[u8]| {
         }
     };
     // What `jobs::prepare` does with a decoded file.
-    let stored = if rrps.is_empty() {
-        None
-    } else {
-        match CompactReconstruction::decode(&rrps) {
-            Ok(c) if c.polygon_count() == scene.polygons.len() => Some(c),
-            Ok(_) => None,
-            Err(e) => {
-                assert!(!e.to_string().is_empty());
-                None
-            }
+    let c = match CompactReconstruction::build(&solution.polygons, Estimator::default()) {
+        Ok(c) => c,
+        Err(e) => {
+            assert!(!e.to_string().is_empty());
+            return;
         }
     };
-    let built = CompactReconstruction::build(&solution.polygons, Estimator::default());
-    if let Err(e) = &built {
-        assert!(!e.to_string().is_empty());
+    assert_eq!(c.polygon_count(), scene.polygons.len());
+    for id in 0..c.leaf_count() as u32 {
+        let _ = c.expand(id);
     }
-    for c in stored.iter().chain(built.as_ref().ok()) {
-        for id in 0..c.leaf_count() as u32 {
-            let _ = c.expand(id);
-        }
-        for p in 0..c.polygon_count() as u32 {
-            let _ = c.locate(p, 0.5, 0.5);
-        }
+    for p in 0..c.polygon_count() as u32 {
+        let _ = c.locate(p, 0.5, 0.5);
     }
+    let encoded = c.encode();
+    let back = CompactReconstruction::decode(&encoded).expect("an encoding decodes");
+    assert_eq!(back.encode(), encoded);
 });

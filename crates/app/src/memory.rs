@@ -1,11 +1,13 @@
 //! Memory accounting: the bytes of every representation a method can hold, counted by one set of
 //! rules that `stats`, `sweep`, the equal-error search and the docs all use.
 //!
-//! - **RRPs, compact** (what the direct method holds): [`CompactStats::total_bytes`], the locate
-//!   trees, leaf records and the vertices' Hermite data held as f32; **encoded** (what a
-//!   solution file stores: 16-bit mantissas with 4-bit shifts of per-polygon scales):
-//!   [`CompactStats::encoded_bytes`]; **samples alone** (measured, not stored: the solution's
-//!   trees and 16-bit samples, derivatives re-estimated on load): [`samples_form::encoded_len`];
+//! - **RRPs, stored** (what a solution file spends on them, and what the direct method is
+//!   charged as storage): the trees as one split bit per node and the samples as three f32 per
+//!   vertex ([`radiosity::file::samples_bytes`]); the derivatives are estimated again on load,
+//!   by the same function a render after a solve uses. **Compact** (what the direct method
+//!   holds): [`CompactStats::total_bytes`], the locate trees, leaf records and the vertices'
+//!   Hermite data held as f32; **encoded** (measured, not stored: the Hermite data as 16-bit
+//!   mantissas with 4-bit shifts of per-polygon scales): [`CompactStats::encoded_bytes`];
 //!   **patch caches**: the direct method's caches of expanded patches, one per worker
 //!   ([`CompactReconstruction::cache_bytes`] times the worker threads: what the frame's
 //!   workspaces allocate), working memory reported beside the RRPs, not in them.
@@ -33,7 +35,6 @@ use crate::prepare::Prepared;
 use base::error::Result;
 use base::method::Method;
 use reconstruction::compact::{CompactReconstruction, CompactStats};
-use reconstruction::samples_form;
 use reconstruction::texture::TextureMemory;
 use reconstruction::PatchCoeffs;
 
@@ -45,6 +46,12 @@ pub fn texture_bytes(m: &TextureMemory) -> u64 {
 /// Bytes the direct method holds for `c`: the compact RRPs ([`CompactStats::total_bytes`]).
 pub fn rrp_bytes(c: &CompactReconstruction) -> u64 {
     c.stats().total_bytes as u64
+}
+
+/// Bytes the RRPs of `p` are stored in: its solution's trees and samples
+/// ([`radiosity::file::samples_bytes`]), from which every RRP is built.
+pub fn rrp_stored_bytes(p: &Prepared) -> u64 {
+    radiosity::file::samples_bytes(&p.solution)
 }
 
 /// Bytes of the direct method's patch caches for `c`: one per worker thread.
@@ -87,13 +94,13 @@ pub fn working_bytes(
 /// Every representation of one prepared scene.
 #[derive(Debug, Clone, Serialize)]
 pub struct Memory {
+    /// RRPs as stored: the trees and samples they are built from ([`rrp_stored_bytes`]).
+    pub rrp_stored: u64,
     /// Compact RRPs as held ([`CompactStats::total_bytes`]).
     pub rrp_compact: u64,
-    /// Compact RRPs as encoded in a solution file.
+    /// Compact RRPs' Hermite data quantized ([`CompactStats::encoded_bytes`]; measured, not
+    /// stored).
     pub rrp_encoded: u64,
-    /// The samples-alone form's bytes at 16 bits ([`samples_form::encoded_len`]): what the RRPs
-    /// would take stored as the solution's trees and quantized samples.
-    pub rrp_samples: u64,
     /// Expanded RRPs ([`expanded_rrp_bytes`]).
     pub rrp_expanded: u64,
     /// The direct method's patch caches, one per worker thread, all together.
@@ -109,10 +116,9 @@ impl Memory {
     pub fn of(p: &Prepared) -> Result<Memory> {
         let cs: CompactStats = p.compact.stats();
         Ok(Memory {
+            rrp_stored: rrp_stored_bytes(p),
             rrp_compact: rrp_bytes(&p.compact),
             rrp_encoded: cs.encoded_bytes as u64,
-            rrp_samples: samples_form::encoded_len(&p.solution.polygons, samples_form::DEFAULT_BITS)
-                as u64,
             rrp_expanded: expanded_rrp_bytes(&p.compact),
             rrp_caches: cache_bytes(&p.compact),
             textures: p.textures()?.0.memory,
@@ -120,11 +126,12 @@ impl Memory {
         })
     }
 
-    /// What `method` holds: the compact RRPs (direct), the 12-bit textures with chains (texture
-    /// methods), the mesh, or nothing of its own (reference: the solution's oracle).
+    /// What `method` stores: the RRPs' trees and samples (direct), the 12-bit textures with
+    /// chains (texture methods), the mesh, or nothing of its own (reference: the solution's
+    /// oracle).
     pub fn method_bytes(&self, method: Method) -> u64 {
         match method {
-            Method::Direct => self.rrp_compact,
+            Method::Direct => self.rrp_stored,
             Method::Texture(_) => texture_bytes(&self.textures),
             Method::Mesh => self.mesh,
             Method::Reference => 0,

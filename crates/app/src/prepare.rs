@@ -229,10 +229,10 @@ pub fn prepare_progressively(
         sharp_levels,
     };
     let seams = seams_of(&scene);
-    let (solution, stored, solve_ms) = match &file {
+    let (solution, from_file, solve_ms) = match &file {
         Some(path) => {
-            let (solution, rrps) = solution_file::read_solution_up_to(path, &scene, input_limit)?;
-            (solution, Some((path.as_path(), rrps)), 0.0)
+            let solution = solution_file::read_solution_up_to(path, &scene, input_limit)?;
+            (solution, Some(path.as_path()), 0.0)
         }
         None => {
             let t = Instant::now();
@@ -241,7 +241,7 @@ pub fn prepare_progressively(
         }
     };
     let t = Instant::now();
-    let compact = compact_of(&scene, &solution, stored, recipe, &seams)?;
+    let compact = compact_of(&scene, &solution, from_file, recipe, &seams)?;
     let reconstruction_ms = t.elapsed().as_secs_f64() * 1e3;
     let mut p = recipe.prepared(
         scene,
@@ -330,65 +330,36 @@ fn solve_sending(
     )
 }
 
-/// The compact RRPs of `solution`. A solution file stores the compact RRPs its solve built
-/// with the default estimator and sharp levels (`stored`: the file and its RRPs): they are
-/// decoded (checked) instead of built again; a file without them, other settings or a fresh
-/// solve builds them from the samples.
+/// The compact RRPs of `solution`, read from the file `file` or solved in this run: built from
+/// its samples either way (a solution file stores no RRPs), so both draw the same images.
 fn compact_of(
     scene: &Scene,
     solution: &Solution,
-    stored: Option<(&Path, Vec<u8>)>,
+    file: Option<&Path>,
     recipe: Recipe,
     seams: &Seams,
 ) -> Result<CompactReconstruction> {
-    let defaults = recipe.estimator == Estimator::default()
-        && recipe.sharp_levels == reconstruction::sharp::DEFAULT_LEVELS;
-    let build = || {
-        reconstruct(
-            scene,
-            solution,
-            recipe.estimator,
-            recipe.sharp_levels,
-            seams,
-        )
-    };
-    match stored {
-        Some((path, rrps)) if !rrps.is_empty() && defaults => {
-            let corrupt = |m: String| {
-                Error::solution(
-                    path,
-                    base::error::SolutionProblem::Corrupt,
-                    format!("corrupt solution file: its RRPs: {m}"),
-                )
-            };
-            let c = CompactReconstruction::decode(&rrps).map_err(|e| corrupt(e.to_string()))?;
-            if c.polygon_count() != scene.polygons.len() {
-                return Err(corrupt(format!(
-                    "{} polygons, the scene has {}",
-                    c.polygon_count(),
-                    scene.polygons.len()
-                )));
-            }
-            Ok(c)
-        }
+    let built = reconstruct(
+        scene,
+        solution,
+        recipe.estimator,
+        recipe.sharp_levels,
+        seams,
+    );
+    built.map_err(|e| match (e, file) {
         // Samples read from a file that cannot be reconstructed (values so large the patches
         // overflow f32) are a bad file, exit 2, like any other inconsistency behind a valid
         // checksum; from a fresh solve they are a failure of this program.
-        Some((path, _)) => build().map_err(|e| match e {
-            Error::Inconsistent(m) => Error::solution(
-                path,
-                base::error::SolutionProblem::Corrupt,
-                format!("corrupt solution file: its samples cannot be reconstructed: {m}"),
-            ),
-            e => e,
-        }),
-        None => build().map_err(|e| match e {
-            Error::Inconsistent(m) => {
-                Error::internal(format!("this run's own solution is inconsistent: {m}"))
-            }
-            e => e,
-        }),
-    }
+        (Error::Inconsistent(m), Some(path)) => Error::solution(
+            path,
+            base::error::SolutionProblem::Corrupt,
+            format!("corrupt solution file: its samples cannot be reconstructed: {m}"),
+        ),
+        (Error::Inconsistent(m), None) => {
+            Error::internal(format!("this run's own solution is inconsistent: {m}"))
+        }
+        (e, _) => e,
+    })
 }
 
 /// The compact RRPs of `solution` on `scene` with `estimator`, following the spots' edges

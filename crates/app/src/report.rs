@@ -394,15 +394,15 @@ fn memory_lines(s: &crate::commands::stats::ModelStats) -> String {
         mb(m.bytes_with_chain[2]),
     );
     t += &format!(
-        "RRP memory: {} patches; compact (held) {:.3} MB, encoded {:.3} MB, expanded {:.3} \
-         MB; patch caches {:.3} MB; a samples-alone form would take {:.3} MB (measured, no \
-         reader: derivatives would be estimated again on load)\n",
+        "RRP memory: {} patches; stored {:.3} MB (trees and f32 samples, derivatives estimated \
+         on load), compact (held) {:.3} MB, expanded {:.3} MB; patch caches {:.3} MB; the held \
+         Hermite data quantized to 16 bits would take {:.3} MB (measured, not stored)\n",
         grouped(s.rrp_patches),
+        mb(s.rrp_stored_bytes),
         mb(s.rrp_bytes),
-        mb(s.rrp_encoded_bytes),
         mb(s.rrp_expanded_bytes),
         mb(s.rrp_cache_bytes),
-        mb(s.rrp_samples_bytes)
+        mb(s.rrp_encoded_bytes)
     );
     t
 }

@@ -245,6 +245,54 @@ impl Quadtree {
         out
     }
 
+    /// The same tree in the canonical node order of [`Quadtree::grow`]: the same cells split,
+    /// nodes renumbered. Equal to `self` when `self` was grown.
+    pub fn canonical(&self) -> Quadtree {
+        Quadtree::grow(0u32, |_, _, old| {
+            let f = self.node(old).first_child;
+            (f != 0).then(|| [f, f + 1, f + 2, f + 3])
+        })
+    }
+
+    /// The canonical tree's shape as one bit per node ("is split"), in canonical node order,
+    /// least significant bit first, padded with zero bits to a whole byte: with the node count,
+    /// the whole tree ([`Quadtree::from_split_bits`]).
+    pub fn split_bits(&self) -> Vec<u8> {
+        let c = self.canonical();
+        let mut out = vec![0u8; c.nodes.len().div_ceil(8)];
+        for (k, n) in c.nodes.iter().enumerate() {
+            out[k / 8] |= u8::from(!n.is_leaf()) << (k % 8);
+        }
+        out
+    }
+
+    /// The canonical tree of `nodes` nodes whose split bits are `bits` ([`Quadtree::split_bits`]).
+    /// `None` unless `bits` is exactly that encoding of a tree of depth at most [`MAX_DEPTH`]
+    /// (length, node count, zero padding), so decoding never panics and accepts one form per tree.
+    pub fn from_split_bits(nodes: usize, bits: &[u8]) -> Option<Quadtree> {
+        if nodes % 4 != 1 || bits.len() != nodes.div_ceil(8) {
+            return None;
+        }
+        let bit = |k: usize| bits[k / 8] >> (k % 8) & 1 == 1;
+        if (nodes..bits.len() * 8).any(bit) {
+            return None;
+        }
+        let mut malformed = false;
+        let tree = Quadtree::grow((), |id, cell, ()| {
+            let id = id as usize;
+            if id >= nodes || malformed || !bit(id) {
+                malformed |= id >= nodes;
+                return None;
+            }
+            if cell.level >= MAX_DEPTH {
+                malformed = true;
+                return None;
+            }
+            Some([(); 4])
+        });
+        (!malformed && tree.nodes.len() == nodes).then_some(tree)
+    }
+
     /// All nodes; node 0 is the root.
     pub fn nodes(&self) -> &[Node] {
         &self.nodes
@@ -457,5 +505,61 @@ mod tests {
         let mut bad = nodes;
         bad[0].first_child = 3;
         assert_eq!(Quadtree::from_nodes(bad), None);
+    }
+
+    /// A tree split at random leaves, in split order (not canonical).
+    fn random_tree(rng: &mut crate::rng::Rng, splits: usize) -> Quadtree {
+        let mut t = Quadtree::new();
+        for _ in 0..splits {
+            let leaves: Vec<u32> = (0..t.nodes.len() as u32)
+                .filter(|&i| t.node(i).is_leaf() && t.node(i).cell.level < 6)
+                .collect();
+            t.split(leaves[rng.below(leaves.len() as u32) as usize]);
+        }
+        t
+    }
+
+    #[test]
+    fn split_bits_rebuild_the_same_cells_in_canonical_order() {
+        let mut rng = crate::rng::Rng::new(7);
+        for case in 0..200 {
+            let t = random_tree(&mut rng, case % 40);
+            let c = t.canonical();
+            let cells = |t: &Quadtree| {
+                let mut v: Vec<(Cell, bool)> =
+                    t.nodes.iter().map(|n| (n.cell, n.is_leaf())).collect();
+                v.sort_by_key(|(c, l)| (c.level, c.x, c.y, *l));
+                v
+            };
+            assert_eq!(cells(&c), cells(&t), "case {case}");
+            assert_eq!(c.vertex_keys(), t.vertex_keys());
+            assert_eq!(c.canonical(), c, "canonical order is a fixed point");
+            let bits = t.split_bits();
+            assert_eq!(Quadtree::from_split_bits(t.nodes.len(), &bits), Some(c));
+        }
+    }
+
+    #[test]
+    fn split_bits_refuse_every_other_form() {
+        let mut t = Quadtree::new();
+        t.split(0);
+        let bits = t.split_bits();
+        assert_eq!(bits, vec![1]);
+        // A node count that is no quadtree's, or disagrees with the bits.
+        assert_eq!(Quadtree::from_split_bits(4, &bits), None);
+        assert_eq!(Quadtree::from_split_bits(1, &bits), None);
+        assert_eq!(Quadtree::from_split_bits(9, &[1, 0]), None);
+        // Nonzero padding, a byte too many or too few.
+        assert_eq!(Quadtree::from_split_bits(5, &[1 | 1 << 6]), None);
+        assert_eq!(Quadtree::from_split_bits(5, &[1, 0]), None);
+        assert_eq!(Quadtree::from_split_bits(5, &[]), None);
+        // Every node split: deeper than MAX_DEPTH before the count runs out.
+        let n = 4 * (MAX_DEPTH as usize + 1) + 1;
+        let all = vec![0xFFu8; n.div_ceil(8)];
+        let mut all = all;
+        let last = n.div_ceil(8) - 1;
+        all[last] &= (1u16 << (n - 8 * last)).wrapping_sub(1) as u8;
+        assert_eq!(Quadtree::from_split_bits(n, &all), None);
+        assert_eq!(Quadtree::from_split_bits(5, &bits), Some(t));
     }
 }

@@ -10,18 +10,25 @@
 //! scene_path   path_len path of the scene file, its bytes (so `render <solution>` works):
 //!                       relative to the solution file's folder when the two share a root
 //!                       (a solution copied with its scene keeps finding it), else absolute
-//! payload      ...      trees, keys, values, shooters, stats, then the RRPs: a u64 length and
-//!                       that many bytes of the compact reconstruction's encoding (see
-//!                       `encode_payload`; empty when not stored)
+//! payload      ...      per polygon its quadtree (node count, one split bit per node in the
+//!                       canonical order of `Quadtree::grow`) and its samples (three f32 per
+//!                       vertex, in vertex-key order); then the shooters and the statistics
+//!                       (see `encode_payload`)
 //! checksum     u64      FNV-1a 64 of every byte before it
 //! ```
 //!
 //! Invariants: the bytes are a pure function of the solution (the solve time is not stored, so
 //! solving one scene twice writes identical files); files are written atomically through
 //! [`base::output::Outputs::write_atomic`]; reading checks, in order, magic, version, length (truncation),
-//! checksum (corruption), scene hash (another scene), then rebuilds every quadtree with
-//! [`Quadtree::from_nodes`] and checks the stored keys are exactly its vertices. Every failure is an
-//! [`Error::Solution`] naming the file, the [`SolutionProblem`] and what is wrong.
+//! checksum (corruption), scene hash (another scene), then rebuilds every quadtree from its split
+//! bits ([`Quadtree::from_split_bits`], which accepts one form per tree) and takes its vertex keys
+//! from the tree. Every failure is an [`Error::Solution`] naming the file, the
+//! [`SolutionProblem`] and what is wrong.
+//!
+//! **No RRPs are stored.** The trees and samples are what the RRPs are made of: a render from a
+//! file builds them again with the same function a render after a solve uses, so the two draw
+//! identical images, and the RRPs cost a file nothing beyond the solution itself
+//! ([`samples_bytes`]: one bit per node and 12 bytes per vertex).
 
 use std::path::Path;
 
@@ -31,7 +38,7 @@ use super::transfer::shape::MAX_SHAPE_LEVELS;
 use super::transfer::{build_shooters, ShooterKind};
 use super::{fill_tree_stats, scene_hash, Fnv, PatchShape, Shooter, Solution, SolveStats};
 use base::error::{Error, Result, SolutionProblem};
-use base::quadtree::{Cell, Node, Quadtree, SampledQuadtree, VertexKey};
+use base::quadtree::{Cell, Quadtree, SampledQuadtree};
 use scene::Scene;
 
 /// File magic.
@@ -45,25 +52,25 @@ pub const MAGIC: &[u8; 8] = b"PFSOLN\r\n";
 /// file's RRPs would be silently smoother there; version 8 stores the light that escaped the
 /// scene in the energy account, from solves with exact visibility; version 9 stores how much
 /// light the leaves refinement stopped at a guard may misplace, and the light the scene
-/// reflects. Older files are refused (solve again).
-pub const FORMAT_VERSION: u32 = 9;
+/// reflects; version 10 stores each quadtree as split bits in canonical order with no vertex
+/// keys, and no RRPs (they are built from the samples on load). Older files are refused (solve
+/// again).
+pub const FORMAT_VERSION: u32 = 10;
 /// Most nodes a stored patch shape may have: a full tree of [`MAX_SHAPE_LEVELS`] levels.
 const MAX_SHAPE_NODES: usize = ((1 << (2 * (MAX_SHAPE_LEVELS + 1))) - 1) / 3;
 const HEADER: usize = 8 + 4 + 4 + 8 + 8;
 
-/// Serializes a solution to bytes (the exact file content), naming no scene file and storing
-/// no RRPs.
+/// Serializes a solution to bytes (the exact file content), naming no scene file.
 pub fn encode(sol: &Solution) -> Vec<u8> {
-    encode_with_scene(sol, None, &[])
+    encode_with_scene(sol, None)
 }
 
 /// Serializes a solution to bytes, naming the scene file it solves (so `render <solution>` can
-/// load it) and storing `rrps`, the compact reconstruction's encoding (opaque here: this module
-/// comes before the reconstruction stage, which encodes and decodes it). The path is stored
-/// between the header and the payload as the system gives its bytes (on Unix any bytes but
-/// zero, so a path that is not UTF-8 still names its scene; elsewhere its UTF-8).
-pub fn encode_with_scene(sol: &Solution, scene_path: Option<&Path>, rrps: &[u8]) -> Vec<u8> {
-    let payload = encode_payload(sol, rrps);
+/// load it). The path is stored between the header and the payload as the system gives its
+/// bytes (on Unix any bytes but zero, so a path that is not UTF-8 still names its scene;
+/// elsewhere its UTF-8).
+pub fn encode_with_scene(sol: &Solution, scene_path: Option<&Path>) -> Vec<u8> {
+    let payload = encode_payload(sol);
     let path: Vec<u8> = scene_path.map(path_bytes).unwrap_or_default();
     let mut out = Vec::with_capacity(HEADER + path.len() + payload.len() + 8);
     out.extend_from_slice(MAGIC);
@@ -101,8 +108,7 @@ pub fn reseal(b: &mut [u8], scene: &Scene) {
     b[body..].copy_from_slice(&h.0.to_le_bytes());
 }
 
-/// Writes `sol` and `rrps` (the compact reconstruction's encoding, or empty) to `path`
-/// atomically through `outputs`. `scene_path`, if given, is stored relative to the solution
+/// Writes `sol` to `path` atomically through `outputs`. `scene_path`, if given, is stored relative to the solution
 /// file's folder ([`relative_to`]; absolute when they share no root) so that the solution file
 /// alone is enough to render, also after both are copied elsewhere together.
 pub fn write_solution(
@@ -110,7 +116,6 @@ pub fn write_solution(
     path: &Path,
     sol: &Solution,
     scene_path: Option<&Path>,
-    rrps: &[u8],
 ) -> Result<()> {
     let stored = match scene_path {
         Some(p) => {
@@ -120,7 +125,7 @@ pub fn write_solution(
         }
         None => None,
     };
-    outputs.write_atomic(path, &encode_with_scene(sol, stored.as_deref(), rrps))
+    outputs.write_atomic(path, &encode_with_scene(sol, stored.as_deref()))
 }
 
 /// The canonical folder a solution file at `path` lives in (created if missing, as writing the
@@ -224,15 +229,14 @@ fn path_of_bytes(bytes: &[u8]) -> Option<std::path::PathBuf> {
     }
 }
 
-/// Reads a solution of `scene` from `path`, with the stored RRP bytes (empty if none); a file
-/// over [`base::output::MAX_INPUT_BYTES`] is refused ([`read_solution_up_to`] takes a job's
+/// Reads a solution of `scene` from `path`; a file over [`base::output::MAX_INPUT_BYTES`] is refused ([`read_solution_up_to`] takes a job's
 /// smaller cap).
-pub fn read_solution(path: &Path, scene: &Scene) -> Result<(Solution, Vec<u8>)> {
+pub fn read_solution(path: &Path, scene: &Scene) -> Result<Solution> {
     read_solution_up_to(path, scene, base::output::MAX_INPUT_BYTES)
 }
 
 /// [`read_solution`] refusing a file over `max` bytes before it is read whole.
-pub fn read_solution_up_to(path: &Path, scene: &Scene, max: u64) -> Result<(Solution, Vec<u8>)> {
+pub fn read_solution_up_to(path: &Path, scene: &Scene, max: u64) -> Result<Solution> {
     let bytes = read(path, max)?;
     decode(&bytes, scene).map_err(|b| b.at(path))
 }
@@ -374,19 +378,8 @@ impl W {
     /// A polygon: node count and nodes (level u8, x, y, first child), key count and keys,
     /// then the RGB f32 value of every key.
     fn polygon(&mut self, p: &SampledQuadtree) {
-        let nodes = p.tree.nodes();
-        self.u32(nodes.len() as u32);
-        for n in nodes {
-            self.u8(n.cell.level as u8);
-            self.u32(n.cell.x);
-            self.u32(n.cell.y);
-            self.u32(n.first_child);
-        }
-        self.u32(p.keys.len() as u32);
-        for k in &p.keys {
-            self.u32(k.i);
-            self.u32(k.j);
-        }
+        self.u32(p.tree.nodes().len() as u32);
+        self.0.extend_from_slice(&p.tree.split_bits());
         for v in &p.values {
             self.f32(v.x);
             self.f32(v.y);
@@ -468,7 +461,7 @@ impl W {
     }
 }
 
-fn encode_payload(sol: &Solution, rrps: &[u8]) -> Vec<u8> {
+fn encode_payload(sol: &Solution) -> Vec<u8> {
     let mut w = W(Vec::new());
     w.u32(sol.polygons.len() as u32);
     for p in &sol.polygons {
@@ -479,9 +472,17 @@ fn encode_payload(sol: &Solution, rrps: &[u8]) -> Vec<u8> {
         w.shooter(s);
     }
     w.stats(&sol.stats);
-    w.u64(rrps.len() as u64);
-    w.0.extend_from_slice(rrps);
     w.0
+}
+
+/// Bytes a solution file spends on the trees and samples of `sol`'s polygons (the polygon count
+/// included): everything the RRPs are built from, so what storing them costs.
+pub fn samples_bytes(sol: &Solution) -> u64 {
+    4 + sol
+        .polygons
+        .iter()
+        .map(|p| (4 + p.tree.nodes().len().div_ceil(8) + 12 * p.values.len()) as u64)
+        .sum::<u64>()
 }
 
 /// Little-endian reader of the payload; every failure is a message for a corrupt file.
@@ -533,17 +534,10 @@ impl R<'_> {
     /// tree's vertices and its values finite and >= 0.
     fn polygon(&mut self, pi: usize) -> Decoded<SampledQuadtree> {
         let tree = self.tree(pi)?;
-        let nk = self.count(8)?;
-        let mut keys = Vec::with_capacity(nk);
-        for _ in 0..nk {
-            let i = self.u32()?;
-            let j = self.u32()?;
-            keys.push(VertexKey::new(i, j));
-        }
-        if keys != tree.vertex_keys() {
-            return Err(format!(
-                "corrupt payload: polygon {pi}: sample keys do not match the quadtree's vertices"
-            ));
+        let keys = tree.vertex_keys();
+        let nk = keys.len();
+        if nk.saturating_mul(12) > self.b.len() - self.at {
+            return Err("corrupt payload: a count runs past the end of the data".to_string());
         }
         let mut values = Vec::with_capacity(nk);
         for _ in 0..nk {
@@ -560,19 +554,13 @@ impl R<'_> {
 
     /// The quadtree of polygon `pi`.
     fn tree(&mut self, pi: usize) -> Decoded<Quadtree> {
-        let nn = self.count(13)?;
-        let mut nodes = Vec::with_capacity(nn);
-        for _ in 0..nn {
-            let level = self.u8()? as u32;
-            let x = self.u32()?;
-            let y = self.u32()?;
-            let first_child = self.u32()?;
-            nodes.push(Node {
-                cell: Cell { level, x, y },
-                first_child,
-            });
+        let nn = self.u32()? as usize;
+        // Each node takes a bit: bound the count by the data before the bits are read.
+        if nn.div_ceil(8) > self.b.len() - self.at {
+            return Err("corrupt payload: a count runs past the end of the data".to_string());
         }
-        Quadtree::from_nodes(nodes)
+        let bits = self.take(nn.div_ceil(8))?;
+        Quadtree::from_split_bits(nn, bits)
             .ok_or_else(|| format!("corrupt payload: polygon {pi}: invalid quadtree"))
     }
 
@@ -688,25 +676,18 @@ impl R<'_> {
         Ok(stats)
     }
 
-    /// The RRP bytes, which must end the payload.
-    fn rrps(&mut self) -> Decoded<Vec<u8>> {
-        let nb = self.u64()?;
-        if nb > (self.b.len() - self.at) as u64 {
-            return Err(
-                "corrupt payload: the RRP length runs past the end of the data".to_string(),
-            );
-        }
-        let rrps = self.take(nb as usize)?.to_vec();
+    /// The end of the payload: nothing may follow the statistics.
+    fn end(&self) -> Decoded<()> {
         if self.at != self.b.len() {
             return Err("corrupt payload: trailing bytes".to_string());
         }
-        Ok(rrps)
+        Ok(())
     }
 }
 
-/// Decodes file bytes for `scene` into the solution and the stored RRP bytes; the error says
-/// what kind of problem, with a message for the user.
-pub fn decode(bytes: &[u8], scene: &Scene) -> std::result::Result<(Solution, Vec<u8>), Bad> {
+/// Decodes file bytes for `scene` into the solution; the error says what kind of problem, with a
+/// message for the user.
+pub fn decode(bytes: &[u8], scene: &Scene) -> std::result::Result<Solution, Bad> {
     let Envelope { path_len, body } = envelope(bytes)?;
     let hash = le_u64(bytes, 24);
     if hash != scene_hash(scene) {
@@ -723,9 +704,9 @@ pub fn decode(bytes: &[u8], scene: &Scene) -> std::result::Result<(Solution, Vec
     )?)
 }
 
-/// Decodes the payload (trees, keys, values, shooters, stats, RRP bytes) for `scene`; every
-/// failure is a corrupt file.
-fn decode_payload(payload: &[u8], scene: &Scene, hash: u64) -> Decoded<(Solution, Vec<u8>)> {
+/// Decodes the payload (trees, values, shooters, stats) for `scene`; every failure is a corrupt
+/// file.
+fn decode_payload(payload: &[u8], scene: &Scene, hash: u64) -> Decoded<Solution> {
     let mut r = R { b: payload, at: 0 };
     let np = r.u32()? as usize;
     if np != scene.polygons.len() {
@@ -750,17 +731,14 @@ fn decode_payload(payload: &[u8], scene: &Scene, hash: u64) -> Decoded<(Solution
         .map(|g| r.shooter(g.kind, scene))
         .collect::<Decoded<Vec<_>>>()?;
     let mut stats = r.stats()?;
-    let rrps = r.rrps()?;
+    r.end()?;
     fill_tree_stats(&mut stats, &polygons);
-    Ok((
-        Solution {
-            polygons,
-            shooters,
-            stats,
-            scene_hash: hash,
-        },
-        rrps,
-    ))
+    Ok(Solution {
+        polygons,
+        shooters,
+        stats,
+        scene_hash: hash,
+    })
 }
 
 #[cfg(test)]

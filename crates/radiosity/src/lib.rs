@@ -401,8 +401,10 @@ impl EnergyAccount {
 /// A radiosity solution.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Solution {
-    /// One sampled quadtree per scene polygon, in scene order. Values: linear RGB radiosity,
-    /// emission included, finite and >= 0.
+    /// One sampled quadtree per scene polygon, in scene order, its nodes in the canonical order
+    /// of [`Quadtree::grow`](base::quadtree::Quadtree::grow) (so the split bits that a solution
+    /// file stores rebuild it exactly). Values: linear RGB radiosity, emission included, finite
+    /// and >= 0.
     pub polygons: Vec<SampledQuadtree>,
     /// The shooting history: every shooter in id order (spots, emitters, patches) with its total.
     pub shooters: Vec<Shooter>,
@@ -596,7 +598,11 @@ fn solution_of(scene: &Scene, out: shoot::Outcome, start: Instant) -> Solution {
     for (r, (tree, keys, g)) in out.trees.into_iter().enumerate() {
         let m = scene.material_of(r);
         let values: Vec<Vec3> = g.iter().map(|g| radiosity_from_g(m, *g)).collect();
-        polygons.push(SampledQuadtree { tree, keys, values });
+        polygons.push(SampledQuadtree {
+            tree: tree.canonical(),
+            keys,
+            values,
+        });
     }
     let mut stats = SolveStats {
         shots: out.shots,

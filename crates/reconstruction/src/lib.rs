@@ -80,7 +80,6 @@ mod estimate;
 mod hermite;
 pub mod mesh;
 mod refine;
-pub mod samples_form;
 pub mod seam;
 pub mod sharp;
 pub mod texture;

@@ -100,11 +100,12 @@ pub struct EqualError {
     pub density: usize,
     /// The direct method's reconstruction error.
     pub direct_error: f64,
-    /// Bytes of the RRPs the direct method holds (patches and locate trees).
+    /// Bytes the direct method's RRPs are stored in (the trees and samples they are built from;
+    /// [`app::memory::rrp_stored_bytes`]): what the textures' bytes are compared with.
     pub rrp_bytes: u64,
-    /// Bytes of the same RRPs in the samples-alone form (16-bit samples, derivatives estimated
-    /// on load; [`reconstruction::samples_form`]), measured beside the held form.
-    pub rrp_samples_bytes: u64,
+    /// Bytes of the same RRPs as the direct method holds them (compact: locate trees, leaf
+    /// records, Hermite data as f32).
+    pub rrp_held_bytes: u64,
     /// The ratios of [`EqualErrorRow::reached`].
     pub ratios: Vec<f64>,
     /// Why the search stopped growing the textures.
@@ -154,11 +155,8 @@ pub fn equal_error(
     Ok(Some(EqualError {
         density,
         direct_error,
-        rrp_bytes: app::memory::rrp_bytes(&p.compact),
-        rrp_samples_bytes: reconstruction::samples_form::encoded_len(
-            &p.solution.polygons,
-            reconstruction::samples_form::DEFAULT_BITS,
-        ) as u64,
+        rrp_bytes: app::memory::rrp_stored_bytes(p),
+        rrp_held_bytes: app::memory::rrp_bytes(&p.compact),
         ratios: EQUAL_ERROR_RATIOS.to_vec(),
         stopped,
         rows,

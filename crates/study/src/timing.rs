@@ -243,7 +243,7 @@ pub fn serve<T: WorkerTask>(job: &Context<'_>, request: &str) -> Result<String> 
     serde_json::to_string(&reply).map_err(|e| Error::internal(e.to_string()))
 }
 
-/// Runs `f` with `p`'s solution (and compact RRPs) written to a temporary solution file for
+/// Runs `f` with `p`'s solution written to a temporary solution file for
 /// workers to load, removed afterwards whatever `f` returns; `tag` keeps files apart.
 pub fn with_solution_file<T>(
     p: &Prepared,
@@ -254,13 +254,7 @@ pub fn with_solution_file<T>(
         "pixelflow-sim-timing-{}-{tag}.pfsol",
         std::process::id()
     ));
-    radiosity::file::write_solution(
-        &base::output::Outputs::new(),
-        &file,
-        &p.solution,
-        None,
-        &p.compact.encode(),
-    )?;
+    radiosity::file::write_solution(&base::output::Outputs::new(), &file, &p.solution, None)?;
     let result = f(&file);
     let _ = std::fs::remove_file(&file);
     result

@@ -1,14 +1,12 @@
 //! The solve job: a scene file to a solution file, so later renders and walkthroughs never solve
-//! again. The file names its scene (absolute path), stores the compact RRPs (so a render never
-//! rebuilds them either) and is written atomically.
+//! again. The file names its scene (absolute path), stores the trees and samples (the RRPs are
+//! built from them when a render loads the file, as after a solve) and is written atomically.
 
 use std::path::Path;
 
 use crate::context::Context;
 use base::error::Result;
 use radiosity::{self, file as solution_file, Solution, SolveOptions};
-use reconstruction::compact::CompactReconstruction;
-use reconstruction::Estimator;
 use scene::{load_scene_with, LoadOptions};
 
 /// Solves `scene_path` and writes the solution to `out`. A solve over the memory limit
@@ -53,20 +51,6 @@ pub fn solve_scene_to_file(
             snapshots: None,
         },
     )?;
-    let spots =
-        crate::prepare::spot_light(&scene, &solution, reconstruction::sharp::DEFAULT_LEVELS)?;
-    let rrps = CompactReconstruction::build_with(
-        &solution.polygons,
-        Estimator::default(),
-        &crate::prepare::seams_of(&scene),
-        spots.as_ref().map(crate::prepare::SpotLight::sharp),
-    )?;
-    solution_file::write_solution(
-        &ctx.outputs,
-        out,
-        &solution,
-        Some(scene_path),
-        &rrps.encode(),
-    )?;
+    solution_file::write_solution(&ctx.outputs, out, &solution, Some(scene_path))?;
     Ok(solution)
 }

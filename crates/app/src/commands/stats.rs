@@ -77,12 +77,13 @@ pub struct ModelStats {
     /// RRP memory as the direct method holds it, bytes: the compact form (locate trees, leaf
     /// records, vertex Hermite data held as f32; [`reconstruction::compact::CompactStats`]).
     pub rrp_bytes: u64,
-    /// The compact RRPs as encoded for storage, bytes.
+    /// The RRPs as stored, bytes: the trees (a bit per node) and samples (three f32 per vertex)
+    /// they are built from, what a solution file spends on them
+    /// ([`crate::memory::rrp_stored_bytes`]).
+    pub rrp_stored_bytes: u64,
+    /// The compact RRPs' Hermite data quantized to 16-bit mantissas with 4-bit shifts, bytes:
+    /// measured, not stored.
     pub rrp_encoded_bytes: u64,
-    /// The RRPs' samples-alone form (solution quadtrees and 16-bit samples, derivatives
-    /// re-estimated on load; [`reconstruction::samples_form`]), bytes: measured, not
-    /// stored.
-    pub rrp_samples_bytes: u64,
     /// The direct method's bounded caches of expanded patches, one per worker thread, bytes
     /// (working memory beside `rrp_bytes`, like frame buffers).
     pub rrp_cache_bytes: u64,
@@ -142,7 +143,7 @@ pub fn solution_guards(input: &Input) -> Result<Option<GuardReport>> {
     let Some(path) = &input.solution_file else {
         return Ok(None);
     };
-    let (sol, _) = radiosity::file::read_solution_up_to(path, &input.scene, input.input_limit)?;
+    let sol = radiosity::file::read_solution_up_to(path, &input.scene, input.input_limit)?;
     Ok(Some(GuardReport::of(&sol.stats.guard_stops, &input.scene)))
 }
 
@@ -209,8 +210,8 @@ pub fn model_stats(
         rat_bytes: rat_vertices * RAT_BYTES_PER_VERTEX + rat_triangles * 12,
         texture_memory: memory.textures,
         rrp_bytes: memory.rrp_compact,
+        rrp_stored_bytes: memory.rrp_stored,
         rrp_encoded_bytes: memory.rrp_encoded,
-        rrp_samples_bytes: memory.rrp_samples,
         rrp_cache_bytes: memory.rrp_caches,
         rrp_expanded_bytes: memory.rrp_expanded,
         rrp_patches: p.compact.leaf_count() as u64,

@@ -171,14 +171,24 @@ fn solution_file_round_trip_and_errors() {
     s.radiosity.max_depth = 4;
     let mut sol = solve_quiet(&s);
     let path = tmp("a.pfsol");
-    // The RRP bytes are opaque to this module: any bytes round-trip.
-    let rrps: Vec<u8> = (0..=255u8).collect();
-    file::write_solution(&base::output::Outputs::new(), &path, &sol, None, &rrps).expect("write");
-    let (back, back_rrps) = file::read_solution(&path, &s).expect("read");
+    file::write_solution(&base::output::Outputs::new(), &path, &sol, None).expect("write");
+    let back = file::read_solution(&path, &s).expect("read");
     sol.stats.solve_ms = 0.0;
+    // Node order included: the solve hands out its trees in the canonical order the file's
+    // split bits rebuild.
     assert_eq!(back, sol);
-    assert_eq!(back_rrps, rrps);
     let bytes = std::fs::read(&path).expect("bytes");
+    // One split bit per node and three f32 per vertex, as the format says.
+    let bits: usize = sol
+        .polygons
+        .iter()
+        .map(|p| p.tree.nodes().len().div_ceil(8))
+        .sum();
+    let vertices: usize = sol.polygons.iter().map(|p| p.values.len()).sum();
+    assert_eq!(
+        file::samples_bytes(&sol),
+        (4 + 4 * sol.polygons.len() + bits + 12 * vertices) as u64
+    );
 
     use base::error::SolutionProblem as P;
     let p = tmp("trunc.pfsol");

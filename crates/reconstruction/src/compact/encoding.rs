@@ -112,29 +112,8 @@ fn decode_tree(r: &mut Reader) -> Result<Quadtree> {
         ));
     }
     let bits = r.take(n.div_ceil(8))?;
-    let bit = |k: usize| bits[k / 8] >> (k % 8) & 1 == 1;
-    if (n..bits.len() * 8).any(bit) {
-        return Err(bad("nonzero padding bits"));
-    }
-    let mut malformed = false;
-    let tree = Quadtree::grow((), |id, cell, ()| {
-        let id = id as usize;
-        if id >= n || malformed {
-            malformed = true;
-            return None;
-        }
-        if !bit(id) {
-            return None;
-        }
-        if cell.level >= MAX_DEPTH {
-            malformed = true;
-            return None;
-        }
-        Some([(); 4])
-    });
-    if malformed || tree.nodes().len() != n {
-        return Err(bad("split bits do not describe a quadtree of depth <= 16"));
-    }
+    let tree = Quadtree::from_split_bits(n, bits)
+        .ok_or_else(|| bad("split bits do not describe a quadtree of depth <= 16"))?;
     Ok(tree)
 }
 

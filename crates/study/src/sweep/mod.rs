@@ -619,7 +619,7 @@ impl AtDensity<'_> {
         let bytes = match (c.method, c.texture) {
             (_, Some((level, _))) => level.bytes,
             (Method::Mesh, _) => p.mesh()?.0.stats.bytes,
-            _ => memory::rrp_bytes(&p.compact),
+            _ => memory::rrp_stored_bytes(p),
         };
         let working_bytes =
             memory::working_bytes(p, c.method, c.texture.map(|(_, set)| &set.memory))?;

@@ -64,8 +64,8 @@ pub struct SweepPoint {
     /// Vertices of those triangles: the mesh's distinct vertices, or the original polygons'
     /// corners, each polygon's own (they carry its texture coordinates or patch).
     pub vertices: u64,
-    /// Bytes the method stores ([`memory::Memory::method_bytes`]: compact RRPs, 12-bit textures
-    /// with mip chains, the mesh's vertices and indices).
+    /// Bytes the method stores ([`memory::Memory::method_bytes`]: the RRPs' trees and samples,
+    /// 12-bit textures with mip chains, the mesh's vertices and indices).
     pub bytes: u64,
     /// Bytes the method holds in memory while it draws ([`memory::working_bytes`]: with the
     /// direct method's patch caches, f32 textures, the mesh's triangles as drawn).

@@ -173,13 +173,14 @@ fn reached_cell(p: Option<ScalePoint>, rrp: u64) -> String {
 
 fn equal_error_markdown(e: &EqualError) -> String {
     let mut s = format!(
-        "Direct method's reconstruction error {:.3} with {} of RRPs as held (density {}). \
-         Texture sides \
+        "Direct method's reconstruction error {:.3} with {} of RRPs as stored (trees and \
+         samples; {} as held) (density {}). Texture sides \
          tried: the quadtree-depth sides times 2^-3 to 2^4; the search stopped because {}.\n\n\
          | method | placement | mip-mapped | texture bytes at <= direct's error | at <= 1.1x | lowest error / direct's (bytes) |\n\
          |---|---|---|---|---|---|\n",
         e.direct_error,
         mb(e.rrp_bytes),
+        mb(e.rrp_held_bytes),
         e.density,
         e.stopped
     );
@@ -210,7 +211,7 @@ fn equal_error_markdown(e: &EqualError) -> String {
 }
 
 /// The cheapest texture set, mip-mapped or not (`mip`), at the direct method's error, against
-/// the RRPs' bytes as held; `what` says how the textures are drawn.
+/// the RRPs' bytes as stored; `what` says how the textures are drawn.
 fn cheapest_finding(e: &EqualError, mip: bool, what: &str) -> String {
     let cheapest = e
         .rows
@@ -221,7 +222,7 @@ fn cheapest_finding(e: &EqualError, mip: bool, what: &str) -> String {
     match cheapest {
         Some((r, p)) => format!(
             "Textures {what}: the cheapest at the direct method's error is {} ({} texels, {} \
-             filtering), {} the RRPs' bytes as held. ",
+             filtering), {} the RRPs' bytes as stored. ",
             mb(p.bytes),
             r.placement,
             r.method.trim_start_matches("texture-"),
