@@ -100,14 +100,12 @@ pub struct Input {
     pub scene: Scene,
     /// The solution file, when the input is one (its envelope is checked already).
     pub solution_file: Option<PathBuf>,
-    /// The RRPs' derivative estimator (`--estimator`; default [`Estimator::default`]). A
-    /// solution file's stored RRPs were built with the default; another estimator rebuilds
-    /// them from the samples.
+    /// The RRPs' derivative estimator (`--estimator`; default [`Estimator::default`]); the RRPs
+    /// are built with it from the samples, whether solved in this run or read from a file.
     pub estimator: Estimator,
     /// How many levels below the solver's leaves the RRPs follow the edges of the spots' light
     /// (`--sharp-levels`; default [`reconstruction::sharp::DEFAULT_LEVELS`]; 0: the spots'
-    /// light is reconstructed from the samples like any other). A solution file's stored RRPs
-    /// were built with the default; another value rebuilds them.
+    /// light is reconstructed from the samples like any other).
     pub sharp_levels: u32,
     /// The largest input file read for it, bytes (its load options'; a solution file is read
     /// whole under the same cap).

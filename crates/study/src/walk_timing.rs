@@ -18,7 +18,7 @@ use base::method::Method;
 pub struct WalkWorkerRequest {
     /// The scene file (solved at its own settings).
     pub scene: PathBuf,
-    /// Its solution file (with the compact RRPs).
+    /// Its solution file.
     pub solution: PathBuf,
     /// Method names, in the order of the reply.
     pub methods: Vec<String>,

@@ -1,8 +1,10 @@
-//! The compact RRPs' file form: [`CompactReconstruction::encode`] writes each polygon's tree as
-//! one bit per node in canonical order, its scales, and the stored vertices' shifts and
-//! mantissas; [`CompactReconstruction::decode`] accepts only that canonical form, so
+//! The compact RRPs' Hermite form as bytes: [`CompactReconstruction::encode`] writes each
+//! polygon's tree as one bit per node in canonical order, its scales, and the stored vertices'
+//! shifts and mantissas; [`CompactReconstruction::decode`] accepts only that canonical form, so
 //! `encode(decode(b)) == b` for every `b` it accepts, and returns an error, never a panic, on
-//! anything else (docs/compact-rrps.md, Encoding).
+//! anything else (docs/compact-rrps.md, Encoding). A solution file does not store it (it stores
+//! the samples the RRPs are built from, 2.5-3x fewer bytes); `stats` reports its size, for a
+//! reader that wants patches without running the estimator.
 
 use super::*;
 

@@ -187,6 +187,8 @@ mod tests {
             rmse: 0.0,
             max_abs: 0.0,
             mach_band: 0.0,
+            relative_rmse: 0.0,
+            near_edges_share: 0.0,
         };
         SweepPoint {
             method: method.into(),

@@ -4,8 +4,10 @@
 //! spread evenly over the scene's camera path are drawn by each method and measured against the
 //! same solution's exact image at that frame (the reconstruction error: the solution is the same
 //! for every method, so this isolates how each draws it). Memory is fixed: the texture methods
-//! get textures sized by a budget equal to the bytes the direct method's RRPs store; the mesh
-//! has the bytes its subdivision needs (it has no size to choose), stated beside it.
+//! get textures sized by a budget equal to the bytes the direct method's RRPs are stored in (the
+//! trees and samples they are built from: [`memory::rrp_stored_bytes`]), counted at 12 bits per
+//! channel with mip chains; the mesh has the bytes its subdivision needs (it has no size to
+//! choose), stated beside it.
 //!
 //! Invariants: deterministic (images and errors do not depend on threads or timing); the frames
 //! are the same for every method.
@@ -64,7 +66,7 @@ pub const WALK_METHODS: [Method; 4] = [
 pub fn walk_errors(job: &Context<'_>, p: &Prepared, path: &CameraPath) -> Result<WalkErrors> {
     let (w, h) = (p.scene.width, p.scene.height);
     let opts = job.frame_options(w, h);
-    let rrp_bytes = memory::rrp_bytes(&p.compact);
+    let rrp_bytes = memory::rrp_stored_bytes(p);
     let depths = TextureSet::depths(&p.solution.polygons, p.scene.radiosity.max_depth);
     let set = TextureSet::build(
         p.expanded()?.0,

@@ -7,8 +7,8 @@
 //!   one density interleaved, measured in several separate processes ([`crate::timing`]; or in
 //!   repeats within this one), summarized by the median over them and a confidence interval of
 //!   that median, with the machine's load while each process ran;
-//! - the bytes of the representation that method must hold (RRP patches and locate trees; 12-bit
-//!   textures with mip chains; the mesh's vertices and indices);
+//! - the bytes of the representation that method must store (the RRPs' trees and samples, from
+//!   which they are built; 12-bit textures with mip chains; the mesh's vertices and indices);
 //! - the error against two references, each as perceptual distance, RMSE, maximum error and the
 //!   Mach-band measure (`docs/metrics.md`): **reconstruction error**, against the same solution's
 //!   exact value at every pixel (the `reference` method: it isolates the method), and **total
@@ -481,7 +481,7 @@ pub struct WorkerRequest {
     pub scene: PathBuf,
     /// The density's tolerance factor ([`at_density`]).
     pub density: f64,
-    /// The density's solution file (with its compact RRPs).
+    /// The density's solution file.
     pub solution: PathBuf,
     /// Method names.
     pub methods: Vec<String>,

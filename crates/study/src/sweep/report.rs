@@ -15,6 +15,12 @@ pub struct Errors {
     pub max_abs: f64,
     /// Mach-band measure of the difference.
     pub mach_band: f64,
+    /// RMSE of luminance over the reference's mean luminance (0 where that mean is 0): a second
+    /// metric beside the perceptual distance, with no model of vision in it.
+    pub relative_rmse: f64,
+    /// Share of the squared luminance error within a few pixels of the reference's sharp edges
+    /// (light and shadow edges, emitters' outlines, silhouettes: [`metric::edges`]), in [0, 1].
+    pub near_edges_share: f64,
 }
 
 impl From<&Comparison> for Errors {
@@ -24,6 +30,12 @@ impl From<&Comparison> for Errors {
             rmse: c.rmse,
             max_abs: c.max_abs_error,
             mach_band: c.mach_band,
+            relative_rmse: if c.mean_luminance_b > 0.0 {
+                c.rmse / c.mean_luminance_b
+            } else {
+                0.0
+            },
+            near_edges_share: c.edges.near_share,
         }
     }
 }

@@ -16,7 +16,7 @@ fn fronts(p: &SweepPoint) -> &'static str {
 
 fn point_row(p: &SweepPoint) -> String {
     format!(
-        "| {} | {} | {} | {:.2} ({:.2}-{:.2}) | {} | {} | {:.3} | {:.3} | {} | {} |\n",
+        "| {} | {} | {} | {:.2} ({:.2}-{:.2}) | {} | {} | {:.3} | {:.4} | {:.0} % | {:.3} | {} | {} |\n",
         p.method,
         p.density,
         texture_label(p),
@@ -26,13 +26,15 @@ fn point_row(p: &SweepPoint) -> String {
         mb(p.bytes),
         mb(p.working_bytes),
         p.error_reconstruction,
+        p.reconstruction.relative_rmse,
+        100.0 * p.reconstruction.near_edges_share,
         p.error_total,
         p.physics.map_or("-".into(), |e| e.perceptual_text(3)),
         fronts(p)
     )
 }
 
-const POINT_HEADER: &str = "| method | density | texture | frame ms (interval) | bytes stored | bytes held drawing | error recon. | error total | error physics | front |\n|---|---|---|---|---|---|---|---|---|---|\n";
+const POINT_HEADER: &str = "| method | density | texture | frame ms (interval) | bytes stored | bytes held drawing | error recon. | rel. RMSE recon. | recon. near edges | error total | error physics | front |\n|---|---|---|---|---|---|---|---|---|---|---|---|\n";
 
 /// How far each density's solution is from the converged one (exact images, the
 /// reconstruction left out), and how much that moves from the coarsest density to the finest.
@@ -220,14 +222,21 @@ fn cheapest_finding(e: &EqualError, mip: bool, what: &str) -> String {
         .filter_map(|r| r.reached.first().copied().flatten().map(|p| (r, p)))
         .min_by_key(|(_, p)| p.bytes);
     match cheapest {
-        Some((r, p)) => format!(
-            "Textures {what}: the cheapest at the direct method's error is {} ({} texels, {} \
-             filtering), {} the RRPs' bytes as stored. ",
-            mb(p.bytes),
-            r.placement,
-            r.method.trim_start_matches("texture-"),
-            ratio_words(p.bytes as f64 / e.rrp_bytes.max(1) as f64)
-        ),
+        Some((r, p)) => {
+            // The same texels at the stored samples' precision (f32, 12 bytes against 4.5).
+            let f32_bytes = p.bytes.saturating_mul(8) / 3;
+            format!(
+                "Textures {what}: the cheapest at the direct method's error is {} ({} texels, \
+                 {} filtering), {} the RRPs' bytes as stored; with texels of the samples' own \
+                 precision (f32) {}, {}. ",
+                mb(p.bytes),
+                r.placement,
+                r.method.trim_start_matches("texture-"),
+                ratio_words(p.bytes as f64 / e.rrp_bytes.max(1) as f64),
+                mb(f32_bytes),
+                ratio_words(f32_bytes as f64 / e.rrp_bytes.max(1) as f64)
+            )
+        }
         None => {
             format!("Textures {what}: none reaches the direct method's error at any size tried. ")
         }
@@ -291,13 +300,18 @@ fn introduction(r: &ResultsReport) -> String {
           mesh draws everything from the samples. On scenes with spots (two-spots, the \
           gallery) that decides part of their ranking (`sweep --sharp-levels 0` draws every \
           method from the samples alone, as `render --sharp-levels 0` does). **Error recon.** is the perceptual distance ([metrics.md](metrics.md)) to the same \
-          solution's exact image (the method's own error), **error total** to a converged \
+          solution's exact image (the method's own error); beside it the same error as a \
+          second metric with no model of vision, **rel. RMSE recon.** (the luminance RMSE over \
+          the exact image's mean luminance), and **recon. near edges**, the share of its squared \
+          luminance error within 2 px of the exact image's sharp edges (light and shadow edges, \
+          emitters' outlines, silhouettes; [metrics.md](metrics.md#error-near-sharp-edges)); **error total** to a converged \
           solution's (tolerance 1/4, two levels deeper: the solver's convergence), **physics \
           error** to the independent path tracer's image (`pixelflow-sim truth`, its noise taken \
           out: what a user sees against the light), and **solution error** is the same \
           solution's exact image against that path tracer's: the physics error splits into the \
           solution error (the solver's) and the reconstruction error (the method's). **Bytes \
-          stored**: RRP patches and locate trees; 12-bit textures with mip chains and gutters; \
+          stored**: the RRPs' trees (a bit per node) and samples (three f32 per vertex), from \
+          which a render builds them; 12-bit textures with mip chains and gutters; \
           the mesh's vertices and indices. **Bytes held drawing** (the working set): the RRPs \
           with the direct method's patch caches; the textures as f32 texels; the mesh's \
           triangles as the renderer holds them.\n\n";
@@ -622,8 +636,9 @@ fn walk_error_section(r: &ResultsReport) -> String {
          included), at the scene's image size, each method's image against the same solution's \
          exact image at that frame (the reconstruction error: the solution is the same for every \
          method). Memory is fixed: the texture methods' textures are sized by a budget equal to \
-         the bytes the direct method's RRPs store (12-bit texels, mip chains and gutters, the \
-         scene's texel placement); the mesh has the bytes its subdivision needs.\n\n",
+         the bytes the direct method's RRPs are stored in (their trees and f32 samples; the \
+         textures at 12-bit texels with mip chains and gutters, the scene's texel placement); \
+         the mesh has the bytes its subdivision needs.\n\n",
         walk_error::MAX_WALK_FRAMES
     );
     let mut any = false;
