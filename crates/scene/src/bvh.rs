@@ -6,7 +6,11 @@
 //! either stage's light transport.
 //!
 //! Invariants: the tree is built once from the scene and never changes; leaves hold at most
-//! [`LEAF_SIZE`] polygons; the build is deterministic (stable sorts, ties by polygon index), and a
+//! [`LEAF_SIZE`] polygons (more only where their centroids coincide); no leaf is deeper than
+//! [`MAX_TREE_DEPTH`], so the queries' fixed traversal stacks never overflow (past
+//! [`SAH_DEPTH`] levels a node is split at its median centroid, which halves it: polygons spaced
+//! so unevenly that every SAH split cuts off a few, sizes growing geometrically, would otherwise
+//! chain one level per polygon); the build is deterministic (stable sorts, ties by polygon index), and a
 //! query's answer does not depend on traversal order (any hit is a yes/no answer). Ray/polygon
 //! tests run in `f64` on the polygon's two triangles (c0, c1, c2) and (c0, c2, c3), so a convex
 //! planar quad is covered exactly once and a collapsed-quad triangle is one triangle.
@@ -20,6 +24,12 @@ use crate::{Polygon, Shape};
 pub const LEAF_SIZE: usize = 4;
 /// SAH bins per axis.
 const BINS: usize = 12;
+/// Levels split by the surface area heuristic; deeper nodes are split at their median centroid.
+pub const SAH_DEPTH: usize = 32;
+/// Deepest leaf (the root at depth 0): [`SAH_DEPTH`] levels, then halvings of at most 2^32
+/// polygons down to leaves of [`LEAF_SIZE`]. A traversal's stack holds at most one entry per
+/// level plus one, within the queries' 64.
+pub const MAX_TREE_DEPTH: usize = SAH_DEPTH + 30;
 
 /// An axis-aligned box.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -108,16 +118,18 @@ impl Bvh {
             first: 0,
             count: 0,
         });
-        let mut stack = vec![(0usize, 0usize, polygons.len())];
-        while let Some((id, start, end)) = stack.pop() {
+        let mut stack = vec![(0usize, 0usize, polygons.len(), 0usize)];
+        while let Some((id, start, end, depth)) = stack.pop() {
             let bounds = bvh.order[start..end]
                 .iter()
                 .fold(Aabb::EMPTY, |b, &i| b.union(boxes[i as usize]));
             bvh.nodes[id].bounds = bounds;
-            let split = if end - start > LEAF_SIZE {
+            let split = if end - start <= LEAF_SIZE {
+                None
+            } else if depth < SAH_DEPTH {
                 sah_split(&mut bvh.order[start..end], &boxes, &cents)
             } else {
-                None
+                median_split(&mut bvh.order[start..end], &cents)
             };
             match split {
                 Some(mid) => {
@@ -131,8 +143,8 @@ impl Bvh {
                     }
                     bvh.nodes[id].first = left as u32;
                     bvh.nodes[id].count = 0;
-                    stack.push((left + 1, start + mid, end));
-                    stack.push((left, start, start + mid));
+                    stack.push((left + 1, start + mid, end, depth + 1));
+                    stack.push((left, start, start + mid, depth + 1));
                 }
                 None => {
                     bvh.nodes[id].first = start as u32;
@@ -426,6 +438,32 @@ fn segment_triangle(a: DVec3, d: DVec3, p0: DVec3, p1: DVec3, p2: DVec3) -> bool
 
 /// Partitions `idx` by the best binned-SAH plane; returns the split position, or `None` when a
 /// leaf is cheaper or no plane separates the centroids.
+/// Splits `idx` (more than [`LEAF_SIZE`] polygons) into halves by centroid along the axis where
+/// the centroids spread widest (ties by polygon index, so deterministic); `None` where every
+/// centroid coincides (one leaf holds them all).
+fn median_split(idx: &mut [u32], cents: &[DVec3]) -> Option<usize> {
+    let cb = idx
+        .iter()
+        .fold(Aabb::EMPTY, |b, &i| b.grow(cents[i as usize]));
+    let ext = cb.hi - cb.lo;
+    if ext.max_element() <= 0.0 {
+        return None;
+    }
+    let axis = if ext.x >= ext.y && ext.x >= ext.z {
+        0
+    } else if ext.y >= ext.z {
+        1
+    } else {
+        2
+    };
+    idx.sort_by(|&a, &b| {
+        cents[a as usize][axis]
+            .total_cmp(&cents[b as usize][axis])
+            .then(a.cmp(&b))
+    });
+    Some(idx.len() / 2)
+}
+
 fn sah_split(idx: &mut [u32], boxes: &[Aabb], cents: &[DVec3]) -> Option<usize> {
     let cb = idx
         .iter()
@@ -539,6 +577,58 @@ mod tests {
             |_| n += 1,
         );
         assert_eq!(n, 2);
+    }
+
+    /// Depth of the deepest leaf under node `id` (the root at 0).
+    fn depth(bvh: &Bvh, id: usize) -> usize {
+        let n = bvh.nodes[id];
+        if n.count > 0 || bvh.nodes.len() == 1 {
+            0
+        } else {
+            1 + depth(bvh, n.first as usize).max(depth(bvh, n.first as usize + 1))
+        }
+    }
+
+    /// Regression: squares whose sizes and places grow geometrically made every SAH split cut
+    /// off the largest, a chain one level per square, past the queries' 64-entry stacks, so
+    /// a query silently skipped the deepest squares. The build now halves nodes past
+    /// `SAH_DEPTH` levels, and every query finds what a brute-force loop finds.
+    #[test]
+    fn geometrically_spaced_polygons_stay_within_the_stack() {
+        // Each square 8x farther out and larger than the one before: its centroid alone in the
+        // last of the SAH's 12 bins, so every split cuts off one square.
+        let polys: Vec<Polygon> = (0..100)
+            .map(|k| {
+                let s = 8f64.powi(k);
+                let (x, y) = (s, 0.5 * s);
+                Polygon::quad(
+                    [
+                        DVec3::new(x, y, 0.0),
+                        DVec3::new(x + 0.5 * s, y, 0.0),
+                        DVec3::new(x + 0.5 * s, y + 0.5 * s, 0.0),
+                        DVec3::new(x, y + 0.5 * s, 0.0),
+                    ],
+                    0,
+                    0,
+                )
+                .unwrap()
+            })
+            .collect();
+        let bvh = Bvh::build(&polys);
+        let d = depth(&bvh, 0);
+        assert!(d <= MAX_TREE_DEPTH, "depth {d}");
+        // Every square's centre, seen along z: one hit each, and the box query finds them all.
+        for (k, p) in polys.iter().enumerate() {
+            let c = 0.25 * p.vertices().iter().copied().sum::<DVec3>();
+            let (a, b) = (c - DVec3::Z, c + DVec3::Z);
+            assert!(bvh.occluded(a, b, u32::MAX, u32::MAX), "square {k} missed");
+            let brute = (0..polys.len()).any(|i| i != k && bvh.hits(i, a, b - a));
+            assert_eq!(bvh.occluded(a, b, k as u32, u32::MAX), brute, "square {k}");
+        }
+        let all = Aabb::of(&[DVec3::splat(-1.0), DVec3::splat(1e300)]);
+        let mut n = 0;
+        bvh.for_each_overlapping(&all, |_| n += 1);
+        assert_eq!(n, polys.len());
     }
 
     /// `try_for_each_in` visits what `for_each_in` visits, in the same order, and stops at the
