@@ -79,8 +79,9 @@ pub(crate) enum Command {
     /// fig5: the two-spots plane in texture space, the oracle reference, the paper's depth-9
     /// reference, a depth-2 (5 x 5) quadtree, its bilinear and bicubic (RRP) resampling to 256 x 256
     /// and the direct method; fig6: the RRP resampled to an 8 x 8 texture (texels at centres, then
-    /// at corners) drawn with bilinear and Mitchell-Netravali filters, and direct; each with the perceptual distance to the reference
-    /// beside the paper's numbers. table1: `stats` of the shipped scenes beside the paper's Table 1.
+    /// at corners, then at centres clamped to the edge as the paper's hardware addressed
+    /// textures) drawn with bilinear and Mitchell-Netravali filters, and direct; each with the
+    /// perceptual distance to the reference beside the paper's numbers. table1: `stats` of the shipped scenes beside the paper's Table 1.
     Experiment(ExperimentArgs),
     /// Measure frame time: render the scene camera's view repeatedly at several sizes and print
     /// the medians of every stage and the deferred pass's throughput.

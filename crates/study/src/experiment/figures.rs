@@ -447,7 +447,10 @@ pub fn fig5(opts: &FigureOptions) -> Result<Figure> {
 /// Fig. 6: the bicubic RRP of the coarse quadtree resampled to a small texture and drawn with
 /// bilinear and with bicubic (Mitchell–Netravali) on-screen filtering, and the direct method;
 /// then the same two filters on a texture of the same size resampled at corner-aligned texels
-/// ([`Placement::Corner`], panels `corner-bilinear` and `corner-bicubic`).
+/// ([`Placement::Corner`], panels `corner-bilinear` and `corner-bicubic`), and on the
+/// centre-texel texture without its gutter, so that a filter reaching past the last texel reads
+/// the edge texel again (clamp to edge, the addressing of the paper's RealityEngine textures:
+/// panels `clamp-bilinear` and `clamp-bicubic`).
 pub fn fig6(opts: &FigureOptions) -> Result<Figure> {
     check(opts)?;
     let setup = Setup::new(&opts.scene, opts.first_spot_falloff, opts.first_spot_shift)?;
@@ -491,16 +494,17 @@ struct SmallTexture<'a> {
 }
 
 impl SmallTexture<'_> {
-    /// The RRP resampled to the texture, its texels at `placement`.
-    fn texture(&self, placement: Placement) -> TextureSet {
+    /// The RRP resampled to the texture, its texels at `placement`, with `gutter` texels of
+    /// the RRP's continuation around it (0: none, so fetches past the edge clamp to it).
+    fn texture(&self, placement: Placement, gutter: u32) -> TextureSet {
         let ts = self.opts.texture_size;
         TextureSet {
-            memory: TextureMemory::of_sides(&[ts], GUTTER),
+            memory: TextureMemory::of_sides(&[ts], gutter),
             textures: vec![RadiosityTexture::from_rrp(
-                self.recon, 0, ts, placement, GUTTER,
+                self.recon, 0, ts, placement, gutter,
             )],
             placement,
-            gutter: GUTTER,
+            gutter,
         }
     }
 
@@ -525,12 +529,13 @@ impl SmallTexture<'_> {
         )?)
     }
 
-    /// The panels in the paper's order, then the corner-aligned ones.
+    /// The panels in the paper's order, then the corner-aligned and the clamped ones.
     fn panels(&self, p: &Panels<'_>) -> Result<Vec<Panel>> {
         let (n, ts) = (self.opts.size, self.opts.texture_size);
-        let (set, corner) = (
-            self.texture(Placement::Centre),
-            self.texture(Placement::Corner),
+        let (set, corner, clamped) = (
+            self.texture(Placement::Centre, GUTTER),
+            self.texture(Placement::Corner, GUTTER),
+            self.texture(Placement::Centre, 0),
         );
         let direct = self.direct()?;
         Ok(vec![
@@ -570,6 +575,21 @@ impl SmallTexture<'_> {
                 &format!("(g) corner-aligned texels, {ts} x {ts}, Mitchell-Netravali (1/3, 1/3)"),
                 self.draw(&corner, Filter::MITCHELL)?,
             )?,
+            p.measured(
+                "clamp-bilinear",
+                &format!(
+                    "(h) clamp to edge, as the paper's hardware addressed textures (no gutter): \
+                     centre texels, {ts} x {ts}, bilinear"
+                ),
+                self.draw(&clamped, Filter::Bilinear)?,
+            )?,
+            p.measured(
+                "clamp-bicubic",
+                &format!(
+                    "(i) clamp to edge, centre texels, {ts} x {ts}, Mitchell-Netravali (1/3, 1/3)"
+                ),
+                self.draw(&clamped, Filter::MITCHELL)?,
+            )?,
         ])
     }
 }
@@ -594,14 +614,19 @@ pub struct SweepRow {
     pub fig6: (f64, f64, f64),
     /// Fig. 6 distances with corner-aligned texels: bilinear, bicubic (Mitchell).
     pub fig6_corner: (f64, f64),
+    /// Fig. 6 distances with centre texels clamped to the edge (no gutter, the paper's
+    /// hardware): bilinear, bicubic (Mitchell).
+    pub fig6_clamp: (f64, f64),
     /// How far the four distances the paper reports (Fig. 5 and Fig. 6 centre texels, bicubic
     /// and bilinear) are from the paper's up to one common scale ([`paper_misfit`]).
     pub misfit: f64,
+    /// The same with Fig. 6 drawn as the paper's hardware drew it (clamp to edge).
+    pub misfit_clamp: f64,
 }
 
 impl SweepRow {
     /// Whether the direct method is the closest to the reference in both figures: below every
-    /// texture of Fig. 6 (both placements), and in Fig. 5 within 1e-4 of the better of bilinear
+    /// texture of Fig. 6 (both placements, and clamped to the edge), and in Fig. 5 within 1e-4 of the better of bilinear
     /// and bicubic (it evaluates the same RRPs as the bicubic panel there).
     pub fn direct_closest(&self) -> bool {
         let textures6 = self
@@ -609,7 +634,9 @@ impl SweepRow {
             .0
             .min(self.fig6.1)
             .min(self.fig6_corner.0)
-            .min(self.fig6_corner.1);
+            .min(self.fig6_corner.1)
+            .min(self.fig6_clamp.0)
+            .min(self.fig6_clamp.1);
         self.fig6.2 < textures6 && self.fig5.2 <= self.fig5.0.min(self.fig5.1) * (1.0 + 1e-4)
     }
 }
@@ -691,6 +718,10 @@ pub fn sweep_row(opts: &FigureOptions) -> Result<SweepRow> {
         b.distance("corner-bilinear").unwrap_or(f64::NAN),
         b.distance("corner-bicubic").unwrap_or(f64::NAN),
     );
+    let clamp = (
+        b.distance("clamp-bilinear").unwrap_or(f64::NAN),
+        b.distance("clamp-bicubic").unwrap_or(f64::NAN),
+    );
     let (f5, f6) = (d(&a), d(&b));
     Ok(SweepRow {
         falloff: f,
@@ -700,7 +731,9 @@ pub fn sweep_row(opts: &FigureOptions) -> Result<SweepRow> {
         fig5: f5,
         fig6: f6,
         fig6_corner: corner,
+        fig6_clamp: clamp,
         misfit: paper_misfit((f5.0, f5.1), (f6.0, f6.1)),
+        misfit_clamp: paper_misfit((f5.0, f5.1), clamp),
     })
 }
 

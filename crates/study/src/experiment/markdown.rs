@@ -15,15 +15,17 @@ pub fn sweep_markdown(rows: &[SweepRow]) -> String {
         "| spot falloff | half angle | 10% radius / sample spacing | grid neighbours / peak | \
          fig5 bilinear | fig5 bicubic | fig5 direct | fig5 bicubic / bilinear | \
          fig6 centre bilinear | fig6 centre bicubic | fig6 centre bicubic / bilinear | \
-         fig6 corner bilinear | fig6 corner bicubic | fig6 corner bicubic / bilinear | fig6 direct | \
-         paper's ordering (bicubic < bilinear) | misfit to the paper |\n\
-         |---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n",
+         fig6 corner bilinear | fig6 corner bicubic | fig6 corner bicubic / bilinear | \
+         fig6 clamped bilinear | fig6 clamped bicubic | fig6 clamped bicubic / bilinear | fig6 direct | \
+         paper's ordering (bicubic < bilinear) | misfit to the paper (gutter / clamped) |\n\
+         |---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n",
     );
     for r in rows {
         let ok = |b: f64, l: f64| if b < l { "holds" } else { "fails" };
         t += &format!(
             "| {} | {:.1} | {:.2} | {:.2} % | {:.4} | {:.4} | {:.4} | {:.3} | {:.4} | {:.4} | {:.3} | \
-             {:.4} | {:.4} | {:.3} | {:.4} | fig5 {}, fig6 centre {}, corner {} | {:.3} |\n",
+             {:.4} | {:.4} | {:.3} | {:.4} | {:.4} | {:.3} | {:.4} | fig5 {}, fig6 centre {}, \
+             corner {}, clamped {} | {:.3} / {:.3} |\n",
             r.falloff,
             r.half_angle_deg,
             r.radius_in_spacings,
@@ -38,11 +40,16 @@ pub fn sweep_markdown(rows: &[SweepRow]) -> String {
             r.fig6_corner.0,
             r.fig6_corner.1,
             r.fig6_corner.1 / r.fig6_corner.0,
+            r.fig6_clamp.0,
+            r.fig6_clamp.1,
+            r.fig6_clamp.1 / r.fig6_clamp.0,
             r.fig6.2,
             ok(r.fig5.1, r.fig5.0),
             ok(r.fig6.1, r.fig6.0),
             ok(r.fig6_corner.1, r.fig6_corner.0),
+            ok(r.fig6_clamp.1, r.fig6_clamp.0),
             r.misfit,
+            r.misfit_clamp,
         );
     }
     t
@@ -205,27 +212,32 @@ fn mach_band_finding(f: &Figure) -> String {
     )
 }
 
-/// Fig. 6's texel placements compared: centre (panels (c), (d)) against corner (panels (f),
-/// (g)), with the findings computed from the numbers.
+/// Fig. 6's texel placements and edge rules compared: centre (panels (c), (d)) against corner
+/// (panels (f), (g)) and against centre texels clamped to the edge (panels (h), (i)), with the
+/// findings computed from the numbers.
 fn placement_section(f: &Figure, img_dir: &Path, ts: u32) -> String {
     let Some(pl) = Placements::of(f) else {
         return String::new();
     };
     let m = ts.saturating_sub(1).max(1);
     let mut t = format!(
-        "### Texel placement: centre against corner\n\n\
+        "### Texel placement and edge rule: centre, corner, clamped\n\n\
          Panels (c) and (d) place texel i at u = (i + 0.5) / {ts} (texel centres, the default); \
-         the filters then never sample the polygon's edges, and within half a texel of an edge \
-         they only clamp. With `--texel-placement corner` texel i sits at u = i / {m}, so the \
+         within half a texel of an edge the filters read the texture's gutter, the RRP continued \
+         past the edge. With `--texel-placement corner` texel i sits at u = i / {m}, so the \
          first and last texels lie on the edges and the corner texels on the corners (every mip \
-         level is resampled from the RRPs at its own corner positions). Same {ts} x {ts} texture \
-         memory, same filters:\n\n"
+         level is resampled from the RRPs at its own corner positions). Panels (h) and (i) keep \
+         centre texels without the gutter, so a filter reaching past the last texel reads it \
+         again (clamp to edge): how the paper's RealityEngine addressed its textures, the \
+         faithful variant of the paper's figure. Same {ts} x {ts} texels, same filters:\n\n"
     );
-    t += &images_row_of(f, img_dir, |k| k.starts_with("corner-"));
+    t += &images_row_of(f, img_dir, |k| {
+        k.starts_with("corner-") || k.starts_with("clamp-")
+    });
     t += &pl.table(ts, m);
     t += "\n(perceptual distance to the reference, then the other measures; \
-          `pixelflow-sim experiment fig6` prints them as the panels `corner-bilinear` and \
-          `corner-bicubic`.)\n\n";
+          `pixelflow-sim experiment fig6` prints them as the panels `corner-bilinear`, \
+          `corner-bicubic`, `clamp-bilinear` and `clamp-bicubic`.)\n\n";
     t += &pl.findings(ts, f.paper);
     t + "\n"
 }
@@ -241,6 +253,8 @@ struct Placements<'a> {
     cbl: &'a Comparison,
     /// Corner texels, bicubic (Mitchell).
     cbc: &'a Comparison,
+    /// Centre texels clamped to the edge: bilinear, bicubic (Mitchell), when drawn.
+    clamped: Option<(&'a Comparison, &'a Comparison)>,
     /// The direct method, when drawn.
     direct: Option<&'a Comparison>,
 }
@@ -259,6 +273,7 @@ impl<'a> Placements<'a> {
             bc: c("bicubic")?,
             cbl: c("corner-bilinear")?,
             cbc: c("corner-bicubic")?,
+            clamped: c("clamp-bilinear").zip(c("clamp-bicubic")),
             direct: c("direct"),
         })
     }
@@ -286,6 +301,13 @@ impl<'a> Placements<'a> {
         };
         t += &row(format!("centre, u = (i + 0.5) / {ts}"), self.bc, self.bl);
         t += &row(format!("corner, u = i / {m}"), self.cbc, self.cbl);
+        if let Some((kbl, kbc)) = self.clamped {
+            t += &row(
+                "centre, clamped to the edge (the paper's hardware)".to_string(),
+                kbc,
+                kbl,
+            );
+        }
         if let Some(d) = self.direct {
             t += &format!(
                 "| direct (no texture) | {:.4} | | | {:.5} | {:.5} | {:.3e} |\n",
@@ -311,6 +333,15 @@ impl<'a> Placements<'a> {
             ordering_words(bc, bl),
             ordering_words(cbc, cbl)
         );
+        if let Some((kbl, kbc)) = self.clamped {
+            t += &format!(
+                "- Clamped to the edge, as the paper's hardware drew it, Mitchell / bilinear is \
+                 {:.3} (the paper's {:.3}); the ordering {}.\n",
+                pd(kbc) / pd(kbl),
+                pb / pl,
+                ordering_words(kbc, kbl)
+            );
+        }
         let (name, b, l) = if pd(cbc) < pd(bc) {
             ("corner", cbc, cbl)
         } else {
@@ -330,8 +361,10 @@ impl<'a> Placements<'a> {
 
     /// Whether the direct method (`d`) is closer to the reference than every texture.
     fn direct_finding(&self, d: &Comparison, ts: u32) -> String {
+        let clamped = self.clamped.map(|(a, b)| [a, b]).into_iter().flatten();
         let best = [self.bl, self.bc, self.cbl, self.cbc]
             .into_iter()
+            .chain(clamped)
             .map(pd)
             .fold(f64::INFINITY, f64::min);
         if pd(d) < best {
@@ -480,7 +513,9 @@ fn fig6_section(f: &Figure, fo: &FigureOptions, img_dir: &Path) -> String {
         ts = fo.texture_size,
         n = fo.size
     );
-    t += &images_row_of(f, img_dir, |k| !k.starts_with("corner-"));
+    t += &images_row_of(f, img_dir, |k| {
+        !k.starts_with("corner-") && !k.starts_with("clamp-")
+    });
     t += &figure_tables(f);
     t += "\n";
     t += &placement_section(f, img_dir, fo.texture_size);
@@ -525,19 +560,22 @@ fn sensitivity_section(r: &Results, fo: &FigureOptions) -> String {
          direct method's distance is the smallest of the figure's reconstructions (within 1e-4 \
          of the bicubic one in Fig. 5, which evaluates the same RRPs).\n\n\
          | varied | value | spot falloff | fig5 ratio | fig6 ratio, centre | fig6 ratio, corner \
-         | direct closest | misfit to the paper |\n|---|---|---|---|---|---|---|---|\n",
+         | fig6 ratio, clamped | direct closest | misfit to the paper (gutter / clamped) |\n\
+         |---|---|---|---|---|---|---|---|---|\n",
         fo.scene.display(),
         fo.ppd
     );
     let line = |what: &str, value: &str, r: &SweepRow| {
         format!(
-            "| {what} | {value} | {} | {:.3} | {:.3} | {:.3} | {} | {:.3} |\n",
+            "| {what} | {value} | {} | {:.3} | {:.3} | {:.3} | {:.3} | {} | {:.3} / {:.3} |\n",
             r.falloff,
             r.fig5.1 / r.fig5.0,
             r.fig6.1 / r.fig6.0,
             r.fig6_corner.1 / r.fig6_corner.0,
+            ratio(r.fig6_clamp),
             if r.direct_closest() { "yes" } else { "no" },
-            r.misfit
+            r.misfit,
+            r.misfit_clamp
         )
     };
     let own_falloff = scene::load_scene(&fo.scene)
@@ -664,11 +702,12 @@ fn sweep_findings(rows: &[SweepRow]) -> String {
     let mut t = String::new();
     t += &format!(
         "- Fig. 5's ordering (bicubic < bilinear) fails at falloff {}; Fig. 6's with centre \
-         texels fails at {}; with corner texels at {}. (Falloff, then the 10 % radius in sample \
-         spacings.)\n",
+         texels fails at {}; with corner texels at {}; clamped to the edge at {}. (Falloff, \
+         then the 10 % radius in sample spacings.)\n",
         falloffs_where(rows, |r| r.fig5.1 >= r.fig5.0),
         falloffs_where(rows, |r| r.fig6.1 >= r.fig6.0),
-        falloffs_where(rows, |r| r.fig6_corner.1 >= r.fig6_corner.0)
+        falloffs_where(rows, |r| r.fig6_corner.1 >= r.fig6_corner.0),
+        falloffs_where(rows, |r| r.fig6_clamp.1 >= r.fig6_clamp.0)
     );
     let resolved: Vec<&SweepRow> = rows
         .iter()
@@ -685,16 +724,19 @@ fn sweep_findings(rows: &[SweepRow]) -> String {
         let a = range(&|r| r.fig5.1 / r.fig5.0);
         let b = range(&|r| r.fig6.1 / r.fig6.0);
         let c = range(&|r| r.fig6_corner.1 / r.fig6_corner.0);
+        let e = range(&|r| r.fig6_clamp.1 / r.fig6_clamp.0);
         t += &format!(
             "- Where the 10 % radius is at least one spacing, bicubic / bilinear is {:.3}-{:.3} in \
-             Fig. 5, {:.3}-{:.3} in Fig. 6 with centre texels and {:.3}-{:.3} with corner texels \
-             (the paper: {:.3} and {:.3}).\n",
+             Fig. 5, {:.3}-{:.3} in Fig. 6 with centre texels, {:.3}-{:.3} with corner texels \
+             and {:.3}-{:.3} clamped to the edge (the paper: {:.3} and {:.3}).\n",
             a.0,
             a.1,
             b.0,
             b.1,
             c.0,
             c.1,
+            e.0,
+            e.1,
             super::PAPER_FIG5.0 / super::PAPER_FIG5.1,
             super::PAPER_FIG6.0 / super::PAPER_FIG6.1
         );
@@ -721,6 +763,71 @@ fn sweep_findings(rows: &[SweepRow]) -> String {
             best.fig6.1 / best.fig6.0,
             super::PAPER_FIG5.0 / super::PAPER_FIG5.1,
             super::PAPER_FIG6.0 / super::PAPER_FIG6.1
+        );
+    }
+    t + &prediction_findings(rows)
+}
+
+/// The ratio bicubic / bilinear of a (bilinear, bicubic) pair.
+fn ratio(d: (f64, f64)) -> f64 {
+    d.1 / d.0
+}
+
+/// The row whose `ratio_of` is nearest `target` (in log terms), among finite ones.
+fn fitted(rows: &[SweepRow], ratio_of: fn(&SweepRow) -> f64, target: f64) -> Option<&SweepRow> {
+    rows.iter()
+        .filter(|r| ratio_of(r).is_finite() && ratio_of(r) > 0.0)
+        .min_by(|a, b| {
+            let off = |r: &SweepRow| (ratio_of(r) / target).ln().abs();
+            off(a).total_cmp(&off(b))
+        })
+}
+
+/// The figures as prediction: the one free parameter (the spot's falloff) fitted to one
+/// figure's ratio, the other figure's ratio read at that falloff, both ways, with Fig. 6 drawn
+/// as the paper's hardware drew it (clamp to edge) and, beside it, with the gutters.
+fn prediction_findings(rows: &[SweepRow]) -> String {
+    let (p5, p6) = (
+        super::PAPER_FIG5.0 / super::PAPER_FIG5.1,
+        super::PAPER_FIG6.0 / super::PAPER_FIG6.1,
+    );
+    let mut t = String::new();
+    if let Some(best) = rows
+        .iter()
+        .filter(|r| r.misfit_clamp.is_finite())
+        .min_by(|a, b| a.misfit_clamp.total_cmp(&b.misfit_clamp))
+    {
+        t += &format!(
+            "- With Fig. 6 clamped to the edge, the four distances are matched best at falloff \
+             {} (misfit {:.3}; the ratios there {:.3} and {:.3}).\n",
+            best.falloff,
+            best.misfit_clamp,
+            ratio((best.fig5.0, best.fig5.1)),
+            ratio(best.fig6_clamp)
+        );
+    }
+    let on5 = fitted(rows, |r| ratio((r.fig5.0, r.fig5.1)), p5);
+    let on6 = fitted(rows, |r| ratio(r.fig6_clamp), p6);
+    if let (Some(a), Some(b)) = (on5, on6) {
+        t += &format!(
+            "- **Fitted on one figure, the other predicted.** The spot's falloff is the one \
+             parameter, fitted as the sweep's falloff whose ratio is nearest the paper's (no \
+             interpolation between falloffs). Fitted on Fig. 5 (ratio {:.3} at falloff {}, the \
+             paper {:.3}), Fig. 6 is predicted at {:.3} clamped to the edge ({:.3} with the \
+             gutters) against the paper's {:.3}. Fitted on Fig. 6 clamped to the edge (ratio \
+             {:.3} at falloff {}, the paper {:.3}), Fig. 5 is predicted at {:.3} against the \
+             paper's {:.3}.\n",
+            ratio((a.fig5.0, a.fig5.1)),
+            a.falloff,
+            p5,
+            ratio(a.fig6_clamp),
+            ratio((a.fig6.0, a.fig6.1)),
+            p6,
+            ratio(b.fig6_clamp),
+            b.falloff,
+            p6,
+            ratio((b.fig5.0, b.fig5.1)),
+            p5
         );
     }
     t
