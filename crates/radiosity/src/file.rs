@@ -17,8 +17,10 @@
 //! checksum     u64      FNV-1a 64 of every byte before it
 //! ```
 //!
-//! Invariants: the bytes are a pure function of the solution (the solve time is not stored, so
-//! solving one scene twice writes identical files); files are written atomically through
+//! Invariants: the bytes are a pure function of the solution (the solve time and the rays cast
+//! are not stored: the first depends on the machine, the second on how much geometry the solve
+//! could keep under its memory limit; so solving one scene twice, under any limit, writes
+//! identical files); files are written atomically through
 //! [`base::output::Outputs::write_atomic`]; reading checks, in order, magic, version, length (truncation),
 //! checksum (corruption), scene hash (another scene), then rebuilds every quadtree from its split
 //! bits ([`Quadtree::from_split_bits`], which accepts one form per tree) and takes its vertex keys
@@ -431,10 +433,10 @@ impl W {
         }
     }
 
-    /// The statistics a solution file keeps (not those of its trees, recomputed when read).
+    /// The statistics a solution file keeps (not those of its trees, recomputed when read, nor
+    /// those of the run: its time and its rays cast, which depend on the machine).
     fn stats(&mut self, st: &SolveStats) {
         self.u64(st.shots);
-        self.u64(st.rays_cast);
         self.u32(st.refined_after.len() as u32);
         for &x in &st.refined_after {
             self.u64(x);
@@ -637,7 +639,6 @@ impl R<'_> {
     fn stats(&mut self) -> Decoded<SolveStats> {
         let mut stats = SolveStats {
             shots: self.u64()?,
-            rays_cast: self.u64()?,
             ..SolveStats::default()
         };
         let nr = self.count(8)?;

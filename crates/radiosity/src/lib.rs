@@ -140,7 +140,10 @@ pub struct SolveStats {
     pub depth_histogram: Vec<u64>,
     /// Shots taken (spots, emitters and patches; a patch may shoot more than once).
     pub shots: u64,
-    /// Shadow rays cast during the solve (including the final gather).
+    /// Shadow rays cast during the solve (including the final gather). A statistic of the run,
+    /// like `solve_ms`: fewer where a gather reuses the geometry kept from an earlier one
+    /// (`transfer::seen`), whose room follows the memory limit; not stored
+    /// in solution files (0 in one read from a file).
     pub rays_cast: u64,
     /// Shots taken before each refinement pass (one entry per pass). A pass re-estimates the
     /// unshot power from more samples, so `unshot_history` may rise right after it (new samples

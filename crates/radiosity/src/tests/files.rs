@@ -76,7 +76,8 @@ fn coarse_cache_changes_nothing() {
 /// What the gathers keep of the geometry at each point changes nothing: solved with no room
 /// for it, the Cornell box and a room whose ceiling light falls through a grid of 36 tiles
 /// (more occluders than the exact query takes: shadow rays decide there) give the same trees,
-/// samples, shots and history, bit for bit; with room, they answer fewer visibility queries.
+/// samples, shots and history, bit for bit, and write the same solution file; with room, they
+/// answer fewer visibility queries.
 #[test]
 fn kept_geometry_changes_nothing() {
     let mut cornell = cornell();
@@ -126,7 +127,19 @@ fn kept_geometry_changes_nothing() {
                 rays_b < rays_a,
                 "the grid's rays are kept: {rays_a} -> {rays_b}"
             );
+            assert!(a.rays > b.rays, "rays cast {} -> {}", a.rays, b.rays);
         }
+        // Regression: the rays cast, which the kept geometry's room decides, were stored, so
+        // two solves under different memory limits wrote different solution files.
+        let start = std::time::Instant::now();
+        let (fa, fb) = (
+            file::encode(&crate::solution_of(s, a, start)),
+            file::encode(&crate::solution_of(s, b, start)),
+        );
+        assert!(
+            fa == fb,
+            "the solution files differ with the kept geometry's room"
+        );
     }
 }
 
@@ -174,6 +187,7 @@ fn solution_file_round_trip_and_errors() {
     file::write_solution(&base::output::Outputs::new(), &path, &sol, None).expect("write");
     let back = file::read_solution(&path, &s).expect("read");
     sol.stats.solve_ms = 0.0;
+    sol.stats.rays_cast = 0;
     // Node order included: the solve hands out its trees in the canonical order the file's
     // split bits rebuild.
     assert_eq!(back, sol);
