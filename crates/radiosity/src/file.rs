@@ -110,8 +110,8 @@ pub fn reseal(b: &mut [u8], scene: &Scene) {
     b[body..].copy_from_slice(&h.0.to_le_bytes());
 }
 
-/// Writes `sol` to `path` atomically through `outputs`. `scene_path`, if given, is stored relative to the solution
-/// file's folder ([`relative_to`]; absolute when they share no root) so that the solution file
+/// Writes `sol` to `path` atomically through `outputs`. `scene_path`, if given, is stored
+/// relative to the solution file's folder ([`relative_to`]; absolute when they share no root) so that the solution file
 /// alone is enough to render, also after both are copied elsewhere together.
 pub fn write_solution(
     outputs: &base::output::Outputs,
@@ -231,8 +231,8 @@ fn path_of_bytes(bytes: &[u8]) -> Option<std::path::PathBuf> {
     }
 }
 
-/// Reads a solution of `scene` from `path`; a file over [`base::output::MAX_INPUT_BYTES`] is refused ([`read_solution_up_to`] takes a job's
-/// smaller cap).
+/// Reads a solution of `scene` from `path`; a file over [`base::output::MAX_INPUT_BYTES`] is
+/// refused ([`read_solution_up_to`] takes a job's smaller cap).
 pub fn read_solution(path: &Path, scene: &Scene) -> Result<Solution> {
     read_solution_up_to(path, scene, base::output::MAX_INPUT_BYTES)
 }
@@ -377,8 +377,8 @@ impl W {
         self.0.extend_from_slice(&x.to_le_bytes());
     }
 
-    /// A polygon: node count and nodes (level u8, x, y, first child), key count and keys,
-    /// then the RGB f32 value of every key.
+    /// A polygon: its node count and split bits ([`Quadtree::split_bits`], canonical order),
+    /// then the RGB f32 value of every vertex in key order (the keys follow from the tree).
     fn polygon(&mut self, p: &SampledQuadtree) {
         self.u32(p.tree.nodes().len() as u32);
         self.0.extend_from_slice(&p.tree.split_bits());
@@ -532,8 +532,9 @@ impl R<'_> {
         Ok(n)
     }
 
-    /// Polygon `pi` (see [`W::polygon`]): its quadtree must be valid, its keys exactly the
-    /// tree's vertices and its values finite and >= 0.
+    /// Polygon `pi` (see [`W::polygon`]): its split bits must be a quadtree's, in the one form
+    /// [`Quadtree::from_split_bits`] accepts, and its values (one per vertex of that tree)
+    /// finite and >= 0.
     fn polygon(&mut self, pi: usize) -> Decoded<SampledQuadtree> {
         let tree = self.tree(pi)?;
         let keys = tree.vertex_keys();
