@@ -316,9 +316,12 @@ fn correction(
         let (w, area) = shape.mean[id as usize];
         let corners = cell_corners(poly, absolute(g.patch, node.cell));
         let centre = 0.25 * (corners[0] + corners[1] + corners[2] + corners[3]);
+        // The longer diagonal, as one square root of the larger square (the same value: the
+        // correctly rounded square root is monotonic).
         let size = (corners[2] - corners[0])
-            .length()
-            .max((corners[3] - corners[1]).length());
+            .length_squared()
+            .max((corners[3] - corners[1]).length_squared())
+            .sqrt();
         let (within, met) = match region {
             Some(p) if mask != 0 => p.classify(&corners, mask),
             _ => (CellIn::Inside, 0),
