@@ -111,8 +111,9 @@ pub fn reseal(b: &mut [u8], scene: &Scene) {
 }
 
 /// Writes `sol` to `path` atomically through `outputs`. `scene_path`, if given, is stored
-/// relative to the solution file's folder ([`relative_to`]; absolute when they share no root) so that the solution file
-/// alone is enough to render, also after both are copied elsewhere together.
+/// relative to the solution file's folder ([`relative_to`]; absolute when they share no root)
+/// so that the solution file alone is enough to render, also after both are copied elsewhere
+/// together.
 pub fn write_solution(
     outputs: &base::output::Outputs,
     path: &Path,
@@ -558,8 +559,13 @@ impl R<'_> {
     /// The quadtree of polygon `pi`.
     fn tree(&mut self, pi: usize) -> Decoded<Quadtree> {
         let nn = self.u32()? as usize;
-        // Each node takes a bit: bound the count by the data before the bits are read.
-        if nn.div_ceil(8) > self.b.len() - self.at {
+        // Bound the count by the data before the tree is grown: a tree of nn nodes has
+        // 3 (nn - 1) / 4 + 1 leaves and at least as many vertices (no two leaves share their
+        // lower-left corner), each 12 bytes of samples after the bits. One bit per node alone
+        // would let a few bytes of bits grow a tree a hundred times their size.
+        let leaves = 3 * (nn.saturating_sub(1) / 4) + 1;
+        let least = nn.div_ceil(8).saturating_add(leaves.saturating_mul(12));
+        if least > self.b.len() - self.at {
             return Err("corrupt payload: a count runs past the end of the data".to_string());
         }
         let bits = self.take(nn.div_ceil(8))?;

@@ -265,6 +265,37 @@ fn solution_file_round_trip_and_errors() {
     let _ = std::fs::remove_dir_all(path.parent().expect("dir"));
 }
 
+/// A node count the data cannot hold is refused before any tree is grown. With one bit per node,
+/// a count the bits alone allowed would have grown a tree about a hundred times the file's size
+/// before its samples were found missing: every vertex needs 12 bytes, and a tree has at least
+/// as many vertices as leaves.
+#[test]
+fn a_node_count_the_samples_cannot_hold_is_refused() {
+    let mut s = two_spots();
+    s.radiosity.max_depth = 3;
+    let bytes = file::encode(&solve_quiet(&s));
+    // No scene path: the payload starts after the 32-byte header, polygon 0's node count after
+    // the polygon count.
+    let at = 32 + 4;
+    let rest = bytes.len() - 8 - (at + 4);
+    for nn in [
+        4 * (rest / 4) + 1,
+        4 * (4 * rest / 4) + 1,
+        4 * (1 << 28) + 1,
+    ] {
+        let mut b = bytes.clone();
+        b[at..at + 4].copy_from_slice(&(nn as u32).to_le_bytes());
+        file::reseal(&mut b, &s);
+        match file::decode(&b, &s) {
+            Err(file::Bad(base::error::SolutionProblem::Corrupt, m)) => {
+                assert!(m.contains("runs past the end"), "{nn}: {m}")
+            }
+            Err(file::Bad(p, m)) => panic!("{nn}: {p:?}: {m}"),
+            Ok(_) => panic!("{nn} nodes accepted"),
+        }
+    }
+}
+
 #[test]
 fn bad_settings_are_input_errors() {
     let mut s = spot_over_plane();
