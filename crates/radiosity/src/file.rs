@@ -238,9 +238,16 @@ pub fn read_solution(path: &Path, scene: &Scene) -> Result<Solution> {
     read_solution_up_to(path, scene, base::output::MAX_INPUT_BYTES)
 }
 
-/// [`read_solution`] refusing a file over `max` bytes before it is read whole.
+/// Bytes a decoded solution holds per byte of its file, rounded up: a vertex takes 12 bytes in
+/// the file and, decoded, its samples (12), its key (8) and about 21 bytes of tree nodes.
+pub const DECODED_PER_FILE_BYTE: u64 = 4;
+
+/// [`read_solution`] under a job's input cap `max` ([`base::output::input_limit_for`]: what an
+/// input may take read and parsed, counted as twice its bytes). A solution file is held as bytes
+/// and decoded to about [`DECODED_PER_FILE_BYTE`] times as many, so a file over
+/// `2 max / (1 + DECODED_PER_FILE_BYTE)` bytes is refused before it is read whole.
 pub fn read_solution_up_to(path: &Path, scene: &Scene, max: u64) -> Result<Solution> {
-    let bytes = read(path, max)?;
+    let bytes = read(path, max.saturating_mul(2) / (1 + DECODED_PER_FILE_BYTE))?;
     decode(&bytes, scene).map_err(|b| b.at(path))
 }
 

@@ -296,6 +296,25 @@ fn a_node_count_the_samples_cannot_hold_is_refused() {
     }
 }
 
+/// A solution file decodes to several times its bytes, so a job's input cap admits a smaller
+/// solution file than it admits a scene file: one of the cap's size is refused before it is
+/// read whole, one of 2/5 of it is read.
+#[test]
+fn the_input_cap_counts_what_a_solution_decodes_to() {
+    let mut s = two_spots();
+    s.radiosity.max_depth = 3;
+    let path = tmp("cap.pfsol");
+    file::write_solution(&base::output::Outputs::new(), &path, &solve_quiet(&s), None)
+        .expect("write");
+    let len = std::fs::metadata(&path).expect("metadata").len();
+    let (k, m) = solution_problem(file::read_solution_up_to(&path, &s, len).unwrap_err());
+    assert_eq!(k, base::error::SolutionProblem::NotASolution, "{m}");
+    assert!(m.contains("cannot read"), "{m}");
+    let fits = len * (1 + file::DECODED_PER_FILE_BYTE) / 2 + 1;
+    assert!(file::read_solution_up_to(&path, &s, fits).is_ok());
+    let _ = std::fs::remove_file(&path);
+}
+
 #[test]
 fn bad_settings_are_input_errors() {
     let mut s = spot_over_plane();
