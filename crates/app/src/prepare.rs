@@ -69,17 +69,7 @@ impl Prepared {
     /// run's own solve, this program's, an [`Error::Internal`]. Every other error passes through
     /// as it is (an internal error stays one, whatever was read).
     pub(crate) fn file_error(&self, e: Error) -> Error {
-        match (e, &self.solution_file) {
-            (Error::Inconsistent(m), Some(path)) => Error::solution(
-                path,
-                base::error::SolutionProblem::Corrupt,
-                format!("corrupt solution file: {m}"),
-            ),
-            (Error::Inconsistent(m), None) => {
-                Error::internal(format!("this run's own solution is inconsistent: {m}"))
-            }
-            (e, _) => e,
-        }
+        blame(e, self.solution_file.as_deref(), "")
     }
 
     /// Bytes held before any method's data: the solution's trees and samples and the compact
@@ -339,27 +329,33 @@ fn compact_of(
     recipe: Recipe,
     seams: &Seams,
 ) -> Result<CompactReconstruction> {
-    let built = reconstruct(
+    // Samples read from a file that cannot be reconstructed (values so large the patches
+    // overflow f32) are a bad file, exit 2, like any other inconsistency behind a valid
+    // checksum; from a fresh solve they are a failure of this program.
+    reconstruct(
         scene,
         solution,
         recipe.estimator,
         recipe.sharp_levels,
         seams,
-    );
-    built.map_err(|e| match (e, file) {
-        // Samples read from a file that cannot be reconstructed (values so large the patches
-        // overflow f32) are a bad file, exit 2, like any other inconsistency behind a valid
-        // checksum; from a fresh solve they are a failure of this program.
+    )
+    .map_err(|e| blame(e, file, "its samples cannot be reconstructed: "))
+}
+
+/// [`Prepared::file_error`] for a solution read from `file` (or solved in this run), the
+/// message of a corrupt file starting with `what`.
+fn blame(e: Error, file: Option<&Path>, what: &str) -> Error {
+    match (e, file) {
         (Error::Inconsistent(m), Some(path)) => Error::solution(
             path,
             base::error::SolutionProblem::Corrupt,
-            format!("corrupt solution file: its samples cannot be reconstructed: {m}"),
+            format!("corrupt solution file: {what}{m}"),
         ),
         (Error::Inconsistent(m), None) => {
             Error::internal(format!("this run's own solution is inconsistent: {m}"))
         }
         (e, _) => e,
-    })
+    }
 }
 
 /// The compact RRPs of `solution` on `scene` with `estimator`, following the spots' edges
