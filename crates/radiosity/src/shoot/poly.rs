@@ -62,6 +62,10 @@ pub(super) struct Poly {
     /// test points (centre, then the midpoints of the edges at v0, u1, v1, u0): with the
     /// corners, the nine points of Simpson's rule on the leaf.
     pub(super) tests: Vec<(Cell, [DVec3; 5])>,
+    /// Leaves no refinement generation judged whose light varies steeply across them, sorted
+    /// by cell, with G at their centre (`refine`'s ramps): with the corners, the centre rule
+    /// of their integral.
+    pub(super) centres: Vec<(Cell, DVec3)>,
 }
 
 /// Where each polygon's reflecting patches are among the shooters (see [`build_shooters`]):
@@ -94,7 +98,7 @@ impl PatchLayout {
     }
 
     /// The patch of polygon `r` that `cell` lies in (`u32::MAX` if `r` does not reflect).
-    fn patch_at(&self, r: usize, cell: Cell) -> u32 {
+    pub(super) fn patch_at(&self, r: usize, cell: Cell) -> u32 {
         if self.first[r] == u32::MAX {
             return u32::MAX;
         }
@@ -135,6 +139,7 @@ impl Poly {
             cleaves,
             rho: scene.material_of(i).reflectance,
             tests: Vec::new(),
+            centres: Vec::new(),
         }
     }
 
@@ -172,13 +177,13 @@ impl Poly {
             .unwrap_or(first);
         out[first..=last].iter_mut().for_each(|x| *x = DVec3::ZERO);
         // The test points hold the light of the last gather only.
-        let tests: &[(Cell, [DVec3; 5])] = if which == Light::Fine {
-            &self.tests
+        let points = if which == Light::Fine {
+            (&self.tests[..], &self.centres[..])
         } else {
-            &[]
+            (&[][..], &[][..])
         };
         for l in leaves {
-            out[l.patch as usize] += leaf_integral(l, g, tests);
+            out[l.patch as usize] += leaf_integral(l, g, points);
         }
     }
 
@@ -188,7 +193,7 @@ impl Poly {
         let nodes = self.tree.nodes();
         let mut out = vec![DVec3::ZERO; nodes.len()];
         for l in &self.leaves {
-            out[l.node as usize] = leaf_integral(l, &self.g, &self.tests);
+            out[l.node as usize] = leaf_integral(l, &self.g, (&self.tests, &self.centres));
         }
         // Children come after their parent in node order.
         for i in (0..nodes.len()).rev() {
@@ -210,7 +215,7 @@ impl Poly {
     pub(super) fn integral(&self) -> DVec3 {
         self.leaves
             .iter()
-            .map(|l| leaf_integral(l, &self.g, &self.tests))
+            .map(|l| leaf_integral(l, &self.g, (&self.tests, &self.centres)))
             .sum()
     }
 
@@ -223,21 +228,29 @@ impl Poly {
     }
 }
 
+/// G inside leaves, each list sorted by cell: at the five test points ([`Poly::tests`]) and at
+/// the centre ([`Poly::centres`]).
+type InnerPoints<'a> = (&'a [(Cell, [DVec3; 5])], &'a [(Cell, DVec3)]);
+
 /// The integral over leaf `l` of the values `g` at its corners: Simpson's rule (corners 1/36,
-/// edge midpoints 4/36, centre 16/36 of the area) when `tests` holds G at its test points, the
-/// trapezoid rule otherwise. Simpson's rule is exact for a biquadratic light; the trapezoid
+/// edge midpoints 4/36, centre 16/36 of the area) when `tests` holds G at its test points; the
+/// centre rule (corners 1/12, centre 2/3) when `centres` holds G at its centre; the trapezoid
+/// rule otherwise. Simpson's rule is exact for a biquadratic light, the centre rule for a
+/// quadratic one (Simpson's rule along a ramp that varies in one direction); the trapezoid
 /// rule misses a bump's curvature: under a lamp the light is concave at its top, and the
 /// trapezoid rule put 1-3 % less reflected light into the patches than there is.
-fn leaf_integral(l: &Leaf, g: &[DVec3], tests: &[(Cell, [DVec3; 5])]) -> DVec3 {
+fn leaf_integral(l: &Leaf, g: &[DVec3], (tests, centres): InnerPoints<'_>) -> DVec3 {
     let corners = l.corners.iter().map(|&c| g[c as usize]).sum::<DVec3>();
-    match tests.binary_search_by(|(c, _)| cell_order(*c).cmp(&cell_order(l.cell))) {
-        Ok(i) => {
-            let t = &tests[i].1;
-            let mids = t[1] + t[2] + t[3] + t[4];
-            l.area * (corners + 4.0 * mids + 16.0 * t[0]) / 36.0
-        }
-        Err(_) => l.area * 0.25 * corners,
+    let key = cell_order(l.cell);
+    if let Ok(i) = tests.binary_search_by(|(c, _)| cell_order(*c).cmp(&key)) {
+        let t = &tests[i].1;
+        let mids = t[1] + t[2] + t[3] + t[4];
+        return l.area * (corners + 4.0 * mids + 16.0 * t[0]) / 36.0;
     }
+    if let Ok(i) = centres.binary_search_by(|(c, _)| cell_order(*c).cmp(&key)) {
+        return l.area * (corners / 12.0 + centres[i].1 * (2.0 / 3.0));
+    }
+    l.area * 0.25 * corners
 }
 
 /// The order `Poly::tests` is sorted in.
