@@ -1,5 +1,5 @@
 //! Sampled visibility on generated buildings (closed rooms joined by doorways, the case sampled
-//! visibility is for): it moves the solution less than a new seed does, and keeps determinism;
+//! visibility is for): it moves the solution little, and keeps determinism;
 //! and beside an emitter that touches a wall it finds the wall.
 
 use base::progress::SILENT;
@@ -38,14 +38,15 @@ fn polygon_difference(scene_a: &Scene, a: &Solution, scene_b: &Scene, b: &Soluti
     diff / level
 }
 
-/// Sampled visibility (receivers found by probe rays) moves a building's solution less than
-/// the solver's own sampling does: on 2 x 2 rooms joined by doorways, the sampled solve differs
-/// from the exact one by less than an exact solve with another seed (other shadow-ray sample
-/// points) does, and keeps the emitted power's balance (the unshot fraction converges the same
-/// way). It fails with too few probe rays: measured, 2,048 rays per round move the solution by
-/// 0.09 %, a new seed by 0.76 %, and 16 rays per round (so at most 512) by 2.4 %.
+/// Sampled visibility (receivers found by probe rays) moves a building's solution little: on
+/// 2 x 2 rooms joined by doorways, the sampled solve differs from the exact one by less than
+/// 0.25 % of the light (measured 0.06 %; 16 probe rays per round, so at most 512, moved it by
+/// 2.4 %), and keeps the emitted power's balance (the unshot fraction converges the same way).
+/// The exact solve itself no longer depends on the seed: its visibility is exact wherever a
+/// point has at most 48 occluders toward a shooter, as every point here has (with 16, a new
+/// seed moved it by 0.76 %, through the shadow rays that decided past them).
 #[test]
-fn sampled_visibility_moves_less_than_a_new_seed() {
+fn sampled_visibility_moves_the_solution_little() {
     let mut exact = fixtures::generate::building_scene(2, 2, 1).unwrap();
     exact.radiosity.max_depth = 4;
     exact.radiosity.visibility = scene::Visibility::Exact;
@@ -61,13 +62,14 @@ fn sampled_visibility_moves_less_than_a_new_seed() {
     let d_sampled = polygon_difference(&sampled, &ss, &exact, &se);
     let d_seed = polygon_difference(&reseeded, &sr, &exact, &se);
     assert!(
-        d_sampled < d_seed,
-        "sampled visibility moved the solution by {d_sampled:.5}, a new seed by {d_seed:.5}"
+        d_sampled < 0.0025,
+        "sampled visibility moved the solution by {d_sampled:.5}"
     );
     assert!(
         d_sampled > 0.0,
         "the two visibility modes gave the same solution"
     );
+    assert!(d_seed < 1e-6, "a new seed moved the solution by {d_seed:.2e}");
     assert!(ss.stats.unshot_fraction < exact.radiosity.convergence);
 }
 

@@ -74,7 +74,7 @@ fn coarse_cache_changes_nothing() {
 }
 
 /// What the gathers keep of the geometry at each point changes nothing: solved with no room
-/// for it, the Cornell box and a room whose ceiling light falls through a grid of 36 tiles
+/// for it, the Cornell box and a room whose ceiling light falls through a grid of 64 tiles
 /// (more occluders than the exact query takes: shadow rays decide there) give the same trees,
 /// samples, shots and history, bit for bit, and write the same solution file; with room, they
 /// answer fewer visibility queries.
@@ -84,14 +84,14 @@ fn kept_geometry_changes_nothing() {
     cornell.radiosity.max_depth = 4;
     let mut grid = closed_room_with_box();
     grid.polygons.truncate(6);
-    for i in 0..6 {
-        for j in 0..6 {
-            let (x, y) = (0.2 + 0.3 * i as f64, 0.2 + 0.3 * j as f64);
+    for i in 0..8 {
+        for j in 0..8 {
+            let (x, y) = (0.12 + 0.22 * i as f64, 0.12 + 0.22 * j as f64);
             let c = [
                 DVec3::new(x, y, 1.4),
-                DVec3::new(x + 0.2, y, 1.4),
-                DVec3::new(x + 0.2, y + 0.2, 1.4),
-                DVec3::new(x, y + 0.2, 1.4),
+                DVec3::new(x + 0.15, y, 1.4),
+                DVec3::new(x + 0.15, y + 0.15, 1.4),
+                DVec3::new(x, y + 0.15, 1.4),
             ];
             grid.polygons
                 .push(quad_facing(c, DVec3::new(1.0, 1.0, 0.0), 2));

@@ -360,8 +360,14 @@ impl Look {
 }
 
 /// Most occluders an exact visibility query takes ([`Transfer::visibility_weighted`]); beyond
-/// them it falls back to shadow rays.
-pub(crate) const MAX_NEAR: usize = 16;
+/// them it falls back to shadow rays. A furnished room needs more than a bare one: from the
+/// floor under a table, a wall patch is seen past the table's top and sides, four legs and
+/// whatever stands beyond. With 16, such points fell back to rays, whose fixed set per patch
+/// is shared by every receiver, so its error is one per face: the floor under a table read
+/// 1-2.6 % dark against a path tracer and a leg's face 4.5 %; with 48, within 0.8 %, and the
+/// room solves faster (its noisy light had asked for more refinement). A building's rooms
+/// cost 14 % more (its rays fell from 9.1 million to 23,000).
+pub(crate) const MAX_NEAR: usize = 48;
 
 /// The occluders that may meet the pyramid from a receiver point over a shooter.
 pub(crate) struct Near {
