@@ -1,19 +1,25 @@
 //! Per-polygon means of a solution: what an independent reference (a path tracer's per-polygon
 //! estimates) is compared with, face by face. The mean of a polygon is the area-weighted
-//! integral of its samples over its leaves (trapezoid rule on each leaf's four corners, the
-//! leaf's world-space area as weight) over the polygon's area; its direct part is the same
-//! integral of the light that came straight from spots and emitters, gathered again from the
-//! solution's history with every reflecting patch's total set to zero.
+//! integral of its samples over its leaves over the polygon's area: the trapezoid rule on each
+//! leaf's four corners, or, on a leaf across which the light falls steeply (its corners'
+//! spread above [`STEEP`] of their mean and of the polygon's mean), the centre rule with G
+//! gathered again at its centre: beside a panel hung 2 cm in front of a ceiling the trapezoid
+//! rule read the ceiling's strip 8 % over what it receives, and the piece of ceiling above the
+//! panel, seen through the gap, 10 % over. The direct part is the same integral of the light
+//! that came straight from spots and emitters, gathered again from the solution's history with
+//! every reflecting patch's total set to zero.
 //!
-//! Invariants: the result depends only on the solution and the scene; the direct part is
-//! computed by the oracle's own gather (bit-for-bit the solver's transfer), in a fixed order.
+//! Invariants: the result depends only on the solution and the scene; every gather is the
+//! oracle's own (bit-for-bit the solver's transfer), in a fixed order.
 
 use glam::DVec3;
 use rayon::prelude::*;
 
+use crate::shoot::lum;
 use crate::transfer::{sub_area, ShooterKind};
 use crate::{radiosity_from_g, Oracle, Solution};
 use base::error::Result;
+use base::quadtree::{VertexKey, MAX_DEPTH};
 use scene::Scene;
 
 /// The mean radiosity of one polygon.
@@ -27,13 +33,17 @@ pub struct FaceMean {
     pub area: f64,
 }
 
+/// Share of a leaf's corner mean (and of its polygon's mean) its corners' spread must pass
+/// for the leaf's integral to gather G at its centre ([`face_means`]).
+pub(crate) const STEEP: f64 = 0.05;
+
 /// Every polygon's [`FaceMean`] under `sol` (which must solve `scene`).
 pub fn face_means(sol: &Solution, scene: &Scene) -> Result<Vec<FaceMean>> {
     let direct_only = direct_solution(sol);
-    let oracle = Oracle::new(&direct_only, scene)?;
+    let oracles = (Oracle::new(sol, scene)?, Oracle::new(&direct_only, scene)?);
     Ok((0..scene.polygons.len())
         .into_par_iter()
-        .map(|i| face_mean(sol, scene, &oracle, i))
+        .map(|i| face_mean(sol, scene, &oracles, i))
         .collect())
 }
 
@@ -53,30 +63,64 @@ fn direct_solution(sol: &Solution) -> Solution {
     d
 }
 
-fn face_mean(sol: &Solution, scene: &Scene, direct: &Oracle<'_>, i: usize) -> FaceMean {
+fn face_mean(
+    sol: &Solution,
+    scene: &Scene,
+    (full, direct): &(Oracle<'_>, Oracle<'_>),
+    i: usize,
+) -> FaceMean {
     let q = &sol.polygons[i];
     let p = &scene.polygons[i];
     let m = scene.material_of(i);
-    let (mut total, mut dir, mut area) = (DVec3::ZERO, DVec3::ZERO, 0.0);
-    for id in q.tree.leaves() {
-        let cell = q.tree.node(id).cell;
-        let a = sub_area(p, cell);
-        let mut t = DVec3::ZERO;
-        let mut d = DVec3::ZERO;
-        for k in cell.corners() {
-            if let Ok(j) = q.keys.binary_search(&k) {
-                t += q.values[j].as_dvec3();
-            }
-            let g = if m.reflectance.max_element() > 0.0 {
-                direct.irradiance(i, k.u(), k.v())
-            } else {
-                DVec3::ZERO
-            };
-            d += radiosity_from_g(m, g).as_dvec3();
+    let reflects = m.reflectance.max_element() > 0.0;
+    let b_at = |k: VertexKey| {
+        q.keys
+            .binary_search(&k)
+            .map_or(DVec3::ZERO, |j| q.values[j].as_dvec3())
+    };
+    let d_at = |u: f64, v: f64| {
+        let g = if reflects {
+            direct.irradiance(i, u, v)
+        } else {
+            DVec3::ZERO
+        };
+        radiosity_from_g(m, g).as_dvec3()
+    };
+    let leaves: Vec<_> = q
+        .tree
+        .leaves()
+        .into_iter()
+        .map(|id| {
+            let cell = q.tree.node(id).cell;
+            (cell, sub_area(p, cell), cell.corners().map(b_at))
+        })
+        .collect();
+    let area: f64 = leaves.iter().map(|l| l.1).sum();
+    let mean = leaves
+        .iter()
+        .map(|(_, a, b)| 0.25 * a * lum(b.iter().sum()))
+        .sum::<f64>()
+        / area.max(f64::MIN_POSITIVE);
+    let (mut total, mut dir) = (DVec3::ZERO, DVec3::ZERO);
+    for (cell, a, b) in &leaves {
+        let d = cell.corners().map(|k| d_at(k.u(), k.v()));
+        let (lo, hi) = b
+            .iter()
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), c| {
+                (lo.min(lum(*c)), hi.max(lum(*c)))
+            });
+        let corner_mean = 0.25 * b.iter().sum::<DVec3>();
+        let steep =
+            reflects && cell.level < MAX_DEPTH && hi - lo > STEEP * lum(corner_mean).max(mean);
+        if steep {
+            let c = cell.centre();
+            let centre = full.radiosity(i, c.u(), c.v()).as_dvec3();
+            total += a * (b.iter().sum::<DVec3>() / 12.0 + centre * (2.0 / 3.0));
+            dir += a * (d.iter().sum::<DVec3>() / 12.0 + d_at(c.u(), c.v()) * (2.0 / 3.0));
+        } else {
+            total += 0.25 * a * b.iter().sum::<DVec3>();
+            dir += 0.25 * a * d.iter().sum::<DVec3>();
         }
-        total += 0.25 * a * t;
-        dir += 0.25 * a * d;
-        area += a;
     }
     let k = if area > 0.0 { 1.0 / area } else { 0.0 };
     FaceMean {

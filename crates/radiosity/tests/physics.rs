@@ -227,8 +227,8 @@ fn the_cornell_box_matches_the_path_tracer_face_by_face() {
 /// light to the visible dim side: walls 18-22 % and the floor 28 % too bright (against a
 /// million samples per face, docs/accuracy.md). Cut along the panel's outline, the walls read
 /// 4.5-5.8 % and the floor 10 % bright at the default depth, the ring's patches shooting 9 %
-/// more than they receive (`patch_power`); with that fixed, 0.5-1.7 % and 3.6 % against 16
-/// million samples. The bounds are those rounded up (2 % and 4 %) plus three of the truth's
+/// more than they receive (`patch_power`); with that fixed, 0.3-1.5 % and 4.6 % against 16
+/// million samples. The bounds are those rounded up (2 % and 5 %) plus three of the truth's
 /// standard errors at these samples.
 #[test]
 fn a_panel_facing_a_close_ceiling_matches_the_path_tracer() {
@@ -237,7 +237,7 @@ fn a_panel_facing_a_close_ceiling_matches_the_path_tracer() {
     // Polygons: floor, ceiling, four walls, panel.
     check("ceiling", &r[1..2], 0.01, 0.06);
     check("walls", &r[2..6], 0.02, 0.02);
-    check("floor", &r[0..1], 0.04, 0.04);
+    check("floor", &r[0..1], 0.05, 0.05);
 }
 
 /// A furnished room: a table (top and four legs) standing on the floor of a closed room, a

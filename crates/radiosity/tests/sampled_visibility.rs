@@ -69,7 +69,10 @@ fn sampled_visibility_moves_the_solution_little() {
         d_sampled > 0.0,
         "the two visibility modes gave the same solution"
     );
-    assert!(d_seed < 1e-6, "a new seed moved the solution by {d_seed:.2e}");
+    assert!(
+        d_seed < 1e-6,
+        "a new seed moved the solution by {d_seed:.2e}"
+    );
     assert!(ss.stats.unshot_fraction < exact.radiosity.convergence);
 }
 
