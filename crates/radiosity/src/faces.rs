@@ -15,7 +15,7 @@
 use glam::DVec3;
 use rayon::prelude::*;
 
-use crate::shoot::lum;
+use crate::shoot::{centre_rule, lum, spread};
 use crate::transfer::{sub_area, ShooterKind};
 use crate::{radiosity_from_g, Oracle, Solution};
 use base::error::Result;
@@ -104,19 +104,15 @@ fn face_mean(
     let (mut total, mut dir) = (DVec3::ZERO, DVec3::ZERO);
     for (cell, a, b) in &leaves {
         let d = cell.corners().map(|k| d_at(k.u(), k.v()));
-        let (lo, hi) = b
-            .iter()
-            .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), c| {
-                (lo.min(lum(*c)), hi.max(lum(*c)))
-            });
         let corner_mean = 0.25 * b.iter().sum::<DVec3>();
-        let steep =
-            reflects && cell.level < MAX_DEPTH && hi - lo > STEEP * lum(corner_mean).max(mean);
+        let steep = reflects
+            && cell.level < MAX_DEPTH
+            && spread(b.map(lum)) > STEEP * lum(corner_mean).max(mean);
         if steep {
             let c = cell.centre();
             let centre = full.radiosity(i, c.u(), c.v()).as_dvec3();
-            total += a * (b.iter().sum::<DVec3>() / 12.0 + centre * (2.0 / 3.0));
-            dir += a * (d.iter().sum::<DVec3>() / 12.0 + d_at(c.u(), c.v()) * (2.0 / 3.0));
+            total += centre_rule(*a, b.iter().sum(), centre);
+            dir += centre_rule(*a, d.iter().sum(), d_at(c.u(), c.v()));
         } else {
             total += 0.25 * a * b.iter().sum::<DVec3>();
             dir += 0.25 * a * d.iter().sum::<DVec3>();

@@ -119,6 +119,28 @@ pub(crate) fn lum(c: DVec3) -> f64 {
     0.2126 * c.x + 0.7152 * c.y + 0.0722 * c.z
 }
 
+/// Largest of `values` less the smallest (0 for none).
+pub(crate) fn spread(values: impl IntoIterator<Item = f64>) -> f64 {
+    let (lo, hi) = values
+        .into_iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), x| {
+            (lo.min(x), hi.max(x))
+        });
+    if hi >= lo {
+        hi - lo
+    } else {
+        0.0
+    }
+}
+
+/// The centre rule on a leaf of area `area` whose corners' values sum to `corners` and whose
+/// centre's value is `centre`: corners 1/12 each, centre 2/3. Exact for a quadratic, so along
+/// a ramp that varies in one direction it is Simpson's rule; the trapezoid rule on the corners
+/// misses the ramp's curvature.
+pub(crate) fn centre_rule(area: f64, corners: DVec3, centre: DVec3) -> DVec3 {
+    area * (corners / 12.0 + centre * (2.0 / 3.0))
+}
+
 /// What the solver hands back to `solve`.
 #[derive(Clone)]
 pub(crate) struct Outcome {

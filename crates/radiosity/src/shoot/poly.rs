@@ -6,6 +6,7 @@ use std::ops::Range;
 
 use glam::DVec3;
 
+use super::centre_rule;
 use crate::transfer::{build_shooters, sub_area};
 use base::quadtree::{Cell, Quadtree, VertexKey};
 use scene::Scene;
@@ -241,16 +242,22 @@ type InnerPoints<'a> = (&'a [(Cell, [DVec3; 5])], &'a [(Cell, DVec3)]);
 /// trapezoid rule put 1-3 % less reflected light into the patches than there is.
 fn leaf_integral(l: &Leaf, g: &[DVec3], (tests, centres): InnerPoints<'_>) -> DVec3 {
     let corners = l.corners.iter().map(|&c| g[c as usize]).sum::<DVec3>();
-    let key = cell_order(l.cell);
-    if let Ok(i) = tests.binary_search_by(|(c, _)| cell_order(*c).cmp(&key)) {
-        let t = &tests[i].1;
+    if let Some(t) = at_cell(tests, l.cell) {
         let mids = t[1] + t[2] + t[3] + t[4];
         return l.area * (corners + 4.0 * mids + 16.0 * t[0]) / 36.0;
     }
-    if let Ok(i) = centres.binary_search_by(|(c, _)| cell_order(*c).cmp(&key)) {
-        return l.area * (corners / 12.0 + centres[i].1 * (2.0 / 3.0));
+    if let Some(&centre) = at_cell(centres, l.cell) {
+        return centre_rule(l.area, corners, centre);
     }
     l.area * 0.25 * corners
+}
+
+/// The value kept for `cell` in `list` (sorted by [`cell_order`]), if any.
+pub(super) fn at_cell<T>(list: &[(Cell, T)], cell: Cell) -> Option<&T> {
+    let key = cell_order(cell);
+    list.binary_search_by(|(c, _)| cell_order(*c).cmp(&key))
+        .ok()
+        .map(|i| &list[i].1)
 }
 
 /// The order `Poly::tests` is sorted in.

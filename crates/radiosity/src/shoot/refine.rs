@@ -10,8 +10,8 @@ use rayon::prelude::*;
 mod reach;
 
 use super::peaks::{light_peaks, PEAK_SHARE};
-use super::poly::{cell_order, PatchLayout, Poly};
-use super::{lum, memory_error, state_bytes};
+use super::poly::{at_cell, cell_order, PatchLayout, Poly};
+use super::{lum, memory_error, spread, state_bytes};
 use crate::transfer::seen::SeenCache;
 use crate::transfer::{sub_area, PairClass, ShooterKind, Transfer};
 use crate::GuardStops;
@@ -415,21 +415,12 @@ impl<'r, 't> Refinement<'r, 't> {
                 *power.entry(patch).or_default() += 0.25 * area * lums.iter().sum::<f64>();
             }
             for (id, cell, lums, area, patch) in leaves {
-                let judged = p
-                    .tests
-                    .binary_search_by(|(c, _)| cell_order(*c).cmp(&cell_order(cell)))
-                    .is_ok();
-                if judged || cell.level >= MAX_DEPTH {
+                if at_cell(&p.tests, cell).is_some() || cell.level >= MAX_DEPTH {
                     continue;
                 }
-                let (lo, hi) = lums
-                    .iter()
-                    .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &l| {
-                        (lo.min(l), hi.max(l))
-                    });
+                let d = spread(lums);
                 let scale = (0.25 * lums.iter().sum::<f64>()).max(floor);
-                if hi - lo > self.tolerance * scale && (hi - lo) * area > RAMP_SHARE * power[&patch]
-                {
+                if d > self.tolerance * scale && d * area > RAMP_SHARE * power[&patch] {
                     out.push((r as u32, id));
                 }
             }
