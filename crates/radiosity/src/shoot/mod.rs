@@ -33,6 +33,9 @@
 //!    how its radiosity varies over it) is measured from the new samples, and if that estimate
 //!    is still above the threshold or the shapes moved by more than `shapes::SHAPE_CHANGE`,
 //!    another round shoots and gathers with the new shapes (at most [`MAX_ROUNDS`] rounds);
+//!    once the unshot light is below the threshold, the new shapes are first settled where
+//!    they move the light where it falls by more than `tolerance` (`solver::settle`: the
+//!    points there gather again with them, a few passes, and are put back);
 //! 6. a stored sample is therefore E + rho * G with G gathered from the final history and the
 //!    final shapes, exactly the oracle's answer, bit for bit, whatever order the shots came in.
 //!

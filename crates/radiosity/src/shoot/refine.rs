@@ -905,7 +905,7 @@ pub fn depth_bound(scene: &Scene, r: usize, min_size: f64) -> u32 {
 }
 
 /// Centre and the four edge midpoints (bottom, right, top, left) of a cell.
-fn test_points(cell: Cell) -> [VertexKey; 5] {
+pub(super) fn test_points(cell: Cell) -> [VertexKey; 5] {
     let o = cell.origin();
     let s = cell.size();
     let h = s / 2;

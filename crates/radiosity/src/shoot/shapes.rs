@@ -53,6 +53,27 @@ pub(super) fn measure(
     per.into_iter().flatten().collect()
 }
 
+/// [`measure`] for the patch shooters `which` only (in their order).
+pub(super) fn measure_of(
+    scene: &Scene,
+    tr: &Transfer<'_>,
+    polys: &[Poly],
+    which: &[usize],
+) -> Vec<(usize, Option<PatchShape>)> {
+    let flat = crate::transfer::shape::shape_tolerance(scene.radiosity.tolerance);
+    which
+        .par_iter()
+        .map(|&s| {
+            let ShooterKind::Patch { polygon, cell } = tr.shooters[s].kind else {
+                return (s, None);
+            };
+            let r = polygon as usize;
+            let p = &polys[r];
+            (s, shape_of(scene, r, p, &p.node_integrals(), cell, flat))
+        })
+        .collect()
+}
+
 /// The shape of patch `patch` of polygon `r` (`p`, its nodes' integrals of G `integrals`):
 /// the polygon's subtree under the patch, cut at [`MAX_SHAPE_LEVELS`], each leaf weighted by
 /// its mean G over the patch's; `None` if flat within `flat`.
@@ -178,4 +199,142 @@ pub(super) fn change(
 /// The largest total of the patches of `new`, per channel.
 pub(super) fn brightest_patch(new: &[(usize, Option<PatchShape>)], totals: &[DVec3]) -> DVec3 {
     new.iter().fold(DVec3::ZERO, |m, (s, _)| m.max(totals[*s]))
+}
+
+/// The largest relative change of a patch's light between the shapes `old` and `new` of a
+/// patch whose total is `total` (a missing shape counts as all weights 1), over the cells of
+/// a 16 x 16 grid on the patch, per channel: `|b_new - b_old| / max(b_old, b_new, floor)` with
+/// `b` the total times the shape's mean over the cell and `floor` the level below which light
+/// counts as dark. Where [`change`] asks how much a stale shape moves the brightest light in
+/// the scene, this asks how much it moves the light where it falls: a dark corner whose light
+/// is a third too bright in the shapes reads 0.33 here and a few hundredths there. Means over
+/// cells, not weights at points: a refinement that splits a leaf changes the weights at its
+/// points, not the light over the cells, and is not a change of the light.
+pub(super) fn relative_change(
+    old: Option<&PatchShape>,
+    new: Option<&PatchShape>,
+    total: DVec3,
+    floor: DVec3,
+) -> f64 {
+    cell_changes(old, new, total, floor)
+        .into_iter()
+        .fold(0.0, f64::max)
+}
+
+/// The cells of the grid [`relative_change`] measures on (level 4 of the patch's tree, row by
+/// row), and each one's relative change.
+pub(super) fn cell_changes(
+    old: Option<&PatchShape>,
+    new: Option<&PatchShape>,
+    total: DVec3,
+    floor: DVec3,
+) -> Vec<f64> {
+    let mean = |s: Option<&PatchShape>, c: Cell| s.map_or(DVec3::ONE, |s| s.mean_in(c));
+    (0..256u32)
+        .map(|i| {
+            let c = grid_cell(i);
+            let (a, b) = (total * mean(old, c), total * mean(new, c));
+            (0..3)
+                .map(|k| {
+                    let level = a[k].max(b[k]).max(floor[k]);
+                    if level > 0.0 {
+                        (a[k] - b[k]).abs() / level
+                    } else {
+                        0.0
+                    }
+                })
+                .fold(0.0, f64::max)
+        })
+        .collect()
+}
+
+/// Cell `i` (row by row) of the 16 x 16 grid on a patch, relative to the patch.
+pub(super) fn grid_cell(i: u32) -> Cell {
+    Cell {
+        level: 4,
+        x: i % 16,
+        y: i / 16,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::test_scenes::quad_facing;
+
+    /// A unit square patch whose light is `light(x, y)` on a full tree of `levels` levels
+    /// (weights: each leaf's light at its centre over the mean).
+    fn shape_of_light(levels: u32, light: impl Fn(f64, f64) -> f64) -> PatchShape {
+        let c = [
+            DVec3::new(0.0, 0.0, 0.0),
+            DVec3::new(1.0, 0.0, 0.0),
+            DVec3::new(1.0, 1.0, 0.0),
+            DVec3::new(0.0, 1.0, 0.0),
+        ];
+        let poly = quad_facing(c, DVec3::new(0.5, 0.5, 1.0), 0);
+        let tree = Quadtree::grow((), |_, cell, _| (cell.level < levels).then_some([(); 4]));
+        let raw: Vec<f64> = tree
+            .nodes()
+            .iter()
+            .filter(|n| n.is_leaf())
+            .map(|n| {
+                let w = n.cell.width();
+                let (x, y) = ((n.cell.x as f64 + 0.5) * w, (n.cell.y as f64 + 0.5) * w);
+                light(x, y)
+            })
+            .collect();
+        let mean = raw.iter().sum::<f64>() / raw.len() as f64;
+        let leaves = raw.iter().map(|&l| [(l / mean) as f32; 3]).collect();
+        let root = Cell {
+            level: 0,
+            x: 0,
+            y: 0,
+        };
+        PatchShape::new(&poly, root, tree, leaves).expect("counts agree")
+    }
+
+    /// A patch lit evenly but for a dark corner (a sixteenth of it at a tenth of the light)
+    /// whose light falls by a third from one round to the next: the change where the light
+    /// falls reads a third, while the change scaled by the brightest light reads a twentieth
+    /// (the weight's own move, 0.05: below what keeps the rounds going).
+    #[test]
+    fn a_dark_corner_that_moves_by_a_third_reads_a_third() {
+        let before = shape_of_light(4, |x, y| if x < 0.25 && y < 0.25 { 0.15 } else { 1.0 });
+        let after = shape_of_light(4, |x, y| if x < 0.25 && y < 0.25 { 0.1 } else { 1.0 });
+        let total = DVec3::ONE;
+        let floor = DVec3::splat(0.01);
+        let rel = relative_change(Some(&before), Some(&after), total, floor);
+        // Weights are light over the mean: the corner's 0.15 / 0.947 against 0.1 / 0.944.
+        let (b, a) = (0.15 / (15.0 + 0.15) * 16.0, 0.1 / (15.0 + 0.1) * 16.0);
+        assert!((rel - (b - a) / b).abs() < 1e-3, "{rel}");
+        let scaled = patch_change(Some(&before), Some(&after), total, total);
+        assert!(
+            scaled < 0.2 * rel && scaled < shapes_change_limit(),
+            "{scaled} against {rel}"
+        );
+    }
+
+    fn shapes_change_limit() -> f64 {
+        // The rounds stop on a change up to this.
+        super::SHAPE_CHANGE + 0.01
+    }
+
+    /// Splitting a leaf changes the weights at points inside it, not its mean: a shape on a
+    /// finer tree of the same light reads no change where the light falls.
+    #[test]
+    fn a_finer_tree_of_the_same_light_is_no_change() {
+        let light = |x: f64, _y: f64| if x < 0.5 { 1.0 } else { 3.0 };
+        let coarse = shape_of_light(4, light);
+        let fine = shape_of_light(6, light);
+        let rel = relative_change(Some(&coarse), Some(&fine), DVec3::ONE, DVec3::splat(0.01));
+        assert!(rel < 1e-6, "{rel}");
+        assert_eq!(
+            grid_cell(17),
+            Cell {
+                level: 4,
+                x: 1,
+                y: 1
+            }
+        );
+    }
 }

@@ -7,6 +7,8 @@ use std::time::Instant;
 
 use glam::DVec3;
 
+mod settle;
+
 use super::energy;
 use super::eta::{Eta, Phase};
 use super::poly::{Light, PatchLayout, Poly};
@@ -269,11 +271,33 @@ impl<'a, 't, 'o> Solver<'a, 't, 'o> {
         // round gathers with them (the last round's shapes are the ones kept).
         let new = shapes::measure(self.scene, self.tr, &self.polys, &self.patches);
         let change = shapes::change(self.tr, &new, &self.totals);
-        self.trace(|_| format!("  shapes change {change:.4}"));
-        if self.fraction < self.convergence && change <= shapes::SHAPE_CHANGE {
+        let floor = settle::dark_floor(&new, &self.totals);
+        let (moved, relative) = self.moved_patches(&new, floor);
+        self.trace(|_| {
+            format!(
+                "  shapes change {change:.4}, where the light falls {relative:.4} ({} patches)",
+                moved.len()
+            )
+        });
+        let converged = self.fraction < self.convergence;
+        if converged && change <= shapes::SHAPE_CHANGE {
             return Ok(true);
         }
         if self.round < MAX_ROUNDS {
+            // Once the light has converged only the shapes are left: settle them where they
+            // have not (before, the shots still move the light the shapes describe).
+            let new = if converged && !moved.is_empty() {
+                let (new, passes) = self.settle_shapes(new, &moved, floor);
+                self.trace(|_| {
+                    format!(
+                        "  shapes settled on {} patches in {passes} passes",
+                        moved.len()
+                    )
+                });
+                new
+            } else {
+                new
+            };
             self.install_shapes(new);
             self.send_snapshot();
         }

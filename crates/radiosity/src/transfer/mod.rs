@@ -397,6 +397,15 @@ impl<'a> Transfer<'a> {
         self.shapes[s] = shape;
     }
 
+    /// Sets the shape of shooter `s`'s light and returns the one it replaces.
+    pub(crate) fn replace_shape(
+        &mut self,
+        s: usize,
+        shape: Option<PatchShape>,
+    ) -> Option<PatchShape> {
+        std::mem::replace(&mut self.shapes[s], shape)
+    }
+
     /// Whether receivers are found by probe rays (see [`Visibility`](scene::Visibility)).
     #[cfg(test)]
     pub(crate) fn sampled(&self) -> bool {

@@ -152,6 +152,23 @@ impl PatchShape {
         })
     }
 
+    /// The mean weight over `cell` (relative to the patch): its node's mean, or the weight of
+    /// the leaf that holds it where the tree is coarser. A tree refined inside the cell gives
+    /// the same mean as a coarser one would (both are the light's integral over it), so a mean
+    /// compares shapes measured on different trees without counting their detail.
+    pub(crate) fn mean_in(&self, cell: Cell) -> DVec3 {
+        let mut id = 0u32;
+        loop {
+            let n = self.tree.node(id);
+            if n.is_leaf() || n.cell.level >= cell.level {
+                return self.mean[id as usize].0;
+            }
+            let shift = cell.level - n.cell.level - 1;
+            let (cx, cy) = ((cell.x >> shift) & 1, (cell.y >> shift) & 1);
+            id = n.first_child + cx + 2 * cy;
+        }
+    }
+
     /// The weight of the leaf at unit-square position (su, sv) of the patch.
     #[inline]
     pub(crate) fn weight_at(&self, su: f64, sv: f64) -> [f32; 3] {
