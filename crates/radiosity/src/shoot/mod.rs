@@ -104,6 +104,8 @@ pub(crate) use refine::LIGHT_DEPTH_FACTOR;
 pub use refine::{depth_bound, min_element_size, DIVE_NODES};
 use scene::Scene;
 pub use shot::COARSE_CACHE_ENTRIES;
+#[cfg(test)]
+pub(crate) use solver::without_settling;
 use solver::Solver;
 
 /// Most indirect-shooting rounds (each ends with a full gather and a refinement pass).

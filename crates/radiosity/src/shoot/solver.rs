@@ -9,6 +9,9 @@ use glam::DVec3;
 
 mod settle;
 
+#[cfg(test)]
+pub(crate) use settle::without_settling;
+
 use super::energy;
 use super::eta::{Eta, Phase};
 use super::poly::{Light, PatchLayout, Poly};
@@ -286,7 +289,7 @@ impl<'a, 't, 'o> Solver<'a, 't, 'o> {
         if self.round < MAX_ROUNDS {
             // Once the light has converged only the shapes are left: settle them where they
             // have not (before, the shots still move the light the shapes describe).
-            let new = if converged && !moved.is_empty() {
+            let new = if converged && !moved.is_empty() && settle::enabled() {
                 let (new, passes) = self.settle_shapes(new, &moved, floor);
                 self.trace(|_| {
                     format!(

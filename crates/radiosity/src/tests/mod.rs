@@ -15,6 +15,7 @@ mod analytic;
 mod files;
 mod progress;
 mod refinement;
+mod settle;
 
 fn solve_quiet(scene: &Scene) -> Solution {
     solve(scene, &SolveOptions::default()).expect("solve")

@@ -48,6 +48,33 @@ pub(super) const DARK: f64 = 0.01;
 /// Most passes of gathering again and measuring the shapes between two rounds.
 pub(super) const SETTLE_PASSES: usize = 4;
 
+#[cfg(test)]
+thread_local! {
+    /// Set while a test solves without settling (to compare).
+    static OFF: std::cell::Cell<bool> = const { std::cell::Cell::new(false) };
+}
+
+/// Whether the solve on this thread settles shapes (always, but in a test that asks not to).
+pub(super) fn enabled() -> bool {
+    #[cfg(test)]
+    {
+        !OFF.with(|o| o.get())
+    }
+    #[cfg(not(test))]
+    {
+        true
+    }
+}
+
+/// Runs `f` (a solve on this thread) without settling shapes.
+#[cfg(test)]
+pub(crate) fn without_settling<T>(f: impl FnOnce() -> T) -> T {
+    OFF.with(|o| o.set(true));
+    let out = f();
+    OFF.with(|o| o.set(false));
+    out
+}
+
 /// A polygon and the indices of its vertices, test points and centres to gather again.
 type PointsOf = (usize, Vec<usize>, Vec<usize>, Vec<usize>);
 
