@@ -9,6 +9,7 @@ use std::path::Path;
 use glam::DVec3;
 
 use base::progress::SILENT;
+use fixtures::text::{box_faces, polygon};
 use radiosity::{face_means, solve, SolveOptions};
 use truth::TruthOptions;
 
@@ -393,45 +394,4 @@ fn closed_room() -> String {
         s += &polygon(&format!("box{k}"), "box", f);
     }
     s
-}
-
-fn polygon(name: &str, material: &str, c: &[[f64; 3]; 4]) -> String {
-    let v: Vec<String> = c
-        .iter()
-        .map(|p| format!("[{}, {}, {}]", p[0], p[1], p[2]))
-        .collect();
-    format!(
-        "[[polygons]]\nname = \"{name}\"\nmaterial = \"{material}\"\nvertices = [{}]\n\n",
-        v.join(", ")
-    )
-}
-
-/// The box [lo, hi]'s faces in the order z = lo, z = hi, x = lo, x = hi, y = lo, y = hi, each
-/// wound to face inwards or outwards.
-fn box_faces(lo: [f64; 3], hi: [f64; 3], inward: bool) -> Vec<[[f64; 3]; 4]> {
-    let [x0, y0, z0] = lo;
-    let [x1, y1, z1] = hi;
-    let faces = [
-        [[x0, y0, z0], [x1, y0, z0], [x1, y1, z0], [x0, y1, z0]],
-        [[x0, y0, z1], [x1, y0, z1], [x1, y1, z1], [x0, y1, z1]],
-        [[x0, y0, z0], [x0, y1, z0], [x0, y1, z1], [x0, y0, z1]],
-        [[x1, y0, z0], [x1, y1, z0], [x1, y1, z1], [x1, y0, z1]],
-        [[x0, y0, z0], [x1, y0, z0], [x1, y0, z1], [x0, y0, z1]],
-        [[x0, y1, z0], [x1, y1, z0], [x1, y1, z1], [x0, y1, z1]],
-    ];
-    let c = DVec3::from(lo).lerp(DVec3::from(hi), 0.5);
-    faces
-        .into_iter()
-        .map(|f| {
-            let p = f.map(DVec3::from);
-            let n = (p[1] - p[0]).cross(p[2] - p[0]);
-            let centre = 0.25 * (p[0] + p[1] + p[2] + p[3]);
-            let want = if inward { c - centre } else { centre - c };
-            if n.dot(want) < 0.0 {
-                [f[3], f[2], f[1], f[0]]
-            } else {
-                f
-            }
-        })
-        .collect()
 }

@@ -2,6 +2,7 @@
 //! (`shoot::solver::settle`), and settling leaves every stored sample the oracle's answer.
 
 use base::progress::Event;
+use fixtures::text::{box_faces, polygon};
 
 use super::*;
 
@@ -33,47 +34,6 @@ fn nook_room() -> Scene {
         s += &polygon(&format!("cabinet{k}"), "wood", &cabinet[k]);
     }
     scene::parse_scene(&s, std::path::Path::new("nook.toml")).expect("scene")
-}
-
-fn polygon(name: &str, material: &str, c: &[[f64; 3]; 4]) -> String {
-    let v: Vec<String> = c
-        .iter()
-        .map(|p| format!("[{}, {}, {}]", p[0], p[1], p[2]))
-        .collect();
-    format!(
-        "[[polygons]]\nname = \"{name}\"\nmaterial = \"{material}\"\nvertices = [{}]\n\n",
-        v.join(", ")
-    )
-}
-
-/// The box [lo, hi]'s faces in the order z = lo, z = hi, x = lo, x = hi, y = lo, y = hi, each
-/// wound to face inwards or outwards.
-fn box_faces(lo: [f64; 3], hi: [f64; 3], inward: bool) -> Vec<[[f64; 3]; 4]> {
-    let [x0, y0, z0] = lo;
-    let [x1, y1, z1] = hi;
-    let faces = [
-        [[x0, y0, z0], [x1, y0, z0], [x1, y1, z0], [x0, y1, z0]],
-        [[x0, y0, z1], [x1, y0, z1], [x1, y1, z1], [x0, y1, z1]],
-        [[x0, y0, z0], [x0, y1, z0], [x0, y1, z1], [x0, y0, z1]],
-        [[x1, y0, z0], [x1, y1, z0], [x1, y1, z1], [x1, y0, z1]],
-        [[x0, y0, z0], [x1, y0, z0], [x1, y0, z1], [x0, y0, z1]],
-        [[x0, y1, z0], [x1, y1, z0], [x1, y1, z1], [x0, y1, z1]],
-    ];
-    let c = DVec3::from(lo).lerp(DVec3::from(hi), 0.5);
-    faces
-        .into_iter()
-        .map(|f| {
-            let p = f.map(DVec3::from);
-            let n = (p[1] - p[0]).cross(p[2] - p[0]);
-            let centre = 0.25 * (p[0] + p[1] + p[2] + p[3]);
-            let want = if inward { c - centre } else { centre - c };
-            if n.dot(want) < 0.0 {
-                [f[3], f[2], f[1], f[0]]
-            } else {
-                f
-            }
-        })
-        .collect()
 }
 
 /// The solve's trace lines.
