@@ -42,6 +42,17 @@ pub(crate) fn quad_facing(mut c: [DVec3; 4], toward: DVec3, material: u32) -> Po
     p
 }
 
+/// The unit square in the plane z = 0, facing +z (material 0).
+pub(crate) fn unit_square() -> Polygon {
+    let c = [
+        DVec3::new(0.0, 0.0, 0.0),
+        DVec3::new(1.0, 0.0, 0.0),
+        DVec3::new(1.0, 1.0, 0.0),
+        DVec3::new(0.0, 1.0, 0.0),
+    ];
+    quad_facing(c, DVec3::new(0.5, 0.5, 1.0), 0)
+}
+
 /// The six inward faces of an axis-aligned cube of side `size` centred at the origin, with their
 /// inward normals.
 pub(crate) fn cube_faces(size: f64) -> Vec<([DVec3; 4], DVec3)> {

@@ -260,18 +260,12 @@ pub(super) fn grid_cell(i: u32) -> Cell {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::test_scenes::quad_facing;
+    use crate::test_scenes::unit_square;
 
     /// A unit square patch whose light is `light(x, y)` on a full tree of `levels` levels
     /// (weights: each leaf's light at its centre over the mean).
     fn shape_of_light(levels: u32, light: impl Fn(f64, f64) -> f64) -> PatchShape {
-        let c = [
-            DVec3::new(0.0, 0.0, 0.0),
-            DVec3::new(1.0, 0.0, 0.0),
-            DVec3::new(1.0, 1.0, 0.0),
-            DVec3::new(0.0, 1.0, 0.0),
-        ];
-        let poly = quad_facing(c, DVec3::new(0.5, 0.5, 1.0), 0);
+        let poly = unit_square();
         let tree = Quadtree::grow((), |_, cell, _| (cell.level < levels).then_some([(); 4]));
         let raw: Vec<f64> = tree
             .nodes()

@@ -43,10 +43,10 @@ use base::quadtree::{Cell, VertexKey};
 /// Light below this share of the brightest patch's total counts as that level when a shape's
 /// change is measured against the light where it falls (see the module doc): a change in
 /// light darker than that is a small share of what any receiver gets.
-pub(super) const DARK: f64 = 0.01;
+const DARK: f64 = 0.01;
 
 /// Most passes of gathering again and measuring the shapes between two rounds.
-pub(super) const SETTLE_PASSES: usize = 4;
+const SETTLE_PASSES: usize = 4;
 
 #[cfg(test)]
 thread_local! {
@@ -204,20 +204,21 @@ impl Solver<'_, '_, '_> {
             .filter_map(|(s, cells)| self.patch_of(*s).map(|(r, _)| (r, cells)))
             .flat_map(|(r, cells)| cells.iter().map(move |&c| (r, c)))
             .collect();
-        cells.sort_unstable_by_key(|&(r, c)| (r, c.level, c.y, c.x));
+        cells.sort_by_key(|&(r, _)| r);
         // Per polygon: the indices of its vertices, test points and centres in a cell.
         let mut at: Vec<PointsOf> = Vec::new();
         for group in cells.chunk_by(|a, b| a.0 == b.0) {
             let r = group[0].0;
             let p = &self.polys[r];
-            let in_key = |k: VertexKey| group.iter().any(|&(_, c)| key_in(c, k));
-            let meets = |l: Cell| group.iter().any(|&(_, c)| cell_in(c, l) || cell_in(l, c));
-            let keys = (0..p.keys.len()).filter(|&i| in_key(p.keys[i])).collect();
+            let set = CellSet::new(group.iter().map(|&(_, c)| c));
+            let keys = (0..p.keys.len())
+                .filter(|&i| set.holds(p.keys[i]))
+                .collect();
             let tests = (0..p.tests.len())
-                .filter(|&i| meets(p.tests[i].0))
+                .filter(|&i| set.meets(p.tests[i].0))
                 .collect();
             let centres = (0..p.centres.len())
-                .filter(|&i| meets(p.centres[i].0))
+                .filter(|&i| set.meets(p.centres[i].0))
                 .collect();
             at.push((r, keys, tests, centres));
         }
@@ -244,13 +245,66 @@ impl Solver<'_, '_, '_> {
     }
 }
 
-/// Whether lattice point `k` lies in the closed cell `c`.
-fn key_in(c: Cell, k: VertexKey) -> bool {
-    let (o, s) = (c.origin(), c.size());
-    (o.i..=o.i + s).contains(&k.i) && (o.j..=o.j + s).contains(&k.j)
+/// Cells of one level of a polygon's domain (the grid cells of its patches, which share the
+/// polygon's patch depth), sorted, so that a vertex or a leaf finds the ones it meets by
+/// search, not by a pass over all of them.
+struct CellSet {
+    level: u32,
+    /// (y, x) of each cell, sorted.
+    at: Vec<(u32, u32)>,
 }
 
-/// Whether cell `l` lies in cell `c` (is `c` or below it).
-fn cell_in(c: Cell, l: Cell) -> bool {
-    l.level >= c.level && (l.x >> (l.level - c.level), l.y >> (l.level - c.level)) == (c.x, c.y)
+impl CellSet {
+    fn new(cells: impl Iterator<Item = Cell>) -> CellSet {
+        let mut level = 0;
+        let mut at: Vec<(u32, u32)> = cells
+            .map(|c| {
+                debug_assert!(level == 0 || level == c.level, "one level per polygon");
+                level = c.level;
+                (c.y, c.x)
+            })
+            .collect();
+        at.sort_unstable();
+        at.dedup();
+        CellSet { level, at }
+    }
+
+    fn has(&self, x: u32, y: u32) -> bool {
+        self.at.binary_search(&(y, x)).is_ok()
+    }
+
+    /// Whether lattice point `k` lies in one of the (closed) cells: the cells around it are
+    /// those whose index is its coordinate over the cell size, or one less on a cell's edge.
+    fn holds(&self, k: VertexKey) -> bool {
+        let size = Cell {
+            level: self.level,
+            x: 0,
+            y: 0,
+        }
+        .size();
+        let around = |c: u32| {
+            let i = c / size;
+            [Some(i), (c.is_multiple_of(size) && i > 0).then(|| i - 1)]
+        };
+        around(k.i)
+            .into_iter()
+            .flatten()
+            .any(|x| around(k.j).into_iter().flatten().any(|y| self.has(x, y)))
+    }
+
+    /// Whether leaf `l` meets one of the cells: lies in one, or holds one.
+    fn meets(&self, l: Cell) -> bool {
+        if l.level >= self.level {
+            let d = l.level - self.level;
+            return self.has(l.x >> d, l.y >> d);
+        }
+        let d = self.level - l.level;
+        let (x0, x1) = (l.x << d, (l.x + 1) << d);
+        ((l.y << d)..((l.y + 1) << d)).any(|y| {
+            let from = self.at.partition_point(|&c| c < (y, x0));
+            self.at
+                .get(from)
+                .is_some_and(|&(cy, cx)| cy == y && cx < x1)
+        })
+    }
 }

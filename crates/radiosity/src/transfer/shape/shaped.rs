@@ -420,19 +420,13 @@ pub(crate) fn blend(e: f64, tau: f64) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::test_scenes::quad_facing;
+    use crate::test_scenes::{quad_facing, unit_square};
 
     /// A 1 m square wall in the plane z = 0 facing +z, as patch (level 0), with a full tree of
     /// `levels` levels whose leaves' weights fall linearly from bottom (1.5) to top (0.5): the
     /// light of a wall lit from above at a grazing angle, area-weighted mean 1.
     fn ramp_wall(levels: u32) -> (Polygon, PatchShape) {
-        let c = [
-            DVec3::new(0.0, 0.0, 0.0),
-            DVec3::new(1.0, 0.0, 0.0),
-            DVec3::new(1.0, 1.0, 0.0),
-            DVec3::new(0.0, 1.0, 0.0),
-        ];
-        let poly = quad_facing(c, DVec3::new(0.5, 0.5, 1.0), 0);
+        let poly = unit_square();
         let tree = Quadtree::grow((), |_, cell, _| (cell.level < levels).then_some([(); 4]));
         let leaves = tree
             .nodes()
