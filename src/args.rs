@@ -650,6 +650,11 @@ pub(crate) struct TruthArgs {
     /// table when no FILE (or `-`) is given.
     #[arg(long, value_name = "FILE", num_args = 0..=1, default_missing_value = "-")]
     pub json: Option<PathBuf>,
+    /// OpenEXR mask of the pixels within 2 of a shadow boundary (1, else 0), for `compare
+    /// --mask`: where, at a pixel's centre, the share of the direct light that arrives unblocked
+    /// changes between lit, penumbra and umbra on one face (docs/truth.md).
+    #[arg(long, value_name = "FILE")]
+    pub shadow_mask: Option<PathBuf>,
     /// Camera samples per pixel, at most (default 64).
     #[arg(long)]
     pub spp: Option<u32>,
@@ -740,6 +745,15 @@ pub(crate) struct CompareArgs {
     /// PFM) by decoding the PNG to linear; without it such a pair is refused.
     #[arg(long)]
     pub convert: bool,
+    /// Also split the luminance error at a mask image of the same size (pixels above one half
+    /// are in it), e.g. `truth --shadow-mask`: RMSE inside and outside and their ratio.
+    #[arg(long, value_name = "FILE")]
+    pub mask: Option<PathBuf>,
+    /// With --mask: a second, independent estimate of the reference (`truth` at another
+    /// `--seed`); the split is then also given free of the references' noise, from the product
+    /// of the two differences (docs/metrics.md).
+    #[arg(long, value_name = "FILE")]
+    pub second_reference: Option<PathBuf>,
 }
 
 /// The scenes `generate` makes.

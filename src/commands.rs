@@ -595,6 +595,8 @@ pub(crate) fn compare(settings: &Settings, args: CompareArgs) -> anyhow::Result<
         max_distance: args.max_distance,
         max_distance_per_pixel: args.max_distance_per_pixel,
         convert: args.convert,
+        mask: args.mask.clone(),
+        second_reference: args.second_reference.clone(),
     };
     let report = run_compare(&req, settings.limit)?;
     if let (Some(path), Some(d)) = (&args.diff, &report.pixels) {
@@ -639,6 +641,7 @@ pub(crate) fn truth(settings: &Settings, args: TruthArgs) -> anyhow::Result<()> 
         input: args.input,
         output: args.output,
         json: args.json,
+        shadow_mask: args.shadow_mask,
         spp: args.spp,
         width: args.width,
         height: args.height,
@@ -686,6 +689,13 @@ pub(crate) fn truth(settings: &Settings, args: TruthArgs) -> anyhow::Result<()> 
             "truth polygons: {} polygons, largest relative standard error {:.3} %, {seconds:.1} s",
             report.polygons.len(),
             100.0 * report.largest_relative_error()
+        ));
+    }
+    if let Some((on_boundary, near, seconds)) = outcome.shadows {
+        note(&format!(
+            "shadow mask: {on_boundary} pixels on a shadow boundary, {near} within {} of one, \
+             {seconds:.1} s",
+            metric::edges::EDGE_RADIUS
         ));
     }
     Ok(())

@@ -154,6 +154,10 @@ fn truth_refuses_bad_requests_with_exit_2() {
         (vec!["truth", scene, "-o", out, "--spp", "1"], "--spp 1"),
         (vec!["truth", scene, "-o", "x.png"], "name it .exr"),
         (
+            vec!["truth", scene, "--shadow-mask", "x.png"],
+            "--shadow-mask x.png",
+        ),
+        (
             vec!["truth", scene, "--json", json, "--strata", "0"],
             "--strata 0",
         ),
@@ -179,4 +183,110 @@ fn truth_refuses_bad_requests_with_exit_2() {
         assert!(stderr(&o).contains(says), "{args:?}: {}", stderr(&o));
         assert!(!stderr(&o).contains("panicked"), "{}", stderr(&o));
     }
+}
+
+/// `truth --shadow-mask` marks the pixels near the Cornell box's shadow boundaries (its boxes
+/// shadow the floor and each other under the ceiling light), and `compare --mask` splits an
+/// image's error at them: the pixels it counts are the mask's, and a mask of another size is
+/// refused naming it.
+#[test]
+fn the_shadow_mask_marks_shadows_and_compare_splits_at_it() {
+    let mask = tmp("cornell-mask.exr");
+    let (a, b, c) = (
+        tmp("cornell-a.exr"),
+        tmp("cornell-b.exr"),
+        tmp("cornell-c.exr"),
+    );
+    for (seed, out) in [("1", &a), ("2", &b), ("3", &c)] {
+        let mut args = vec![
+            "truth",
+            "scenes/cornell-box.toml",
+            "-o",
+            out.to_str().unwrap(),
+        ];
+        args.extend([
+            "--spp", "4", "--width", "48", "--height", "48", "--seed", seed,
+        ]);
+        if seed == "1" {
+            args.extend(["--shadow-mask", mask.to_str().unwrap()]);
+        }
+        let o = run(&args);
+        assert!(o.status.success(), "{}", stderr(&o));
+    }
+    let m = image::open(&mask).expect("EXR decodes").to_rgb32f();
+    assert_eq!(m.dimensions(), (48, 48));
+    assert!(m.pixels().all(|p| p[0] == 0.0 || p[0] == 1.0));
+    let marked = m.pixels().filter(|p| p[0] == 1.0).count();
+    // Boxes on a floor under a light: some pixels, far from all of them.
+    assert!(
+        marked > 20 && marked < 48 * 48 / 2,
+        "{marked} pixels marked"
+    );
+    let json = tmp("cornell-masked.json");
+    let o = run(&[
+        "compare",
+        a.to_str().unwrap(),
+        b.to_str().unwrap(),
+        "--mask",
+        mask.to_str().unwrap(),
+        "--second-reference",
+        c.to_str().unwrap(),
+        "--json",
+        json.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    assert_eq!(v["masked"]["near_pixels"], marked);
+    let (inside, outside) = (
+        v["masked"]["rmse_near"].as_f64().unwrap(),
+        v["masked"]["rmse_far"].as_f64().unwrap(),
+    );
+    assert!(inside > 0.0 && outside > 0.0, "{v}");
+    assert_eq!(v["masked"]["ratio"].as_f64().unwrap(), inside / outside);
+    // Three truths of one scene at three seeds, each as noisy as the others: against two
+    // references the squared difference of `a` is its own variance plus one reference's, the
+    // product of its two differences its own variance alone, half as much.
+    let cross = &v["masked"]["cross"];
+    assert_eq!(cross["near_pixels"], marked);
+    let (cf, se) = (
+        cross["rmse_far"].as_f64().unwrap(),
+        cross["squared_se_far"].as_f64().unwrap(),
+    );
+    let half = 0.5 * outside * outside;
+    assert!(
+        (cf * cf - half).abs() <= 5.0 * se + 0.1 * half,
+        "{cross}: {} against {half}",
+        cf * cf
+    );
+    let o = run(&[
+        "compare",
+        a.to_str().unwrap(),
+        b.to_str().unwrap(),
+        "--second-reference",
+        c.to_str().unwrap(),
+    ]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(stderr(&o).contains("--mask"), "{}", stderr(&o));
+    let small = tmp("small.exr");
+    let o = run(&[
+        "truth",
+        "scenes/cornell-box.toml",
+        "--shadow-mask",
+        small.to_str().unwrap(),
+        "--width",
+        "8",
+        "--height",
+        "8",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let o = run(&[
+        "compare",
+        a.to_str().unwrap(),
+        b.to_str().unwrap(),
+        "--mask",
+        small.to_str().unwrap(),
+    ]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(stderr(&o).contains("small.exr") && stderr(&o).contains("8 x 8"));
 }

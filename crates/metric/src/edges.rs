@@ -89,9 +89,14 @@ pub fn dilate(marked: &[bool], w: usize, h: usize, radius: usize) -> Vec<bool> {
 
 /// The error of luminances `ya` against the reference's `yb` split at `yb`'s sharp edges.
 pub fn edge_split(ya: &[f64], yb: &[f64], w: usize, h: usize) -> EdgeSplit {
-    let near = near_edges(yb, w, h);
+    split_at(ya, yb, &near_edges(yb, w, h))
+}
+
+/// The error of luminances `ya` against `yb` split at the pixels `near` marks (any mask of the
+/// same length: near sharp edges, near shadow boundaries).
+pub fn split_at(ya: &[f64], yb: &[f64], near: &[bool]) -> EdgeSplit {
     let (mut sq_near, mut sq_far, mut n_near) = (0.0f64, 0.0f64, 0usize);
-    for ((p, q), &m) in ya.iter().zip(yb).zip(&near) {
+    for ((p, q), &m) in ya.iter().zip(yb).zip(near) {
         let d = (p - q) * (p - q);
         if m {
             sq_near += d;
@@ -115,6 +120,64 @@ pub fn edge_split(ya: &[f64], yb: &[f64], w: usize, h: usize) -> EdgeSplit {
         } else {
             0.0
         },
+    }
+}
+
+/// The error of luminances `ya` against a reference known only through two independent noisy
+/// estimates `yb1` and `yb2` (two path-traced images at different seeds), split at `near`.
+///
+/// The mean of `(Y_a - Y_b1) (Y_a - Y_b2)` over a set of pixels is an unbiased estimate of the
+/// mean squared error against the noise-free reference: the two noises are independent with
+/// mean zero, so their product and their cross terms with the error vanish in expectation,
+/// where `(Y_a - Y_b1)^2` would add the reference's variance. Its standard error comes from the
+/// products' spread. The RMSEs are the square roots of the estimates, clamped at 0 (noise can
+/// make an estimate of a small error negative).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct CrossSplit {
+    /// Pixels in the set.
+    pub near_pixels: usize,
+    /// RMSE estimate in the set.
+    pub rmse_near: f64,
+    /// RMSE estimate outside the set.
+    pub rmse_far: f64,
+    /// Standard error of the mean squared error whose root `rmse_near` is.
+    pub squared_se_near: f64,
+    /// Standard error of the mean squared error whose root `rmse_far` is.
+    pub squared_se_far: f64,
+}
+
+/// [`CrossSplit`] of `ya` against the reference estimates `yb1` and `yb2`, split at `near`.
+pub fn cross_split_at(ya: &[f64], yb1: &[f64], yb2: &[f64], near: &[bool]) -> CrossSplit {
+    // Per side: count, sum and sum of squares of the products.
+    let mut acc = [(0usize, 0.0f64, 0.0f64); 2];
+    for (((a, b1), b2), &m) in ya.iter().zip(yb1).zip(yb2).zip(near) {
+        let q = (a - b1) * (a - b2);
+        let side = &mut acc[usize::from(!m)];
+        side.0 += 1;
+        side.1 += q;
+        side.2 += q * q;
+    }
+    let stats = |(n, sum, sq): (usize, f64, f64)| {
+        if n == 0 {
+            return (0.0, 0.0);
+        }
+        let nf = n as f64;
+        let mean = sum / nf;
+        let var = if n > 1 {
+            ((sq - sum * mean) / (nf - 1.0)).max(0.0)
+        } else {
+            0.0
+        };
+        (mean.max(0.0).sqrt(), (var / nf).sqrt())
+    };
+    let (near_rmse, near_se) = stats(acc[0]);
+    let (far_rmse, far_se) = stats(acc[1]);
+    CrossSplit {
+        near_pixels: acc[0].0,
+        rmse_near: near_rmse,
+        rmse_far: far_rmse,
+        squared_se_near: near_se,
+        squared_se_far: far_se,
     }
 }
 
@@ -158,5 +221,33 @@ mod tests {
         assert!(near_edges(&yb, 5, 1).iter().all(|&n| !n));
         let s = edge_split(&yb, &yb, 5, 1);
         assert_eq!((s.near_share, s.rmse_near, s.rmse_far), (0.0, 0.0, 0.0));
+    }
+
+    /// Two noisy references of a known image: the cross estimate recovers an error the noise
+    /// hides. The reference is 1 everywhere, the image 1.01 inside the mask (an error of 0.01)
+    /// and exact outside; the references carry independent noise of +-0.05 (five times the
+    /// error). Squared against one reference, the noise swamps the error; the cross estimate
+    /// gives 0.01 inside and 0 outside, to its own standard errors.
+    #[test]
+    fn two_references_take_their_noise_out() {
+        let n = 80_000;
+        let mut rng = base::rng::Rng::new(7);
+        let mut noise = || 0.05 * (2.0 * rng.next_f64() - 1.0) * 3f64.sqrt();
+        let near: Vec<bool> = (0..n).map(|i| i % 4 == 0).collect();
+        let ya: Vec<f64> = near.iter().map(|&m| if m { 1.01 } else { 1.0 }).collect();
+        let yb1: Vec<f64> = (0..n).map(|_| 1.0 + noise()).collect();
+        let yb2: Vec<f64> = (0..n).map(|_| 1.0 + noise()).collect();
+        let single = split_at(&ya, &yb1, &near);
+        assert!(single.rmse_near > 0.04, "{single:?}");
+        let c = cross_split_at(&ya, &yb1, &yb2, &near);
+        assert_eq!(c.near_pixels, n / 4);
+        // 0.01^2 = 1e-4 inside, 0 outside, each within 4 standard errors.
+        let sq_near = c.rmse_near * c.rmse_near;
+        assert!((sq_near - 1e-4).abs() <= 4.0 * c.squared_se_near, "{c:?}");
+        assert!(c.rmse_far * c.rmse_far <= 4.0 * c.squared_se_far, "{c:?}");
+        assert!(
+            c.squared_se_near < 3e-5,
+            "the estimate resolves the error: {c:?}"
+        );
     }
 }

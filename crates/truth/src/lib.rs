@@ -36,6 +36,7 @@ mod lights;
 mod tracer;
 pub mod image;
 pub mod polygons;
+pub mod shadows;
 
 use base::error::{Error, Result};
 use scene::Scene;
@@ -43,6 +44,7 @@ use scene::Scene;
 pub use camera::{CameraRays, PixelFilter};
 pub use image::{render, TruthImage};
 pub use polygons::{polygons, PolygonEstimate};
+pub use shadows::{shadow_map, ShadowMap};
 
 /// Most camera samples per pixel accepted (far more than any run needs; bounds the run time of
 /// a mistyped option).

@@ -70,6 +70,11 @@ impl Lights {
         lights
     }
 
+    /// The emitting polygons, in polygon order.
+    pub(crate) fn emitters(&self) -> &[u32] {
+        &self.polygons
+    }
+
     /// The density with respect to area at which [`Lights::sample`] draws points of polygon
     /// `i` (0 if it does not emit).
     pub(crate) fn pdf_area(&self, i: u32) -> f64 {

@@ -193,6 +193,67 @@ impl<'a> Tracer<'a> {
         out
     }
 
+    /// The share of the direct irradiance at `x` on the front of polygon `p` that arrives
+    /// unblocked, in [0, 1], and `None` where no light reaches the point's plane at all.
+    ///
+    /// Deterministic: every spot light is one point, every area emitter is sampled at the
+    /// centres of a `grid` x `grid` lattice in its (u, v) parameters, each weighted by its
+    /// unblocked irradiance (the bilinear map's area element included). So a point sees
+    /// exactly 1 where no occluder hides any lattice point and exactly 0 where all are hidden:
+    /// a penumbra's edges are located to one lattice cell of the light.
+    pub(crate) fn unblocked_share(&self, p: u32, x: DVec3, grid: u32) -> Option<f64> {
+        let poly = &self.scene.polygons[p as usize];
+        let n = Normals {
+            face: poly.normal,
+            shading: poly.shading_normal(x),
+        };
+        let o = x + n.face * self.offset;
+        let (mut all, mut seen) = (0.0, 0.0);
+        let mut add = |w: f64, blocked: &dyn Fn() -> bool| {
+            if w > 0.0 && w.is_finite() {
+                all += w;
+                if !blocked() {
+                    seen += w;
+                }
+            }
+        };
+        for s in &self.scene.spots {
+            let d = s.position - o;
+            let r2 = d.length_squared();
+            let w = d / r2.sqrt();
+            let i = crate::luminance(s.intensity_towards(-w));
+            add(i * n.cos(w) / r2, &|| {
+                self.bvh.occluded(o, s.position, p, u32::MAX)
+            });
+        }
+        let step = 1.0 / grid as f64;
+        for &e in self.lights.emitters() {
+            if e == p {
+                continue;
+            }
+            let light = &self.scene.polygons[e as usize];
+            let radiance = crate::luminance(self.scene.material_of(e as usize).emission) / PI;
+            let [c0, c1, c2, c3] = light.corners;
+            for i in 0..grid {
+                for j in 0..grid {
+                    let (u, v) = ((i as f64 + 0.5) * step, (j as f64 + 0.5) * step);
+                    let y = light.point(u, v);
+                    let du = (1.0 - v) * (c1 - c0) + v * (c2 - c3);
+                    let dv = (1.0 - u) * (c3 - c0) + u * (c2 - c1);
+                    let area = du.cross(dv).length() * step * step;
+                    let d = y - o;
+                    let r2 = d.length_squared();
+                    let w = d / r2.sqrt();
+                    let cos_y = (-light.normal.dot(w)).max(0.0);
+                    add(radiance * n.cos(w) * cos_y * area / r2, &|| {
+                        self.bvh.occluded(o, y, p, e)
+                    });
+                }
+            }
+        }
+        (all > 0.0).then(|| (seen / all).clamp(0.0, 1.0))
+    }
+
     /// The spot lights' irradiance at `o` (normals `n`, on polygon `p`).
     fn spots(&self, p: u32, o: DVec3, n: Normals) -> DVec3 {
         let mut h = DVec3::ZERO;

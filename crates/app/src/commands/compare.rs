@@ -57,6 +57,13 @@ pub struct CompareRequest {
     pub max_distance_per_pixel: Option<f64>,
     /// Compare a PNG with a linear float image, decoding the PNG from sRGB to linear.
     pub convert: bool,
+    /// A mask image of the same size (`truth --shadow-mask`): the luminance error is also split
+    /// at the pixels whose mask luminance is above one half.
+    pub mask: Option<PathBuf>,
+    /// A second, independent estimate of the reference (a path tracer's image at another
+    /// seed): the masked split then also estimates the error free of the references' noise
+    /// ([`metric::edges::cross_split_at`]). Needs `mask`.
+    pub second_reference: Option<PathBuf>,
 }
 
 impl CompareRequest {
@@ -129,10 +136,59 @@ pub struct CompareReport {
     pub metrics: Option<Comparison>,
     /// The pixel-by-pixel check, when asked (`--tolerance`).
     pub pixels: Option<PixelDiff>,
+    /// The luminance error split at the mask's pixels, when asked (`--mask`).
+    pub masked: Option<MaskedSplit>,
     /// The checks, in the order pixels, distance, distance per pixel.
     pub checks: Vec<Check>,
     /// Every check passed (true when there are none).
     pub passed: bool,
+}
+
+/// The luminance error of `a` against `b` inside a mask and outside it.
+#[derive(Debug, Clone, Serialize)]
+pub struct MaskedSplit {
+    /// The mask file.
+    pub mask: String,
+    /// The split: `near_*` inside the mask, `rmse_far` outside it.
+    #[serde(flatten)]
+    pub split: metric::edges::EdgeSplit,
+    /// RMSE inside over RMSE outside (`None` when the outside's is 0).
+    pub ratio: Option<f64>,
+    /// With a second reference: the split of the error free of the references' noise.
+    pub cross: Option<metric::edges::CrossSplit>,
+    /// Its RMSE inside over outside (`None` when the outside's is 0).
+    pub cross_ratio: Option<f64>,
+}
+
+impl MaskedSplit {
+    /// One line for the terminal.
+    pub fn line(&self) -> String {
+        let e = &self.split;
+        let show = |r: Option<f64>| r.map_or("-".to_string(), |r| format!("{r:.3}"));
+        let mut s = format!(
+            "in mask {}: {:.1} % of squared error on {} px (rmse {:.6e} in, {:.6e} out, ratio {})\n",
+            self.mask,
+            100.0 * e.near_share,
+            e.near_pixels,
+            e.rmse_near,
+            e.rmse_far,
+            show(self.ratio)
+        );
+        if let Some(c) = &self.cross {
+            s += &format!(
+                "  noise taken out (two references): rmse {:.6e} in, {:.6e} out, ratio {} \
+                 (squared errors {:.3e} +- {:.1e} in, {:.3e} +- {:.1e} out)\n",
+                c.rmse_near,
+                c.rmse_far,
+                show(self.cross_ratio),
+                c.rmse_near * c.rmse_near,
+                c.squared_se_near,
+                c.rmse_far * c.rmse_far,
+                c.squared_se_far
+            );
+        }
+        s
+    }
 }
 
 impl CompareReport {
@@ -158,6 +214,9 @@ impl CompareReport {
         if let Some(m) = &self.metrics {
             s += &m.table();
         }
+        if let Some(m) = &self.masked {
+            s += &m.line();
+        }
         for c in &self.checks {
             let verdict = if c.passed { "passed" } else { "FAILED" };
             s += &format!("check {verdict}: {}\n", c.describe());
@@ -180,6 +239,13 @@ fn non_negative(option: &str, value: f64, most: f64) -> Result<()> {
 
 /// Checks every option of `req` that needs no file.
 fn check_options(req: &CompareRequest) -> Result<()> {
+    if req.second_reference.is_some() && req.mask.is_none() {
+        return Err(Error::invalid_option(
+            "second-reference",
+            "",
+            "splits the error at a mask: give `mask` mask.exr too",
+        ));
+    }
     non_negative("fail-percent", req.fail_percent, 100.0)?;
     if let Some(d) = req.max_distance {
         non_negative("max-distance", d, f64::MAX)?;
@@ -294,6 +360,20 @@ pub fn run_compare(req: &CompareRequest, limit: u64) -> Result<CompareReport> {
     let ia = imageio::read_image_up_to(&req.a, most)?;
     let ib = imageio::read_image_up_to(&req.b, most)?;
     sizes_agree(&req.a, &req.b, (ia.width, ia.height), (ib.width, ib.height))?;
+    let masked = match &req.mask {
+        Some(path) => {
+            let second = match &req.second_reference {
+                Some(p2) => {
+                    let i2 = imageio::read_image_up_to(p2, most)?;
+                    sizes_agree(&req.b, p2, (ib.width, ib.height), (i2.width, i2.height))?;
+                    Some(i2)
+                }
+                None => None,
+            };
+            Some(masked_split(path, &ia, &ib, second.as_ref(), most)?)
+        }
+        None => None,
+    };
     let mut checks = Vec::new();
     let pixels = match req.tolerance {
         Some(tolerance) => {
@@ -330,8 +410,43 @@ pub fn run_compare(req: &CompareRequest, limit: u64) -> Result<CompareReport> {
         converted,
         metrics,
         pixels,
+        masked,
         passed: checks.iter().all(|c| c.passed),
         checks,
+    })
+}
+
+/// The luminance error of `ia` against `ib` split at the mask image `path` (pixels whose
+/// luminance is above one half are in it); the mask must have the images' size.
+fn masked_split(
+    path: &Path,
+    ia: &LinearImage,
+    ib: &LinearImage,
+    ib2: Option<&LinearImage>,
+    most: u64,
+) -> Result<MaskedSplit> {
+    let mask = imageio::read_image_up_to(path, most)?;
+    if (mask.width, mask.height) != (ia.width, ia.height) {
+        return Err(Error::input(
+            Location::file(path),
+            format!(
+                "the mask is {} x {}, the images {} x {}",
+                mask.width, mask.height, ia.width, ia.height
+            ),
+        ));
+    }
+    let inside: Vec<bool> = mask.luminance().iter().map(|&y| y > 0.5).collect();
+    let (ya, yb) = (ia.luminance(), ib.luminance());
+    let split = metric::edges::split_at(&ya, &yb, &inside);
+    let cross = ib2.map(|i2| metric::edges::cross_split_at(&ya, &yb, &i2.luminance(), &inside));
+    Ok(MaskedSplit {
+        mask: path.display().to_string(),
+        split,
+        ratio: (split.rmse_far > 0.0).then(|| split.rmse_near / split.rmse_far),
+        cross,
+        cross_ratio: cross
+            .filter(|c| c.rmse_far > 0.0)
+            .map(|c| c.rmse_near / c.rmse_far),
     })
 }
 

@@ -18,11 +18,12 @@
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-use glam::DVec3;
+use glam::{DVec3, Vec3};
 use serde::Serialize;
 
 use crate::context::Context;
 use base::error::{Error, Result};
+use base::image::LinearImage;
 use base::method::Aa;
 use scene::Scene;
 use truth::{PixelFilter, PolygonEstimate, TruthImage, TruthOptions};
@@ -40,6 +41,9 @@ pub struct TruthRequest {
     /// JSON of the per-polygon estimates (`--json`); `-`: none written, the caller prints the
     /// report. `None`: no per-polygon run.
     pub json: Option<PathBuf>,
+    /// OpenEXR of the pixels near a shadow boundary (`--shadow-mask`, [`truth::shadows`]): 1
+    /// within [`metric::edges::EDGE_RADIUS`] pixels of one, 0 elsewhere; for `compare --mask`.
+    pub shadow_mask: Option<PathBuf>,
     /// Samples per pixel, at most (default 64).
     pub spp: Option<u32>,
     /// Image width (default: the scene's).
@@ -80,6 +84,8 @@ pub struct TruthPlan {
     pub image: Option<(PathBuf, PathBuf)>,
     /// The per-polygon JSON, if asked for.
     pub json: Option<PathBuf>,
+    /// The shadow-boundary mask, if asked for.
+    pub shadow_mask: Option<PathBuf>,
 }
 
 impl TruthPlan {
@@ -87,11 +93,12 @@ impl TruthPlan {
     /// least 2 samples per pixel (a standard error needs two), every option in range, no output
     /// replacing an input or another output, and the memory estimate under the job's limit.
     pub fn new(ctx: &Context<'_>, req: &TruthRequest, scene: &Scene) -> Result<TruthPlan> {
-        if req.output.is_none() && req.json.is_none() {
+        if req.output.is_none() && req.json.is_none() && req.shadow_mask.is_none() {
             return Err(Error::invalid_option(
                 "output",
                 "",
-                "give `output` out.exr for the image, `json` out.json for the polygons, or both",
+                "give `output` out.exr for the image, `json` out.json for the polygons, \
+                 `shadow-mask` mask.exr for the shadow boundaries, or any of them",
             ));
         }
         if req.compare_solver && req.json.is_none() {
@@ -121,15 +128,16 @@ impl TruthPlan {
                 "a pixel's standard error needs at least 2 samples",
             ));
         }
-        if let Some(out) = &req.output {
+        for (option, out) in [("output", &req.output), ("shadow-mask", &req.shadow_mask)] {
+            let Some(out) = out else { continue };
             let exr = out
                 .extension()
                 .is_some_and(|e| e.eq_ignore_ascii_case("exr"));
             if !exr {
                 return Err(Error::invalid_option(
-                    "output",
+                    option,
                     out.display().to_string(),
-                    "the truth image is OpenEXR: name it .exr",
+                    "the truth's images are OpenEXR: name it .exr",
                 ));
             }
         }
@@ -138,6 +146,7 @@ impl TruthPlan {
             options,
             image,
             json: req.json.clone(),
+            shadow_mask: req.shadow_mask.clone(),
         };
         plan.check_outputs(req, scene)?;
         plan.memory(scene).check(ctx.memory_limit)?;
@@ -154,6 +163,7 @@ impl TruthPlan {
         }
         let file = self.json.as_deref().filter(|j| *j != Path::new("-"));
         outputs.extend(file.map(|j| ("json", j)));
+        outputs.extend(self.shadow_mask.as_deref().map(|m| ("shadow-mask", m)));
         base::output::check_outputs(&inputs, &outputs)?;
         if let Some(j) = file {
             crate::commands::render::check_extension(
@@ -175,9 +185,12 @@ impl TruthPlan {
         );
         let polygons = scene.polygons.len() as u64;
         e.add("scene and BVH", polygons.saturating_mul(600));
+        let pixels = self.options.width as u64 * self.options.height as u64;
         if self.image.is_some() {
-            let pixels = self.options.width as u64 * self.options.height as u64;
             e.add("pixel sums and images", pixels.saturating_mul(56 + 4 * 12));
+        }
+        if self.shadow_mask.is_some() {
+            e.add("shadow map and mask", pixels.saturating_mul(80));
         }
         if self.json.is_some() {
             let cells = (self.options.strata * self.options.strata) as u64;
@@ -203,6 +216,9 @@ pub struct TruthOutcome {
     pub image: Option<(TruthImage, f64)>,
     /// The per-polygon report, and the seconds it took.
     pub polygons: Option<(PolygonReport, f64)>,
+    /// Pixels on a shadow boundary and pixels near one (the mask's), and the seconds the map
+    /// took.
+    pub shadows: Option<(usize, usize, f64)>,
 }
 
 /// Runs a truth job: load, plan and check, then the image and the polygons, then all files in
@@ -233,6 +249,7 @@ pub fn run_truth(
     let mut outcome = TruthOutcome {
         image: None,
         polygons: None,
+        shadows: None,
     };
     if let Some((mean, se)) = &plan.image {
         let t = Instant::now();
@@ -259,11 +276,38 @@ pub fn run_truth(
         }
         outcome.polygons = Some((report, seconds));
     }
+    if let Some(path) = &plan.shadow_mask {
+        let t = Instant::now();
+        let (on_boundary, mask) = shadow_mask(scene, &plan.options)?;
+        let near = mask.pixels.iter().filter(|p| p.x > 0.0).count();
+        batch.stage(path, &imageio::encode_exr(mask.view())?)?;
+        staged.push(path);
+        outcome.shadows = Some((on_boundary, near, t.elapsed().as_secs_f64()));
+    }
     batch.commit()?;
     for path in staged {
         on(TruthEvent::Wrote(path));
     }
     Ok(outcome)
+}
+
+/// The shadow boundaries of the camera's view ([`truth::shadow_map`]) at the run's image size,
+/// and the mask of the pixels within [`metric::edges::EDGE_RADIUS`] of them (1, else 0): the
+/// pixels `compare --mask` splits an image's error at.
+fn shadow_mask(scene: &Scene, options: &TruthOptions) -> Result<(usize, LinearImage)> {
+    let map = truth::shadow_map(scene, options.width, options.height)?;
+    let (w, h) = (options.width as usize, options.height as usize);
+    let near = metric::edges::dilate(&map.boundary, w, h, metric::edges::EDGE_RADIUS);
+    let pixels = near
+        .iter()
+        .map(|&n| Vec3::splat(if n { 1.0 } else { 0.0 }))
+        .collect();
+    let mask = LinearImage {
+        width: options.width,
+        height: options.height,
+        pixels,
+    };
+    Ok((map.boundary_pixels(), mask))
 }
 
 /// The `--json` file: the run's settings and every polygon's estimates.
