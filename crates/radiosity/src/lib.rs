@@ -56,6 +56,7 @@ mod visible;
 pub mod sizes {
     pub use crate::shoot::{
         depth_bound, min_element_size, state_bytes, COARSE_CACHE_ENTRIES, DIVE_NODES,
+        SHADOW_EDGE_LEVELS,
     };
     pub use crate::transfer::{pair_table_bound, patch_depth, EDGE_INSET, PAIR_BYTES};
 }

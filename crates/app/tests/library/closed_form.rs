@@ -287,6 +287,10 @@ fn an_rgb_furnace_converges_in_every_channel() {
     }
 }
 
+/// A spot's hard shadow is a step at any depth: the leaves its edge crosses split to the depth
+/// limit and no further (the reconstruction draws the step exactly from the spot's own light,
+/// `reconstruction::sharp`; only area lights' shadow edges split past it); and what is drawn
+/// beside it never rings below zero.
 #[test]
 fn a_sharp_shadow_is_refined_to_the_depth_limit_and_never_negative() {
     let floor = rect(-2.0, 2.0, -2.0, 2.0, 0.0, DVec3::Z, 0);

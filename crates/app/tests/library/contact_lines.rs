@@ -335,13 +335,52 @@ fn exact_floor(x: DVec3, light: [DVec2; 4], h: f64, lo: DVec3, hi: DVec3) -> (f6
 /// within 2 % of the exact width.
 #[test]
 fn a_box_penumbra_under_an_area_light_matches_exact_clipping() {
+    for drawn in penumbra(DVec2::new(0.3, 0.2)) {
+        within_a_percent(drawn);
+    }
+}
+
+/// The same box under a light a fifth the size: the penumbra (6.85 cm from 10 % to 90 %) is
+/// three of the floor's smallest elements at the default depth wide, and its edges are kinks
+/// the C1 patches round off over an element. What broke: the direct method read 4.2 % of the
+/// unshadowed value off at the penumbra's edges (the mesh 7.0 %), and within 2 px of a
+/// furnished room's shadow boundaries its error was 1.9 times that elsewhere. The leaves a
+/// shadow's edge crosses now split two levels past the guards: the direct method and the
+/// solution within 1 %, the penumbra's width within 2 %.
+#[test]
+fn a_narrow_penumbras_edges_are_followed_past_the_guards() {
+    for drawn in penumbra(DVec2::new(0.06, 0.04)) {
+        if matches!(drawn.0, Method::Direct | Method::Reference) {
+            within_a_percent(drawn);
+        }
+    }
+}
+
+/// A method's penumbra (method, largest error relative to the unshadowed light, drawn width,
+/// exact width): within 1 % of the unshadowed light everywhere, its width within 2 %.
+fn within_a_percent((method, worst, w, exact): (Method, f64, f64, f64)) {
+    assert!(
+        worst <= 0.01,
+        "{method:?}: {worst} of the unshadowed value off"
+    );
+    assert!(
+        (w - exact).abs() <= 0.02 * exact,
+        "{method:?}: penumbra {w} wide, exactly {exact}"
+    );
+}
+
+/// The floating box's penumbra under a light of half-size `half` (x, z) at height 1.2, along
+/// a row of 400 pixels from the box's edge across the penumbra: per method, the largest error
+/// against the exact clipping relative to the unshadowed value, the drawn penumbra's width
+/// (from 10 % to 90 % of the unshadowed value) and the exact width.
+fn penumbra(half: DVec2) -> Vec<(Method, f64, f64, f64)> {
     let (lo, hi) = (DVec3::new(-0.4, 0.1, -0.4), DVec3::new(0.4, 0.5, 0.4));
     let h = 1.2;
     let light = [
-        DVec2::new(-0.3, -0.2),
-        DVec2::new(-0.3, 0.2),
-        DVec2::new(0.3, 0.2),
-        DVec2::new(0.3, -0.2),
+        DVec2::new(-half.x, -half.y),
+        DVec2::new(-half.x, half.y),
+        DVec2::new(half.x, half.y),
+        DVec2::new(half.x, -half.y),
     ];
     // Counter-clockwise in (x, z) as `clip` wants; `hull` returns the shadow the same way.
     let light = if (light[1] - light[0]).perp_dot(light[2] - light[1]) > 0.0 {
@@ -366,15 +405,15 @@ fn a_box_penumbra_under_an_area_light_matches_exact_clipping() {
     text += &quad(
         "light",
         [
-            [-0.3, h, -0.2],
-            [0.3, h, -0.2],
-            [0.3, h, 0.2],
-            [-0.3, h, 0.2],
+            [-half.x, h, -half.y],
+            [half.x, h, -half.y],
+            [half.x, h, half.y],
+            [-half.x, h, half.y],
         ],
     );
     let p = prepared(&text);
     // Pixel (i, j) sees the floor at x = 0.4 + (i + 0.5) 2 mm, z = -0.004 + (j + 0.5) 2 mm: from
-    // the box's edge (umbra to x = 0.48) across the penumbra (lit from x = 0.9) to x = 1.2.
+    // the box's edge across the penumbra to x = 1.2.
     let at = |i: usize, j: usize| {
         DVec3::new(
             0.4 + (i as f64 + 0.5) * 0.002,
@@ -398,7 +437,8 @@ fn a_box_penumbra_under_an_area_light_matches_exact_clipping() {
         cross(0.9) - cross(0.1)
     };
     let exact_width = width(&|i| exact[i].0);
-    assert!(exact_width > 0.1, "the penumbra is wide: {exact_width}");
+    assert!(exact_width > 0.05, "the penumbra is seen: {exact_width}");
+    let mut out = Vec::new();
     for method in METHODS {
         let img = image(&p, method, 400, 4);
         let mut worst = 0.0f64;
@@ -406,20 +446,16 @@ fn a_box_penumbra_under_an_area_light_matches_exact_clipping() {
             let (want, open) = exact[i];
             worst = worst.max((img[400 + i] - want).abs() / open);
         }
-        assert!(
-            worst <= 0.01,
-            "{method:?}: {worst} of the unshadowed value off"
-        );
         let w = width(&|i| img[400 + i]);
         eprintln!(
-            "penumbra {method:?}: largest error {worst:.2e} of the unshadowed value, width {w:.4} \
-             (exact {exact_width:.4})"
+            "penumbra of a {:.2} x {:.2} light, {method:?}: largest error {worst:.2e} of the \
+             unshadowed value, width {w:.4} (exact {exact_width:.4})",
+            2.0 * half.x,
+            2.0 * half.y
         );
-        assert!(
-            (w - exact_width).abs() <= 0.02 * exact_width,
-            "{method:?}: penumbra {w} wide, exactly {exact_width}"
-        );
+        out.push((method, worst, w, exact_width));
     }
+    out
 }
 
 /// Luminance of every pixel of every method's image of `p` at `w` x `h`, reference first.

@@ -101,7 +101,7 @@ use base::error::{Error, Result};
 use base::progress::Stage;
 use base::quadtree::{Quadtree, VertexKey};
 pub(crate) use refine::LIGHT_DEPTH_FACTOR;
-pub use refine::{depth_bound, min_element_size, DIVE_NODES};
+pub use refine::{depth_bound, min_element_size, DIVE_NODES, SHADOW_EDGE_LEVELS};
 use scene::Scene;
 pub use shot::COARSE_CACHE_ENTRIES;
 #[cfg(test)]

@@ -116,8 +116,8 @@ fn observer_sees_progress_and_only_requested_traces() {
 }
 
 /// The memory guard stops a solve whose refinement would pass the limit, with an error that
-/// carries the estimate; a limit the solve fits in changes nothing; and no leaf ever goes deeper
-/// than the depth bound the budget's worst case assumes.
+/// carries the estimate; a limit the solve fits in changes nothing; and no leaf goes deeper than
+/// the depth bound the budget's worst case assumes but by the dives it counts apart.
 #[test]
 fn memory_limit_stops_refinement_and_depth_bound_holds() {
     let (s, sol) = cornell_solution();
@@ -158,10 +158,15 @@ fn memory_limit_stops_refinement_and_depth_bound_holds() {
             .max()
             .unwrap_or(0);
         let start = s.radiosity.min_depth.max(2);
+        let bound = shoot::depth_bound(s, r, min_size).max(start);
+        // Past it only the leaves a shadow's edge crosses (the box's contact shadows), by at
+        // most their levels and within the nodes the budget adds for dives.
         assert!(
-            deepest <= shoot::depth_bound(s, r, min_size).max(start),
+            deepest <= bound + shoot::SHADOW_EDGE_LEVELS,
             "polygon {r}: depth {deepest} past the bound"
         );
+        let past = p.tree.nodes().iter().filter(|n| n.cell.level > bound);
+        assert!(past.count() as u64 <= shoot::DIVE_NODES, "polygon {r}");
     }
 }
 
