@@ -37,6 +37,21 @@ fn check_valid_scene_prints_summary_and_exits_0() {
     assert!(text(&out.stderr).is_empty());
 }
 
+/// The furnished rooms docs/accuracy.md measures load: 320 x 240, one emitter, the floor and
+/// walls cut along the furniture's feet.
+#[test]
+fn check_accepts_the_furnished_rooms_of_the_accuracy_page() {
+    for room in ["furnished-room", "furnished-room-small-light"] {
+        let path = format!("scenes/accuracy/{room}.toml");
+        let out = run(&["check", &path]);
+        assert_eq!(out.status.code(), Some(0), "{}", text(&out.stderr));
+        let stdout = text(&out.stdout);
+        assert!(stdout.contains("image           320 x 240"), "{stdout}");
+        assert!(stdout.contains("emitters        1 polygons"), "{stdout}");
+        assert!(stdout.contains("contact lines   46"), "{stdout}");
+    }
+}
+
 #[test]
 fn check_cornell_lists_its_repairs_as_notes_and_exits_0() {
     let out = run(&["check", "scenes/cornell-box.toml"]);

@@ -227,7 +227,7 @@ struct Excess {
     smooth: f64,
     between: f64,
     shadow: f64,
-    /// The part of `shadow` from lights whose shadow's edge crosses the leaf (see
+    /// The part of `shadow` from area emitters whose shadow's edge crosses the leaf (see
     /// [`shadow_step`]): such a leaf may split past the guards ([`SHADOW_EDGE_LEVELS`]).
     edge: f64,
     peak: f64,
@@ -617,8 +617,6 @@ impl<'r, 't> Refinement<'r, 't> {
         self.scene.radiosity.min_depth >= self.scene.radiosity.max_depth
     }
 
-    /// Whether splitting leaf `cell` of polygon `r` would pass its guard depth with the
-    /// polygon's [`DIVE_NODES`] already spent.
     /// Whether leaf `cell` of polygon `r`, which a shadow's edge crosses, may split past the
     /// guards: up to [`SHADOW_EDGE_LEVELS`] below its guard depth, within the polygon's
     /// [`DIVE_NODES`], unless the scene asks for uniform trees.
@@ -631,6 +629,8 @@ impl<'r, 't> Refinement<'r, 't> {
             && !self.dive_spent(r, cell)
     }
 
+    /// Whether splitting leaf `cell` of polygon `r` would pass its guard depth with the
+    /// polygon's [`DIVE_NODES`] already spent.
     fn dive_spent(&self, r: usize, cell: Cell) -> bool {
         let (bound, below) = self.dives[r];
         cell.level >= bound && below >= DIVE_NODES
