@@ -812,8 +812,10 @@ fn parse_tolerance(text: &str) -> Result<f32, String> {
 /// Options of the texture methods (ignored by the others).
 #[derive(clap::Args, Debug, Clone)]
 pub(crate) struct TextureArgs {
-    /// Texture methods: one texture side for every polygon, a power of two (default: the
-    /// scene's `[render] texture_size`; 0 there = per polygon from its quadtree depth).
+    /// Texture methods: one texture side for every polygon, a power of two: the side along the
+    /// polygon's longer axis, the other in the ratio of the quad's sides (texels about square
+    /// in the scene; triangles square) (default: the scene's `[render] texture_size`; 0 there
+    /// = per polygon from its quadtree depth).
     #[arg(long)]
     texture_size: Option<u32>,
     /// Texture methods: a texture memory budget (12 bits per channel, mip chains included):

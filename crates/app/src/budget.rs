@@ -29,7 +29,7 @@
 //!   ([`radiosity::SolveOptions::memory_limit`]): its actual trees and pair tables,
 //!   candidates included, are checked before every refinement pass and every new pair table,
 //!   and it stops with [`Error::Memory`] before it would pass the limit.
-//! - **textures**: every polygon's side under the size policy ([`TextureSet::sides`]), 32-bit
+//! - **textures**: every polygon's size under the size policy ([`TextureSet::sizes`]), 32-bit
 //!   texels with mip chains, plus the expanded RRPs they are resampled from, checked before they
 //!   are built, with what is held already (solution and compact RRPs);
 //! - **mesh**: at most two triangles per leaf plus one per T-vertex, each with its vertices,
@@ -53,7 +53,7 @@
 use base::error::{human_bytes, Error, Result};
 use engine::raster::gbuffer::PIXEL_RECORD_BYTES;
 use radiosity::sizes;
-use reconstruction::texture::{SizePolicy, TextureMemory, TextureSet, GUTTER};
+use reconstruction::texture::{Extent, SizePolicy, TextureMemory, TextureSet, GUTTER};
 use reconstruction::PatchCoeffs;
 use scene::Scene;
 
@@ -352,7 +352,15 @@ pub(crate) fn worst_method_bytes(scene: &Scene, policy: SizePolicy) -> Result<(u
         nodes = nodes.saturating_add(n);
         leaves = leaves.saturating_add(1u64 << (2 * d.min(30)));
     }
-    let textures = texture_bytes(&depths, policy, leaves, nodes)?;
+    let extents: Vec<Extent> = depths
+        .iter()
+        .zip(&scene.polygons)
+        .map(|(&depth, p)| Extent {
+            depth,
+            aspect: Extent::aspect_of(p),
+        })
+        .collect();
+    let textures = texture_bytes(&extents, policy, leaves, nodes)?;
     Ok((textures, mesh_bytes(leaves, 0)))
 }
 
@@ -392,16 +400,21 @@ pub(crate) fn output_bytes(width: u32, height: u32, png: bool, exr: bool) -> u64
     pixels.saturating_mul(2 * per + 4)
 }
 
-/// Bytes of the radiosity textures under `policy` for quadtrees of the given `depths` (32-bit
+/// Bytes of the radiosity textures under `policy` for polygons of the given `extents` (32-bit
 /// texels with mip chains, as they are held), plus the expanded RRPs with `leaves` leaves and
 /// `nodes` nodes they are resampled from.
-pub fn texture_bytes(depths: &[u32], policy: SizePolicy, leaves: u64, nodes: u64) -> Result<u64> {
-    let sides = TextureSet::sides(depths, policy)?;
-    let m = TextureMemory::of_sides(&sides, GUTTER);
+pub fn texture_bytes(
+    extents: &[Extent],
+    policy: SizePolicy,
+    leaves: u64,
+    nodes: u64,
+) -> Result<u64> {
+    let sizes = TextureSet::sizes(extents, policy)?;
+    let m = TextureMemory::of_sizes(&sizes, GUTTER);
     let rrps = leaves
         .saturating_mul(std::mem::size_of::<PatchCoeffs>() as u64)
         .saturating_add(nodes.saturating_mul(4))
-        .saturating_add(4 * depths.len() as u64);
+        .saturating_add(4 * extents.len() as u64);
     Ok(m.bytes_with_chain[2].saturating_add(rrps))
 }
 

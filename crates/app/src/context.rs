@@ -13,7 +13,7 @@ use base::progress::Observer;
 use engine::frame::FrameOptions;
 use lanes::Isa;
 use radiosity::{self, file as solution_file};
-use reconstruction::texture::{SizePolicy, TextureSet};
+use reconstruction::texture::{Extent, SizePolicy, TextureSet};
 use reconstruction::Estimator;
 use scene::{load_scene_with, LoadOptions, Scene};
 
@@ -207,7 +207,8 @@ pub(crate) fn is_solution_file(path: &Path) -> bool {
 /// defaults).
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct TextureOptions {
-    /// One texture side for every polygon (`--texture-size`, a power of two).
+    /// One texture side for every polygon (`--texture-size`, a power of two): the longer side,
+    /// the shorter following the polygon's aspect ([`reconstruction::texture::Extent`]).
     pub size: Option<u32>,
     /// A texture memory budget in bytes at 12 bits per channel with mip chains
     /// (`--texture-budget`).
@@ -241,7 +242,7 @@ impl TextureOptions {
         };
         // Whether a budget can be met depends only on the polygon count (every texture can
         // shrink to 1 x 1), which the scene gives before any solve.
-        TextureSet::sides(&vec![0; scene.polygons.len()], policy)?;
+        TextureSet::sizes(&vec![Extent::default(); scene.polygons.len()], policy)?;
         Ok(policy)
     }
 

@@ -14,7 +14,7 @@ use base::method::Placement;
 use radiosity::{self, file as solution_file, Solution, SolveOptions};
 use reconstruction::compact::CompactReconstruction;
 use reconstruction::mesh::MeshModel;
-use reconstruction::texture::{SizePolicy, TextureSet};
+use reconstruction::texture::{Extent, SizePolicy, TextureSet};
 use reconstruction::{Estimator, Reconstruction, Seams, Sharp, SharpLight};
 use scene::Scene;
 
@@ -110,6 +110,17 @@ impl Prepared {
         Ok((r, *ms))
     }
 
+    /// What every polygon's texture size is chosen from: its quadtree depth capped at the
+    /// scene's `radiosity.max_depth`, and its aspect ([`TextureSet::extents`]).
+    pub fn texture_extents(&self) -> Result<Vec<Extent>> {
+        TextureSet::extents(
+            &self.solution.polygons,
+            &self.scene.polygons,
+            self.scene.radiosity.max_depth,
+        )
+        .map_err(|e| self.file_error(e))
+    }
+
     /// The radiosity textures under [`Prepared::texture_policy`], built on first use (a scene
     /// rendered only with the direct method never pays for them), with their build time in ms.
     ///
@@ -117,8 +128,7 @@ impl Prepared {
     /// ([`budget::texture_bytes`]) and what is held already pass the job's memory limit.
     pub fn textures(&self) -> Result<(&TextureSet, f64)> {
         if self.textures.get().is_none() {
-            let depths =
-                TextureSet::depths(&self.solution.polygons, self.scene.radiosity.max_depth);
+            let extents = self.texture_extents()?;
             let cs = self.compact.stats();
             let mut e = budget::Estimate::new(
                 "the radiosity textures",
@@ -128,7 +138,7 @@ impl Prepared {
             e.add("held", self.held_bytes()).add(
                 "textures and expanded RRPs",
                 budget::texture_bytes(
-                    &depths,
+                    &extents,
                     self.texture_policy,
                     cs.leaves as u64,
                     cs.nodes as u64,
@@ -138,7 +148,7 @@ impl Prepared {
             let t = Instant::now();
             let set = TextureSet::build(
                 self.expanded()?.0,
-                &depths,
+                &extents,
                 self.texture_policy,
                 self.texture_placement,
             )

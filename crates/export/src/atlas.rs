@@ -2,17 +2,18 @@
 //! texels the texture methods draw) packed as one rectangle ("chart") into a few power-of-two
 //! pages.
 //!
-//! A chart is the polygon's square texture of side n plus its gutter g on each side, so its
-//! rectangle is n + 2g texels wide; the gutter holds the polygon's RRP continued past its edge
+//! A chart is the polygon's texture of w x h texels plus its gutter g on each side, so its
+//! rectangle is w + 2g by h + 2g texels; the gutter holds the polygon's RRP continued past its edge
 //! (the odd reflection through the RRP's edge values, `reconstruction::texture`), so bilinear and
 //! bicubic lookups at a polygon's border read the function's continuation, not a neighbour's
 //! texels or a copied edge. Texel (i, j) of the polygon's parameter square, i along u and j along
 //! v, is page texel (x + g + i, y + g + j) with row 0 the top of the image: the glTF texture
-//! coordinate of parameter (u, v) is ((x + g + u n) / W, (y + g + v n) / H), which puts texel
+//! coordinate of parameter (u, v) is ((x + g + u w) / W, (y + g + v h) / H), which puts texel
 //! centres where the texture methods put them.
 //!
-//! A triangle's chart is laid out affinely instead: chart point (s, t) is the triangle's point
-//! c0 + s (c1 - c0) + t (c2 - c0) (s + t <= 1, the lower-left half of the square), so an
+//! A triangle's chart (square, as its texture is: `reconstruction::texture::Extent`) is laid
+//! out affinely instead: chart point (s, t) is the triangle's point c0 + s (c1 - c0) + t (c2 -
+//! c0) (s + t <= 1, the lower-left half of the square), so an
 //! engine's linear interpolation of texture coordinates over the one triangle drawn for it is
 //! exact. Its texels are the RRP evaluated at the collapsed-quad parameters of the same point,
 //! (u, v) = (s / (1 - t), t), the function the texture methods sample; a texel outside the
@@ -41,8 +42,11 @@ pub struct Chart {
     pub x: u32,
     /// Top row of its rectangle, gutter included.
     pub y: u32,
-    /// Side of the polygon's texture (the rectangle is `side + 2 gutter` wide).
-    pub side: u32,
+    /// Texels of the chart along u (a triangle's: along its affine s; its chart is square),
+    /// gutter excluded: the polygon's texture width.
+    pub width: u32,
+    /// Texels of the chart along v, gutter excluded.
+    pub height: u32,
     /// Laid out affinely (a triangle, see the module docs), not by the (u, v) square.
     pub triangle: bool,
 }
@@ -78,15 +82,17 @@ pub struct AtlasStats {
     pub page_texels: u64,
     /// Texels of every chart, gutters included.
     pub chart_texels: u64,
-    /// Texels of the polygons' squares (what the texture methods filter inside a polygon).
+    /// Texels of the polygons' parameter squares (what the texture methods filter inside a
+    /// polygon).
     pub square_texels: u64,
     /// Chart texels over page texels: how tightly the packer filled the pages.
     pub packing: f64,
     /// Square texels over page texels: the share of the pages that samples a polygon.
     pub utilization: f64,
-    /// Texels per scene unit along a polygon (side / sqrt(area)): least, median, greatest.
+    /// Texels per scene unit along a polygon (sqrt(width height / area)): least, median,
+    /// greatest.
     pub texels_per_unit: [f64; 3],
-    /// Charts per texture side, smallest side first: (side, count).
+    /// Charts per longer texture side, smallest first: (side, count).
     pub sides: Vec<(u32, u32)>,
     /// Each page's width and height.
     pub page_sizes: Vec<(u32, u32)>,
@@ -120,8 +126,16 @@ impl Atlas {
         }
         check_page(max_page)?;
         let g = set.gutter;
-        let sides: Vec<u32> = set.textures.iter().map(|t| t.width).collect();
-        let (mut charts, sizes) = pack(&sides, g, max_page)?;
+        let dims: Vec<(u32, u32)> = set.textures.iter().map(|t| (t.width, t.height)).collect();
+        if let Some(p) = (0..dims.len())
+            .find(|&p| scene.polygons[p].shape == Shape::Triangle && dims[p].0 != dims[p].1)
+        {
+            return Err(Error::internal(format!(
+                "triangle {p}'s texture is not square: {} x {}",
+                dims[p].0, dims[p].1
+            )));
+        }
+        let (mut charts, sizes) = pack(&dims, g, max_page)?;
         for (c, p) in charts.iter_mut().zip(&scene.polygons) {
             c.triangle = p.shape == Shape::Triangle;
         }
@@ -136,14 +150,14 @@ impl Atlas {
         for (polygon, (chart, tex)) in charts.iter().zip(&set.textures).enumerate() {
             let level = &tex.levels[0];
             let page = &mut pages[chart.page as usize];
-            let stride = level.stride() as usize;
-            let rows: Vec<Vec3> = if chart.triangle {
-                triangle_chart(chart.side, g, |s, t| {
+            let (stride, rows): (usize, Vec<Vec3>) = if chart.triangle {
+                let rows = triangle_chart(chart.width, g, |s, t| {
                     let (u, v) = square_of_affine(s, t);
                     recon.eval(polygon as u32, u as f32, v as f32)
-                })
+                });
+                ((chart.width + 2 * g) as usize, rows)
             } else {
-                level.texels.clone()
+                (level.stride() as usize, level.texels.clone())
             };
             for (r, row) in rows.chunks_exact(stride).enumerate() {
                 let start = (chart.y as usize + r) * page.width as usize + chart.x as usize;
@@ -167,10 +181,10 @@ impl Atlas {
         };
         let p = &self.pages[c.page as usize];
         let g = self.gutter as f64;
-        let n = c.side as f64;
+        let (w, h) = (c.width as f64, c.height as f64);
         [
-            ((c.x as f64 + g + u * n) / p.width as f64) as f32,
-            ((c.y as f64 + g + v * n) / p.height as f64) as f32,
+            ((c.x as f64 + g + u * w) / p.width as f64) as f32,
+            ((c.y as f64 + g + v * h) / p.height as f64) as f32,
         ]
     }
 
@@ -181,18 +195,22 @@ impl Atlas {
             .iter()
             .map(|p| p.width as u64 * p.height as u64)
             .sum();
-        let edge = |c: &Chart| (c.side + 2 * self.gutter) as u64;
-        let chart_texels: u64 = self.charts.iter().map(|c| edge(c) * edge(c)).sum();
+        let g = 2 * self.gutter as u64;
+        let chart_texels: u64 = self
+            .charts
+            .iter()
+            .map(|c| (c.width as u64 + g) * (c.height as u64 + g))
+            .sum();
         let square_texels: u64 = self
             .charts
             .iter()
-            .map(|c| c.side as u64 * c.side as u64)
+            .map(|c| c.width as u64 * c.height as u64)
             .sum();
         let mut density: Vec<f64> = self
             .charts
             .iter()
             .zip(&scene.polygons)
-            .map(|(c, p)| c.side as f64 / p.area.sqrt())
+            .map(|(c, p)| (c.width as f64 * c.height as f64 / p.area).sqrt())
             .collect();
         density.sort_by(f64::total_cmp);
         let texels_per_unit = match density.len() {
@@ -202,7 +220,7 @@ impl Atlas {
         let share = |t: u64| t as f64 / page_texels.max(1) as f64;
         let mut sides = std::collections::BTreeMap::new();
         for c in &self.charts {
-            *sides.entry(c.side).or_insert(0u32) += 1;
+            *sides.entry(c.width.max(c.height)).or_insert(0u32) += 1;
         }
         AtlasStats {
             pages: self.pages.len() as u32,
@@ -351,35 +369,36 @@ type Packing = (Vec<Chart>, Vec<(u32, u32)>);
 /// Pages a packing leaves no emptier than this when a smaller page can take the rest.
 pub const FILL_AIM: f64 = 0.7;
 
-/// Places charts of the given square sides (plus `g` on each side) on pages of at most
+/// Places charts of the given sizes (width, height; plus `g` on each side) on pages of at most
 /// `max_page` texels a side: the charts (in polygon order) and each page's size.
 ///
 /// Two packings are made and the one whose pages are fuller kept (fewer pages on a tie): all
 /// charts on the smallest power-of-two page that holds them, when one within `max_page` does;
 /// and page by page ([`pack_pages`]).
-fn pack(sides: &[u32], g: u32, max_page: u32) -> Result<Packing> {
+fn pack(dims: &[(u32, u32)], g: u32, max_page: u32) -> Result<Packing> {
     let edge = |s: u32| (s + 2 * g) as usize;
-    if let Some((p, &s)) = sides
+    if let Some((p, &(w, h))) = dims
         .iter()
         .enumerate()
-        .find(|(_, &s)| edge(s) > max_page as usize)
+        .find(|(_, &(w, h))| edge(w.max(h)) > max_page as usize)
     {
         return Err(Error::invalid_option(
             "page-size",
             max_page.to_string(),
             format!(
-                "is smaller than polygon {p}'s chart ({} texels with its gutter)",
-                edge(s)
+                "is smaller than polygon {p}'s chart ({} x {} texels with its gutter)",
+                edge(w),
+                edge(h)
             ),
         ));
     }
-    let paged = pack_pages(sides, g, max_page);
-    let items = (0..sides.len())
-        .map(|p| crunch::Item::new(p, edge(sides[p]), edge(sides[p]), crunch::Rotation::None));
+    let paged = pack_pages(dims, g, max_page);
+    let items = (0..dims.len())
+        .map(|p| crunch::Item::new(p, edge(dims[p].0), edge(dims[p].1), crunch::Rotation::None));
     let Ok(one) = crunch::pack_into_po2(max_page as usize, items) else {
         return Ok(paged);
     };
-    let area: usize = sides.iter().map(|&s| edge(s).pow(2)).sum();
+    let area: usize = dims.iter().map(|&(w, h)| edge(w) * edge(h)).sum();
     let paged_area: usize = paged.1.iter().map(|&(w, h)| (w * h) as usize).sum();
     if one.w * one.h > paged_area
         || (one.w * one.h == paged_area && paged.1.len() == 1)
@@ -387,8 +406,8 @@ fn pack(sides: &[u32], g: u32, max_page: u32) -> Result<Packing> {
     {
         return Ok(paged);
     }
-    let mut charts = unplaced(sides.len());
-    place(&mut charts, 0, &one.items, sides);
+    let mut charts = unplaced(dims.len());
+    place(&mut charts, 0, &one.items, dims);
     Ok((charts, vec![(one.w as u32, one.h as u32)]))
 }
 
@@ -398,20 +417,27 @@ fn unplaced(n: usize) -> Vec<Chart> {
         page: 0,
         x: 0,
         y: 0,
-        side: 0,
+        width: 0,
+        height: 0,
         triangle: false,
     };
     vec![none; n]
 }
 
 /// Records where the packer put `items` (polygon indices) on page `page`.
-fn place(charts: &mut [Chart], page: u32, items: &[crunch::PackedItem<usize>], sides: &[u32]) {
+fn place(
+    charts: &mut [Chart],
+    page: u32,
+    items: &[crunch::PackedItem<usize>],
+    dims: &[(u32, u32)],
+) {
     for it in items {
         charts[it.data] = Chart {
             page,
             x: it.rect.x as u32,
             y: it.rect.y as u32,
-            side: sides[it.data],
+            width: dims[it.data].0,
+            height: dims[it.data].1,
             triangle: false,
         };
     }
@@ -423,20 +449,30 @@ fn place(charts: &mut [Chart], page: u32, items: &[crunch::PackedItem<usize>], s
 /// (square, or twice as wide as high) no larger than what is left, and it is filled largest
 /// chart first, a chart that does not fit waiting for the next page while smaller ones are
 /// tried ([`fill`]). Every chart fits a page (checked by [`pack`]).
-fn pack_pages(sides: &[u32], g: u32, max_page: u32) -> Packing {
+fn pack_pages(dims: &[(u32, u32)], g: u32, max_page: u32) -> Packing {
     let edge = |s: u32| (s + 2 * g) as usize;
-    let mut charts = unplaced(sides.len());
+    let mut charts = unplaced(dims.len());
     let mut sizes = Vec::new();
-    // Largest first, ties in polygon order (crunch sorts stably by area and side, so its order
-    // is this one).
-    let mut left: Vec<usize> = (0..sides.len()).collect();
-    left.sort_by_key(|&p| std::cmp::Reverse(edge(sides[p])));
+    // Largest area first, then longest side, ties in polygon order (crunch sorts stably by
+    // area and side, so its order is this one).
+    let mut left: Vec<usize> = (0..dims.len()).collect();
+    let key = |p: usize| {
+        let (w, h) = (edge(dims[p].0), edge(dims[p].1));
+        std::cmp::Reverse((w * h, w.max(h)))
+    };
+    left.sort_by_key(|&p| key(p));
     while !left.is_empty() {
         let item = |&p: &usize| {
-            crunch::Item::new(p, edge(sides[p]), edge(sides[p]), crunch::Rotation::None)
+            crunch::Item::new(p, edge(dims[p].0), edge(dims[p].1), crunch::Rotation::None)
         };
-        let area: usize = left.iter().map(|&p| edge(sides[p]).pow(2)).sum();
-        let largest = edge(sides[left[0]]);
+        let area: usize = left
+            .iter()
+            .map(|&p| edge(dims[p].0) * edge(dims[p].1))
+            .sum();
+        let largest = left
+            .iter()
+            .map(|&p| (edge(dims[p].0), edge(dims[p].1)))
+            .fold((0, 0), |a, b| (a.0.max(b.0), a.1.max(b.1)));
         let last = crunch::pack_into_po2(max_page as usize, left.iter().map(item)).ok();
         let page = fill_page(area, largest, max_page as usize);
         let (w, h, placed, rest) = match last {
@@ -450,7 +486,7 @@ fn pack_pages(sides: &[u32], g: u32, max_page: u32) -> Packing {
                 (page.0, page.1, placed, rest)
             }
         };
-        place(&mut charts, sizes.len() as u32, &placed, sides);
+        place(&mut charts, sizes.len() as u32, &placed, dims);
         sizes.push((w as u32, h as u32));
         left = rest;
     }
@@ -458,19 +494,20 @@ fn pack_pages(sides: &[u32], g: u32, max_page: u32) -> Packing {
 }
 
 /// The largest power-of-two page (square, or twice as wide as high; at most `max` a side) of at
-/// most `area` texels that holds a chart of side `largest`; the smallest square page that holds
-/// it when none is that small.
-fn fill_page(area: usize, largest: usize, max: usize) -> (usize, usize) {
+/// most `area` texels that holds the widest and the tallest chart (`largest`, width and
+/// height); the smallest square page that holds them when none is that small.
+fn fill_page(area: usize, largest: (usize, usize), max: usize) -> (usize, usize) {
+    let (lw, lh) = largest;
     let mut side = max;
-    while side >= largest {
+    while side >= lw.max(lh) {
         for (w, h) in [(side, side), (side, side / 2)] {
-            if h >= largest && w * h <= area {
+            if w >= lw && h >= lh && w * h <= area {
                 return (w, h);
             }
         }
         side /= 2;
     }
-    let s = largest.next_power_of_two().min(max);
+    let s = lw.max(lh).next_power_of_two().min(max);
     (s, s)
 }
 
@@ -493,13 +530,17 @@ fn fill(
             }
             Err(some) => {
                 // crunch places in the order given and stops at the first that fails; every
-                // later chart of its size meets the same free space after the same placements,
+                // later chart of its width and height meets the same free space after the same placements,
                 // so all of them wait.
-                let e = item(&trying[some.len()]).w;
+                let first = item(&trying[some.len()]);
+                let e = (first.w, first.h);
                 let end = some.len()
                     + trying[some.len()..]
                         .iter()
-                        .take_while(|p| item(p).w == e)
+                        .take_while(|p| {
+                            let it = item(p);
+                            (it.w, it.h) == e
+                        })
                         .count();
                 waiting.extend(trying.drain(some.len()..end));
             }
@@ -512,29 +553,42 @@ mod tests {
     use super::*;
 
     fn overlap(a: &Chart, b: &Chart, g: u32) -> bool {
-        let (ea, eb) = (a.side + 2 * g, b.side + 2 * g);
-        a.page == b.page && a.x < b.x + eb && b.x < a.x + ea && a.y < b.y + eb && b.y < a.y + ea
+        let (wa, wb) = (a.width + 2 * g, b.width + 2 * g);
+        let (ha, hb) = (a.height + 2 * g, b.height + 2 * g);
+        a.page == b.page && a.x < b.x + wb && b.x < a.x + wa && a.y < b.y + hb && b.y < a.y + ha
     }
 
-    /// Charts of mixed power-of-two sides with a 2-texel gutter: none overlaps another, all lie
-    /// inside their page, pages are powers of two, and a page too small for everything spills
-    /// onto more pages.
+    /// Charts of mixed power-of-two sizes, squares and rectangles both ways, with a 2-texel
+    /// gutter: none overlaps another, all lie inside their page, pages are powers of two, and a
+    /// page too small for everything spills onto more pages.
     #[test]
     fn charts_are_disjoint_and_inside_their_pages() {
-        let sides: Vec<u32> = (0..300).map(|k| 1 << (k % 6)).collect();
+        let dims: Vec<(u32, u32)> = (0..300)
+            .map(|k| {
+                let n = 1 << (k % 6);
+                match k % 3 {
+                    0 => (n, n),
+                    1 => (n, (n >> (k % 4)).max(1)),
+                    _ => ((n >> (k % 5)).max(1), n),
+                }
+            })
+            .collect();
         for max in [64, 256, 4096] {
-            let (charts, sizes) = pack(&sides, 2, max).unwrap();
+            let (charts, sizes) = pack(&dims, 2, max).unwrap();
             for (i, a) in charts.iter().enumerate() {
                 let (w, h) = sizes[a.page as usize];
                 assert!(w.is_power_of_two() && h.is_power_of_two() && w <= max && h <= max);
-                assert!(a.x + a.side + 4 <= w && a.y + a.side + 4 <= h);
-                assert_eq!(a.side, sides[i]);
+                assert!(a.x + a.width + 4 <= w && a.y + a.height + 4 <= h);
+                assert_eq!((a.width, a.height), dims[i]);
                 for b in &charts[i + 1..] {
                     assert!(!overlap(a, b, 2), "{a:?} overlaps {b:?}");
                 }
             }
             // No page holds more than its area; everything fits one 4096 page.
-            let area: u64 = sides.iter().map(|&s| (s as u64 + 4).pow(2)).sum();
+            let area: u64 = dims
+                .iter()
+                .map(|&(w, h)| (w as u64 + 4) * (h as u64 + 4))
+                .sum();
             assert!(sizes.len() as u64 >= area.div_ceil((max as u64).pow(2)));
             if max == 4096 {
                 assert_eq!(sizes.len(), 1);
@@ -577,8 +631,12 @@ mod tests {
 
     #[test]
     fn a_chart_larger_than_a_page_is_refused() {
-        let e = pack(&[64], 2, 64).unwrap_err();
+        let e = pack(&[(64, 64)], 2, 64).unwrap_err();
         assert!(e.to_string().contains("page-size"), "{e}");
+        // Too tall as well as too wide.
+        let e = pack(&[(1, 64)], 2, 64).unwrap_err();
+        assert!(e.to_string().contains("5 x 68"), "{e}");
+        assert!(pack(&[(60, 4)], 2, 64).is_ok());
         assert!(check_page(100).is_err() && check_page(32).is_err() && check_page(128).is_ok());
     }
 }

@@ -6,7 +6,7 @@
 //! is drawn as two triangles. A triangle (a quad whose last two corners coincide) is drawn as
 //! itself: its chart is laid out affinely (`super::atlas`), so linear interpolation is exact.
 //! Any other quad is drawn as a k x k grid of cells in (u, v), each split in two, with k the
-//! smallest power of two (up to the texture's side) for which the interpolated lookup lands
+//! smallest power of two (up to the texture's longer side) for which the interpolated lookup lands
 //! within [`MAX_SHIFT`] texel widths of the bilinear one at every cell's test points; the
 //! largest shift left is reported.
 
@@ -121,8 +121,8 @@ fn barycentric(x: DVec3, q: [DVec3; 3]) -> [f64; 3] {
     [1.0 - s - t, s, t]
 }
 
-/// The triangles of polygon `p`, whose texture has `side` texels across its square.
-pub fn tessellate(p: &Polygon, side: u32) -> Tessellation {
+/// The triangles of polygon `p`, whose texture has `width` x `height` texels over its square.
+pub fn tessellate(p: &Polygon, (width, height): (u32, u32)) -> Tessellation {
     if affine(p) {
         return grid(p, 1);
     }
@@ -134,8 +134,10 @@ pub fn tessellate(p: &Polygon, side: u32) -> Tessellation {
             shift: 0.0,
         };
     }
-    // A texel's width on the polygon: its square root of area over the texels across.
-    let texel = p.area.sqrt() / side.max(1) as f64;
+    // A texel's width on the polygon: the square root of its area (the texels are about
+    // square in the scene, their sides in the ratio of the polygon's).
+    let texel = (p.area / (width.max(1) as f64 * height.max(1) as f64)).sqrt();
+    let side = width.max(height);
     let mut k = 1;
     loop {
         let mut t = grid(p, k);
@@ -159,7 +161,7 @@ mod tests {
     #[test]
     fn a_parallelogram_is_two_exact_triangles() {
         let p = quad([[0.0; 3], [2.0, 0.0, 0.0], [3.0, 1.0, 0.0], [1.0, 1.0, 0.0]]);
-        let t = tessellate(&p, 64);
+        let t = tessellate(&p, (64, 64));
         assert_eq!((t.uv.len(), t.triangles.len()), (4, 2));
         assert!(largest_shift(&p, &t, 1.0 / 64.0) < 1e-12);
     }
@@ -169,7 +171,7 @@ mod tests {
     #[test]
     fn a_trapezoid_is_refined_until_the_shift_is_bounded() {
         let p = quad([[0.0; 3], [1.0, 0.0, 0.0], [0.7, 1.0, 0.0], [0.0, 1.0, 0.0]]);
-        let t = tessellate(&p, 16);
+        let t = tessellate(&p, (16, 16));
         assert!(t.shift <= MAX_SHIFT, "{}", t.shift);
         let k = (t.uv.len() as f64).sqrt() as u32 - 1;
         assert!(k > 1, "one cell cannot follow a trapezoid's parameters");
@@ -194,7 +196,7 @@ mod tests {
             0,
         )
         .unwrap();
-        let t = tessellate(&p, 16);
+        let t = tessellate(&p, (16, 16));
         assert_eq!((t.uv.len(), t.triangles.len(), t.shift), (3, 1, 0.0));
         for (uv, c) in t.uv.iter().zip(p.vertices()) {
             assert_eq!(p.point(uv[0], uv[1]), *c);

@@ -229,7 +229,7 @@ fn lightmap_groups(scene: &Scene, atlas: &Atlas) -> (BTreeMap<(u32, u32, u32), V
     let mut shift: f64 = 0.0;
     for (p, poly) in scene.polygons.iter().enumerate() {
         let chart = &atlas.charts[p];
-        let t = geometry::tessellate(poly, chart.side);
+        let t = geometry::tessellate(poly, (chart.width, chart.height));
         shift = shift.max(t.shift);
         let v = groups
             .entry((poly.object, poly.material, chart.page))

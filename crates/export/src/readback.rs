@@ -123,11 +123,13 @@ pub fn read(path: &Path, pages: Pages) -> Result<Imported> {
             .get(f.page as usize)
             .ok_or_else(|| bad(path, format!("polygon {p} uses a missing page")))?;
         // c1, at (u, v) = (1, 0), is a chart's far corner along its first axis in both
-        // layouts (a triangle's chart is affine, its apex at the chart's (0, 1)).
-        let side = ((c1.1[0] - c0.1[0]) as f64 * *w as f64).round() as u32;
+        // layouts, and c3, at (0, 1), along its second (a triangle's apex c3 = c2 is at its
+        // affine chart's (0, 1)).
+        let width = ((c1.1[0] - c0.1[0]) as f64 * *w as f64).round() as u32;
+        let height = ((c3.1[1] - c0.1[1]) as f64 * *h as f64).round() as u32;
         let x = (c0.1[0] as f64 * *w as f64).round() as i64 - gutter as i64;
         let y = (c0.1[1] as f64 * *h as f64).round() as i64 - gutter as i64;
-        if x < 0 || y < 0 || side == 0 {
+        if x < 0 || y < 0 || width == 0 || height == 0 {
             return Err(bad(
                 path,
                 format!("polygon {p}'s chart lies outside its page"),
@@ -137,7 +139,8 @@ pub fn read(path: &Path, pages: Pages) -> Result<Imported> {
             page: f.page,
             x: x as u32,
             y: y as u32,
-            side,
+            width,
+            height,
             triangle,
         });
     }
@@ -320,32 +323,35 @@ impl Imported {
         let mut textures = Vec::with_capacity(self.charts.len());
         for c in &self.charts {
             let (w, h, texels) = &self.pages[c.page as usize];
-            let e = c.side + 2 * g;
-            if c.x + e > *w || c.y + e > *h {
+            let (ew, eh) = (c.width + 2 * g, c.height + 2 * g);
+            if c.x + ew > *w || c.y + eh > *h {
                 return Err(Error::inconsistent("a chart lies outside its page"));
             }
-            let mut level = Vec::with_capacity((e * e) as usize);
-            for r in 0..e {
+            let mut level = Vec::with_capacity((ew * eh) as usize);
+            for r in 0..eh {
                 let start = ((c.y + r) * w + c.x) as usize;
-                level.extend_from_slice(&texels[start..start + e as usize]);
+                level.extend_from_slice(&texels[start..start + ew as usize]);
             }
             if c.triangle {
+                if c.width != c.height {
+                    return Err(Error::inconsistent("a triangle's chart is not square"));
+                }
                 // Back from the affine chart to the (u, v) square the texture methods read.
-                level = super::atlas::resample(&level, c.side, g, |u, v| {
+                level = super::atlas::resample(&level, c.width, g, |u, v| {
                     super::atlas::affine_of_square(u, v)
                 });
             }
             textures.push(RadiosityTexture::from_stored_level0(MipLevel {
-                width: c.side,
-                height: c.side,
+                width: c.width,
+                height: c.height,
                 gutter: g,
                 texels: level,
             })?);
         }
-        let sides: Vec<u32> = self.charts.iter().map(|c| c.side).collect();
+        let sizes: Vec<(u32, u32)> = self.charts.iter().map(|c| (c.width, c.height)).collect();
         Ok(TextureSet {
             textures,
-            memory: TextureMemory::of_sides(&sides, g),
+            memory: TextureMemory::of_sizes(&sizes, g),
             placement: Placement::Centre,
             gutter: g,
         })

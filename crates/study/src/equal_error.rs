@@ -37,7 +37,7 @@ use engine::frame::{self, FrameOptions};
 use engine::shading::Shader;
 use imageio::LinearImage;
 use metric::compare;
-use reconstruction::texture::{SizePolicy, TextureMemory, TextureSet, GUTTER};
+use reconstruction::texture::{Extent, SizePolicy, TextureMemory, TextureSet, GUTTER};
 
 /// Error ratios to the direct method's reconstruction error at which the texture memory is
 /// reported: equal (1.0) and within 10 % (1.1).
@@ -208,18 +208,17 @@ impl Search<'_> {
     /// Tries the scales from [`MIN_SCALE`] up until one of the stops, filling `rows`; returns
     /// why it stopped.
     fn run(&self, rows: &mut [EqualErrorRow], stage: &mut Stage<'_>) -> Result<String> {
-        let depths =
-            TextureSet::depths(&self.p.solution.polygons, self.p.scene.radiosity.max_depth);
-        let mut previous: Option<Vec<u32>> = None;
+        let extents = self.p.texture_extents()?;
+        let mut previous: Option<Vec<(u32, u32)>> = None;
         for k in MIN_SCALE..=MAX_SCALE {
-            let sides = TextureSet::sides(&depths, SizePolicy::Scaled(k))?;
+            let sides = TextureSet::sizes(&extents, SizePolicy::Scaled(k))?;
             if previous.as_ref() == Some(&sides) {
                 return Ok(format!(
                     "every side reached the largest texture side at 2^{}",
                     k - 1
                 ));
             }
-            let memory = TextureMemory::of_sides(&sides, GUTTER);
+            let memory = TextureMemory::of_sizes(&sides, GUTTER);
             if held_bytes(&memory) > SEARCH_MEMORY_CAP {
                 return Ok(format!(
                     "the textures at 2^{k} would hold {:.0} MB in memory, above the search's cap \
@@ -231,7 +230,7 @@ impl Search<'_> {
             previous = Some(sides);
             stage.advance((k - MIN_SCALE) as f64 / (MAX_SCALE - MIN_SCALE + 1) as f64);
             for (pi, &placement) in PLACEMENTS.iter().enumerate() {
-                self.measure_set(rows, k, &depths, pi, placement)?;
+                self.measure_set(rows, k, &extents, pi, placement)?;
             }
             if rows.iter().all(|r| r.reached.iter().all(Option::is_some)) {
                 return Ok(format!(
@@ -248,12 +247,13 @@ impl Search<'_> {
         &self,
         rows: &mut [EqualErrorRow],
         k: i32,
-        depths: &[u32],
+        extents: &[Extent],
         pi: usize,
         placement: Placement,
     ) -> Result<()> {
         let p = self.p;
-        let mut set = TextureSet::build(p.expanded()?.0, depths, SizePolicy::Scaled(k), placement)?;
+        let mut set =
+            TextureSet::build(p.expanded()?.0, extents, SizePolicy::Scaled(k), placement)?;
         for mip in [true, false] {
             if !mip {
                 set.drop_mip_chains();

@@ -110,19 +110,19 @@ pub fn across_views(
             targets.push((camera, opts, exact));
         }
     }
-    let depths = TextureSet::depths(&p.solution.polygons, p.scene.radiosity.max_depth);
+    let extents = p.texture_extents()?;
     let mut stage = Stage::start(observer, "equal-error across views");
-    let mut previous: Option<Vec<u32>> = None;
+    let mut previous: Option<Vec<(u32, u32)>> = None;
     for k in MIN_SCALE..=MAX_SCALE {
-        let sides = TextureSet::sides(&depths, SizePolicy::Scaled(k))?;
-        let memory = TextureMemory::of_sides(&sides, GUTTER);
+        let sides = TextureSet::sizes(&extents, SizePolicy::Scaled(k))?;
+        let memory = TextureMemory::of_sizes(&sides, GUTTER);
         if previous.as_ref() == Some(&sides) || held_bytes(&memory) > SEARCH_MEMORY_CAP {
             break;
         }
         previous = Some(sides);
         stage.advance((k - MIN_SCALE) as f64 / (MAX_SCALE - MIN_SCALE + 1) as f64);
         let placement = p.scene.render.texel_placement;
-        let set = TextureSet::build(p.expanded()?.0, &depths, SizePolicy::Scaled(k), placement)?;
+        let set = TextureSet::build(p.expanded()?.0, &extents, SizePolicy::Scaled(k), placement)?;
         let bytes = app::memory::texture_bytes(&set.memory);
         let mut c = curves.iter_mut();
         for (camera, opts, exact) in &targets {

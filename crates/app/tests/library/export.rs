@@ -77,8 +77,8 @@ fn round_trip(name: &str, p: &Prepared, container: &str) {
             let (w, h, _) = &back.pages[c.page as usize];
             let g = back.gutter as f32;
             let lo = [(c.x as f32 + g) / *w as f32, (c.y as f32 + g) / *h as f32];
-            let n = c.side as f32;
-            let hi = [lo[0] + n / *w as f32, lo[1] + n / *h as f32];
+            let (cw, ch) = (c.width as f32, c.height as f32);
+            let hi = [lo[0] + cw / *w as f32, lo[1] + ch / *h as f32];
             let eps = 1e-6;
             assert!(
                 bounds[0] >= lo[0] - eps
@@ -310,8 +310,8 @@ fn atlas_lookups_at_polygon_edges_return_the_rrp_edge_values() {
                 (u, v)
             };
             (
-                c.x as f64 + g + u * c.side as f64 - 0.5,
-                c.y as f64 + g + v * c.side as f64 - 0.5,
+                c.x as f64 + g + u * c.width as f64 - 0.5,
+                c.y as f64 + g + v * c.height as f64 - 0.5,
             )
         };
         let bilinear = |u: f64, v: f64| {
@@ -338,20 +338,26 @@ fn atlas_lookups_at_polygon_edges_return_the_rrp_edge_values() {
             }
             sum
         };
-        let e = c.side as i64 + 2 * back.gutter as i64;
-        let largest = (0..e * e)
+        let (ew, eh) = (
+            c.width as i64 + 2 * back.gutter as i64,
+            c.height as i64 + 2 * back.gutter as i64,
+        );
+        let largest = (0..ew * eh)
             .map(|q| {
-                at(c.x as i64 + q % e, c.y as i64 + q / e)
+                at(c.x as i64 + q % ew, c.y as i64 + q / ew)
                     .abs()
                     .max_element()
             })
             .fold(1e-6f32, f32::max);
-        let n = c.side;
         let tex = &set.textures[k];
-        for j in [0, n / 2, n - 1] {
-            // Along the edge at texel centres, where bilinear filtering along it is exact.
-            let t = (j as f64 + 0.5) / n as f64;
-            for (edge, (u, v)) in [(0.0, t), (1.0, t), (t, 0.0), (t, 1.0)]
+        for j in 0..3 {
+            // Along each edge at the first, middle and last texel centres, where bilinear
+            // filtering along it is exact (a triangle's chart is square: the two agree).
+            let index = |n: u32| [0, n / 2, n - 1][j];
+            let centre = |n: u32| (index(n) as f64 + 0.5) / n as f64;
+            let (tu, tv) = (centre(c.width), centre(c.height));
+            let last = index(c.width) == c.width - 1;
+            for (edge, (u, v)) in [(0.0, tv), (1.0, tv), (tu, 0.0), (tu, 1.0)]
                 .into_iter()
                 .enumerate()
             {
@@ -363,7 +369,7 @@ fn atlas_lookups_at_polygon_edges_return_the_rrp_edge_values() {
                 ] {
                     let d = (got - want).abs().max_element();
                     if c.triangle {
-                        if edge < 3 && j < n - 1 {
+                        if edge < 3 && !last {
                             let w = &mut worst_triangle[edge][usize::from(name == "bicubic")];
                             *w = w.max(d / largest);
                         }

@@ -12,7 +12,7 @@ use app::prepare::prepare;
 use app::prepare::Prepared;
 use base::method::{Filter, Placement};
 use fixtures::closed_form::{camera, material, rect};
-use reconstruction::texture::{RadiosityTexture, Sampler, SizePolicy, TextureSet};
+use reconstruction::texture::{RadiosityTexture, Sampler, SizePolicy};
 use reconstruction::Estimator;
 use scene::Scene;
 
@@ -76,11 +76,16 @@ fn textures_of_a_split_floor_meet_along_the_seam() {
             .fold(0.0f32, f32::max) as f64;
         let (set, _) = p.textures().unwrap();
         let (a, b) = (&set.textures[0], &set.textures[1]);
-        let depths = TextureSet::depths(&p.solution.polygons, scene.radiosity.max_depth);
+        let depths: Vec<u32> = p
+            .texture_extents()
+            .unwrap()
+            .iter()
+            .map(|e| e.depth)
+            .collect();
         // Clamp-to-edge textures of the same sides, for comparison.
         let (ca, cb) = (
-            RadiosityTexture::from_rrp(rec, 0, a.width, placement, 0),
-            RadiosityTexture::from_rrp(rec, 1, b.width, placement, 0),
+            RadiosityTexture::from_rrp(rec, 0, (a.width, a.height), placement, 0),
+            RadiosityTexture::from_rrp(rec, 1, (b.width, b.height), placement, 0),
         );
         for filter in [Filter::Bilinear, Filter::MITCHELL] {
             for lod in [0.0, 1.0, 2.5] {

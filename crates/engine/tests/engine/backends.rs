@@ -77,10 +77,15 @@ impl Backends {
     }
 
     fn texture(&self, opts: &FrameOptions, side: u32, filter: Filter) -> Frame {
-        let depths = TextureSet::depths(&self.trees, self.scene.radiosity.max_depth);
+        let extents = TextureSet::extents(
+            &self.trees,
+            &self.scene.polygons,
+            self.scene.radiosity.max_depth,
+        )
+        .unwrap();
         let set = TextureSet::build(
             &self.recon,
-            &depths,
+            &extents,
             SizePolicy::Fixed(side),
             Placement::Centre,
         )

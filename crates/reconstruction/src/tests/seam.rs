@@ -422,8 +422,8 @@ fn texture_step(
     filter: texture::Filter,
     gutter: u32,
 ) -> f64 {
-    let a = texture::RadiosityTexture::from_rrp(rec, 0, sides.0, placement, gutter);
-    let b = texture::RadiosityTexture::from_rrp(rec, 1, sides.1, placement, gutter);
+    let a = texture::RadiosityTexture::from_rrp(rec, 0, (sides.0, sides.0), placement, gutter);
+    let b = texture::RadiosityTexture::from_rrp(rec, 1, (sides.1, sides.1), placement, gutter);
     (1..500)
         .map(|k| {
             let v = k as f32 / 500.0;
@@ -475,8 +475,13 @@ fn lightmap_textures_meet_at_a_joined_seam() {
         ((32, 16), Placement::Corner, bilinear),
     ] {
         let gutter = texture_step(&joined, sides, placement, filter, texture::GUTTER);
-        let coarse =
-            texture::RadiosityTexture::from_rrp(&joined, 1, sides.1, placement, texture::GUTTER);
+        let coarse = texture::RadiosityTexture::from_rrp(
+            &joined,
+            1,
+            (sides.1, sides.1),
+            placement,
+            texture::GUTTER,
+        );
         let own = (1..500)
             .map(|k| {
                 let v = k as f32 / 500.0;

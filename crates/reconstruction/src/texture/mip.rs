@@ -120,52 +120,59 @@ pub(crate) fn mip_chain(level0: MipLevel) -> Vec<MipLevel> {
     levels
 }
 
-/// The chain of a corner-aligned square texture of side `side`: level l (side
-/// `max(1, side >> l)`) is `sample(n)`, the n x n values at the corner positions i / (n - 1)
-/// (0.5 for n = 1) of that level. Point samples, not averages: a coarse corner-aligned texel
-/// stands for the value at its position, and no average of the finer level sits there.
-pub(crate) fn corner_chain(side: u32, mut sample: impl FnMut(u32) -> Vec<Vec3>) -> Vec<MipLevel> {
+/// The chain of a corner-aligned texture of `width` x `height`: level l (`max(1, width >> l)` x
+/// `max(1, height >> l)`, down to 1 x 1) is `sample(w, h)`, the w x h values at the corner
+/// positions i / (n - 1) (0.5 for n = 1) of that level. Point samples, not averages: a coarse
+/// corner-aligned texel stands for the value at its position, and no average of the finer level
+/// sits there.
+pub(crate) fn corner_chain(
+    width: u32,
+    height: u32,
+    mut sample: impl FnMut(u32, u32) -> Vec<Vec3>,
+) -> Vec<MipLevel> {
     let mut levels = Vec::new();
-    let mut n = side;
-    while n >= 1 {
+    let (mut w, mut h) = (width.max(1), height.max(1));
+    loop {
         levels.push(MipLevel {
-            width: n,
-            height: n,
+            width: w,
+            height: h,
             gutter: 0,
-            texels: sample(n),
+            texels: sample(w, h),
         });
-        n /= 2;
+        if w == 1 && h == 1 {
+            return levels;
+        }
+        (w, h) = ((w / 2).max(1), (h / 2).max(1));
     }
-    levels
 }
 
-/// The chain of a texture of side `side` under `placement` with `gutter` texels beyond each
-/// edge of every level. `inside(n)` gives the n x n values at the placement's positions
+/// The chain of a texture of `width` x `height` under `placement` with `gutter` texels beyond
+/// each edge of every level. `inside(w, h)` gives the w x h values at the placement's positions
 /// ([`mip_chain`] box-filters Centre level 0; [`corner_chain`] samples every Corner level);
 /// `edge(u, v)` gives the function's value at a point of the square's border (Centre only:
 /// corner-placed levels hold their edge values as texels). The gutters are filled by
 /// [`MipLevel::reflected`] through the edge values of each level ([`EdgeValues`]).
 pub(super) fn placed_chain(
-    side: u32,
+    (width, height): (u32, u32),
     placement: Placement,
     gutter: u32,
-    mut inside: impl FnMut(u32) -> Vec<Vec3>,
+    mut inside: impl FnMut(u32, u32) -> Vec<Vec3>,
     edge: impl Fn(f32, f32) -> Vec3,
 ) -> Vec<MipLevel> {
     match placement {
         Placement::Centre => {
             let square = mip_chain(MipLevel {
-                width: side,
-                height: side,
+                width,
+                height,
                 gutter: 0,
-                texels: inside(side),
+                texels: inside(width, height),
             });
             if gutter == 0 {
                 return square;
             }
-            centre_gutters(square, gutter, EdgeValues::centre(side, &edge))
+            centre_gutters(square, gutter, EdgeValues::centre(width, height, &edge))
         }
-        Placement::Corner => corner_chain(side, inside)
+        Placement::Corner => corner_chain(width, height, inside)
             .into_iter()
             .map(|level| {
                 let e = EdgeValues::of_corner_level(&level);
@@ -175,8 +182,9 @@ pub(super) fn placed_chain(
     }
 }
 
-/// A centre-placed square chain with `gutter` texels reflected beyond every level's edges
-/// through `e`, level 0's edge values, halved level by level ([`EdgeValues::halved`]).
+/// A centre-placed chain with `gutter` texels reflected beyond every level's edges through `e`,
+/// level 0's edge values, halved along each axis as the levels halve it
+/// ([`EdgeValues::halved`]).
 pub(super) fn centre_gutters(
     square: Vec<MipLevel>,
     gutter: u32,
@@ -184,9 +192,7 @@ pub(super) fn centre_gutters(
 ) -> Vec<MipLevel> {
     let mut levels = Vec::with_capacity(square.len());
     for level in square {
-        if level.width < e.u0.len() as u32 {
-            e = e.halved();
-        }
+        e = e.halved(level.width, level.height);
         levels.push(level.reflected(gutter, &e, Placement::Centre));
     }
     levels
@@ -205,15 +211,15 @@ pub(super) struct EdgeValues {
 }
 
 impl EdgeValues {
-    /// Level 0 of a centre-placed texture of side n: the function on the border at the texel
-    /// rows' and columns' centres, and at the corners.
-    fn centre(n: u32, edge: &impl Fn(f32, f32) -> Vec3) -> EdgeValues {
-        let at = |k: u32| Placement::Centre.texel_position(k, n);
+    /// Level 0 of a centre-placed texture of `w` x `h`: the function on the border at the
+    /// texel rows' and columns' centres, and at the corners.
+    fn centre(w: u32, h: u32, edge: &impl Fn(f32, f32) -> Vec3) -> EdgeValues {
+        let at = |k: u32, n: u32| Placement::Centre.texel_position(k, n);
         EdgeValues {
-            u0: (0..n).map(|j| edge(0.0, at(j))).collect(),
-            u1: (0..n).map(|j| edge(1.0, at(j))).collect(),
-            v0: (0..n).map(|i| edge(at(i), 0.0)).collect(),
-            v1: (0..n).map(|i| edge(at(i), 1.0)).collect(),
+            u0: (0..h).map(|j| edge(0.0, at(j, h))).collect(),
+            u1: (0..h).map(|j| edge(1.0, at(j, h))).collect(),
+            v0: (0..w).map(|i| edge(at(i, w), 0.0)).collect(),
+            v1: (0..w).map(|i| edge(at(i, w), 1.0)).collect(),
             corners: [
                 edge(0.0, 0.0),
                 edge(1.0, 0.0),
@@ -223,22 +229,24 @@ impl EdgeValues {
         }
     }
 
-    /// The next coarser centre-placed level: each edge value the mean of the two it covers, as
-    /// the box filter averages the texels beside the edge (the corners are points and stay).
-    fn halved(&self) -> EdgeValues {
-        let half = |e: &[Vec3]| -> Vec<Vec3> {
-            if e.len() == 1 {
-                return e.to_vec();
+    /// The edge values of a centre-placed level of `w` x `h` whose chain these values (of the
+    /// same or the next finer level) belong to: along each axis the level halved, each edge
+    /// value is the mean of the two it covers, as the box filter averages the texels beside
+    /// the edge (an axis the level did not halve, and the corners, which are points, stay).
+    fn halved(self, w: u32, h: u32) -> EdgeValues {
+        let half = |e: Vec<Vec3>, n: u32| -> Vec<Vec3> {
+            if e.len() <= n as usize {
+                return e;
             }
             e.chunks_exact(2)
                 .map(|p| ((p[0].as_dvec3() + p[1].as_dvec3()) * 0.5).as_vec3())
                 .collect()
         };
         EdgeValues {
-            u0: half(&self.u0),
-            u1: half(&self.u1),
-            v0: half(&self.v0),
-            v1: half(&self.v1),
+            u0: half(self.u0, h),
+            u1: half(self.u1, h),
+            v0: half(self.v0, w),
+            v1: half(self.v1, w),
             corners: self.corners,
         }
     }

@@ -31,8 +31,8 @@
 //! with a [`Filter`] and a level of detail from [`lod`]; its hot loop uses the lane form
 //! [`Sampler::sample8`] (8 samples per call, module `sample8`), which returns the same bits.
 //!
-//! Invariants: every texture's square is a power-of-two side between 1 and
-//! [`MAX_TEXTURE_SIZE`]; its chain has `log2(side) + 1` levels, the last 1 x 1, all at one
+//! Invariants: each side of every texture is a power of two between 1 and
+//! [`MAX_TEXTURE_SIZE`]; its chain has `log2(longer side) + 1` levels, the last 1 x 1, all at one
 //! placement and one gutter (at most [`MAX_GUTTER`]); all texels are finite (the RRPs are).
 //! Sampling never returns NaN or inf: coordinates are clamped to [0, 1] (NaN to 0) and texel
 //! indices clamped to the stored texels. Memory ([`TextureMemory`]) counts every stored texel,
@@ -41,7 +41,10 @@
 //! Why this way: the filters are written out (separable 4 x 4 for the bicubic, Mitchell and Netravali 1988)
 //! in f32 so that the cost comparison against the direct method measures the same kind of inner
 //! loop; the sizes follow the quadtree depth so that a texture holds as many samples as the
-//! solution had at its finest level, which is the paper's equal-quality comparison.
+//! solution had at its finest level, which is the paper's equal-quality comparison; and the
+//! sides follow the polygon's shape ([`Extent`]), so that a texel is about square in the scene
+//! and the level of detail, which follows a texel's longer footprint, does not blur a long,
+//! narrow polygon along its length.
 
 use glam::Vec3;
 use rayon::prelude::*;
@@ -68,15 +71,16 @@ pub use base::method::Placement;
 /// Deeper quadtrees are clamped to this side under [`SizePolicy::FromDepth`].
 pub use base::method::MAX_TEXTURE_SIZE;
 
-/// How each polygon's texture side is chosen.
+/// How each polygon's texture size is chosen. Every policy sets the longer side; the shorter
+/// follows the polygon's aspect ([`Extent`]), so texels are about square in the scene.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum SizePolicy {
     /// Per polygon the smallest power of two `>= 2^depth + 1`, i.e. a texture with at least as
-    /// many texels per side as the polygon's quadtree has samples per side at its finest level
-    /// (depth 0: 2 -> 2, depth 3: 9 -> 16). Clamped to [`MAX_TEXTURE_SIZE`].
+    /// many texels along its longer side as the polygon's quadtree has samples per side at its
+    /// finest level (depth 0: 2 -> 2, depth 3: 9 -> 16). Clamped to [`MAX_TEXTURE_SIZE`].
     FromDepth,
-    /// The same side for every polygon (the global `--texture-size`); must be a power of two in
-    /// `1..=MAX_TEXTURE_SIZE`.
+    /// The same longer side for every polygon (the global `--texture-size`); must be a power of
+    /// two in `1..=MAX_TEXTURE_SIZE`.
     Fixed(u32),
     /// The largest uniform scale `2^-k` (k >= 0) of the [`SizePolicy::FromDepth`] sides (each
     /// halved k times, not below 1) whose memory at 12 bits per channel **with** mip chains fits
@@ -141,7 +145,8 @@ impl Cubic {
     }
 }
 
-/// One polygon's radiosity texture: a square power-of-two level 0 and its mip chain to 1 x 1.
+/// One polygon's radiosity texture: a power-of-two level 0 (each side a power of two, in the
+/// ratio of the polygon's sides, see [`Extent`]) and its mip chain to 1 x 1.
 #[derive(Debug, Clone, PartialEq)]
 pub struct RadiosityTexture {
     /// Level-0 texels per row.
@@ -186,10 +191,11 @@ fn nearest_index(u: f32, n: u32, p: Placement) -> i32 {
 }
 
 impl RadiosityTexture {
-    /// Resamples polygon `polygon` of `recon` at `side` x `side` with a full mip chain, texels
+    /// Resamples polygon `polygon` of `recon` at `width` x `height` with a full mip chain, texels
     /// placed by `placement`, every level with `gutter` texels beyond each edge holding the RRP
-    /// reflected through its border values (`MipLevel::reflected`). `side` must be a power of two in
-    /// `1..=MAX_TEXTURE_SIZE` and `gutter` at most [`MAX_GUTTER`] (checked by the callers).
+    /// reflected through its border values (`MipLevel::reflected`). Each side must be a power
+    /// of two in `1..=MAX_TEXTURE_SIZE` and `gutter` at most [`MAX_GUTTER`] (checked by the
+    /// callers).
     ///
     /// Centre: level 0 at the texel centres, the chain box-filtered (`mip_chain`); a coarse
     /// texel's footprint is exactly the 2 x 2 fine texels it averages. Corner: every level is
@@ -200,47 +206,59 @@ impl RadiosityTexture {
     pub fn from_rrp(
         recon: &Reconstruction,
         polygon: u32,
-        side: u32,
+        (width, height): (u32, u32),
         placement: Placement,
         gutter: u32,
     ) -> RadiosityTexture {
-        let inside = |n: u32| match placement {
-            Placement::Centre => recon.resample(polygon, n, n),
-            Placement::Corner => recon.resample_placed(polygon, n, n, Placement::Corner),
+        let inside = |w: u32, h: u32| match placement {
+            Placement::Centre => recon.resample(polygon, w, h),
+            Placement::Corner => recon.resample_placed(polygon, w, h, Placement::Corner),
         };
         let edge = |u: f32, v: f32| recon.eval(polygon, u, v);
         RadiosityTexture {
-            width: side,
-            height: side,
-            levels: placed_chain(side, placement, gutter, inside, edge),
+            width,
+            height,
+            levels: placed_chain((width, height), placement, gutter, inside, edge),
             placement,
         }
     }
 
-    /// A texture of `side` x `side` (a power of two in `1..=MAX_TEXTURE_SIZE`) sampling the
-    /// function `f(u, v)` at the texel positions of `placement` ([`Placement::texel_position`]),
-    /// with the chain and the gutters [`RadiosityTexture::from_rrp`] builds (`f` is called on
-    /// [0, 1]^2 only, its border included). Errors for a bad side, a gutter above
-    /// [`MAX_GUTTER`] or a non-finite value.
+    /// A texture of `side` x `side` sampling `f`: [`RadiosityTexture::from_fn_sized`] with both
+    /// sides `side`.
     pub fn from_fn(
         side: u32,
         placement: Placement,
         gutter: u32,
         f: impl Fn(f32, f32) -> Vec3,
     ) -> Result<RadiosityTexture> {
-        check_side(side)?;
+        Self::from_fn_sized((side, side), placement, gutter, f)
+    }
+
+    /// A texture of `width` x `height` (each a power of two in `1..=MAX_TEXTURE_SIZE`) sampling
+    /// the function `f(u, v)` at the texel positions of `placement`
+    /// ([`Placement::texel_position`]), with the chain and the gutters
+    /// [`RadiosityTexture::from_rrp`] builds (`f` is called on [0, 1]^2 only, its border
+    /// included). Errors for a bad side, a gutter above [`MAX_GUTTER`] or a non-finite value.
+    pub fn from_fn_sized(
+        (width, height): (u32, u32),
+        placement: Placement,
+        gutter: u32,
+        f: impl Fn(f32, f32) -> Vec3,
+    ) -> Result<RadiosityTexture> {
+        check_side(width)?;
+        check_side(height)?;
         check_gutter(gutter)?;
-        let inside = |n: u32| -> Vec<Vec3> {
-            let mut t = Vec::with_capacity(n as usize * n as usize);
-            for j in 0..n {
-                let v = placement.texel_position(j, n);
-                for i in 0..n {
-                    t.push(f(placement.texel_position(i, n), v));
+        let inside = |w: u32, h: u32| -> Vec<Vec3> {
+            let mut t = Vec::with_capacity(w as usize * h as usize);
+            for j in 0..h {
+                let v = placement.texel_position(j, h);
+                for i in 0..w {
+                    t.push(f(placement.texel_position(i, w), v));
                 }
             }
             t
         };
-        let levels = placed_chain(side, placement, gutter, inside, &f);
+        let levels = placed_chain((width, height), placement, gutter, inside, &f);
         if levels
             .iter()
             .any(|l| l.texels.iter().any(|t| !t.is_finite()))
@@ -248,8 +266,8 @@ impl RadiosityTexture {
             return Err(Error::Inconsistent("texture texel is not finite".into()));
         }
         Ok(RadiosityTexture {
-            width: side,
-            height: side,
+            width,
+            height,
             levels,
             placement,
         })
@@ -286,22 +304,17 @@ impl RadiosityTexture {
         })
     }
 
-    /// A centre-placed square texture from a stored level 0 with its gutter (as a texture atlas
-    /// holds it, see [`RadiosityTexture::from_rrp`]): the chain is box-filtered from the square
-    /// and every coarser level's gutter reflected through the edge values read back from level
-    /// 0's gutter, so the texture equals the one `from_rrp` built (to within a rounding of each
-    /// gutter texel) without the RRP. Errors for a side that is not a power of two in
-    /// `1..=MAX_TEXTURE_SIZE`, a non-square level, a gutter above [`MAX_GUTTER`], a texel count
-    /// other than stride x rows, or a non-finite texel.
+    /// A centre-placed texture from a stored level 0 with its gutter (as a texture atlas holds
+    /// it, see [`RadiosityTexture::from_rrp`]): the chain is box-filtered from the level's
+    /// texels inside the gutter and every coarser level's gutter reflected through the edge
+    /// values read back from level 0's gutter, so the texture equals the one `from_rrp` built
+    /// (to within a rounding of each gutter texel) without the RRP. Errors for a side that is
+    /// not a power of two in `1..=MAX_TEXTURE_SIZE`, a gutter above [`MAX_GUTTER`], a texel
+    /// count other than stride x rows, or a non-finite texel.
     pub fn from_stored_level0(level0: MipLevel) -> Result<RadiosityTexture> {
         check_side(level0.width)?;
+        check_side(level0.height)?;
         check_gutter(level0.gutter)?;
-        if level0.width != level0.height {
-            return Err(Error::Inconsistent(format!(
-                "stored texture of {} x {} is not square",
-                level0.width, level0.height
-            )));
-        }
         if level0.texels.len() as u64 != level0.stored() {
             return Err(Error::Inconsistent(format!(
                 "stored texture needs {} texels with its gutter, got {}",
@@ -312,14 +325,14 @@ impl RadiosityTexture {
         if level0.texels.iter().any(|t| !t.is_finite()) {
             return Err(Error::Inconsistent("texture texel is not finite".into()));
         }
-        let (n, g) = (level0.width, level0.gutter);
-        let mut inside = Vec::with_capacity(n as usize * n as usize);
-        for j in 0..n as i32 {
-            inside.extend((0..n as i32).map(|i| level0.texel(i, j)));
+        let (w, h, g) = (level0.width, level0.height, level0.gutter);
+        let mut inside = Vec::with_capacity(w as usize * h as usize);
+        for j in 0..h as i32 {
+            inside.extend((0..w as i32).map(|i| level0.texel(i, j)));
         }
         let square = mip_chain(MipLevel {
-            width: n,
-            height: n,
+            width: w,
+            height: h,
             gutter: 0,
             texels: inside,
         });
@@ -329,8 +342,8 @@ impl RadiosityTexture {
             centre_gutters(square, g, EdgeValues::of_centre_gutter(&level0))
         };
         Ok(RadiosityTexture {
-            width: n,
-            height: n,
+            width: w,
+            height: h,
             levels,
             placement: Placement::Centre,
         })
@@ -575,12 +588,71 @@ fn scale_side(n: u32, k: i32) -> u32 {
     s.clamp(1, MAX_TEXTURE_SIZE as u64) as u32
 }
 
+/// Largest [`Extent::aspect`] (in either direction): a polygon 4096 times longer than wide
+/// already has one texel across at the largest side.
+pub const MAX_ASPECT: i32 = 12;
+
+/// What one polygon's texture size is chosen from: the depth of its quadtree and the shape of
+/// its parameter square in the scene.
+///
+/// Why the shape: a texture's level of detail follows the larger of its two texel footprints
+/// on screen, so a square texture on a polygon 20 times longer than wide (a strip of floor
+/// beside a table leg, cut off by the leg's contact lines) is filtered at the level where one
+/// texel spans the strip's width, which is 20 pixels along its length: a shadow crossing the
+/// strip was drawn 20 pixels wide. With the sides in the ratio of the polygon's, a texel
+/// covers about a square of the scene and the level of detail blurs neither axis more than a
+/// pixel.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct Extent {
+    /// Quadtree depth (see [`TextureSet::extents`]): sets the longer side.
+    pub depth: u32,
+    /// log2 of how many times longer the u axis is than the v axis in the scene, rounded toward
+    /// zero (negative: v is the longer), within `-MAX_ASPECT..=MAX_ASPECT`: the shorter side is
+    /// the longer one halved `|aspect|` times (not below 1), so a texel is never longer across
+    /// than along.
+    pub aspect: i32,
+}
+
+impl Extent {
+    /// The aspect of a quad: `trunc(log2(|dP/du| / |dP/dv|))` at the centre of its parameter
+    /// square (the vector means of its opposite sides), clamped to [`MAX_ASPECT`]; 0 for a
+    /// degenerate quad. For a parallelogram with sides a (along u) and b this makes the texels'
+    /// footprints in the scene about square: a texel is |a| / width by |b| / height.
+    ///
+    /// A triangle is 0, square: its collapsed square is skewed (near its apex both axes run
+    /// the same way), which no choice of sides undoes, and its lightmap chart is an affine
+    /// square (`export::atlas`) whose gutters reflect through the nearest point in a square
+    /// metric.
+    pub fn aspect_of(polygon: &scene::Polygon) -> i32 {
+        if polygon.shape == scene::Shape::Triangle {
+            return 0;
+        }
+        let (du, dv) = polygon.tangents(0.5, 0.5);
+        let r = (du.length() / dv.length()).log2();
+        if !r.is_finite() {
+            return 0;
+        }
+        (r.trunc() as i32).clamp(-MAX_ASPECT, MAX_ASPECT)
+    }
+
+    /// The texture size (width along u, height along v) whose longer side is `long` (a power of
+    /// two) and whose shorter is `long` halved `|aspect|` times, not below 1.
+    pub fn size(self, long: u32) -> (u32, u32) {
+        let short = (long >> self.aspect.unsigned_abs().min(31)).max(1);
+        if self.aspect >= 0 {
+            (long, short)
+        } else {
+            (short, long)
+        }
+    }
+}
+
 /// Texture memory: every texel stored, 3 channels, at 8, 12 and 32 bits per channel. The
-/// squares are power-of-two blocks as the paper's hardware stored them; the gutters
-/// ([`GUTTER`]) add `4 g (m + g)` texels to a level of side m, counted here (a 2 x 2 texture
-/// with a 2-texel gutter stores 36 texels at level 0, a 64 x 64 one 4,624). Bytes are rounded
-/// up to whole bytes per texture (matters only for 12 bits and odd texel counts, e.g. a 1 x 1
-/// texture without gutter: 36 bits -> 5 bytes).
+/// textures are power-of-two blocks as the paper's hardware stored them; the gutters
+/// ([`GUTTER`]) add `2 g (w + h) + 4 g^2` texels to a level of w x h, counted here (a 2 x 2
+/// texture with a 2-texel gutter stores 36 texels at level 0, a 64 x 64 one 4,624). Bytes are
+/// rounded up to whole bytes per texture (matters only for 12 bits and odd texel counts, e.g. a
+/// 1 x 1 texture without gutter: 36 bits -> 5 bytes).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize)]
 pub struct TextureMemory {
     /// Number of textures (one per polygon).
@@ -603,21 +675,30 @@ impl TextureMemory {
     /// Memory of square textures with the given sides (each a power of two), every level with
     /// `gutter` texels beyond each edge.
     pub fn of_sides(sides: &[u32], gutter: u32) -> TextureMemory {
+        let sizes: Vec<(u32, u32)> = sides.iter().map(|&n| (n, n)).collect();
+        Self::of_sizes(&sizes, gutter)
+    }
+
+    /// Memory of textures of the given sizes (width, height; each a power of two), every level
+    /// with `gutter` texels beyond each edge; level l of w x h is `max(1, w >> l)` x
+    /// `max(1, h >> l)`, down to 1 x 1.
+    pub fn of_sizes(sizes: &[(u32, u32)], gutter: u32) -> TextureMemory {
         let mut m = TextureMemory {
-            textures: sides.len(),
+            textures: sizes.len(),
             ..Default::default()
         };
-        let stored = |s: u64| (s + 2 * gutter as u64) * (s + 2 * gutter as u64);
-        for &n in sides {
-            let base = stored(n as u64);
+        let g = 2 * gutter as u64;
+        let stored = |w: u64, h: u64| (w + g) * (h + g);
+        for &(w, h) in sizes {
+            let (mut w, mut h) = (w.max(1) as u64, h.max(1) as u64);
+            let base = stored(w, h);
             let mut chain = 0u64;
-            let mut s = n.max(1) as u64;
             loop {
-                chain += stored(s);
-                if s == 1 {
+                chain += stored(w, h);
+                if w == 1 && h == 1 {
                     break;
                 }
-                s /= 2;
+                (w, h) = ((w / 2).max(1), (h / 2).max(1));
             }
             m.texels += base;
             m.texels_with_chain += chain;
@@ -653,35 +734,57 @@ impl TextureSet {
         }
     }
 
-    /// Quadtree depth of each polygon of a solution, capped at `max_depth` (the scene's
-    /// `radiosity.max_depth`): the input of [`TextureSet::build`]. Leaves past the cap are the
-    /// solver's dives to a light's peak or a spot's cone edge over a small area; a texture as
-    /// fine as them would hold the whole polygon at that resolution (the gallery's textures
+    /// The [`Extent`] of each polygon of a solution: its quadtree depth capped at `max_depth`
+    /// (the scene's `radiosity.max_depth`) and its aspect in the scene (`polygons`, in the same
+    /// order): the input of [`TextureSet::build`]. Leaves past the cap are the solver's dives
+    /// to a light's peak, a spot's cone edge or a penumbra's edge over a small area; a texture
+    /// as fine as them would hold the whole polygon at that resolution (the gallery's textures
     /// grew from 0.2 MB to 142 MB that way), while the texture methods' error is set by the
-    /// bulk of the polygon.
-    pub fn depths(polygons: &[SampledQuadtree], max_depth: u32) -> Vec<u32> {
-        polygons
+    /// bulk of the polygon. Errors if the two lists differ in length.
+    pub fn extents(
+        trees: &[SampledQuadtree],
+        polygons: &[scene::Polygon],
+        max_depth: u32,
+    ) -> Result<Vec<Extent>> {
+        if trees.len() != polygons.len() {
+            return Err(Error::Inconsistent(format!(
+                "{} quadtrees for {} polygons",
+                trees.len(),
+                polygons.len()
+            )));
+        }
+        Ok(trees
             .iter()
-            .map(|p| p.tree.depth().min(max_depth))
-            .collect()
+            .zip(polygons)
+            .map(|(t, p)| Extent {
+                depth: t.tree.depth().min(max_depth),
+                aspect: Extent::aspect_of(p),
+            })
+            .collect())
     }
 
-    /// The per-polygon sides `policy` chooses for quadtrees of the given depths.
+    /// The per-polygon sizes (width, height) `policy` chooses for the given extents: the
+    /// policy sets the longer side, the aspect the shorter ([`Extent::size`]).
     ///
     /// Errors ([`Error::InvalidOption`]): a `Fixed` size that is not a power of two in
     /// `1..=MAX_TEXTURE_SIZE`; a `Budget` that even 1 x 1 textures exceed.
-    pub fn sides(depths: &[u32], policy: SizePolicy) -> Result<Vec<u32>> {
-        let from_depth: Vec<u32> = depths.iter().map(|&d| side_from_depth(d)).collect();
+    pub fn sizes(extents: &[Extent], policy: SizePolicy) -> Result<Vec<(u32, u32)>> {
+        let scaled = |k: u32| -> Vec<(u32, u32)> {
+            extents
+                .iter()
+                .map(|e| e.size((side_from_depth(e.depth) >> k).max(1)))
+                .collect()
+        };
         match policy {
-            SizePolicy::FromDepth => Ok(from_depth),
+            SizePolicy::FromDepth => Ok(scaled(0)),
             SizePolicy::Fixed(n) => {
                 check_side(n)?;
-                Ok(vec![n; depths.len()])
+                Ok(extents.iter().map(|e| e.size(n)).collect())
             }
             SizePolicy::Budget(bytes) => {
                 for k in 0..=MAX_TEXTURE_SIZE.ilog2() {
-                    let s: Vec<u32> = from_depth.iter().map(|&n| (n >> k).max(1)).collect();
-                    if TextureMemory::of_sides(&s, GUTTER).bytes_with_chain[1] <= bytes {
+                    let s = scaled(k);
+                    if TextureMemory::of_sizes(&s, GUTTER).bytes_with_chain[1] <= bytes {
                         return Ok(s);
                     }
                 }
@@ -690,43 +793,47 @@ impl TextureSet {
                     bytes.to_string(),
                     format!(
                         "is below {} bytes, the size of {} 1 x 1 textures at 12 bits per channel",
-                        TextureMemory::of_sides(&vec![1; depths.len()], GUTTER).bytes_with_chain[1],
-                        depths.len()
+                        TextureMemory::of_sides(&vec![1; extents.len()], GUTTER).bytes_with_chain
+                            [1],
+                        extents.len()
                     ),
                 ))
             }
-            SizePolicy::Scaled(k) => Ok(from_depth.iter().map(|&n| scale_side(n, k)).collect()),
+            SizePolicy::Scaled(k) => Ok(extents
+                .iter()
+                .map(|e| e.size(scale_side(side_from_depth(e.depth), k)))
+                .collect()),
         }
     }
 
-    /// Builds every polygon's texture by resampling its RRP at the side `policy` chooses from
-    /// `depths` (one per polygon, see [`TextureSet::depths`]) at the texel positions of
+    /// Builds every polygon's texture by resampling its RRP at the size `policy` chooses from
+    /// `extents` (one per polygon, see [`TextureSet::extents`]) at the texel positions of
     /// `placement`, with mip chains ([`RadiosityTexture::from_rrp`]), in parallel. Errors if
-    /// `depths.len()` differs from the polygon count or as [`TextureSet::sides`].
+    /// `extents.len()` differs from the polygon count or as [`TextureSet::sizes`].
     pub fn build(
         recon: &Reconstruction,
-        depths: &[u32],
+        extents: &[Extent],
         policy: SizePolicy,
         placement: Placement,
     ) -> Result<TextureSet> {
-        if depths.len() != recon.polygon_count() {
+        if extents.len() != recon.polygon_count() {
             return Err(Error::Inconsistent(format!(
-                "{} quadtree depths for {} polygons",
-                depths.len(),
+                "{} texture extents for {} polygons",
+                extents.len(),
                 recon.polygon_count()
             )));
         }
-        let sides = Self::sides(depths, policy)?;
+        let sizes = Self::sizes(extents, policy)?;
         // One independent job per polygon; collect keeps polygon order, so the result does not
         // depend on the thread count.
-        let textures = sides
+        let textures = sizes
             .par_iter()
             .enumerate()
             .map(|(p, &n)| RadiosityTexture::from_rrp(recon, p as u32, n, placement, GUTTER))
             .collect();
         Ok(TextureSet {
             textures,
-            memory: TextureMemory::of_sides(&sides, GUTTER),
+            memory: TextureMemory::of_sizes(&sizes, GUTTER),
             placement,
             gutter: GUTTER,
         })

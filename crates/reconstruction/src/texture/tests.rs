@@ -186,61 +186,178 @@ fn memory_of_known_sizes_is_hand_computed() {
     assert_eq!(g.bytes_with_chain[1], 113 + 275);
 }
 
+/// Extents of square polygons (aspect 0) at the given depths.
+fn square(depths: &[u32]) -> Vec<Extent> {
+    depths
+        .iter()
+        .map(|&depth| Extent { depth, aspect: 0 })
+        .collect()
+}
+
+/// The sides of square textures (width = height), as a list.
+fn sides(sizes: Vec<(u32, u32)>) -> Vec<u32> {
+    sizes
+        .into_iter()
+        .map(|(w, h)| {
+            assert_eq!(w, h);
+            w
+        })
+        .collect()
+}
+
 #[test]
 fn size_policies() {
     assert_eq!(
         [0, 1, 2, 3, 6, 20].map(side_from_depth),
         [2, 4, 8, 16, 128, MAX_TEXTURE_SIZE]
     );
-    let d = [1, 3, 6];
-    assert_eq!(
-        TextureSet::sides(&d, SizePolicy::FromDepth).unwrap(),
-        [4, 16, 128]
-    );
-    assert_eq!(
-        TextureSet::sides(&d, SizePolicy::Fixed(32)).unwrap(),
-        [32; 3]
-    );
-    assert!(TextureSet::sides(&d, SizePolicy::Fixed(24)).is_err());
-    assert!(TextureSet::sides(&d, SizePolicy::Fixed(0)).is_err());
+    let d = square(&[1, 3, 6]);
+    let sizes = |p| sides(TextureSet::sizes(&d, p).unwrap());
+    assert_eq!(sizes(SizePolicy::FromDepth), [4, 16, 128]);
+    assert_eq!(sizes(SizePolicy::Fixed(32)), [32; 3]);
+    assert!(TextureSet::sizes(&d, SizePolicy::Fixed(24)).is_err());
+    assert!(TextureSet::sizes(&d, SizePolicy::Fixed(0)).is_err());
     // Full FromDepth at 12 bits with chains: sides 4, 16, 128 fit exactly their own size.
     // The budget counts the gutters the built textures carry.
     let full = TextureMemory::of_sides(&[4, 16, 128], GUTTER).bytes_with_chain[1];
-    assert_eq!(
-        TextureSet::sides(&d, SizePolicy::Budget(full)).unwrap(),
-        [4, 16, 128]
-    );
+    assert_eq!(sizes(SizePolicy::Budget(full)), [4, 16, 128]);
     // One byte less: halve all -> 2, 8, 64.
-    assert_eq!(
-        TextureSet::sides(&d, SizePolicy::Budget(full - 1)).unwrap(),
-        [2, 8, 64]
-    );
+    assert_eq!(sizes(SizePolicy::Budget(full - 1)), [2, 8, 64]);
     let ones = TextureMemory::of_sides(&[1, 1, 1], GUTTER).bytes_with_chain[1];
-    assert_eq!(
-        TextureSet::sides(&d, SizePolicy::Budget(ones)).unwrap(),
-        [1, 1, 1]
-    );
-    assert!(TextureSet::sides(&d, SizePolicy::Budget(ones - 1)).is_err());
+    assert_eq!(sizes(SizePolicy::Budget(ones)), [1, 1, 1]);
+    assert!(TextureSet::sizes(&d, SizePolicy::Budget(ones - 1)).is_err());
     // Scaled: 2^k times the FromDepth sides, clamped to 1..=MAX_TEXTURE_SIZE.
+    assert_eq!(sizes(SizePolicy::Scaled(0)), [4, 16, 128]);
+    assert_eq!(sizes(SizePolicy::Scaled(3)), [32, 128, 1024]);
+    assert_eq!(sizes(SizePolicy::Scaled(-3)), [1, 2, 16]);
+    let deep = square(&[20]);
+    let one = |p| sides(TextureSet::sizes(&deep, p).unwrap());
+    assert_eq!(one(SizePolicy::Scaled(i32::MAX)), [MAX_TEXTURE_SIZE]);
+    assert_eq!(one(SizePolicy::Scaled(i32::MIN)), [1]);
+}
+
+#[test]
+fn every_policy_keeps_the_polygons_aspect() {
+    // u 8x longer than v, v 2x longer than u, and a strip past the largest texture's ratio.
+    let e = [
+        Extent {
+            depth: 6,
+            aspect: 3,
+        },
+        Extent {
+            depth: 3,
+            aspect: -1,
+        },
+        Extent {
+            depth: 20,
+            aspect: MAX_ASPECT,
+        },
+    ];
+    let wide = MAX_TEXTURE_SIZE >> MAX_ASPECT;
+    let sizes = |p| TextureSet::sizes(&e, p).unwrap();
     assert_eq!(
-        TextureSet::sides(&d, SizePolicy::Scaled(0)).unwrap(),
-        [4, 16, 128]
+        sizes(SizePolicy::FromDepth),
+        [(128, 16), (8, 16), (MAX_TEXTURE_SIZE, wide)]
+    );
+    assert_eq!(sizes(SizePolicy::Fixed(64)), [(64, 8), (32, 64), (64, 1)]);
+    assert_eq!(
+        sizes(SizePolicy::Scaled(-2)),
+        [(32, 4), (2, 4), (MAX_TEXTURE_SIZE / 4, 1)]
+    );
+    // The budget counts the rectangles: exactly their memory fits, a byte less halves them.
+    let full = TextureMemory::of_sizes(&sizes(SizePolicy::FromDepth), GUTTER).bytes_with_chain[1];
+    assert_eq!(
+        sizes(SizePolicy::Budget(full)),
+        sizes(SizePolicy::FromDepth)
     );
     assert_eq!(
-        TextureSet::sides(&d, SizePolicy::Scaled(3)).unwrap(),
-        [32, 128, 1024]
+        sizes(SizePolicy::Budget(full - 1)),
+        [(64, 8), (4, 8), (MAX_TEXTURE_SIZE / 2, 1)]
     );
+}
+
+#[test]
+fn a_quads_aspect_is_its_side_ratio_rounded_toward_zero() {
+    let p = glam::DVec3::new;
+    let quad = |w: f64, h: f64| {
+        scene::Polygon::quad(
+            [p(0., 0., 0.), p(w, 0., 0.), p(w, h, 0.), p(0., h, 0.)],
+            0,
+            0,
+        )
+        .unwrap()
+    };
+    assert_eq!(Extent::aspect_of(&quad(1.0, 1.0)), 0);
+    assert_eq!(Extent::aspect_of(&quad(1.9, 1.0)), 0);
+    assert_eq!(Extent::aspect_of(&quad(2.0, 1.0)), 1);
+    assert_eq!(Extent::aspect_of(&quad(4.0, 0.05)), 6); // 80 = 2^6.3
+    assert_eq!(Extent::aspect_of(&quad(0.05, 4.0)), -6);
+    assert_eq!(Extent::aspect_of(&quad(1e6, 1e-3)), MAX_ASPECT);
+    // A trapezoid: mean width 3 (sides 2 and 4) along u against height 1 along v.
+    let trap = scene::Polygon::quad(
+        [p(0., 0., 0.), p(4., 0., 0.), p(3., 1., 0.), p(1., 1., 0.)],
+        0,
+        0,
+    )
+    .unwrap();
+    assert_eq!(Extent::aspect_of(&trap), 1);
+    // Triangles stay square: a sliver 40 x 1, and a right triangle 1 x 8 whose tangents at
+    // the centre of its collapsed square would say -3.
+    for [a, b, c] in [
+        [(0., 0.), (40., 0.), (0., 1.)],
+        [(0., 0.), (1., 0.), (0., 8.)],
+    ] {
+        let corner = |q: (f64, f64)| p(q.0, q.1, 0.);
+        let t = scene::Polygon::triangle([corner(a), corner(b), corner(c)], 0, 0).unwrap();
+        assert_eq!(Extent::aspect_of(&t), 0);
+    }
+}
+
+#[test]
+fn a_rectangular_texture_reproduces_a_linear_function_to_its_edges() {
+    // 16 x 4 texels with the gutter: bilinear lookups of a linear function are exact on the
+    // whole square (the gutter continues it) at every level of the chain (16 x 4, 8 x 2, 4 x 1,
+    // 2 x 1, 1 x 1) under centre placement; Mitchell-Netravali lookups, and corner placement,
+    // where the level has two texels or more across (one texel has no second texel to mirror
+    // for the cubic's outer taps, and a corner-placed single texel is one point sample, as at a
+    // square chain's 1 x 1 level).
+    let f = |u: f32, v: f32| Vec3::new(1.0 + 2.0 * u + v, 0.5 - u, 3.0 * v);
+    for placement in [Placement::Centre, Placement::Corner] {
+        let t = RadiosityTexture::from_fn_sized((16, 4), placement, GUTTER, f).unwrap();
+        let sizes: Vec<_> = t.levels.iter().map(|l| (l.width, l.height)).collect();
+        assert_eq!(sizes, [(16, 4), (8, 2), (4, 1), (2, 1), (1, 1)]);
+        for (level, l) in t.levels.iter().enumerate() {
+            let filters: &[Filter] = match (l.width.min(l.height) >= 2, placement) {
+                (true, _) => &[Filter::Bilinear, Filter::MITCHELL],
+                (false, Placement::Centre) => &[Filter::Bilinear],
+                (false, Placement::Corner) => &[],
+            };
+            for a in 0..=10 {
+                for b in 0..=10 {
+                    let (u, v) = (a as f32 / 10.0, b as f32 / 10.0);
+                    for &filter in filters {
+                        let s = t.sample(level, u, v, filter);
+                        assert!(
+                            (s - f(u, v)).abs().max_element() < 2e-5,
+                            "{placement:?} level {level} {filter:?} ({u}, {v}): {s}"
+                        );
+                    }
+                }
+            }
+        }
+    }
+}
+
+#[test]
+fn rectangular_memory_counts_every_level_and_gutter() {
+    // 4 x 1 without gutter: 4 + 2 + 1 texels; with a 2-texel gutter: 8 x 5 + 6 x 5 + 5 x 5.
+    assert_eq!(TextureMemory::of_sizes(&[(4, 1)], 0).texels_with_chain, 7);
+    let g = TextureMemory::of_sizes(&[(4, 1)], 2);
+    assert_eq!((g.texels, g.texels_with_chain), (40, 40 + 30 + 25));
+    // Squares agree with of_sides.
     assert_eq!(
-        TextureSet::sides(&d, SizePolicy::Scaled(-3)).unwrap(),
-        [1, 2, 16]
-    );
-    assert_eq!(
-        TextureSet::sides(&[20], SizePolicy::Scaled(i32::MAX)).unwrap(),
-        [MAX_TEXTURE_SIZE]
-    );
-    assert_eq!(
-        TextureSet::sides(&[20], SizePolicy::Scaled(i32::MIN)).unwrap(),
-        [1]
+        TextureMemory::of_sizes(&[(8, 8), (1, 1)], 2),
+        TextureMemory::of_sides(&[8, 1], 2)
     );
 }
 
@@ -276,8 +393,8 @@ fn texture_from_a_linear_rrp_reproduces_it_bilinearly() {
     };
     let sq = SampledQuadtree::from_fn(tree, f);
     let recon = Reconstruction::build(std::slice::from_ref(&sq), Estimator::default()).unwrap();
-    let depths = TextureSet::depths(std::slice::from_ref(&sq), base::quadtree::MAX_DEPTH);
-    assert_eq!(depths, [2]);
+    let depths = square(&[sq.tree.depth()]);
+    assert_eq!(depths[0].depth, 2);
     let set = TextureSet::build(&recon, &depths, SizePolicy::FromDepth, Placement::Centre).unwrap();
     let t = &set.textures[0];
     assert_eq!((t.width, t.levels.len()), (8, 4));
@@ -329,7 +446,7 @@ fn from_depth_memory_matches_the_reconstruction_stats() {
     let recon = Reconstruction::build(&trees, Estimator::default()).unwrap();
     let set = TextureSet::build(
         &recon,
-        &TextureSet::depths(&trees, base::quadtree::MAX_DEPTH),
+        &square(&trees.iter().map(|t| t.tree.depth()).collect::<Vec<_>>()),
         SizePolicy::FromDepth,
         Placement::Centre,
     )
@@ -603,7 +720,13 @@ fn corner_texture_returns_the_rrp_edge_values() {
     };
     let sq = SampledQuadtree::from_fn(tree, f);
     let recon = Reconstruction::build(std::slice::from_ref(&sq), Estimator::default()).unwrap();
-    let set = TextureSet::build(&recon, &[2], SizePolicy::Fixed(16), Placement::Corner).unwrap();
+    let set = TextureSet::build(
+        &recon,
+        &square(&[2]),
+        SizePolicy::Fixed(16),
+        Placement::Corner,
+    )
+    .unwrap();
     assert_eq!(set.placement, Placement::Corner);
     let t = &set.textures[0];
     assert_eq!(t.placement, Placement::Corner);
@@ -641,11 +764,17 @@ fn corner_texture_returns_the_rrp_edge_values() {
     // centre's value. With the gutter, bilinear weights of 1/4 on the four texels around the
     // corner return the value there to second order: the RRP's f_uu, f_vv, f_uv (below 20 on
     // this f) times h^2 / 8 with h = 1/16, i.e. within 0.1.
-    let clamped = RadiosityTexture::from_rrp(&recon, 0, 16, Placement::Centre, 0);
+    let clamped = RadiosityTexture::from_rrp(&recon, 0, (16, 16), Placement::Centre, 0);
     let c0 = clamped.sample(0, 0.0, 0.0, Filter::Bilinear);
     assert_eq!(c0, recon.eval(0, 0.5 / 16.0, 0.5 / 16.0));
     assert_ne!(c0, recon.eval(0, 0.0, 0.0));
-    let centre = TextureSet::build(&recon, &[2], SizePolicy::Fixed(16), Placement::Centre).unwrap();
+    let centre = TextureSet::build(
+        &recon,
+        &square(&[2]),
+        SizePolicy::Fixed(16),
+        Placement::Centre,
+    )
+    .unwrap();
     assert_eq!(centre.gutter, GUTTER);
     let corner = recon.eval(0, 0.0, 0.0);
     let g0 = centre.textures[0].sample(0, 0.0, 0.0, Filter::Bilinear);

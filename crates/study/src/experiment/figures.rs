@@ -458,8 +458,8 @@ pub fn fig6(opts: &FigureOptions) -> Result<Figure> {
     let reference = oracle_image(&setup, &oracle, opts.size, opts.isa)?;
     let coarse = sampled(&oracle, opts.coarse_depth);
     let recon = Reconstruction::build(std::slice::from_ref(&coarse), opts.estimator)?;
-    TextureSet::sides(
-        &[0],
+    TextureSet::sizes(
+        &[Default::default()],
         reconstruction::texture::SizePolicy::Fixed(opts.texture_size),
     )?;
     let fig = SmallTexture {
@@ -501,7 +501,11 @@ impl SmallTexture<'_> {
         TextureSet {
             memory: TextureMemory::of_sides(&[ts], gutter),
             textures: vec![RadiosityTexture::from_rrp(
-                self.recon, 0, ts, placement, gutter,
+                self.recon,
+                0,
+                (ts, ts),
+                placement,
+                gutter,
             )],
             placement,
             gutter,

@@ -67,10 +67,10 @@ pub fn walk_errors(job: &Context<'_>, p: &Prepared, path: &CameraPath) -> Result
     let (w, h) = (p.scene.width, p.scene.height);
     let opts = job.frame_options(w, h);
     let rrp_bytes = memory::rrp_stored_bytes(p);
-    let depths = TextureSet::depths(&p.solution.polygons, p.scene.radiosity.max_depth);
+    let extents = p.texture_extents()?;
     let set = TextureSet::build(
         p.expanded()?.0,
-        &depths,
+        &extents,
         SizePolicy::Budget(rrp_bytes),
         p.scene.render.texel_placement,
     )?;

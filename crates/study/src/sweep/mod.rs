@@ -699,8 +699,8 @@ impl Drawer<'_> {
     /// equal to that memory selects exactly that scale); none without a texture method.
     fn texture_sets(&self) -> Result<Vec<(TextureLevel, TextureSet)>> {
         let p = self.p;
-        let depths = TextureSet::depths(&p.solution.polygons, p.scene.radiosity.max_depth);
-        let full = TextureSet::sides(&depths, SizePolicy::FromDepth)?;
+        let extents = p.texture_extents()?;
+        let full = TextureSet::sizes(&extents, SizePolicy::FromDepth)?;
         let mut sets = Vec::new();
         if !self
             .sweep
@@ -712,11 +712,14 @@ impl Drawer<'_> {
         }
         for placement in [Placement::Centre, Placement::Corner] {
             for k in 0..self.sweep.req.texture_levels {
-                let sides: Vec<u32> = full.iter().map(|&n| (n >> k).max(1)).collect();
-                let mem = TextureMemory::of_sides(&sides, GUTTER);
+                let sizes: Vec<(u32, u32)> = full
+                    .iter()
+                    .map(|&(w, h)| ((w >> k).max(1), (h >> k).max(1)))
+                    .collect();
+                let mem = TextureMemory::of_sizes(&sizes, GUTTER);
                 let set = TextureSet::build(
                     p.expanded()?.0,
-                    &depths,
+                    &extents,
                     SizePolicy::Budget(memory::texture_bytes(&mem)),
                     placement,
                 )?;
