@@ -73,6 +73,18 @@ pub fn sample_offsets(aa: Aa) -> &'static [(f32, f32)] {
     }
 }
 
+/// The side of one sample's share of a pixel when the pixel has `samples` samples: 1, 1/2, 1/4
+/// for 1, 4, 16 (exact powers of two; 0 samples count as 1).
+///
+/// A texture lookup's level of detail is taken at this footprint, not the pixel's: the samples
+/// of a pixel are box-filtered afterwards, so a lookup filtered over the whole pixel would
+/// filter the texture twice, blurring a shadow's edge over about two pixels where the direct
+/// method's samples resolve it (what supersampling hardware does too: its derivatives are
+/// taken between samples, a sample's spacing apart).
+pub fn sample_spacing(samples: u32) -> f32 {
+    1.0 / (samples.max(1) as f32).sqrt()
+}
+
 /// Geometry and setup for a frame: the primitives that reach the rasterizer, in polygon order.
 /// `width` x `height` is the image size; with `cull_back_faces`, polygons facing away from the
 /// camera are dropped (see [`geometry`]).

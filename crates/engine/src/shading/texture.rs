@@ -1,6 +1,8 @@
 //! The texture (RAT) shader: every visible sample filters its polygon's radiosity texture at a
 //! level of detail from the finite differences of (u, v) between neighbouring samples of the same
-//! polygon.
+//! polygon, taken over one sample's share of the pixel ([`crate::raster::sample_spacing`]:
+//! the pixel's samples are averaged afterwards, so a lookup filtered over the whole pixel
+//! would filter twice).
 //!
 //! It runs in the same lane blocks as the patch shader: per block of
 //! 8 samples the derivatives, the level of detail and the filter are computed in lanes
@@ -17,6 +19,7 @@ use glam::Vec3;
 use super::shade_region_per_sample;
 use super::{RowOut, Rows, ShadeCounts};
 use crate::raster::gbuffer::{RegionGBuffer, NO_POLYGON};
+use crate::raster::sample_spacing;
 use lanes::{F32x8, Isa, Kernel, Simd, LANES};
 #[cfg(test)]
 use reconstruction::texture::lod_from_squares;
@@ -68,7 +71,8 @@ fn shade_region_texture_scalar(
             return Vec3::ZERO;
         };
         let [ux, vx, uy, vy] = uv_derivatives(gb, i, x, y);
-        let (tw, th) = (tex.width as f32, tex.height as f32);
+        let spacing = sample_spacing(gb.samples);
+        let (tw, th) = (tex.width as f32 * spacing, tex.height as f32 * spacing);
         let lx2 = (ux * tw) * (ux * tw) + (vx * th) * (vx * th);
         let ly2 = (uy * tw) * (uy * tw) + (vy * th) * (vy * th);
         let lod = lod_from_squares(lx2, ly2, tex.last_level());
@@ -131,12 +135,13 @@ impl Kernel for TexturePass<'_, '_> {
 }
 
 /// The squared level-of-detail footprints (`lx2`, `ly2` of [`reconstruction::texture::lod_from_squares`],
-/// texels per pixel) of `tex` for the lane derivatives `d` = (du/dx, dv/dx, du/dy, dv/dy).
+/// texels per sample footprint) of `tex` for the lane derivatives `d` = (du/dx, dv/dx, du/dy,
+/// dv/dy) per pixel and the samples' `spacing` in pixels ([`sample_spacing`]).
 #[inline(always)]
-fn footprint8(tex: &RadiosityTexture, d: [F32x8; 4]) -> (F32x8, F32x8) {
+fn footprint8(tex: &RadiosityTexture, d: [F32x8; 4], spacing: f32) -> (F32x8, F32x8) {
     let [ux, vx, uy, vy] = d;
-    let tw = F32x8::splat(tex.width as f32);
-    let th = F32x8::splat(tex.height as f32);
+    let tw = F32x8::splat(tex.width as f32 * spacing);
+    let th = F32x8::splat(tex.height as f32 * spacing);
     let lx2 = (ux * tw) * (ux * tw) + (vx * th) * (vx * th);
     let ly2 = (uy * tw) * (uy * tw) + (vy * th) * (vy * th);
     (lx2, ly2)
@@ -277,6 +282,7 @@ fn shade_texture_body<S: Simd>(
 ) -> ShadeCounts {
     let (w, h, stride) = (gb.width as usize, gb.height as usize, gb.stride as usize);
     let plane = stride * h;
+    let spacing = sample_spacing(gb.samples);
     let mut rows = RowOut::new(gb.samples, stride);
     let mut counts = ShadeCounts::default();
     let bg = background.to_array();
@@ -314,7 +320,7 @@ fn shade_texture_body<S: Simd>(
                     let u8x = F32x8(gb.u[i0..i0 + LANES].try_into().unwrap());
                     let v8x = F32x8(gb.v[i0..i0 + LANES].try_into().unwrap());
                     let d = uv_derivatives8_uniform(gb, i0, bx, y, p0);
-                    let (lx2, ly2) = footprint8(tex, d);
+                    let (lx2, ly2) = footprint8(tex, d, spacing);
                     sampler.sample8(simd, tex, lx2, ly2, u8x, v8x, &[true; LANES])
                 } else {
                     // Mixed polygons or empty lanes: one lane group per distinct polygon.
@@ -334,7 +340,7 @@ fn shade_texture_body<S: Simd>(
                         let c = match set.textures.get(p as usize) {
                             None => [F32x8::splat(0.0); 3],
                             Some(tex) => {
-                                let (lx2, ly2) = footprint8(tex, d);
+                                let (lx2, ly2) = footprint8(tex, d, spacing);
                                 sampler.sample8(simd, tex, lx2, ly2, u8x, v8x, &m)
                             }
                         };
@@ -415,10 +421,15 @@ mod tests {
                         continue;
                     }
                     let (xf, yf) = (x as f32 + 0.5 * si as f32, y as f32);
-                    // Scale grows with x and y: footprints from 1/16 texel to many texels.
+                    // Scale grows with x and y: footprints from 1/16 texel to many texels; the
+                    // last two rows step v by 2 a row, past the whole texture even for a
+                    // sample's share of a pixel (the last level).
                     let k = 0.002 * (1.0 + 0.05 * xf * xf + 0.3 * yf * yf);
                     let mut u = (xf * k).fract() * 1.04 - 0.02;
-                    let v = (yf * k * 0.7 + 0.1 * xf * k).fract() * 1.04 - 0.02;
+                    let v = match y {
+                        11.. => 2.0 * yf - 22.5,
+                        _ => (yf * k * 0.7 + 0.1 * xf * k).fract() * 1.04 - 0.02,
+                    };
                     if (x, y, si) == (30, 7, 1) {
                         u = f32::NAN;
                     }
@@ -459,7 +470,8 @@ mod tests {
                         continue;
                     };
                     let [ux, vx, uy, vy] = uv_derivatives(gb, i, x, y);
-                    let (tw, th) = (tex.width as f32, tex.height as f32);
+                    let spacing = sample_spacing(gb.samples);
+                    let (tw, th) = (tex.width as f32 * spacing, tex.height as f32 * spacing);
                     let lx2 = (ux * tw) * (ux * tw) + (vx * th) * (vx * th);
                     let ly2 = (uy * tw) * (uy * tw) + (vy * th) * (vy * th);
                     let d = lod_from_squares(lx2, ly2, tex.last_level());

@@ -8,3 +8,4 @@ mod common;
 mod raster;
 mod backends;
 mod mesh_coverage;
+mod texture_footprint;
