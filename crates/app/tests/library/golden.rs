@@ -143,7 +143,8 @@ fn every_shipped_scene_has_a_golden_test() {
     assert_eq!(stems, SCENES);
 }
 
-/// The shipped scenes solve at their own settings with nothing to warn about: no leaf where
+/// The shipped scenes solve at their own settings (the gallery one level coarser,
+/// `crate::COARSER`) with nothing to warn about: no leaf where
 /// refinement stopped at a guard misplaces more than the tolerance of the scene's light, the
 /// energy account balances, and the light converged (what `render` and `solve` would print).
 #[test]
