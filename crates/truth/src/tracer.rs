@@ -233,14 +233,11 @@ impl<'a> Tracer<'a> {
             }
             let light = &self.scene.polygons[e as usize];
             let radiance = crate::luminance(self.scene.material_of(e as usize).emission) / PI;
-            let [c0, c1, c2, c3] = light.corners;
             for i in 0..grid {
                 for j in 0..grid {
                     let (u, v) = ((i as f64 + 0.5) * step, (j as f64 + 0.5) * step);
                     let y = light.point(u, v);
-                    let du = (1.0 - v) * (c1 - c0) + v * (c2 - c3);
-                    let dv = (1.0 - u) * (c3 - c0) + u * (c2 - c1);
-                    let area = du.cross(dv).length() * step * step;
+                    let area = light.area_element(u, v) * step * step;
                     let d = y - o;
                     let r2 = d.length_squared();
                     let w = d / r2.sqrt();

@@ -129,14 +129,12 @@ pub(super) fn refine(
     Ok(splits)
 }
 
+/// A leaf of a polygon's tree: the polygon and the node.
+type LeafId = (u32, u32);
+
 /// Keeps G at the test points of the `pending` leaves that do not split (`split_now` is a
 /// subsequence of `pending`): the patches' integrals use them (Simpson's rule).
-fn keep_tests(
-    polys: &mut [Poly],
-    pending: &[(u32, u32)],
-    split_now: &[(u32, u32)],
-    probes: &Probes,
-) {
+fn keep_tests(polys: &mut [Poly], pending: &[LeafId], split_now: &[LeafId], probes: &Probes) {
     let mut k = 0;
     for &(r, id) in pending {
         if k < split_now.len() && split_now[k] == (r, id) {
@@ -176,7 +174,7 @@ struct Refinement<'r, 't> {
     peaks: Vec<Vec<VertexKey>>,
     /// Leaves of the next generation that split whatever their test says, to keep the tree
     /// graded around a split the guards would have refused ([`Refinement::grade`]).
-    forced: HashSet<(u32, u32)>,
+    forced: HashSet<LeafId>,
     /// Per polygon: its guard depth ([`depth_bound`]) and the nodes it holds below it, which
     /// [`DIVE_NODES`] bounds.
     dives: Vec<(u32, u64)>,
@@ -243,9 +241,6 @@ impl Excess {
         self.smooth.max(self.shadow) > tolerance || self.between > PEAK_SHARE * tolerance
     }
 }
-
-/// A leaf of a polygon's tree: the polygon and the node.
-type LeafId = (u32, u32);
 
 /// What a generation of pending leaves is judged on.
 struct Probes {
@@ -324,7 +319,7 @@ impl<'r, 't> Refinement<'r, 't> {
 
     /// Every leaf that may split, in polygon order (a non-reflecting polygon's radiosity is its
     /// constant emission: none of its leaves).
-    fn splittable_leaves(&self, polys: &[Poly]) -> Vec<(u32, u32)> {
+    fn splittable_leaves(&self, polys: &[Poly]) -> Vec<LeafId> {
         let mut pending = Vec::new();
         for (r, p) in polys.iter().enumerate() {
             if p.rho.max_element() <= 0.0 {
@@ -343,7 +338,7 @@ impl<'r, 't> Refinement<'r, 't> {
     /// Gathers G at the test points of the `pending` leaves that are not vertices yet, and the
     /// shadows of their lights at every point of the leaves some shadow may cross; raises the
     /// peak to the new values.
-    fn probe(&mut self, polys: &[Poly], pending: &[(u32, u32)]) -> Probes {
+    fn probe(&mut self, polys: &[Poly], pending: &[LeafId]) -> Probes {
         let mut keys: Vec<(u32, VertexKey)> = Vec::new();
         let mut shadow_keys: Vec<(u32, VertexKey)> = Vec::new();
         for &(r, id) in pending {
@@ -389,7 +384,7 @@ impl<'r, 't> Refinement<'r, 't> {
     /// ceiling's light falls to 0.29 of its value at the outline within one gap, and the
     /// trapezoid rule on the gap-wide leaves there gave the ceiling around the panel 9 % more
     /// power than it has, and the room lit by it as much more light.
-    fn unjudged_ramps(&self, polys: &[Poly], patches: &PatchLayout) -> Vec<(u32, u32)> {
+    fn unjudged_ramps(&self, polys: &[Poly], patches: &PatchLayout) -> Vec<LeafId> {
         let floor = REFINE_FLOOR * self.peak;
         let mut out = Vec::new();
         for (r, p) in polys.iter().enumerate() {
@@ -439,7 +434,7 @@ impl<'r, 't> Refinement<'r, 't> {
     }
 
     /// G gathered at the centres of `leaves` (in order; a leaf's centre is never a vertex).
-    fn gather_centres(&mut self, polys: &[Poly], leaves: &[(u32, u32)]) -> Vec<DVec3> {
+    fn gather_centres(&mut self, polys: &[Poly], leaves: &[LeafId]) -> Vec<DVec3> {
         let keys: Vec<(u32, VertexKey)> = leaves
             .iter()
             .map(|&(r, id)| (r, polys[r as usize].tree.node(id).cell.centre()))
@@ -466,7 +461,7 @@ impl<'r, 't> Refinement<'r, 't> {
     fn leaves_to_split(
         &self,
         polys: &[Poly],
-        pending: &[(u32, u32)],
+        pending: &[LeafId],
         probes: &Probes,
         guarded: &mut GuardStops,
     ) -> (Vec<LeafId>, Vec<LeafId>) {
@@ -490,7 +485,7 @@ impl<'r, 't> Refinement<'r, 't> {
             let cell = polys[r as usize].tree.node(id).cell;
             let past = cell.level >= self.dives[r as usize].0;
             let spent = past && below[r as usize] >= DIVE_NODES;
-            let mut admit = |split: &mut Vec<(u32, u32)>| {
+            let mut admit = |split: &mut Vec<LeafId>| {
                 split.push((r, id));
                 if past {
                     below[r as usize] += 4;
@@ -647,7 +642,7 @@ impl<'r, 't> Refinement<'r, 't> {
         (split_now, edges): (&[LeafId], &[LeafId]),
         probes: &Probes,
         patches: &PatchLayout,
-    ) -> Vec<(u32, u32)> {
+    ) -> Vec<LeafId> {
         let mut next = Vec::new();
         let mut touched: Vec<u32> = Vec::new();
         self.forced.clear();
