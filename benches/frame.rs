@@ -419,7 +419,11 @@ fn deferred(c: &mut Criterion) {
         ("texture-bilinear-1024", Filter::Bilinear),
         ("texture-bicubic-1024", Filter::MITCHELL),
     ] {
-        let shader = Shader::Texture { set: &set, filter };
+        let shader = Shader::Texture {
+            set: &set,
+            filter,
+            anisotropy: 1,
+        };
         g.bench_function(name, |b| b.iter(|| pass(isa, &shader, &mut tiles)));
     }
     g.finish();

@@ -832,6 +832,11 @@ pub(crate) struct TextureArgs {
     /// scene's `[render] texel_placement`, else centre).
     #[arg(long, value_name = "centre|corner")]
     texel_placement: Option<String>,
+    /// Texture methods: most lookups a texture read takes along its footprint's longer axis,
+    /// 1 (isotropic, the paper's hardware; default) to 16 (anisotropic filtering: sharper at
+    /// grazing views, slower there).
+    #[arg(long, value_name = "N")]
+    anisotropy: Option<u32>,
 }
 
 impl TextureArgs {
@@ -841,6 +846,7 @@ impl TextureArgs {
             budget: self.texture_budget,
             bicubic: self.bicubic,
             placement: self.texel_placement.clone(),
+            anisotropy: self.anisotropy,
         }
     }
 }

@@ -290,6 +290,7 @@ pub(crate) fn stats(settings: &Settings, args: StatsArgs) -> anyhow::Result<()> 
             frame: FrameOptions {
                 aa: base::method::Aa::new("--aa", args.aa)?,
                 isa: settings.isa,
+                anisotropy: args.texture.options().anisotropy(),
                 ..FrameOptions::new(args.width, args.height)
             },
             texture: args.texture.options(),

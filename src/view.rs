@@ -78,6 +78,7 @@ pub(crate) fn view(settings: &Settings, args: ViewArgs) -> anyhow::Result<()> {
             renderers: args.renderers,
             region: args.region,
             isa: settings.isa(),
+            anisotropy: texture.anisotropy(),
             ..engine::frame::FrameOptions::new(args.width, args.height)
         };
         // The viewer's frame (and the screenshot's PNG) under the memory limit, as `render`'s,

@@ -191,6 +191,18 @@ fn bad_texture_options_and_names_exit_2() {
             vec!["bench", &ts, "--texel-placement", "middle"],
             "--texel-placement middle",
         ),
+        (
+            vec!["render", &ts, "--anisotropy", "0"],
+            "--anisotropy 0: must be 1 (isotropic) to 16",
+        ),
+        (
+            vec!["bench", &ts, "--anisotropy", "17"],
+            "--anisotropy 17: must be 1 (isotropic) to 16",
+        ),
+        (
+            vec!["export", &ts, "-o", "x.glb", "--anisotropy", "4"],
+            "the engine that draws them filters them",
+        ),
     ] {
         let o = run(&args);
         assert_eq!(o.status.code(), Some(2), "{args:?}: {}", text(&o.stderr));

@@ -218,6 +218,10 @@ pub struct TextureOptions {
     /// Where the texels sit, by name (`--texel-placement centre|corner`), checked by
     /// [`TextureOptions::placement`] in the plan.
     pub placement: Option<String>,
+    /// Most lookups along a footprint's longer axis (`--anisotropy N`; default 1, isotropic as
+    /// the paper's hardware), checked with the frame's options
+    /// ([`engine::frame::FrameOptions::anisotropy`]).
+    pub anisotropy: Option<u32>,
 }
 
 impl TextureOptions {
@@ -253,6 +257,11 @@ impl TextureOptions {
             Some(name) => Placement::parse_option("texel-placement", name),
             None => Ok(scene.render.texel_placement),
         }
+    }
+
+    /// The anisotropy of the texture lookups: `--anisotropy`, else 1 (isotropic).
+    pub fn anisotropy(&self) -> u32 {
+        self.anisotropy.unwrap_or(1)
     }
 
     /// `method` with these options' bicubic parameters applied (checked).

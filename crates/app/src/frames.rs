@@ -138,7 +138,11 @@ pub fn render_frame_in(
             ctx.render(
                 &p.scene,
                 camera,
-                &Shader::Texture { set, filter },
+                &Shader::Texture {
+                    set,
+                    filter,
+                    anisotropy: opts.anisotropy,
+                },
                 method,
                 opts,
             )

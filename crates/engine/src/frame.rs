@@ -33,6 +33,7 @@ use std::time::Instant;
 use glam::Vec3;
 use lanes::Isa;
 use rayon::prelude::*;
+use reconstruction::texture::MAX_ANISOTROPY;
 use serde::Serialize;
 
 use std::sync::Mutex;
@@ -67,6 +68,9 @@ pub struct FrameOptions {
     /// The instruction set the kernels run with (default [`Isa::detect`], the widest the CPU
     /// has): a choice of speed only, the image is the same for every one.
     pub isa: Isa,
+    /// Texture methods: most lookups along a footprint's longer axis, 1 (isotropic, the
+    /// paper's hardware; the default) to [`reconstruction::texture::MAX_ANISOTROPY`].
+    pub anisotropy: u32,
 }
 
 impl FrameOptions {
@@ -80,6 +84,7 @@ impl FrameOptions {
             region: DEFAULT_REGION,
             cull_back_faces: false,
             isa: Isa::detect(),
+            anisotropy: 1,
         }
     }
 
@@ -113,6 +118,13 @@ impl FrameOptions {
                 "region",
                 self.region.to_string(),
                 "must be a multiple of 8 in 8..=1024",
+            ));
+        }
+        if !(1..=MAX_ANISOTROPY).contains(&self.anisotropy) {
+            return Err(Error::invalid_option(
+                "anisotropy",
+                self.anisotropy.to_string(),
+                format!("must be 1 (isotropic) to {MAX_ANISOTROPY}"),
             ));
         }
         Ok(())

@@ -386,7 +386,11 @@ fn check_texture(isa: Isa) -> usize {
                     sampler.sample(tex, lod, gb.u[i], gb.v[i])
                 });
                 let mut got = vec![Vec3::splat(-7.0); want.len()];
-                let shader = Shader::Texture { set: &set, filter };
+                let shader = Shader::Texture {
+                    set: &set,
+                    filter,
+                    anisotropy: 1,
+                };
                 shade_region_with(isa, &shader, &gb, bg, &mut got, pitch);
                 let at = format!("{name} {filter:?} region {}", gb.region);
                 assert_same_pixels(&got, &want, pitch, gb.width as usize, &at);

@@ -270,7 +270,11 @@ impl Search<'_> {
                 let img = frame_image(frame::render(
                     &p.scene,
                     &p.scene.camera,
-                    &Shader::Texture { set: &set, filter },
+                    &Shader::Texture {
+                        set: &set,
+                        filter,
+                        anisotropy: 1,
+                    },
                     m,
                     self.opts,
                 )?)?;

@@ -131,7 +131,11 @@ pub fn across_views(
                 let img = frame_image(frame::render(
                     &p.scene,
                     camera,
-                    &Shader::Texture { set: &set, filter },
+                    &Shader::Texture {
+                        set: &set,
+                        filter,
+                        anisotropy: 1,
+                    },
                     m,
                     opts,
                 )?)?;

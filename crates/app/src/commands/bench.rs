@@ -134,6 +134,7 @@ pub fn run_bench(ctx: &Context<'_>, req: &BenchRequest) -> Result<BenchReport> {
         aa: Aa::new("aa", req.aa)?,
         renderers: req.renderers,
         region: req.region,
+        anisotropy: req.texture.anisotropy(),
         ..ctx.frame_options(input.scene.width, input.scene.height)
     };
     base.validate()?;

@@ -55,6 +55,13 @@ pub fn run_export(ctx: &Context<'_>, req: &ExportRequest) -> Result<ExportReport
             "an atlas holds centre-placed texels (texel centres at (i + 0.5) / n, as engines sample)",
         ));
     }
+    if let Some(n) = req.texture.anisotropy {
+        return Err(Error::invalid_option(
+            "anisotropy",
+            n.to_string(),
+            "an export writes the textures; the engine that draws them filters them",
+        ));
+    }
     let input = Input::load_opts(&req.input, req.scene.as_deref(), &req.load)?;
     check_export_outputs(&input, req)?;
     let policy = req.texture.policy(&input.scene)?;

@@ -115,6 +115,7 @@ impl RenderPlan {
             region: req.region,
             cull_back_faces: false,
             isa: ctx.isa,
+            anisotropy: req.texture.anisotropy(),
         };
         frame.validate()?;
         crate::budget::check_frame_options(&frame, (true, req.exr.is_some()), ctx.memory_limit)?;

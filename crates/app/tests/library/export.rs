@@ -18,6 +18,7 @@ fn draw(scene: &Scene, set: &reconstruction::texture::TextureSet) -> Vec<glam::V
     let shader = Shader::Texture {
         set,
         filter: Filter::Bilinear,
+        anisotropy: 1,
     };
     render(
         scene,

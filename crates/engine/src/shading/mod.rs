@@ -70,6 +70,10 @@ pub enum Shader<'a> {
         set: &'a TextureSet,
         /// The on-screen filter.
         filter: Filter,
+        /// Most taps of one lookup along a footprint's longer axis: 1 filters isotropically
+        /// (the paper's hardware), more anisotropically up to
+        /// [`reconstruction::texture::MAX_ANISOTROPY`] ([`crate::frame::FrameOptions::anisotropy`]).
+        anisotropy: u32,
     },
     /// A function of (polygon, u, v), evaluated per sample: the reference (the solver's oracle).
     Reference(&'a ReferenceFn<'a>),
@@ -126,8 +130,12 @@ pub fn shade_region_rows(
     );
     match *shader {
         Shader::Patches(_) => patches::shade_region_rows(isa, gb, background, rows),
-        Shader::Texture { set, filter } => {
-            texture::shade_region_texture_rows(isa, set, filter, gb, background, rows)
+        Shader::Texture {
+            set,
+            filter,
+            anisotropy,
+        } => {
+            texture::shade_region_texture_rows(isa, set, (filter, anisotropy), gb, background, rows)
         }
         Shader::Reference(func) => {
             let f = |i: usize, _: usize, _: usize| func(gb.polygon[i], gb.u[i], gb.v[i]);

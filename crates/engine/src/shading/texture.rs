@@ -59,7 +59,7 @@ fn uv_derivatives(gb: &RegionGBuffer, i: usize, x: usize, y: usize) -> [f32; 4] 
 #[cfg(test)]
 fn shade_region_texture_scalar(
     set: &TextureSet,
-    filter: Filter,
+    (filter, anisotropy): (Filter, u32),
     gb: &RegionGBuffer,
     background: Vec3,
     dst: &mut [Vec3],
@@ -72,6 +72,10 @@ fn shade_region_texture_scalar(
         };
         let [ux, vx, uy, vy] = uv_derivatives(gb, i, x, y);
         let spacing = sample_spacing(gb.samples);
+        if anisotropy > 1 {
+            let d = [ux * spacing, vx * spacing, uy * spacing, vy * spacing];
+            return sampler.sample_anisotropic(tex, d, (gb.u[i], gb.v[i]), anisotropy);
+        }
         let (tw, th) = (tex.width as f32 * spacing, tex.height as f32 * spacing);
         let lx2 = (ux * tw) * (ux * tw) + (vx * th) * (vx * th);
         let ly2 = (uy * tw) * (uy * tw) + (vy * th) * (vy * th);
@@ -95,7 +99,7 @@ fn shade_region_texture_scalar(
 pub(crate) fn shade_region_texture_rows(
     isa: Isa,
     set: &TextureSet,
-    filter: Filter,
+    (filter, anisotropy): (Filter, u32),
     gb: &RegionGBuffer,
     background: Vec3,
     rows: &mut Rows<'_>,
@@ -104,6 +108,7 @@ pub(crate) fn shade_region_texture_rows(
     isa.run_avx2(TexturePass {
         set,
         sampler: &sampler,
+        anisotropy,
         gb,
         background,
         rows,
@@ -114,6 +119,7 @@ pub(crate) fn shade_region_texture_rows(
 struct TexturePass<'a, 'r> {
     set: &'a TextureSet,
     sampler: &'a Sampler,
+    anisotropy: u32,
     gb: &'a RegionGBuffer,
     background: Vec3,
     rows: &'a mut Rows<'r>,
@@ -126,7 +132,7 @@ impl Kernel for TexturePass<'_, '_> {
         shade_texture_body(
             simd,
             self.set,
-            self.sampler,
+            (self.sampler, self.anisotropy),
             self.gb,
             self.background,
             self.rows,
@@ -145,6 +151,27 @@ fn footprint8(tex: &RadiosityTexture, d: [F32x8; 4], spacing: f32) -> (F32x8, F3
     let lx2 = (ux * tw) * (ux * tw) + (vx * th) * (vx * th);
     let ly2 = (uy * tw) * (uy * tw) + (vy * th) * (vy * th);
     (lx2, ly2)
+}
+
+/// The texture lookups of 8 samples with (u, v) derivatives `d` per pixel and the samples'
+/// `spacing`: isotropic at the footprint's level of detail ([`footprint8`]), or with more than one
+/// tap allowed, anisotropic over the footprint (derivatives scaled to one sample's step).
+#[inline(always)]
+fn lookup8<S: Simd>(
+    simd: S,
+    (sampler, anisotropy): (&Sampler, u32),
+    tex: &RadiosityTexture,
+    (d, spacing): ([F32x8; 4], f32),
+    (u, v): (F32x8, F32x8),
+    mask: &[bool; LANES],
+) -> [F32x8; 3] {
+    if anisotropy > 1 {
+        let s = F32x8::splat(spacing);
+        let step = [d[0] * s, d[1] * s, d[2] * s, d[3] * s];
+        return sampler.sample8_anisotropic(simd, tex, step, u, v, mask, anisotropy);
+    }
+    let (lx2, ly2) = footprint8(tex, d, spacing);
+    sampler.sample8(simd, tex, lx2, ly2, u, v, mask)
 }
 
 /// Lane form of `uv_derivatives` for the 8 samples starting at plane index `i0` (column `bx`,
@@ -275,7 +302,7 @@ fn uv_derivatives8_uniform(
 fn shade_texture_body<S: Simd>(
     simd: S,
     set: &TextureSet,
-    sampler: &Sampler,
+    (sampler, anisotropy): (&Sampler, u32),
     gb: &RegionGBuffer,
     background: Vec3,
     dst: &mut Rows<'_>,
@@ -320,8 +347,14 @@ fn shade_texture_body<S: Simd>(
                     let u8x = F32x8(gb.u[i0..i0 + LANES].try_into().unwrap());
                     let v8x = F32x8(gb.v[i0..i0 + LANES].try_into().unwrap());
                     let d = uv_derivatives8_uniform(gb, i0, bx, y, p0);
-                    let (lx2, ly2) = footprint8(tex, d, spacing);
-                    sampler.sample8(simd, tex, lx2, ly2, u8x, v8x, &[true; LANES])
+                    lookup8(
+                        simd,
+                        (sampler, anisotropy),
+                        tex,
+                        (d, spacing),
+                        (u8x, v8x),
+                        &[true; LANES],
+                    )
                 } else {
                     // Mixed polygons or empty lanes: one lane group per distinct polygon.
                     let u8x = F32x8(gb.u[i0..i0 + LANES].try_into().unwrap());
@@ -339,10 +372,14 @@ fn shade_texture_body<S: Simd>(
                         }
                         let c = match set.textures.get(p as usize) {
                             None => [F32x8::splat(0.0); 3],
-                            Some(tex) => {
-                                let (lx2, ly2) = footprint8(tex, d, spacing);
-                                sampler.sample8(simd, tex, lx2, ly2, u8x, v8x, &m)
-                            }
+                            Some(tex) => lookup8(
+                                simd,
+                                (sampler, anisotropy),
+                                tex,
+                                (d, spacing),
+                                (u8x, v8x),
+                                &m,
+                            ),
                         };
                         for ch in 0..3 {
                             out[ch] = F32x8::select(&m, c[ch], out[ch]);
@@ -486,13 +523,19 @@ mod tests {
             "{magnified} {blended} {last}"
         );
         let bg = Vec3::new(0.5, -1.0, 2.0);
-        for filter in [
-            Filter::Nearest,
-            Filter::Bilinear,
-            Filter::MITCHELL,
-            Filter::CATMULL_ROM,
-            Filter::Bicubic { b: 0.9, c: 0.05 },
-        ] {
+        let filters = [
+            (Filter::Nearest, 1),
+            (Filter::Bilinear, 1),
+            (Filter::MITCHELL, 1),
+            (Filter::CATMULL_ROM, 1),
+            (Filter::Bicubic { b: 0.9, c: 0.05 }, 1),
+            // Anisotropic: up to 3 and up to the most taps (lanes of one block take different
+            // counts, some one tap).
+            (Filter::Bilinear, 3),
+            (Filter::MITCHELL, 16),
+            (Filter::Nearest, 16),
+        ];
+        for filter in filters {
             let pitch = w + 3;
             let mut want = vec![Vec3::splat(-7.0); pitch * h];
             let c_want = shade_region_texture_scalar(set, filter, gb, bg, &mut want, pitch);

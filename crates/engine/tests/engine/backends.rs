@@ -90,7 +90,11 @@ impl Backends {
             Placement::Centre,
         )
         .unwrap();
-        let shader = Shader::Texture { set: &set, filter };
+        let shader = Shader::Texture {
+            set: &set,
+            filter,
+            anisotropy: 1,
+        };
         let method = Method::Texture(filter);
         render(&self.scene, &self.scene.camera, &shader, method, opts).unwrap()
     }
@@ -225,6 +229,7 @@ fn minified_textures_use_coarser_levels() {
         &Shader::Texture {
             set: &set,
             filter: Filter::Bilinear,
+            anisotropy: 1,
         },
         Method::Texture(Filter::Bilinear),
         &FrameOptions::new(32, 32),

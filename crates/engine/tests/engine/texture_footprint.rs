@@ -58,7 +58,8 @@ fn rrp(depth: u32, f: fn(f64, f64) -> Vec3) -> (Vec<SampledQuadtree>, Reconstruc
     (trees, recon)
 }
 
-/// The direct and the bilinear texture frames of `scene` with the textures `policy` sizes.
+/// The direct and the bilinear texture frames of `scene` with the textures `policy` sizes,
+/// looked up with `opts.anisotropy`.
 fn frames(
     scene: &Scene,
     trees: &[SampledQuadtree],
@@ -70,7 +71,11 @@ fn frames(
     let extents = TextureSet::extents(trees, &scene.polygons, 32).unwrap();
     let set = TextureSet::build(recon, &extents, policy, Placement::Centre).unwrap();
     let filter = Filter::Bilinear;
-    let shader = Shader::Texture { set: &set, filter };
+    let shader = Shader::Texture {
+        set: &set,
+        filter,
+        anisotropy: opts.anisotropy,
+    };
     let texture = render(scene, &scene.camera, &shader, Method::Texture(filter), opts).unwrap();
     (direct, texture, set)
 }
@@ -129,4 +134,32 @@ fn supersampled_texture_lookups_filter_once() {
     let bound = ((1.0 / 128.0f64).powi(2) / 8.0 * (fuu + fvv)) as f32 + 1e-5;
     let e = largest_difference(&direct, &texture);
     assert!(e <= bound, "16 samples: texture differs by {e} > {bound}");
+}
+
+fn across(_: f64, v: f64) -> Vec3 {
+    Vec3::splat((1.0 + 0.5 * (2.0 * PI * 4.0 * v).sin()) as f32)
+}
+
+#[test]
+fn a_grazing_footprint_is_as_sharp_across_as_the_direct_method_with_anisotropic_lookups() {
+    // A unit square drawn into 16 x 256 pixels (a floor seen at a grazing angle, in an
+    // orthographic view): a pixel spans 8 texels of a 128-texel texture along u and half a
+    // texel along v, where the light varies (4 periods of a sine). Isotropically the level of
+    // detail follows the longer axis (level 3, 16 texels for the 4 periods): the light across
+    // is mostly averaged away. With 16 taps along u each reads level 0, and the light, constant
+    // along u, is level 0's interpolation: at most (1/128)^2 / 8 f_vv = 2.4e-3 from the RRP
+    // (f_vv <= 0.5 (8 pi)^2 = 316).
+    let scene = plane(1.0, 16, 256);
+    let (trees, recon) = rrp(6, across);
+    let mut opts = FrameOptions::new(16, 256);
+    let bound = (1.0f32 / 128.0).powi(2) / 8.0 * 0.5 * (8.0 * PI as f32).powi(2) + 1e-5;
+    let mut errors = Vec::new();
+    for anisotropy in [1, 16] {
+        opts.anisotropy = anisotropy;
+        let (direct, texture, set) = frames(&scene, &trees, &recon, SizePolicy::Fixed(128), &opts);
+        assert_eq!((set.textures[0].width, set.textures[0].height), (128, 128));
+        errors.push(largest_difference(&direct, &texture));
+    }
+    assert!(errors[1] <= bound, "anisotropic: {} > {bound}", errors[1]);
+    assert!(errors[0] > 20.0 * bound, "isotropic: {}", errors[0]);
 }

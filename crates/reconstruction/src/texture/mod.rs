@@ -55,11 +55,13 @@ use base::quadtree::SampledQuadtree;
 pub use mip::MipLevel;
 use mip::*;
 
+mod anisotropic;
 mod mip;
 mod sample8;
 #[cfg(test)]
 mod tests;
 
+pub use anisotropic::MAX_ANISOTROPY;
 pub use sample8::Rgb8;
 
 /// The on-screen filters are named with the methods, which the scene loader parses.

@@ -517,7 +517,11 @@ impl SmallTexture<'_> {
         image_of_frame(frame::render(
             self.scene,
             &self.scene.camera,
-            &Shader::Texture { set, filter },
+            &Shader::Texture {
+                set,
+                filter,
+                anisotropy: 1,
+            },
             Method::Texture(filter),
             &self.fopts,
         )?)

@@ -100,6 +100,7 @@ pub fn walk_errors(job: &Context<'_>, p: &Prepared, path: &CameraPath) -> Result
                     let shader = Shader::Texture {
                         set: &set,
                         filter: *filter,
+                        anisotropy: opts.anisotropy,
                     };
                     let stats = ctx.render(&p.scene, &camera, &shader, *m, &opts)?;
                     ctx.into_frame(stats)

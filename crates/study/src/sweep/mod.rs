@@ -742,7 +742,11 @@ impl Drawer<'_> {
             (Method::Texture(filter), Some((_, set))) => ctx.render(
                 &p.scene,
                 &p.scene.camera,
-                &Shader::Texture { set, filter },
+                &Shader::Texture {
+                    set,
+                    filter,
+                    anisotropy: 1,
+                },
                 c.method,
                 opts,
             ),

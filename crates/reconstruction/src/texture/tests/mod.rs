@@ -1,4 +1,5 @@
 //! Tests of the radiosity textures, by concern: the filters and the level of detail (`filters`),
+//! anisotropic lookups (`anisotropic`),
 //! sizes and memory (`sizes`), mip chains, placements and gutters (`chains`); the helpers they
 //! share are here.
 
@@ -7,6 +8,7 @@ use crate::Estimator;
 use base::quadtree::Quadtree;
 use proptest::prelude::*;
 
+mod anisotropic;
 mod chains;
 mod filters;
 mod sizes;
