@@ -3,13 +3,14 @@
 //! against polygon count at 1024, and the deferred pass alone in Mpixel/s: RRPs (direct) and the
 //! texture filters on the same G-buffers.
 //!
-//! Run briefly: `cargo bench -p pixelflow-bench --bench frame -- --warm-up-time 1 --measurement-time 3`.
+//! Run briefly: `cargo bench -p pixelflow-bench --profile release --bench frame --
+//! --warm-up-time 1 --measurement-time 3` (`--profile release`: see the package's library doc).
 
 // `criterion_group!` defines a public function it cannot document.
 #![allow(missing_docs)]
 
 use base::method::Method;
-use criterion::{criterion_group, criterion_main, BatchSize, BenchmarkId, Criterion, Throughput};
+use criterion::{criterion_group, BatchSize, BenchmarkId, Criterion, Throughput};
 use engine::composition::{composite_in_place, merge_records_in_place, MergeScratch};
 use engine::frame::{render_patches as render_frame, FrameContext, FrameOptions, FrameStats};
 use engine::raster::gbuffer::{PatchScratch, RegionGBuffer};
@@ -430,4 +431,8 @@ fn deferred(c: &mut Criterion) {
 }
 
 criterion_group!(benches, frame, stages, deferred);
-criterion_main!(benches);
+fn main() {
+    pixelflow_bench::require_optimized_engine(engine::OPT_LEVEL);
+    benches();
+    Criterion::default().configure_from_args().final_summary();
+}

@@ -5,7 +5,7 @@
 #![allow(missing_docs)]
 
 use base::quadtree::{Quadtree, SampledQuadtree};
-use criterion::{criterion_group, criterion_main, Criterion, Throughput};
+use criterion::{criterion_group, Criterion, Throughput};
 use glam::Vec3;
 use reconstruction::{Estimator, Reconstruction};
 use std::hint::black_box;
@@ -74,4 +74,8 @@ fn bench(c: &mut Criterion) {
 }
 
 criterion_group!(benches, bench);
-criterion_main!(benches);
+fn main() {
+    pixelflow_bench::require_optimized_engine(engine::OPT_LEVEL);
+    benches();
+    Criterion::default().configure_from_args().final_summary();
+}

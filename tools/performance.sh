@@ -94,6 +94,6 @@ done
 
 if [ "${CRITERION:-0}" = 1 ]; then
   echo "criterion"
-  cargo bench -q -p pixelflow-bench --bench frame -- deferred > "$OUT/criterion-deferred.txt" 2>&1
+  cargo bench -q -p pixelflow-bench --profile release --bench frame -- deferred > "$OUT/criterion-deferred.txt" 2>&1
 fi
 echo "results in $OUT"

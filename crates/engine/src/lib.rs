@@ -13,3 +13,10 @@ pub mod raster;
 pub mod composition;
 pub mod shading;
 pub mod frame;
+
+/// The optimization level this crate was compiled at (cargo's `OPT_LEVEL`: `"3"` for a release
+/// build). The benchmarks refuse to time anything less: under `cargo bench` the workspace's
+/// test-build overrides compile the engine at level 1 and its base at 0 (`cargo bench
+/// -p pixelflow-bench --profile release` builds every crate at 3).
+#[cfg(feature = "bench")]
+pub const OPT_LEVEL: &str = env!("PIXELFLOW_ENGINE_OPT_LEVEL");
