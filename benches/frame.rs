@@ -211,20 +211,21 @@ fn stages(c: &mut Criterion) {
     g.bench_function("binning-1024", |b| {
         b.iter(|| bin_round_robin_into(&grid, &prims, 1, &mut bins))
     });
-    // Region `r`'s share `ids` of the primitives into `gb`.
-    let raster = |ids: &[u32], r: usize, gb: &mut RegionGBuffer, scratch: &mut PatchScratch| {
-        rasterize_region_into(
-            isa,
-            &grid,
-            r as u32,
-            &prims,
-            ids,
-            offsets,
-            Some(&source),
-            gb,
-            scratch,
-        );
-    };
+    // Region `r`'s share `ids` of the primitives into `gb`, with the instruction set `isa`.
+    let raster =
+        |isa: Isa, ids: &[u32], r: usize, gb: &mut RegionGBuffer, scratch: &mut PatchScratch| {
+            rasterize_region_into(
+                isa,
+                &grid,
+                r as u32,
+                &prims,
+                ids,
+                offsets,
+                Some(&source),
+                gb,
+                scratch,
+            );
+        };
 
     // One G-buffer and scratch per region, reused by every iteration.
     let mut work: Vec<(RegionGBuffer, PatchScratch)> = (0..grid.count())
@@ -234,9 +235,20 @@ fn stages(c: &mut Criterion) {
         b.iter(|| {
             work.par_iter_mut()
                 .enumerate()
-                .for_each(|(r, (gb, scratch))| raster(&bins[0][r], r, gb, scratch))
+                .for_each(|(r, (gb, scratch))| raster(isa, &bins[0][r], r, gb, scratch))
         })
     });
+    // The same with every narrower instruction set the CPU has, for the ratios in one run.
+    for level in Level::ALL.into_iter().filter(|&l| l < isa.level()) {
+        let narrow = isa.capped(level);
+        g.bench_function(format!("raster-1024-{}", level.name()), |b| {
+            b.iter(|| {
+                work.par_iter_mut()
+                    .enumerate()
+                    .for_each(|(r, (gb, scratch))| raster(narrow, &bins[0][r], r, gb, scratch))
+            })
+        });
+    }
     // Two renderers: each region's two G-buffers, merged in place.
     bin_round_robin_into(&grid, &prims, 2, &mut bins);
     // Each region's two renderers' reports, with patch tables or with pixel records only.

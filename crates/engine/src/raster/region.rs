@@ -512,11 +512,15 @@ fn raster_kernel<S: Simd, const KIND: u8, const N: usize, T: EdgeLane>(
                 }
                 fragments += bits.count_ones() as u64;
                 let i0 = base + ly as usize * stride + bx as usize;
+                // The block's 8 samples of each plane, bounds-checked once here (the token
+                // operations below then see slices of a known length).
+                let depth: &mut [f32; LANES] = (&mut gb.depth[i0..i0 + LANES]).try_into().unwrap();
+                let poly: &mut [u32; LANES] = (&mut gb.polygon[i0..i0 + LANES]).try_into().unwrap();
                 // The depth test: covered, and nearer, or as near with a smaller polygon id.
                 let wv = simd.load(&w);
                 let m = {
-                    let dv = simd.load(&gb.depth[i0..]);
-                    let smaller = simd.lt_u(simd.splat_u(id), simd.load_u(&gb.polygon[i0..]));
+                    let dv = simd.load(depth);
+                    let smaller = simd.lt_u(simd.splat_u(id), simd.load_u(poly));
                     let nearer_or_tie =
                         simd.or_m(simd.lt(wv, dv), simd.and_m(simd.eq(wv, dv), smaller));
                     simd.and_m(simd.mask(bits), nearer_or_tie)
@@ -527,10 +531,12 @@ fn raster_kernel<S: Simd, const KIND: u8, const N: usize, T: EdgeLane>(
                 let (u, v) = planes.uv::<KIND>(&row, &xs, &w, &inv);
                 // Full-lane blends into region memory (no masked stores: see
                 // `Simd::blend_store`).
-                simd.blend_store(&mut gb.depth[i0..], wv, m);
-                simd.blend_store(&mut gb.u[i0..], simd.load(&u), m);
-                simd.blend_store(&mut gb.v[i0..], simd.load(&v), m);
-                simd.blend_store_u(&mut gb.polygon[i0..], simd.splat_u(id), m);
+                simd.blend_store(depth, wv, m);
+                simd.blend_store_u(poly, simd.splat_u(id), m);
+                let gu: &mut [f32; LANES] = (&mut gb.u[i0..i0 + LANES]).try_into().unwrap();
+                let gv: &mut [f32; LANES] = (&mut gb.v[i0..i0 + LANES]).try_into().unwrap();
+                simd.blend_store(gu, simd.load(&u), m);
+                simd.blend_store(gv, simd.load(&v), m);
             },
         );
     }
