@@ -23,7 +23,7 @@ use crate::raster::sample_spacing;
 use lanes::{F32x8, Isa, Kernel, Simd, LANES};
 #[cfg(test)]
 use reconstruction::texture::lod_from_squares;
-use reconstruction::texture::{Filter, RadiosityTexture, Sampler, TextureSet};
+use reconstruction::texture::{Filter, Footprint8, RadiosityTexture, Sampler, TextureSet};
 
 /// Screen-space derivatives of (u, v) at sample `i` (column `x`, row `y` of its plane) by finite
 /// differences with the neighbouring samples of the same polygon in the same plane: forward
@@ -155,7 +155,8 @@ fn footprint8(tex: &RadiosityTexture, d: [F32x8; 4], spacing: f32) -> (F32x8, F3
 
 /// The texture lookups of 8 samples with (u, v) derivatives `d` per pixel and the samples'
 /// `spacing`: isotropic at the footprint's level of detail ([`footprint8`]), or with more than one
-/// tap allowed, anisotropic over the footprint (derivatives scaled to one sample's step).
+/// tap allowed, anisotropic over the footprint (derivatives scaled to one sample's step), both
+/// through one inlined sampler.
 #[inline(always)]
 fn lookup8<S: Simd>(
     simd: S,
@@ -165,13 +166,17 @@ fn lookup8<S: Simd>(
     (u, v): (F32x8, F32x8),
     mask: &[bool; LANES],
 ) -> [F32x8; 3] {
-    if anisotropy > 1 {
+    let fp = if anisotropy > 1 {
         let s = F32x8::splat(spacing);
-        let step = [d[0] * s, d[1] * s, d[2] * s, d[3] * s];
-        return sampler.sample8_anisotropic(simd, tex, step, u, v, mask, anisotropy);
-    }
-    let (lx2, ly2) = footprint8(tex, d, spacing);
-    sampler.sample8(simd, tex, lx2, ly2, u, v, mask)
+        Footprint8::Anisotropic {
+            d: [d[0] * s, d[1] * s, d[2] * s, d[3] * s],
+            max: anisotropy,
+        }
+    } else {
+        let (lx2, ly2) = footprint8(tex, d, spacing);
+        Footprint8::Isotropic { lx2, ly2 }
+    };
+    sampler.sample8_footprint(simd, tex, fp, (u, v), mask)
 }
 
 /// Lane form of `uv_derivatives` for the 8 samples starting at plane index `i0` (column `bx`,

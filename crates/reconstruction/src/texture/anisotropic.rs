@@ -116,43 +116,49 @@ impl Sampler {
         Vec3::new(acc.x / nf, acc.y / nf, acc.z / nf)
     }
 
-    /// The lane form of [`Sampler::sample_anisotropic`]: lane l of the result has the bits of
+    /// The lookups of 8 samples with the footprint `fp`: lane l of the result has, for every
+    /// lane with `mask[l]`, the bits of [`Sampler::sample`] at
+    /// `lod_from_squares(lx2[l], ly2[l], tex.last_level())` for an isotropic footprint, and of
     /// `self.sample_anisotropic(tex, [d[0][l], d[1][l], d[2][l], d[3][l]], (u[l], v[l]), max)`
-    /// for every lane with `mask[l]`; the others hold unspecified finite values.
+    /// for an anisotropic one; the other lanes hold unspecified finite values.
+    ///
+    /// Both run through one call of [`Sampler::sample8`] (once per tap), so the filters are
+    /// inlined once into the deferred pass whichever footprint it takes: a second inlined
+    /// copy of every filter and placement, per instruction set, cost the test build minutes.
     #[inline(always)]
-    #[allow(clippy::too_many_arguments)]
-    pub fn sample8_anisotropic<S: Simd>(
+    pub fn sample8_footprint<S: Simd>(
         &self,
         simd: S,
         tex: &RadiosityTexture,
-        d: [F32x8; 4],
-        u: F32x8,
-        v: F32x8,
+        fp: Footprint8,
+        (u, v): (F32x8, F32x8),
         mask: &[bool; LANES],
-        max: u32,
     ) -> Rgb8 {
-        let size = (tex.width as f32, tex.height as f32);
         let mut n = [1u32; LANES];
-        let (mut lx2, mut ly2) = ([0.0f32; LANES], [0.0f32; LANES]);
         let (mut au, mut av) = ([0.0f32; LANES], [0.0f32; LANES]);
         let mut most = 1;
-        for l in 0..LANES {
-            let t = taps([d[0].0[l], d[1].0[l], d[2].0[l], d[3].0[l]], size, max);
-            (n[l], lx2[l], ly2[l], au[l], av[l]) = (t.n, t.lx2, t.ly2, t.axis.0, t.axis.1);
-            if mask[l] {
-                most = most.max(t.n);
+        let (lx2, ly2) = match fp {
+            Footprint8::Isotropic { lx2, ly2 } => (lx2, ly2),
+            Footprint8::Anisotropic { d, max } => {
+                let size = (tex.width as f32, tex.height as f32);
+                let (mut lx2, mut ly2) = ([0.0f32; LANES], [0.0f32; LANES]);
+                for l in 0..LANES {
+                    let t = taps([d[0].0[l], d[1].0[l], d[2].0[l], d[3].0[l]], size, max);
+                    (n[l], lx2[l], ly2[l], au[l], av[l]) = (t.n, t.lx2, t.ly2, t.axis.0, t.axis.1);
+                    if mask[l] {
+                        most = most.max(t.n);
+                    }
+                }
+                (F32x8(lx2), F32x8(ly2))
             }
-        }
-        let (lx2, ly2) = (F32x8(lx2), F32x8(ly2));
-        if most == 1 {
-            return self.sample8(simd, tex, lx2, ly2, u, v, mask);
-        }
+        };
         let mut acc = [F32x8::splat(0.0); 3];
-        for k in 0..most {
-            let mut on = [false; LANES];
+        let mut k = 0;
+        loop {
+            let mut on = *mask;
             let (mut uk, mut vk) = (u, v);
             for l in 0..LANES {
-                on[l] = mask[l] && k < n[l];
+                on[l] &= k < n[l];
                 if n[l] > 1 {
                     let s = offset(k, n[l]);
                     uk.0[l] = u.0[l] + au[l] * s;
@@ -160,8 +166,15 @@ impl Sampler {
                 }
             }
             let c = self.sample8(simd, tex, lx2, ly2, uk, vk, &on);
+            if most == 1 {
+                return c;
+            }
             for ch in 0..3 {
                 acc[ch] = F32x8::select(&on, acc[ch] + c[ch], acc[ch]);
+            }
+            k += 1;
+            if k == most {
+                break;
             }
         }
         for ch in 0..3 {
@@ -171,6 +184,27 @@ impl Sampler {
         }
         acc
     }
+}
+
+/// The footprint of 8 lookups ([`Sampler::sample8_footprint`]).
+#[derive(Debug, Clone, Copy)]
+pub enum Footprint8 {
+    /// One lookup each, at the level of detail of the squared footprint lengths `lx2`, `ly2`
+    /// (texels per sample; [`lod_from_squares`]).
+    Isotropic {
+        /// Squared footprint length along x.
+        lx2: F32x8,
+        /// Squared footprint length along y.
+        ly2: F32x8,
+    },
+    /// Up to `max` lookups each along the longer axis of the (u, v) steps `d` = (du/dx, dv/dx,
+    /// du/dy, dv/dy) between neighbouring samples.
+    Anisotropic {
+        /// The steps.
+        d: [F32x8; 4],
+        /// Most taps.
+        max: u32,
+    },
 }
 
 #[cfg(test)]

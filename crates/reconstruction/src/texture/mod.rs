@@ -61,7 +61,7 @@ mod sample8;
 #[cfg(test)]
 mod tests;
 
-pub use anisotropic::MAX_ANISOTROPY;
+pub use anisotropic::{Footprint8, MAX_ANISOTROPY};
 pub use sample8::Rgb8;
 
 /// The on-screen filters are named with the methods, which the scene loader parses.

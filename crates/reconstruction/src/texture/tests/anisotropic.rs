@@ -67,7 +67,7 @@ fn taps_along_a_linear_function_average_to_its_value_at_the_centre() {
 
 proptest! {
     #[test]
-    fn sample8_anisotropic_equals_the_scalar_form_per_lane(
+    fn sample8_footprint_anisotropic_equals_the_scalar_form_per_lane(
         side_log in 0u32..8,
         filter_kind in 0usize..3,
         uv in prop::array::uniform8((-0.1f32..1.1, -0.1f32..1.1)),
@@ -109,7 +109,7 @@ proptest! {
     }
 }
 
-/// [`Sampler::sample8_anisotropic`] as a kernel, to run it with each instruction set.
+/// [`Sampler::sample8_footprint`] with an anisotropic footprint as a kernel, to run it with each instruction set.
 #[derive(Clone, Copy)]
 struct Aniso8<'a> {
     sampler: &'a Sampler,
@@ -134,6 +134,7 @@ impl ::lanes::Kernel for Aniso8<'_> {
             mask,
             max,
         } = self;
-        sampler.sample8_anisotropic(simd, tex, d, u, v, &mask, max)
+        let fp = super::Footprint8::Anisotropic { d, max };
+        sampler.sample8_footprint(simd, tex, fp, (u, v), &mask)
     }
 }
