@@ -8,7 +8,7 @@
 //!
 //! Why: the isotropic level of detail follows the footprint's longer axis, so at a grazing view
 //! a texture is blurred across its shorter axis by the ratio of the two (the ceiling's light
-//! falling within a centimetre beside a lamp, seen from across a room, was spread over several
+//! falling within a centimetre beside a lamp, seen from across a room, is spread over several
 //! centimetres). The paper's hardware filtered isotropically, so the texture methods do by
 //! default (`anisotropy` 1); a higher setting is the sharper filter any current GPU offers.
 //!
@@ -123,8 +123,9 @@ impl Sampler {
     /// for an anisotropic one; the other lanes hold unspecified finite values.
     ///
     /// Both run through one call of [`Sampler::sample8`] (once per tap), so the filters are
-    /// inlined once into the deferred pass whichever footprint it takes: a second inlined
-    /// copy of every filter and placement, per instruction set, cost the test build minutes.
+    /// inlined once into the deferred pass whichever footprint it takes: every further call
+    /// site would inline every filter and placement again per instruction set (minutes of
+    /// build time for the engine's tests).
     #[inline(always)]
     pub fn sample8_footprint<S: Simd>(
         &self,
