@@ -282,6 +282,7 @@ pub(crate) fn render(settings: &Settings, args: RenderArgs) -> anyhow::Result<()
 pub(crate) fn stats(settings: &Settings, args: StatsArgs) -> anyhow::Result<()> {
     check_json_path(&args.json, &[&args.input])?;
     in_pool(args.threads, || -> anyhow::Result<()> {
+        let texture = args.texture.options();
         let req = StatsRequest {
             load: settings.load_options(&args.options),
             input: args.input,
@@ -290,10 +291,10 @@ pub(crate) fn stats(settings: &Settings, args: StatsArgs) -> anyhow::Result<()> 
             frame: FrameOptions {
                 aa: base::method::Aa::new("--aa", args.aa)?,
                 isa: settings.isa,
-                anisotropy: args.texture.options().anisotropy(),
+                anisotropy: texture.anisotropy(),
                 ..FrameOptions::new(args.width, args.height)
             },
-            texture: args.texture.options(),
+            texture,
         };
         let stats = run_stats(&settings.context(&Terminal::new(false, args.trace)), &req)?;
         if let Some(path) = &args.json {
