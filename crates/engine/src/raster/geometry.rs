@@ -57,13 +57,15 @@ pub fn near_plane(extent: f64, nearest: f64) -> f64 {
     (0.5 * nearest).clamp(MIN_NEAR_RELATIVE * extent, NEAR_RELATIVE * extent)
 }
 
-/// A lower bound of the distance from `eye` to polygon `p`: the larger of the distance to its
-/// plane and the distance to its bounding sphere (about its centroid).
-pub(crate) fn distance_lower_bound(p: &Polygon, eye: DVec3) -> f64 {
-    let (c, radius) = p.bounding_sphere();
-    let sphere = ((eye - c).length() - radius).max(0.0);
+/// A lower bound of the distance from `eye` to polygon `p` whose corners span the box
+/// `lo`..`hi`: the larger of the distance to its plane and the distance to the box. The box is
+/// the one the frame computes anyway for the scene's bounds, so the bound costs one dot product
+/// and one square root per polygon (a bounding sphere about the centroid was a fifth of the
+/// geometry stage of a 10^5-triangle mesh).
+pub(crate) fn distance_lower_bound(p: &Polygon, lo: DVec3, hi: DVec3, eye: DVec3) -> f64 {
+    let outside = (lo - eye).max(eye - hi).max(DVec3::ZERO);
     let plane = p.normal.dot(eye - p.corners[0]).abs();
-    sphere.max(plane)
+    outside.length().max(plane)
 }
 
 /// A linear expression `a * px + b * py + c` over continuous pixel coordinates (pixel (i, j) has
@@ -132,10 +134,15 @@ pub struct ScreenPolygon {
     pub id: u32,
     /// Screen vertices (pixels), 3 to 9 of them, in polygon order (held inline: no allocation).
     pub verts: Verts,
-    /// Q, Sa, Sb, Ta, Tb (see [`plane`]).
+    /// Q, Sa, Sb, Ta, Tb (see [`plane`]); with `barycentric`, Q, Ua, Ub, Va, Vb instead.
     pub planes: [Plane; 5],
-    /// Corners c0..c3 in the polygon's 2-D frame (c0 at the origin).
+    /// Corners c0..c3 in the polygon's 2-D frame (c0 at the origin); not computed (zero) with
+    /// `barycentric`.
     pub corners: [[f64; 2]; 4],
+    /// Whether `planes[SA..=TB]` already hold the triangle's barycentric U = u (1 - v) and v as
+    /// `Ua + w Ub` and `Va + w Vb` (the geometry stage derives them directly for triangles; see
+    /// [`View::transform`]), so setup has nothing to fold.
+    pub barycentric: bool,
     /// Whether the polygon is a triangle (collapsed quad).
     pub triangle: bool,
     /// Whether Q is 1/w (perspective) rather than w.
@@ -239,13 +246,28 @@ impl View {
         })
     }
 
+    /// The near plane's distance (perspective; 0 for orthographic views).
+    pub(super) fn near(&self) -> f64 {
+        self.near
+    }
+
+    /// Whether the view is a perspective one.
+    pub(super) fn is_perspective(&self) -> bool {
+        self.perspective
+    }
+
+    /// The image size in pixels.
+    pub(super) fn size(&self) -> (u32, u32) {
+        (self.width, self.height)
+    }
+
     /// View coordinates (right, up, forward distance w) of a world point.
     pub(crate) fn view_coords(&self, p: DVec3) -> DVec3 {
         let d = p - self.eye;
         DVec3::new(d.dot(self.right), d.dot(self.up), d.dot(self.forward))
     }
 
-    fn dir_to_view(&self, d: DVec3) -> DVec3 {
+    pub(super) fn dir_to_view(&self, d: DVec3) -> DVec3 {
         DVec3::new(d.dot(self.right), d.dot(self.up), d.dot(self.forward))
     }
 
@@ -281,25 +303,35 @@ impl View {
             .fold(0.0, f64::max)
             .sqrt();
         let front_facing = if self.perspective { d < 0.0 } else { n.z < 0.0 };
-        let (e1, e2, corners) = plane_frame(&cv, n)?;
-        let planes = self.pixel_planes(n, d, c0, size, e1, e2)?;
+        let triangle = poly.shape == Shape::Triangle;
+        let (planes, corners) = if triangle {
+            let (b, c) = (cv[1] - c0, cv[2] - c0);
+            let (m1, m2) = barycentric_duals(n, b, c)?;
+            let frame = self.pixel_planes(n, d, c0, size, m1, m2)?;
+            (frame, [[0.0; 2]; 4])
+        } else {
+            let (e1, e2, corners) = plane_frame(&cv, n)?;
+            (self.pixel_planes(n, d, c0, size, e1, e2)?, corners)
+        };
         let verts = self.clip_to_screen(&cv[..k])?;
         Some(ScreenPolygon {
             id,
             verts,
             planes,
             corners,
-            triangle: poly.shape == Shape::Triangle,
+            triangle,
             perspective: self.perspective,
             front_facing,
+            barycentric: triangle,
         })
     }
 
     /// The per-pixel expressions of a polygon with view normal `n`, plane offset `d = n . c0`,
-    /// corner c0, size `size` and plane frame (e1, e2): Q (1/w in perspective, w in
-    /// orthographic) and the plane coordinates as [`plane`] orders them. `None` when the plane
-    /// is edge-on or an expression is not finite.
-    fn pixel_planes(
+    /// corner c0, size `size` and in-plane linear forms (e1, e2): Q (1/w in perspective, w in
+    /// orthographic) and the coordinates `e1 . (P - c0)`, `e2 . (P - c0)` of the pixel's point
+    /// P as [`plane`] orders them. (e1, e2) is an orthonormal frame for quads, the barycentric
+    /// duals for triangles. `None` when the plane is edge-on or an expression is not finite.
+    pub(super) fn pixel_planes(
         &self,
         n: DVec3,
         d: f64,
@@ -434,6 +466,24 @@ fn plane_frame(cv: &[DVec3; 4], n: DVec3) -> Option<(DVec3, DVec3, [[f64; 2]; 4]
         corners[k] = [e1.dot(*c - c0), e2.dot(*c - c0)];
     }
     Some((e1, e2, corners))
+}
+
+/// The dual vectors (m1, m2) of a triangle's edges b = c1 - c0 and c = c2 - c0 in its plane
+/// (unit normal `n`): m1 . b = 1, m1 . c = 0, m2 . b = 0, m2 . c = 1, both orthogonal to `n`.
+/// A point P of the plane is then c0 + U b + v c with U = m1 . (P - c0) and v = m2 . (P - c0),
+/// the barycentric coordinates the rasterizer needs (u = U / (1 - v) of the collapsed quad), so
+/// a triangle needs neither a normalized frame nor the setup's Cramer solve: m1 = (c x n) / D,
+/// m2 = (n x b) / D with D = n . (b x c), plus or minus twice the area (view coordinates are
+/// left-handed, which flips every cross product and D alike, so the quotients hold in either
+/// handedness). `None` when D is zero or not finite (a degenerate triangle).
+pub(super) fn barycentric_duals(n: DVec3, b: DVec3, c: DVec3) -> Option<(DVec3, DVec3)> {
+    let det = n.dot(b.cross(c));
+    if !(det != 0.0 && det.is_finite()) {
+        return None;
+    }
+    let k = 1.0 / det;
+    let (m1, m2) = (c.cross(n) * k, n.cross(b) * k);
+    (m1.is_finite() && m2.is_finite()).then_some((m1, m2))
 }
 
 /// Sutherland-Hodgman clip of a convex polygon against `dist >= 0`. The intersection on an edge is

@@ -26,6 +26,7 @@ pub mod gbuffer;
 pub mod geometry;
 pub mod region;
 pub mod setup;
+mod triangles;
 
 use glam::DVec3;
 use lanes::Isa;
@@ -34,7 +35,7 @@ use rayon::prelude::*;
 use base::error::Result;
 use base::method::Aa;
 use reconstruction::PatchSource;
-use scene::{Camera, Scene};
+use scene::{Camera, Scene, Shape};
 
 use gbuffer::{PatchScratch, RegionGBuffer};
 use region::RegionGrid;
@@ -126,7 +127,7 @@ pub fn build_primitives_into(
                 (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)),
                 |(lo, hi), c| (lo.min(*c), hi.max(*c)),
             );
-            (lo, hi, geometry::distance_lower_bound(p, eye))
+            (lo, hi, geometry::distance_lower_bound(p, lo, hi, eye))
         })
         .reduce(
             || {
@@ -151,9 +152,18 @@ pub fn build_primitives_into(
         .enumerate()
         .with_min_len(64)
         .for_each(|(i, (out, p))| {
-            let set = match view.transform(p, i as u32) {
-                Some(sp) if !cull || sp.front_facing => setup::setup_into(&sp, w, h, out),
-                _ => false,
+            let fast = if p.shape == Shape::Triangle {
+                triangles::triangle_into(&view, p, i as u32, cull, out)
+            } else {
+                triangles::Outcome::General
+            };
+            let set = match fast {
+                triangles::Outcome::Set => true,
+                triangles::Outcome::Rejected => false,
+                triangles::Outcome::General => match view.transform(p, i as u32) {
+                    Some(sp) if !cull || sp.front_facing => setup::setup_into(&sp, w, h, out),
+                    _ => false,
+                },
             };
             if !set {
                 // Marks the record empty; its other fields are never read.

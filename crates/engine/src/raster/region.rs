@@ -586,6 +586,7 @@ mod tests {
             triangle: true,
             perspective: false,
             front_facing: true,
+            barycentric: false,
         };
         setup(&sp, w, h)
     }

@@ -134,7 +134,7 @@ pub(crate) fn edges_fit_i32(edges: &[Edge], bbox: [u32; 4]) -> bool {
     })
 }
 
-fn snap(x: f64) -> i64 {
+pub(super) fn snap(x: f64) -> i64 {
     (x * ONE as f64).round() as i64
 }
 
@@ -164,22 +164,30 @@ pub(crate) fn setup_into(sp: &ScreenPolygon, width: u32, height: u32, out: &mut 
     let Some(bbox) = pixel_box(&pts, width, height) else {
         return false;
     };
-    let (inverse, kind) = inverse_of(sp);
     let mut planes = sp.planes;
-    if kind != InverseKind::General && !fold_linear_inverse(&mut planes, &inverse_frame(sp)) {
-        return false;
-    }
-    *out = Prim {
-        id: sp.id,
-        edges,
-        n_edges: n,
-        bbox,
-        i32_edges: edges_fit_i32(&edges[..n], bbox),
-        planes,
-        inverse,
-        kind,
-        perspective: sp.perspective,
+    let (inverse, kind) = if sp.barycentric {
+        let inverse = BilinearInverse {
+            triangle: true,
+            ..BilinearInverse::default()
+        };
+        (inverse, InverseKind::Triangle)
+    } else {
+        let (inverse, kind) = inverse_of(sp);
+        if kind != InverseKind::General && !fold_linear_inverse(&mut planes, &inverse_frame(sp)) {
+            return false;
+        }
+        (inverse, kind)
     };
+    // Field by field: the record is written in place, not built on the stack and copied.
+    out.id = sp.id;
+    out.edges = edges;
+    out.n_edges = n;
+    out.bbox = bbox;
+    out.i32_edges = edges_fit_i32(&edges[..n], bbox);
+    out.planes = planes;
+    out.inverse = inverse;
+    out.kind = kind;
+    out.perspective = sp.perspective;
     true
 }
 
@@ -218,7 +226,7 @@ fn snapped_ccw(sp: &ScreenPolygon) -> Option<smallvec::SmallVec<[[i64; 2]; CLIP_
 
 /// The edge function from snapped vertex `a` to `b`, owning the samples exactly on it when it
 /// is a left or top edge (the top-left rule).
-fn edge(a: [i64; 2], b: [i64; 2]) -> Edge {
+pub(super) fn edge(a: [i64; 2], b: [i64; 2]) -> Edge {
     let (dx, dy) = (b[0] - a[0], b[1] - a[1]);
     let owns = dy < 0 || (dy == 0 && dx > 0);
     // Within the guard band every coordinate is below 2^26 and every difference below 2^27 in
@@ -234,7 +242,7 @@ fn edge(a: [i64; 2], b: [i64; 2]) -> Edge {
 
 /// The inclusive pixel box of the snapped vertices clamped to the image, `None` when off
 /// screen. Samples of pixel i lie in [i * ONE, (i + 1) * ONE): pixels whose square meets the box.
-fn pixel_box(pts: &[[i64; 2]], width: u32, height: u32) -> Option<[u32; 4]> {
+pub(super) fn pixel_box(pts: &[[i64; 2]], width: u32, height: u32) -> Option<[u32; 4]> {
     let (mut lo_x, mut lo_y, mut hi_x, mut hi_y) = (i64::MAX, i64::MAX, i64::MIN, i64::MIN);
     for p in pts {
         lo_x = lo_x.min(p[0]);
@@ -433,6 +441,7 @@ mod tests {
             triangle,
             perspective: false,
             front_facing: true,
+            barycentric: false,
         }
     }
 

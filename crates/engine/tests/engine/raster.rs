@@ -397,6 +397,7 @@ fn screen_triangle(v: [[i64; 2]; 3]) -> ScreenPolygon {
         triangle: true,
         perspective: false,
         front_facing: true,
+        barycentric: false,
     }
 }
 
