@@ -290,6 +290,7 @@ pub fn render(
 pub struct FrameContext {
     prims: Vec<raster::setup::Prim>,
     bins: Vec<Vec<Vec<u32>>>,
+    chunk_bins: Vec<raster::binning::ChunkBins>,
     outcomes: Vec<RegionOutcome>,
     pool: Mutex<Vec<Workspace>>,
     pixels: Vec<Vec3>,
@@ -467,17 +468,18 @@ impl FrameContext {
             Vec3::ZERO
         };
 
-        raster::build_primitives_into(
+        let grid = RegionGrid::new(opts.width, opts.height, opts.region);
+        let primitives = raster::build_and_bin_into(
             scene,
             camera,
-            opts.width,
-            opts.height,
+            (opts.width, opts.height),
             opts.cull_back_faces,
+            &grid,
+            opts.renderers,
             &mut self.prims,
+            &mut self.chunk_bins,
+            &mut self.bins,
         )?;
-        let grid = RegionGrid::new(opts.width, opts.height, opts.region);
-        let primitives =
-            raster::bin_round_robin_into(&grid, &self.prims, opts.renderers, &mut self.bins);
         let geometry_ms = ms(t_frame.elapsed());
 
         let n = opts.width as usize * opts.height as usize;

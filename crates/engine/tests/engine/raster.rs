@@ -3,10 +3,13 @@
 //! renderers. Scenes are built in code; the patch sources are analytic.
 
 use engine::frame::{render_patches as render_frame, Frame, FrameOptions};
-use engine::raster::build_primitives;
 use engine::raster::geometry::{Plane, ScreenPolygon};
 use engine::raster::region::coverage_counts;
+use engine::raster::region::RegionGrid;
 use engine::raster::setup::{setup, ONE};
+use engine::raster::{
+    bin_round_robin_into, build_and_bin_into, build_primitives, build_primitives_into,
+};
 use engine::shading::{PatchCoeffs, PatchSource};
 use glam::{DVec3, Vec3};
 use proptest::prelude::*;
@@ -362,6 +365,48 @@ fn image_is_bit_identical_across_threads_and_renderers() {
     // With 3 renderers the coplanar pair (ids 24, 25) lands on different renderers, so equal
     // images also show the compositor's polygon-id tie-break agrees with a single renderer's.
     assert_eq!(base.stats.primitives, scene.polygons.len() as u32);
+}
+
+/// Binning chunk by chunk during setup gives the bins (and records) of setting everything up
+/// and then binning in one sequential round-robin pass, for any renderer count: a mesh of
+/// several chunks (some polygons off screen, so chunks hold different counts), a region size
+/// that is not a power of two, and renderer counts that do not divide the chunks' counts.
+#[test]
+fn chunked_binning_equals_the_sequential_round_robin() {
+    let (w, h) = (150, 100);
+    let mut polys = mesh(w + 60, h, 2, false, |x, y| DVec3::new(x, y, 0.0));
+    polys.extend(busy_scene(w, h).polygons);
+    let chunk = engine::raster::binning::chunk_size(polys.len());
+    assert!(
+        polys.len() > 8 * chunk,
+        "{} polygons, chunks of {chunk}",
+        polys.len()
+    );
+    let scene = scene_with(polys, ortho_pixels(w, h), w, h);
+    let grid = RegionGrid::new(w, h, 40);
+    let mut want_prims = Vec::new();
+    build_primitives_into(&scene, &scene.camera, w, h, false, &mut want_prims).unwrap();
+    let (mut prims, mut chunks) = (Vec::new(), Vec::new());
+    for renderers in [1, 2, 3, 7] {
+        let mut want = Vec::new();
+        let n_want = bin_round_robin_into(&grid, &want_prims, renderers, &mut want);
+        let mut got = Vec::new();
+        let n_got = build_and_bin_into(
+            &scene,
+            &scene.camera,
+            (w, h),
+            false,
+            &grid,
+            renderers,
+            &mut prims,
+            &mut chunks,
+            &mut got,
+        )
+        .unwrap();
+        assert_eq!(n_got, n_want, "{renderers} renderers");
+        assert!(got == want, "{renderers} renderers: the bins differ");
+        assert_eq!(format!("{prims:?}"), format!("{want_prims:?}"));
+    }
 }
 
 #[test]
