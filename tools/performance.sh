@@ -7,6 +7,8 @@
 #
 #   bash tools/performance.sh            # about 6 minutes on 2 cores
 #   CRITERION=1 bash tools/performance.sh   # also the criterion deferred-pass benchmarks
+#   PEER=1 bash tools/performance.sh        # also Mesa llvmpipe on the exported models
+#                                           # (tools/peer-llvmpipe.py says what it needs)
 #
 # Run it on a quiet machine: every number is wall clock. Methods are compared inside one
 # `bench` run (interleaved per size), instruction-set builds in alternating rounds.
@@ -91,6 +93,27 @@ for s in two-spots cornell-box gallery gallery-fine; do
       $BIN render "$OUT/$s.pfsol" --method $m -o "$OUT/mem-$s-$m.png" -q 2>> "$OUT/render-memory.txt"
   done
 done
+
+if [ "${PEER:-0}" = 1 ]; then
+  # The same model drawn by the project and by llvmpipe from the same camera, alternately,
+  # three rounds: the lightmap against texture-bilinear, the vertex-coloured mesh against mesh.
+  echo "peer"
+  : > "$OUT/peer.txt"
+  for s in cornell-box gallery; do
+    $BIN export "$OUT/$s.pfsol" -o "$OUT/peer-$s-lightmap.glb" > /dev/null
+    $BIN export "$OUT/$s.pfsol" -o "$OUT/peer-$s-mesh.glb" --mesh > /dev/null
+  done
+  for round in 1 2 3; do
+    for s in cornell-box gallery; do
+      $BIN bench "$OUT/$s.pfsol" --methods texture-bilinear,mesh --sizes 1024 --frames 20 \
+        2>/dev/null | awk -v s=$s -v r=$round 'NR > 2 { print r, "project", s, $1, $4 }' >> "$OUT/peer.txt"
+      for kind in lightmap mesh; do
+        EGL_PLATFORM=surfaceless python3 tools/peer-llvmpipe.py "$OUT/peer-$s-$kind.glb" \
+          --size 1024 --frames 20 | sed "s/^/$round llvmpipe $s $kind /" >> "$OUT/peer.txt"
+      done
+    done
+  done
+fi
 
 if [ "${CRITERION:-0}" = 1 ]; then
   echo "criterion"
