@@ -312,6 +312,8 @@ fn shade_texture_body<S: Simd>(
     background: Vec3,
     dst: &mut Rows<'_>,
 ) -> ShadeCounts {
+    const { assert!(S::LANES == LANES, "the texture pass works in blocks of 8") };
+    const ALL_LANES: u32 = (1 << LANES) - 1;
     let (w, h, stride) = (gb.width as usize, gb.height as usize, gb.stride as usize);
     let plane = stride * h;
     let spacing = sample_spacing(gb.samples);
@@ -330,18 +332,22 @@ fn shade_texture_body<S: Simd>(
             for bx in (0..w).step_by(LANES) {
                 let i0 = row + bx;
                 let polys: &[u32; LANES] = gb.polygon[i0..i0 + LANES].try_into().unwrap();
+                let p0 = polys[0];
+                // One polygon over the whole block, inside the region (the common case),
+                // tested first in lanes: the per-lane classification below is only for the
+                // other blocks.
+                let uniform = p0 != NO_POLYGON
+                    && bx + LANES <= w
+                    && simd.bits(simd.eq_u(simd.load_u(polys), simd.splat_u(p0))) == ALL_LANES;
                 let mut empty = [false; LANES];
                 let mut n_empty = 0;
-                for l in 0..LANES {
-                    // Lanes beyond the region's width (padding) are treated as empty even if
-                    // they held a polygon, as the scalar pass never reads them.
-                    empty[l] = (polys[l] == NO_POLYGON) | (bx + l >= w);
-                    n_empty += empty[l] as usize;
-                }
-                let p0 = polys[0];
-                let mut uniform = n_empty == 0;
-                for l in 0..LANES {
-                    uniform &= polys[l] == p0;
+                if !uniform {
+                    for l in 0..LANES {
+                        // Lanes beyond the region's width (padding) are treated as empty even
+                        // if they held a polygon, as the scalar pass never reads them.
+                        empty[l] = (polys[l] == NO_POLYGON) | (bx + l >= w);
+                        n_empty += empty[l] as usize;
+                    }
                 }
                 let out = if n_empty == LANES {
                     bg8

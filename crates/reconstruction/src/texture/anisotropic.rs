@@ -158,12 +158,16 @@ impl Sampler {
         loop {
             let mut on = *mask;
             let (mut uk, mut vk) = (u, v);
-            for l in 0..LANES {
-                on[l] &= k < n[l];
-                if n[l] > 1 {
-                    let s = offset(k, n[l]);
-                    uk.0[l] = u.0[l] + au[l] * s;
-                    vk.0[l] = v.0[l] + av[l] * s;
+            // One tap everywhere (every isotropic block): the lanes' own coordinates, as the
+            // loop below would leave them, without its per-lane branches.
+            if most > 1 {
+                for l in 0..LANES {
+                    on[l] &= k < n[l];
+                    if n[l] > 1 {
+                        let s = offset(k, n[l]);
+                        uk.0[l] = u.0[l] + au[l] * s;
+                        vk.0[l] = v.0[l] + av[l] * s;
+                    }
                 }
             }
             let c = self.sample8(simd, tex, lx2, ly2, uk, vk, &on);

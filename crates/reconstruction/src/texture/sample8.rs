@@ -280,39 +280,50 @@ impl Sampler {
         mask: &[bool; LANES],
     ) -> Rgb8 {
         let last = tex.last_level();
+        let (mut uc, mut vc) = (u, v);
+        for l in 0..LANES {
+            uc.0[l] = clamp01(u.0[l]);
+            vc.0[l] = clamp01(v.0[l]);
+        }
+        // Every lane magnified (the footprint at most one texel, or NaN): level 0 for every
+        // lane, as the per-lane loop below finds (`lod_from_squares` returns 0 without a
+        // logarithm), decided in lanes and the loop skipped. One call of `level8` serves both
+        // (every further call site inlines every filter again per instruction set).
+        let mut small = true;
+        for l in 0..LANES {
+            let r2 = lx2.0[l].max(ly2.0[l]);
+            small &= !mask[l] | r2.is_nan() | (r2 <= 1.0);
+        }
         let nearest = matches!(self.filter, Filter::Nearest);
         let mut level = [0usize; LANES];
         let mut frac = [0.0f32; LANES];
         let mut blend = [false; LANES];
         let mut magnified = true;
-        for l in 0..LANES {
-            if !mask[l] {
-                continue;
+        if !small {
+            for l in 0..LANES {
+                if !mask[l] {
+                    continue;
+                }
+                let lod = lod_from_squares(lx2.0[l], ly2.0[l], last);
+                if lod == 0.0 {
+                    // d = 0: level 0 for every filter, no blend (the scalar code's f <= 0 exit).
+                    continue;
+                }
+                magnified = false;
+                let d = if lod.is_nan() {
+                    0.0
+                } else {
+                    lod.clamp(0.0, last as f32)
+                };
+                if nearest {
+                    level[l] = (d.round() as usize).min(last);
+                } else {
+                    let l0 = (d.floor() as usize).min(last);
+                    level[l] = l0;
+                    frac[l] = d - l0 as f32;
+                    blend[l] = !(frac[l] <= 0.0 || l0 == last);
+                }
             }
-            let lod = lod_from_squares(lx2.0[l], ly2.0[l], last);
-            if lod == 0.0 {
-                // d = 0: level 0 for every filter, no blend (the scalar code's f <= 0 exit).
-                continue;
-            }
-            magnified = false;
-            let d = if lod.is_nan() {
-                0.0
-            } else {
-                lod.clamp(0.0, last as f32)
-            };
-            if nearest {
-                level[l] = (d.round() as usize).min(last);
-            } else {
-                let l0 = (d.floor() as usize).min(last);
-                level[l] = l0;
-                frac[l] = d - l0 as f32;
-                blend[l] = !(frac[l] <= 0.0 || l0 == last);
-            }
-        }
-        let (mut uc, mut vc) = (u, v);
-        for l in 0..LANES {
-            uc.0[l] = clamp01(u.0[l]);
-            vc.0[l] = clamp01(v.0[l]);
         }
         if magnified {
             return self.level8(simd, &tex.levels[0], tex.placement, uc, vc);
