@@ -139,40 +139,38 @@ fn for_each_block<S: Simd, const N: usize, T: EdgeLane>(
         }
         block_step[k] = T::of(e.dy as i64 * ONE * LANES as i64);
         min_step[k] = T::of((-(e.dy as i64) * ONE * (LANES as i64 - 1)).min(0));
-        inv_d[k] = 1.0 / (e.dy as i64 * ONE) as f64;
+    }
+    // A box at most two blocks wide (the small triangles of a mesh) walks every block of each
+    // row: the span below would cost more than the one empty block it can skip.
+    let narrow = lx1 - lx0 < 2 * LANES as u32;
+    if !narrow {
+        for (k, e) in edges.iter().enumerate() {
+            inv_d[k] = 1.0 / (e.dy as i64 * ONE) as f64;
+        }
     }
     let mut row = [T::ZERO; N];
-    for ly in ly0..ly1 + 1 {
-        let y = (ry + ly) as i64 * ONE + offset.1;
+    // The edge functions at the first block of the first row, then stepped a row at a time:
+    // E(X, Y + ONE) = E(X, Y) + dx ONE, exact in i64 (the same values `Edge::at` gives).
+    let mut row64 = [0i64; N];
+    {
+        let y = (ry + ly0) as i64 * ONE + offset.1;
         let x = (rx + lx0) as i64 * ONE + offset.0;
-        let mut row64 = [0i64; N];
         for (k, e) in edges.iter().enumerate() {
-            row64[k] = e.at(x, y);
+            row64[k] = e.at(x, y) - e.dx as i64 * ONE;
         }
-        // The row's covered columns p satisfy, for every edge, row + (lx0 - p) * dy * ONE >= 0,
-        // i.e. p >= q (dy < 0) or p <= q (dy > 0) with q = lx0 + row / (dy * ONE). The bounds
-        // are widened by a pixel against f64 rounding (|q| < 2^40, far below a pixel of error,
-        // the reciprocal included), so the span only skips blocks the exact integer test would
-        // reject anyway: it spares the edge lanes of the empty blocks around thin or slanted
-        // primitives.
-        let (mut lo, mut hi) = (lx0 as f64, lx1 as f64);
+    }
+    for ly in ly0..ly1 + 1 {
         for k in 0..N {
-            let dy = edges[k].dy;
-            let q = lx0 as f64 + row64[k] as f64 * inv_d[k];
-            if dy < 0 {
-                lo = lo.max(q - 1.0);
-            } else if dy > 0 {
-                hi = hi.min(q + 1.0);
-            } else if row64[k] < 0 {
-                hi = -1.0;
+            row64[k] += edges[k].dx as i64 * ONE;
+        }
+        let (start, end) = if narrow {
+            (lx0, lx1)
+        } else {
+            match span(edges, &row64, &inv_d, (lx0, lx1)) {
+                Some(se) => se,
+                None => continue,
             }
-        }
-        if lo > hi {
-            continue;
-        }
-        // lx0 <= lo <= hi <= lx1 here, so both casts are in range.
-        let start = lo as u32 / LANES as u32 * LANES as u32;
-        let end = hi as u32;
+        };
         for k in 0..N {
             row[k] = T::of(row64[k] - edges[k].dy as i64 * ONE * (start - lx0) as i64);
         }
@@ -205,6 +203,39 @@ fn for_each_block<S: Simd, const N: usize, T: EdgeLane>(
             bx += LANES as u32;
         }
     }
+}
+
+/// The blocks of one row worth walking: from `start` (a multiple of 8) through `end`, `None`
+/// when none is. The row's covered columns p satisfy, for every edge, row + (lx0 - p) * dy *
+/// ONE >= 0, i.e. p >= q (dy < 0) or p <= q (dy > 0) with q = lx0 + row / (dy * ONE), `row64`
+/// holding the edge functions at column `lx0`. The bounds are widened by a pixel against f64
+/// rounding (|q| < 2^40, far below a pixel of error, the reciprocal `inv_d` included), so the
+/// span only skips blocks the exact integer test would reject anyway: it spares the edge lanes
+/// of the empty blocks around thin or slanted primitives.
+#[inline(always)]
+fn span<const N: usize>(
+    edges: &[Edge; N],
+    row64: &[i64; N],
+    inv_d: &[f64; N],
+    (lx0, lx1): (u32, u32),
+) -> Option<(u32, u32)> {
+    let (mut lo, mut hi) = (lx0 as f64, lx1 as f64);
+    for k in 0..N {
+        let dy = edges[k].dy;
+        let q = lx0 as f64 + row64[k] as f64 * inv_d[k];
+        if dy < 0 {
+            lo = lo.max(q - 1.0);
+        } else if dy > 0 {
+            hi = hi.min(q + 1.0);
+        } else if row64[k] < 0 {
+            hi = -1.0;
+        }
+    }
+    if lo > hi {
+        return None;
+    }
+    // lx0 <= lo <= hi <= lx1 here, so both casts are in range.
+    Some((lo as u32 / LANES as u32 * LANES as u32, hi as u32))
 }
 
 /// The integer type of the edge-function lanes: `i64` always holds them (see
