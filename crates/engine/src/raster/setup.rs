@@ -125,12 +125,14 @@ pub(crate) fn edges_fit_i32(edges: &[Edge], bbox: [u32; 4]) -> bool {
     let [x0, y0, x1, y1] = bbox.map(|c| c as i64);
     let (xa, xb) = ((x0 - 8) * ONE, (x1 + 17) * ONE);
     let (ya, yb) = (y0 * ONE, (y1 + 1) * ONE);
+    // In i64: coordinates stay below 2^26 within the guard band, so |dx|, |dy| and the
+    // distances stay below 2^27, each product below 2^54 and the bound below 2^55.
     edges.iter().all(|e| {
         let (ex, ey) = (e.x0 as i64, e.y0 as i64);
-        let my = (ya - ey).abs().max((yb - ey).abs()) as i128;
-        let mx = (xa - ex).abs().max((xb - ex).abs()) as i128;
-        let bound = (e.dx as i128).abs() * my + (e.dy as i128).abs() * mx + 1;
-        bound < i32::MAX as i128
+        let my = (ya - ey).abs().max((yb - ey).abs());
+        let mx = (xa - ex).abs().max((xb - ex).abs());
+        let bound = (e.dx as i64).abs() * my + (e.dy as i64).abs() * mx + 1;
+        bound < i32::MAX as i64
     })
 }
 
