@@ -90,6 +90,33 @@ fn offset(k: u32, n: u32) -> f32 {
     (k as f32 + 0.5) / n as f32 - 0.5
 }
 
+/// The lanes and coordinates of tap `k` of 8 anisotropic lookups with `n[l]` taps along the
+/// axes (`au[l]`, `av[l]`): the lanes of `mask` that have a k-th tap, and (u, v) moved to it
+/// (lanes with one tap keep theirs). Not inlined: the deferred pass's isotropic blocks, which
+/// never call it, then carry none of its per-lane conversions (inlined, the compiler hoisted
+/// them in front of the tap loop, where every block paid for them); a lane's values are the
+/// same IEEE operations either way.
+#[inline(never)]
+fn tap(
+    k: u32,
+    n: &[u32; LANES],
+    mask: &[bool; LANES],
+    (u, v): (F32x8, F32x8),
+    (au, av): (&[f32; LANES], &[f32; LANES]),
+) -> ([bool; LANES], F32x8, F32x8) {
+    let mut on = *mask;
+    let (mut uk, mut vk) = (u, v);
+    for l in 0..LANES {
+        on[l] &= k < n[l];
+        if n[l] > 1 {
+            let s = offset(k, n[l]);
+            uk.0[l] = u.0[l] + au[l] * s;
+            vk.0[l] = v.0[l] + av[l] * s;
+        }
+    }
+    (on, uk, vk)
+}
+
 impl Sampler {
     /// The anisotropically filtered value of `tex` at (u, v) for the (u, v) steps `d` =
     /// (du/dx, dv/dx, du/dy, dv/dy) between neighbouring samples, with at most `max` taps
@@ -156,20 +183,13 @@ impl Sampler {
         let mut acc = [F32x8::splat(0.0); 3];
         let mut k = 0;
         loop {
-            let mut on = *mask;
-            let (mut uk, mut vk) = (u, v);
-            // One tap everywhere (every isotropic block): the lanes' own coordinates, as the
-            // loop below would leave them, without its per-lane branches.
-            if most > 1 {
-                for l in 0..LANES {
-                    on[l] &= k < n[l];
-                    if n[l] > 1 {
-                        let s = offset(k, n[l]);
-                        uk.0[l] = u.0[l] + au[l] * s;
-                        vk.0[l] = v.0[l] + av[l] * s;
-                    }
-                }
-            }
+            // One tap everywhere (every isotropic block): the lanes' own coordinates, which is
+            // what `tap` would give, without its per-lane work.
+            let (on, uk, vk) = if most > 1 {
+                tap(k, &n, mask, (u, v), (&au, &av))
+            } else {
+                (*mask, u, v)
+            };
             let c = self.sample8(simd, tex, lx2, ly2, uk, vk, &on);
             if most == 1 {
                 return c;
