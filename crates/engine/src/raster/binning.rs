@@ -1,6 +1,6 @@
 //! Binning in chunks: the frame's polygons are set up in chunks of [`chunk_size`] records, each
 //! chunk binning its own non-empty records per region as it goes (while they are in cache), and
-//! [`join`] concatenates the chunks' lists in chunk order into the per-renderer, per-region
+//! `join` concatenates the chunks' lists in chunk order into the per-renderer, per-region
 //! lists the region tasks read.
 //!
 //! Invariant: the joined lists are exactly those of a sequential round-robin pass

@@ -140,8 +140,8 @@ pub struct ScreenPolygon {
     /// `barycentric`.
     pub corners: [[f64; 2]; 4],
     /// Whether `planes[SA..=TB]` already hold the triangle's barycentric U = u (1 - v) and v as
-    /// `Ua + w Ub` and `Va + w Vb` (the geometry stage derives them directly for triangles; see
-    /// [`View::transform`]), so setup has nothing to fold.
+    /// `Ua + w Ub` and `Va + w Vb` (the geometry stage derives them directly for triangles, from
+    /// the dual vectors of their edges), so setup has nothing to fold.
     pub barycentric: bool,
     /// Whether the polygon is a triangle (collapsed quad).
     pub triangle: bool,
