@@ -87,6 +87,18 @@ impl Plane {
     }
 }
 
+/// A polygon's plane in view space ([`View::plane_view`]).
+pub(super) struct PlaneView {
+    /// The unit normal.
+    pub n: DVec3,
+    /// `n . c0`, c0 the first corner.
+    pub d: f64,
+    /// The largest distance from the first corner to another (world units).
+    pub size: f64,
+    /// Whether the camera sees the front side.
+    pub front_facing: bool,
+}
+
 /// The camera's view transform and projection for one image size.
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct View {
@@ -291,18 +303,13 @@ impl View {
         if cv[..k].iter().all(|p| p.z < self.near) {
             return None;
         }
-        let n = self.dir_to_view(poly.normal);
         let c0 = cv[0];
-        let d = n.dot(c0);
-        // The largest corner distance, as one square root of the largest square (the same
-        // value: the correctly rounded square root is monotonic).
-        let size = poly
-            .vertices()
-            .iter()
-            .map(|c| (*c - poly.corners[0]).length_squared())
-            .fold(0.0, f64::max)
-            .sqrt();
-        let front_facing = if self.perspective { d < 0.0 } else { n.z < 0.0 };
+        let PlaneView {
+            n,
+            d,
+            size,
+            front_facing,
+        } = self.plane_view(poly, c0);
         let triangle = poly.shape == Shape::Triangle;
         let (planes, corners) = if triangle {
             let (b, c) = (cv[1] - c0, cv[2] - c0);
@@ -324,6 +331,28 @@ impl View {
             front_facing,
             barycentric: triangle,
         })
+    }
+
+    /// The plane of polygon `poly` in view space, its first corner at `c0` (view coordinates).
+    #[inline(always)]
+    pub(super) fn plane_view(&self, poly: &Polygon, c0: DVec3) -> PlaneView {
+        let n = self.dir_to_view(poly.normal);
+        let d = n.dot(c0);
+        // The largest corner distance, as one square root of the largest square (the same
+        // value: the correctly rounded square root is monotonic).
+        let size = poly
+            .vertices()
+            .iter()
+            .map(|c| (*c - poly.corners[0]).length_squared())
+            .fold(0.0, f64::max)
+            .sqrt();
+        let front_facing = if self.perspective { d < 0.0 } else { n.z < 0.0 };
+        PlaneView {
+            n,
+            d,
+            size,
+            front_facing,
+        }
     }
 
     /// The per-pixel expressions of a polygon with view normal `n`, plane offset `d = n . c0`,

@@ -12,7 +12,7 @@
 
 use scene::{Polygon, Shape};
 
-use super::geometry::{barycentric_duals, View, GUARD_BAND};
+use super::geometry::{barycentric_duals, PlaneView, View, GUARD_BAND};
 use super::setup::{edge, edges_fit_i32, pixel_box, snap, BilinearInverse, Edge, InverseKind};
 use super::setup::{Prim, MAX_EDGES};
 
@@ -45,20 +45,13 @@ pub(crate) fn triangle_into(
     if !cv.iter().all(|p| p.z - near >= 0.0) {
         return Outcome::General;
     }
-    let n = view.dir_to_view(poly.normal);
     let c0 = cv[0];
-    let d = n.dot(c0);
-    let size = poly
-        .vertices()
-        .iter()
-        .map(|c| (*c - poly.corners[0]).length_squared())
-        .fold(0.0, f64::max)
-        .sqrt();
-    let front_facing = if view.is_perspective() {
-        d < 0.0
-    } else {
-        n.z < 0.0
-    };
+    let PlaneView {
+        n,
+        d,
+        size,
+        front_facing,
+    } = view.plane_view(poly, c0);
     let Some((m1, m2)) = barycentric_duals(n, cv[1] - c0, cv[2] - c0) else {
         return Outcome::Rejected;
     };
