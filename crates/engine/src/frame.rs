@@ -1,8 +1,8 @@
 //! Frame: one frame through every stage after the scene and its radiosity reconstruction exist.
 //! [`FrameContext::render`] takes the scene (or, for the mesh method, the mesh's triangles), a
 //! camera, the method's deferred [`Shader`] and the [`FrameOptions`], and runs, in order:
-//! geometry and setup ([`raster::build_primitives_into`]) -> round-robin distribution over R
-//! virtual renderers and binning per region ([`raster::bin_round_robin_into`]) -> one parallel
+//! geometry and setup, round-robin distribution over R virtual renderers and binning per region
+//! (one parallel pass, [`raster::build_and_bin_into`]) -> one parallel
 //! task per region: each renderer with primitives there rasterizes its share into a pooled
 //! G-buffer ([`raster::rasterize_region_into`]), the compositor merges each one's pixel records
 //! by depth into the region's composite as soon as it is drawn

@@ -1,8 +1,10 @@
 //! Rasterization: the PixelFlow emulator's renderers. Given a scene, a camera and an image size,
 //! [`build_primitives`] runs [`geometry`] (view, projection, near-plane and guard-band clipping,
-//! back-face policy) and [`setup`] (fixed-point edge functions, top-left rule);
+//! back-face policy) and [`setup`] (fixed-point edge functions, top-left rule), with a fused path
+//! for triangles that need no clipping (`triangles`, the bulk of a mesh);
 //! [`bin_round_robin_into`] deals the primitives to R virtual renderers and bins each renderer's
-//! share per screen region ([`region::RegionGrid`]); [`rasterize_region_into`] is one renderer's
+//! share per screen region ([`region::RegionGrid`]); a frame does both in one pass,
+//! [`build_and_bin_into`], binning chunk by chunk ([`binning`]); [`rasterize_region_into`] is one renderer's
 //! work on one region: 8-lane block rasterization into a [`gbuffer::RegionGBuffer`], with each visible
 //! sample's radiosity patch located and copied into a region-local table. Running these for a
 //! frame, merging the renderers' regions and shading them is the `frame` stage's job.
