@@ -301,6 +301,33 @@ fn uv_derivatives8_uniform(
     [ux, vx, uy, vy]
 }
 
+/// The block of samples showing `polys` at column `bx` of a region `w` wide: whether one
+/// polygon covers all 8 lanes inside the region (the common case, tested first in lanes), and
+/// otherwise which lanes are empty (no polygon, or padding beyond the region's width, which the
+/// scalar pass never reads) and how many.
+#[inline(always)]
+fn classify<S: Simd>(
+    simd: S,
+    polys: &[u32; LANES],
+    bx: usize,
+    w: usize,
+) -> (bool, [bool; LANES], usize) {
+    const ALL_LANES: u32 = (1 << LANES) - 1;
+    let p0 = polys[0];
+    let uniform = p0 != NO_POLYGON
+        && bx + LANES <= w
+        && simd.bits(simd.eq_u(simd.load_u(polys), simd.splat_u(p0))) == ALL_LANES;
+    let mut empty = [false; LANES];
+    let mut n_empty = 0;
+    if !uniform {
+        for l in 0..LANES {
+            empty[l] = (polys[l] == NO_POLYGON) | (bx + l >= w);
+            n_empty += empty[l] as usize;
+        }
+    }
+    (uniform, empty, n_empty)
+}
+
 /// The texture pass body, in blocks of 8 with the 8-lane token `simd` (its gather loads the
 /// texels).
 #[inline(always)]
@@ -313,7 +340,6 @@ fn shade_texture_body<S: Simd>(
     dst: &mut Rows<'_>,
 ) -> ShadeCounts {
     const { assert!(S::LANES == LANES, "the texture pass works in blocks of 8") };
-    const ALL_LANES: u32 = (1 << LANES) - 1;
     let (w, h, stride) = (gb.width as usize, gb.height as usize, gb.stride as usize);
     let plane = stride * h;
     let spacing = sample_spacing(gb.samples);
@@ -333,22 +359,7 @@ fn shade_texture_body<S: Simd>(
                 let i0 = row + bx;
                 let polys: &[u32; LANES] = gb.polygon[i0..i0 + LANES].try_into().unwrap();
                 let p0 = polys[0];
-                // One polygon over the whole block, inside the region (the common case),
-                // tested first in lanes: the per-lane classification below is only for the
-                // other blocks.
-                let uniform = p0 != NO_POLYGON
-                    && bx + LANES <= w
-                    && simd.bits(simd.eq_u(simd.load_u(polys), simd.splat_u(p0))) == ALL_LANES;
-                let mut empty = [false; LANES];
-                let mut n_empty = 0;
-                if !uniform {
-                    for l in 0..LANES {
-                        // Lanes beyond the region's width (padding) are treated as empty even
-                        // if they held a polygon, as the scalar pass never reads them.
-                        empty[l] = (polys[l] == NO_POLYGON) | (bx + l >= w);
-                        n_empty += empty[l] as usize;
-                    }
-                }
+                let (uniform, empty, n_empty) = classify(simd, polys, bx, w);
                 let out = if n_empty == LANES {
                     bg8
                 } else if let (true, Some(tex)) = (uniform, set.textures.get(p0 as usize)) {
