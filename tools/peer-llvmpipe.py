@@ -1,8 +1,9 @@
 #!/usr/bin/env python3
 """Times Mesa's llvmpipe (a software OpenGL rasterizer) drawing a model exported by
 `pixelflow-sim export`: the Gouraud mesh (`--mesh`, vertex colours) or the lightmap (texture
-coordinate set 1 into the sRGB PNG pages, bilinear within the nearest mip level, as
-`render --method texture-bilinear` samples), from the file's camera, into a W x H colour and
+coordinate set 1 into the sRGB PNG pages, bilinear within the two nearest mip levels and
+blended between them, GL_LINEAR_MIPMAP_LINEAR, as `render --method texture-bilinear` samples
+under minification), from the file's camera, into a W x H colour and
 depth framebuffer. Prints the median frame time over the frames (each one a clear, the draw
 calls and a glFinish), the renderer string and the model's size, as JSON.
 
@@ -133,7 +134,7 @@ def load(ctx, g, blob):
                     img = Image.open(io.BytesIO(data)).convert("RGBA")
                     t = ctx.texture(img.size, 4, img.tobytes())
                     t.build_mipmaps()
-                    t.filter = (moderngl.LINEAR_MIPMAP_NEAREST, moderngl.LINEAR)
+                    t.filter = (moderngl.LINEAR_MIPMAP_LINEAR, moderngl.LINEAR)
                     textures[image] = t
                 page = textures[image]
             program = ctx.program(vertex_shader=VERTEX, fragment_shader=prog)
