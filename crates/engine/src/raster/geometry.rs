@@ -60,8 +60,8 @@ pub fn near_plane(extent: f64, nearest: f64) -> f64 {
 /// A lower bound of the distance from `eye` to polygon `p` whose corners span the box
 /// `lo`..`hi`: the larger of the distance to its plane and the distance to the box. The box is
 /// the one the frame computes anyway for the scene's bounds, so the bound costs one dot product
-/// and one square root per polygon (a bounding sphere about the centroid was a fifth of the
-/// geometry stage of a 10^5-triangle mesh).
+/// and one square root per polygon (a bounding sphere about the centroid would be a fifth of
+/// the geometry stage of a 10^5-triangle mesh).
 pub(crate) fn distance_lower_bound(p: &Polygon, lo: DVec3, hi: DVec3, eye: DVec3) -> f64 {
     let outside = (lo - eye).max(eye - hi).max(DVec3::ZERO);
     let plane = p.normal.dot(eye - p.corners[0]).abs();

@@ -137,7 +137,7 @@ pub fn build_primitives_into(
 
 /// [`build_primitives_into`] and [`bin_round_robin_into`] in one parallel pass: each chunk of
 /// polygons is set up and binned while its records are in cache (binning afterwards, on one
-/// thread, re-read every record: a tenth of a 10^5-triangle mesh's frame), and the chunks'
+/// thread, would re-read every record: a tenth of a 10^5-triangle mesh's frame), and the chunks'
 /// lists are joined in chunk order, so `bins` holds exactly what the two calls would give.
 /// `chunks` is working memory kept across frames. Returns the number of primitives binned.
 #[allow(clippy::too_many_arguments)]

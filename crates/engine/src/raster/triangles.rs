@@ -1,7 +1,7 @@
 //! The triangle fast path: geometry and setup fused for a triangle that needs no clipping (every
 //! corner in front of the near plane and inside the guard band), the common case of a mesh of
 //! 10^5 triangles, where the general path's per-polygon costs (a clipped vertex list, a screen
-//! polygon record passed between the stages, a vertex list for the snap) were most of a frame.
+//! polygon record passed between the stages, a vertex list for the snap) are most of a frame.
 //!
 //! Invariant: for every triangle it accepts, the record it writes is the one the general path
 //! ([`super::geometry::View::transform`] then [`super::setup::setup_into`]) writes, bit for bit,

@@ -93,8 +93,8 @@ fn offset(k: u32, n: u32) -> f32 {
 /// The lanes and coordinates of tap `k` of 8 anisotropic lookups with `n[l]` taps along the
 /// axes (`au[l]`, `av[l]`): the lanes of `mask` that have a k-th tap, and (u, v) moved to it
 /// (lanes with one tap keep theirs). Not inlined: the deferred pass's isotropic blocks, which
-/// never call it, then carry none of its per-lane conversions (inlined, the compiler hoisted
-/// them in front of the tap loop, where every block paid for them); a lane's values are the
+/// never call it, then carry none of its per-lane conversions (inlined, the compiler hoists
+/// them in front of the tap loop, where every block pays for them); a lane's values are the
 /// same IEEE operations either way.
 #[inline(never)]
 fn tap(
