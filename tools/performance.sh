@@ -106,7 +106,7 @@ if [ "${PEER:-0}" = 1 ]; then
   for round in 1 2 3; do
     for s in cornell-box gallery; do
       $BIN bench "$OUT/$s.pfsol" --methods texture-bilinear,mesh --sizes 1024 --frames 20 \
-        2>/dev/null | awk -v s=$s -v r=$round 'NR > 2 { print r, "project", s, $1, $4 }' >> "$OUT/peer.txt"
+        2>/dev/null | awk -v s=$s -v r=$round 'NR > 3 { print r, "project", s, $1, $4 }' >> "$OUT/peer.txt"
       for kind in lightmap mesh; do
         EGL_PLATFORM=surfaceless python3 tools/peer-llvmpipe.py "$OUT/peer-$s-$kind.glb" \
           --size 1024 --frames 20 | sed "s/^/$round llvmpipe $s $kind /" >> "$OUT/peer.txt"

@@ -154,7 +154,8 @@ mod tests {
     }
 
     /// The fast path writes the general path's record bit for bit and rejects what it rejects,
-    /// on random triangles (large, tiny, grazing, partly behind the eye, beyond the image) seen
+    /// on random triangles (from 1e-7 to 1e12 across, grazing, partly behind the eye, beyond
+    /// the image) seen
     /// by random perspective and orthographic cameras, culling on and off.
     #[test]
     fn the_triangle_path_matches_the_general_path_bit_for_bit() {
@@ -184,7 +185,7 @@ mod tests {
             let Ok(view) = View::new(&camera, w, h, 10.0, 1e-3) else {
                 continue;
             };
-            let scale = [0.01, 1.0, 6.0, 1e4][case % 4];
+            let scale = [1e-7, 0.01, 1.0, 6.0, 1e4, 1e12][case % 6];
             let a = random_point(&mut rng, 6.0);
             let Some(poly) = Polygon::triangle(
                 [
