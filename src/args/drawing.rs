@@ -177,9 +177,9 @@ pub(crate) struct RenderArgs {
     /// differences), `monotone` (Fritsch-Butland) or `plain` (central differences).
     #[arg(long)]
     pub estimator: Option<String>,
-    /// How many levels below the solver's leaves the RRPs follow the edges of the spot lights'
-    /// light (cone rims, hard shadows): 3 by default, 0 to reconstruct it from the samples like
-    /// any other light (docs/seams.md).
+    /// How many levels below the solver's leaves the RRPs and the mesh's vertices follow the
+    /// edges of the spot lights' light (cone rims, hard shadows): 3 by default, 0 to
+    /// reconstruct it from the samples like any other light (docs/seams.md).
     #[arg(long, value_name = "N")]
     pub sharp_levels: Option<u32>,
     /// Print the statistics.

@@ -96,10 +96,10 @@ pub(crate) struct SweepArgs {
     /// (physics error, solution error, the truth's noise); 0: no truth image.
     #[arg(long, default_value_t = study::sweep::DEFAULT_TRUTH_SAMPLES)]
     pub truth_samples: u32,
-    /// How many levels below the solver's leaves the direct and texture methods follow the
-    /// edges of the spot lights' light: 3 by default; 0 draws the spots' light from the
-    /// solver's samples for every method, as the mesh draws it (the same data for all methods:
-    /// docs/sweep.md).
+    /// How many levels below the solver's leaves every method (the RRPs, the textures
+    /// resampled from them, the mesh's vertices) follows the edges of the spot lights' light:
+    /// 3 by default; 0 draws the spots' light from the solver's samples for every method
+    /// (docs/sweep.md).
     #[arg(long, value_name = "N")]
     pub sharp_levels: Option<u32>,
     /// Worker threads (default: all cores).

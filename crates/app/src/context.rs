@@ -103,9 +103,10 @@ pub struct Input {
     /// The RRPs' derivative estimator (`--estimator`; default [`Estimator::default`]); the RRPs
     /// are built with it from the samples, whether solved in this run or read from a file.
     pub estimator: Estimator,
-    /// How many levels below the solver's leaves the RRPs follow the edges of the spots' light
-    /// (`--sharp-levels`; default [`reconstruction::sharp::DEFAULT_LEVELS`]; 0: the spots'
-    /// light is reconstructed from the samples like any other).
+    /// How many levels below the solver's leaves the RRPs and the mesh's vertices follow the
+    /// edges of the spots' light (`--sharp-levels`; default
+    /// [`reconstruction::sharp::DEFAULT_LEVELS`]; 0: the spots' light is reconstructed from the
+    /// samples like any other).
     pub sharp_levels: u32,
     /// The largest input file read for it, bytes (its load options'; a solution file is read
     /// whole under the same cap).

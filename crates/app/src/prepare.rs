@@ -163,22 +163,36 @@ impl Prepared {
     }
 
     /// The Gouraud mesh of the solution (T-vertex fans), built on first use, with its build
-    /// time in ms.
+    /// time in ms. With the spots' sharp light ([`Input::sharp_levels`] above 0, a scene with
+    /// spots) its vertices follow the spots' edges as the patches do
+    /// ([`reconstruction::sharp::followed_samples`]), so every method draws the same data.
     ///
     /// Refused with [`Error::Memory`] before it is built when its estimate
     /// (`budget::mesh_bytes`) and what is held already pass the job's memory limit.
     pub fn mesh(&self) -> Result<(&MeshModel, f64)> {
         if self.mesh.get().is_none() {
-            let st = &self.solution.stats;
+            let t = Instant::now();
+            let spots = spot_light(&self.scene, &self.solution, self.sharp_levels)
+                .map_err(|e| self.file_error(e))?;
+            let followed = spots.as_ref().map(|s| {
+                reconstruction::sharp::followed_samples(&self.solution.polygons, s.sharp())
+            });
+            let polygons = followed.as_deref().unwrap_or(&self.solution.polygons);
+            let (leaves, t_vertices) = match &followed {
+                Some(f) => f.iter().fold((0u64, 0u64), |(l, tv), sq| {
+                    let t = &sq.tree;
+                    (l + t.leaf_count() as u64, tv + t.t_vertices().len() as u64)
+                }),
+                None => (self.solution.stats.elements, self.solution.stats.t_vertices),
+            };
             let mut e = budget::Estimate::new(
                 "the Gouraud mesh",
                 "raise radiosity.tolerance or lower radiosity.max_depth, or raise `memory-limit`",
             );
             e.add("held", self.held_bytes())
-                .add("mesh", budget::mesh_bytes(st.elements, st.t_vertices));
+                .add("mesh", budget::mesh_bytes(leaves, t_vertices));
             e.check(self.memory_limit)?;
-            let t = Instant::now();
-            let mesh = MeshModel::build_with(&self.scene, &self.solution.polygons, &self.seams)
+            let mesh = MeshModel::build_with(&self.scene, polygons, &self.seams)
                 .map_err(|e| self.file_error(e))?;
             let _ = self.mesh.set((mesh, t.elapsed().as_secs_f64() * 1e3));
         }

@@ -241,3 +241,98 @@ pub(crate) fn sharpen(
     let map = layout.keys.iter().copied().zip(data).collect();
     (refine::merge(&t, map, originals, scale), evaluated)
 }
+
+/// Every polygon's samples with its sharp terms' edges followed, for the Gouraud mesh: the
+/// mesh then draws the same light as the patches built with `sharp` (the terms exact along
+/// their edges, the rest from the samples), not the samples alone.
+///
+/// Per polygon some term reaches, every leaf whose corners are not lit by the same terms is
+/// split as [`sharpen`] splits it (down `sharp.levels` below its own level, at most
+/// [`MAX_DEPTH`]). A new vertex's value is the rest interpolated bilinearly over the leaf that
+/// was split (the mesh's own interpolation of the rest: its value there without the terms)
+/// plus the terms that light it, taken from the light. Original samples keep their values bit
+/// for bit, and a polygon no term reaches is returned unchanged; every vertex of the new tree
+/// has a value (each split gives values to all its children's corners), so the mesh's
+/// T-vertex fans find every vertex they need. Values are clamped at 0 (the rest is a
+/// difference and may round below it).
+pub fn followed_samples(polygons: &[SampledQuadtree], sharp: Sharp<'_>) -> Vec<SampledQuadtree> {
+    use rayon::prelude::*;
+    polygons
+        .par_iter()
+        .enumerate()
+        .map(|(i, sq)| match PolygonLight::of(sharp, i) {
+            Some(pl) => follow(sq, &pl),
+            None => sq.clone(),
+        })
+        .collect()
+}
+
+/// [`followed_samples`] for one polygon the terms of `pl` reach.
+fn follow(sq: &SampledQuadtree, pl: &PolygonLight<'_>) -> SampledQuadtree {
+    let mut lit: KeyMap<Lit> = KeyMap::default();
+    let mut rest: KeyMap<[f64; 3]> = KeyMap::default();
+    for (&k, b) in sq.keys.iter().zip(&sq.values) {
+        let l = pl.at(k);
+        lit.insert(k, l);
+        rest.insert(k, std::array::from_fn(|ch| b[ch] as f64 - l.sum[ch]));
+    }
+    let mut lit_at = |k: VertexKey| *lit.entry(k).or_insert_with(|| pl.at(k));
+    let mut t = sq.tree.clone();
+    let mut stack: Vec<(u32, u32)> = t
+        .leaves()
+        .into_iter()
+        .rev()
+        .map(|id| (id, (t.node(id).cell.level + pl.sharp.levels).min(MAX_DEPTH)))
+        .collect();
+    while let Some((id, limit)) = stack.pop() {
+        let cell = t.node(id).cell;
+        if cell.level >= limit {
+            continue;
+        }
+        let masks = cell.corners().map(|k| lit_at(k).mask);
+        if masks.iter().all(|&m| m == masks[0]) {
+            continue;
+        }
+        // A leaf's corners always have values (the tree's vertices, or a split's children).
+        let r = cell
+            .corners()
+            .map(|k| rest.get(&k).copied().unwrap_or_default());
+        let (u0, v0, _, _) = cell.bounds();
+        let w = cell.width();
+        for child in cell.children() {
+            for k in child.corners() {
+                rest.entry(k).or_insert_with(|| {
+                    let (s, t) = ((k.u() - u0) / w, (k.v() - v0) / w);
+                    std::array::from_fn(|ch| {
+                        (1.0 - s) * (1.0 - t) * r[0][ch]
+                            + s * (1.0 - t) * r[1][ch]
+                            + s * t * r[2][ch]
+                            + (1.0 - s) * t * r[3][ch]
+                    })
+                });
+            }
+        }
+        let first = t.split(id);
+        for q in (0..4).rev() {
+            stack.push((first + q, limit));
+        }
+    }
+    let keys = t.vertex_keys();
+    let values = keys
+        .iter()
+        .map(|&k| match sq.sample(k) {
+            Some(b) => b,
+            None => {
+                let (r, l) = (rest.get(&k).copied().unwrap_or_default(), lit_at(k));
+                Vec3::from_array(std::array::from_fn(|ch| {
+                    ((r[ch] + l.sum[ch]) as f32).max(0.0)
+                }))
+            }
+        })
+        .collect();
+    SampledQuadtree {
+        tree: t,
+        keys,
+        values,
+    }
+}

@@ -59,8 +59,8 @@ pub struct RenderRequest {
     pub texture: TextureOptions,
     /// The RRPs' derivative estimator by name (`--estimator`; default: the default estimator).
     pub estimator: Option<String>,
-    /// Levels below the solver's leaves the RRPs follow the spots' edges (`--sharp-levels`;
-    /// default [`reconstruction::sharp::DEFAULT_LEVELS`], 0 = off).
+    /// Levels below the solver's leaves the RRPs and the mesh follow the spots' edges
+    /// (`--sharp-levels`; default [`reconstruction::sharp::DEFAULT_LEVELS`], 0 = off).
     pub sharp_levels: Option<u32>,
     /// The scene's command-line options (`-D`, `--camera`, `--strict`).
     pub load: scene::LoadOptions,

@@ -226,3 +226,116 @@ fn compact_holds_the_followed_patches() {
     }
     assert!(worst <= 1e-4, "{worst}");
 }
+
+/// The Gouraud mesh of `sq` on the unit square, evaluated on an `n`^2 grid of cell centres:
+/// (mean absolute error against the exact function, largest error at points at least `d`
+/// from every edge). Each point is shaded by the triangle that holds it, at its barycentric
+/// weights (the triangle's (s, t) map: t = b2, s = b1 / (1 - t)).
+fn mesh_errors(sq: &SampledQuadtree, n: usize, d: f64) -> (f64, f64) {
+    use glam::DVec3;
+    use scene::{Camera, Material, Polygon, Projection, Scene};
+    let scene = Scene::new(
+        Camera {
+            eye: DVec3::new(0.5, 0.5, 2.0),
+            look_at: DVec3::new(0.5, 0.5, 0.0),
+            up: DVec3::Y,
+            projection: Projection::Orthographic {
+                width: 1.0,
+                height: 1.0,
+            },
+        },
+        8,
+        8,
+        vec![Material {
+            name: "white".into(),
+            reflectance: DVec3::splat(0.5),
+            emission: DVec3::ZERO,
+        }],
+        vec![Polygon::quad(
+            [DVec3::ZERO, DVec3::X, DVec3::new(1.0, 1.0, 0.0), DVec3::Y],
+            0,
+            0,
+        )
+        .unwrap()],
+    );
+    let mesh = crate::mesh::MeshModel::build(&scene, std::slice::from_ref(sq)).unwrap();
+    let mut value = vec![f64::NAN; n * n];
+    let cell = |x: f64| ((x * n as f64 - 0.5).ceil().max(0.0) as usize).min(n);
+    for (p, uv) in mesh.patches.iter().zip(&mesh.parent_uv) {
+        let [a, b, c] = uv.map(glam::DVec2::from_array);
+        let (lo, hi) = (a.min(b).min(c), a.max(b).max(c));
+        let area = (b - a).perp_dot(c - a);
+        for j in cell(lo.y)..cell(hi.y) {
+            for i in cell(lo.x)..cell(hi.x) {
+                let q = glam::DVec2::new((i as f64 + 0.5) / n as f64, (j as f64 + 0.5) / n as f64);
+                let b1 = (q - a).perp_dot(c - a) / area;
+                let b2 = (b - a).perp_dot(q - a) / area;
+                if b1 < -1e-12 || b2 < -1e-12 || b1 + b2 > 1.0 + 1e-12 {
+                    continue;
+                }
+                let s = if b2 < 1.0 { b1 / (1.0 - b2) } else { 0.0 };
+                value[j * n + i] = p.eval(s as f32, b2 as f32).x as f64;
+            }
+        }
+    }
+    let (mut sum, mut far) = (0.0f64, 0.0f64);
+    for j in 0..n {
+        for i in 0..n {
+            let (u, v) = ((i as f64 + 0.5) / n as f64, (j as f64 + 0.5) / n as f64);
+            let got = value[j * n + i];
+            assert!(got.is_finite(), "no triangle covers ({u}, {v})");
+            let e = (got - total(u, v)).abs();
+            sum += e;
+            if edge_distance(u, v) >= d {
+                far = far.max(e);
+            }
+        }
+    }
+    (sum / (n * n) as f64, far)
+}
+
+/// The mesh follows the sharp light as the patches do: its vertices along the term's edges
+/// split down `levels` below the solver's leaves, each new vertex the rest (interpolated as the
+/// mesh interpolates it) plus the exact term. The ramp across an edge narrows from a solver
+/// leaf to 1/16 of one, so the mean error (nearly all of it in the ramps) falls by more than
+/// 8x, as the patches' does; away from the edges the
+/// error stays the linear interpolation's on the smooth parts (the criterion's 1e-3 per leaf,
+/// a few times that between its test points); every original sample keeps its bits.
+#[test]
+fn the_mesh_follows_the_sharp_edges_too() {
+    let sq = samples();
+    let followed = crate::sharp::followed_samples(std::slice::from_ref(&sq), sharp(4).unwrap());
+    let f = &followed[0];
+    assert_eq!(f.keys, f.tree.vertex_keys(), "every vertex has a value");
+    for (k, b) in sq.keys.iter().zip(&sq.values) {
+        assert_eq!(f.sample(*k), Some(*b), "sample at {k:?} kept");
+    }
+    let n = 512;
+    let (mean_plain, far_plain) = mesh_errors(&sq, n, W6);
+    let (mean_followed, far_followed) = mesh_errors(f, n, W6);
+    println!(
+        "mesh mean error {mean_plain:.3e} -> {mean_followed:.3e}; beyond a leaf of an edge \
+         {far_plain:.3e} -> {far_followed:.3e}; leaves {} -> {}",
+        sq.tree.leaf_count(),
+        f.tree.leaf_count()
+    );
+    assert!(
+        mean_followed * 8.0 <= mean_plain,
+        "{mean_followed} vs {mean_plain}"
+    );
+    assert!(far_followed <= 5e-3, "{far_followed}");
+    // Storage along the edges only: at most 4 x 2^4 leaves per straddling solver leaf.
+    assert!(f.tree.leaf_count() <= 64 * sq.tree.leaf_count());
+}
+
+/// A polygon no term reaches keeps its samples and tree exactly, and so does every polygon
+/// when the light is not followed at all.
+#[test]
+fn the_mesh_without_terms_is_unchanged() {
+    let sq = samples();
+    let other = SampledQuadtree::from_fn(Quadtree::new(), |_, _| Vec3::ONE);
+    let both = [sq.clone(), other.clone()];
+    let followed = crate::sharp::followed_samples(&both, sharp(4).unwrap());
+    assert_eq!(followed[1], other, "polygon 1 has no term");
+    assert_ne!(followed[0], sq, "polygon 0 has the disc");
+}

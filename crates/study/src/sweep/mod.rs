@@ -106,10 +106,10 @@ pub struct SweepRequest {
     /// Camera samples per pixel of the path-traced truth image the error budget is measured
     /// against ([`crate::physics`]); 0: no truth image, no budget.
     pub truth_samples: u32,
-    /// How many levels below the solver's leaves the direct and texture methods' RRPs follow the
-    /// edges of the spot lights' light (`--sharp-levels`; `None`: the default,
-    /// [`reconstruction::sharp::DEFAULT_LEVELS`]; 0: every method draws the spots' light from
-    /// the solver's samples, as the mesh does).
+    /// How many levels below the solver's leaves every method (the RRPs, and so the textures;
+    /// the mesh's vertices) follows the edges of the spot lights' light (`--sharp-levels`;
+    /// `None`: the default, [`reconstruction::sharp::DEFAULT_LEVELS`]; 0: every method draws
+    /// the spots' light from the solver's samples).
     pub sharp_levels: Option<u32>,
 }
 

@@ -294,12 +294,11 @@ fn introduction(r: &ResultsReport) -> String {
           the coarser ones, down to 0; density 0 is the coarsest); every \
           method is drawn at each, the texture methods at four \
           texture sizes (the quadtree-depth sides halved 0-3 times) and both texel placements. \
-          **The methods do not all draw the same data**: by default (`--sharp-levels 3`) the \
-          direct and texture methods take the spot lights' direct light from the light model \
-          exactly, along the cones' edges, and only the rest from the solver's samples; the \
-          mesh draws everything from the samples. On scenes with spots (two-spots, the \
-          gallery) that decides part of their ranking (`sweep --sharp-levels 0` draws every \
-          method from the samples alone, as `render --sharp-levels 0` does). **Error recon.** is the perceptual distance ([metrics.md](metrics.md)) to the same \
+          **Every method draws the same data**: by default (`--sharp-levels 3`) each takes the \
+          spot lights' direct light from the light model exactly, along the cones' edges, and \
+          only the rest from the solver's samples (the mesh's vertices follow the cones' edges \
+          as the patches do); `sweep --sharp-levels 0` draws every method from the samples \
+          alone, as `render --sharp-levels 0` does. **Error recon.** is the perceptual distance ([metrics.md](metrics.md)) to the same \
           solution's exact image (the method's own error); beside it the same error as a \
           second metric with no model of vision, **rel. RMSE recon.** (the luminance RMSE over \
           the exact image's mean luminance), and **recon. near edges**, the share of its squared \
