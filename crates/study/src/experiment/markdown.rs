@@ -2,7 +2,7 @@
 //! computed from the numbers, so a regenerated report cannot keep a claim its numbers no longer
 //! support.
 
-use super::{table1_markdown, Figure, FigureOptions, Request, Results, SweepRow};
+use super::{table1_markdown, Figure, FigureOptions, Request, Results, SweepRow, PAPER_TABLE1};
 use app::commands::stats::ModelStats;
 use base::error::Result;
 use metric::Comparison;
@@ -917,8 +917,18 @@ fn frame_rate_finding(table1: &[ModelStats]) -> String {
     );
     if let Some(h) = table1.iter().max_by_key(|s| s.mesh.triangles) {
         if let Some(r) = frame_ratio(h, "mesh", "direct") {
+            // Set beside the paper's largest poly model, in the same units.
+            let paper = PAPER_TABLE1.iter().max_by_key(|p| p.poly.0);
+            let beside = paper.map_or(String::new(), |p| {
+                format!(
+                    ", {:.1}x the paper's {}'s {}",
+                    h.mesh.triangles as f64 / p.poly.0 as f64,
+                    p.model,
+                    app::report::grouped(p.poly.0)
+                )
+            });
             t += &format!(
-                " ({:.1}x for {}'s {} triangles, the size of the paper's grotto)",
+                " ({:.1}x for {}'s {} triangles{beside})",
                 r,
                 scene_name(h),
                 app::report::grouped(h.mesh.triangles)
