@@ -26,7 +26,7 @@
 use glam::Vec3;
 
 use super::MipLevel;
-use super::{clamp01, lod_from_squares, Cubic, Filter, Placement, RadiosityTexture, Sampler};
+use super::{lod_from_squares, Cubic, Filter, Placement, RadiosityTexture, Sampler};
 use lanes::{F32x8, Simd, LANES};
 
 /// Three channels of 8 lanes (r, g, b).
@@ -84,12 +84,30 @@ fn split8(u: F32x8, n: u32, p: Placement) -> (F32x8, F32x8) {
 }
 
 /// `i + off` clamped per lane into [0, max] (clamp-to-edge addressing), computed on the exact
-/// small integers that f32 holds, so it equals the scalar code's integer clamp.
+/// small integers that f32 holds, so it equals the scalar code's integer clamp. Written as
+/// compares and selects (one `vmaxps` and one `vminps` each) rather than `f32::max` / `min`,
+/// whose NaN rule the compiler spells out in extra compares and blends: the values here are
+/// finite integers, where both forms agree.
 #[inline(always)]
 fn clamp_index(i: F32x8, off: f32, max: f32) -> F32x8 {
     let mut r = [0.0f32; LANES];
     for l in 0..LANES {
-        r[l] = (i.0[l] + off).max(0.0).min(max);
+        let a = i.0[l] + off;
+        let a = if a > 0.0 { a } else { 0.0 };
+        r[l] = if a < max { a } else { max };
+    }
+    F32x8(r)
+}
+
+/// Lane form of `clamp01`: NaN to 0, else clamped into [0, 1], as compares and selects (the
+/// same values, -0.0 kept as `clamp` keeps it).
+#[inline(always)]
+fn clamp01_8(x: F32x8) -> F32x8 {
+    let mut r = [0.0f32; LANES];
+    for l in 0..LANES {
+        let v = x.0[l];
+        let hi = if v <= 1.0 { v } else { 1.0 };
+        r[l] = if v >= 0.0 { hi } else { 0.0 };
     }
     F32x8(r)
 }
@@ -280,20 +298,18 @@ impl Sampler {
         mask: &[bool; LANES],
     ) -> Rgb8 {
         let last = tex.last_level();
-        let (mut uc, mut vc) = (u, v);
-        for l in 0..LANES {
-            uc.0[l] = clamp01(u.0[l]);
-            vc.0[l] = clamp01(v.0[l]);
-        }
+        let (uc, vc) = (clamp01_8(u), clamp01_8(v));
         // Every lane magnified (the footprint at most one texel, or NaN): level 0 for every
         // lane, as the per-lane loop below finds (`lod_from_squares` returns 0 without a
         // logarithm), decided in lanes and the loop skipped. One call of `level8` serves both
         // (every further call site inlines every filter again per instruction set).
-        let mut small = true;
+        // `max(lx2, ly2) <= 1 or NaN` (f32::max skips a NaN) is `!(lx2 > 1 or ly2 > 1)`: plain
+        // compares, which the compiler keeps in lanes.
+        let mut large = [false; LANES];
         for l in 0..LANES {
-            let r2 = lx2.0[l].max(ly2.0[l]);
-            small &= !mask[l] | r2.is_nan() | (r2 <= 1.0);
+            large[l] = mask[l] & ((lx2.0[l] > 1.0) | (ly2.0[l] > 1.0));
         }
+        let small = !large.iter().fold(false, |a, &b| a | b);
         let nearest = matches!(self.filter, Filter::Nearest);
         let mut level = [0usize; LANES];
         let mut frac = [0.0f32; LANES];
