@@ -216,9 +216,10 @@ fn uv_derivatives8(
         (pl[0], ul[0], vl[0]) = (ps[k], us[k], vs[k]);
     }
     let (mut fwd, mut bwd) = ([false; LANES], [false; LANES]);
+    // `&`, not `&&`: both sides are cheap and a short circuit keeps the loop out of lanes.
     for l in 0..LANES {
-        fwd[l] = bx + l + 1 < w && pr[l] == polys[l];
-        bwd[l] = bx + l > 0 && pl[l] == polys[l];
+        fwd[l] = (bx + l + 1 < w) & (pr[l] == polys[l]);
+        bwd[l] = (bx + l > 0) & (pl[l] == polys[l]);
     }
     let (ur, vr, ul, vl) = (F32x8(ur), F32x8(vr), F32x8(ul), F32x8(vl));
     let ux = F32x8::select(&fwd, ur - u, F32x8::select(&bwd, u - ul, zero));
@@ -235,8 +236,8 @@ fn uv_derivatives8(
     let (pu, uu, vu) = if y > 0 { row(i0 - stride) } else { none };
     let (mut down, mut up) = ([false; LANES], [false; LANES]);
     for l in 0..LANES {
-        down[l] = y + 1 < h && pd[l] == polys[l];
-        up[l] = y > 0 && pu[l] == polys[l];
+        down[l] = (y + 1 < h) & (pd[l] == polys[l]);
+        up[l] = (y > 0) & (pu[l] == polys[l]);
     }
     let uy = F32x8::select(&down, ud - u, F32x8::select(&up, u - uu, zero));
     let vy = F32x8::select(&down, vd - v, F32x8::select(&up, v - vu, zero));
@@ -384,14 +385,18 @@ fn shade_texture_body<S: Simd>(
                     let d = uv_derivatives8(gb, i0, bx, y, polys);
                     counts.samples_shaded += (LANES - n_empty) as u64;
                     let mut out = bg8;
-                    let mut done = empty;
-                    while let Some(first) = done.iter().position(|&d| !d) {
-                        let p = polys[first];
-                        let mut m = [false; LANES];
-                        for l in 0..LANES {
-                            m[l] = !done[l] & (polys[l] == p);
-                            done[l] |= m[l];
-                        }
+                    // Lanes as bits (lane l is bit l): the empty ones start done.
+                    const ALL: u32 = (1 << LANES) - 1;
+                    let mut done = empty
+                        .iter()
+                        .enumerate()
+                        .fold(0u32, |b, (l, &e)| b | ((e as u32) << l));
+                    let lanes = simd.load_u(polys);
+                    while done != ALL {
+                        let p = polys[(!done & ALL).trailing_zeros() as usize];
+                        let bits = simd.bits(simd.eq_u(lanes, simd.splat_u(p))) & !done;
+                        done |= bits;
+                        let m: [bool; LANES] = std::array::from_fn(|l| bits >> l & 1 != 0);
                         let c = match set.textures.get(p as usize) {
                             None => [F32x8::splat(0.0); 3],
                             Some(tex) => lookup8(
