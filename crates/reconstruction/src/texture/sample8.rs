@@ -331,13 +331,17 @@ impl Sampler {
                 } else {
                     lod.clamp(0.0, last as f32)
                 };
+                // SAFETY (both conversions): d is in [0, last] (NaN mapped to 0, then clamped)
+                // and `last` is below a chain's level count (13 at most: sides up to
+                // `MAX_TEXTURE_SIZE`), so its rounding and floor are small integers in i32;
+                // `as usize` would add a saturating range check per lane.
                 if nearest {
-                    level[l] = (d.round() as usize).min(last);
+                    level[l] = (unsafe { d.round().to_int_unchecked::<i32>() } as usize).min(last);
                 } else {
-                    let l0 = (d.floor() as usize).min(last);
+                    let l0 = (unsafe { d.floor().to_int_unchecked::<i32>() } as usize).min(last);
                     level[l] = l0;
                     frac[l] = d - l0 as f32;
-                    blend[l] = !(frac[l] <= 0.0 || l0 == last);
+                    blend[l] = !((frac[l] <= 0.0) | (l0 == last));
                 }
             }
         }
@@ -401,9 +405,9 @@ fn next_group(
     let mut m = [false; LANES];
     let mut any_blend = false;
     for l in 0..LANES {
-        m[l] = !done[l] && level[l] == lv;
+        m[l] = !done[l] & (level[l] == lv);
         done[l] |= m[l];
-        any_blend |= m[l] && blend[l];
+        any_blend |= m[l] & blend[l];
     }
     Some((lv, m, any_blend))
 }
