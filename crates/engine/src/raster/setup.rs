@@ -253,6 +253,7 @@ pub(super) fn edge(a: [i64; 2], b: [i64; 2]) -> Edge {
 
 /// The inclusive pixel box of the snapped vertices clamped to the image, `None` when off
 /// screen. Samples of pixel i lie in [i * ONE, (i + 1) * ONE): pixels whose square meets the box.
+#[inline]
 pub(super) fn pixel_box(pts: &[[i64; 2]], width: u32, height: u32) -> Option<[u32; 4]> {
     let (mut lo_x, mut lo_y, mut hi_x, mut hi_y) = (i64::MAX, i64::MAX, i64::MIN, i64::MIN);
     for p in pts {

@@ -38,7 +38,16 @@ pub(crate) fn triangle_into(
     out: &mut Prim,
 ) -> Outcome {
     debug_assert_eq!(poly.shape, Shape::Triangle);
-    let cv = [0, 1, 2].map(|k| view.view_coords(poly.corners[k]));
+    // Arrays written out rather than `map`ped: `map` stayed an out-of-line call here, whose
+    // results came back through memory in narrower stores than the loads that read them (a
+    // store-forwarding stall per triangle; the same below for the projected and snapped
+    // points).
+    let c = &poly.corners;
+    let cv = [
+        view.view_coords(c[0]),
+        view.view_coords(c[1]),
+        view.view_coords(c[2]),
+    ];
     let near = view.near();
     if cv.iter().all(|p| p.z < near) {
         return Outcome::Rejected;
@@ -58,7 +67,11 @@ pub(crate) fn triangle_into(
     if cull && !front_facing {
         return Outcome::Rejected;
     }
-    let verts = cv.map(|p| view.project(p));
+    let verts = [
+        view.project(cv[0]),
+        view.project(cv[1]),
+        view.project(cv[2]),
+    ];
     match screen_outcome(&verts, view.size()) {
         Outcome::Set => {}
         other => return other,
@@ -111,7 +124,8 @@ fn screen_outcome(verts: &[[f64; 2]; 3], (width, height): (u32, u32)) -> Outcome
 /// coincide or the snapped area is zero, wound counter-clockwise, edges and pixel box written
 /// into `out`. Returns whether the triangle covers a pixel of the image.
 fn setup_triangle(verts: &[[f64; 2]; 3], (width, height): (u32, u32), out: &mut Prim) -> bool {
-    let mut pts = verts.map(|p| [snap(p[0]), snap(p[1])]);
+    let s = |p: [f64; 2]| [snap(p[0]), snap(p[1])];
+    let mut pts = [s(verts[0]), s(verts[1]), s(verts[2])];
     if pts[0] == pts[1] || pts[1] == pts[2] || pts[2] == pts[0] {
         return false;
     }
