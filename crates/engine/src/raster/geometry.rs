@@ -360,7 +360,9 @@ impl View {
     /// orthographic) and the coordinates `e1 . (P - c0)`, `e2 . (P - c0)` of the pixel's point
     /// P as [`plane`] orders them. (e1, e2) is an orthonormal frame for quads, the barycentric
     /// duals for triangles. `None` when the plane is edge-on or an expression is not finite.
-    #[inline]
+    /// Always inlined: its 120-byte result, returned through memory, was read back by wider
+    /// loads than the stores that wrote it (a store-forwarding stall on every triangle).
+    #[inline(always)]
     pub(super) fn pixel_planes(
         &self,
         n: DVec3,
