@@ -14,8 +14,8 @@
 use scene::{Polygon, Shape};
 
 use super::geometry::{barycentric_duals, PlaneView, View, GUARD_BAND};
+use super::setup::Prim;
 use super::setup::{edge, edges_fit_i32, pixel_box, snap, BilinearInverse, Edge, InverseKind};
-use super::setup::{Prim, MAX_EDGES};
 
 /// What the fast path did with a triangle.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -142,14 +142,15 @@ fn setup_triangle(verts: &[[f64; 2]; 3], (width, height): (u32, u32), out: &mut 
     let Some(bbox) = pixel_box(&pts, width, height) else {
         return false;
     };
-    let mut edges = [Edge::default(); MAX_EDGES];
+    // Written in place (a local array assigned whole was a 180-byte copy per triangle); the
+    // unused edges are the constant 0, as every record's are.
     for i in 0..3 {
-        edges[i] = edge(pts[i], pts[(i + 1) % 3]);
+        out.edges[i] = edge(pts[i], pts[(i + 1) % 3]);
     }
-    out.edges = edges;
+    out.edges[3..].fill(Edge::default());
     out.n_edges = 3;
     out.bbox = bbox;
-    out.i32_edges = edges_fit_i32(&edges[..3], bbox);
+    out.i32_edges = edges_fit_i32(&out.edges[..3], bbox);
     true
 }
 
