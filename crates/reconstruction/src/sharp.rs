@@ -247,8 +247,8 @@ pub(crate) fn sharpen(
 /// their edges, the rest from the samples), not the samples alone.
 ///
 /// Per polygon some term reaches, every leaf whose corners are not lit by the same terms is
-/// split as [`sharpen`] splits it (down `sharp.levels` below its own level, at most
-/// [`MAX_DEPTH`]). A new vertex's value is the rest interpolated bilinearly over the leaf that
+/// split as the patches' leaves are ([module docs](self)): down `sharp.levels` below its own
+/// level, at most [`MAX_DEPTH`]. A new vertex's value is the rest interpolated bilinearly over the leaf that
 /// was split (the mesh's own interpolation of the rest: its value there without the terms)
 /// plus the terms that light it, taken from the light. Original samples keep their values bit
 /// for bit, and a polygon no term reaches is returned unchanged; every vertex of the new tree
