@@ -486,7 +486,7 @@ impl PatchSource for MeshModel {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use base::quadtree::{Quadtree, LATTICE};
     use glam::DVec3;
@@ -521,7 +521,7 @@ mod tests {
         )
     }
 
-    fn unit_square(size: u32) -> Scene {
+    pub(crate) fn unit_square(size: u32) -> Scene {
         scene_of(
             [DVec3::ZERO, DVec3::X, DVec3::new(1.0, 1.0, 0.0), DVec3::Y],
             size,

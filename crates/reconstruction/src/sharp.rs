@@ -186,28 +186,12 @@ pub(crate) fn sharpen(
     let samples = lit.len();
     let mut lit_at = |k: VertexKey| *lit.entry(k).or_insert_with(|| pl.at(k));
 
-    // Split every straddling leaf, depth-first (a stack: deterministic order), carrying the
-    // level it may reach.
-    let mut stack: Vec<(u32, u32)> = t
-        .leaves()
-        .into_iter()
-        .rev()
-        .map(|id| (id, (t.node(id).cell.level + pl.sharp.levels).min(MAX_DEPTH)))
-        .collect();
-    while let Some((id, limit)) = stack.pop() {
-        let cell = t.node(id).cell;
-        if cell.level >= limit {
-            continue;
-        }
-        let masks = cell.corners().map(|k| lit_at(k).mask);
-        if masks.iter().all(|&m| m == masks[0]) {
-            continue;
-        }
-        let first = refine::split_leaf(&mut t, &mut rest_data, id);
-        for q in (0..4).rev() {
-            stack.push((first + q, limit));
-        }
-    }
+    split_straddling(
+        &mut t,
+        pl.sharp.levels,
+        |k| lit_at(k).mask,
+        |t, id| refine::split_leaf(t, &mut rest_data, id),
+    );
     // Full data at every vertex that is a corner of all its leaves; T-vertices from their leaf.
     let layout = Layout::of(&t);
     let mut width = vec![f64::INFINITY; layout.keys.len()];
@@ -240,6 +224,38 @@ pub(crate) fn sharpen(
     let evaluated = lit.len() - samples;
     let map = layout.keys.iter().copied().zip(data).collect();
     (refine::merge(&t, map, originals, scale), evaluated)
+}
+
+/// Splits every leaf of `t` whose corners `mask_at` finds lit by different terms, depth-first
+/// (a stack: a deterministic order), while it is less than `levels` below its own original
+/// level (at most [`MAX_DEPTH`]); `split(t, id)` splits leaf `id`, giving the new points their
+/// data, and returns its first child.
+fn split_straddling(
+    t: &mut Quadtree,
+    levels: u32,
+    mut mask_at: impl FnMut(VertexKey) -> u64,
+    mut split: impl FnMut(&mut Quadtree, u32) -> u32,
+) {
+    let mut stack: Vec<(u32, u32)> = t
+        .leaves()
+        .into_iter()
+        .rev()
+        .map(|id| (id, (t.node(id).cell.level + levels).min(MAX_DEPTH)))
+        .collect();
+    while let Some((id, limit)) = stack.pop() {
+        let cell = t.node(id).cell;
+        if cell.level >= limit {
+            continue;
+        }
+        let masks = cell.corners().map(&mut mask_at);
+        if masks.iter().all(|&m| m == masks[0]) {
+            continue;
+        }
+        let first = split(t, id);
+        for q in (0..4).rev() {
+            stack.push((first + q, limit));
+        }
+    }
 }
 
 /// Every polygon's samples with its sharp terms' edges followed, for the Gouraud mesh: the
@@ -278,45 +294,34 @@ fn follow(sq: &SampledQuadtree, pl: &PolygonLight<'_>) -> SampledQuadtree {
     }
     let mut lit_at = |k: VertexKey| *lit.entry(k).or_insert_with(|| pl.at(k));
     let mut t = sq.tree.clone();
-    let mut stack: Vec<(u32, u32)> = t
-        .leaves()
-        .into_iter()
-        .rev()
-        .map(|id| (id, (t.node(id).cell.level + pl.sharp.levels).min(MAX_DEPTH)))
-        .collect();
-    while let Some((id, limit)) = stack.pop() {
-        let cell = t.node(id).cell;
-        if cell.level >= limit {
-            continue;
-        }
-        let masks = cell.corners().map(|k| lit_at(k).mask);
-        if masks.iter().all(|&m| m == masks[0]) {
-            continue;
-        }
-        // A leaf's corners always have values (the tree's vertices, or a split's children).
-        let r = cell
-            .corners()
-            .map(|k| rest.get(&k).copied().unwrap_or_default());
-        let (u0, v0, _, _) = cell.bounds();
-        let w = cell.width();
-        for child in cell.children() {
-            for k in child.corners() {
-                rest.entry(k).or_insert_with(|| {
-                    let (s, t) = ((k.u() - u0) / w, (k.v() - v0) / w);
-                    std::array::from_fn(|ch| {
-                        (1.0 - s) * (1.0 - t) * r[0][ch]
-                            + s * (1.0 - t) * r[1][ch]
-                            + s * t * r[2][ch]
-                            + (1.0 - s) * t * r[3][ch]
-                    })
-                });
+    split_straddling(
+        &mut t,
+        pl.sharp.levels,
+        |k| lit_at(k).mask,
+        |t, id| {
+            let cell = t.node(id).cell;
+            // A leaf's corners always have values (the tree's vertices, or a split's children).
+            let r = cell
+                .corners()
+                .map(|k| rest.get(&k).copied().unwrap_or_default());
+            let (u0, v0, _, _) = cell.bounds();
+            let w = cell.width();
+            for child in cell.children() {
+                for k in child.corners() {
+                    rest.entry(k).or_insert_with(|| {
+                        let (s, t) = ((k.u() - u0) / w, (k.v() - v0) / w);
+                        std::array::from_fn(|ch| {
+                            (1.0 - s) * (1.0 - t) * r[0][ch]
+                                + s * (1.0 - t) * r[1][ch]
+                                + s * t * r[2][ch]
+                                + (1.0 - s) * t * r[3][ch]
+                        })
+                    });
+                }
             }
-        }
-        let first = t.split(id);
-        for q in (0..4).rev() {
-            stack.push((first + q, limit));
-        }
-    }
+            t.split(id)
+        },
+    );
     let keys = t.vertex_keys();
     let values = keys
         .iter()

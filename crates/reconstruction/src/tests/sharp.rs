@@ -232,32 +232,7 @@ fn compact_holds_the_followed_patches() {
 /// from every edge). Each point is shaded by the triangle that holds it, at its barycentric
 /// weights (the triangle's (s, t) map: t = b2, s = b1 / (1 - t)).
 fn mesh_errors(sq: &SampledQuadtree, n: usize, d: f64) -> (f64, f64) {
-    use glam::DVec3;
-    use scene::{Camera, Material, Polygon, Projection, Scene};
-    let scene = Scene::new(
-        Camera {
-            eye: DVec3::new(0.5, 0.5, 2.0),
-            look_at: DVec3::new(0.5, 0.5, 0.0),
-            up: DVec3::Y,
-            projection: Projection::Orthographic {
-                width: 1.0,
-                height: 1.0,
-            },
-        },
-        8,
-        8,
-        vec![Material {
-            name: "white".into(),
-            reflectance: DVec3::splat(0.5),
-            emission: DVec3::ZERO,
-        }],
-        vec![Polygon::quad(
-            [DVec3::ZERO, DVec3::X, DVec3::new(1.0, 1.0, 0.0), DVec3::Y],
-            0,
-            0,
-        )
-        .unwrap()],
-    );
+    let scene = crate::mesh::tests::unit_square(8);
     let mesh = crate::mesh::MeshModel::build(&scene, std::slice::from_ref(sq)).unwrap();
     let mut value = vec![f64::NAN; n * n];
     let cell = |x: f64| ((x * n as f64 - 0.5).ceil().max(0.0) as usize).min(n);
