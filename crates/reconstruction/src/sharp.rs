@@ -264,9 +264,9 @@ fn split_straddling(
 ///
 /// Per polygon some term reaches, every leaf whose corners are not lit by the same terms is
 /// split as the patches' leaves are ([module docs](self)): down `sharp.levels` below its own
-/// level, at most [`MAX_DEPTH`]. A new vertex's value is the rest interpolated bilinearly over the leaf that
-/// was split (the mesh's own interpolation of the rest: its value there without the terms)
-/// plus the terms that light it, taken from the light. Original samples keep their values bit
+/// level, at most [`MAX_DEPTH`]. A new vertex's value is the rest interpolated bilinearly over
+/// the leaf that was split (the mesh's own interpolation of the rest: its value there without
+/// the terms) plus the terms that light it, taken from the light. Original samples keep their values bit
 /// for bit, and a polygon no term reaches is returned unchanged; every vertex of the new tree
 /// has a value (each split gives values to all its children's corners), so the mesh's
 /// T-vertex fans find every vertex they need. Values are clamped at 0 (the rest is a

@@ -305,29 +305,24 @@ fn uv_derivatives8_uniform(
 /// The block of samples showing `polys` at column `bx` of a region `w` wide: whether one
 /// polygon covers all 8 lanes inside the region (the common case, tested first in lanes), and
 /// otherwise which lanes are empty (no polygon, or padding beyond the region's width, which the
-/// scalar pass never reads) and how many.
+/// scalar pass never reads), as bits (lane l is bit l; 0 for a uniform block).
 #[inline(always)]
-fn classify<S: Simd>(
-    simd: S,
-    polys: &[u32; LANES],
-    bx: usize,
-    w: usize,
-) -> (bool, [bool; LANES], usize) {
-    const ALL_LANES: u32 = (1 << LANES) - 1;
+fn classify<S: Simd>(simd: S, polys: &[u32; LANES], bx: usize, w: usize) -> (bool, u32) {
     let p0 = polys[0];
     let uniform = p0 != NO_POLYGON
         && bx + LANES <= w
         && simd.bits(simd.eq_u(simd.load_u(polys), simd.splat_u(p0))) == ALL_LANES;
-    let mut empty = [false; LANES];
-    let mut n_empty = 0;
+    let mut empty = 0u32;
     if !uniform {
         for l in 0..LANES {
-            empty[l] = (polys[l] == NO_POLYGON) | (bx + l >= w);
-            n_empty += empty[l] as usize;
+            empty |= (((polys[l] == NO_POLYGON) | (bx + l >= w)) as u32) << l;
         }
     }
-    (uniform, empty, n_empty)
+    (uniform, empty)
 }
+
+/// Every lane of a block, as bits.
+const ALL_LANES: u32 = (1 << LANES) - 1;
 
 /// The texture pass body, in blocks of 8 with the 8-lane token `simd` (its gather loads the
 /// texels).
@@ -360,8 +355,8 @@ fn shade_texture_body<S: Simd>(
                 let i0 = row + bx;
                 let polys: &[u32; LANES] = gb.polygon[i0..i0 + LANES].try_into().unwrap();
                 let p0 = polys[0];
-                let (uniform, empty, n_empty) = classify(simd, polys, bx, w);
-                let out = if n_empty == LANES {
+                let (uniform, empty) = classify(simd, polys, bx, w);
+                let out = if empty == ALL_LANES {
                     bg8
                 } else if let (true, Some(tex)) = (uniform, set.textures.get(p0 as usize)) {
                     // The common case: one polygon over the whole block.
@@ -383,17 +378,13 @@ fn shade_texture_body<S: Simd>(
                     let u8x = F32x8(gb.u[i0..i0 + LANES].try_into().unwrap());
                     let v8x = F32x8(gb.v[i0..i0 + LANES].try_into().unwrap());
                     let d = uv_derivatives8(gb, i0, bx, y, polys);
-                    counts.samples_shaded += (LANES - n_empty) as u64;
+                    counts.samples_shaded += (LANES as u32 - empty.count_ones()) as u64;
                     let mut out = bg8;
-                    // Lanes as bits (lane l is bit l): the empty ones start done.
-                    const ALL: u32 = (1 << LANES) - 1;
-                    let mut done = empty
-                        .iter()
-                        .enumerate()
-                        .fold(0u32, |b, (l, &e)| b | ((e as u32) << l));
+                    // The empty lanes start done.
+                    let mut done = empty;
                     let lanes = simd.load_u(polys);
-                    while done != ALL {
-                        let p = polys[(!done & ALL).trailing_zeros() as usize];
+                    while done != ALL_LANES {
+                        let p = polys[(!done & ALL_LANES).trailing_zeros() as usize];
                         let bits = simd.bits(simd.eq_u(lanes, simd.splat_u(p))) & !done;
                         done |= bits;
                         let m: [bool; LANES] = std::array::from_fn(|l| bits >> l & 1 != 0);
