@@ -162,6 +162,13 @@ fn budget_is_consistent(report: &Value) {
     // surfaces back, so at the pixel centres the tracer is exact: its noise is 0 here.
     let noise = truth["perceptual"].as_f64().unwrap();
     assert!((0.0..1e-6).contains(&noise), "{truth}");
+    assert_eq!(truth["parts"], 8, "{truth}");
+    // Its spots' shadows are single rays to a point, and nothing else is random: a second
+    // solver seed draws the same image.
+    let seed = &report["solver_seed"];
+    assert_eq!(seed["seeds"], serde_json::json!([1, 2]), "{seed}");
+    assert_eq!(seed["same_image"], true, "{seed}");
+    assert_eq!(seed["distance"], 0.0, "{seed}");
     let f = |v: &Value, k: &str| v[k].as_f64().unwrap_or_else(|| panic!("no `{k}` in {v}"));
     for p in report["points"].as_array().unwrap() {
         let level = &report["densities"][p["density"].as_u64().unwrap() as usize];
@@ -174,6 +181,7 @@ fn budget_is_consistent(report: &Value) {
             "triangle inequality: {p} {solution}"
         );
         for e in [physics, solution] {
+            assert_eq!(e["replicates"].as_array().unwrap().len(), 8, "{e}");
             assert!(f(e, "perceptual") <= f(e, "perceptual_measured"), "{e}");
             assert!(f(e, "rmse") <= f(e, "rmse_measured"), "{e}");
             let expected = (f(e, "perceptual_measured").powi(2) - noise * noise)

@@ -177,11 +177,19 @@ pub fn section(scenes: &[(&str, &SweepReport)]) -> String {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use crate::sweep::{Errors, Timing};
 
-    fn point(method: &str, density: usize, bytes: u64, ms: [f64; 2], error: f64) -> SweepPoint {
+    /// A point of a test sweep: its method, density, bytes, frame-time interval and error
+    /// (every error measure alike); no physics error.
+    pub(crate) fn point(
+        method: &str,
+        density: usize,
+        bytes: u64,
+        ms: [f64; 2],
+        error: f64,
+    ) -> SweepPoint {
         let e = Errors {
             perceptual: error,
             rmse: 0.0,
@@ -213,7 +221,8 @@ mod tests {
         }
     }
 
-    fn report(points: Vec<SweepPoint>) -> SweepReport {
+    /// A test sweep of `points`: own density 1, no densities, no truth.
+    pub(crate) fn report(points: Vec<SweepPoint>) -> SweepReport {
         SweepReport {
             scene: "x.toml".into(),
             width: 8,
@@ -229,6 +238,7 @@ mod tests {
                 converged: None,
             },
             truth: None,
+            solver_seed: None,
             points,
             equal_error: None,
             timing: Timing {

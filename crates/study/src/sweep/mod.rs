@@ -18,7 +18,10 @@
 //!   error**), each solution's exact image against it (**solution error**), and the tracer's own
 //!   noise, taken out of both in quadrature. Physics error is what a user sees; it splits into
 //!   the solution error (what the solver got wrong) and the reconstruction error (what the method
-//!   added).
+//!   added). Every such figure carries the jackknife replicates of its 95 % interval from the
+//!   truth's independent parts, and the scene's own density is solved again with the next solver
+//!   seed, so that a difference the pages call is one neither the truth's noise nor the solver's
+//!   seed could make.
 //!
 //! Each point is flagged if it is on the Pareto front of total error against frame time, and of
 //! total error against bytes, over all points of the sweep. A point leaves the time front only
@@ -34,7 +37,7 @@ use serde::{Deserialize, Serialize};
 mod report;
 
 pub use report::{
-    csv, table, Errors, SolutionLevel, SweepPoint, SweepReport, TextureLevel, Timing,
+    csv, table, Errors, SeedCheck, SolutionLevel, SweepPoint, SweepReport, TextureLevel, Timing,
 };
 
 use crate::equal_error::{self, EqualError};
@@ -307,6 +310,7 @@ pub fn run_sweep(job: &Context<'_>, req: &SweepRequest) -> Result<SweepReport> {
     let mut points = Vec::new();
     let mut densities = Vec::new();
     let mut load = Vec::new();
+    let mut seed = None;
     let n = req.densities.len();
     for (level, &factor) in req.densities.iter().enumerate() {
         // Every stage of this density says which of the sweep's densities it belongs to.
@@ -335,6 +339,9 @@ pub fn run_sweep(job: &Context<'_>, req: &SweepRequest) -> Result<SweepReport> {
             req.ppd,
         )?);
         points.extend(at.measure(&total_ref, truth.as_ref(), &mut load)?);
+        if truth.is_some() && level == own {
+            seed = Some(sweep.seed_check(factor, &at.recon_ref, truth.as_ref())?);
+        }
         if req.equal_error && level == own {
             equal = at.equal_error()?;
             views = at.equal_views()?;
@@ -350,6 +357,7 @@ pub fn run_sweep(job: &Context<'_>, req: &SweepRequest) -> Result<SweepReport> {
         densities,
         reference,
         truth: truth.map(|t| t.noise),
+        solver_seed: seed,
         points,
         equal_error: equal,
         timing: sweep.timing(load),
@@ -462,6 +470,35 @@ impl<'a> Sweep<'a> {
         )?)?;
         let level = SolutionLevel::of(&fine, &exact, truth, None, self.req.ppd)?;
         Ok((exact, level))
+    }
+
+    /// The solution at density `factor` solved again with the next solver seed, its exact image
+    /// against that of the scene's seed (`exact`) and against `truth`.
+    fn seed_check(
+        &self,
+        factor: f64,
+        exact: &LinearImage,
+        truth: Option<&TruthReference>,
+    ) -> Result<SeedCheck> {
+        let mut scene = at_density(&self.input.scene, factor);
+        let first = scene.radiosity.seed;
+        scene.radiosity.seed = first.wrapping_add(1);
+        let label = Labelled::new(self.job.observer, "another solver seed");
+        let p = solve_at(&self.job.with_observer(&label), &self.input, scene)?;
+        let img = frame_image(render_frame_observed(
+            &p,
+            Method::Reference,
+            &p.scene.camera,
+            &self.opts,
+            &label,
+        )?)?;
+        Ok(SeedCheck {
+            seeds: [first, p.scene.radiosity.seed],
+            rays: p.solution.stats.rays_cast,
+            same_image: img.pixels == exact.pixels,
+            distance: compare(&img, exact, self.req.ppd)?.perceptual_distance,
+            solution: truth.map(|t| t.errors(&img, self.req.ppd)).transpose()?,
+        })
     }
 }
 

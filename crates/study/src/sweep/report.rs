@@ -137,6 +137,23 @@ impl SolutionLevel {
     }
 }
 
+/// The scene's own density solved again with the next solver seed: what the seed changes. The
+/// solver's only random numbers pick shadow rays, cast where an exact visibility query does not
+/// apply; a solve with none gives the same bits at any seed.
+#[derive(Debug, Clone, Copy, Serialize, PartialEq)]
+pub struct SeedCheck {
+    /// The scene's seed and the one it was solved again with.
+    pub seeds: [u64; 2],
+    /// Shadow rays the second solve cast.
+    pub rays: u64,
+    /// Whether the two solutions' exact images are the same bits.
+    pub same_image: bool,
+    /// The perceptual distance between the two exact images.
+    pub distance: f64,
+    /// The second solution's exact image against the truth (with a truth image).
+    pub solution: Option<PhysicsErrors>,
+}
+
 /// A sweep's result.
 #[derive(Debug, Clone, Serialize)]
 pub struct SweepReport {
@@ -157,6 +174,8 @@ pub struct SweepReport {
     pub reference: SolutionLevel,
     /// The truth image's samples and noise (with a truth image).
     pub truth: Option<TruthNoise>,
+    /// The own density solved with another seed (with a truth image).
+    pub solver_seed: Option<SeedCheck>,
     /// The points, density-major, then method, then texture size.
     pub points: Vec<SweepPoint>,
     /// The equal-error memory comparison (with texture methods and the search asked for).

@@ -18,6 +18,7 @@ use std::time::Instant;
 
 use serde::Serialize;
 
+mod budget;
 mod page;
 
 pub use page::markdown;

@@ -308,7 +308,11 @@ fn introduction(r: &ResultsReport) -> String {
           error** to the independent path tracer's image (`pixelflow-sim truth`, its noise taken \
           out: what a user sees against the light), and **solution error** is the same \
           solution's exact image against that path tracer's: the physics error splits into the \
-          solution error (the solver's) and the reconstruction error (the method's). **Bytes \
+          solution error (the solver's) and the reconstruction error (the method's). The truth \
+          is traced in 8 independent parts: every comparison made on these two figures (which \
+          term is larger, which method is nearer the light) is called only where its 95 % \
+          interval over the parts excludes 0, and stated as a tie otherwise; the errors against \
+          the solver's own images carry no noise and need none. **Bytes \
           stored**: the RRPs' trees (a bit per node) and samples (three f32 per vertex), from \
           which a render builds them; 12-bit textures with mip chains and gutters; \
           the mesh's vertices and indices. **Bytes held drawing** (the working set): the RRPs \
@@ -360,7 +364,7 @@ fn scene_section(sc: &SceneResults) -> String {
         front_counts(sw),
         best_at_finest(sw)
     );
-    s += &budget_section(sw);
+    s += &budget::budget_section(sw);
     s += &own_density_table(sw);
     s += "\nEvery point on a front, all densities:\n\n";
     s += POINT_HEADER;
@@ -372,112 +376,6 @@ fn scene_section(sc: &SceneResults) -> String {
         s += &point_row(p);
     }
     s + "\n"
-}
-
-/// The error budget against the path-traced truth: per density, the solution's error and every
-/// method's physics and reconstruction error (the textures at the quadtree-depth size, the
-/// placement nearer the truth), then which term dominates. Empty without a truth image.
-fn budget_section(sw: &SweepReport) -> String {
-    let Some(t) = &sw.truth else {
-        return String::new();
-    };
-    let methods = sw.methods();
-    let mut s = format!(
-        "**Error budget against physics** (perceptual distance; truth: {} samples per pixel, its \
-         noise {:.3} taken out in quadrature, see [sweep.md](sweep.md#error-budget)). Each cell \
-         is *physics error (reconstruction error)*; the solution error is the same solution's \
-         exact image against the truth. A value marked ≤ is within the truth's noise: the \
-         correction does not resolve it, so the measured distance is given as its bound and no \
-         comparison is made on it. Converged reference (tolerance {}): solution error {}.\n\n",
-        t.samples_per_pixel,
-        t.perceptual,
-        sw.reference.tolerance,
-        sw.reference
-            .solution
-            .map_or("-".into(), |e| e.perceptual_text(3)),
-    );
-    s += &format!(
-        "| density | tolerance | solution error | {} |\n",
-        methods.join(" | ")
-    );
-    s += &format!("|---|---|---|{}\n", "---|".repeat(methods.len()));
-    for (level, d) in sw.densities.iter().enumerate() {
-        let sol = d.solution.map_or("-".into(), |e| e.perceptual_text(3));
-        s += &format!("| {level} | {} | {sol} |", d.tolerance);
-        for m in &methods {
-            let best = sw
-                .points
-                .iter()
-                .filter(|p| p.density == level && p.method == *m)
-                .filter(|p| p.texture.is_none_or(|l| l.halvings == 0))
-                .min_by(|a, b| physics_of(a).total_cmp(&physics_of(b)));
-            s += &match best {
-                Some(p) => format!(
-                    " {} ({:.3}) |",
-                    p.physics.map_or("-".into(), |e| e.perceptual_text(3)),
-                    p.error_reconstruction
-                ),
-                None => " - |".into(),
-            };
-        }
-        s += "\n";
-    }
-    s + "\n" + &budget_finding(sw) + "\n\n"
-}
-
-/// A point's physics error (infinite without one, so it sorts last).
-fn physics_of(p: &SweepPoint) -> f64 {
-    p.error_physics.unwrap_or(f64::INFINITY)
-}
-
-/// Which term of the budget dominates: at how many points (every method, density and texture
-/// size) the solution error exceeds the reconstruction error, and per method where it does not.
-fn budget_finding(sw: &SweepReport) -> String {
-    // Only resolved solution errors are compared (see `PhysicsErrors::resolved`).
-    let solution = |p: &SweepPoint| {
-        sw.densities
-            .get(p.density)
-            .and_then(|d| d.solution)
-            .filter(|e| e.resolved)
-            .map(|e| e.perceptual)
-    };
-    let mut by_method = Vec::new();
-    let (mut sol_wins, mut all) = (0, 0);
-    for m in sw.methods() {
-        let (mut w, mut n) = (0, 0);
-        for p in sw.points.iter().filter(|p| p.method == m) {
-            if let Some(e) = solution(p) {
-                n += 1;
-                w += (e > p.error_reconstruction) as usize;
-            }
-        }
-        by_method.push(format!("{m} {w} of {n}"));
-        sol_wins += w;
-        all += n;
-    }
-    if all == 0 {
-        let noise = sw.truth.as_ref().map_or(0.0, |t| t.perceptual);
-        return format!(
-            "The truth's noise ({noise:.3}) is larger than the solution error at every point, so \
-             this budget cannot tell which term dominates; a truth with more samples per pixel \
-             (`--truth-samples`) would."
-        );
-    }
-    let verdict = if sol_wins == 0 {
-        "The reconstruction error dominates everywhere: at this image size every method's \
-         distance from the light is mostly how it draws the solution, not the solution."
-    } else if sol_wins == all {
-        "The solution error dominates everywhere: a better reconstruction cannot bring these \
-         images nearer the light; only a better solution can."
-    } else {
-        "Where the solution error dominates, a better reconstruction cannot bring the image \
-         nearer the light; only a better solution can."
-    };
-    format!(
-        "The solution error is the larger term at {sol_wins} of {all} points where the truth \
-         resolves it (every density and texture size; per method: {}). {verdict}",
-        by_method.join(", ")
-    )
 }
 
 /// Every method at the scene's own density (the equal-error search's, else the middle one), the
