@@ -450,7 +450,12 @@ fn introduction(fo: &FigureOptions) -> String {
          Perceptual distance: `docs/metrics.md` at {} pixels per degree; the \
          paper's absolute values cannot be reproduced (its viewing geometry and scaling are \
          unknown), so compare orderings and ratios. All distances are to **the oracle \
-         reference**: the solver's exact radiosity at every pixel centre.\n\n",
+         reference**: the solver's exact radiosity at every pixel centre. Nothing on the page \
+         is sampled at random (the solves' visibility is exact, the images are drawn \
+         deterministically, and every run gives the same bits), so an ordering of two distances \
+         is exact for the setting it was measured in, with no interval to put on it; what moves \
+         the orderings is the setting, which the spot-width sweep and the sensitivity table \
+         vary. Frame rates are the exception: they are medians of one run.\n\n",
         rayon::current_num_threads(),
         fo.ppd
     );
