@@ -83,6 +83,11 @@ pub struct PatchShape {
     moment: Vec<[Vec3; 3]>,
     /// Per node: the index of its weight in `leaves` (leaves only; derived).
     leaf_index: Vec<u32>,
+    /// Per node: its cell's centre on the polygon and the longer of its diagonals (derived):
+    /// what [`correction`] needs of every node it visits at every receiver point, the same
+    /// at all of them (taken from the cell's corners there, a correction spent an eighth of
+    /// its time on the diagonal's square root alone).
+    centre_size: Vec<(DVec3, f64)>,
     /// Per node: the largest difference between two of its leaves' weights in one channel
     /// (derived; 0 for a leaf): how far the light of a part of it can stand from its mean.
     node_spread: Vec<f32>,
@@ -126,7 +131,20 @@ impl PatchShape {
             };
         }
         let base = median_weight(&leaves, &leaf_index, &mean);
-        let moment = moments(poly, patch, &tree, &mean, base);
+        let centre_size: Vec<(DVec3, f64)> = nodes
+            .iter()
+            .map(|n| {
+                let c = cell_corners(poly, absolute(patch, n.cell));
+                // The longer diagonal, as one square root of the larger square (the same
+                // value: the correctly rounded square root is monotonic).
+                let size = (c[2] - c[0])
+                    .length_squared()
+                    .max((c[3] - c[1]).length_squared())
+                    .sqrt();
+                (0.25 * (c[0] + c[1] + c[2] + c[3]), size)
+            })
+            .collect();
+        let moment = moments(&tree, &centre_size, &mean, base);
         let node_spread = node_spreads(&tree, &leaves, &leaf_index);
         let mut lo = [f32::INFINITY; 3];
         let mut hi = [f32::NEG_INFINITY; 3];
@@ -146,6 +164,7 @@ impl PatchShape {
             mean,
             moment,
             leaf_index,
+            centre_size,
             node_spread,
             spread,
             base,
@@ -246,20 +265,13 @@ fn median_weight(leaves: &[[f32; 3]], leaf_index: &[u32], mean: &[(DVec3, f64)])
 /// is taken as at its centre); a parent's is its children's, each moved to the parent's
 /// centre, `sum_children (D_child + A_child (w_child - base) (centre_child - centre))`.
 fn moments(
-    poly: &Polygon,
-    patch: Cell,
     tree: &Quadtree,
+    centre_size: &[(DVec3, f64)],
     mean: &[(DVec3, f64)],
     base: DVec3,
 ) -> Vec<[Vec3; 3]> {
     let nodes = tree.nodes();
-    let centre: Vec<DVec3> = nodes
-        .iter()
-        .map(|n| {
-            let c = cell_corners(poly, absolute(patch, n.cell));
-            0.25 * (c[0] + c[1] + c[2] + c[3])
-        })
-        .collect();
+    let centre = |i: usize| centre_size[i].0;
     let mut moment = vec![[DVec3::ZERO; 3]; nodes.len()];
     for i in (0..nodes.len()).rev() {
         let n = nodes[i];
@@ -270,7 +282,7 @@ fn moments(
         let mut m = [DVec3::ZERO; 3];
         for c in f..f + 4 {
             let (w, a) = mean[c];
-            let arm = centre[c] - centre[i];
+            let arm = centre(c) - centre(i);
             for k in 0..3 {
                 m[k] += moment[c][k] + a * (w[k] - base[k]) * arm;
             }

@@ -314,17 +314,17 @@ fn correction(
         let (id, mask) = stack[len];
         let node = nodes[id as usize];
         let (w, area) = shape.mean[id as usize];
-        let corners = cell_corners(poly, absolute(g.patch, node.cell));
-        let centre = 0.25 * (corners[0] + corners[1] + corners[2] + corners[3]);
-        // The longer diagonal, as one square root of the larger square (the same value: the
-        // correctly rounded square root is monotonic).
-        let size = (corners[2] - corners[0])
-            .length_squared()
-            .max((corners[3] - corners[1]).length_squared())
-            .sqrt();
-        let (within, met) = match region {
-            Some(p) if mask != 0 => p.classify(&corners, mask),
-            _ => (CellIn::Inside, 0),
+        let (centre, size) = shape.centre_size[id as usize];
+        // The cell's corners, only where the region or a near node's exact form factor needs
+        // them (a far node seen whole needs its centre alone).
+        let cell = absolute(g.patch, node.cell);
+        let (within, met, corners) = match region {
+            Some(p) if mask != 0 => {
+                let corners = cell_corners(poly, cell);
+                let (within, met) = p.classify(&corners, mask);
+                (within, met, Some(corners))
+            }
+            _ => (CellIn::Inside, 0, None),
         };
         if within == CellIn::Outside {
             continue;
@@ -353,12 +353,17 @@ fn correction(
         }
         let partly = region.filter(|_| within == CellIn::Partly);
         if !far {
+            let corners = corners.unwrap_or_else(|| cell_corners(poly, cell));
             let whole = || point_to_polygon(x, n, &SmallPoly::from_corners(&corners), poly.normal);
             sum +=
                 d * partly.map_or_else(whole, |p| p.form_factor_in((x, n), &corners, met, whole));
             continue;
         }
-        let share = partly.map_or(1.0, |p| p.share(&corners, met));
+        // A node partly in the region was classified: its corners are there.
+        let share = match (partly, &corners) {
+            (Some(p), Some(c)) => p.share(c, met),
+            _ => 1.0,
+        };
         if share <= 0.0 {
             continue;
         }
