@@ -234,7 +234,7 @@ fn memory_requests_over_the_limit_are_refused_with_the_estimate() {
         assert_eq!(out.status.code(), Some(2), "{cmd:?}: {}", text(&out.stderr));
         let stderr = text(&out.stderr);
         assert!(
-            stderr.contains("needs an estimated 4.7 TiB (program 8.0 MiB + quadtrees and samples"),
+            stderr.contains("needs an estimated 5.8 TiB (program 8.0 MiB + quadtrees and samples"),
             "{cmd:?}: {stderr}"
         );
     }

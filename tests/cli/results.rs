@@ -131,13 +131,19 @@ fn the_results_page_links_every_image_and_quotes_its_data() {
         // The page prints each distance to 3 decimals under its image.
         assert!(page.contains(&format!(" {e:.3} |")), "{g}");
     }
-    // The error budget quotes each density's solution error against the path tracer.
+    // The error budget quotes each density's solution error against the path tracer, with its
+    // interval (two-spots' truth is exact, so every figure is resolved), which term is larger
+    // where the intervals say so, which method is nearer the light, and the solver's seed.
     assert!(page.contains("**Error budget against physics**"));
-    assert!(page.contains("The solution error is the larger term at"));
+    assert!(page.contains(", it is the larger term at "));
+    assert!(page.contains("**Which method is nearer the light**"));
+    assert!(page.contains("pairs are called"));
+    assert!(page.contains("**Solver seed.** Solved again with seed 2"));
     for d in sc["sweep"]["densities"].as_array().unwrap() {
         let e = d["solution"]["perceptual"].as_f64().unwrap();
         assert!(e.is_finite() && e >= 0.0, "{d}");
-        assert!(page.contains(&format!(" | {e:.3} |")), "{d}");
+        assert!(d["solution"]["resolved"].as_bool().unwrap(), "{d}");
+        assert!(page.contains(&format!(" | {e:.3} (")), "{d}");
     }
     let direct = &sc["sweep"]["equal_error"]["direct_error"];
     assert!(page.contains(&format!(

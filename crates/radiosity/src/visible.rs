@@ -368,13 +368,12 @@ impl View {
         }
     }
 
-    /// How the convex quad `cell` of the shooter (3-D corners in its plane) lies against the
-    /// pieces of region `which` in `mask` (a cell inside its parent meets only the pieces its
-    /// parent met), with the mask of those it meets. Conservative: a cell that several pieces
-    /// cover together but none alone counts as partly in.
-    pub(crate) fn classify(&self, which: Region, cell: &[DVec3; 4], mask: u64) -> (CellIn, u64) {
-        let (c, len) = cell_2d(&self.frame, cell);
-        let c = &c[..len];
+    /// How the convex `cell` of the shooter ([`plane_cells`]) lies against the pieces of region
+    /// `which` in `mask` (a cell inside its parent meets only the pieces its parent met), with
+    /// the mask of those it meets. Conservative: a cell that several pieces cover together but
+    /// none alone counts as partly in.
+    pub(crate) fn classify(&self, which: Region, cell: &PlaneCell, mask: u64) -> (CellIn, u64) {
+        let c = cell.verts();
         let cb = bounds(c);
         let e = self.eps;
         let mut met = 0u64;
@@ -398,11 +397,10 @@ impl View {
         }
     }
 
-    /// The share of the convex quad `cell`'s area (3-D corners in the shooter's plane) in the
-    /// pieces of region `which` in `mask` (disjoint, so their overlaps with it add up).
-    pub(crate) fn share(&self, which: Region, cell: &[DVec3; 4], mask: u64) -> f64 {
-        let (c, len) = cell_2d(&self.frame, cell);
-        let c = &c[..len];
+    /// The share of the convex `cell`'s area ([`plane_cells`]) in the pieces of region `which`
+    /// in `mask` (disjoint, so their overlaps with it add up).
+    pub(crate) fn share(&self, which: Region, cell: &PlaneCell, mask: u64) -> f64 {
+        let c = cell.verts();
         let area = area2(c);
         if area <= 0.0 {
             return 0.0;
@@ -422,17 +420,16 @@ impl View {
         (within / area).clamp(0.0, 1.0)
     }
 
-    /// The form factor from `x` (normal `n`) of the part of the convex quad `cell` (3-D
-    /// corners in the shooter's plane) in the pieces of region `which` in `mask`.
+    /// The form factor from `x` (normal `n`) of the part of the convex `cell` ([`plane_cells`])
+    /// in the pieces of region `which` in `mask`.
     pub(crate) fn form_factor_in(
         &self,
         which: Region,
         (x, n): (DVec3, DVec3),
-        cell: &[DVec3; 4],
+        cell: &PlaneCell,
         mask: u64,
     ) -> f64 {
-        let (c, len) = cell_2d(&self.frame, cell);
-        let c = &c[..len];
+        let c = cell.verts();
         let mut part = Buf::new();
         let mut f = 0.0;
         for (k, p) in self.region(which).iter().enumerate().take(64) {
@@ -542,6 +539,47 @@ impl View {
         self.next = next;
         Ok(())
     }
+}
+
+/// A cell of a shooter's plane in the 2-D coordinates its views use ([`plane_cells`]): a
+/// counter-clockwise quad or triangle, the same from every receiver point.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct PlaneCell {
+    c: [DVec2; 4],
+    len: usize,
+}
+
+impl PlaneCell {
+    fn verts(&self) -> &[DVec2] {
+        &self.c[..self.len]
+    }
+}
+
+/// The quads `cells` (3-D corners in the plane of the shooter with outline `outline` and front
+/// normal `ns`) in the 2-D coordinates of every [`View`] of that shooter: what
+/// [`View::classify`], [`View::share`] and [`View::form_factor_in`] take, computed once per
+/// cell instead of at every receiver point (the same bits: the views' frame is made from the
+/// same outline and normal).
+pub(crate) fn plane_cells(
+    outline: &[DVec3],
+    ns: DVec3,
+    cells: impl Iterator<Item = [DVec3; 4]>,
+) -> Vec<PlaneCell> {
+    if outline.len() < 2 {
+        return cells
+            .map(|_| PlaneCell {
+                c: [DVec2::ZERO; 4],
+                len: 0,
+            })
+            .collect();
+    }
+    let frame = Frame::of(outline, ns);
+    cells
+        .map(|cell| {
+            let (c, len) = cell_2d(&frame, &cell);
+            PlaneCell { c, len }
+        })
+        .collect()
 }
 
 /// A 3-D quad of the plane as a counter-clockwise 2-D polygon (repeated corners dropped: a

@@ -217,9 +217,9 @@ pub(crate) fn run_with_caches(
 /// Bytes the solve holds per quadtree node: the node, one leaf record with G at its five test
 /// points (a leaf is counted with every node, an upper bound: a tree has about 3/4 as many
 /// leaves as nodes), the node's copy in its patch's shape, twice (node, mean weight and area,
-/// centre and size, dipole, leaf index, leaf weight: a shape is the polygon's tree under the
-/// patch; the shapes in use and the newly measured ones are held together while they are
-/// compared), and
+/// centre and size, 2-D cell, dipole, leaf index, leaf weight: a shape is the polygon's tree
+/// under the patch; the shapes in use and the newly measured ones are held together while
+/// they are compared), and
 /// [`AFTER_SOLVE_NODE_BYTES`], so that a solve the guard admits can also be reconstructed and
 /// written under the same limit (measured: gallery-fine under a 100 MiB limit peaked at 151 MB
 /// when the guard counted neither).
@@ -237,6 +237,8 @@ const AFTER_SOLVE_NODE_BYTES: usize = 192 + 128;
 /// Bytes a patch's shape holds per node of its tree (see [`NODE_BYTES`]).
 const SHAPE_NODE_BYTES: usize = std::mem::size_of::<base::quadtree::Node>()
     + 2 * std::mem::size_of::<(DVec3, f64)>()
+    + std::mem::size_of::<[glam::DVec2; 4]>()
+    + std::mem::size_of::<usize>()
     + std::mem::size_of::<[glam::Vec3; 3]>()
     + std::mem::size_of::<u32>()
     + 12;

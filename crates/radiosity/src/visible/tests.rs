@@ -301,3 +301,47 @@ fn a_hole_with_a_repeated_corner_still_hides() {
         "exact {f}, brute force {b}, unoccluded {full}"
     );
 }
+
+/// The cells a shape keeps in its shooter's plane ([`plane_cells`]) are, bit for bit, what a
+/// view of that shooter projects from any receiver point: the view's frame depends on the
+/// shooter alone. Checked on a slanted light, partly hidden, from two points, over its
+/// quarters and a collapsed (triangular) cell.
+#[test]
+fn kept_plane_cells_are_the_views_own() {
+    let s = parallelogram(
+        DVec3::new(-0.5, -0.3, 2.0),
+        DVec3::new(0.9, 0.1, 0.2),
+        DVec3::new(0.05, 0.8, -0.1),
+    );
+    let ns = (s[3] - s[0]).cross(s[1] - s[0]).normalize();
+    let at = |a: f64, b: f64| s[0] + a * (s[1] - s[0]) + b * (s[3] - s[0]);
+    let mut cells: Vec<[DVec3; 4]> = [(0.0, 0.0), (0.5, 0.0), (0.5, 0.5), (0.0, 0.5)]
+        .iter()
+        .map(|&(a, b)| {
+            [
+                at(a, b),
+                at(a + 0.5, b),
+                at(a + 0.5, b + 0.5),
+                at(a, b + 0.5),
+            ]
+        })
+        .collect();
+    cells.push([at(0.0, 0.0), at(1.0, 0.0), at(1.0, 1.0), at(1.0, 1.0)]);
+    let kept = plane_cells(&s, ns, cells.iter().copied());
+    let blocker = vec![
+        DVec3::new(-0.1, -1.0, 1.0),
+        DVec3::new(2.0, -1.0, 1.0),
+        DVec3::new(2.0, 2.0, 1.0),
+        DVec3::new(-0.1, 2.0, 1.0),
+    ];
+    for x in [DVec3::new(0.1, 0.2, 0.0), DVec3::new(-0.7, 0.4, -0.3)] {
+        let mut view = View::default();
+        let occ = [blocker.as_slice()].into_iter();
+        assert_eq!(see(&mut view, x, &s, ns, occ, 1e-12), Sight::Part);
+        for (cell, k) in cells.iter().zip(&kept) {
+            let (c, len) = cell_2d(&view.frame, cell);
+            assert_eq!((&c[..len], len), (k.verts(), k.len), "{cell:?}");
+        }
+        assert_eq!(kept[4].len, 3);
+    }
+}

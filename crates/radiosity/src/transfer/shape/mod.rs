@@ -44,7 +44,7 @@ use glam::{DVec3, Vec3};
 use super::Look;
 use super::{cell_corners, sub_area, PairClass, ShooterKind, Transfer};
 use crate::formfactor::{point_to_polygon, SmallPoly};
-use crate::visible::{self, CellIn, Region, Sight, View};
+use crate::visible::{self, CellIn, PlaneCell, Region, Sight, View};
 use base::quadtree::{Cell, Quadtree};
 use scene::Polygon;
 
@@ -88,6 +88,9 @@ pub struct PatchShape {
     /// at all of them (taken from the cell's corners there, a correction spent an eighth of
     /// its time on the diagonal's square root alone).
     centre_size: Vec<(DVec3, f64)>,
+    /// Per node: its cell in the 2-D coordinates of the patch's views (derived; what a
+    /// correction classifies against the visible region, the same from every point).
+    plane: Vec<PlaneCell>,
     /// Per node: the largest difference between two of its leaves' weights in one channel
     /// (derived; 0 for a leaf): how far the light of a part of it can stand from its mean.
     node_spread: Vec<f32>,
@@ -145,6 +148,15 @@ impl PatchShape {
             })
             .collect();
         let moment = moments(&tree, &centre_size, &mean, base);
+        // The patch's views are made from its outline as a shooter has it.
+        let outline = SmallPoly::from_corners(&cell_corners(poly, patch));
+        let plane = visible::plane_cells(
+            outline.verts(),
+            poly.normal,
+            nodes
+                .iter()
+                .map(|n| cell_corners(poly, absolute(patch, n.cell))),
+        );
         let node_spread = node_spreads(&tree, &leaves, &leaf_index);
         let mut lo = [f32::INFINITY; 3];
         let mut hi = [f32::NEG_INFINITY; 3];
@@ -165,6 +177,7 @@ impl PatchShape {
             moment,
             leaf_index,
             centre_size,
+            plane,
             node_spread,
             spread,
             base,

@@ -238,7 +238,7 @@ impl Part<'_> {
     /// [`View::classify`] for the part: inside and outside swap for the region's outside
     /// (a cell meeting none of the region's pieces lies wholly outside it; the mask it
     /// returns, 0, makes its children count as inside the part).
-    fn classify(&self, cell: &[DVec3; 4], mask: u64) -> (CellIn, u64) {
+    fn classify(&self, cell: &PlaneCell, mask: u64) -> (CellIn, u64) {
         let (within, met) = self.view.classify(self.which, cell, mask);
         match (self.outside, within) {
             (false, _) | (true, CellIn::Partly) => (within, met),
@@ -248,7 +248,7 @@ impl Part<'_> {
     }
 
     /// The share of `cell`'s area in the part.
-    fn share(&self, cell: &[DVec3; 4], mask: u64) -> f64 {
+    fn share(&self, cell: &PlaneCell, mask: u64) -> f64 {
         let s = self.view.share(self.which, cell, mask);
         if self.outside {
             1.0 - s
@@ -262,7 +262,7 @@ impl Part<'_> {
     fn form_factor_in(
         &self,
         xn: (DVec3, DVec3),
-        cell: &[DVec3; 4],
+        cell: &PlaneCell,
         mask: u64,
         whole: impl FnOnce() -> f64,
     ) -> f64 {
@@ -315,16 +315,10 @@ fn correction(
         let node = nodes[id as usize];
         let (w, area) = shape.mean[id as usize];
         let (centre, size) = shape.centre_size[id as usize];
-        // The cell's corners, only where the region or a near node's exact form factor needs
-        // them (a far node seen whole needs its centre alone).
-        let cell = absolute(g.patch, node.cell);
-        let (within, met, corners) = match region {
-            Some(p) if mask != 0 => {
-                let corners = cell_corners(poly, cell);
-                let (within, met) = p.classify(&corners, mask);
-                (within, met, Some(corners))
-            }
-            _ => (CellIn::Inside, 0, None),
+        let plane = &shape.plane[id as usize];
+        let (within, met) = match region {
+            Some(p) if mask != 0 => p.classify(plane, mask),
+            _ => (CellIn::Inside, 0),
         };
         if within == CellIn::Outside {
             continue;
@@ -353,17 +347,15 @@ fn correction(
         }
         let partly = region.filter(|_| within == CellIn::Partly);
         if !far {
-            let corners = corners.unwrap_or_else(|| cell_corners(poly, cell));
-            let whole = || point_to_polygon(x, n, &SmallPoly::from_corners(&corners), poly.normal);
-            sum +=
-                d * partly.map_or_else(whole, |p| p.form_factor_in((x, n), &corners, met, whole));
+            // The cell's corners only here: a far node needs its centre alone.
+            let whole = || {
+                let corners = cell_corners(poly, absolute(g.patch, node.cell));
+                point_to_polygon(x, n, &SmallPoly::from_corners(&corners), poly.normal)
+            };
+            sum += d * partly.map_or_else(whole, |p| p.form_factor_in((x, n), plane, met, whole));
             continue;
         }
-        // A node partly in the region was classified: its corners are there.
-        let share = match (partly, &corners) {
-            (Some(p), Some(c)) => p.share(c, met),
-            _ => 1.0,
-        };
+        let share = partly.map_or(1.0, |p| p.share(plane, met));
         if share <= 0.0 {
             continue;
         }
