@@ -459,17 +459,24 @@ impl<'a> Sweep<'a> {
         truth: Option<&TruthReference>,
     ) -> Result<(LinearImage, SolutionLevel)> {
         let scene = at_density(&self.input.scene, self.req.reference_density);
-        let label = Labelled::new(self.job.observer, "converged reference");
-        let fine = solve_at(&self.job.with_observer(&label), &self.input, scene)?;
+        let (fine, exact) = self.solve_exact(scene, "converged reference")?;
+        let level = SolutionLevel::of(&fine, &exact, truth, None, self.req.ppd)?;
+        Ok((exact, level))
+    }
+
+    /// `scene` solved, and its exact image (the `reference` method), the progress labelled
+    /// `what`.
+    fn solve_exact(&self, scene: Scene, what: &str) -> Result<(Prepared, LinearImage)> {
+        let label = Labelled::new(self.job.observer, what);
+        let p = solve_at(&self.job.with_observer(&label), &self.input, scene)?;
         let exact = frame_image(render_frame_observed(
-            &fine,
+            &p,
             Method::Reference,
-            &fine.scene.camera,
+            &p.scene.camera,
             &self.opts,
             &label,
         )?)?;
-        let level = SolutionLevel::of(&fine, &exact, truth, None, self.req.ppd)?;
-        Ok((exact, level))
+        Ok((p, exact))
     }
 
     /// The solution at density `factor` solved again with the next solver seed, its exact image
@@ -483,15 +490,7 @@ impl<'a> Sweep<'a> {
         let mut scene = at_density(&self.input.scene, factor);
         let first = scene.radiosity.seed;
         scene.radiosity.seed = first.wrapping_add(1);
-        let label = Labelled::new(self.job.observer, "another solver seed");
-        let p = solve_at(&self.job.with_observer(&label), &self.input, scene)?;
-        let img = frame_image(render_frame_observed(
-            &p,
-            Method::Reference,
-            &p.scene.camera,
-            &self.opts,
-            &label,
-        )?)?;
+        let (p, img) = self.solve_exact(scene, "another solver seed")?;
         Ok(SeedCheck {
             seeds: [first, p.scene.radiosity.seed],
             rays: p.solution.stats.rays_cast,
