@@ -139,6 +139,7 @@ impl Cell {
     }
 
     /// Whether lattice point `k` lies on the closed boundary of this cell but is not a corner.
+    #[cfg(test)]
     pub(crate) fn has_on_edge_interior(self, k: VertexKey) -> bool {
         let s = self.size();
         let o = self.origin();
@@ -388,17 +389,44 @@ impl Quadtree {
         keys
     }
 
-    /// Vertices that lie inside an edge of some leaf (not at its corners): the T-vertices.
+    /// Vertices that lie inside an edge of some leaf (not at its corners): the T-vertices, in
+    /// the vertices' (row-major) order.
+    ///
+    /// Each leaf edge's interior is a run of the keys sorted along the edge's line (rows for
+    /// horizontal edges, columns for vertical ones), found by binary search: O(n log n) in the
+    /// leaves. Asking every leaf about every vertex took 37 s on a tree of depth 12 beside a
+    /// single leaf (40,848 vertices, 30,689 leaves).
     pub fn t_vertices(&self) -> Vec<VertexKey> {
-        let keys = self.vertex_keys();
-        let leaves: Vec<Cell> = self
-            .nodes
+        let rows = self.vertex_keys();
+        // The same keys column-major, each with its index in `rows`.
+        let mut cols: Vec<(u32, u32, usize)> = rows
             .iter()
-            .filter(|n| n.is_leaf())
-            .map(|n| n.cell)
+            .enumerate()
+            .map(|(n, k)| (k.i, k.j, n))
             .collect();
-        keys.into_iter()
-            .filter(|&k| leaves.iter().any(|c| c.has_on_edge_interior(k)))
+        cols.sort_unstable();
+        let mut t = vec![false; rows.len()];
+        for c in self.nodes.iter().filter(|n| n.is_leaf()).map(|n| n.cell) {
+            let (s, o) = (c.size(), c.origin());
+            if s < 2 {
+                continue;
+            }
+            for j in [o.j, o.j + s] {
+                let lo = rows.partition_point(|&k| k <= VertexKey::new(o.i, j));
+                let hi = rows.partition_point(|&k| k < VertexKey::new(o.i + s, j));
+                t[lo..hi.max(lo)].iter_mut().for_each(|m| *m = true);
+            }
+            for i in [o.i, o.i + s] {
+                let lo = cols.partition_point(|&(ci, cj, _)| (ci, cj) <= (i, o.j));
+                let hi = cols.partition_point(|&(ci, cj, _)| (ci, cj) < (i, o.j + s));
+                for &(_, _, n) in &cols[lo..hi.max(lo)] {
+                    t[n] = true;
+                }
+            }
+        }
+        rows.into_iter()
+            .zip(t)
+            .filter_map(|(k, m)| m.then_some(k))
             .collect()
     }
 }
@@ -470,6 +498,48 @@ mod tests {
         // u = 1 and v = 1 stay in the last cell.
         assert_eq!(t.node(t.find_leaf(1.0, 1.0)).cell, t.node(leaf).cell);
         assert_eq!(t.node(t.find_leaf(f64::NAN, -3.0)).cell.x, 0);
+    }
+
+    /// The T-vertices found by range queries are exactly the vertices inside some leaf's edge,
+    /// asked of every leaf, on trees refined at random (a regression: the all-pairs form took
+    /// 37 s at depth 12).
+    #[test]
+    fn t_vertices_are_the_vertices_inside_a_leafs_edge() {
+        let mut state = 0x9e37_79b9_7f4a_7c15u64;
+        let mut draw = |n: u64| {
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (state >> 33) % n
+        };
+        let mut found = 0;
+        for round in 0..40 {
+            let mut t = Quadtree::new();
+            for _ in 0..(round % 13) * 4 {
+                let leaves: Vec<u32> = (0..t.nodes.len() as u32)
+                    .filter(|&i| t.node(i).is_leaf() && t.node(i).cell.level < 9)
+                    .collect();
+                let pick = leaves[draw(leaves.len() as u64) as usize];
+                t.split(pick);
+            }
+            let leaves: Vec<Cell> = t
+                .nodes
+                .iter()
+                .filter(|n| n.is_leaf())
+                .map(|n| n.cell)
+                .collect();
+            let want: Vec<VertexKey> = t
+                .vertex_keys()
+                .into_iter()
+                .filter(|&k| leaves.iter().any(|c| c.has_on_edge_interior(k)))
+                .collect();
+            assert_eq!(t.t_vertices(), want, "round {round}");
+            found += want.len();
+        }
+        assert!(
+            found > 100,
+            "the random trees had {found} T-vertices in all"
+        );
     }
 
     #[test]
