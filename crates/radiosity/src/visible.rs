@@ -298,6 +298,9 @@ pub(crate) struct View {
     next: Vec<Piece>,
     /// Lengths below this are rounding (1e-12 of the shooter's size).
     eps: f64,
+    /// Set when the view holds only the smaller of its two regions, restored from a kept copy
+    /// ([`View::restore`]): that region.
+    known: Option<Region>,
 }
 
 /// A convex polygon of a [`View`]'s arena and its bounds.
@@ -338,6 +341,10 @@ impl View {
     }
 
     fn region(&self, which: Region) -> &[Piece] {
+        debug_assert!(
+            self.known.is_none_or(|k| k == which),
+            "a restored view holds only its smaller region"
+        );
         match which {
             Region::Visible => &self.pieces,
             Region::Hidden => &self.hidden,
@@ -350,6 +357,9 @@ impl View {
     /// give the visible one: rounding, which differs between two scales of one scene, must not
     /// decide which sum (and so which approximation) a point gets.
     pub(crate) fn smaller(&self) -> Region {
+        if let Some(k) = self.known {
+            return k;
+        }
         let area = |l: &[Piece]| l.iter().map(|p| area2(self.poly(&p.range))).sum::<f64>();
         if area(&self.hidden) < area(&self.pieces) * (1.0 - 1e-9) {
             Region::Hidden
@@ -459,6 +469,41 @@ impl View {
             Region::Hidden => open - self.region_form_factor(Region::Hidden, x, n),
         };
         f.clamp(0.0, open.max(0.0))
+    }
+
+    /// The smaller region ([`View::smaller`]) and its pieces' vertices: all that a correction
+    /// reads of a partly seen shooter, to keep in place of building the view again.
+    pub(crate) fn smaller_pieces(&self) -> (Region, impl Iterator<Item = &[DVec2]>) {
+        let which = self.smaller();
+        let pieces = self.region(which).iter().map(|p| self.poly(&p.range));
+        (which, pieces)
+    }
+
+    /// Makes this the view of the shooter `outline` (front normal `ns`) holding only its
+    /// region `which`, the pieces `pieces` as [`View::smaller_pieces`] gave them: the same
+    /// frame, tolerance, pieces and bounds, bit for bit, as the view they were taken from, so
+    /// every query on that region answers as it did there.
+    pub(crate) fn restore<'p>(
+        &mut self,
+        (outline, ns): (&[DVec3], DVec3),
+        which: Region,
+        pieces: impl Iterator<Item = &'p [DVec2]>,
+    ) {
+        let (frame, _, size) = shooter_2d(outline, ns);
+        self.frame = frame;
+        self.eps = 1e-12 * size.max(f64::MIN_POSITIVE);
+        self.verts.clear();
+        self.holes.clear();
+        self.pieces.clear();
+        self.hidden.clear();
+        for vs in pieces {
+            let p = self.add(vs);
+            match which {
+                Region::Visible => self.pieces.push(p),
+                Region::Hidden => self.hidden.push(p),
+            }
+        }
+        self.known = Some(which);
     }
 
     /// Appends a polygon to the arena.
@@ -682,26 +727,13 @@ fn build<'o>(
     if outline.len() < 3 || outline.len() > MAX_VERTS {
         return Ok(Built::All);
     }
-    let frame = Frame::of(outline, ns);
     let hx = ns.dot(x - outline[0]);
     if hx <= 0.0 {
         return Ok(Built::All);
     }
-    let mut shooter = Buf::new();
-    for p in outline {
-        shooter.push(frame.to2(*p))?;
-    }
-    // Counter-clockwise, as the cuts and the overlap tests assume (an outline's winding need
-    // not agree with the normal a polygon was given: a triangle cut from a folded quad keeps
-    // the quad's).
-    if area2(shooter.verts()) < 0.0 {
-        shooter.v[..shooter.len].reverse();
-    }
-    let size = {
-        let (lo, hi) = bounds(shooter.verts());
-        (hi - lo).max_element()
-    };
+    let (frame, shooter, size) = shooter_2d(outline, ns);
     v.frame = frame;
+    v.known = None;
     v.eps = 1e-12 * size.max(f64::MIN_POSITIVE);
     v.verts.clear();
     v.holes.clear();
@@ -745,6 +777,26 @@ fn build<'o>(
             (a - area2(shooter.verts())).abs() <= 1e-12 * a.abs()
         };
     Ok(if untouched { Built::All } else { Built::Part })
+}
+
+/// The frame of the shooter `outline` (front normal `ns`; 3 to [`MAX_VERTS`] vertices), the
+/// outline in it, counter-clockwise, and its size (the larger side of its bounds): what a view
+/// of the shooter is built in.
+fn shooter_2d(outline: &[DVec3], ns: DVec3) -> (Frame, Buf, f64) {
+    let frame = Frame::of(outline, ns);
+    let mut shooter = Buf::new();
+    for p in &outline[..outline.len().min(MAX_VERTS)] {
+        shooter.v[shooter.len] = frame.to2(*p);
+        shooter.len += 1;
+    }
+    // Counter-clockwise, as the cuts and the overlap tests assume (an outline's winding need
+    // not agree with the normal a polygon was given: a triangle cut from a folded quad keeps
+    // the quad's).
+    if area2(shooter.verts()) < 0.0 {
+        shooter.v[..shooter.len].reverse();
+    }
+    let (lo, hi) = bounds(shooter.verts());
+    (frame, shooter, (hi - lo).max_element())
 }
 
 /// Inward side planes (normal, through the apex) of the pyramid from `x` over `outline`.

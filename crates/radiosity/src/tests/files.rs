@@ -77,7 +77,8 @@ fn coarse_cache_changes_nothing() {
 /// for it, the Cornell box and a room whose ceiling light falls through a grid of 64 tiles
 /// (more occluders than the exact query takes: shadow rays decide there) give the same trees,
 /// samples, shots and history, bit for bit, and write the same solution file; with room, they
-/// answer fewer visibility queries.
+/// answer fewer visibility queries (the regions of partly seen patches kept too), and with room
+/// for part of it, fewer than without and more than with room for all.
 #[test]
 fn kept_geometry_changes_nothing() {
     let mut cornell = cornell();
@@ -118,6 +119,13 @@ fn kept_geometry_changes_nothing() {
         let (a, (exact_a, rays_a)) = run(0);
         let (b, (exact_b, rays_b)) = run(64 << 20);
         assert_same_solve(&a, &b);
+        // Room for some points and their regions, not for all.
+        let (c, (exact_c, _)) = run(1 << 20);
+        assert_same_solve(&a, &c);
+        assert!(
+            exact_b < exact_c && exact_c < exact_a,
+            "{exact_a} {exact_c} {exact_b}"
+        );
         assert!(
             exact_b < exact_a && rays_b <= rays_a,
             "queries {exact_a} -> {exact_b}, ray fallbacks {rays_a} -> {rays_b}"

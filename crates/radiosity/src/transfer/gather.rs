@@ -28,24 +28,25 @@ impl Transfer<'_> {
     /// [`Transfer::gather`] at lattice point `k` of polygon `r`, taking each shooter's
     /// geometry from `kept` (what the point's earlier gather saw, [`seen`]) where it holds it.
     /// The same G, bit for bit; and, if `record` and anything had to be computed, the
-    /// point's entries to keep in place of `kept`.
+    /// point's entries to keep in place of `kept` (with the regions its corrections used, if
+    /// `regions`).
     fn gather_kept(
         &self,
         totals: &[DVec3],
         r: usize,
         k: VertexKey,
-        (kept, record): (&Seen, bool),
+        (kept, record, regions): (&Seen, bool, bool),
     ) -> (DVec3, Option<Seen>) {
         debug_assert!(!self.unsorted, "index_receivers after new pairs");
         SCRATCH.with(|scratch| {
             let mut scratch = scratch.borrow_mut();
             scratch.clear();
             let (g, fresh) = visible::with_pool(|pool| {
-                let out = record.then_some(&mut *scratch);
+                let out = record.then_some((&mut *scratch, regions));
                 self.gather_in(totals, r, (k.u(), k.v()), pool, kept, out)
             });
             // A copy at its exact size: the scratch grew to it, the copy is allocated once.
-            (g, (fresh && record).then(|| scratch.clone()))
+            (g, (fresh && record).then(|| scratch.to_kept()))
         })
     }
 
@@ -63,14 +64,15 @@ impl Transfer<'_> {
         let mut g = Vec::with_capacity(points.len());
         let mut rest = points;
         while !rest.is_empty() {
-            let record = seen.has_room();
+            let (record, regions) = (seen.has_room(), seen.keeps_regions());
             let run = if record { KEEP_RUN } else { rest.len() };
             let (now, later) = rest.split_at(run.min(rest.len()));
             let kept = &*seen;
             let found: Vec<_> = now
                 .par_iter()
                 .map(|&(r, k)| {
-                    self.gather_kept(totals, r as usize, k, (kept.get(r as usize, k), record))
+                    let kept = kept.get(r as usize, k);
+                    self.gather_kept(totals, r as usize, k, (kept, record, regions))
                 })
                 .collect();
             for (&(r, k), (gk, fresh)) in now.iter().zip(found) {
@@ -86,7 +88,8 @@ impl Transfer<'_> {
 
     /// [`Transfer::gather`] with the pool of views its shaped patches' regions are kept in
     /// between the two passes (found once per point and patch), the entries `kept` from an
-    /// earlier gather at the point, and where to record the entries of this one (`out`).
+    /// earlier gather at the point, and where to record the entries of this one (`out`, with
+    /// whether to record the regions its corrections use).
     /// Returns G and whether anything was computed that `kept` did not hold.
     pub(super) fn gather_in(
         &self,
@@ -95,7 +98,7 @@ impl Transfer<'_> {
         (u, v): (f64, f64),
         pool: &mut Vec<visible::View>,
         kept: &Seen,
-        mut out: Option<&mut Seen>,
+        mut out: Option<(&mut Seen, bool)>,
     ) -> (DVec3, bool) {
         let x = self.receiver(r, u, v);
         let mut g = DVec3::ZERO;
@@ -115,17 +118,31 @@ impl Transfer<'_> {
                 pool.push(visible::View::default());
             }
             // An emitter's or a patch's transfer is its uniform one (`transfer_at` computes
-            // the same); a kept look has no region built yet.
-            let (uniform, f, look, ready) = match walk.find(s) {
-                Some((t, f, look)) => (DVec3::splat(t), f, look, false),
+            // the same); a kept look has its region restored if it was kept, else none yet.
+            let (uniform, f, look, ready, restored) = match walk.find(s) {
+                Some((t, f, look)) => {
+                    let region = (look == Look::Exact(Sight::Part))
+                        .then(|| walk.region(s))
+                        .flatten();
+                    if let Some(kept) = &region {
+                        let sg = &self.shooters[s as usize];
+                        pool[used].restore(
+                            (sg.outline.verts(), sg.normal),
+                            kept.which,
+                            kept.pieces(),
+                        );
+                    }
+                    let restored = region.is_some();
+                    (DVec3::splat(t), f, look, restored, restored)
+                }
                 None => {
                     fresh = true;
                     let (t, f, look) =
                         self.uniform_look(s as usize, r, i as usize, (u, v), &mut pool[used]);
-                    (t, f, look, true)
+                    (t, f, look, true, false)
                 }
             };
-            if let Some(out) = out.as_deref_mut() {
+            if let Some((out, _)) = out.as_mut() {
                 out.push(s, uniform.x, f, look);
             }
             g += t * uniform;
@@ -144,15 +161,18 @@ impl Transfer<'_> {
                     look,
                     slot: used as u32,
                     ready: ready || !part,
+                    restored,
+                    keep: restored,
                 });
                 // A part seen keeps its region for the second pass.
                 used += usize::from(part);
             }
         }
-        (
-            g + self.corrected(totals, r, (u, v), g, &mut pending, pool),
-            fresh,
-        )
+        let corrected = self.corrected(totals, r, (u, v), g, &mut pending, pool);
+        if let Some((out, true)) = out {
+            fresh |= keep_regions(out, &pending, pool);
+        }
+        (g + corrected, fresh)
     }
 
     /// The second pass of a gather that found `g` from the shooters' uniform light: the
@@ -214,6 +234,7 @@ impl Transfer<'_> {
                     debug_assert_eq!(look, p.look, "a kept look is what the point sees");
                     p.ready = true;
                 }
+                p.keep |= p.look == Look::Exact(Sight::Part);
                 let shape = self.shapes[s].as_ref().expect("pending is shaped");
                 let shaped = self.shaped_in_view(
                     s,
@@ -229,6 +250,19 @@ impl Transfer<'_> {
         }
         g
     }
+}
+
+/// Records in `out` the regions of the `pending` patches seen in part that a gather keeps
+/// (see [`shape::Pending::keep`]), from their views in `pool`; whether any was not kept
+/// before (the point's entries are then worth keeping again).
+fn keep_regions(out: &mut Seen, pending: &[shape::Pending], pool: &[visible::View]) -> bool {
+    let mut new = false;
+    for p in pending.iter().filter(|p| p.keep && p.ready) {
+        let (which, pieces) = pool[p.slot as usize].smaller_pieces();
+        out.push_region(p.s, which, pieces);
+        new |= !p.restored;
+    }
+    new
 }
 
 thread_local! {

@@ -345,3 +345,70 @@ fn kept_plane_cells_are_the_views_own() {
         assert_eq!(kept[4].len, 3);
     }
 }
+
+/// A view restored from its smaller region ([`View::smaller_pieces`], [`View::restore`])
+/// answers every query a correction asks of that region with the bits the built view gave:
+/// the same region, form factor, classes, masks, shares and form factors of the shooter's
+/// cells. Checked past one and two occluders (hidden region smaller, then visible), from two
+/// points, on a slanted light.
+#[test]
+fn a_restored_view_answers_as_the_built_one() {
+    let s = parallelogram(
+        DVec3::new(-0.5, -0.3, 2.0),
+        DVec3::new(0.9, 0.1, 0.2),
+        DVec3::new(0.05, 0.8, -0.1),
+    );
+    let ns = (s[3] - s[0]).cross(s[1] - s[0]).normalize();
+    let at = |a: f64, b: f64| s[0] + a * (s[1] - s[0]) + b * (s[3] - s[0]);
+    let mut cells = Vec::new();
+    for i in 0..4 {
+        for j in 0..4 {
+            let (a, b) = (i as f64 / 4.0, j as f64 / 4.0);
+            cells.push([
+                at(a, b),
+                at(a + 0.25, b),
+                at(a + 0.25, b + 0.25),
+                at(a, b + 0.25),
+            ]);
+        }
+    }
+    let kept = plane_cells(&s, ns, cells.iter().copied());
+    let small = parallelogram(DVec3::new(-0.2, 0.0, 1.0), DVec3::X * 0.3, DVec3::Y * 0.3);
+    let large = parallelogram(DVec3::new(-1.0, -1.0, 1.2), DVec3::X * 1.1, DVec3::Y * 3.0);
+    let mut regions = Vec::new();
+    for occluders in [vec![small.to_vec()], vec![small.to_vec(), large.to_vec()]] {
+        for x in [DVec3::new(0.1, 0.2, 0.0), DVec3::new(-0.3, 0.4, 0.1)] {
+            let n = DVec3::new(0.1, -0.2, 1.0).normalize();
+            let mut built = View::default();
+            let occ = occluders.iter().map(|q| q.as_slice());
+            assert_eq!(see(&mut built, x, &s, ns, occ, 1e-12), Sight::Part);
+            let (which, pieces) = built.smaller_pieces();
+            let mut restored = View::default();
+            restored.restore((&s, ns), which, pieces);
+            regions.push(which);
+            let open = polygon_form_factor(x, n, &s);
+            assert_eq!(restored.smaller(), which);
+            assert_eq!(
+                restored.form_factor(x, n, open),
+                built.form_factor(x, n, open)
+            );
+            assert_eq!(restored.all(which), built.all(which));
+            for cell in &kept {
+                let mask = built.all(which);
+                assert_eq!(
+                    restored.classify(which, cell, mask),
+                    built.classify(which, cell, mask)
+                );
+                assert_eq!(
+                    restored.share(which, cell, mask).to_bits(),
+                    built.share(which, cell, mask).to_bits()
+                );
+                assert_eq!(
+                    restored.form_factor_in(which, (x, n), cell, mask).to_bits(),
+                    built.form_factor_in(which, (x, n), cell, mask).to_bits()
+                );
+            }
+        }
+    }
+    assert!(regions.contains(&Region::Hidden) && regions.contains(&Region::Visible));
+}

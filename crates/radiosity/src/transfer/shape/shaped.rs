@@ -21,9 +21,14 @@ pub(crate) struct Pending {
     /// `slot` (`visible::with_pool`) ...
     pub look: Look,
     pub slot: u32,
-    /// ... once built there: a look kept from an earlier gather ([`super::seen`]) builds its
-    /// region only when a correction needs it.
+    /// ... once built there: a look kept from an earlier gather ([`super::seen`]) without its
+    /// region builds it only when a correction needs it ...
     pub ready: bool,
+    /// ... whether it was restored from a kept copy ...
+    pub restored: bool,
+    /// ... and whether a gather that keeps what it saw keeps the region too: it was kept
+    /// before, or a correction used it.
+    pub keep: bool,
 }
 
 /// A coarse shot takes a patch's light by its shape only where the shape concentrates it: a
