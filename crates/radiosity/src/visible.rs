@@ -490,12 +490,7 @@ impl View {
         pieces: impl Iterator<Item = &'p [DVec2]>,
     ) {
         let (frame, _, size) = shooter_2d(outline, ns);
-        self.frame = frame;
-        self.eps = 1e-12 * size.max(f64::MIN_POSITIVE);
-        self.verts.clear();
-        self.holes.clear();
-        self.pieces.clear();
-        self.hidden.clear();
+        self.reset(frame, size);
         for vs in pieces {
             let p = self.add(vs);
             match which {
@@ -504,6 +499,18 @@ impl View {
             }
         }
         self.known = Some(which);
+    }
+
+    /// Empties it for a shooter of frame `frame` and size `size`: its tolerance, no pieces,
+    /// both regions held.
+    fn reset(&mut self, frame: Frame, size: f64) {
+        self.frame = frame;
+        self.eps = 1e-12 * size.max(f64::MIN_POSITIVE);
+        self.verts.clear();
+        self.holes.clear();
+        self.pieces.clear();
+        self.hidden.clear();
+        self.known = None;
     }
 
     /// Appends a polygon to the arena.
@@ -732,13 +739,7 @@ fn build<'o>(
         return Ok(Built::All);
     }
     let (frame, shooter, size) = shooter_2d(outline, ns);
-    v.frame = frame;
-    v.known = None;
-    v.eps = 1e-12 * size.max(f64::MIN_POSITIVE);
-    v.verts.clear();
-    v.holes.clear();
-    v.pieces.clear();
-    v.hidden.clear();
+    v.reset(frame, size);
     let min_area2 = v.eps * size;
     let whole = v.add(shooter.verts());
     v.pieces.push(whole);

@@ -302,18 +302,23 @@ fn a_hole_with_a_repeated_corner_still_hides() {
     );
 }
 
+/// A light slanted against every axis, and its front normal.
+fn slanted_light() -> ([DVec3; 4], DVec3) {
+    let s = parallelogram(
+        DVec3::new(-0.5, -0.3, 2.0),
+        DVec3::new(0.9, 0.1, 0.2),
+        DVec3::new(0.05, 0.8, -0.1),
+    );
+    (s, (s[3] - s[0]).cross(s[1] - s[0]).normalize())
+}
+
 /// The cells a shape keeps in its shooter's plane ([`plane_cells`]) are, bit for bit, what a
 /// view of that shooter projects from any receiver point: the view's frame depends on the
 /// shooter alone. Checked on a slanted light, partly hidden, from two points, over its
 /// quarters and a collapsed (triangular) cell.
 #[test]
 fn kept_plane_cells_are_the_views_own() {
-    let s = parallelogram(
-        DVec3::new(-0.5, -0.3, 2.0),
-        DVec3::new(0.9, 0.1, 0.2),
-        DVec3::new(0.05, 0.8, -0.1),
-    );
-    let ns = (s[3] - s[0]).cross(s[1] - s[0]).normalize();
+    let (s, ns) = slanted_light();
     let at = |a: f64, b: f64| s[0] + a * (s[1] - s[0]) + b * (s[3] - s[0]);
     let mut cells: Vec<[DVec3; 4]> = [(0.0, 0.0), (0.5, 0.0), (0.5, 0.5), (0.0, 0.5)]
         .iter()
@@ -353,12 +358,7 @@ fn kept_plane_cells_are_the_views_own() {
 /// points, on a slanted light.
 #[test]
 fn a_restored_view_answers_as_the_built_one() {
-    let s = parallelogram(
-        DVec3::new(-0.5, -0.3, 2.0),
-        DVec3::new(0.9, 0.1, 0.2),
-        DVec3::new(0.05, 0.8, -0.1),
-    );
-    let ns = (s[3] - s[0]).cross(s[1] - s[0]).normalize();
+    let (s, ns) = slanted_light();
     let at = |a: f64, b: f64| s[0] + a * (s[1] - s[0]) + b * (s[3] - s[0]);
     let mut cells = Vec::new();
     for i in 0..4 {
