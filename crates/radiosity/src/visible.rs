@@ -48,7 +48,7 @@ pub(crate) const MAX_PIECES: usize = 48;
 struct Overflow;
 
 /// A polygon of at most [`MAX_VERTS`] vertices on the stack.
-#[derive(Clone, Copy)]
+#[derive(Debug, Clone, Copy)]
 struct Buf {
     v: [DVec2; MAX_VERTS],
     len: usize,
@@ -298,9 +298,10 @@ pub(crate) struct View {
     next: Vec<Piece>,
     /// Lengths below this are rounding (1e-12 of the shooter's size).
     eps: f64,
-    /// Set when the view holds only the smaller of its two regions, restored from a kept copy
-    /// ([`View::restore`]): that region.
-    known: Option<Region>,
+    /// The smaller of its two regions by area ([`View::smaller`]), found once per view.
+    small: Region,
+    /// Whether it holds only that region, restored from a kept copy ([`View::restore`]).
+    restored: bool,
 }
 
 /// A convex polygon of a [`View`]'s arena and its bounds.
@@ -327,9 +328,10 @@ pub(crate) enum CellIn {
 }
 
 /// Which pieces of a [`View`] a query is about.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub(crate) enum Region {
     /// The part of the shooter the point sees.
+    #[default]
     Visible,
     /// The part the occluders hide.
     Hidden,
@@ -342,7 +344,7 @@ impl View {
 
     fn region(&self, which: Region) -> &[Piece] {
         debug_assert!(
-            self.known.is_none_or(|k| k == which),
+            !self.restored || which == self.small,
             "a restored view holds only its smaller region"
         );
         match which {
@@ -355,11 +357,14 @@ impl View {
     /// cheapest over the smaller one (the other follows from the whole shooter's). Equal
     /// areas (a shooter half hidden by an occluder on its grid), to within a relative 1e-9,
     /// give the visible one: rounding, which differs between two scales of one scene, must not
-    /// decide which sum (and so which approximation) a point gets.
+    /// decide which sum (and so which approximation) a point gets. Found when the view is
+    /// built ([`View::smaller_by_area`]).
     pub(crate) fn smaller(&self) -> Region {
-        if let Some(k) = self.known {
-            return k;
-        }
+        self.small
+    }
+
+    /// [`View::smaller`] from the regions' areas.
+    fn smaller_by_area(&self) -> Region {
         let area = |l: &[Piece]| l.iter().map(|p| area2(self.poly(&p.range))).sum::<f64>();
         if area(&self.hidden) < area(&self.pieces) * (1.0 - 1e-9) {
             Region::Hidden
@@ -479,18 +484,16 @@ impl View {
         (which, pieces)
     }
 
-    /// Makes this the view of the shooter `outline` (front normal `ns`) holding only its
-    /// region `which`, the pieces `pieces` as [`View::smaller_pieces`] gave them: the same
+    /// Makes this the view of the shooter of plane `plane` holding only its region `which`, the pieces `pieces` as [`View::smaller_pieces`] gave them: the same
     /// frame, tolerance, pieces and bounds, bit for bit, as the view they were taken from, so
     /// every query on that region answers as it did there.
     pub(crate) fn restore<'p>(
         &mut self,
-        (outline, ns): (&[DVec3], DVec3),
+        plane: &ShooterPlane,
         which: Region,
         pieces: impl Iterator<Item = &'p [DVec2]>,
     ) {
-        let (frame, _, size) = shooter_2d(outline, ns);
-        self.reset(frame, size);
+        self.reset(plane.frame, plane.size);
         for vs in pieces {
             let p = self.add(vs);
             match which {
@@ -498,7 +501,8 @@ impl View {
                 Region::Hidden => self.hidden.push(p),
             }
         }
-        self.known = Some(which);
+        self.small = which;
+        self.restored = true;
     }
 
     /// Empties it for a shooter of frame `frame` and size `size`: its tolerance, no pieces,
@@ -510,7 +514,8 @@ impl View {
         self.holes.clear();
         self.pieces.clear();
         self.hidden.clear();
-        self.known = None;
+        self.small = Region::Visible;
+        self.restored = false;
     }
 
     /// Appends a polygon to the arena.
@@ -699,6 +704,7 @@ pub(crate) enum Sight {
 /// the views of its shaped patches between its two passes). `eps_plane` is the distance within
 /// which an occluder point counts as on the shooter's plane (it cannot block light leaving that
 /// plane).
+#[cfg(test)]
 pub(crate) fn see<'o>(
     v: &mut View,
     x: DVec3,
@@ -707,7 +713,19 @@ pub(crate) fn see<'o>(
     occluders: impl Iterator<Item = &'o [DVec3]>,
     eps_plane: f64,
 ) -> Sight {
-    match build(v, x, outline, ns, occluders, eps_plane) {
+    let plane = ShooterPlane::of(outline, ns);
+    see_in(v, x, (outline, ns, &plane), occluders, eps_plane)
+}
+
+/// [`see`] with the shooter's plane computed once for all its views ([`ShooterPlane::of`]).
+pub(crate) fn see_in<'o>(
+    v: &mut View,
+    x: DVec3,
+    shooter: (&[DVec3], DVec3, &ShooterPlane),
+    occluders: impl Iterator<Item = &'o [DVec3]>,
+    eps_plane: f64,
+) -> Sight {
+    match build(v, x, shooter, occluders, eps_plane) {
         Ok(Built::All) => Sight::All,
         Ok(Built::Nothing) => Sight::Nothing,
         Ok(Built::Part) => Sight::Part,
@@ -726,8 +744,7 @@ enum Built {
 fn build<'o>(
     v: &mut View,
     x: DVec3,
-    outline: &[DVec3],
-    ns: DVec3,
+    (outline, ns, plane): (&[DVec3], DVec3, &ShooterPlane),
     occluders: impl Iterator<Item = &'o [DVec3]>,
     eps_plane: f64,
 ) -> Result<Built, Overflow> {
@@ -738,7 +755,7 @@ fn build<'o>(
     if hx <= 0.0 {
         return Ok(Built::All);
     }
-    let (frame, shooter, size) = shooter_2d(outline, ns);
+    let (frame, shooter, size) = (plane.frame, &plane.outline, plane.size);
     v.reset(frame, size);
     let min_area2 = v.eps * size;
     let whole = v.add(shooter.verts());
@@ -777,12 +794,45 @@ fn build<'o>(
             let a = area2(v.poly(&v.pieces[0].range));
             (a - area2(shooter.verts())).abs() <= 1e-12 * a.abs()
         };
-    Ok(if untouched { Built::All } else { Built::Part })
+    if untouched {
+        return Ok(Built::All);
+    }
+    v.small = v.smaller_by_area();
+    Ok(Built::Part)
+}
+
+/// A shooter's plane as every view of it is built in: its frame, its outline there
+/// (counter-clockwise) and its size, the larger side of the outline's bounds. The same for every
+/// receiver point, so a solve computes it once per shooter.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct ShooterPlane {
+    frame: Frame,
+    outline: Buf,
+    size: f64,
+}
+
+impl ShooterPlane {
+    /// The plane of the convex shooter `outline` with front normal `ns` (empty if it has
+    /// fewer than 3 or more than [`MAX_VERTS`] vertices: a view of it sees all of it).
+    pub(crate) fn of(outline: &[DVec3], ns: DVec3) -> ShooterPlane {
+        if outline.len() < 3 || outline.len() > MAX_VERTS {
+            return ShooterPlane {
+                frame: Frame::default(),
+                outline: Buf::new(),
+                size: 0.0,
+            };
+        }
+        let (frame, outline, size) = shooter_2d(outline, ns);
+        ShooterPlane {
+            frame,
+            outline,
+            size,
+        }
+    }
 }
 
 /// The frame of the shooter `outline` (front normal `ns`; 3 to [`MAX_VERTS`] vertices), the
-/// outline in it, counter-clockwise, and its size (the larger side of its bounds): what a view
-/// of the shooter is built in.
+/// outline in it, counter-clockwise, and its size (see [`ShooterPlane`]).
 fn shooter_2d(outline: &[DVec3], ns: DVec3) -> (Frame, Buf, f64) {
     let frame = Frame::of(outline, ns);
     let mut shooter = Buf::new();

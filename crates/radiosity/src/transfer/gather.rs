@@ -125,12 +125,8 @@ impl Transfer<'_> {
                         .then(|| walk.region(s))
                         .flatten();
                     if let Some(kept) = &region {
-                        let sg = &self.shooters[s as usize];
-                        pool[used].restore(
-                            (sg.outline.verts(), sg.normal),
-                            kept.which,
-                            kept.pieces(),
-                        );
+                        let plane = &self.shooters[s as usize].plane;
+                        pool[used].restore(plane, kept.which, kept.pieces());
                     }
                     let restored = region.is_some();
                     (DVec3::splat(t), f, look, restored, restored)

@@ -110,6 +110,8 @@ pub(crate) struct ShooterGeom {
     pub normal: DVec3,
     /// Area (0 for a spot).
     pub area: f64,
+    /// Its plane as the views of its visible part are built in (empty for a spot).
+    pub plane: visible::ShooterPlane,
     /// Stratified positions of its shadow-ray targets in the unit square (empty for a spot),
     /// mapped onto `bounds` and rotated per receiver point ([`Transfer::targets`]).
     pub strata: Vec<(f64, f64)>,
@@ -212,6 +214,7 @@ pub(crate) fn build_shooters(scene: &Scene) -> (Vec<ShooterGeom>, Vec<u32>, Vec<
             outline: SmallPoly::from_corners(&[]),
             normal: DVec3::ZERO,
             area: 0.0,
+            plane: visible::ShooterPlane::of(&[], DVec3::ZERO),
             strata: Vec::new(),
         });
     }
@@ -224,6 +227,7 @@ pub(crate) fn build_shooters(scene: &Scene) -> (Vec<ShooterGeom>, Vec<u32>, Vec<
                 outline: SmallPoly::from_corners(p.vertices()),
                 normal: p.normal,
                 area: p.area,
+                plane: visible::ShooterPlane::of(p.vertices(), p.normal),
                 strata: shooter_strata(nrays, seed, out.len()),
             });
         }
@@ -244,6 +248,7 @@ pub(crate) fn build_shooters(scene: &Scene) -> (Vec<ShooterGeom>, Vec<u32>, Vec<
                 let cell = Cell { level: d, x, y };
                 let (u0, v0, u1, v1) = cell.bounds();
                 let outline = SmallPoly::from_corners(&cell_corners(p, cell));
+                let plane = visible::ShooterPlane::of(outline.verts(), p.normal);
                 let area = sub_area(p, cell);
                 out.push(ShooterGeom {
                     kind: ShooterKind::Patch {
@@ -255,6 +260,7 @@ pub(crate) fn build_shooters(scene: &Scene) -> (Vec<ShooterGeom>, Vec<u32>, Vec<
                     outline,
                     normal: p.normal,
                     area,
+                    plane,
                     strata: shooter_strata(patch_rays(nrays), seed, out.len()),
                 });
             }

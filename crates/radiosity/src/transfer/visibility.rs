@@ -104,7 +104,8 @@ impl Transfer<'_> {
             let occ = near.ids[..near.len]
                 .iter()
                 .map(|&q| polys[q as usize].vertices());
-            match visible::see(view, x, sg.outline.verts(), sg.normal, occ, self.eps) {
+            let shooter = (sg.outline.verts(), sg.normal, &sg.plane);
+            match visible::see_in(view, x, shooter, occ, self.eps) {
                 Sight::Complex => {}
                 sight => return Look::Exact(sight),
             }

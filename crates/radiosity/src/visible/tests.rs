@@ -384,7 +384,7 @@ fn a_restored_view_answers_as_the_built_one() {
             assert_eq!(see(&mut built, x, &s, ns, occ, 1e-12), Sight::Part);
             let (which, pieces) = built.smaller_pieces();
             let mut restored = View::default();
-            restored.restore((&s, ns), which, pieces);
+            restored.restore(&ShooterPlane::of(&s, ns), which, pieces);
             regions.push(which);
             let open = polygon_form_factor(x, n, &s);
             assert_eq!(restored.smaller(), which);
