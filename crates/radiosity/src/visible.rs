@@ -231,18 +231,30 @@ fn clip_convex(src: &[DVec2], clip: &[DVec2], eps: f64, out: &mut Buf) -> Result
     for &p in src {
         out.push(p)?;
     }
+    // The polygon so far is in `out` or in `other`, whichever the last cut wrote: the cuts
+    // alternate between the two instead of swapping their contents.
+    let mut in_out = true;
     for i in 0..clip.len() {
         let (a, b) = (clip[i], clip[next(i, clip.len())]);
         let e = b - a;
-        let (d, inside) = sides(out.verts(), a, DVec2::new(-e.y, e.x), eps)?;
+        let (cur, dst) = if in_out {
+            (&*out, &mut other)
+        } else {
+            (&other, &mut *out)
+        };
+        let (d, inside) = sides(cur.verts(), a, DVec2::new(-e.y, e.x), eps)?;
         if inside {
             continue;
         }
-        clip_half(out.verts(), &d, &mut other)?;
-        std::mem::swap(out, &mut other);
-        if out.len < 3 {
-            return Ok(());
+        clip_half(cur.verts(), &d, dst)?;
+        in_out = !in_out;
+        if dst.len < 3 {
+            break;
         }
+    }
+    if !in_out {
+        out.v[..other.len].copy_from_slice(other.verts());
+        out.len = other.len;
     }
     Ok(())
 }
@@ -554,6 +566,9 @@ impl View {
             for &p in pv {
                 rem.push(p)?;
             }
+            // What is left inside the edges so far: `rem` or `ins`, whichever the last cut
+            // wrote (the cuts alternate between the two instead of swapping their contents).
+            let mut in_rem = true;
             let mut inside = true;
             for i in hole.range.clone() {
                 let j = if i + 1 == hole.range.end {
@@ -563,14 +578,12 @@ impl View {
                 };
                 let (a, b) = (self.verts[i], self.verts[j]);
                 let e = b - a;
-                split(
-                    rem.verts(),
-                    a,
-                    DVec2::new(-e.y, e.x),
-                    eps,
-                    &mut ins,
-                    &mut outs,
-                )?;
+                let (cur, dst) = if in_rem {
+                    (&rem, &mut ins)
+                } else {
+                    (&ins, &mut rem)
+                };
+                split(cur.verts(), a, DVec2::new(-e.y, e.x), eps, dst, &mut outs)?;
                 if outs.len >= 3 && area2(outs.verts()).abs() > min_area2 {
                     if next.len() == MAX_PIECES {
                         return Err(Overflow);
@@ -578,17 +591,18 @@ impl View {
                     let r = self.add(outs.verts());
                     next.push(r);
                 }
-                if ins.len < 3 || area2(ins.verts()).abs() <= min_area2 {
+                if dst.len < 3 || area2(dst.verts()).abs() <= min_area2 {
                     inside = false;
                     break;
                 }
-                std::mem::swap(&mut rem, &mut ins);
+                in_rem = !in_rem;
             }
             if inside {
                 if self.hidden.len() == MAX_PIECES {
                     return Err(Overflow);
                 }
-                let r = self.add(rem.verts());
+                let left = if in_rem { &rem } else { &ins };
+                let r = self.add(left.verts());
                 self.hidden.push(r);
             }
         }
