@@ -98,11 +98,23 @@ fn next(i: usize, n: usize) -> usize {
     }
 }
 
+/// The edges of a polygon as (start, end) pairs, in order from the edge at vertex 0 to the
+/// closing one (no index arithmetic or bounds checks: these loops are the solver's hottest).
+#[inline(always)]
+fn edges(vs: &[DVec2]) -> impl Iterator<Item = (DVec2, DVec2)> + '_ {
+    let closing = match vs {
+        [first, .., last] => Some((*last, *first)),
+        [only] => Some((*only, *only)),
+        [] => None,
+    };
+    vs.windows(2).map(|w| (w[0], w[1])).chain(closing)
+}
+
 /// Twice the signed area of a polygon (positive counter-clockwise).
 fn area2(vs: &[DVec2]) -> f64 {
     let mut a = 0.0;
-    for i in 0..vs.len() {
-        a += vs[i].perp_dot(vs[next(i, vs.len())]);
+    for (p, q) in edges(vs) {
+        a += p.perp_dot(q);
     }
     a
 }
@@ -127,8 +139,7 @@ fn boxes_overlap((alo, ahi): (DVec2, DVec2), (blo, bhi): (DVec2, DVec2), eps: f6
 
 /// Whether `p` lies inside or within `eps` of the counter-clockwise convex polygon `vs`.
 fn contains(vs: &[DVec2], p: DVec2, eps: f64) -> bool {
-    (0..vs.len()).all(|i| {
-        let (a, b) = (vs[i], vs[next(i, vs.len())]);
+    edges(vs).all(|(a, b)| {
         let e = b - a;
         e.perp_dot(p - a) >= -eps * (e.x.abs() + e.y.abs())
     })
@@ -138,8 +149,7 @@ fn contains(vs: &[DVec2], p: DVec2, eps: f64) -> bool {
 /// boundary within `eps` (the separating-axis test on both polygons' edges).
 fn overlaps(a: &[DVec2], b: &[DVec2], eps: f64) -> bool {
     let separated_by = |p: &[DVec2], q: &[DVec2]| {
-        (0..p.len()).any(|i| {
-            let (a, b) = (p[i], p[next(i, p.len())]);
+        edges(p).any(|(a, b)| {
             let e = b - a;
             // eps times the edge's length, its L1 norm for a square root.
             let tol = eps * (e.x.abs() + e.y.abs());
