@@ -506,9 +506,10 @@ impl View {
         (which, pieces)
     }
 
-    /// Makes this the view of the shooter of plane `plane` holding only its region `which`, the pieces `pieces` as [`View::smaller_pieces`] gave them: the same
-    /// frame, tolerance, pieces and bounds, bit for bit, as the view they were taken from, so
-    /// every query on that region answers as it did there.
+    /// Makes this the view of the shooter of plane `plane` holding only its region `which`,
+    /// the pieces `pieces` as [`View::smaller_pieces`] gave them: the same frame, tolerance,
+    /// pieces and bounds, bit for bit, as the view they were taken from, so every query on
+    /// that region answers as it did there.
     pub(crate) fn restore<'p>(
         &mut self,
         plane: &ShooterPlane,
@@ -846,32 +847,25 @@ impl ShooterPlane {
                 size: 0.0,
             };
         }
-        let (frame, outline, size) = shooter_2d(outline, ns);
+        let frame = Frame::of(outline, ns);
+        let mut shooter = Buf::new();
+        for p in outline {
+            shooter.v[shooter.len] = frame.to2(*p);
+            shooter.len += 1;
+        }
+        // Counter-clockwise, as the cuts and the overlap tests assume (an outline's winding
+        // need not agree with the normal a polygon was given: a triangle cut from a folded
+        // quad keeps the quad's).
+        if area2(shooter.verts()) < 0.0 {
+            shooter.v[..shooter.len].reverse();
+        }
+        let (lo, hi) = bounds(shooter.verts());
         ShooterPlane {
             frame,
-            outline,
-            size,
+            outline: shooter,
+            size: (hi - lo).max_element(),
         }
     }
-}
-
-/// The frame of the shooter `outline` (front normal `ns`; 3 to [`MAX_VERTS`] vertices), the
-/// outline in it, counter-clockwise, and its size (see [`ShooterPlane`]).
-fn shooter_2d(outline: &[DVec3], ns: DVec3) -> (Frame, Buf, f64) {
-    let frame = Frame::of(outline, ns);
-    let mut shooter = Buf::new();
-    for p in &outline[..outline.len().min(MAX_VERTS)] {
-        shooter.v[shooter.len] = frame.to2(*p);
-        shooter.len += 1;
-    }
-    // Counter-clockwise, as the cuts and the overlap tests assume (an outline's winding need
-    // not agree with the normal a polygon was given: a triangle cut from a folded quad keeps
-    // the quad's).
-    if area2(shooter.verts()) < 0.0 {
-        shooter.v[..shooter.len].reverse();
-    }
-    let (lo, hi) = bounds(shooter.verts());
-    (frame, shooter, (hi - lo).max_element())
 }
 
 /// Inward side planes (normal, through the apex) of the pyramid from `x` over `outline`.

@@ -253,7 +253,8 @@ impl Transfer<'_> {
 /// before (the point's entries are then worth keeping again).
 fn keep_regions(out: &mut Seen, pending: &[shape::Pending], pool: &[visible::View]) -> bool {
     let mut new = false;
-    for p in pending.iter().filter(|p| p.keep && p.ready) {
+    for p in pending.iter().filter(|p| p.keep) {
+        debug_assert!(p.ready, "a region kept or used is built");
         let (which, pieces) = pool[p.slot as usize].smaller_pieces();
         out.push_region(p.s, which, pieces);
         new |= !p.restored;
