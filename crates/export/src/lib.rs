@@ -385,7 +385,7 @@ fn mesh_groups(
             };
             (v, Default::default())
         });
-        let patch = &mesh.patches[k];
+        let patch = &mesh.patch(k);
         let n = tri.normal.normalize_or_zero().as_vec3().to_array();
         for (corner, (s, t)) in [(0, (0.0, 0.0)), (1, (1.0, 0.0)), (2, (0.0, 1.0))] {
             let c: Vec3 = patch.eval(s, t);

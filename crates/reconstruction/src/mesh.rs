@@ -118,8 +118,11 @@ pub struct MeshModel {
     /// The input scene with its polygons replaced by the triangles (camera, materials, spots and
     /// every setting kept). Triangle `k` is `scene.polygons[k]`.
     pub scene: Scene,
-    /// Patch of triangle `k` (Gouraud colour over the triangle's own (s, t)).
-    pub patches: Vec<PatchCoeffs>,
+    /// Vertex colours C0, C1, C2 of triangle `k`, from which [`MeshModel::patch`] builds its
+    /// Gouraud patch: 36 bytes per triangle where the patch holds 208, so that a frame's reads
+    /// of its triangles' colours stay in cache (the patches of a 10^5-triangle mesh, read in the
+    /// renderers' round-robin order, were a third of its frame).
+    pub colours: Vec<[Vec3; 3]>,
     /// Index of the input polygon triangle `k` came from.
     pub source_polygon: Vec<u32>,
     /// Parameters (u, v) in the source polygon's domain of triangle `k`'s vertices c0, c1, c2.
@@ -352,7 +355,7 @@ pub(crate) fn gouraud_patch(c: [Vec3; 3]) -> PatchCoeffs {
 /// One polygon's finished triangles.
 struct PolygonMesh {
     triangles: Vec<Polygon>,
-    patches: Vec<PatchCoeffs>,
+    colours: Vec<[Vec3; 3]>,
     uv: Vec<[[f64; 2]; 3]>,
     vertices: u64,
     t_vertices: u64,
@@ -375,7 +378,7 @@ fn mesh_polygon(
     let dm = triangulate(sq, polygon, &border)?;
     let mut out = PolygonMesh {
         triangles: Vec::with_capacity(dm.triangles.len()),
-        patches: Vec::with_capacity(dm.triangles.len()),
+        colours: Vec::with_capacity(dm.triangles.len()),
         uv: Vec::with_capacity(dm.triangles.len()),
         vertices: 0,
         t_vertices: dm.t_vertices,
@@ -391,7 +394,7 @@ fn mesh_polygon(
             used[v.id as usize] = true;
         }
         out.triangles.push(t);
-        out.patches.push(gouraud_patch(tri.map(|v| v.colour)));
+        out.colours.push(tri.map(|v| v.colour));
         out.uv.push(tri.map(|v| v.uv));
     }
     out.vertices = used.iter().filter(|&&u| u).count() as u64;
@@ -399,6 +402,13 @@ fn mesh_polygon(
 }
 
 impl MeshModel {
+    /// The Gouraud patch of triangle `k` (over the triangle's own (s, t)), built from its vertex
+    /// colours. Panics when `k` is not a triangle of the mesh.
+    #[inline]
+    pub fn patch(&self, k: usize) -> PatchCoeffs {
+        gouraud_patch(self.colours[k])
+    }
+
     /// Builds the mesh of a solution: `polygons` holds one sampled quadtree per scene polygon, in
     /// scene order (`Solution::polygons`). Fails with [`Error::Inconsistent`] if the counts differ, a
     /// leaf vertex has no sample, a sample is not finite, or the mesh would exceed `u32` ids.
@@ -437,14 +447,14 @@ impl MeshModel {
             )));
         }
         let mut tris = Vec::with_capacity(total);
-        let mut patches = Vec::with_capacity(total);
+        let mut colours = Vec::with_capacity(total);
         let mut parent_uv = Vec::with_capacity(total);
         let mut source_polygon = Vec::with_capacity(total);
         let (mut vertices, mut t_vertices) = (0u64, 0u64);
         for (i, part) in parts.into_iter().enumerate() {
             source_polygon.extend(std::iter::repeat_n(i as u32, part.triangles.len()));
             tris.extend(part.triangles);
-            patches.extend(part.patches);
+            colours.extend(part.colours);
             parent_uv.extend(part.uv);
             vertices += part.vertices;
             t_vertices += part.t_vertices;
@@ -454,7 +464,7 @@ impl MeshModel {
         out_scene.polygons = tris;
         Ok(MeshModel {
             scene: out_scene,
-            patches,
+            colours,
             source_polygon,
             parent_uv,
             stats,
@@ -471,7 +481,11 @@ impl PatchSource for MeshModel {
 
     #[inline]
     fn patch(&self, id: u32) -> PatchCoeffs {
-        self.patches[id as usize]
+        MeshModel::patch(self, id as usize)
+    }
+
+    fn one_patch_per_polygon(&self) -> bool {
+        true
     }
 
     /// `locate` answers `id` on the whole closed domain [0, 1]^2 (and beyond); as a half-open
@@ -603,7 +617,8 @@ pub(crate) mod tests {
     /// fl(fl(C1 - C0) + C0): two roundings, each at most u |result of that op| <= u 2M, so the
     /// error is below 4 u M with M the largest |sample| of the triangle.
     fn check_vertex_colours(mesh: &MeshModel, sq: &[SampledQuadtree]) {
-        for (k, p) in mesh.patches.iter().enumerate() {
+        for k in 0..mesh.colours.len() {
+            let p = &mesh.patch(k);
             let sqp = &sq[mesh.source_polygon[k] as usize];
             let uv = mesh.parent_uv[k];
             let key = |x: [f64; 2]| {
@@ -848,7 +863,7 @@ pub(crate) mod tests {
                         .enumerate()
                         .find_map(|(k, tri)| local_st(tri, p).map(|st| (k, st)))
                         .unwrap();
-                    let got = mesh.patches[k].eval(s as f32, t as f32).as_dvec3();
+                    let got = mesh.patch(k).eval(s as f32, t as f32).as_dvec3();
                     let err = (got - f(p[0], p[1])).abs().max_element();
                     prop_assert!(err <= 32.0 * U32 * m, "at {:?}: err {}", p, err);
                 }

@@ -112,6 +112,9 @@ pub(crate) struct View {
     sy: f64,
     ox: f64,
     oy: f64,
+    // The view-space ray of pixel (px, py): X = ax px + bx, Y = ay py + by, i.e. (1 / sx,
+    // -ox / sx, 1 / sy, -oy / sy), divided once per view instead of once per polygon.
+    ray: [f64; 4],
     near: f64,
     width: u32,
     height: u32,
@@ -242,6 +245,7 @@ impl View {
                 (false, w / vw, -h / vh, 0.0)
             }
         };
+        let (ox, oy) = (0.5 * w, 0.5 * h);
         Ok(View {
             eye: camera.eye,
             right,
@@ -250,8 +254,9 @@ impl View {
             perspective,
             sx,
             sy,
-            ox: 0.5 * w,
-            oy: 0.5 * h,
+            ox,
+            oy,
+            ray: [1.0 / sx, -ox / sx, 1.0 / sy, -oy / sy],
             near,
             width,
             height,
@@ -373,8 +378,7 @@ impl View {
         e2: DVec3,
     ) -> Option<[Plane; 5]> {
         // View-space ray of pixel (px, py): X(px) = (px - ox) / sx, Y(py) = (py - oy) / sy.
-        let (ax, bx) = (1.0 / self.sx, -self.ox / self.sx);
-        let (ay, by) = (1.0 / self.sy, -self.oy / self.sy);
+        let [ax, bx, ay, by] = self.ray;
         let lin = |e: DVec3, z: f64| Plane {
             a: e.x * ax,
             b: e.y * ay,

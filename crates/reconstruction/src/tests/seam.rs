@@ -361,7 +361,7 @@ fn mesh_seam_vertices(mesh: &mesh::MeshModel, p: u32) -> Vec<(f64, f32)> {
         if mesh.source_polygon[k] != p {
             continue;
         }
-        let c = mesh.patches[k].c[0];
+        let c = mesh.patch(k).c[0];
         let colours = [c[0], c[0] + c[1], c[0] + c[4]];
         for (corner, colour) in tri.corners[..3].iter().zip(colours) {
             if (corner.x - 1.0).abs() < 1e-12 {

@@ -236,7 +236,8 @@ fn mesh_errors(sq: &SampledQuadtree, n: usize, d: f64) -> (f64, f64) {
     let mesh = crate::mesh::MeshModel::build(&scene, std::slice::from_ref(sq)).unwrap();
     let mut value = vec![f64::NAN; n * n];
     let cell = |x: f64| ((x * n as f64 - 0.5).ceil().max(0.0) as usize).min(n);
-    for (p, uv) in mesh.patches.iter().zip(&mesh.parent_uv) {
+    for (k, uv) in mesh.parent_uv.iter().enumerate() {
+        let p = mesh.patch(k);
         let [a, b, c] = uv.map(glam::DVec2::from_array);
         let (lo, hi) = (a.min(b).min(c), a.max(b).max(c));
         let area = (b - a).perp_dot(c - a);
