@@ -165,13 +165,20 @@ pub struct PatchCoeffs {
 }
 
 /// See [`PatchCoeffs::bilinear_exact`].
+/// Written without early exits (the bits ORed, the tests ANDed): the Gouraud mesh builds a
+/// patch for every visible triangle of every region, and the short-circuit form's branches
+/// were a visible part of that.
 fn bilinear_exact(c: &[[f32; 16]; 3]) -> bool {
     const NEG_ZERO: u32 = 0x8000_0000;
-    c.iter().all(|k| {
-        let zero = [2, 3, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15]
-            .iter()
-            .all(|&i| k[i].to_bits() == 0);
-        zero && [1, 4, 5].iter().all(|&i| k[i].to_bits() != NEG_ZERO)
+    c.iter().fold(true, |ok, k| {
+        let mut higher = 0u32;
+        for i in [2, 3, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15] {
+            higher |= k[i].to_bits();
+        }
+        let signed = (k[1].to_bits() != NEG_ZERO)
+            & (k[4].to_bits() != NEG_ZERO)
+            & (k[5].to_bits() != NEG_ZERO);
+        ok & (higher == 0) & signed
     })
 }
 

@@ -160,9 +160,17 @@ impl RegionGBuffer {
         // cells[slot]: the polygon and cell on which `locate` returns table_ids[slot].
         cells.clear();
         let stride = self.stride as usize;
-        let plane = stride * self.height as usize;
         let mut last: Option<usize> = None;
-        for b0 in (0..self.polygon.len()).step_by(8) {
+        // Row by row, so that whether a row has one above it in its plane is known without a
+        // division per block (rows are whole blocks: the stride is a multiple of 8).
+        let rows = self.height as usize * self.samples as usize;
+        let blocks = (0..rows).flat_map(|row| {
+            let above = row % self.height as usize != 0;
+            (row * stride..(row + 1) * stride)
+                .step_by(8)
+                .map(move |b0| (b0, above))
+        });
+        for (b0, above) in blocks {
             let polys: &[u32; 8] = self.polygon[b0..b0 + 8].try_into().unwrap();
             // A block that sees nothing (common in a renderer's share of a region): its slots
             // are never read (see `reset`); the block-level tests below need a valid slot above
@@ -187,7 +195,7 @@ impl RegionGBuffer {
                 // A block that crosses into the next patch along the row usually ends in the
                 // patch of the sample above its last lane: every lane in one of the two cells
                 // is settled with a second lane-wise test and a select.
-                if b0 % plane >= stride {
+                if above {
                     let a = self.slot[b0 + 7 - stride] as usize;
                     if a < cells.len() {
                         let c2 = &cells[a];
@@ -223,7 +231,7 @@ impl RegionGBuffer {
                 }
                 // The sample above (same plane) was assigned already; its slot is in range
                 // whenever the table is not empty (empty samples hold slot 0).
-                if i % plane >= stride {
+                if above {
                     let a = self.slot[i - stride] as usize;
                     if a < cells.len() && cells[a].contains(p, u, v) {
                         self.slot[i] = a as u32;
@@ -258,28 +266,35 @@ impl RegionGBuffer {
         index.clear();
         let stride = self.stride as usize;
         let plane = stride * self.height as usize;
+        debug_assert_eq!(self.polygon.len(), plane * self.samples as usize);
         let (mut last_poly, mut last_slot) = (NO_POLYGON, 0u32);
-        for i in 0..self.polygon.len() {
-            let p = self.polygon[i];
-            if p == NO_POLYGON {
-                // Never read (see `reset`); 0 keeps every stored slot in range.
-                self.slot[i] = 0;
-                continue;
+        // Memory order: plane by plane, row by row (a sample has one above it from its plane's
+        // second row on, known without a division per sample).
+        let rows = self.height as usize * self.samples as usize;
+        for row in 0..rows {
+            let above = row % self.height as usize != 0;
+            for i in row * stride..(row + 1) * stride {
+                let p = self.polygon[i];
+                if p == NO_POLYGON {
+                    // Never read (see `reset`); 0 keeps every stored slot in range.
+                    self.slot[i] = 0;
+                    continue;
+                }
+                let slot = if p == last_poly {
+                    last_slot
+                } else if above && self.polygon[i - stride] == p {
+                    self.slot[i - stride]
+                } else {
+                    let id = source.locate(p, self.u[i], self.v[i]);
+                    *index.entry(id).or_insert_with(|| {
+                        self.table.push(source.patch_cached(id, cache));
+                        self.table_ids.push(id);
+                        (self.table.len() - 1) as u32
+                    })
+                };
+                self.slot[i] = slot;
+                (last_poly, last_slot) = (p, slot);
             }
-            let slot = if p == last_poly {
-                last_slot
-            } else if i % plane >= stride && self.polygon[i - stride] == p {
-                self.slot[i - stride]
-            } else {
-                let id = source.locate(p, self.u[i], self.v[i]);
-                *index.entry(id).or_insert_with(|| {
-                    self.table.push(source.patch_cached(id, cache));
-                    self.table_ids.push(id);
-                    (self.table.len() - 1) as u32
-                })
-            };
-            self.slot[i] = slot;
-            (last_poly, last_slot) = (p, slot);
         }
     }
 }
