@@ -418,11 +418,11 @@ pub fn texture_bytes(
     Ok(m.bytes_with_chain[2].saturating_add(rrps))
 }
 
-/// Bytes one Gouraud mesh triangle takes: its polygon record in the mesh's scene, its vertex
-/// colours, its source polygon and parent (u, v), and while a frame draws it its primitive
-/// record and a bin entry.
+/// Bytes one Gouraud mesh triangle takes: its polygon record in the mesh's scene, its compact
+/// patch, its source polygon and parent (u, v), and while a frame draws it its primitive record
+/// and a bin entry.
 pub(crate) const MESH_TRIANGLE_BYTES: u64 = (std::mem::size_of::<scene::Polygon>()
-    + std::mem::size_of::<[glam::Vec3; 3]>()
+    + std::mem::size_of::<reconstruction::mesh::GouraudPatch>()
     + 4
     + 48
     + std::mem::size_of::<engine::raster::setup::Prim>()

@@ -149,7 +149,13 @@ pub fn render_frame_in(
         }
         Method::Mesh => {
             let (mesh, _) = p.mesh()?;
-            ctx.render(&mesh.scene, camera, &Shader::Patches(mesh), method, opts)
+            ctx.render(
+                &mesh.scene,
+                camera,
+                &Shader::Gouraud(&mesh.gouraud),
+                method,
+                opts,
+            )
         }
         Method::Reference => {
             let oracle =

@@ -118,11 +118,11 @@ pub struct MeshModel {
     /// The input scene with its polygons replaced by the triangles (camera, materials, spots and
     /// every setting kept). Triangle `k` is `scene.polygons[k]`.
     pub scene: Scene,
-    /// Vertex colours C0, C1, C2 of triangle `k`, from which [`MeshModel::patch`] builds its
-    /// Gouraud patch: 36 bytes per triangle where the patch holds 208, so that a frame's reads
-    /// of its triangles' colours stay in cache (the patches of a 10^5-triangle mesh, read in the
-    /// renderers' round-robin order, were a third of its frame).
-    pub colours: Vec<[Vec3; 3]>,
+    /// Triangle `k`'s Gouraud patch in the 52 bytes of its non-zero coefficients
+    /// ([`GouraudPatch`]), from which [`MeshModel::patch`] builds the full patch: a frame reads
+    /// these where it read 208-byte patches (a 10^5-triangle mesh's patches, read in the
+    /// renderers' round-robin order, came mostly from memory: a third of its frame).
+    pub gouraud: Vec<GouraudPatch>,
     /// Index of the input polygon triangle `k` came from.
     pub source_polygon: Vec<u32>,
     /// Parameters (u, v) in the source polygon's domain of triangle `k`'s vertices c0, c1, c2.
@@ -340,22 +340,59 @@ fn triangulate(sq: &SampledQuadtree, polygon: usize, border: &Border) -> Result<
 }
 
 /// The Gouraud patch of a triangle with vertex colours `c` at its (s, t) = (0,0), (1,0), (0|1, 1).
-pub(crate) fn gouraud_patch(c: [Vec3; 3]) -> PatchCoeffs {
-    let mut k = [[0.0f32; 16]; 3];
-    for ch in 0..3 {
-        let (c0, c1, c2) = (c[0][ch], c[1][ch], c[2][ch]);
-        k[ch][0] = c0;
-        k[ch][1] = c1 - c0;
-        k[ch][4] = c2 - c0;
-        k[ch][5] = c0 - c1;
+pub fn gouraud_patch(c: [Vec3; 3]) -> PatchCoeffs {
+    GouraudPatch::of(c).patch()
+}
+
+/// A triangle's Gouraud patch held as its only non-zero coefficients: per channel
+/// `k = [k0, k1, k4, k5]` = [C0, C1 - C0, C2 - C0, C0 - C1] of the power basis 1, s, t, s t
+/// (every other coefficient +0); [`GouraudPatch::patch`] is the full patch.
+///
+/// Invariant: no coefficient is -0, so the full patch is always flagged
+/// [`PatchCoeffs::bilinear`] and the engine's Gouraud shader evaluates every triangle from
+/// these 48 bytes in the degree-(1, 1) form. [`GouraudPatch::of`] makes it hold by reading a
+/// vertex colour of -0 as +0 (radiosity is not signed; a difference of two numbers neither of
+/// which is -0 is never -0 in round-to-nearest).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct GouraudPatch {
+    k: [[f32; 4]; 3],
+}
+
+impl GouraudPatch {
+    /// The patch of vertex colours `c` (-0 read as +0).
+    pub fn of(c: [Vec3; 3]) -> GouraudPatch {
+        // `x + 0.0` is x for every x but -0, which it maps to +0.
+        let c = c.map(|v| v + Vec3::ZERO);
+        let mut k = [[0.0f32; 4]; 3];
+        for ch in 0..3 {
+            let (c0, c1, c2) = (c[0][ch], c[1][ch], c[2][ch]);
+            k[ch] = [c0, c1 - c0, c2 - c0, c0 - c1];
+        }
+        GouraudPatch { k }
     }
-    PatchCoeffs::whole(k)
+
+    /// Per channel (R, G, B): k0, k1, k4, k5.
+    #[inline]
+    pub fn coefficients(&self) -> &[[f32; 4]; 3] {
+        &self.k
+    }
+
+    /// The full patch (flagged bilinear: see the invariant).
+    pub fn patch(&self) -> PatchCoeffs {
+        let mut c = [[0.0f32; 16]; 3];
+        for (c, k) in c.iter_mut().zip(&self.k) {
+            [c[0], c[1], c[4], c[5]] = *k;
+        }
+        let p = PatchCoeffs::whole(c);
+        debug_assert!(p.bilinear, "{self:?}");
+        p
+    }
 }
 
 /// One polygon's finished triangles.
 struct PolygonMesh {
     triangles: Vec<Polygon>,
-    colours: Vec<[Vec3; 3]>,
+    gouraud: Vec<GouraudPatch>,
     uv: Vec<[[f64; 2]; 3]>,
     vertices: u64,
     t_vertices: u64,
@@ -378,7 +415,7 @@ fn mesh_polygon(
     let dm = triangulate(sq, polygon, &border)?;
     let mut out = PolygonMesh {
         triangles: Vec::with_capacity(dm.triangles.len()),
-        colours: Vec::with_capacity(dm.triangles.len()),
+        gouraud: Vec::with_capacity(dm.triangles.len()),
         uv: Vec::with_capacity(dm.triangles.len()),
         vertices: 0,
         t_vertices: dm.t_vertices,
@@ -394,7 +431,7 @@ fn mesh_polygon(
             used[v.id as usize] = true;
         }
         out.triangles.push(t);
-        out.colours.push(tri.map(|v| v.colour));
+        out.gouraud.push(GouraudPatch::of(tri.map(|v| v.colour)));
         out.uv.push(tri.map(|v| v.uv));
     }
     out.vertices = used.iter().filter(|&&u| u).count() as u64;
@@ -403,10 +440,10 @@ fn mesh_polygon(
 
 impl MeshModel {
     /// The Gouraud patch of triangle `k` (over the triangle's own (s, t)), built from its vertex
-    /// colours. Panics when `k` is not a triangle of the mesh.
+    /// coefficients. Panics when `k` is not a triangle of the mesh.
     #[inline]
     pub fn patch(&self, k: usize) -> PatchCoeffs {
-        gouraud_patch(self.colours[k])
+        self.gouraud[k].patch()
     }
 
     /// Builds the mesh of a solution: `polygons` holds one sampled quadtree per scene polygon, in
@@ -447,14 +484,14 @@ impl MeshModel {
             )));
         }
         let mut tris = Vec::with_capacity(total);
-        let mut colours = Vec::with_capacity(total);
+        let mut gouraud = Vec::with_capacity(total);
         let mut parent_uv = Vec::with_capacity(total);
         let mut source_polygon = Vec::with_capacity(total);
         let (mut vertices, mut t_vertices) = (0u64, 0u64);
         for (i, part) in parts.into_iter().enumerate() {
             source_polygon.extend(std::iter::repeat_n(i as u32, part.triangles.len()));
             tris.extend(part.triangles);
-            colours.extend(part.colours);
+            gouraud.extend(part.gouraud);
             parent_uv.extend(part.uv);
             vertices += part.vertices;
             t_vertices += part.t_vertices;
@@ -464,7 +501,7 @@ impl MeshModel {
         out_scene.polygons = tris;
         Ok(MeshModel {
             scene: out_scene,
-            colours,
+            gouraud,
             source_polygon,
             parent_uv,
             stats,
@@ -617,7 +654,7 @@ pub(crate) mod tests {
     /// fl(fl(C1 - C0) + C0): two roundings, each at most u |result of that op| <= u 2M, so the
     /// error is below 4 u M with M the largest |sample| of the triangle.
     fn check_vertex_colours(mesh: &MeshModel, sq: &[SampledQuadtree]) {
-        for k in 0..mesh.colours.len() {
+        for k in 0..mesh.gouraud.len() {
             let p = &mesh.patch(k);
             let sqp = &sq[mesh.source_polygon[k] as usize];
             let uv = mesh.parent_uv[k];
@@ -819,16 +856,30 @@ pub(crate) mod tests {
             check_vertex_colours(&mesh, std::slice::from_ref(&sq));
         }
 
-        /// The shader takes its degree-(1, 1) form for Gouraud patches (bit-identical, see
-        /// `PatchCoeffs::bilinear_exact`): every patch of vertex colours that are not -0 is
-        /// flagged for it.
+        /// The shader takes its degree-(1, 1) form for every Gouraud patch (bit-identical, see
+        /// `PatchCoeffs::bilinear_exact`), zeros of either sign among the colours included (-0
+        /// is read as +0), and the patch holds C0, C1 - C0, C2 - C0, C0 - C1.
         #[test]
         fn gouraud_patches_take_the_bilinear_evaluation(
             c in prop::array::uniform9(0.0f32..10.0),
+            signs in prop::array::uniform9(any::<bool>()),
+            zeros in prop::array::uniform9(any::<bool>()),
         ) {
-            let v = |i: usize| Vec3::new(c[3 * i], c[3 * i + 1], c[3 * i + 2]);
+            let x = |i: usize| {
+                let x = if zeros[i] { 0.0 } else { c[i] };
+                if signs[i] { -x } else { x }
+            };
+            let v = |i: usize| Vec3::new(x(3 * i), x(3 * i + 1), x(3 * i + 2));
             let p = gouraud_patch([v(0), v(1), v(2)]);
             prop_assert!(p.bilinear);
+            for ch in 0..3 {
+                let plus = |i: usize| x(3 * i + ch) + 0.0;
+                let (c0, c1, c2) = (plus(0), plus(1), plus(2));
+                let want = [c0, c1 - c0, c2 - c0, c0 - c1];
+                let got = [p.c[ch][0], p.c[ch][1], p.c[ch][4], p.c[ch][5]];
+                prop_assert_eq!(got.map(f32::to_bits), want.map(f32::to_bits));
+                prop_assert!(c0.to_bits() != 0x8000_0000);
+            }
         }
 
         /// Gouraud reproduces a linear function on a parallelogram (where world-linear equals

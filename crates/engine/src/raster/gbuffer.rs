@@ -163,15 +163,16 @@ impl RegionGBuffer {
         let mut last: Option<usize> = None;
         // Row by row, so that whether a row has one above it in its plane is known without a
         // division per block (rows are whole blocks: the stride is a multiple of 8).
-        let rows = self.height as usize * self.samples as usize;
+        let height = self.height as usize;
+        let rows = height * self.samples as usize;
         let blocks = (0..rows).flat_map(|row| {
-            let above = row % self.height as usize != 0;
+            let above = row % height != 0;
             (row * stride..(row + 1) * stride)
                 .step_by(8)
                 .map(move |b0| (b0, above))
         });
         for (b0, above) in blocks {
-            let polys: &[u32; 8] = self.polygon[b0..b0 + 8].try_into().unwrap();
+            let polys: [u32; 8] = self.polygon[b0..b0 + 8].try_into().unwrap();
             // A block that sees nothing (common in a renderer's share of a region): its slots
             // are never read (see `reset`); the block-level tests below need a valid slot above
             // only for samples that see a polygon, so 0 is written for them.
@@ -179,42 +180,14 @@ impl RegionGBuffer {
                 self.slot[b0..b0 + 8].fill(0);
                 continue;
             }
-            let us: &[f32; 8] = self.u[b0..b0 + 8].try_into().unwrap();
-            let vs: &[f32; 8] = self.v[b0..b0 + 8].try_into().unwrap();
             if let Some(ls) = last {
-                // Whole block in the cached cell: one lane-wise test, one fill.
-                let c = &cells[ls];
-                let mut inside = [false; 8];
-                for l in 0..8 {
-                    inside[l] = c.contains(polys[l], us[l], vs[l]);
-                }
-                if inside.iter().fold(true, |a, &b| a & b) {
-                    self.slot[b0..b0 + 8].fill(ls as u32);
+                if let Some(settled) = self.settle_block(cells, ls, b0, above) {
+                    last = Some(settled);
                     continue;
                 }
-                // A block that crosses into the next patch along the row usually ends in the
-                // patch of the sample above its last lane: every lane in one of the two cells
-                // is settled with a second lane-wise test and a select.
-                if above {
-                    let a = self.slot[b0 + 7 - stride] as usize;
-                    if a < cells.len() {
-                        let c2 = &cells[a];
-                        let mut either = [false; 8];
-                        for l in 0..8 {
-                            either[l] = inside[l] | c2.contains(polys[l], us[l], vs[l]);
-                        }
-                        if either.iter().fold(true, |x, &y| x & y) {
-                            let out: &mut [u32; 8] =
-                                (&mut self.slot[b0..b0 + 8]).try_into().unwrap();
-                            for l in 0..8 {
-                                out[l] = if inside[l] { ls as u32 } else { a as u32 };
-                            }
-                            last = Some(out[7] as usize);
-                            continue;
-                        }
-                    }
-                }
             }
+            let us: [f32; 8] = self.u[b0..b0 + 8].try_into().unwrap();
+            let vs: [f32; 8] = self.v[b0..b0 + 8].try_into().unwrap();
             for l in 0..8 {
                 let i = b0 + l;
                 let p = polys[l];
@@ -254,6 +227,51 @@ impl RegionGBuffer {
 }
 
 impl RegionGBuffer {
+    /// The block shortcuts of [`RegionGBuffer::assign_patches_with`] for the block at `b0`,
+    /// `ls` the slot used last and `above` whether the block has a row above it in its plane:
+    /// every lane in the cell of `ls` (one lane-wise test, one fill), or every lane in it or in
+    /// the cell of the slot above the block's last lane (a block that crosses into the next
+    /// patch along the row usually ends in that one: a second lane-wise test and a select).
+    /// Returns the slot used last when the block is settled, `None` to go lane by lane.
+    #[inline(always)]
+    fn settle_block(
+        &mut self,
+        cells: &[SlotCell],
+        ls: usize,
+        b0: usize,
+        above: bool,
+    ) -> Option<usize> {
+        let polys: &[u32; 8] = self.polygon[b0..b0 + 8].try_into().unwrap();
+        let us: &[f32; 8] = self.u[b0..b0 + 8].try_into().unwrap();
+        let vs: &[f32; 8] = self.v[b0..b0 + 8].try_into().unwrap();
+        let c = &cells[ls];
+        let mut inside = [false; 8];
+        for l in 0..8 {
+            inside[l] = c.contains(polys[l], us[l], vs[l]);
+        }
+        if inside.iter().fold(true, |a, &b| a & b) {
+            self.slot[b0..b0 + 8].fill(ls as u32);
+            return Some(ls);
+        }
+        if !above {
+            return None;
+        }
+        let a = self.slot[b0 + 7 - self.stride as usize] as usize;
+        let c2 = cells.get(a)?;
+        let mut either = [false; 8];
+        for l in 0..8 {
+            either[l] = inside[l] | c2.contains(polys[l], us[l], vs[l]);
+        }
+        if !either.iter().fold(true, |x, &y| x & y) {
+            return None;
+        }
+        let out: &mut [u32; 8] = (&mut self.slot[b0..b0 + 8]).try_into().unwrap();
+        for l in 0..8 {
+            out[l] = if inside[l] { ls as u32 } else { a as u32 };
+        }
+        Some(out[7] as usize)
+    }
+
     /// [`RegionGBuffer::assign_patches_with`] for a source with one patch per polygon
     /// ([`PatchSource::one_patch_per_polygon`]): a sample's slot follows from its polygon alone,
     /// so a sample showing the previous sample's polygon, or the polygon of the sample one row

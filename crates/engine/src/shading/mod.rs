@@ -64,6 +64,11 @@ pub enum Shader<'a> {
     /// The region's patch table, filled by the rasterizer from this source: the direct method
     /// (RRPs), and the Gouraud mesh (one degree-(1, 1) patch per triangle).
     Patches(&'a dyn PatchSource),
+    /// The Gouraud mesh's triangles (`patches[k]` for scene polygon k), each sample's patch read
+    /// by its polygon: the same bits as [`Shader::Patches`] over the mesh as a patch source
+    /// ([`reconstruction::mesh::MeshModel`]), with no patch table to fill. A polygon without a
+    /// patch is black.
+    Gouraud(&'a [reconstruction::mesh::GouraudPatch]),
     /// The polygon's radiosity texture, filtered, at a per-sample level of detail (RAT).
     Texture {
         /// Every polygon's texture (the texture memory every shader board would hold).
@@ -129,7 +134,13 @@ pub fn shade_region_rows(
         "rows do not match the region"
     );
     match *shader {
-        Shader::Patches(_) => patches::shade_region_rows(isa, gb, background, rows),
+        Shader::Patches(_) => {
+            patches::shade_region_rows(isa, patches::Source::Table, gb, background, rows)
+        }
+        Shader::Gouraud(g) => {
+            let source = patches::Source::Gouraud(g);
+            patches::shade_region_rows(isa, source, gb, background, rows)
+        }
         Shader::Texture {
             set,
             filter,

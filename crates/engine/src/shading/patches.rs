@@ -1,5 +1,7 @@
 //! The patch shader: every visible sample evaluates the bicubic patch its region's table holds
-//! for it (the direct method's RRPs; for the Gouraud mesh, each triangle's degree-(1, 1) patch).
+//! for it (the direct method's RRPs), or for the Gouraud mesh its triangle's degree-(1, 1) patch,
+//! read by polygon from the mesh's compact patches ([`Source::Gouraud`]: no table to fill, which
+//! was a fifth of a mesh frame's work).
 //!
 //! Neighbouring samples nearly always share one patch, so each group of `S::LANES` samples of a
 //! row (8, or 16 on AVX-512) is evaluated with the patch's 48 coefficients broadcast over the
@@ -17,6 +19,7 @@
 
 use glam::Vec3;
 use lanes::{Isa, Kernel, Simd, LANES};
+use reconstruction::mesh::GouraudPatch;
 use reconstruction::PatchCoeffs;
 
 use super::{RowOut, Rows, ShadeCounts};
@@ -98,13 +101,49 @@ fn bilinear<S: Simd>(simd: S, k: &[f32; 16], s: S::F, t: S::F) -> S::F {
     ma(simd, r1, t, r0)
 }
 
+/// Where a sample's patch comes from.
+#[derive(Clone, Copy)]
+pub(crate) enum Source<'a> {
+    /// The region's patch table, at the sample's slot.
+    Table,
+    /// The Gouraud patch of the sample's polygon (`Shader::Gouraud`).
+    Gouraud(&'a [GouraudPatch]),
+}
+
+/// The Gouraud patch `g` at the lanes of (u, v): the bits [`eval_patch`] gives for
+/// [`GouraudPatch::patch`], which is always flagged bilinear, so evaluated as
+/// `(k5 s + k4) t + (k1 s + k0)` with s = (u - 0) 1 and t = (v - 0) 1 from the four
+/// coefficients alone. A polygon without a patch is black.
+#[inline(always)]
+fn eval_gouraud<S: Simd>(simd: S, g: Option<&GouraudPatch>, u: &[f32], v: &[f32]) -> [S::F; 3] {
+    let zero = simd.splat(0.0);
+    let Some(g) = g else {
+        return [zero; 3];
+    };
+    let one = simd.splat(1.0);
+    let s = simd.mul(simd.sub(simd.load(u), zero), one);
+    let t = simd.mul(simd.sub(simd.load(v), zero), one);
+    // A loop, not `map` with a closure: a closure is compiled without the kernel's target
+    // features unless it is inlined, and its token operations then become calls.
+    let mut out = [zero; 3];
+    for ch in 0..3 {
+        let [k0, k1, k4, k5] = g.coefficients()[ch];
+        let r1 = ma(simd, simd.splat(k5), s, simd.splat(k4));
+        let r0 = ma(simd, simd.splat(k1), s, simd.splat(k0));
+        out[ch] = ma(simd, r1, t, r0);
+    }
+    out
+}
+
 /// Shades the `S::LANES` samples of one row from plane index `i0`: the background where no
-/// polygon is seen, and one broadcast [`eval_patch`] per distinct patch, merged through lane
-/// masks (the whole group at once when one patch covers it). Counts each block of 8 as uniform
-/// (8 samples of one patch) or mixed (any other block that sees a polygon).
+/// polygon is seen, and one broadcast evaluation per distinct patch (by table slot, or by
+/// polygon for [`Source::Gouraud`]), merged through lane masks (the whole group at once when
+/// one patch covers it). Counts each block of 8 as uniform (8 samples of one patch) or mixed
+/// (any other block that sees a polygon).
 #[inline(always)]
 fn shade_group<S: Simd>(
     simd: S,
+    source: Source<'_>,
     gb: &RegionGBuffer,
     i0: usize,
     bg: [f32; 3],
@@ -112,7 +151,12 @@ fn shade_group<S: Simd>(
 ) -> [S::F; 3] {
     let full = u32::MAX >> (32 - S::LANES);
     let lanes = i0..i0 + S::LANES;
-    let (polys, slots) = (&gb.polygon[lanes.clone()], &gb.slot[lanes.clone()]);
+    let polys = &gb.polygon[lanes.clone()];
+    // The key that groups lanes: one patch per slot, or per polygon for the Gouraud mesh.
+    let slots = match source {
+        Source::Table => &gb.slot[lanes.clone()],
+        Source::Gouraud(_) => polys,
+    };
     let (u, v) = (&gb.u[lanes.clone()], &gb.v[lanes]);
     let p = simd.load_u(polys);
     let slot_lanes = simd.load_u(slots);
@@ -133,7 +177,10 @@ fn shade_group<S: Simd>(
         for b in 0..blocks {
             whole |= (((m >> (LANES * b)) & 0xff == 0xff) as u32) << b;
         }
-        let c = eval_patch(simd, &gb.table[slot as usize], u, v);
+        let c = match source {
+            Source::Table => eval_patch(simd, &gb.table[slot as usize], u, v),
+            Source::Gouraud(patches) => eval_gouraud(simd, patches.get(slot as usize), u, v),
+        };
         if m == full {
             out = c;
         } else {
@@ -150,14 +197,17 @@ fn shade_group<S: Simd>(
 }
 
 /// Shades one composited region into `rows` (`gb.width` x `gb.height` pixels) with the
-/// instruction set `isa` at its full width; the image and the counters do not depend on it.
+/// instruction set `isa` at its full width, each sample's patch taken from `source`; the image
+/// and the counters do not depend on the instruction set.
 pub(crate) fn shade_region_rows(
     isa: Isa,
+    source: Source<'_>,
     gb: &RegionGBuffer,
     background: Vec3,
     rows: &mut Rows<'_>,
 ) -> ShadeCounts {
     isa.run(PatchPass {
+        source,
         gb,
         background,
         rows,
@@ -166,6 +216,7 @@ pub(crate) fn shade_region_rows(
 
 /// The patch pass over one region, as a kernel.
 struct PatchPass<'a, 'r> {
+    source: Source<'a>,
     gb: &'a RegionGBuffer,
     background: Vec3,
     rows: &'a mut Rows<'r>,
@@ -177,6 +228,7 @@ impl Kernel for PatchPass<'_, '_> {
     #[inline(always)]
     fn run<S: Simd>(self, simd: S) -> ShadeCounts {
         let PatchPass {
+            source,
             gb,
             background,
             rows: dst,
@@ -196,12 +248,12 @@ impl Kernel for PatchPass<'_, '_> {
                 // beyond the region's width hold NO_POLYGON and are never written out.
                 while bx < w {
                     if S::LANES > LANES && bx + S::LANES <= w {
-                        let c = shade_group(simd, gb, row + bx, bg, &mut counts);
+                        let c = shade_group(simd, source, gb, row + bx, bg, &mut counts);
                         rows.block_whole(simd, out_row, bx, si, &c);
                         bx += S::LANES;
                         continue;
                     }
-                    let c = shade_group(half, gb, row + bx, bg, &mut counts);
+                    let c = shade_group(half, source, gb, row + bx, bg, &mut counts);
                     rows.block(half, out_row, bx, si, &c);
                     bx += LANES;
                 }
@@ -358,6 +410,73 @@ mod tests {
             }
         }
         assert!(flagged > 1000, "{flagged} flagged");
+    }
+
+    /// The Gouraud shader reads each sample's patch by polygon; the patch shader reads the
+    /// region's table, filled here as the rasterizer fills it for the mesh. Both give the same
+    /// pixels, bit for bit, for every instruction set: small polygons (several per group),
+    /// awkward colours (zeros of both signs, subnormals, large values), (u, v) beyond [0, 1]
+    /// and NaN, holes, 4 samples per pixel and a width that is not a whole number of groups; a
+    /// polygon without a patch is black.
+    #[test]
+    fn the_gouraud_shader_gives_the_patch_tables_bits() {
+        use crate::raster::gbuffer::RegionGBuffer;
+        use reconstruction::PatchSource;
+        const VALUES: [f32; 8] = [0.0, -0.0, 0.5, 1e-40, 3.0e30, 0.125, 2.0, 0.75];
+        let mut rng = base::rng::Rng::new(11);
+        let mut pick = || VALUES[rng.below(VALUES.len() as u32) as usize];
+        let patches: Vec<GouraudPatch> = (0..97)
+            .map(|_| GouraudPatch::of(std::array::from_fn(|_| Vec3::new(pick(), pick(), pick()))))
+            .collect();
+        struct Mesh<'a>(&'a [GouraudPatch]);
+        impl PatchSource for Mesh<'_> {
+            fn locate(&self, polygon: u32, _: f32, _: f32) -> u32 {
+                polygon
+            }
+            fn patch(&self, id: u32) -> PatchCoeffs {
+                self.0[id as usize].patch()
+            }
+            fn one_patch_per_polygon(&self) -> bool {
+                true
+            }
+        }
+        let (w, h, spp) = (45u32, 7u32, 4u32);
+        let mut gb = RegionGBuffer::new(0, 0, 0, w, h, spp);
+        let stride = gb.stride as usize;
+        let mut x = base::rng::Rng::new(5);
+        for i in 0..gb.len() {
+            let (col, row) = (i % stride, i / stride);
+            if col >= w as usize || x.below(9) == 0 {
+                continue;
+            }
+            // Runs of 1-4 samples per polygon along a row.
+            gb.polygon[i] = ((col / (1 + row % 4)) * 13 + row * 7) as u32 % 97;
+            gb.u[i] = x.next_f64() as f32 * 1.2 - 0.1;
+            gb.v[i] = x.next_f64() as f32 * 1.2 - 0.1;
+            gb.depth[i] = 1.0;
+        }
+        gb.u[3] = f32::NAN;
+        let mut table_gb = gb.clone();
+        table_gb.assign_patches(&Mesh(&patches));
+        let bg = Vec3::new(0.5, 0.25, 2.0);
+        for isa in isas() {
+            let shade = |shader: &super::super::Shader<'_>, gb: &RegionGBuffer| {
+                let mut px = vec![Vec3::splat(-1.0); (w * h) as usize];
+                super::super::shade_region_with(isa, shader, gb, bg, &mut px, w as usize);
+                px
+            };
+            let want = shade(&super::super::Shader::Patches(&Mesh(&patches)), &table_gb);
+            let got = shade(&super::super::Shader::Gouraud(&patches), &gb);
+            for (k, (g, w)) in got.iter().zip(&want).enumerate() {
+                let bits = |v: &Vec3| v.to_array().map(f32::to_bits);
+                assert_eq!(bits(g), bits(w), "pixel {k}: {g} vs {w} ({})", isa.name());
+            }
+            // Without patches every polygon is black; the background stays.
+            let black = shade(&super::super::Shader::Gouraud(&[]), &gb);
+            assert!(black
+                .iter()
+                .all(|p| *p == Vec3::ZERO || *p == bg || p.cmplt(bg).all()));
+        }
     }
 
     #[test]
