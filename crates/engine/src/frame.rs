@@ -291,6 +291,8 @@ pub struct FrameContext {
     prims: Vec<raster::setup::Prim>,
     bins: Vec<Vec<Vec<u32>>>,
     chunk_bins: Vec<raster::binning::ChunkBins>,
+    /// The last frame's scene bounds, to build the next view from ([`raster::build_and_bin_into`]).
+    view_guess: Option<raster::ViewBounds>,
     outcomes: Vec<RegionOutcome>,
     pool: Mutex<Vec<Workspace>>,
     pixels: Vec<Vec3>,
@@ -479,6 +481,7 @@ impl FrameContext {
             &mut self.prims,
             &mut self.chunk_bins,
             &mut self.bins,
+            &mut self.view_guess,
         )?;
         let geometry_ms = ms(t_frame.elapsed());
 

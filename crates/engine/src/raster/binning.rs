@@ -34,6 +34,14 @@ pub fn chunk_size(n: usize) -> usize {
 pub struct ChunkBins {
     lists: Vec<Vec<Vec<u32>>>,
     binned: usize,
+    /// The view bounds of the chunk's polygons (see [`super::build_and_bin_into`]).
+    pub(crate) bounds: super::ViewBounds,
+}
+
+impl Default for super::ViewBounds {
+    fn default() -> Self {
+        super::ViewBounds::EMPTY
+    }
 }
 
 impl ChunkBins {

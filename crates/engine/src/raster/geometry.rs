@@ -100,7 +100,7 @@ pub(super) struct PlaneView {
 }
 
 /// The camera's view transform and projection for one image size.
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub(crate) struct View {
     eye: DVec3,
     right: DVec3,

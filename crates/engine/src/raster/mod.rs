@@ -140,6 +140,15 @@ pub fn build_primitives_into(
 /// thread, would re-read every record: a tenth of a 10^5-triangle mesh's frame), and the chunks'
 /// lists are joined in chunk order, so `bins` holds exactly what the two calls would give.
 /// `chunks` is working memory kept across frames. Returns the number of primitives binned.
+///
+/// The view needs the scene's bounds and nearest polygon, a pass over every polygon of its
+/// own before setup can start (a sixth of a 10^5-triangle mesh's geometry stage). With
+/// `guess`, the previous frame's scene bounds, the view is built from them with the near plane
+/// at its largest (what it is unless a polygon comes within twice that of the eye), the chunks
+/// measure the true bounds as they set up their polygons, and the frame is set up again with
+/// the true view only if it differs: the records are always those of the true view. `guess`
+/// is then updated for the next frame (emptied when guessing would not have given this frame's
+/// view).
 #[allow(clippy::too_many_arguments)]
 pub fn build_and_bin_into(
     scene: &Scene,
@@ -151,8 +160,19 @@ pub fn build_and_bin_into(
     prims: &mut Vec<Prim>,
     chunks: &mut Vec<binning::ChunkBins>,
     bins: &mut Vec<Vec<Vec<u32>>>,
+    guess: &mut Option<ViewBounds>,
 ) -> Result<u32> {
-    let view = frame_view(scene, camera, width, height)?;
+    let guessed = |b: &ViewBounds| {
+        let far = ViewBounds {
+            nearest: f64::INFINITY,
+            ..*b
+        };
+        far.view(scene, camera, width, height)
+    };
+    let (view, speculative) = match guess.take() {
+        Some(b) => (guessed(&b)?, true),
+        None => (frame_view(scene, camera, width, height)?, false),
+    };
     let n = scene.polygons.len();
     prims.truncate(n);
     prims.resize_with(n, Prim::default);
@@ -161,51 +181,143 @@ pub fn build_and_bin_into(
     let n_chunks = n.div_ceil(size);
     chunks.resize_with(n_chunks, binning::ChunkBins::default);
     chunks.truncate(n_chunks);
-    prims
-        .par_chunks_mut(size)
-        .zip(scene.polygons.par_chunks(size))
-        .zip(chunks.par_iter_mut())
-        .enumerate()
-        .for_each(|(c, ((out, polys), local))| {
-            local.reset(grid, r_count);
-            let first = c * size;
-            for (j, (out, p)) in out.iter_mut().zip(polys).enumerate() {
-                let i = (first + j) as u32;
-                if set_up(&view, p, i, cull_back_faces, out) {
-                    local.push(grid, i, out);
-                }
-            }
-        });
+    let pass = ChunkPass {
+        scene,
+        eye: camera.eye,
+        cull: cull_back_faces,
+        grid,
+        renderers: r_count,
+        size,
+    };
+    let found = pass.run(&view, prims, chunks);
+    let exact = found.view(scene, camera, width, height)?;
+    debug_assert!(
+        speculative || exact == view,
+        "the chunks' bounds are frame_view's"
+    );
+    if speculative && exact != view {
+        pass.run(&exact, prims, chunks);
+    }
+    // Guessing next frame pays off when it would have given this frame's view.
+    if guessed(&found)? == exact {
+        *guess = Some(found);
+    }
     Ok(binning::join(grid, chunks, r_count, bins))
+}
+
+/// The chunked setup and binning pass of [`build_and_bin_into`].
+struct ChunkPass<'a> {
+    scene: &'a Scene,
+    eye: DVec3,
+    cull: bool,
+    grid: &'a RegionGrid,
+    renderers: usize,
+    /// Polygons per chunk.
+    size: usize,
+}
+
+impl ChunkPass<'_> {
+    /// Sets up every polygon with `view` into its record and bins it into its chunk's lists,
+    /// chunks in parallel; returns the view bounds of every polygon, measured on the way.
+    fn run(
+        &self,
+        view: &geometry::View,
+        prims: &mut [Prim],
+        chunks: &mut [binning::ChunkBins],
+    ) -> ViewBounds {
+        prims
+            .par_chunks_mut(self.size)
+            .zip(self.scene.polygons.par_chunks(self.size))
+            .zip(chunks.par_iter_mut())
+            .enumerate()
+            .for_each(|(c, ((out, polys), local))| {
+                local.reset(self.grid, self.renderers);
+                let first = c * self.size;
+                let mut bounds = ViewBounds::EMPTY;
+                for (j, (out, p)) in out.iter_mut().zip(polys).enumerate() {
+                    let i = (first + j) as u32;
+                    bounds = bounds.merge(ViewBounds::of(p, self.eye));
+                    if set_up(view, p, i, self.cull, out) {
+                        local.push(self.grid, i, out);
+                    }
+                }
+                local.bounds = bounds;
+            });
+        chunks
+            .iter()
+            .fold(ViewBounds::EMPTY, |a, c| a.merge(c.bounds))
+    }
+}
+
+/// What a frame's view takes from the scene besides the camera: the bounds of its polygons'
+/// corners and a lower bound of the distance from the eye to its nearest polygon
+/// ([`geometry::distance_lower_bound`]), merged polygon by polygon with min and max (exact, in
+/// any order).
+#[derive(Clone, Copy, Debug)]
+pub struct ViewBounds {
+    lo: DVec3,
+    hi: DVec3,
+    nearest: f64,
+}
+
+impl ViewBounds {
+    /// Bounds of no polygon.
+    pub const EMPTY: ViewBounds = ViewBounds {
+        lo: DVec3::splat(f64::INFINITY),
+        hi: DVec3::splat(f64::NEG_INFINITY),
+        nearest: f64::INFINITY,
+    };
+
+    /// Polygon `p`'s bounds, seen from `eye`.
+    #[inline]
+    fn of(p: &scene::Polygon, eye: DVec3) -> ViewBounds {
+        let (lo, hi) = p.vertices().iter().fold(
+            (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)),
+            |(lo, hi), c| (lo.min(*c), hi.max(*c)),
+        );
+        ViewBounds {
+            lo,
+            hi,
+            nearest: geometry::distance_lower_bound(p, lo, hi, eye),
+        }
+    }
+
+    /// Both bounds together.
+    #[inline]
+    fn merge(self, o: ViewBounds) -> ViewBounds {
+        ViewBounds {
+            lo: self.lo.min(o.lo),
+            hi: self.hi.max(o.hi),
+            nearest: self.nearest.min(o.nearest),
+        }
+    }
+
+    /// The view of `camera` for a `width` x `height` frame of `scene` with these bounds.
+    fn view(
+        &self,
+        scene: &Scene,
+        camera: &Camera,
+        width: u32,
+        height: u32,
+    ) -> Result<geometry::View> {
+        let (lo, hi) = scene.bounds_with(self.lo, self.hi);
+        let extent = (hi - lo)
+            .length()
+            .max(((lo + hi) * 0.5 - camera.eye).length());
+        geometry::View::new(camera, width, height, extent, self.nearest)
+    }
 }
 
 /// The view of `camera` for a `width` x `height` frame of `scene`: the scene's bounds and the
 /// nearest polygon (for the near plane) in one parallel pass.
 fn frame_view(scene: &Scene, camera: &Camera, width: u32, height: u32) -> Result<geometry::View> {
     let eye = camera.eye;
-    let (lo, hi, nearest) = scene
+    scene
         .polygons
         .par_iter()
-        .map(|p| {
-            let (lo, hi) = p.vertices().iter().fold(
-                (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)),
-                |(lo, hi), c| (lo.min(*c), hi.max(*c)),
-            );
-            (lo, hi, geometry::distance_lower_bound(p, lo, hi, eye))
-        })
-        .reduce(
-            || {
-                (
-                    DVec3::splat(f64::INFINITY),
-                    DVec3::splat(f64::NEG_INFINITY),
-                    f64::INFINITY,
-                )
-            },
-            |a, b| (a.0.min(b.0), a.1.max(b.1), a.2.min(b.2)),
-        );
-    let (lo, hi) = scene.bounds_with(lo, hi);
-    let extent = (hi - lo).length().max(((lo + hi) * 0.5 - eye).length());
-    geometry::View::new(camera, width, height, extent, nearest)
+        .map(|p| ViewBounds::of(p, eye))
+        .reduce(|| ViewBounds::EMPTY, ViewBounds::merge)
+        .view(scene, camera, width, height)
 }
 
 /// Geometry and setup of polygon `p` (scene index `i`) into its record `out`: the triangle fast

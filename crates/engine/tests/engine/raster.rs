@@ -401,11 +401,85 @@ fn chunked_binning_equals_the_sequential_round_robin() {
             &mut prims,
             &mut chunks,
             &mut got,
+            &mut None,
         )
         .unwrap();
         assert_eq!(n_got, n_want, "{renderers} renderers");
         assert!(got == want, "{renderers} renderers: the bins differ");
         assert_eq!(format!("{prims:?}"), format!("{want_prims:?}"));
+    }
+}
+
+/// A frame set up from the previous frame's scene bounds (a guessed view, checked against the
+/// bounds the setup measures) gives the records and bins of a frame set up from scratch:
+/// with no guess, with the right one, with the bounds of another scene (a wrong extent), and
+/// when the camera comes so close to a polygon that the near plane is not the guessed one
+/// (the frame is set up again); the guess is kept only while it would give the frame's view.
+#[test]
+fn a_guessed_view_gives_the_records_of_the_true_one() {
+    let (w, h) = (120, 90);
+    let polys = mesh(w, h, 6, false, |x, y| {
+        DVec3::new(x / 96.0 * 40.0 - 20.0, y / 88.0 * 40.0 - 20.0, 0.0)
+    });
+    let far = Camera {
+        eye: DVec3::new(0.3, -2.0, 4.0),
+        look_at: DVec3::ZERO,
+        up: DVec3::Y,
+        projection: Projection::Perspective { fov_y_deg: 60.0 },
+    };
+    // 1e-5 units above the plane: within twice the largest near plane (1e-4 of the extent).
+    let close = Camera {
+        eye: DVec3::new(0.3, -2.0, 1e-5),
+        look_at: DVec3::new(0.3, 0.0, -1.0),
+        ..far
+    };
+    let scene = scene_with(polys, far, w, h);
+    let small = scene_with(busy_scene(w, h).polygons, far, w, h);
+    let grid = RegionGrid::new(w, h, 32);
+    let run = |scene: &scene::Scene, camera: &Camera, guess: &mut Option<_>| {
+        let (mut prims, mut chunks, mut bins) = (Vec::new(), Vec::new(), Vec::new());
+        build_and_bin_into(
+            scene,
+            camera,
+            (w, h),
+            false,
+            &grid,
+            2,
+            &mut prims,
+            &mut chunks,
+            &mut bins,
+            guess,
+        )
+        .unwrap();
+        (format!("{prims:?}"), bins)
+    };
+    for camera in [far, close] {
+        let mut want_prims = Vec::new();
+        build_primitives_into(&scene, &camera, w, h, false, &mut want_prims).unwrap();
+        let mut want_bins = Vec::new();
+        bin_round_robin_into(&grid, &want_prims, 2, &mut want_bins);
+        let want = (format!("{want_prims:?}"), want_bins);
+        let mut guess = None;
+        assert!(run(&scene, &camera, &mut guess) == want, "no guess");
+        assert_eq!(
+            guess.is_some(),
+            camera.eye == far.eye,
+            "kept only when it holds"
+        );
+        let mut right = None;
+        run(&scene, &far, &mut right);
+        assert!(right.is_some());
+        assert!(
+            run(&scene, &camera, &mut right) == want,
+            "the far view's guess"
+        );
+        let mut wrong = None;
+        run(&small, &far, &mut wrong);
+        assert!(wrong.is_some());
+        assert!(
+            run(&scene, &camera, &mut wrong) == want,
+            "another scene's guess"
+        );
     }
 }
 
