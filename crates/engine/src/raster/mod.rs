@@ -250,9 +250,9 @@ impl ChunkPass<'_> {
 }
 
 /// What a frame's view takes from the scene besides the camera: the bounds of its polygons'
-/// corners and a lower bound of the distance from the eye to its nearest polygon
-/// ([`geometry::distance_lower_bound`]), merged polygon by polygon with min and max (exact, in
-/// any order).
+/// corners and a lower bound of the distance from the eye to its nearest polygon (the larger
+/// of its distance to a polygon's plane and to the polygon's corners' box), merged polygon by
+/// polygon with min and max (exact, in any order).
 #[derive(Clone, Copy, Debug)]
 pub struct ViewBounds {
     lo: DVec3,
