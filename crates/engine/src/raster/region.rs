@@ -159,21 +159,31 @@ fn for_each_block<S: Simd, const N: usize, T: EdgeLane>(
             row64[k] = e.at(x, y) - e.dx as i64 * ONE;
         }
     }
+    let mut row_step = [0i64; N];
+    for k in 0..N {
+        row_step[k] = edges[k].dx as i64 * ONE;
+    }
     for ly in ly0..ly1 + 1 {
         for k in 0..N {
-            row64[k] += edges[k].dx as i64 * ONE;
+            row64[k] += row_step[k];
+        }
+        if narrow {
+            // The row starts at the box's first block: the values at lx0 themselves.
+            for k in 0..N {
+                row[k] = T::of(row64[k]);
+            }
         }
         let (start, end) = if narrow {
             (lx0, lx1)
         } else {
-            match span(edges, &row64, &inv_d, (lx0, lx1)) {
-                Some(se) => se,
-                None => continue,
+            let Some((start, end)) = span(edges, &row64, &inv_d, (lx0, lx1)) else {
+                continue;
+            };
+            for k in 0..N {
+                row[k] = T::of(row64[k] - edges[k].dy as i64 * ONE * (start - lx0) as i64);
             }
+            (start, end)
         };
-        for k in 0..N {
-            row[k] = T::of(row64[k] - edges[k].dy as i64 * ONE * (start - lx0) as i64);
-        }
         let mut bx = start;
         while bx <= end {
             // Interior blocks first: an edge function is linear along the row, so its smallest
