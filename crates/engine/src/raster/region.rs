@@ -129,17 +129,13 @@ fn for_each_block<S: Simd, const N: usize, T: EdgeLane>(
     let ly1 = by1.min(ry + rh - 1) - ry;
     // Unused entries of `prim.edges` are `Edge::default()`: the constant 0 (see above).
     let edges: &[Edge; N] = prim.edges[..N].try_into().unwrap();
-    let mut lane_step = [[T::ZERO; LANES]; N];
-    let mut block_step = [T::ZERO; N];
-    let mut min_step = [T::ZERO; N];
+    let Steps {
+        lane: lane_step,
+        block: block_step,
+        min: min_step,
+        row: row_step,
+    } = Steps::<T, N>::of(edges);
     let mut inv_d = [0.0f64; N];
-    for (k, e) in edges.iter().enumerate() {
-        for (l, s) in lane_step[k].iter_mut().enumerate() {
-            *s = T::of(-(e.dy as i64) * ONE * l as i64);
-        }
-        block_step[k] = T::of(e.dy as i64 * ONE * LANES as i64);
-        min_step[k] = T::of((-(e.dy as i64) * ONE * (LANES as i64 - 1)).min(0));
-    }
     // A box at most two blocks wide (the small triangles of a mesh) walks every block of each
     // row: the span below would cost more than the one empty block it can skip.
     let narrow = lx1 - lx0 < 2 * LANES as u32;
@@ -156,12 +152,8 @@ fn for_each_block<S: Simd, const N: usize, T: EdgeLane>(
         let y = (ry + ly0) as i64 * ONE + offset.1;
         let x = (rx + lx0) as i64 * ONE + offset.0;
         for (k, e) in edges.iter().enumerate() {
-            row64[k] = e.at(x, y) - e.dx as i64 * ONE;
+            row64[k] = e.at(x, y) - row_step[k];
         }
-    }
-    let mut row_step = [0i64; N];
-    for k in 0..N {
-        row_step[k] = edges[k].dx as i64 * ONE;
     }
     for ly in ly0..ly1 + 1 {
         for k in 0..N {
@@ -212,6 +204,37 @@ fn for_each_block<S: Simd, const N: usize, T: EdgeLane>(
             }
             bx += LANES as u32;
         }
+    }
+}
+
+/// The steps of the edge functions in a block walk ([`for_each_block`]), per edge: each lane's
+/// offset from lane 0, a block's step along the row, the smallest lane offset (the whole-block
+/// test's) and a row's step (in i64, exact).
+struct Steps<T, const N: usize> {
+    lane: [[T; LANES]; N],
+    block: [T; N],
+    min: [T; N],
+    row: [i64; N],
+}
+
+impl<T: EdgeLane, const N: usize> Steps<T, N> {
+    #[inline(always)]
+    fn of(edges: &[Edge; N]) -> Self {
+        let mut s = Steps {
+            lane: [[T::ZERO; LANES]; N],
+            block: [T::ZERO; N],
+            min: [T::ZERO; N],
+            row: [0; N],
+        };
+        for (k, e) in edges.iter().enumerate() {
+            for (l, x) in s.lane[k].iter_mut().enumerate() {
+                *x = T::of(-(e.dy as i64) * ONE * l as i64);
+            }
+            s.block[k] = T::of(e.dy as i64 * ONE * LANES as i64);
+            s.min[k] = T::of((-(e.dy as i64) * ONE * (LANES as i64 - 1)).min(0));
+            s.row[k] = e.dx as i64 * ONE;
+        }
+        s
     }
 }
 
