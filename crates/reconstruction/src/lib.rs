@@ -781,12 +781,6 @@ pub trait PatchSource: Sync {
     fn cell(&self, _id: u32) -> Option<[f32; 4]> {
         None
     }
-    /// Whether `locate` answers one patch per polygon, whatever (u, v) (the Gouraud mesh: one
-    /// patch per triangle). The rasterizer then assigns patches by polygon alone. The default,
-    /// `false`, is always correct.
-    fn one_patch_per_polygon(&self) -> bool {
-        false
-    }
     /// [`PatchSource::patch`] through a worker's `cache` of expanded patches (the same value:
     /// a cache changes times, never results). The default does not cache.
     fn patch_cached(&self, id: u32, cache: &mut PatchCache) -> PatchCoeffs {

@@ -112,7 +112,9 @@ impl MeshStats {
 }
 
 /// The Gouraud mesh of a radiosity solution: a scene of triangles and one degree-(1, 1) patch per
-/// triangle. Render it with `frame::render_patches(&mesh.scene, camera, &mesh, &opts)`.
+/// triangle. Render it with `Shader::Gouraud(&mesh.gouraud)` over `mesh.scene`; as a patch
+/// source (`frame::render_patches(&mesh.scene, camera, &mesh, &opts)`) it gives the same bits
+/// through the region patch tables.
 #[derive(Debug, Clone)]
 pub struct MeshModel {
     /// The input scene with its polygons replaced by the triangles (camera, materials, spots and
@@ -519,10 +521,6 @@ impl PatchSource for MeshModel {
     #[inline]
     fn patch(&self, id: u32) -> PatchCoeffs {
         MeshModel::patch(self, id as usize)
-    }
-
-    fn one_patch_per_polygon(&self) -> bool {
-        true
     }
 
     /// `locate` answers `id` on the whole closed domain [0, 1]^2 (and beyond); as a half-open

@@ -38,12 +38,6 @@ pub struct ChunkBins {
     pub(crate) bounds: super::ViewBounds,
 }
 
-impl Default for super::ViewBounds {
-    fn default() -> Self {
-        super::ViewBounds::EMPTY
-    }
-}
-
 impl ChunkBins {
     /// Empties the lists (keeping their capacity) for `grid` and `renderers` phases.
     pub(crate) fn reset(&mut self, grid: &RegionGrid, renderers: usize) {

@@ -147,10 +147,6 @@ impl RegionGBuffer {
     pub fn assign_patches_with(&mut self, source: &dyn PatchSource, scratch: &mut PatchScratch) {
         self.table.clear();
         self.table_ids.clear();
-        if source.one_patch_per_polygon() {
-            self.assign_per_polygon(source, scratch);
-            return;
-        }
         let PatchScratch {
             index,
             cells,
@@ -270,50 +266,6 @@ impl RegionGBuffer {
             out[l] = if inside[l] { ls as u32 } else { a as u32 };
         }
         Some(out[7] as usize)
-    }
-
-    /// [`RegionGBuffer::assign_patches_with`] for a source with one patch per polygon
-    /// ([`PatchSource::one_patch_per_polygon`]): a sample's slot follows from its polygon alone,
-    /// so a sample showing the previous sample's polygon, or the polygon of the sample one row
-    /// above, takes that sample's slot, and only the others ask the slot index. The table is
-    /// filled in the same memory order as the general form, so both give the same slots and
-    /// table (tested); this one skips the cells' (u, v) tests that a mesh of small triangles,
-    /// whose blocks of 8 usually show several triangles, paid on nearly every sample.
-    fn assign_per_polygon(&mut self, source: &dyn PatchSource, scratch: &mut PatchScratch) {
-        let PatchScratch { index, cache, .. } = scratch;
-        index.clear();
-        let stride = self.stride as usize;
-        let plane = stride * self.height as usize;
-        debug_assert_eq!(self.polygon.len(), plane * self.samples as usize);
-        let (mut last_poly, mut last_slot) = (NO_POLYGON, 0u32);
-        // Memory order: plane by plane, row by row (a sample has one above it from its plane's
-        // second row on, known without a division per sample).
-        let rows = self.height as usize * self.samples as usize;
-        for row in 0..rows {
-            let above = row % self.height as usize != 0;
-            for i in row * stride..(row + 1) * stride {
-                let p = self.polygon[i];
-                if p == NO_POLYGON {
-                    // Never read (see `reset`); 0 keeps every stored slot in range.
-                    self.slot[i] = 0;
-                    continue;
-                }
-                let slot = if p == last_poly {
-                    last_slot
-                } else if above && self.polygon[i - stride] == p {
-                    self.slot[i - stride]
-                } else {
-                    let id = source.locate(p, self.u[i], self.v[i]);
-                    *index.entry(id).or_insert_with(|| {
-                        self.table.push(source.patch_cached(id, cache));
-                        self.table_ids.push(id);
-                        (self.table.len() - 1) as u32
-                    })
-                };
-                self.slot[i] = slot;
-                (last_poly, last_slot) = (p, slot);
-            }
-        }
     }
 }
 
@@ -462,69 +414,6 @@ mod tests {
             gb.v[i] = (y * 0.019 + plane as f32 * 0.1).min(1.0);
         }
         gb
-    }
-
-    /// One patch per polygon, with or without saying so.
-    struct PerPolygon {
-        says: bool,
-        grid: Grid,
-    }
-
-    impl PatchSource for PerPolygon {
-        fn locate(&self, polygon: u32, u: f32, v: f32) -> u32 {
-            self.grid.locate(polygon, u, v)
-        }
-        fn patch(&self, id: u32) -> PatchCoeffs {
-            self.grid.patch(id)
-        }
-        fn cell(&self, _id: u32) -> Option<[f32; 4]> {
-            Some([0.0, 1.0 + f32::EPSILON, 0.0, 1.0 + f32::EPSILON])
-        }
-        fn one_patch_per_polygon(&self) -> bool {
-            self.says
-        }
-    }
-
-    /// The per-polygon assignment gives the general form's slots and table, on a region of small
-    /// polygons (runs of 1-4 samples along a row, 1-3 rows high, as a mesh's triangles), holes,
-    /// padding and two sample planes.
-    #[test]
-    fn one_patch_per_polygon_assigns_as_the_general_form() {
-        let (w, h) = (45u32, 23u32);
-        let mut gb = RegionGBuffer::new(0, 0, 0, w, h, 2);
-        let stride = gb.stride as usize;
-        let mut seed = 99u32;
-        for i in 0..gb.len() {
-            seed = seed.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
-            let (x, y) = ((i % stride) as u32, (i / stride) as u32);
-            if x >= w || seed >> 29 == 0 {
-                continue;
-            }
-            // Polygon by a hash of a small cell, so neighbours along a row and across rows
-            // differ often and repeat sometimes.
-            let cell = (x / (1 + y % 4)) * 7919 + (y / (1 + x % 3)) * 104_729;
-            gb.polygon[i] = cell.wrapping_mul(2_654_435_761) >> 26;
-            gb.u[i] = (x as f32 * 0.02).min(1.0);
-            gb.v[i] = (y as f32 * 0.01).min(1.0);
-        }
-        let grid = || Grid::new(64, 1, true);
-        let (says, silent) = (
-            PerPolygon {
-                says: true,
-                grid: grid(),
-            },
-            PerPolygon {
-                says: false,
-                grid: grid(),
-            },
-        );
-        let mut a = gb.clone();
-        a.assign_patches(&says);
-        gb.assign_patches(&silent);
-        assert_eq!(a.slot, gb.slot);
-        assert_eq!(a.table_ids, gb.table_ids);
-        assert_eq!(a.table, gb.table);
-        assert!(a.table_ids.len() > 40, "{} patches", a.table_ids.len());
     }
 
     #[test]

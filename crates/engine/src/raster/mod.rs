@@ -260,6 +260,12 @@ pub struct ViewBounds {
     nearest: f64,
 }
 
+impl Default for ViewBounds {
+    fn default() -> Self {
+        ViewBounds::EMPTY
+    }
+}
+
 impl ViewBounds {
     /// Bounds of no polygon.
     pub const EMPTY: ViewBounds = ViewBounds {

@@ -159,13 +159,11 @@ fn for_each_block<S: Simd, const N: usize, T: EdgeLane>(
         for k in 0..N {
             row64[k] += row_step[k];
         }
-        if narrow {
+        let (start, end) = if narrow {
             // The row starts at the box's first block: the values at lx0 themselves.
             for k in 0..N {
                 row[k] = T::of(row64[k]);
             }
-        }
-        let (start, end) = if narrow {
             (lx0, lx1)
         } else {
             let Some((start, end)) = span(edges, &row64, &inv_d, (lx0, lx1)) else {

@@ -112,17 +112,17 @@ pub(crate) enum Source<'a> {
 
 /// The Gouraud patch `g` at the lanes of (u, v): the bits [`eval_patch`] gives for
 /// [`GouraudPatch::patch`], which is always flagged bilinear, so evaluated as
-/// `(k5 s + k4) t + (k1 s + k0)` with s = (u - 0) 1 and t = (v - 0) 1 from the four
-/// coefficients alone. A polygon without a patch is black.
+/// `(k5 s + k4) t + (k1 s + k0)` from the four coefficients alone. That patch's local (s, t)
+/// are `(u - 0) 1` and `(v - 0) 1`, which are u and v themselves (x - 0 and x 1 are x for
+/// every number x, -0 included, and a NaN stays a NaN, which the resolve clears to +0), so the
+/// lanes take (u, v) as they are. A polygon without a patch is black.
 #[inline(always)]
 fn eval_gouraud<S: Simd>(simd: S, g: Option<&GouraudPatch>, u: &[f32], v: &[f32]) -> [S::F; 3] {
     let zero = simd.splat(0.0);
     let Some(g) = g else {
         return [zero; 3];
     };
-    let one = simd.splat(1.0);
-    let s = simd.mul(simd.sub(simd.load(u), zero), one);
-    let t = simd.mul(simd.sub(simd.load(v), zero), one);
+    let (s, t) = (simd.load(u), simd.load(v));
     // A loop, not `map` with a closure: a closure is compiled without the kernel's target
     // features unless it is inlined, and its token operations then become calls.
     let mut out = [zero; 3];
@@ -435,9 +435,6 @@ mod tests {
             }
             fn patch(&self, id: u32) -> PatchCoeffs {
                 self.0[id as usize].patch()
-            }
-            fn one_patch_per_polygon(&self) -> bool {
-                true
             }
         }
         let (w, h, spp) = (45u32, 7u32, 4u32);
