@@ -111,6 +111,15 @@ pub unsafe trait Simd: Copy + Send + Sync + fmt::Debug + 'static {
     fn eq(self, a: Self::F, b: Self::F) -> Self::M;
     /// `if m { a } else { b }` per lane, bits moved unchanged.
     fn select(self, m: Self::M, a: Self::F, b: Self::F) -> Self::F;
+    /// `if a < b { a } else { b }` (so `b` where either is NaN, as x86's MINPS).
+    fn min(self, a: Self::F, b: Self::F) -> Self::F;
+    /// `if a > b { a } else { b }` (so `b` where either is NaN, as x86's MAXPS).
+    fn max(self, a: Self::F, b: Self::F) -> Self::F;
+    /// `a.floor()`.
+    fn floor(self, a: Self::F) -> Self::F;
+    /// `a` truncated toward 0 to i32, for lanes whose value is in i32's range (the result of
+    /// others depends on the token).
+    fn to_i32(self, a: Self::F) -> Self::U;
     /// The image's clamp: `x` where `0 < x < inf`, else `+0.0` (negative values, both zeros,
     /// infinities and NaN all become `+0.0`).
     fn sanitize(self, x: Self::F) -> Self::F;
@@ -125,6 +134,8 @@ pub unsafe trait Simd: Copy + Send + Sync + fmt::Debug + 'static {
     fn lt_u(self, a: Self::U, b: Self::U) -> Self::M;
     /// `a + b` as wrapping i32.
     fn add_i(self, a: Self::U, b: Self::U) -> Self::U;
+    /// `a * b` as wrapping i32 (the low 32 bits of the product).
+    fn mul_i(self, a: Self::U, b: Self::U) -> Self::U;
     /// `a | b`.
     fn or_u(self, a: Self::U, b: Self::U) -> Self::U;
     /// Bit l set where lane l, as i32, is `>= 0` (its sign bit is clear).
@@ -150,11 +161,11 @@ pub unsafe trait Simd: Copy + Send + Sync + fmt::Debug + 'static {
     /// Writes lane l of `c[0]`, `c[1]`, `c[2]`, each through [`Simd::sanitize`], as pixel
     /// `dst[l]` for the first `LANES` pixels of `dst` (panics if shorter).
     fn store_rgb(self, c: &[Self::F; 3], dst: &mut [Vec3]);
-    /// The 8 texels `texels[idx[l]]` as three channels of 8 lanes.
+    /// The texels `texels[idx[l]]` (`idx` as i32 lanes) as three channels.
     ///
     /// # Safety
-    /// Every `idx[l]` must be a valid index of `texels`.
-    unsafe fn gather_rgb8(self, texels: &[Vec3], idx: &[i32; LANES]) -> [F32x8; 3];
+    /// Every lane of `idx` must be a valid index of `texels`.
+    unsafe fn gather_rgb(self, texels: &[Vec3], idx: Self::U) -> [Self::F; 3];
 }
 
 /// The instruction-set levels a build of the hot loops exists for, narrowest first (for caps and

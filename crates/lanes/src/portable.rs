@@ -114,6 +114,34 @@ unsafe impl Simd for Portable {
     }
 
     #[inline(always)]
+    fn min(self, a: F32x8, b: F32x8) -> F32x8 {
+        F32x8(zip(a.0, b.0, |x, y| if x < y { x } else { y }))
+    }
+
+    #[inline(always)]
+    fn max(self, a: F32x8, b: F32x8) -> F32x8 {
+        F32x8(zip(a.0, b.0, |x, y| if x > y { x } else { y }))
+    }
+
+    #[inline(always)]
+    fn floor(self, a: F32x8) -> F32x8 {
+        let mut r = [0.0; LANES];
+        for l in 0..LANES {
+            r[l] = a.0[l].floor();
+        }
+        F32x8(r)
+    }
+
+    #[inline(always)]
+    fn to_i32(self, a: F32x8) -> U32x8 {
+        let mut r = [0; LANES];
+        for l in 0..LANES {
+            r[l] = a.0[l] as i32 as u32;
+        }
+        U32x8(r)
+    }
+
+    #[inline(always)]
     fn sanitize(self, x: F32x8) -> F32x8 {
         // "Finite and positive" as float compares that stay vector instructions: x - x is 0
         // exactly for finite x (NaN for inf and NaN), and x > 0 fails for NaN. (Written as
@@ -152,6 +180,11 @@ unsafe impl Simd for Portable {
     #[inline(always)]
     fn add_i(self, a: U32x8, b: U32x8) -> U32x8 {
         U32x8(zip(a.0, b.0, u32::wrapping_add))
+    }
+
+    #[inline(always)]
+    fn mul_i(self, a: U32x8, b: U32x8) -> U32x8 {
+        U32x8(zip(a.0, b.0, u32::wrapping_mul))
     }
 
     #[inline(always)]
@@ -233,11 +266,11 @@ unsafe impl Simd for Portable {
     }
 
     #[inline(always)]
-    unsafe fn gather_rgb8(self, texels: &[Vec3], idx: &[i32; LANES]) -> [F32x8; 3] {
+    unsafe fn gather_rgb(self, texels: &[Vec3], idx: U32x8) -> [F32x8; 3] {
         let mut r = [[0.0f32; LANES]; 3];
         for l in 0..LANES {
             // SAFETY: the caller guarantees 0 <= idx[l] < texels.len().
-            let t = unsafe { *texels.get_unchecked(idx[l] as usize) };
+            let t = unsafe { *texels.get_unchecked(idx.0[l] as usize) };
             r[0][l] = t.x;
             r[1][l] = t.y;
             r[2][l] = t.z;

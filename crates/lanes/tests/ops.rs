@@ -74,6 +74,30 @@ impl Kernel for Checks {
             assert_eq!(out(s.sub(va, vb)), want(&|x, y| x - y), "sub");
             assert_eq!(out(s.mul(va, vb)), want(&|x, y| x * y), "mul");
             assert_eq!(out(s.sanitize(va)), want(&|x, _| sanitize1(x)), "sanitize");
+            assert_eq!(
+                out(s.min(va, vb)),
+                want(&|x, y| if x < y { x } else { y }),
+                "min"
+            );
+            assert_eq!(
+                out(s.max(va, vb)),
+                want(&|x, y| if x > y { x } else { y }),
+                "max"
+            );
+            assert_eq!(out(s.floor(va)), want(&|x, _| x.floor()), "floor");
+            // Truncation of values in i32's range: these and their fractions' neighbours.
+            let ints: Vec<f32> = (0..n)
+                .map(|l| {
+                    [-2.5f32, -1.0, -0.5, 0.0, 0.7, 3.0, 8191.9, -2.0e9][(l + rng.next(8)) % 8]
+                })
+                .collect();
+            let ti: Vec<u32> = (0..n).map(|l| ints[l] as i32 as u32).collect();
+            let mut got = vec![0u32; n];
+            s.blend_store_u(&mut got, s.to_i32(s.load(&ints)), s.mask(u32::MAX));
+            assert_eq!(got, ti, "to_i32");
+            let prod: Vec<u32> = (0..n).map(|l| p[l].wrapping_mul(q[l])).collect();
+            s.blend_store_u(&mut got, s.mul_i(vp, vq), s.mask(u32::MAX));
+            assert_eq!(got, prod, "mul_i");
             assert_eq!(out(s.splat(a[0])), want(&|_, _| a[0]), "splat");
             let lane_bits =
                 |f: &dyn Fn(usize) -> bool| (0..n).fold(0u32, |m, l| m | ((f(l) as u32) << l));
@@ -132,19 +156,31 @@ impl Kernel for Checks {
             }
             checked += 1;
         }
-        // The gather, over arrays of several lengths, every index, bits untouched.
+        // The gather, over arrays of several lengths, every index, bits untouched: blocks with
+        // the last texel (which the loads of the 8-lane tokens leave to the gather instruction)
+        // and blocks without it.
         for len in [1usize, 2, 7, 8, 9, 64, 1000, 4096] {
             let texels: Vec<Vec3> = (0..len)
                 .map(|k| Vec3::new(F[k % F.len()], F[(k * 3 + 1) % F.len()], k as f32))
                 .collect();
-            for k0 in (0..len.max(8)).step_by(8) {
-                let idx: [i32; 8] = std::array::from_fn(|l| ((k0 + l) * 7919 % len) as i32);
+            let mut blocks: Vec<Vec<u32>> = (0..len.max(n))
+                .step_by(n)
+                .map(|k0| (0..n).map(|l| ((k0 + l) * 7919 % len) as u32).collect())
+                .collect();
+            blocks.push((0..n).map(|l| (len - 1 - l.min(len - 1)) as u32).collect());
+            blocks.push((0..n).map(|l| (l * 3 % len) as u32).collect());
+            for idx in blocks {
                 // SAFETY: every index is below `len`, the array's length.
-                let g = unsafe { s.gather_rgb8(&texels, &idx) };
-                for l in 0..8 {
+                let g = unsafe { s.gather_rgb(&texels, s.load_u(&idx)) };
+                let g = g.map(|c| {
+                    let mut o = vec![0.0f32; n];
+                    s.store(c, &mut o);
+                    o
+                });
+                for l in 0..n {
                     let t = texels[idx[l] as usize].to_array().map(f32::to_bits);
-                    let got = [g[0].0[l], g[1].0[l], g[2].0[l]].map(f32::to_bits);
-                    assert_eq!(got, t, "gather, length {len}");
+                    let got = [g[0][l], g[1][l], g[2][l]].map(f32::to_bits);
+                    assert_eq!(got, t, "gather, length {len}, indices {idx:?}");
                 }
             }
         }

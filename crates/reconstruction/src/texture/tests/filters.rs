@@ -212,6 +212,44 @@ fn lod_from_squares_agrees_with_lod() {
     }
     assert_eq!(lod_from_squares(f32::NAN, 0.0, 6), 0.0);
     assert_eq!(lod_from_squares(f32::INFINITY, 0.0, 6), 6.0);
+    assert_eq!(lod_from_squares(0.5, f32::NAN, 6), 0.0);
+    assert_eq!(lod_from_squares(1.0, 1.0, 6), 0.0);
+    assert_eq!(lod_from_squares(16.0, 3.0, 6), 2.0);
+    assert_eq!(lod_from_squares(1e30, 3.0, 6), 6.0);
+}
+
+/// The branch-free logarithm of the levels of detail against f64's: the series leaves under
+/// 1e-9, the reduction is exact, and the f32 steps of the mantissa's part (|log2 m| <= 0.5)
+/// round to a few of its ulps (6e-8 each), so 2e-7 plus half an ulp of the result, from the
+/// last addition of the exponent. Checked at the edges of the reduction (sqrt 2, powers of
+/// two, the first float above 1) and across the range.
+#[test]
+fn log2_above_one_is_within_its_bound() {
+    let mut xs = vec![
+        1.0f32 + f32::EPSILON,
+        std::f32::consts::SQRT_2,
+        std::f32::consts::SQRT_2.next_up(),
+        std::f32::consts::SQRT_2.next_down(),
+        2.0,
+        2.0f32.next_down(),
+        2.0f32.next_up(),
+        f32::MAX,
+    ];
+    let mut x = 1.0f32 + f32::EPSILON;
+    while x < 1e38 {
+        xs.push(x);
+        x *= 1.0137;
+    }
+    for x in xs {
+        let got = log2_above_one(x);
+        let want = (x as f64).log2();
+        let bound = 2e-7 + got.abs() as f64 * f64::from(f32::EPSILON) / 2.0;
+        assert!(
+            got > 0.0 && ((got as f64) - want).abs() <= bound,
+            "log2({x}) = {got}, {want}"
+        );
+    }
+    assert_eq!(log2_above_one(f32::INFINITY), 128.0);
 }
 
 proptest! {
