@@ -31,6 +31,7 @@ use base::error::Error;
 use base::error::Result;
 use engine::frame::FrameOptions;
 use imageio::LinearImage;
+use metric::regions::{split_without_noise, RegionError, Regions, REGIONS};
 use metric::{compare, perceptual_distance};
 use scene::Scene;
 use truth::{PixelFilter, TruthOptions};
@@ -196,6 +197,9 @@ pub struct TruthReference {
     pub noise: TruthNoise,
     /// For each part, the mean of every other part and that mean's perceptual noise.
     left_out: Vec<(LinearImage, f64)>,
+    /// Per pixel, the noise variance of the mean's luminance: the parts' squared deviations
+    /// from it over `K (K - 1)` ([`TruthReference::region_errors`]).
+    noise_var: Vec<f64>,
 }
 
 /// `sqrt(max(measured^2 - noise^2, 0))`: a distance with independent noise taken out.
@@ -305,7 +309,17 @@ impl TruthReference {
             let n2 = noise2(&others, &m, perceptual)?;
             left_out.push((m, skew * n2.sqrt()));
         }
+        let ym = image.luminance();
+        let mut noise_var = vec![0.0f64; ym.len()];
+        for part in &all {
+            for ((v, y), m) in noise_var.iter_mut().zip(part.luminance()).zip(&ym) {
+                *v += (y - m) * (y - m);
+            }
+        }
+        let k = PARTS as f64;
+        noise_var.iter_mut().for_each(|v| *v /= k * (k - 1.0));
         Ok(TruthReference {
+            noise_var,
             noise: TruthNoise {
                 samples_per_pixel: 0,
                 parts: PARTS as u32,
@@ -318,6 +332,28 @@ impl TruthReference {
             image,
             left_out,
         })
+    }
+
+    /// `img`'s error against the truth split by `regions` ([`metric::regions`]), each
+    /// region's mean squared luminance error less its pixels' mean noise variance. Errors if
+    /// the sizes differ.
+    pub fn region_errors(
+        &self,
+        img: &LinearImage,
+        regions: &Regions,
+    ) -> Result<[RegionError; REGIONS]> {
+        if (img.width, img.height) != (self.image.width, self.image.height) {
+            return Err(Error::Runtime(format!(
+                "an image of {} x {} against a truth of {} x {}",
+                img.width, img.height, self.image.width, self.image.height
+            )));
+        }
+        Ok(split_without_noise(
+            &img.luminance(),
+            &self.image.luminance(),
+            Some(&self.noise_var),
+            regions,
+        ))
     }
 
     /// `img` measured against the truth, with and without its noise.
@@ -434,6 +470,71 @@ mod tests {
             own.perceptual_text(3),
             format!("≤{:.3}", own.perceptual_measured)
         );
+    }
+
+    /// The per-region correction recovers known region errors from noisy parts. The image
+    /// under test is the clean one plus 0.03 in luminance on the left third of the columns and
+    /// 0.01 elsewhere, split into regions by column (an "emitter" strip, its band, an edge);
+    /// the parts carry uniform relative noise of 0.15 (luminance 0.2-1: a standard deviation
+    /// of up to 0.087 per part, a noise variance of the mean of 8 of about 2.5e-4 on average,
+    /// more than the smaller squared errors measured, 1e-4). A region's corrected mean squared
+    /// error scatters by about sqrt(2 / n) of the noise variance (n >= 288 here: 3e-5), and the
+    /// variance estimated from 8 parts by about 3 % over 288 pixels: the RMSE is checked to
+    /// 25 % of 0.03 (4.5e-4 in squares, over 10 sigma) and to 0.015 in absolute for 0.01.
+    #[test]
+    fn region_errors_take_the_truths_noise_out_per_region() {
+        use metric::regions::Region;
+        let x = clean(96);
+        let ppd = metric::DEFAULT_PPD;
+        let w = x.width as usize;
+        let t = truth_of(|seed| noisy(&x, 0.15, seed), ppd);
+        let y = LinearImage::new(
+            x.width,
+            x.height,
+            x.pixels
+                .iter()
+                .enumerate()
+                .map(|(i, p)| *p + glam::Vec3::splat(if i % w < w / 3 { 0.03 } else { 0.01 }))
+                .collect(),
+        )
+        .unwrap();
+        // Emitters in columns 0..3 (their band: columns 3..6); the reference's one sharp edge
+        // at column 60 (a drop to a tenth).
+        let emitter: Vec<bool> = (0..w * w).map(|i| i % w < 3).collect();
+        let yb: Vec<f64> = (0..w * w)
+            .map(|i| if i % w < 60 { 1.0 } else { 0.1 })
+            .collect();
+        let regions = Regions::classify(&emitter, &yb, w, w);
+        assert!(
+            regions.pixels().iter().all(|&n| n >= 280),
+            "{:?}",
+            regions.pixels()
+        );
+        let got = t.region_errors(&y, &regions).unwrap();
+        let measured = metric::regions::split(&y.luminance(), &t.image.luminance(), &regions);
+        let want = |r: Region| match r {
+            Region::Emitters | Region::EmitterBand => 0.03,
+            Region::Edges => 0.01,
+            // Columns 6..32 at 0.03, 32..57 and 63..96 at 0.01 (the band is columns 0..6,
+            // the edge's pixels 57..63): a mean square.
+            Region::Interior => (26.0 * 0.03f64.powi(2) + 58.0 * 0.01f64.powi(2)) / 84.0,
+        };
+        for (k, r) in Region::ALL.into_iter().enumerate() {
+            let exact = if r == Region::Interior {
+                want(r).sqrt()
+            } else {
+                want(r)
+            };
+            assert!(
+                (got[k].rmse - exact).abs() <= (0.25 * exact).max(0.015),
+                "{}: corrected {} against {exact} (measured {})",
+                r.name(),
+                got[k].rmse,
+                measured[k].rmse
+            );
+            assert!(measured[k].rmse > got[k].rmse, "{}: {got:?}", r.name());
+        }
+        assert!(t.region_errors(&clean(32), &regions).is_err());
     }
 
     /// `img` as a path tracer with `spp` samples per pixel sees it: each sample finds the light

@@ -179,7 +179,8 @@ pub fn section(scenes: &[(&str, &SweepReport)]) -> String {
 #[cfg(test)]
 pub(crate) mod tests {
     use super::*;
-    use crate::sweep::{Errors, Timing};
+    use crate::sweep::{Errors, RegionSplit, Timing};
+    use metric::regions::RegionError;
 
     /// A point of a test sweep: its method, density, bytes, frame-time interval and error
     /// (every error measure alike); no physics error.
@@ -216,6 +217,17 @@ pub(crate) mod tests {
             total: e,
             error_physics: None,
             physics: None,
+            regions: RegionSplit {
+                reconstruction: [RegionError {
+                    pixels: 1,
+                    share: 0.25,
+                    rmse: 0.0,
+                    reference_mean: 1.0,
+                    measured_rmse: 0.0,
+                    noise_rmse: 0.0,
+                }; metric::regions::REGIONS],
+                physics: None,
+            },
             pareto_time: false,
             pareto_memory: false,
         }
@@ -235,6 +247,7 @@ pub(crate) mod tests {
                 max_depth: 4,
                 samples: 1,
                 solution: None,
+                solution_regions: None,
                 converged: None,
             },
             truth: None,

@@ -37,7 +37,8 @@ use serde::{Deserialize, Serialize};
 mod report;
 
 pub use report::{
-    csv, table, Errors, SeedCheck, SolutionLevel, SweepPoint, SweepReport, TextureLevel, Timing,
+    csv, table, Errors, RegionSplit, SeedCheck, SolutionLevel, SweepPoint, SweepReport,
+    TextureLevel, Timing,
 };
 
 use crate::equal_error::{self, EqualError};
@@ -60,6 +61,7 @@ use base::quadtree::MAX_DEPTH;
 use engine::frame::{FrameContext, FrameOptions, FrameStats};
 use engine::shading::Shader;
 use imageio::LinearImage;
+use metric::regions::{RegionError, Regions, REGIONS};
 use metric::{compare, Comparison, DEFAULT_PPD};
 use reconstruction::texture::{SizePolicy, TextureMemory, TextureSet, GUTTER};
 use scene::{Scene, MAX_IMAGE_DIM};
@@ -162,6 +164,36 @@ struct Measured {
     recon: Comparison,
     total: Comparison,
     physics: Option<PhysicsErrors>,
+    regions: RegionSplit,
+}
+
+/// Which pixels of `p`'s view at `opts` show an emitting polygon: a frame whose shader is 1 on
+/// every emitter and 0 elsewhere, a pixel counting when any of its samples shows one.
+fn emitter_pixels(p: &Prepared, opts: &FrameOptions) -> Result<Vec<bool>> {
+    let emits: Vec<bool> = (0..p.scene.polygons.len())
+        .map(|i| p.scene.material_of(i).is_emitter())
+        .collect();
+    let f = |poly: u32, _: f32, _: f32| {
+        if emits.get(poly as usize).copied().unwrap_or(false) {
+            glam::Vec3::ONE
+        } else {
+            glam::Vec3::ZERO
+        }
+    };
+    let mut ctx = FrameContext::new();
+    let stats = ctx.render(
+        &p.scene,
+        &p.scene.camera,
+        &Shader::Reference(&f),
+        Method::Reference,
+        opts,
+    )?;
+    Ok(ctx
+        .into_frame(stats)
+        .pixels
+        .iter()
+        .map(|c| c.x > 0.0)
+        .collect())
 }
 
 /// One method at one texture size, at one density.
@@ -302,7 +334,7 @@ pub fn run_sweep(job: &Context<'_>, req: &SweepRequest) -> Result<SweepReport> {
             req.ppd,
         )?),
     };
-    let (total_ref, reference) = sweep.converged_reference(truth.as_ref())?;
+    let (total_ref, reference, regions) = sweep.converged_reference(truth.as_ref())?;
     // The equal-error search runs at the scene's own density (the factor nearest 1).
     let own = nearest_one(&req.densities);
     let mut equal = None;
@@ -334,11 +366,11 @@ pub fn run_sweep(job: &Context<'_>, req: &SweepRequest) -> Result<SweepReport> {
         densities.push(SolutionLevel::of(
             &p,
             &at.recon_ref,
-            truth.as_ref(),
+            (truth.as_ref(), &regions),
             Some(&total_ref),
             req.ppd,
         )?);
-        points.extend(at.measure(&total_ref, truth.as_ref(), &mut load)?);
+        points.extend(at.measure(&total_ref, (truth.as_ref(), &regions), &mut load)?);
         if truth.is_some() && level == own {
             seed = Some(sweep.seed_check(factor, &at.recon_ref, truth.as_ref())?);
         }
@@ -451,17 +483,21 @@ impl<'a> Sweep<'a> {
         }
     }
 
-    /// The converged solution's exact image (the total error's reference) and its level (its
-    /// exact image against `truth`); the solution itself is dropped before the densities are
-    /// solved.
+    /// The converged solution's exact image (the total error's reference), its level (its
+    /// exact image against `truth`) and the regions every point's error is split by (from that
+    /// image and the pixels showing an emitter); the solution itself is dropped before the
+    /// densities are solved.
     fn converged_reference(
         &self,
         truth: Option<&TruthReference>,
-    ) -> Result<(LinearImage, SolutionLevel)> {
+    ) -> Result<(LinearImage, SolutionLevel, Regions)> {
         let scene = at_density(&self.input.scene, self.req.reference_density);
         let (fine, exact) = self.solve_exact(scene, "converged reference")?;
-        let level = SolutionLevel::of(&fine, &exact, truth, None, self.req.ppd)?;
-        Ok((exact, level))
+        let (w, h) = (exact.width as usize, exact.height as usize);
+        let emitters = emitter_pixels(&fine, &self.opts)?;
+        let regions = Regions::classify(&emitters, &exact.luminance(), w, h);
+        let level = SolutionLevel::of(&fine, &exact, (truth, &regions), None, self.req.ppd)?;
+        Ok((exact, level, regions))
     }
 
     /// `scene` solved, and its exact image (the `reference` method), the progress labelled
@@ -591,12 +627,13 @@ impl AtDensity<'_> {
     fn measure(
         &self,
         total_ref: &LinearImage,
-        truth: Option<&TruthReference>,
+        (truth, regions): (Option<&TruthReference>, &Regions),
         load: &mut Vec<LoadSample>,
     ) -> Result<Vec<SweepPoint>> {
         let sets = self.drawer.texture_sets()?;
         let candidates = candidates(&self.drawer.sweep.methods, &sets);
         let ppd = self.drawer.sweep.req.ppd;
+        let exact_y = self.recon_ref.luminance();
         let mut errors = Vec::new();
         for c in &candidates {
             let img = self.drawer.image(c)?;
@@ -604,6 +641,10 @@ impl AtDensity<'_> {
                 recon: compare(&img, &self.recon_ref, ppd)?,
                 total: compare(&img, total_ref, ppd)?,
                 physics: truth.map(|t| t.errors(&img, ppd)).transpose()?,
+                regions: RegionSplit {
+                    reconstruction: metric::regions::split(&img.luminance(), &exact_y, regions),
+                    physics: truth.map(|t| t.region_errors(&img, regions)).transpose()?,
+                },
             });
         }
         let samples = self.time(&candidates, load)?;
@@ -686,6 +727,7 @@ impl AtDensity<'_> {
             total: Errors::from(tc),
             error_physics: m.physics.map(|e| e.perceptual),
             physics: m.physics,
+            regions: m.regions,
             pareto_time: false,
             pareto_memory: false,
         })

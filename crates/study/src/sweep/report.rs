@@ -94,10 +94,23 @@ pub struct SweepPoint {
     pub error_physics: Option<f64>,
     /// Perceptual distance and RMSE against the truth image (with a truth image).
     pub physics: Option<PhysicsErrors>,
+    /// The luminance error split by where it lies ([`metric::regions`]).
+    pub regions: RegionSplit,
     /// On the Pareto front of total error against frame time.
     pub pareto_time: bool,
     /// On the Pareto front of total error against bytes.
     pub pareto_memory: bool,
+}
+
+/// A point's luminance error split by region ([`metric::regions`]: a band around the
+/// emitters, near the sharp edges, the interior; the regions of the sweep's converged exact
+/// image, the same pixels for every point).
+#[derive(Debug, Clone, Copy, Serialize, PartialEq)]
+pub struct RegionSplit {
+    /// Against the same solution's exact image: the method's own error.
+    pub reconstruction: [RegionError; REGIONS],
+    /// Against the truth, its noise taken out per region (with a truth image).
+    pub physics: Option<[RegionError; REGIONS]>,
 }
 
 /// One solution of a sweep: its tolerance, maximum depth and sample count.
@@ -111,6 +124,9 @@ pub struct SolutionLevel {
     pub samples: u64,
     /// Its exact image against the truth image: the solution error (with a truth image).
     pub solution: Option<PhysicsErrors>,
+    /// The solution error split by region, the truth's noise taken out per region (with a
+    /// truth image).
+    pub solution_regions: Option<[RegionError; REGIONS]>,
     /// Its exact image against the converged solution's (perceptual distance): how far the
     /// solver is from its own convergence, the reconstruction left out (`None` for the
     /// converged solution itself).
@@ -121,11 +137,12 @@ impl SolutionLevel {
     pub(super) fn of(
         p: &Prepared,
         exact: &LinearImage,
-        truth: Option<&TruthReference>,
+        (truth, regions): (Option<&TruthReference>, &Regions),
         converged: Option<&LinearImage>,
         ppd: f64,
     ) -> Result<SolutionLevel> {
         Ok(SolutionLevel {
+            solution_regions: truth.map(|t| t.region_errors(exact, regions)).transpose()?,
             converged: converged
                 .map(|c| compare(exact, c, ppd).map(|d| d.perceptual_distance))
                 .transpose()?,

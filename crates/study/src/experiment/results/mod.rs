@@ -20,6 +20,7 @@ use serde::Serialize;
 
 mod budget;
 mod page;
+mod regions;
 
 pub use page::markdown;
 

@@ -365,6 +365,7 @@ fn scene_section(sc: &SceneResults) -> String {
         best_at_finest(sw)
     );
     s += &budget::budget_section(sw);
+    s += &regions::region_section(sw);
     s += &own_density_table(sw);
     s += "\nEvery point on a front, all densities:\n\n";
     s += POINT_HEADER;
