@@ -16,8 +16,8 @@
 //!   spikes of the second difference, which this sums.
 //! - [`edges`]: the share of the error within 2 px of the reference's sharp edges (where the
 //!   light jumps), and the RMSE on each side.
-//! - [`regions`]: the error split by where it lies: a band around the emitters, near sharp
-//!   edges, the interior.
+//! - [`regions`]: the error split by where it lies: the emitters, a band around them, near
+//!   sharp edges, the interior.
 //! - [`pixels`]: the pixel-by-pixel check against a golden image (which pixels moved, a
 //!   difference image), for regression tests.
 //! - Here: the plain error measures and [`compare`], which computes all of them, with the

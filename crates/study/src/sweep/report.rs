@@ -102,8 +102,8 @@ pub struct SweepPoint {
     pub pareto_memory: bool,
 }
 
-/// A point's luminance error split by region ([`metric::regions`]: a band around the
-/// emitters, near the sharp edges, the interior; the regions of the sweep's converged exact
+/// A point's luminance error split by region ([`metric::regions`]: the emitters, a band
+/// around them, near the sharp edges, the interior; the regions of the sweep's converged exact
 /// image, the same pixels for every point).
 #[derive(Debug, Clone, Copy, Serialize, PartialEq)]
 pub struct RegionSplit {

@@ -1,6 +1,6 @@
 //! Where the error lies, on the results page: at the scene's own density, the solution's error
-//! and every method's split by region ([`metric::regions`]: a band around the emitters, near
-//! the sharp edges, the interior), as relative RMSE of luminance, with the findings (where each
+//! and every method's split by region ([`metric::regions`]: the emitters, a band around them,
+//! near the sharp edges, the interior), as relative RMSE of luminance, with the findings (where each
 //! term's squared error sits) computed from the same numbers.
 //!
 //! The solution error (its exact image against the truth) is the part every method shares; a
@@ -35,9 +35,10 @@ pub(super) fn region_section(sw: &SweepReport) -> String {
     let mut s = format!(
         "**Where the error lies** at the scene's own density ({own}): the luminance error split \
          by region, as RMSE over the region's mean exact luminance. The regions are those of the \
-         converged exact image: the **emitter band** (within {} px of a pixel showing an \
-         emitter, the emitter included), **edges** (within {} px of a sharp edge of the light \
-         or a silhouette, outside the band) and the **interior** (the rest). Each method's cell \
+         converged exact image: the **emitters** (pixels showing an emitting polygon), the \
+         **emitter band** (within {} px of them, not showing one), **edges** (within {} px of a \
+         sharp edge of the light or a silhouette, outside the band) and the **interior** (the \
+         rest). Each method's cell \
          is *physics error (reconstruction error)*, the textures at the quadtree-depth size and \
          the placement nearer the exact image; **solution** is the solution's exact image \
          against the truth, the part every method shares. The truth's noise is taken out of \
