@@ -125,9 +125,21 @@ unsafe impl Simd for Portable {
 
     #[inline(always)]
     fn floor(self, a: F32x8) -> F32x8 {
+        // `f32::floor`'s value in lane operations: the baseline x86-64 target has no rounding
+        // instruction and makes of `floor` a library call per lane. Below 2^23 in magnitude
+        // the value truncated through i32, stepped down where truncation went up, with the
+        // sign of the input (so -0.0 and the negative values above -1 keep theirs); larger
+        // values, infinities and NaN are their own floor.
         let mut r = [0.0; LANES];
         for l in 0..LANES {
-            r[l] = a.0[l].floor();
+            let x = a.0[l];
+            let t = x as i32 as f32;
+            let t = if t > x { t - 1.0 } else { t };
+            r[l] = if x.abs() < 8_388_608.0 {
+                t.copysign(x)
+            } else {
+                x
+            };
         }
         F32x8(r)
     }

@@ -297,7 +297,10 @@ impl Sampler {
         let levels = if s.bits(large) & all == 0 {
             Levels::MAGNIFIED
         } else {
-            levels8(matches!(self.filter, Filter::Nearest), lx2, ly2, last)
+            match self.filter {
+                Filter::Nearest => levels8::<true>(lx2, ly2, last),
+                _ => levels8::<false>(lx2, ly2, last),
+            }
         };
         let Levels { level, frac, blend } = levels;
         let blend_m = s.eq_u(s.load_u(&blend), one);
@@ -384,16 +387,23 @@ impl Levels {
 /// filter, else floor(d) and the fraction d - floor(d), blending where that is above 0 short
 /// of the last level: the scalar code's choices, branch-free, so the loop runs in lanes.
 #[inline(always)]
-fn levels8(nearest: bool, lx2: F32x8, ly2: F32x8, last: usize) -> Levels {
+fn levels8<const NEAREST: bool>(lx2: F32x8, ly2: F32x8, last: usize) -> Levels {
     let last_f = last as f32;
     let mut level = [0u32; LANES];
     let mut frac = [0.0f32; LANES];
     let mut blend = [0u32; LANES];
     for l in 0..LANES {
         let d = lod_from_squares(lx2.0[l], ly2.0[l], last);
-        let l0 = if nearest { d.round() } else { d.floor() };
+        // d is in [0, last]: its floor is its truncation, one conversion in lanes (the
+        // baseline x86-64 target makes a library call per lane of `floor` and `round`).
+        // SAFETY: d is finite and below 2^31.
+        let l0 = if NEAREST {
+            d.round()
+        } else {
+            (unsafe { d.to_int_unchecked::<i32>() }) as f32
+        };
         frac[l] = d - l0;
-        blend[l] = (!nearest & !((frac[l] <= 0.0) | (l0 == last_f))) as u32;
+        blend[l] = (!NEAREST & !((frac[l] <= 0.0) | (l0 == last_f))) as u32;
         // SAFETY: l0 is an integer in [0, last], and `last` is below a chain's level count
         // (13 at most: sides up to `MAX_TEXTURE_SIZE`); `as u32` would add a saturating range
         // check per lane.
