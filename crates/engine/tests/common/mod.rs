@@ -184,6 +184,17 @@ pub(crate) fn busy_scene(w: u32, h: u32) -> Scene {
     scene_with(polys, camera, w, h)
 }
 
+/// A perspective camera looking obliquely down at the origin of the z = 0 plane from above
+/// and in front, 60 degrees vertical field of view: the test meshes' oblique view.
+pub(crate) fn oblique_camera() -> Camera {
+    Camera {
+        eye: DVec3::new(0.3, -2.0, 4.0),
+        look_at: DVec3::ZERO,
+        up: DVec3::Y,
+        projection: Projection::Perspective { fov_y_deg: 60.0 },
+    }
+}
+
 /// busy_scene (perspective: quads, triangles, a floor clipped at the near plane), the jittered
 /// mesh seen orthographically (with a parallelogram over it) and the same mesh seen obliquely.
 pub(crate) fn lane_test_scenes() -> Vec<(&'static str, Scene)> {
@@ -203,12 +214,7 @@ pub(crate) fn lane_test_scenes() -> Vec<(&'static str, Scene)> {
     let oblique = mesh(w, h, 8, false, |x, y| {
         DVec3::new(x / 113.0 * 40.0 - 20.0, y / 77.0 * 40.0 - 20.0, 0.0)
     });
-    let camera = Camera {
-        eye: DVec3::new(0.3, -2.0, 4.0),
-        look_at: DVec3::ZERO,
-        up: DVec3::Y,
-        projection: Projection::Perspective { fov_y_deg: 60.0 },
-    };
+    let camera = oblique_camera();
     vec![
         ("busy", busy_scene(150, 100)),
         ("ortho mesh", ortho),

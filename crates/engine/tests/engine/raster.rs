@@ -15,7 +15,7 @@ use glam::{DVec3, Vec3};
 use proptest::prelude::*;
 use scene::{Camera, Polygon, Projection};
 
-use crate::common::{busy_scene, mesh, ortho_pixels, scene_with, GridSource};
+use crate::common::{busy_scene, mesh, oblique_camera, ortho_pixels, scene_with, GridSource};
 
 /// One patch per polygon whose value is (u, v, 1): the image shows the rasterizer's (u, v).
 struct UvSource(PatchCoeffs);
@@ -71,12 +71,7 @@ fn perspective_mesh_filling_the_view_covers_every_pixel_exactly_once() {
     let polys = mesh(w, h, 8, false, |x, y| {
         DVec3::new(x / 96.0 * 40.0 - 20.0, y / 88.0 * 40.0 - 20.0, 0.0)
     });
-    let camera = Camera {
-        eye: DVec3::new(0.3, -2.0, 4.0),
-        look_at: DVec3::ZERO,
-        up: DVec3::Y,
-        projection: Projection::Perspective { fov_y_deg: 60.0 },
-    };
+    let camera = oblique_camera();
     let scene = scene_with(polys, camera, w, h);
     let prims = build_primitives(&scene, &camera, w, h, false).unwrap();
     let counts = coverage_counts(&prims, w, h, 128);
@@ -421,12 +416,7 @@ fn a_guessed_view_gives_the_records_of_the_true_one() {
     let polys = mesh(w, h, 6, false, |x, y| {
         DVec3::new(x / 96.0 * 40.0 - 20.0, y / 88.0 * 40.0 - 20.0, 0.0)
     });
-    let far = Camera {
-        eye: DVec3::new(0.3, -2.0, 4.0),
-        look_at: DVec3::ZERO,
-        up: DVec3::Y,
-        projection: Projection::Perspective { fov_y_deg: 60.0 },
-    };
+    let far = oblique_camera();
     // 1e-5 units above the plane: within twice the largest near plane (1e-4 of the extent).
     let close = Camera {
         eye: DVec3::new(0.3, -2.0, 1e-5),

@@ -23,7 +23,7 @@ pub(super) fn region_section(sw: &SweepReport) -> String {
                 .iter()
                 .filter(|p| p.density == own && p.method == m)
                 .filter(|p| p.texture.is_none_or(|l| l.halvings == 0))
-                .min_by(|a, b| recon_rmse(a).total_cmp(&recon_rmse(b)))
+                .min_by(|a, b| a.reconstruction.rmse.total_cmp(&b.reconstruction.rmse))
         })
         .collect();
     let Some(first) = points.first() else {
@@ -85,19 +85,6 @@ fn percent(e: &RegionError) -> String {
         format!("{:.2} %", 100.0 * e.relative_rmse())
     } else {
         format!("≤{:.2} %", 100.0 * e.relative_measured_rmse())
-    }
-}
-
-/// A point's whole-image reconstruction RMSE from its regions (the pixel-weighted mean of their
-/// squares), to pick the texture placement nearer the exact image.
-fn recon_rmse(p: &SweepPoint) -> f64 {
-    let r = &p.regions.reconstruction;
-    let n: usize = r.iter().map(|e| e.pixels).sum();
-    let sq: f64 = r.iter().map(|e| e.rmse * e.rmse * e.pixels as f64).sum();
-    if n > 0 {
-        (sq / n as f64).sqrt()
-    } else {
-        0.0
     }
 }
 
