@@ -24,13 +24,15 @@
 //!   polygons near it with sampled visibility ([`Transfer::probe`], chosen by
 //!   `radiosity.visibility`). A polygon not found receives nothing from that shooter; the
 //!   rays go on until the light such polygons would get is estimated below a bound;
-//! - each (shooter, receiver) pair found is classified once: culled (no transfer possible,
-//!   dropped), open (no polygon can intersect the convex hull of the two, so V = 1 without
-//!   rays), or occluded (cast rays, testing only the pair's candidates). A candidate must
-//!   overlap the hull's bounding box, cross both polygons' planes, not be separated from the
-//!   hull by its own plane, and not lie outside a side face of the hull (planes through an edge
-//!   of one polygon and a vertex of the other); the BVH query itself skips subtrees outside
-//!   those faces. The classification is conservative and deterministic;
+//! - each (shooter, receiver) pair found is classified once: culled (no transfer possible:
+//!   one faces the other's back, or one candidate occluder meets every segment between them,
+//!   as a wall does between a room and a shooter in the next; dropped), open (no polygon can
+//!   intersect the convex hull of the two, so V = 1 without rays), or occluded (cast rays,
+//!   testing only the pair's candidates). A candidate must overlap the hull's bounding box,
+//!   cross both polygons' planes, not be separated from the hull by its own plane, and not lie
+//!   outside a side face of the hull (planes through an edge of one polygon and a vertex of the
+//!   other); the BVH query itself skips subtrees outside those faces. The classification is
+//!   conservative and deterministic;
 //! - pair tables are sparse (only pairs that are not culled) with an index per receiver
 //!   ([`Transfer::shooters_of`]), so a shot, a gather and the tables themselves cost what a
 //!   shooter or a point reaches, never the number of polygons in the scene; a gather visits
@@ -56,8 +58,8 @@ pub(crate) use receivers::{sampled_visibility, Pairs};
 use scene::bvh::{Aabb, Bvh};
 use scene::{Polygon, Scene, Shape};
 use shape::{shape_tolerance, PatchShape};
-use visibility::hull_faces;
 pub(crate) use visibility::Look;
+use visibility::{blocks_shaft, hull_faces};
 
 /// Receiver points are evaluated at (u, v) clamped into [EDGE_INSET, 1 - EDGE_INSET]^2.
 pub const EDGE_INSET: f64 = 1e-6;
@@ -628,6 +630,20 @@ impl<'a> Transfer<'a> {
             cands.push(q);
         });
         cands.sort_unstable();
+        // One occluder across every segment between the two: nothing can pass (a wall
+        // between a room and a shooter in the next one).
+        let (rs, ss) = hull.split_at(rv.len());
+        let polys = &self.scene.polygons;
+        if cands.iter().any(|&q| {
+            blocks_shaft(
+                polys[q as usize].vertices(),
+                polys[q as usize].normal,
+                (rs, ss),
+                eps,
+            )
+        }) {
+            return (PairClass::Culled, Vec::new());
+        }
         if cands.is_empty() {
             (PairClass::Open, cands)
         } else {

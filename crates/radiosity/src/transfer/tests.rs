@@ -178,6 +178,90 @@ fn hull_faces_bound_the_hull() {
     assert!(!outside(DVec3::new(0.5, 0.5, 0.5)));
 }
 
+/// A polygon said to block every segment between two others does: on random triangles and
+/// quads (a random occluder, one polygon above its plane and one below, or a point below as a
+/// spot is, all turned by a random rotation), every segment between random points of the two,
+/// their vertices included, crosses the occluder's plane inside it (brute force). The cases
+/// are drawn so that both answers occur often.
+#[test]
+fn a_blocked_shaft_is_blocked_for_every_segment() {
+    use base::rng::Rng;
+    /// A convex polygon (triangle or quad) around (cx, cy) at height z, about `size` wide.
+    fn convex(rng: &mut Rng, (cx, cy, z): (f64, f64, f64), size: f64, quad: bool) -> Vec<DVec3> {
+        let n = if quad { 4 } else { 3 };
+        let phase = rng.next_f64() * std::f64::consts::TAU;
+        (0..n)
+            .map(|k| {
+                let t =
+                    phase + std::f64::consts::TAU * (k as f64 + 0.3 * rng.next_f64()) / n as f64;
+                let r = size * (0.5 + 0.5 * rng.next_f64());
+                DVec3::new(cx + r * t.cos(), cy + r * t.sin(), z)
+            })
+            .collect()
+    }
+    /// A random point of a convex polygon: a random convex combination of its vertices.
+    fn point(rng: &mut Rng, v: &[DVec3]) -> DVec3 {
+        let w: Vec<f64> = v.iter().map(|_| rng.next_f64()).collect();
+        let sum: f64 = w.iter().sum();
+        v.iter().zip(&w).map(|(&p, &w)| p * (w / sum)).sum()
+    }
+    let mut rng = Rng::new(7);
+    let (mut blocked, mut open) = (0, 0);
+    for case in 0..4000 {
+        let mut centre = |z: f64| (2.0 * rng.next_f64() - 1.0, 2.0 * rng.next_f64() - 1.0, z);
+        let (ca, cb) = (centre(0.1), centre(-0.1));
+        let (za, zb) = (2.0 * rng.next_f64(), 2.0 * rng.next_f64());
+        let size = 1.0 + 2.0 * rng.next_f64();
+        let q = convex(&mut rng, (0.0, 0.0, 0.0), size, case % 2 == 0);
+        let sa = 0.3 + rng.next_f64();
+        let a = convex(&mut rng, (ca.0, ca.1, ca.2 + za), sa, case % 3 == 0);
+        let b = if case % 5 == 0 {
+            vec![DVec3::new(cb.0, cb.1, cb.2 - zb)]
+        } else {
+            let sb = 0.3 + rng.next_f64();
+            convex(&mut rng, (cb.0, cb.1, cb.2 - zb), sb, case % 7 == 0)
+        };
+        let angles = [
+            6.0 * rng.next_f64(),
+            6.0 * rng.next_f64(),
+            6.0 * rng.next_f64(),
+        ];
+        let rot = glam::DQuat::from_euler(glam::EulerRot::XYZ, angles[0], angles[1], angles[2]);
+        let turn = |v: &[DVec3]| v.iter().map(|&p| rot * p).collect::<Vec<_>>();
+        let (q, a, b) = (turn(&q), turn(&a), turn(&b));
+        let n = rot * DVec3::Z;
+        if !blocks_shaft(&q, n, (&a, &b), 1e-9) {
+            open += 1;
+            continue;
+        }
+        blocked += 1;
+        let crosses_inside = |x: DVec3, y: DVec3| {
+            let (dx, dy) = (n.dot(x - q[0]), n.dot(y - q[0]));
+            let p = x + (y - x) * (dx / (dx - dy));
+            let turns: Vec<f64> = (0..q.len())
+                .map(|i| (q[(i + 1) % q.len()] - q[i]).cross(p - q[i]).dot(n))
+                .collect();
+            turns.iter().all(|&t| t >= 0.0) || turns.iter().all(|&t| t <= 0.0)
+        };
+        for &x in &a {
+            for &y in &b {
+                assert!(crosses_inside(x, y), "case {case}: vertices {x} {y}");
+            }
+        }
+        for _ in 0..50 {
+            let (x, y) = (point(&mut rng, &a), point(&mut rng, &b));
+            assert!(
+                crosses_inside(x, y),
+                "case {case}: {x} {y} passes the occluder"
+            );
+        }
+    }
+    assert!(
+        blocked > 400 && open > 400,
+        "{blocked} blocked, {open} open"
+    );
+}
+
 /// Emitters keep `shadow_rays` targets, reflecting patches get `shadow_rays / 4` (at least 1).
 #[test]
 fn patches_cast_fewer_rays_than_emitters() {

@@ -414,6 +414,59 @@ pub(super) fn pyramid_sides(x: DVec3, outline: &SmallPoly) -> Sides {
     sides
 }
 
+/// Whether the convex planar polygon `q` (normal `n`) meets every segment between the convex
+/// point sets `a` and `b` (a polygon and a polygon or a point): both lie strictly on opposite
+/// sides of its plane, and the point where each segment between a vertex of `a` and one of `b`
+/// crosses the plane lies inside `q` by more than `eps` of its edges' lengths.
+///
+/// Why the vertices suffice: seen from a fixed point of `a`, the crossings of the segments to
+/// `b` are the central projection of `b` onto the plane, the convex hull of its vertices'
+/// projections; over the points of `a` the same holds with the roles swapped, so every
+/// crossing lies in the convex hull of the crossings of vertex pairs, and `q` holds that hull
+/// if it holds its points.
+pub(super) fn blocks_shaft(q: &[DVec3], n: DVec3, (a, b): (&[DVec3], &[DVec3]), eps: f64) -> bool {
+    let (Some(&q0), true) = (q.first(), a.len() <= 8 && b.len() <= 8) else {
+        return false;
+    };
+    let tol = eps * n.length();
+    let mut da = [0.0; 8];
+    let mut db = [0.0; 8];
+    let side = |pts: &[DVec3], d: &mut [f64; 8]| {
+        for (d, &p) in d.iter_mut().zip(pts) {
+            *d = n.dot(p - q0);
+        }
+        let d = &d[..pts.len()];
+        if d.iter().all(|&x| x > tol) {
+            1
+        } else if d.iter().all(|&x| x < -tol) {
+            -1
+        } else {
+            0
+        }
+    };
+    let (sa, sb) = (side(a, &mut da), side(b, &mut db));
+    if sa * sb != -1 {
+        return false;
+    }
+    // The outline's winding about `n` (a triangle cut from a folded quad keeps the quad's).
+    let edges = || (0..q.len()).map(|i| (q[i], q[(i + 1) % q.len()]));
+    let w = edges()
+        .map(|(p, r)| (p - q0).cross(r - q0).dot(n))
+        .sum::<f64>()
+        .signum();
+    let inside = |x: DVec3| {
+        edges().all(|(p, r)| {
+            let e = r - p;
+            w * e.cross(x - p).dot(n) > eps * e.length() * n.length()
+        })
+    };
+    a.iter().zip(da).all(|(&pa, dpa)| {
+        b.iter()
+            .zip(db)
+            .all(|(&pb, dpb)| inside(pa + (pb - pa) * (dpa / (dpa - dpb))))
+    })
+}
+
 /// Side faces of the convex hull of two convex point sets `a` and `b` (a polygon and a polygon or
 /// a point) that pass through an edge of one and a vertex of the other: planes (n, p0) with every
 /// point of both sets on the side `n . (p - p0) >= -eps |n|`. Together with the two polygons' own
