@@ -5,7 +5,8 @@
 # peak memory of a render per method. Raw results go to OUT (default target/performance), one
 # file per measurement; the page's tables are read off them.
 #
-#   bash tools/performance.sh            # about 6 minutes on 2 cores
+#   bash tools/performance.sh            # over 25 minutes on 2 cores: the 8 x 8 building's
+#                                        # solve alone took 19 (docs/performance.md)
 #   CRITERION=1 bash tools/performance.sh   # also the criterion deferred-pass benchmarks
 #   PEER=1 bash tools/performance.sh        # also Mesa llvmpipe on the exported models
 #                                           # (tools/peer-llvmpipe.py says what it needs)
