@@ -93,10 +93,28 @@ pub(super) struct PlaneView {
     pub n: DVec3,
     /// `n . c0`, c0 the first corner.
     pub d: f64,
-    /// The largest distance from the first corner to another (world units).
-    pub size: f64,
+    /// An upper bound of `size(poly)` ([`corner_size`]), the largest distance from the first
+    /// corner to another (world units), without its square root: only a plane nearly through
+    /// the eye needs the distance itself.
+    pub size_bound: f64,
     /// Whether the camera sees the front side.
     pub front_facing: bool,
+}
+
+/// The largest distance from polygon `poly`'s first corner to another, as one square root of the
+/// largest square (the same value: the correctly rounded square root is monotonic).
+pub(super) fn corner_size(poly: &Polygon) -> f64 {
+    poly.vertices()
+        .iter()
+        .map(|c| (*c - poly.corners[0]).length_squared())
+        .fold(0.0, f64::max)
+        .sqrt()
+}
+
+/// The L1 norm of `v`: at least its Euclidean length.
+#[inline(always)]
+fn l1(v: DVec3) -> f64 {
+    v.x.abs() + v.y.abs() + v.z.abs()
 }
 
 /// The camera's view transform and projection for one image size.
@@ -312,9 +330,10 @@ impl View {
         let PlaneView {
             n,
             d,
-            size,
+            size_bound,
             front_facing,
         } = self.plane_view(poly, c0);
+        let size = (size_bound, || corner_size(poly));
         let triangle = poly.shape == Shape::Triangle;
         let (planes, corners) = if triangle {
             let (b, c) = (cv[1] - c0, cv[2] - c0);
@@ -343,25 +362,24 @@ impl View {
     pub(super) fn plane_view(&self, poly: &Polygon, c0: DVec3) -> PlaneView {
         let n = self.dir_to_view(poly.normal);
         let d = n.dot(c0);
-        // The largest corner distance, as one square root of the largest square (the same
-        // value: the correctly rounded square root is monotonic).
-        let size = poly
+        // The largest corner distance's bound: the L1 norm is at least the Euclidean one.
+        let size_bound = poly
             .vertices()
             .iter()
-            .map(|c| (*c - poly.corners[0]).length_squared())
-            .fold(0.0, f64::max)
-            .sqrt();
+            .map(|c| l1(*c - poly.corners[0]))
+            .fold(0.0, f64::max);
         let front_facing = if self.perspective { d < 0.0 } else { n.z < 0.0 };
         PlaneView {
             n,
             d,
-            size,
+            size_bound,
             front_facing,
         }
     }
 
     /// The per-pixel expressions of a polygon with view normal `n`, plane offset `d = n . c0`,
-    /// corner c0, size `size` and in-plane linear forms (e1, e2): Q (1/w in perspective, w in
+    /// corner c0, size `(bound, exact)` (an upper bound of its size and the size itself, asked
+    /// for only where the bound cannot decide) and in-plane linear forms (e1, e2): Q (1/w in perspective, w in
     /// orthographic) and the coordinates `e1 . (P - c0)`, `e2 . (P - c0)` of the pixel's point
     /// P as [`plane`] orders them. (e1, e2) is an orthonormal frame for quads, the barycentric
     /// duals for triangles. `None` when the plane is edge-on or an expression is not finite.
@@ -373,7 +391,7 @@ impl View {
         n: DVec3,
         d: f64,
         c0: DVec3,
-        size: f64,
+        (size_bound, size): (f64, impl FnOnce() -> f64),
         e1: DVec3,
         e2: DVec3,
     ) -> Option<[Plane; 5]> {
@@ -386,8 +404,12 @@ impl View {
         };
         let constant = |c: f64| Plane { a: 0.0, b: 0.0, c };
         let planes = if self.perspective {
-            // P = w (X, Y, 1); n . P = d  =>  1/w = (n . (X, Y, 1)) / d.
-            if d.abs() <= 1e-12 * (c0.length() + size) {
+            // P = w (X, Y, 1); n . P = d  =>  1/w = (n . (X, Y, 1)) / d. Edge-on when |d| is
+            // at most 1e-12 of |c0| + size; the L1 bounds (at least the Euclidean lengths, and
+            // doubled against rounding) rule that out without a square root for all but planes
+            // nearly through the eye, which take the exact test: the same decision always.
+            let maybe_edge_on = d.abs() <= 2e-12 * (l1(c0) + size_bound);
+            if maybe_edge_on && d.abs() <= 1e-12 * (c0.length() + size()) {
                 return None;
             }
             let q = lin(n, n.z);

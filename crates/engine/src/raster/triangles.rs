@@ -59,7 +59,7 @@ pub(crate) fn triangle_into(
     let PlaneView {
         n,
         d,
-        size,
+        size_bound,
         front_facing,
     } = view.plane_view(poly, c0);
     // The cheap rejections first (culled, off screen, covering no sample: a sixth of a mesh
@@ -82,6 +82,7 @@ pub(crate) fn triangle_into(
     let Some((m1, m2)) = barycentric_duals(n, cv[1] - c0, cv[2] - c0) else {
         return Outcome::Rejected;
     };
+    let size = (size_bound, || super::geometry::corner_size(poly));
     let Some(planes) = view.pixel_planes(n, d, c0, size, m1, m2) else {
         return Outcome::Rejected;
     };
