@@ -540,9 +540,11 @@ impl<'a> Transfer<'a> {
         }
     }
 
-    /// Class of the pair (shooter `s`, receiver polygon `r`), see [`PairClass`], and for an
-    /// occluded pair the polygons (in index order) that may intersect the convex hull of the two.
-    pub(crate) fn classify(&self, s: usize, r: usize) -> (PairClass, Vec<u32>) {
+    /// The receiver `r`'s corners followed by shooter `s`'s (its outline, or a spot's
+    /// position): the points whose convex hull holds every segment between the two; `None`
+    /// when one faces the other's back (or the shooter is the receiver), so that no light can
+    /// pass between them.
+    fn facing_hull(&self, s: usize, r: usize) -> Option<Vec<DVec3>> {
         let eps = self.eps;
         let sg = &self.shooters[s];
         let rp = &self.scene.polygons[r];
@@ -559,18 +561,18 @@ impl<'a> Transfer<'a> {
                 // integrate the peak sample over a whole leaf: a spot 1e-9 from a wall made the
                 // room 1000 times too bright. Its light on that wall is dropped instead.
                 if !above_r(pos) {
-                    return (PairClass::Culled, Vec::new());
+                    return None;
                 }
                 hull.push(pos);
             }
             _ => {
                 if sg.polygon as usize == r {
-                    return (PairClass::Culled, Vec::new());
+                    return None;
                 }
                 let s0 = sg.outline.v[0];
                 let tol = facing_tolerance(rv.iter().chain(sg.outline.verts()));
                 if !rv.iter().any(|&p| sg.normal.dot(p - s0) > tol) {
-                    return (PairClass::Culled, Vec::new());
+                    return None;
                 }
                 if !sg
                     .outline
@@ -578,11 +580,25 @@ impl<'a> Transfer<'a> {
                     .iter()
                     .any(|&p| rp.normal.dot(p - r0) > tol)
                 {
-                    return (PairClass::Culled, Vec::new());
+                    return None;
                 }
                 hull.extend_from_slice(sg.outline.verts());
             }
         }
+        Some(hull)
+    }
+
+    /// Class of the pair (shooter `s`, receiver polygon `r`), see [`PairClass`], and for an
+    /// occluded pair the polygons (in index order) that may intersect the convex hull of the two.
+    pub(crate) fn classify(&self, s: usize, r: usize) -> (PairClass, Vec<u32>) {
+        let eps = self.eps;
+        let sg = &self.shooters[s];
+        let rp = &self.scene.polygons[r];
+        let rv = rp.vertices();
+        let above_r = |p: DVec3| rp.normal.dot(p - rv[0]) > eps;
+        let Some(hull) = self.facing_hull(s, r) else {
+            return (PairClass::Culled, Vec::new());
+        };
         let b = Aabb::of(&hull);
         let b = Aabb {
             lo: b.lo - DVec3::splat(eps),
