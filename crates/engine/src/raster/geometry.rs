@@ -93,9 +93,9 @@ pub(super) struct PlaneView {
     pub n: DVec3,
     /// `n . c0`, c0 the first corner.
     pub d: f64,
-    /// An upper bound of `size(poly)` ([`corner_size`]), the largest distance from the first
-    /// corner to another (world units), without its square root: only a plane nearly through
-    /// the eye needs the distance itself.
+    /// An upper bound of [`corner_size`], the largest distance from the first corner to
+    /// another (world units), found without a square root: only a plane nearly through the
+    /// eye needs the distance itself.
     pub size_bound: f64,
     /// Whether the camera sees the front side.
     pub front_facing: bool,
@@ -379,8 +379,8 @@ impl View {
 
     /// The per-pixel expressions of a polygon with view normal `n`, plane offset `d = n . c0`,
     /// corner c0, size `(bound, exact)` (an upper bound of its size and the size itself, asked
-    /// for only where the bound cannot decide) and in-plane linear forms (e1, e2): Q (1/w in perspective, w in
-    /// orthographic) and the coordinates `e1 . (P - c0)`, `e2 . (P - c0)` of the pixel's point
+    /// for only where the bound cannot decide) and in-plane linear forms (e1, e2): Q (1/w in
+    /// perspective, w in orthographic) and the coordinates `e1 . (P - c0)`, `e2 . (P - c0)` of the pixel's point
     /// P as [`plane`] orders them. (e1, e2) is an orthonormal frame for quads, the barycentric
     /// duals for triangles. `None` when the plane is edge-on or an expression is not finite.
     /// Always inlined: its 120-byte result, returned through memory, was read back by wider

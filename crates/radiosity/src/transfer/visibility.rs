@@ -425,10 +425,14 @@ pub(super) fn pyramid_sides(x: DVec3, outline: &SmallPoly) -> Sides {
 /// crossing lies in the convex hull of the crossings of vertex pairs, and `q` holds that hull
 /// if it holds its points.
 pub(super) fn blocks_shaft(q: &[DVec3], n: DVec3, (a, b): (&[DVec3], &[DVec3]), eps: f64) -> bool {
-    let (Some(&q0), true) = (q.first(), a.len() <= 8 && b.len() <= 8) else {
+    let Some(&q0) = q.first() else {
         return false;
     };
-    let tol = eps * n.length();
+    if a.len() > 8 || b.len() > 8 {
+        return false;
+    }
+    let nl = n.length();
+    let tol = eps * nl;
     let mut da = [0.0; 8];
     let mut db = [0.0; 8];
     let side = |pts: &[DVec3], d: &mut [f64; 8]| {
@@ -457,7 +461,7 @@ pub(super) fn blocks_shaft(q: &[DVec3], n: DVec3, (a, b): (&[DVec3], &[DVec3]), 
     let inside = |x: DVec3| {
         edges().all(|(p, r)| {
             let e = r - p;
-            w * e.cross(x - p).dot(n) > eps * e.length() * n.length()
+            w * e.cross(x - p).dot(n) > eps * e.length() * nl
         })
     };
     a.iter().zip(da).all(|(&pa, dpa)| {
