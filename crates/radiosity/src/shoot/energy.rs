@@ -1,8 +1,9 @@
 //! The energy account of a solve: where the emitted power went. Per channel, in watts:
 //! - emitted: spots' power (intensity over the cone's solid angle) plus emitters' E A;
 //! - absorbed: (1 - rho) times the power arriving on each polygon's front, the integral of
-//!   its irradiance G over it (trapezoid rule on its leaves; polygons that reflect nothing are
-//!   sampled on their own grid, since they keep no samples), plus all the power arriving on
+//!   its irradiance G over it (its leaves' rule, `Poly::integral`: Simpson's where a leaf
+//!   keeps its test points; polygons that reflect nothing are integrated by adaptive Simpson
+//!   on their own points, since they keep no samples), plus all the power arriving on
 //!   back faces (a polygon is one-sided: its back is black), estimated with the escape rays
 //!   below (the solver delivers no light to a back face, so no sample holds it);
 //! - unshot: reflected light the solve stopped before shooting (its patches' unshot radiosity

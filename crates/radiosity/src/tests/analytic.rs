@@ -237,6 +237,80 @@ fn the_energy_account_balances_on_a_closed_scene() {
     assert!(lost > 0.2 && lost < 0.5, "the open box loses {lost}");
 }
 
+/// The integral over polygon `r` of what shooter `s` alone, at unit total, gives its points:
+/// adaptive Simpson on its cells from level 2 to 6 (each split while its Simpson and trapezoid
+/// estimates differ by more than `tol` times its area), gathering fresh at every lattice point.
+fn delivered_alone(tr: &crate::transfer::Transfer<'_>, s: usize, r: usize, tol: f64) -> f64 {
+    use base::quadtree::{Cell, VertexKey};
+    let mut one = vec![DVec3::ZERO; tr.shooters.len()];
+    one[s] = DVec3::ONE;
+    let poly = &tr.scene.polygons[r];
+    let g = |k: VertexKey| tr.gather(&one, r, k.u(), k.v()).x;
+    let mut cells: Vec<Cell> = Cell::ROOT
+        .children()
+        .into_iter()
+        .flat_map(|c| c.children())
+        .collect();
+    let mut sum = 0.0;
+    while let Some(c) = cells.pop() {
+        let [a, b, cc, d] = c.corners();
+        let mid = |x: VertexKey, y: VertexKey| VertexKey::new((x.i + y.i) / 2, (x.j + y.j) / 2);
+        let corners = g(a) + g(b) + g(cc) + g(d);
+        let mids = g(mid(a, b)) + g(mid(b, cc)) + g(mid(cc, d)) + g(mid(d, a));
+        let area = crate::transfer::sub_area(poly, c);
+        let trapezoid = area * 0.25 * corners;
+        let simpson = area * (corners + 4.0 * mids + 16.0 * g(c.centre())) / 36.0;
+        if (simpson - trapezoid).abs() <= tol * area || c.level >= 6 {
+            sum += simpson;
+        } else {
+            cells.extend(c.children());
+        }
+    }
+    sum
+}
+
+/// Each shooter alone delivers what it shoots: with its total set to 1 and every other to 0,
+/// the light arriving on the polygons of a closed room (no light escapes, no back face can be
+/// reached), integrated over them on fresh gathers, is the shooter's area, its power at unit
+/// radiosity, for the emitter and for every patch, the shaped ones included. The transfers
+/// conserve energy; what the account of a whole solve loses is the corrections the gathers
+/// leave out when every shooter is summed (docs/accuracy.md, "The energy account"). The
+/// bound: a shaped patch's gather at a point leaves out at most twice the shape tolerance of
+/// the light it gives there (the blend's threshold and the nodes' budget, each one share),
+/// 1e-3 of its power at the scene's tolerance, and the quadrature is held to 1e-3 more.
+#[test]
+fn every_shooter_alone_delivers_its_power_in_a_closed_room() {
+    let s = test_scenes::closed_room_with_box();
+    let sol = solve_quiet(&s);
+    let oracle = Oracle::new(&sol, &s).unwrap();
+    let tr = &oracle.tr;
+    let total_area: f64 = s.polygons.iter().map(|p| p.area).sum();
+    let tau = crate::transfer::shape::shape_tolerance(s.radiosity.tolerance);
+    let (mut shaped, mut checked) = (0, 0);
+    for sh in 0..tr.shooters.len() {
+        if oracle.totals[sh] == DVec3::ZERO {
+            continue;
+        }
+        let area = tr.shooters[sh].area;
+        let tol = 1e-3 * area / total_area;
+        let got: f64 = (0..s.polygons.len())
+            .map(|r| delivered_alone(tr, sh, r, tol))
+            .sum();
+        shaped += usize::from(tr.shape(sh).is_some());
+        checked += 1;
+        let off = (got / area - 1.0).abs();
+        assert!(
+            off <= 2.0 * tau + 1e-3,
+            "shooter {sh} ({:?}) delivers {got} of its {area}",
+            tr.shooters[sh].kind
+        );
+    }
+    assert!(
+        shaped >= 4 && checked > shaped,
+        "{shaped} shaped of {checked} shooters"
+    );
+}
+
 /// A closed 3 m room lit only by a 1 m lamp 2 cm under its ceiling, facing the ceiling (what a
 /// modelling tool that lights both faces leaves), with a white one-sided 1 m quad floating at
 /// mid-height facing the floor (its back to the ceiling's light).
