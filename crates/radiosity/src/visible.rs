@@ -119,6 +119,18 @@ fn area2(vs: &[DVec2]) -> f64 {
     a
 }
 
+/// Twice the area of a polygon and its first moment times six (`sum (p + q) (p x q)`): the
+/// centroid is the second over three times the first.
+fn area_moment(vs: &[DVec2]) -> (f64, DVec2) {
+    let (mut a, mut m) = (0.0, DVec2::ZERO);
+    for (p, q) in edges(vs) {
+        let c = p.perp_dot(q);
+        a += c;
+        m += (p + q) * c;
+    }
+    (a, m)
+}
+
 /// Axis-aligned bounds of a polygon.
 #[inline]
 fn bounds(vs: &[DVec2]) -> (DVec2, DVec2) {
@@ -435,26 +447,37 @@ impl View {
     }
 
     /// The share of the convex `cell`'s area ([`plane_cells`]) in the pieces of region `which`
-    /// in `mask` (disjoint, so their overlaps with it add up).
-    pub(crate) fn share(&self, which: Region, cell: &PlaneCell, mask: u64) -> f64 {
+    /// in `mask` (disjoint, so their overlaps with it add up), and where that part lies: the
+    /// offset of its centroid from the whole cell's, in the plane's 2-D coordinates (those of
+    /// [`plane_axes`]); a share of 0.5 and no offset where the clip overflows.
+    pub(crate) fn share_offset(&self, which: Region, cell: &PlaneCell, mask: u64) -> (f64, DVec2) {
         let c = cell.verts();
-        let area = area2(c);
+        let (area, moment) = area_moment(c);
         if area <= 0.0 {
-            return 0.0;
+            return (0.0, DVec2::ZERO);
         }
+        let centre = moment / (3.0 * area);
         let mut part = Buf::new();
-        let mut within = 0.0;
+        let (mut within, mut m) = (0.0, DVec2::ZERO);
         for (k, p) in self.region(which).iter().enumerate().take(64) {
             if mask & (1 << k) == 0 {
                 continue;
             }
             match clip_convex(self.poly(&p.range), c, self.eps, &mut part) {
-                Ok(()) if part.len >= 3 => within += area2(part.verts()),
+                Ok(()) if part.len >= 3 => {
+                    let (a, pm) = area_moment(part.verts());
+                    within += a;
+                    m += pm;
+                }
                 Ok(()) => {}
-                Err(Overflow) => return 0.5,
+                Err(Overflow) => return (0.5, DVec2::ZERO),
             }
         }
-        (within / area).clamp(0.0, 1.0)
+        if within <= 0.0 {
+            return (0.0, DVec2::ZERO);
+        }
+        let share = (within / area).clamp(0.0, 1.0);
+        (share, m / (3.0 * within) - centre)
     }
 
     /// The form factor from `x` (normal `n`) of the part of the convex `cell` ([`plane_cells`])
@@ -635,6 +658,16 @@ impl PlaneCell {
     fn verts(&self) -> &[DVec2] {
         &self.c[..self.len]
     }
+}
+
+/// The axes of the 2-D coordinates every [`View`] of the shooter with outline `outline` (at
+/// least two distinct vertices) and front normal `ns` is built in.
+pub(crate) fn plane_axes(outline: &[DVec3], ns: DVec3) -> (DVec3, DVec3) {
+    if outline.len() < 2 {
+        return (DVec3::ZERO, DVec3::ZERO);
+    }
+    let f = Frame::of(outline, ns);
+    (f.e1, f.e2)
 }
 
 /// The quads `cells` (3-D corners in the plane of the shooter with outline `outline` and front

@@ -230,7 +230,12 @@ fn the_energy_account_balances_on_a_closed_scene() {
         );
         let bound = 2.0 * s.radiosity.tolerance * emitted;
         assert!(e.lost[k].abs() < bound, "channel {k}: {e:?}");
-        assert_eq!(e.emitted[k], e.absorbed[k] + e.unshot[k] + e.lost[k]);
+        // lost is defined as the rest: the sum gives emitted back up to its rounding.
+        let sum = e.absorbed[k] + e.unshot[k] + e.lost[k];
+        assert!(
+            (e.emitted[k] - sum).abs() <= 4.0 * f64::EPSILON * emitted,
+            "{e:?}"
+        );
     }
     let (_, cornell) = cornell_solution();
     let lost = cornell.stats.energy.lost_fraction();

@@ -212,6 +212,7 @@ impl Transfer<'_> {
         level: f64,
     ) -> DVec3 {
         let mut g = DVec3::ZERO;
+        let mut xn: Option<(DVec3, DVec3)> = None;
         for p in pending {
             let t = totals[p.s as usize];
             let lt = lum(t);
@@ -243,8 +244,29 @@ impl Transfer<'_> {
                 );
                 g += a * t * (shaped - p.uniform);
             }
+            if a < 1.0 && sees_all(p.look) {
+                let shape = self.shapes[p.s as usize]
+                    .as_ref()
+                    .expect("pending is shaped");
+                let (x, n) = *xn.get_or_insert_with(|| {
+                    let x = self.receiver(r, u, v);
+                    (x, self.scene.polygons[r].shading_normal(x))
+                });
+                let normal = self.shooters[p.s as usize].normal;
+                let far = (p.uniform + shape.far_dipole(x, n, normal)).max(DVec3::ZERO);
+                g += (1.0 - a) * t * (far - p.uniform);
+            }
         }
         g
+    }
+}
+
+/// Whether a look sees all of its shooter (so that its far light is the shape's dipole).
+fn sees_all(look: Look) -> bool {
+    match look {
+        Look::Clear | Look::Exact(Sight::All) => true,
+        Look::Exact(_) => false,
+        Look::Rays(v) => v >= 1.0,
     }
 }
 

@@ -4,7 +4,7 @@
 //! rule for concentrated shapes. What is corrected, and why so, is in the parent module's
 //! documentation.
 
-use glam::DVec3;
+use glam::{DVec2, DVec3};
 
 use super::*;
 
@@ -252,13 +252,19 @@ impl Part<'_> {
         }
     }
 
-    /// The share of `cell`'s area in the part.
-    fn share(&self, cell: &PlaneCell, mask: u64) -> f64 {
-        let s = self.view.share(self.which, cell, mask);
-        if self.outside {
-            1.0 - s
+    /// The share of `cell`'s area in the part and the offset of that part's centroid from the
+    /// cell's ([`View::share_offset`]): the region's outside has the complement's share, and
+    /// its centroid lies opposite the region's, weighted so that the two average to the cell's.
+    fn share_offset(&self, cell: &PlaneCell, mask: u64) -> (f64, DVec2) {
+        let (s, off) = self.view.share_offset(self.which, cell, mask);
+        if !self.outside {
+            return (s, off);
+        }
+        let rest = 1.0 - s;
+        if rest > 0.0 {
+            (rest, off * (-s / rest))
         } else {
-            s
+            (0.0, DVec2::ZERO)
         }
     }
 
@@ -297,8 +303,12 @@ struct Geometry<'p> {
 /// that varies inside a far node is lost wherever the kernel varies with it, measured -2 % on a
 /// ceiling lit by the walls); a nearer node is opened; a near leaf gets Lambert's exact form
 /// factor (of its part in the part). Against a part, a node outside it is skipped, one inside
-/// it counts whole, and a far one across its border counts by the share of its area in it, opened while the part in the region could differ from the node's mean by more than
-/// `budget` (its spread times its form factor bound). Children in node order.
+/// it counts whole, and a far one across its border counts by the share of its area in it,
+/// its light the node's mean plus its slope times the offset of that share's centroid from the
+/// node's ([`PatchShape::slope`]: where the part seen lies on a node whose light varies across
+/// it decides how bright it is; as the mean alone, the studio's energy account lost 0.14 % of
+/// the emitted light), opened while the part in the region could differ from the node's mean
+/// by more than `budget` (its spread times its form factor bound). Children in node order.
 fn correction(
     g: &Geometry<'_>,
     shape: &PatchShape,
@@ -360,10 +370,19 @@ fn correction(
             sum += d * partly.map_or_else(whole, |p| p.form_factor_in((x, n), plane, met, whole));
             continue;
         }
-        let share = partly.map_or(1.0, |p| p.share(plane, met));
+        let (share, off) = partly.map_or((1.0, DVec2::ZERO), |p| p.share_offset(plane, met));
         if share <= 0.0 {
             continue;
         }
+        // The part seen of a node lies off its centre: its light is the node's mean plus the
+        // node's slope times how far off (an occluder that hides a node's dark side leaves its
+        // bright side seen, brighter than its mean).
+        let sl = &shape.slope[id as usize];
+        let tilt = DVec3::new(
+            sl[0].as_dvec2().dot(off),
+            sl[1].as_dvec2().dot(off),
+            sl[2].as_dvec2().dot(off),
+        );
         let Some((k, grad)) = kernel_and_gradient(x, n, centre, poly.normal) else {
             continue;
         };
@@ -373,7 +392,7 @@ fn correction(
             grad.dot(m[1].as_dvec3()),
             grad.dot(m[2].as_dvec3()),
         );
-        sum += (d * (area * k) + dipole) * (share * std::f64::consts::FRAC_1_PI);
+        sum += ((d + tilt) * (area * k) + dipole) * (share * std::f64::consts::FRAC_1_PI);
     }
     sum
 }
@@ -512,6 +531,82 @@ mod tests {
             worst_monopole = worst_monopole.max((mono - exact).abs() / exact.abs().max(1e-12));
         }
         assert!(worst_monopole > 0.2, "the monopole alone: {worst_monopole}");
+    }
+
+    /// A light that falls linearly across a wall has, in every node, the slope of that fall:
+    /// weights `1.5 - y` on the unit wall are `-1` per metre along y. The slope is the node's
+    /// first moment over its second moment of area; the moment sums an `n x n` grid of leaf
+    /// centres, whose second moment is `1 - 1 / n^2` of the continuous one the slope divides
+    /// by, so the slope reads `-(1 - 1 / n^2)` (to the moments' f32 rounding) and nothing
+    /// across the fall.
+    #[test]
+    fn a_linear_light_has_its_slope() {
+        let levels = 4;
+        let (poly, shape) = ramp_wall(levels);
+        let outline = SmallPoly::from_corners(poly.vertices());
+        let (f1, f2) = visible::plane_axes(outline.verts(), poly.normal);
+        let fall = DVec3::new(0.0, -1.0, 0.0);
+        let mut checked = 0;
+        for (i, node) in shape.tree.nodes().iter().enumerate() {
+            if node.is_leaf() {
+                assert_eq!(shape.slope[i], [Vec2::ZERO; 3]);
+                continue;
+            }
+            let n = f64::from(1u32 << (levels - node.cell.level));
+            let want = DVec2::new(fall.dot(f1), fall.dot(f2)) * (1.0 - 1.0 / (n * n));
+            for ch in 0..3 {
+                let got = shape.slope[i][ch].as_dvec2();
+                assert!(
+                    (got - want).length() <= 1e-5,
+                    "node {:?} channel {ch}: slope {got}, want {want}",
+                    node.cell
+                );
+            }
+            checked += 1;
+        }
+        assert_eq!(checked, (4usize.pow(levels) - 1) / 3, "every inner node");
+    }
+
+    /// A far point that sees all of a patch and takes its light as uniform misses the light
+    /// the shape moves toward it or away; the shape's dipole gives it back. Against the leaf
+    /// by leaf sum with Lambert's exact form factors, the dipole of a wall whose light falls
+    /// linearly is right to the next term of its expansion, which for a linear light over a
+    /// symmetric patch (its second moment's term vanishes) is of order `(size / distance)^2`
+    /// of it, `size` the half diagonal: within twice that at points 2.2 to 3.3 m from a 1 m
+    /// wall (measured 4-10 %), where the uniform transfer misses all of it.
+    #[test]
+    fn a_far_point_gets_the_dipole_of_a_shape() {
+        let (poly, shape) = ramp_wall(4);
+        let facing = DVec3::new(0.0, 0.0, -1.0);
+        let below = DVec3::new(0.0, 1.0, 0.0);
+        for (x, n) in [
+            (DVec3::new(0.5, 1.5, 2.0), facing),
+            (DVec3::new(1.5, -0.5, 3.0), facing),
+            (DVec3::new(0.2, 1.8, 2.5), facing),
+            (DVec3::new(0.5, -1.5, 1.5), below),
+            (DVec3::new(-1.0, 0.2, 3.0), facing),
+        ] {
+            let exact: f64 = shape
+                .tree
+                .nodes()
+                .iter()
+                .enumerate()
+                .filter(|(_, node)| node.is_leaf())
+                .map(|(i, node)| {
+                    let corners = cell_corners(&poly, node.cell);
+                    let f = point_to_polygon(x, n, &SmallPoly::from_corners(&corners), poly.normal);
+                    (shape.mean[i].0.x - 1.0) * f
+                })
+                .sum();
+            let dipole = shape.far_dipole(x, n, poly.normal).x;
+            assert!(exact.abs() > 1e-4, "at {x}: nothing to find ({exact})");
+            // The patch's half diagonal over the distance to its centre, squared, twice.
+            let bound = 2.0 * 0.5 / (x - DVec3::new(0.5, 0.5, 0.0)).length_squared();
+            assert!(
+                (dipole - exact).abs() <= bound * exact.abs(),
+                "at {x}: dipole {dipole}, leaf by leaf {exact}"
+            );
+        }
     }
 
     /// What broke: the light a point receives from a patch with a bright spot hidden from it
