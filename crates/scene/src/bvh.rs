@@ -288,6 +288,21 @@ impl Bvh {
 
     /// [`Bvh::first_hit`] skipping both polygons of `skip` (`u32::MAX` skips nothing).
     pub fn first_hit_skipping(&self, a: DVec3, d: DVec3, skip: [u32; 2]) -> Option<(u32, f64)> {
+        self.first_hit_from(a, d, T_EPS, skip)
+    }
+
+    /// The first hit of a ray cast as the segment a + t d, t in (`t0`, 1 - `T_EPS`), skipping
+    /// both polygons of `skip`: a ray whose length is set by how far it must reach (across a
+    /// backdrop a million times the room's size) and whose blind zone at its origin by the
+    /// scale of the geometry around it (`t0` = `T_EPS` times that scale over the length).
+    /// [`Bvh::first_hit_skipping`] is the case `t0` = `T_EPS`, the same bits.
+    pub fn first_hit_from(
+        &self,
+        a: DVec3,
+        d: DVec3,
+        t0: f64,
+        skip: [u32; 2],
+    ) -> Option<(u32, f64)> {
         if self.nodes.is_empty() {
             return None;
         }
@@ -316,9 +331,9 @@ impl Bvh {
                         continue;
                     }
                     let c = &self.tris[pi as usize];
-                    let mut t = segment_triangle_t(a, d, c[0], c[1], c[2]);
+                    let mut t = segment_triangle_in(a, d, [c[0], c[1], c[2]], t0);
                     if self.shapes[pi as usize] == Shape::Quad {
-                        let t2 = segment_triangle_t(a, d, c[0], c[2], c[3]);
+                        let t2 = segment_triangle_in(a, d, [c[0], c[2], c[3]], t0);
                         t = match (t, t2) {
                             (Some(x), Some(y)) => Some(x.min(y)),
                             (x, y) => x.or(y),
@@ -408,6 +423,12 @@ fn slab_entry(b: &Aabb, a: DVec3, inv: DVec3, tmax: f64) -> Option<f64> {
 /// [`segment_triangle`] returning the hit's parameter t.
 #[inline]
 fn segment_triangle_t(a: DVec3, d: DVec3, p0: DVec3, p1: DVec3, p2: DVec3) -> Option<f64> {
+    segment_triangle_in(a, d, [p0, p1, p2], T_EPS)
+}
+
+/// [`segment_triangle_t`] with the blind zone at the segment's start `t0` instead of `T_EPS`.
+#[inline]
+fn segment_triangle_in(a: DVec3, d: DVec3, [p0, p1, p2]: [DVec3; 3], t0: f64) -> Option<f64> {
     let e1 = p1 - p0;
     let e2 = p2 - p0;
     let pv = d.cross(e2);
@@ -427,7 +448,7 @@ fn segment_triangle_t(a: DVec3, d: DVec3, p0: DVec3, p1: DVec3, p2: DVec3) -> Op
         return None;
     }
     let t = e2.dot(q) * inv;
-    (t > T_EPS && t < 1.0 - T_EPS).then_some(t)
+    (t > t0 && t < 1.0 - T_EPS).then_some(t)
 }
 
 /// Moller-Trumbore, double-sided, segment a + t d with t in (T_EPS, 1 - T_EPS).

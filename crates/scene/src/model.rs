@@ -213,7 +213,8 @@ fn fmt(p: DVec3) -> String {
 /// Whether nearly every direction from `centre` meets a polygon (either side): a room.
 fn is_enclosed(scene: &Scene, bvh: &Bvh, centre: DVec3, size: f64) -> bool {
     let dirs = sphere_directions(256);
-    let f = cast(scene, bvh, centre, &dirs, 4.0 * size.max(1e-9), u32::MAX);
+    let reach = crate::orientation::Reach::of(scene, 4.0 * size.max(1e-9));
+    let f = cast(scene, bvh, centre, &dirs, reach, u32::MAX);
     f.missed * 20 <= dirs.len()
 }
 

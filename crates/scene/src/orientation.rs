@@ -94,17 +94,40 @@ fn ratio(a: usize, b: usize) -> f64 {
     }
 }
 
-/// Casts rays from `origin` along `dirs` (unit) and sorts the first hits by side; `reach` is a
-/// length beyond the scene, `skip` a polygon not to hit (the emitter itself).
+/// Casts rays from `origin` along `dirs` (unit) and sorts the first hits by side; `reach` goes
+/// beyond the scene, `skip` is a polygon not to hit (the emitter itself).
 pub(crate) fn cast(
     scene: &Scene,
     bvh: &Bvh,
     origin: DVec3,
     dirs: &[DVec3],
-    reach: f64,
+    reach: Reach,
     skip: u32,
 ) -> Facing {
     cast_rays(scene, bvh, dirs.iter().map(|&d| (origin, d)), reach, skip)
+}
+
+/// How far the checks' rays go: `len`, past the scene from anywhere in it, and the segment
+/// parameter `t0` their hits count from, `T_EPS` of four times the diagonal of the scene's core
+/// ([`Scene::core_diagonal`]) at most, so that a backdrop a million times a room's size, which
+/// sets `len`, does not hide what lies within a metre of a ray's origin in the room.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Reach {
+    pub len: f64,
+    pub t0: f64,
+}
+
+impl Reach {
+    /// Rays `len` long in `scene`.
+    pub(crate) fn of(scene: &Scene, len: f64) -> Reach {
+        let near = 4.0 * scene.core_diagonal();
+        let t0 = if near > 0.0 && near < len {
+            crate::bvh::T_EPS * (near / len)
+        } else {
+            crate::bvh::T_EPS
+        };
+        Reach { len, t0 }
+    }
 }
 
 /// [`cast`] of rays with their own origins: (origin, unit direction).
@@ -112,12 +135,12 @@ fn cast_rays(
     scene: &Scene,
     bvh: &Bvh,
     rays: impl Iterator<Item = (DVec3, DVec3)>,
-    reach: f64,
+    reach: Reach,
     skip: u32,
 ) -> Facing {
     let mut f = Facing::default();
     for (origin, d) in rays {
-        match bvh.first_hit(origin, d * reach, skip) {
+        match bvh.first_hit_from(origin, d * reach.len, reach.t0, [skip, u32::MAX]) {
             None => f.missed += 1,
             Some((i, _)) => {
                 let p = &scene.polygons[i as usize];
@@ -194,7 +217,7 @@ pub fn warnings(scene: &Scene) -> Vec<String> {
     let bvh = Bvh::build(&scene.polygons);
     let (lo, hi) = scene.bounds();
     let (lo, hi) = (lo.min(scene.camera.eye), hi.max(scene.camera.eye));
-    let reach = 4.0 * (hi - lo).length().max(1e-9);
+    let reach = Reach::of(scene, 4.0 * (hi - lo).length().max(1e-9));
     let mut out = Vec::new();
     let object = |o: Option<u32>| {
         o.and_then(|o| scene.objects.get(o as usize))
@@ -262,7 +285,7 @@ pub const TRAPPED_GAP: f64 = 0.125;
 /// than [`TRAPPED_WARN`] of their light (a light panel a modelling tool left 2 cm under a ceiling,
 /// facing it, because the tool lit both sides): the light bounces between the two, and little
 /// reaches the room. One warning per such emitter, naming the surface, for the first few.
-fn trapped_lights(scene: &Scene, bvh: &Bvh, reach: f64) -> Vec<String> {
+fn trapped_lights(scene: &Scene, bvh: &Bvh, reach: Reach) -> Vec<String> {
     let sphere = sphere_directions(SPHERE_RAYS);
     let mut out = Vec::new();
     let mut more = 0;
@@ -278,8 +301,9 @@ fn trapped_lights(scene: &Scene, bvh: &Bvh, reach: f64) -> Vec<String> {
         for d in sphere.iter().filter(|d| d.dot(p.normal) > 0.0) {
             let w = d.dot(p.normal);
             total += w;
-            if let Some((q, t)) = bvh.first_hit(o, *d * reach, i as u32) {
-                if t * reach < gap {
+            let skip = [i as u32, u32::MAX];
+            if let Some((q, t)) = bvh.first_hit_from(o, *d * reach.len, reach.t0, skip) {
+                if t * reach.len < gap {
                     near += w;
                     *by.entry(q).or_insert(0.0) += w;
                 }
@@ -330,7 +354,7 @@ fn trapped_lights(scene: &Scene, bvh: &Bvh, reach: f64) -> Vec<String> {
 }
 
 /// The lights' part of [`warnings`]: light landing on back sides, emitters facing away.
-fn light_warnings(scene: &Scene, bvh: &Bvh, reach: f64) -> Vec<String> {
+fn light_warnings(scene: &Scene, bvh: &Bvh, reach: Reach) -> Vec<String> {
     let emitters: Vec<usize> = (0..scene.polygons.len())
         .filter(|&i| scene.material_of(i).is_emitter())
         .collect();

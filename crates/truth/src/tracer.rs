@@ -27,10 +27,13 @@
 //! (at most E_j / (pi p_bsdf) cos_x = E_j for the light sample), which keeps the variance finite
 //! even at a point touching an emitter's edge.
 //!
-//! Rays leave a point offset along its normal by [`OFFSET`] times the scene's diagonal and skip
-//! the polygon they leave (the BVH's `skip`); the BVH ignores hits within its `T_EPS` of either
-//! end of a segment, so features smaller than about 1e-7 of the scene's size are not resolved,
-//! the resolution of the solver's own shadow rays.
+//! Rays leave a point offset along its normal by [`OFFSET`] times the diagonal of the scene's
+//! core (`Scene::core_diagonal`: its bounds without backdrops) and skip the polygon they leave
+//! (the BVH's `skip`); a ray ignores hits within `T_EPS` of twice that diagonal of its origin
+//! and a segment between two points within `T_EPS` of either end, so features smaller than
+//! about 1e-7 of the scene's size are not resolved, the resolution of the solver's own shadow
+//! rays. Both scale with the core, not the whole bounds: a ground plane a million times the
+//! room's size must not blind every ray to what lies within a metre of its origin.
 
 use std::f64::consts::PI;
 
@@ -38,7 +41,7 @@ use glam::DVec3;
 
 use crate::lights::Lights;
 use base::rng::Rng;
-use scene::bvh::Bvh;
+use scene::bvh::{Bvh, T_EPS};
 use scene::Scene;
 
 /// Reflections before Russian roulette starts.
@@ -88,6 +91,9 @@ pub(crate) struct Tracer<'a> {
     /// The scene's bounding box centre and diagonal (camera rays' reach).
     centre: DVec3,
     diagonal: f64,
+    /// The segment parameter a ray's hits start from: `T_EPS` times the core's diagonal over
+    /// the whole diagonal (`T_EPS` itself, to the bit, in a scene without backdrops).
+    t0: f64,
     max_bounces: u32,
 }
 
@@ -102,14 +108,21 @@ impl<'a> Tracer<'a> {
         } else {
             1.0
         };
+        let core = scene.core_diagonal();
+        let core = if core > 0.0 && core <= diagonal {
+            core
+        } else {
+            diagonal
+        };
         Tracer {
             scene,
             bvh: Bvh::build(&scene.polygons),
             lights: Lights::new(scene),
-            offset: OFFSET * diagonal,
+            offset: OFFSET * core,
             reach: 2.0 * diagonal,
             centre: 0.5 * (lo + hi),
             diagonal,
+            t0: T_EPS * (core / diagonal),
             max_bounces: max_bounces.unwrap_or(u32::MAX),
         }
     }
@@ -129,15 +142,19 @@ impl<'a> Tracer<'a> {
     /// without this a bounce would never reach the twin's light.
     fn first_surface(&self, origin: DVec3, dir: DVec3, reach: f64, skip: u32) -> (Surface, f64) {
         let back = |k: u32| self.scene.polygons[k as usize].normal.dot(dir) >= 0.0;
-        let hit = self.bvh.first_hit(origin, dir * reach, skip).map(|(k, t)| {
-            if !back(k) {
-                return (k, t);
-            }
-            match self.bvh.first_hit_skipping(origin, dir * reach, [skip, k]) {
-                Some((k2, t2)) if (t2 - t).abs() <= COINCIDENT_T && !back(k2) => (k2, t2),
-                _ => (k, t),
-            }
-        });
+        let (d, t0) = (dir * reach, self.t0);
+        let hit = self
+            .bvh
+            .first_hit_from(origin, d, t0, [skip, u32::MAX])
+            .map(|(k, t)| {
+                if !back(k) {
+                    return (k, t);
+                }
+                match self.bvh.first_hit_from(origin, d, t0, [skip, k]) {
+                    Some((k2, t2)) if (t2 - t).abs() <= COINCIDENT_T && !back(k2) => (k2, t2),
+                    _ => (k, t),
+                }
+            });
         match hit {
             None => (Surface::Miss, 0.0),
             Some((k, t)) => {

@@ -235,9 +235,10 @@ impl Transfer<'_> {
                 self.bvh.for_each_overlapping(&around, |q| out.push(q));
             }
         }
-        // Polygons at the shooter: a probe ray ignores hits closer than the BVH's end
-        // tolerance (`T_EPS` of its length), so an emitter a hair in front of a wall would never
-        // find the wall it lights most (`scenes/hard/light-touching.toml` lost half its light).
+        // Polygons at the shooter: a probe ray ignores hits closer than its blind zone (`T_EPS`
+        // of four times the scene core's diagonal), so an emitter a hair in front of a wall would
+        // never find the wall it lights most (`scenes/hard/light-touching.toml` lost half its
+        // light).
         // Every polygon whose box comes within a tenth of the shooter's size (and at least
         // 1e-6 of the scene's) of the shooter's box is a receiver too.
         let pts: &[DVec3] = match sg.kind {
@@ -359,11 +360,11 @@ impl Transfer<'_> {
     /// two-sided polygon's twin comes after the face it copies.
     fn first_face(&self, o: DVec3, d: DVec3, skip: u32) -> Face {
         let back = |k: u32| self.scene.polygons[k as usize].normal.dot(d) >= 0.0;
-        let ray = d * self.reach;
-        match self.bvh.first_hit(o, ray, skip) {
+        let (ray, t0) = (d * self.reach, self.ray_t0);
+        match self.bvh.first_hit_from(o, ray, t0, [skip, u32::MAX]) {
             None => Face::Miss,
             Some((k, _)) if !back(k) => Face::Front,
-            Some((k, t)) => match self.bvh.first_hit_skipping(o, ray, [skip, k]) {
+            Some((k, t)) => match self.bvh.first_hit_from(o, ray, t0, [skip, k]) {
                 Some((k2, t2)) if (t2 - t).abs() <= COINCIDENT_T && !back(k2) => Face::Front,
                 _ => Face::Back,
             },
@@ -375,7 +376,7 @@ impl Transfer<'_> {
     fn probe_round(&self, s: usize, n: usize, round: u64) -> Vec<u32> {
         use rayon::prelude::*;
         let sg = &self.shooters[s];
-        let reach = self.reach;
+        let (reach, t0) = (self.reach, self.ray_t0);
         let seed = seed_of(&[self.scene.radiosity.seed, s as u64, 0x7072_6f62_6573, round]);
         let grid = (n as f64).sqrt().ceil() as usize;
         let mut rng = Rng::new(seed);
@@ -388,7 +389,8 @@ impl Transfer<'_> {
                 let perm = &perm;
                 (c * CHUNK..((c + 1) * CHUNK).min(n)).filter_map(move |i| {
                     let (o, d) = self.probe_ray(sg, i, perm[i] as usize, grid, &mut rng);
-                    self.bvh.first_hit(o, d * reach, sg.polygon).map(|h| h.0)
+                    let skip = [sg.polygon, u32::MAX];
+                    self.bvh.first_hit_from(o, d * reach, t0, skip).map(|h| h.0)
                 })
             })
             .collect()

@@ -9,7 +9,7 @@ use std::f64::consts::PI;
 
 use glam::DVec3;
 
-use crate::common::{camera, material, spot_down, square, square_average};
+use crate::common::{camera, material, quad_facing, spot_down, square, square_average};
 use base::progress::SILENT;
 use scene::Scene;
 use truth::{polygons, TruthOptions};
@@ -96,6 +96,51 @@ fn a_square_emitter_lights_the_floor_by_the_exact_form_factor() {
     assert_eq!(est[probes.len()].radiosity, e);
     // The formula itself: a point under the centre of a large square sees nearly all of it.
     assert!((form_factor(0.0, 0.0, [-1e4, 1e4], [-1e4, 1e4], 1.0) - 1.0).abs() < 1e-3);
+}
+
+/// Regression: a backdrop ten million times the room's size (a plane 2e7 wide, behind the
+/// room and facing away from it) set the length of every bounce ray, and the BVH ignores hits
+/// within 1e-7 of a segment's length from its start: the rays were blind to everything within
+/// 5.6 m of their origins, so a probe's bounces never met the emitter 1 m above it and its
+/// light read 7 % low. The rays' blind zone now scales with the scene's core; the probes
+/// receive the exact form factor's light as without the backdrop.
+#[test]
+fn a_huge_backdrop_does_not_blind_the_rays() {
+    let probes = [(0.0, 0.0, 0.05), (0.6, 0.3, 0.05)];
+    let mut scene = probes_scene(&probes);
+    let c = DVec3::new;
+    let backdrop = quad_facing(
+        [
+            c(-1e7, -1e7, -5.0),
+            c(1e7, -1e7, -5.0),
+            c(1e7, 1e7, -5.0),
+            c(-1e7, 1e7, -5.0),
+        ],
+        c(0.0, 0.0, -10.0),
+        0,
+    );
+    scene.polygons.push(backdrop);
+    let e = scene.materials[1].emission;
+    let opts = TruthOptions {
+        seed: 11,
+        samples_per_polygon: 16384,
+        ..TruthOptions::new(&scene)
+    };
+    let est = polygons(&scene, &opts, &SILENT).unwrap();
+    for (k, &(x, z, side)) in probes.iter().enumerate() {
+        let f = square_average(x, z, side, 64, |px, pz| {
+            form_factor(px, pz, [-0.25, 0.25], [-0.25, 0.25], 1.0)
+        });
+        let want = RHO * e * f;
+        let got = &est[k];
+        let z = (got.radiosity - want) / got.radiosity_se;
+        assert!(
+            z.abs().max_element() < 4.0,
+            "probe {k}: {} +- {}, want {want} (F = {f})",
+            got.radiosity,
+            got.radiosity_se
+        );
+    }
 }
 
 /// Regression: a two-sided emitter is a face and its reversed twin in the same place; the
