@@ -52,6 +52,39 @@ fn probes_scene(probes: &[(f64, f64, f64)]) -> Scene {
     )
 }
 
+/// The path tracer's estimates of `scene`'s polygons at 16,384 samples each (seed 11).
+fn trace_probes(scene: &Scene) -> Vec<truth::PolygonEstimate> {
+    let opts = TruthOptions {
+        seed: 11,
+        samples_per_polygon: 16384,
+        ..TruthOptions::new(scene)
+    };
+    polygons(scene, &opts, &SILENT).unwrap()
+}
+
+/// Asserts that probe `k` of [`probes_scene`] (its centre `x`, `z` and side) reads within four
+/// standard errors of `RHO E F`, its mean form factor to the emitter (emission `e`); returns
+/// that light.
+fn assert_probe_lit_exactly(
+    k: usize,
+    (x, z, side): (f64, f64, f64),
+    got: &truth::PolygonEstimate,
+    e: DVec3,
+) -> DVec3 {
+    let f = square_average(x, z, side, 64, |px, pz| {
+        form_factor(px, pz, [-0.25, 0.25], [-0.25, 0.25], 1.0)
+    });
+    let want = RHO * e * f;
+    let z = (got.radiosity - want) / got.radiosity_se;
+    assert!(
+        z.abs().max_element() < 4.0,
+        "probe {k}: {} +- {}, want {want} (F = {f})",
+        got.radiosity,
+        got.radiosity_se
+    );
+    want
+}
+
 #[test]
 fn a_square_emitter_lights_the_floor_by_the_exact_form_factor() {
     // Probes: under the centre, off to one side, one large and one under the emitter's edge.
@@ -63,28 +96,13 @@ fn a_square_emitter_lights_the_floor_by_the_exact_form_factor() {
     ];
     let scene = probes_scene(&probes);
     let e = scene.materials[1].emission;
-    let opts = TruthOptions {
-        seed: 11,
-        samples_per_polygon: 16384,
-        ..TruthOptions::new(&scene)
-    };
-    let est = polygons(&scene, &opts, &SILENT).unwrap();
-    for (k, &(x, z, side)) in probes.iter().enumerate() {
-        let f = square_average(x, z, side, 64, |px, pz| {
-            form_factor(px, pz, [-0.25, 0.25], [-0.25, 0.25], 1.0)
-        });
-        let want = RHO * e * f;
+    let est = trace_probes(&scene);
+    for (k, &probe) in probes.iter().enumerate() {
         let got = &est[k];
         // Nothing reflects light back: the indirect part is exactly zero.
         assert_eq!(got.indirect, DVec3::ZERO);
         assert_eq!(got.radiosity, got.direct);
-        let z = (got.radiosity - want) / got.radiosity_se;
-        assert!(
-            z.abs().max_element() < 4.0,
-            "probe {k}: {} +- {}, want {want} (F = {f})",
-            got.radiosity,
-            got.radiosity_se
-        );
+        let want = assert_probe_lit_exactly(k, probe, got, e);
         // Four standard errors are at most 1 % of the value: the check resolves a 1 % error.
         assert!(
             (got.radiosity_se / want).max_element() < 0.0025,
@@ -121,25 +139,9 @@ fn a_huge_backdrop_does_not_blind_the_rays() {
     );
     scene.polygons.push(backdrop);
     let e = scene.materials[1].emission;
-    let opts = TruthOptions {
-        seed: 11,
-        samples_per_polygon: 16384,
-        ..TruthOptions::new(&scene)
-    };
-    let est = polygons(&scene, &opts, &SILENT).unwrap();
-    for (k, &(x, z, side)) in probes.iter().enumerate() {
-        let f = square_average(x, z, side, 64, |px, pz| {
-            form_factor(px, pz, [-0.25, 0.25], [-0.25, 0.25], 1.0)
-        });
-        let want = RHO * e * f;
-        let got = &est[k];
-        let z = (got.radiosity - want) / got.radiosity_se;
-        assert!(
-            z.abs().max_element() < 4.0,
-            "probe {k}: {} +- {}, want {want} (F = {f})",
-            got.radiosity,
-            got.radiosity_se
-        );
+    let est = trace_probes(&scene);
+    for (k, &probe) in probes.iter().enumerate() {
+        assert_probe_lit_exactly(k, probe, &est[k], e);
     }
 }
 
