@@ -665,6 +665,22 @@ impl Scene {
         size(suffix[backdrops])
     }
 
+    /// The segment parameter from which a ray cast as a segment some multiple of the scene's
+    /// diagonal long counts hits ([`bvh::Bvh::first_hit_from`]): `T_EPS` times the core's
+    /// diagonal ([`Scene::core_diagonal`]) over the whole diagonal, so that a ray's blind zone
+    /// at its origin scales with the geometry around it, not with a backdrop a million times a
+    /// room's size that sets the ray's length; `T_EPS` itself, to the bit, without backdrops.
+    pub fn ray_t0(&self) -> f64 {
+        let (lo, hi) = self.bounds();
+        let diagonal = (hi - lo).length();
+        let core = self.core_diagonal();
+        if diagonal > 0.0 && diagonal.is_finite() && core > 0.0 && core < diagonal {
+            bvh::T_EPS * (core / diagonal)
+        } else {
+            bvh::T_EPS
+        }
+    }
+
     /// [`Scene::bounds`] from the bounds (`lo`, `hi`) of the polygon corners, computed by the
     /// caller (the renderer's geometry stage does it in parallel): the spot lights added, and
     /// (0, 0) for a scene with no finite bound.

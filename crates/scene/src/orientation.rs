@@ -108,9 +108,8 @@ pub(crate) fn cast(
 }
 
 /// How far the checks' rays go: `len`, past the scene from anywhere in it, and the segment
-/// parameter `t0` their hits count from, `T_EPS` of four times the diagonal of the scene's core
-/// ([`Scene::core_diagonal`]) at most, so that a backdrop a million times a room's size, which
-/// sets `len`, does not hide what lies within a metre of a ray's origin in the room.
+/// parameter `t0` their hits count from ([`Scene::ray_t0`]: a backdrop a million times a
+/// room's size, which sets `len`, must not hide what lies within a metre of a ray's origin).
 #[derive(Debug, Clone, Copy)]
 pub(crate) struct Reach {
     pub len: f64,
@@ -120,13 +119,10 @@ pub(crate) struct Reach {
 impl Reach {
     /// Rays `len` long in `scene`.
     pub(crate) fn of(scene: &Scene, len: f64) -> Reach {
-        let near = 4.0 * scene.core_diagonal();
-        let t0 = if near > 0.0 && near < len {
-            crate::bvh::T_EPS * (near / len)
-        } else {
-            crate::bvh::T_EPS
-        };
-        Reach { len, t0 }
+        Reach {
+            len,
+            t0: scene.ray_t0(),
+        }
     }
 }
 

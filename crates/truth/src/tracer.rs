@@ -41,7 +41,7 @@ use glam::DVec3;
 
 use crate::lights::Lights;
 use base::rng::Rng;
-use scene::bvh::{Bvh, T_EPS};
+use scene::bvh::Bvh;
 use scene::Scene;
 
 /// Reflections before Russian roulette starts.
@@ -91,8 +91,7 @@ pub(crate) struct Tracer<'a> {
     /// The scene's bounding box centre and diagonal (camera rays' reach).
     centre: DVec3,
     diagonal: f64,
-    /// The segment parameter a ray's hits start from: `T_EPS` times the core's diagonal over
-    /// the whole diagonal (`T_EPS` itself, to the bit, in a scene without backdrops).
+    /// The segment parameter a ray's hits start from ([`Scene::ray_t0`]).
     t0: f64,
     max_bounces: u32,
 }
@@ -122,7 +121,7 @@ impl<'a> Tracer<'a> {
             reach: 2.0 * diagonal,
             centre: 0.5 * (lo + hi),
             diagonal,
-            t0: T_EPS * (core / diagonal),
+            t0: scene.ray_t0(),
             max_bounces: max_bounces.unwrap_or(u32::MAX),
         }
     }

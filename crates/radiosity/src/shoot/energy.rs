@@ -109,11 +109,22 @@ const BLACK_TOLERANCE: f64 = 1e-3;
 /// 0.03 % of the emitted power of its value at level 12.
 const BLACK_MAX_LEVEL: u32 = 6;
 
-/// The integral of G over black polygon `r`: adaptive Simpson on its leaves, a cell split into
-/// four while its 9-point Simpson and 4-point trapezoid estimates differ by more than `tol`
-/// times its share of the black polygons' area (`tol` per unit area), and G gathered once
-/// per lattice point.
+/// The integral of G over black polygon `r`: [`gathered_integral`] from its leaves.
 fn black_integral(tr: &Transfer<'_>, totals: &[DVec3], r: usize, p: &Poly, tol: f64) -> DVec3 {
+    gathered_integral(tr, totals, r, p.leaf_cells().collect(), tol)
+}
+
+/// The integral over polygon `r` of the G that `totals` give its points, from `cells`:
+/// adaptive Simpson, a cell split into four while its 9-point Simpson and 4-point trapezoid
+/// estimates differ by more than `tol` times its area (down to [`BLACK_MAX_LEVEL`]), and G
+/// gathered once per lattice point.
+pub(crate) fn gathered_integral(
+    tr: &Transfer<'_>,
+    totals: &[DVec3],
+    r: usize,
+    mut cells: Vec<Cell>,
+    tol: f64,
+) -> DVec3 {
     let poly = &tr.scene.polygons[r];
     let mut seen: HashMap<VertexKey, DVec3> = HashMap::new();
     let mut g = |k: VertexKey| {
@@ -121,7 +132,6 @@ fn black_integral(tr: &Transfer<'_>, totals: &[DVec3], r: usize, p: &Poly, tol: 
             .entry(k)
             .or_insert_with(|| tr.gather(totals, r, k.u(), k.v()))
     };
-    let mut cells: Vec<Cell> = p.leaf_cells().collect();
     let mut sum = DVec3::ZERO;
     while let Some(c) = cells.pop() {
         let [a, b, cc, d] = c.corners();

@@ -83,6 +83,8 @@
 
 mod energy;
 mod eta;
+#[cfg(test)]
+pub(crate) use energy::gathered_integral;
 mod poly;
 mod queue;
 mod peaks;

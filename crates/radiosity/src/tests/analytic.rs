@@ -243,35 +243,17 @@ fn the_energy_account_balances_on_a_closed_scene() {
 }
 
 /// The integral over polygon `r` of what shooter `s` alone, at unit total, gives its points:
-/// adaptive Simpson on its cells from level 2 to 6 (each split while its Simpson and trapezoid
-/// estimates differ by more than `tol` times its area), gathering fresh at every lattice point.
+/// the energy account's adaptive Simpson on fresh gathers ([`crate::shoot::gathered_integral`]),
+/// from the cells of level 2, each held to `tol` times its area.
 fn delivered_alone(tr: &crate::transfer::Transfer<'_>, s: usize, r: usize, tol: f64) -> f64 {
-    use base::quadtree::{Cell, VertexKey};
     let mut one = vec![DVec3::ZERO; tr.shooters.len()];
     one[s] = DVec3::ONE;
-    let poly = &tr.scene.polygons[r];
-    let g = |k: VertexKey| tr.gather(&one, r, k.u(), k.v()).x;
-    let mut cells: Vec<Cell> = Cell::ROOT
+    let cells = base::quadtree::Cell::ROOT
         .children()
         .into_iter()
         .flat_map(|c| c.children())
         .collect();
-    let mut sum = 0.0;
-    while let Some(c) = cells.pop() {
-        let [a, b, cc, d] = c.corners();
-        let mid = |x: VertexKey, y: VertexKey| VertexKey::new((x.i + y.i) / 2, (x.j + y.j) / 2);
-        let corners = g(a) + g(b) + g(cc) + g(d);
-        let mids = g(mid(a, b)) + g(mid(b, cc)) + g(mid(cc, d)) + g(mid(d, a));
-        let area = crate::transfer::sub_area(poly, c);
-        let trapezoid = area * 0.25 * corners;
-        let simpson = area * (corners + 4.0 * mids + 16.0 * g(c.centre())) / 36.0;
-        if (simpson - trapezoid).abs() <= tol * area || c.level >= 6 {
-            sum += simpson;
-        } else {
-            cells.extend(c.children());
-        }
-    }
-    sum
+    crate::shoot::gathered_integral(tr, &one, r, cells, tol).x
 }
 
 /// Each shooter alone delivers what it shoots: with its total set to 1 and every other to 0,

@@ -61,25 +61,6 @@ use shape::{shape_tolerance, PatchShape};
 pub(crate) use visibility::Look;
 use visibility::{blocks_shaft, hull_faces};
 
-/// The length of a probe or escape ray (four times the scene's diagonal, so that it leaves
-/// the scene from anywhere in it) and the segment parameter its hits start from (`T_EPS` of
-/// four times the core's diagonal, [`scene::Scene::core_diagonal`], over that length).
-fn ray_reach(scene: &Scene) -> (f64, f64) {
-    let (lo, hi) = scene.bounds();
-    let diagonal = (hi - lo).length();
-    let core = scene.core_diagonal();
-    let core = if core > 0.0 && core <= diagonal {
-        core
-    } else {
-        diagonal
-    };
-    let reach = 4.0 * diagonal.max(1e-300);
-    (
-        reach,
-        scene::bvh::T_EPS * ((4.0 * core.max(1e-300)) / reach),
-    )
-}
-
 /// Receiver points are evaluated at (u, v) clamped into [EDGE_INSET, 1 - EDGE_INSET]^2.
 pub const EDGE_INSET: f64 = 1e-6;
 
@@ -356,10 +337,9 @@ pub(crate) struct Transfer<'a> {
     unsorted: bool,
     /// Length of a probe ray: four times the scene's diagonal.
     reach: f64,
-    /// The segment parameter a probe or escape ray's hits start from: `T_EPS` of four times
-    /// the diagonal of the scene's core over `reach` (`T_EPS` itself, to the bit, without
-    /// backdrops), so that a ground plane a million times a room's size does not blind the
-    /// room's rays to everything within a metre of their origins.
+    /// The segment parameter a probe or escape ray's hits start from ([`Scene::ray_t0`]), so
+    /// that a ground plane a million times a room's size does not blind the room's rays to
+    /// everything within a metre of their origins.
     ray_t0: f64,
     /// Per shooter, the shape of its light over the patch (`None`: uniform; see [`shape`]).
     shapes: Vec<Option<PatchShape>>,
@@ -403,8 +383,11 @@ impl<'a> Transfer<'a> {
             },
             by_receiver: vec![Vec::new(); scene.polygons.len()],
             unsorted: false,
-            reach: ray_reach(scene).0,
-            ray_t0: ray_reach(scene).1,
+            reach: {
+                let (lo, hi) = scene.bounds();
+                4.0 * (hi - lo).length().max(1e-300)
+            },
+            ray_t0: scene.ray_t0(),
             shapes: vec![None; n],
             shape_tau: shape_tolerance(scene.radiosity.tolerance),
         }
