@@ -380,6 +380,32 @@ impl Bvh {
         best
     }
 
+    /// The first hit of the segment a + t d, t in (0, 1 - `T_EPS`), among the polygons `only`
+    /// (no blind zone at its origin: for faces known to lie in front of it however close,
+    /// `crate::seal`); ties by index.
+    pub fn first_hit_among(&self, a: DVec3, d: DVec3, only: &[u32]) -> Option<(u32, f64)> {
+        let mut best: Option<(u32, f64)> = None;
+        for &pi in only {
+            let Some(c) = self.tris.get(pi as usize) else {
+                continue;
+            };
+            let mut t = segment_triangle_in(a, d, [c[0], c[1], c[2]], 0.0);
+            if self.shapes[pi as usize] == Shape::Quad {
+                let t2 = segment_triangle_in(a, d, [c[0], c[2], c[3]], 0.0);
+                t = match (t, t2) {
+                    (Some(x), Some(y)) => Some(x.min(y)),
+                    (x, y) => x.or(y),
+                };
+            }
+            if let Some(t) = t {
+                if best.is_none_or(|(bi, bt)| t < bt || (t == bt && pi < bi)) {
+                    best = Some((pi, t));
+                }
+            }
+        }
+        best
+    }
+
     /// Whether the open segment a + t d, t in (`T_EPS`, 1 - `T_EPS`), hits polygon `i`.
     pub fn hits(&self, i: usize, a: DVec3, d: DVec3) -> bool {
         let c = &self.tris[i];

@@ -138,6 +138,17 @@ fn coplanar_overlap(a: &Polygon, b: &Polygon) -> Option<f64> {
     if off_plane(a, b) || off_plane(b, a) {
         return None;
     }
+    // One in front of the other by more than rounding lies over it: the contact cut and the
+    // seal (module `seal`) give the surface under it a piece of its own that sees only it.
+    let tiny = crate::seal::rounding_tolerance(a.vertices().iter().chain(b.vertices()).copied());
+    let in_front = |p: &Polygon, q: &Polygon| {
+        q.vertices()
+            .iter()
+            .all(|&v| p.normal.dot(v - p.corners[0]) > tiny)
+    };
+    if in_front(a, b) || in_front(b, a) {
+        return None;
+    }
     let n = a.normal;
     let o = a.corners[0];
     // A frame in the plane; both outlines are counter-clockwise in it (same facing).
@@ -177,6 +188,17 @@ pub(crate) fn clip(subject: &[DVec2], window: &[DVec2]) -> Vec<DVec2> {
         }
     }
     out
+}
+
+/// The area of the polygon `f`, wound either way (0 for fewer than three corners).
+pub(crate) fn area_abs(f: &[DVec2]) -> f64 {
+    if f.len() < 3 {
+        return 0.0;
+    }
+    0.5 * (0..f.len())
+        .map(|i| f[i].perp_dot(f[(i + 1) % f.len()]))
+        .sum::<f64>()
+        .abs()
 }
 
 /// Area of a simple polygon (shoelace; positive counter-clockwise).

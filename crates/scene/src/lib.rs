@@ -37,6 +37,7 @@ mod obj;
 pub mod orientation;
 pub mod overrides;
 mod parse;
+pub mod seal;
 pub mod shading;
 pub mod triangle_pairs;
 mod triangulate;

@@ -19,6 +19,7 @@
 //! from its open side: no back side in view) and below what a flipped one does (all of it).
 
 use crate::bvh::Bvh;
+use crate::seal::Seals;
 use crate::{Projection, Scene};
 use glam::DVec3;
 use std::collections::BTreeMap;
@@ -247,8 +248,9 @@ pub fn warnings(scene: &Scene) -> Vec<String> {
             object(view.worst_object())
         ));
     }
-    out.extend(light_warnings(scene, &bvh, reach));
-    out.extend(trapped_lights(scene, &bvh, reach));
+    let sealed = crate::seal::sealed(scene);
+    out.extend(light_warnings(scene, &bvh, reach, &sealed));
+    out.extend(trapped_lights(scene, &bvh, reach, &sealed));
     out
 }
 
@@ -281,7 +283,10 @@ pub const TRAPPED_GAP: f64 = 0.125;
 /// than [`TRAPPED_WARN`] of their light (a light panel a modelling tool left 2 cm under a ceiling,
 /// facing it, because the tool lit both sides): the light bounces between the two, and little
 /// reaches the room. One warning per such emitter, naming the surface, for the first few.
-fn trapped_lights(scene: &Scene, bvh: &Bvh, reach: Reach) -> Vec<String> {
+///
+/// A sealed emitter with faces facing it ([`crate::seal`]: wholly covered by faces lying over
+/// it closer than the rays resolve) traps all of its light by construction.
+fn trapped_lights(scene: &Scene, bvh: &Bvh, reach: Reach, sealed: &Seals) -> Vec<String> {
     let sphere = sphere_directions(SPHERE_RAYS);
     let mut out = Vec::new();
     let mut more = 0;
@@ -294,7 +299,15 @@ fn trapped_lights(scene: &Scene, bvh: &Bvh, reach: Reach) -> Vec<String> {
         let o = c + p.normal * (1e-6 * r.max(1e-9));
         let (mut total, mut near) = (0.0, 0.0);
         let mut by: BTreeMap<u32, f64> = BTreeMap::new();
-        for d in sphere.iter().filter(|d| d.dot(p.normal) > 0.0) {
+        let partners = sealed.partners(i as u32);
+        if let Some(&q) = partners.first() {
+            (total, near) = (1.0, 1.0);
+            by.insert(q, 1.0);
+        }
+        for d in sphere
+            .iter()
+            .filter(|d| d.dot(p.normal) > 0.0 && !sealed.is_sealed(i as u32))
+        {
             let w = d.dot(p.normal);
             total += w;
             let skip = [i as u32, u32::MAX];
@@ -329,16 +342,27 @@ fn trapped_lights(scene: &Scene, bvh: &Bvh, reach: Reach) -> Vec<String> {
              the scene (reverse its corners), or give its material `two_sided = true` to emit \
              from both faces"
         };
+        let away = if distance.abs() >= 1e-3 * size {
+            format!("{:.3}", distance.abs())
+        } else {
+            format!("{:.1e}", distance.abs())
+        };
+        let share = if partners.is_empty() {
+            format!(
+                "{:.0} % of its light lands within {gap:.3} of it, bouncing between the two, \
+                 and little reaches the rest of the scene",
+                100.0 * near / total
+            )
+        } else {
+            "all of its light lands on it (the two lie face to face closer than rays resolve), \
+             bouncing between the two, and none reaches the rest of the scene"
+                .to_string()
+        };
         out.push(format!(
-            "the light {} faces {} {:.3} away, close for its size ({:.3}): {:.0} % of its light \
-             lands within {:.3} of it, bouncing between the two, and little reaches the \
-             rest of the scene; {fix}",
+            "the light {} faces {} {away} away, close for its size ({:.3}): {share}; {fix}",
             scene.origin(i),
             scene.origin(q as usize),
-            distance.abs(),
             size,
-            100.0 * near / total,
-            gap
         ));
     }
     if more > 0 {
@@ -350,7 +374,7 @@ fn trapped_lights(scene: &Scene, bvh: &Bvh, reach: Reach) -> Vec<String> {
 }
 
 /// The lights' part of [`warnings`]: light landing on back sides, emitters facing away.
-fn light_warnings(scene: &Scene, bvh: &Bvh, reach: Reach) -> Vec<String> {
+fn light_warnings(scene: &Scene, bvh: &Bvh, reach: Reach, sealed: &Seals) -> Vec<String> {
     let emitters: Vec<usize> = (0..scene.polygons.len())
         .filter(|&i| scene.material_of(i).is_emitter())
         .collect();
@@ -359,7 +383,16 @@ fn light_warnings(scene: &Scene, bvh: &Bvh, reach: Reach) -> Vec<String> {
     let sphere = sphere_directions(SPHERE_RAYS);
     let mut lit = Facing::default();
     let mut upside_down = Vec::new();
+    let mut covered = Vec::new();
     for &i in emitters.iter().step_by(step) {
+        // A sealed emitter's rays start past the faces that take all its light: those facing
+        // it (`trapped_lights` names it), or the backs of those that do not.
+        if sealed.is_sealed(i as u32) {
+            if sealed.partners(i as u32).is_empty() {
+                covered.push(scene.origin(i));
+            }
+            continue;
+        }
         let p = &scene.polygons[i];
         let (c, r) = p.bounding_sphere();
         let o = c + p.normal * (1e-6 * r.max(1e-9));
@@ -408,6 +441,14 @@ fn light_warnings(scene: &Scene, bvh: &Bvh, reach: Reach) -> Vec<String> {
              nothing{worst}: a closed room with outward normals (flip them), or lights behind \
              walls",
             100.0 * lit.back_share_of_hits()
+        ));
+    }
+    if let Some(first) = covered.first() {
+        out.push(format!(
+            "{} emitting polygon(s) lie under a face closer than rays resolve, whose back takes \
+             all their light (first: {first}): is the lamp upside down (reversed winding), or \
+             a face left over it?",
+            covered.len()
         ));
     }
     if let Some(first) = upside_down.first() {

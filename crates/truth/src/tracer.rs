@@ -93,6 +93,10 @@ pub(crate) struct Tracer<'a> {
     diagonal: f64,
     /// The segment parameter a ray's hits start from ([`Scene::ray_t0`]).
     t0: f64,
+    /// The sealed polygons (`scene::seal`; none in most scenes): a polygon wholly covered by
+    /// faces lying over it closer than rays resolve exchanges light only with those that face
+    /// it, as in the solver.
+    sealed: scene::seal::Seals,
     max_bounces: u32,
 }
 
@@ -122,6 +126,7 @@ impl<'a> Tracer<'a> {
             centre: 0.5 * (lo + hi),
             diagonal,
             t0: scene.ray_t0(),
+            sealed: scene::seal::sealed(scene),
             max_bounces: max_bounces.unwrap_or(u32::MAX),
         }
     }
@@ -168,6 +173,41 @@ impl<'a> Tracer<'a> {
         }
     }
 
+    /// The face the ray from `x` on sealed polygon `p` along unit `dir` meets among its
+    /// partners, and the distance to it: they lie in front of `x` closer than the rays' blind
+    /// zone (and than the origin offset), so they are intersected from `x` itself. A ray that
+    /// leaves past their edge (they cover all but rounding of `p`) meets nothing.
+    fn partner_surface(&self, p: u32, x: DVec3, dir: DVec3) -> (Surface, f64) {
+        let d = dir * self.reach;
+        match self.bvh.first_hit_among(x, d, self.sealed.partners(p)) {
+            Some((k, t)) if self.scene.polygons[k as usize].normal.dot(dir) < 0.0 => {
+                let dist = t * self.reach;
+                let point = x + dir * dist;
+                (Surface::Front { polygon: k, point }, dist)
+            }
+            _ => (Surface::Miss, 0.0),
+        }
+    }
+
+    /// Where the rays from `x` on polygon `p` (front normal `face`) start: off the polygon by
+    /// the offset, except on a sealed polygon, whose partners may lie closer than that.
+    fn origin(&self, p: u32, x: DVec3, face: DVec3) -> DVec3 {
+        if !self.sealed.is_sealed(p) {
+            x + face * self.offset
+        } else {
+            x
+        }
+    }
+
+    /// Whether the segment from `o` (off polygon `p`) to `y` on the light `e` is blocked: not
+    /// between sealed partners, which face each other with nothing between.
+    fn blocked(&self, p: u32, o: DVec3, y: DVec3, e: u32) -> bool {
+        if self.sealed.is_sealed(p) {
+            return false;
+        }
+        self.bvh.occluded(o, y, p, e)
+    }
+
     /// One sample of rho * H at `x` on the front of polygon `p`.
     pub(crate) fn reflected(&self, p: u32, x: DVec3, rng: &mut Rng) -> Reflected {
         let mut out = Reflected::default();
@@ -180,7 +220,7 @@ impl<'a> Tracer<'a> {
                 face: poly.normal,
                 shading: poly.shading_normal(x),
             };
-            let o = x + n.face * self.offset;
+            let o = self.origin(p, x, n.face);
             let mut h = self.spots(p, o, n) + self.emitter(p, o, n, rng);
             let next = self.bounce(p, o, n, rng);
             if let Some((_, _, emitted)) = next {
@@ -223,7 +263,7 @@ impl<'a> Tracer<'a> {
             face: poly.normal,
             shading: poly.shading_normal(x),
         };
-        let o = x + n.face * self.offset;
+        let o = self.origin(p, x, n.face);
         let (mut all, mut seen) = (0.0, 0.0);
         let mut add = |w: f64, blocked: &dyn Fn() -> bool| {
             if w > 0.0 && w.is_finite() {
@@ -233,7 +273,12 @@ impl<'a> Tracer<'a> {
                 }
             }
         };
-        for s in &self.scene.spots {
+        let spots = if !self.sealed.is_sealed(p) {
+            &self.scene.spots[..]
+        } else {
+            &[]
+        };
+        for s in spots {
             let d = s.position - o;
             let r2 = d.length_squared();
             let w = d / r2.sqrt();
@@ -244,7 +289,7 @@ impl<'a> Tracer<'a> {
         }
         let step = 1.0 / grid as f64;
         for &e in self.lights.emitters() {
-            if e == p {
+            if e == p || !self.sealed.may_exchange(p, e) {
                 continue;
             }
             let light = &self.scene.polygons[e as usize];
@@ -259,7 +304,7 @@ impl<'a> Tracer<'a> {
                     let w = d / r2.sqrt();
                     let cos_y = (-light.normal.dot(w)).max(0.0);
                     add(radiance * n.cos(w) * cos_y * area / r2, &|| {
-                        self.bvh.occluded(o, y, p, e)
+                        self.blocked(p, o, y, e)
                     });
                 }
             }
@@ -270,6 +315,9 @@ impl<'a> Tracer<'a> {
     /// The spot lights' irradiance at `o` (normals `n`, on polygon `p`).
     fn spots(&self, p: u32, o: DVec3, n: Normals) -> DVec3 {
         let mut h = DVec3::ZERO;
+        if self.sealed.is_sealed(p) {
+            return h;
+        }
         for s in &self.scene.spots {
             let d = s.position - o;
             let r2 = d.length_squared();
@@ -295,7 +343,7 @@ impl<'a> Tracer<'a> {
         let Some(s) = self.lights.sample(self.scene, rng) else {
             return DVec3::ZERO;
         };
-        if s.polygon == p {
+        if s.polygon == p || !self.sealed.may_exchange(p, s.polygon) {
             return DVec3::ZERO;
         }
         let d = s.point - o;
@@ -306,7 +354,7 @@ impl<'a> Tracer<'a> {
         let w = d / r2.sqrt();
         let cos_x = n.cos(w);
         let cos_y = -self.scene.polygons[s.polygon as usize].normal.dot(w);
-        if cos_x <= 0.0 || cos_y <= 0.0 || self.bvh.occluded(o, s.point, p, s.polygon) {
+        if cos_x <= 0.0 || cos_y <= 0.0 || self.blocked(p, o, s.point, s.polygon) {
             return DVec3::ZERO;
         }
         let p_light = s.pdf_area * r2 / cos_y;
@@ -324,7 +372,11 @@ impl<'a> Tracer<'a> {
             // Below the facet (a shading normal leaning off it): the facet sees nothing there.
             return None;
         }
-        let (surface, dist) = self.first_surface(o, w, self.reach, p);
+        let (surface, dist) = if !self.sealed.is_sealed(p) {
+            self.first_surface(o, w, self.reach, p)
+        } else {
+            self.partner_surface(p, o, w)
+        };
         let Surface::Front { polygon: k, point } = surface else {
             return None;
         };

@@ -341,6 +341,10 @@ pub(crate) struct Transfer<'a> {
     /// that a ground plane a million times a room's size does not blind the room's rays to
     /// everything within a metre of their origins.
     ray_t0: f64,
+    /// The sealed polygons ([`scene::seal`]; none in most scenes): a polygon wholly covered
+    /// by faces lying over it closer than rays resolve exchanges light only with those that
+    /// face it.
+    sealed: scene::seal::Seals,
     /// Per shooter, the shape of its light over the patch (`None`: uniform; see [`shape`]).
     shapes: Vec<Option<PatchShape>>,
     /// A gather refines a patch's node while spread x F x min(1, size / distance) passes
@@ -388,6 +392,7 @@ impl<'a> Transfer<'a> {
                 4.0 * (hi - lo).length().max(1e-300)
             },
             ray_t0: scene.ray_t0(),
+            sealed: scene::seal::sealed(scene),
             shapes: vec![None; n],
             shape_tau: shape_tolerance(scene.radiosity.tolerance),
         }
@@ -457,8 +462,12 @@ impl<'a> Transfer<'a> {
             None
         };
         let this = &*self;
-        let candidates: Vec<u32> =
-            found.unwrap_or_else(|| (0..self.scene.polygons.len() as u32).collect());
+        let own = self.shooters[s].polygon;
+        let candidates: Vec<u32> = if self.sealed.is_sealed(own) {
+            self.sealed.partners(own).to_vec()
+        } else {
+            found.unwrap_or_else(|| (0..self.scene.polygons.len() as u32).collect())
+        };
         let per: Vec<(PairClass, Vec<u32>)> = candidates
             .par_iter()
             .map(|&r| this.classify(s, r as usize))
@@ -593,6 +602,17 @@ impl<'a> Transfer<'a> {
         Some(hull)
     }
 
+    /// Whether light may pass between polygon `a` (`u32::MAX`: a spot) and polygon `b` at all
+    /// ([`scene::seal::may_exchange`]).
+    pub(crate) fn may_exchange(&self, a: u32, b: usize) -> bool {
+        self.sealed.may_exchange(a, b as u32)
+    }
+
+    /// The sealed polygons ([`scene::seal`]).
+    pub(crate) fn seals(&self) -> &scene::seal::Seals {
+        &self.sealed
+    }
+
     /// Class of the pair (shooter `s`, receiver polygon `r`), see [`PairClass`], and for an
     /// occluded pair the polygons (in index order) that may intersect the convex hull of the two.
     pub(crate) fn classify(&self, s: usize, r: usize) -> (PairClass, Vec<u32>) {
@@ -601,6 +621,9 @@ impl<'a> Transfer<'a> {
         let rp = &self.scene.polygons[r];
         let rv = rp.vertices();
         let above_r = |p: DVec3| rp.normal.dot(p - rv[0]) > eps;
+        if !self.may_exchange(sg.polygon, r) {
+            return (PairClass::Culled, Vec::new());
+        }
         let Some(hull) = self.facing_hull(s, r) else {
             return (PairClass::Culled, Vec::new());
         };

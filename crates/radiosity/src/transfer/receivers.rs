@@ -303,6 +303,11 @@ impl Transfer<'_> {
     /// there, so that the dark part of a patch half under a box sends no rays into the box).
     pub(crate) fn escape_share(&self, s: usize, n: usize) -> (f64, f64) {
         let sg = &self.shooters[s];
+        // A sealed polygon's light all lands on its covers, which its rays, starting past
+        // them, cannot see: on the faces it is sealed with, and on the backs of the others.
+        if self.seals().is_sealed(sg.polygon) {
+            return (0.0, self.seals().behind(sg.polygon));
+        }
         let seed = seed_of(&[self.scene.radiosity.seed, s as u64, 0x6573_6361_7065]);
         let grid = (n as f64).sqrt().ceil() as usize;
         let mut rng = Rng::new(seed);

@@ -22,7 +22,7 @@ use glam::{DVec2, DVec3};
 
 use super::{clip_to_polygon, on_border, ContactLine, Frame, LineKind, PLANE_TOL};
 use crate::bvh::{Aabb, Bvh};
-use crate::coincident::{clip, diameter};
+use crate::coincident::{area_abs, clip, diameter};
 use crate::Polygon;
 
 /// A sheet in front of a receiver by at most this share of its half-width (twice its area
@@ -200,7 +200,14 @@ fn outline(
     let heights: Vec<f64> = members()
         .flat_map(|q| q.vertices().iter().map(|v| height(*v)).collect::<Vec<_>>())
         .collect();
-    if heights.iter().any(|&x| x < -tol || x > reach) || heights.iter().all(|&x| x <= tol) {
+    // A sheet in front of `p` is over it however close (above rounding): the receiver under
+    // it sees only the sheet, or nothing (module `seal`), so it is its own piece.
+    let on = crate::seal::rounding_tolerance(
+        members()
+            .flat_map(|q| q.vertices().to_vec())
+            .chain(p.vertices().iter().copied()),
+    );
+    if heights.iter().any(|&x| x < -tol || x > reach) || heights.iter().all(|&x| x <= on) {
         return Vec::new();
     }
     // Over the receiver, not beside it: a neighbour folded up from `p`'s side by a hair (two
@@ -214,8 +221,8 @@ fn outline(
             .iter()
             .map(|v| frame.to2(*v - n * height(*v)))
             .collect();
-        over += area2(&clip(&footprint, &receiver));
-        all += area2(&footprint);
+        over += area_abs(&clip(&footprint, &receiver));
+        all += area_abs(&footprint);
     }
     if over < OUTLINE_OVER * all {
         return Vec::new();
@@ -225,7 +232,7 @@ fn outline(
         let vs = polygons[m as usize].vertices();
         let (a, b) = (vs[k], vs[(k + 1) % vs.len()]);
         let (da, db) = (height(a), height(b));
-        if da <= tol && db <= tol {
+        if da <= on && db <= on {
             continue;
         }
         if let Some((a, b)) = clip_to_polygon(p, a - n * da, b - n * db, tol) {
@@ -235,15 +242,4 @@ fn outline(
         }
     }
     out
-}
-
-/// The area of the polygon `f`, wound either way (0 for fewer than three corners).
-fn area2(f: &[DVec2]) -> f64 {
-    if f.len() < 3 {
-        return 0.0;
-    }
-    0.5 * (0..f.len())
-        .map(|i| f[i].perp_dot(f[(i + 1) % f.len()]))
-        .sum::<f64>()
-        .abs()
 }

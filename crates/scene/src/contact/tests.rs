@@ -388,3 +388,40 @@ proptest! {
         }
     }
 }
+
+/// What broke: a light panel a hair (1e-9) in front of a ceiling lay within the plane
+/// tolerance, so the ceiling was left whole, and the ceiling above the panel, which sees only
+/// the panel (facing it) or nothing (its back), was one surface with the ceiling beside it. A
+/// face in front of a receiver cuts it however close (down to rounding), either way it faces,
+/// so that the piece under it can be sealed (`crate::seal`); one in its plane cuts nothing.
+#[test]
+fn a_panel_facing_a_ceiling_a_hair_away_cuts_it_along_its_outline() {
+    let outlines = |polys: &[Polygon]| {
+        find(polys)
+            .iter()
+            .filter(|l| matches!(l.kind, LineKind::Outline { .. }))
+            .count()
+    };
+    let facing = |gap: f64| {
+        let mut polys = ceiling_and_lamp(gap, 0.5, 1.0);
+        let mut c = polys[1].corners;
+        c.reverse();
+        polys[1] = Polygon::quad(c, 0, 0).expect("quad");
+        assert!((polys[1].normal - DVec3::Y).length() < 1e-12);
+        polys
+    };
+    for gap in [1e-9, 1e-7, 1e-5, 0.01] {
+        assert_eq!(outlines(&facing(gap)), 4, "facing, gap {gap}");
+    }
+    assert_eq!(outlines(&facing(0.0)), 0, "in the ceiling's plane");
+    assert_eq!(
+        outlines(&ceiling_and_lamp(1e-9, 0.5, 1.0)),
+        4,
+        "its back to it"
+    );
+    assert_eq!(
+        outlines(&ceiling_and_lamp(0.0, 0.5, 1.0)),
+        0,
+        "its back, in the plane"
+    );
+}
