@@ -465,3 +465,39 @@ fn a_light_facing_a_close_surface_is_named_with_the_fix() {
         .expect("warned");
     assert!(w.contains("its material is two-sided"), "{w}");
 }
+
+/// The same lamp a hair (1e-9) from a surface, closer than the rays resolve: facing it, it is
+/// sealed with it and named as trapping all of its light (its rays, starting past the ceiling,
+/// used to find nothing, and it was called upside down); covered by a face turned away from it
+/// (a panel left over it), it is named as covered.
+#[test]
+fn a_light_a_hair_from_a_surface_is_named() {
+    let warned = |text: &str| {
+        let s = parse_scene(text, Path::new("test.toml")).unwrap();
+        scene::orientation::warnings(&s)
+    };
+    let up = edit(
+        "[[0, 0, 1], [0, 1, 1], [1, 1, 1]]",
+        "[[0, 0, 1], [1, 1, 1], [0, 1, 1]]",
+    );
+    let ceiling = "[[polygons]]\nname = \"ceiling\"\nvertices = [[-1, -1, 1.000000001], [-1, 2, 1.000000001], [2, 2, 1.000000001], [2, -1, 1.000000001]]\nmaterial = \"white\"\n";
+    let warnings = warned(&format!("{up}\n{ceiling}"));
+    assert!(
+        warnings.iter().any(|w| w.contains("1.0e-9 away")
+            && w.contains("all of its light lands on it")
+            && w.contains("two_sided = true")),
+        "{warnings:?}"
+    );
+    assert!(
+        warnings.iter().all(|w| !w.contains("upside down")),
+        "{warnings:?}"
+    );
+    let cover = "[[polygons]]\nname = \"cover\"\nvertices = [[-1, -1, 0.999999999], [-1, 2, 0.999999999], [2, 2, 0.999999999], [2, -1, 0.999999999]]\nmaterial = \"white\"\n";
+    let warnings = warned(&format!("{BASE}\n{cover}"));
+    assert!(
+        warnings
+            .iter()
+            .any(|w| w.contains("lie under a face closer than rays resolve")),
+        "{warnings:?}"
+    );
+}
