@@ -119,7 +119,8 @@ pub(crate) struct ResultsArgs {
     /// page, replaced only when asked for by name).
     #[arg(long)]
     pub doc: PathBuf,
-    /// Scene files, comma-separated (default: two-spots, cornell-box, gallery).
+    /// Scene files, comma-separated (default: two-spots, cornell-box, gallery, studio,
+    /// accuracy/furnished-room).
     #[arg(long, value_delimiter = ',')]
     pub scenes: Vec<PathBuf>,
     /// Side of the sweeps' square images.

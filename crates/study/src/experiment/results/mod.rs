@@ -43,12 +43,16 @@ use base::progress::{Labelled, Stage};
 use metric::{compare, DEFAULT_PPD};
 use scene::CameraPath;
 
-/// The scenes of the results page by default (gallery-fine is left to `stats` and Table 1: its
-/// sweep alone takes longer than the rest together).
-pub(crate) const RESULT_SCENES: [&str; 3] = [
+/// The scenes of the results page by default: the spots alone, the Cornell box, the gallery,
+/// and two interiors with furniture, the studio and the furnished room (gallery-fine is left to
+/// `stats` and Table 1: its sweep alone takes longer than the rest together; the generated
+/// building's solves take hours).
+pub(crate) const RESULT_SCENES: [&str; 5] = [
     "scenes/two-spots.toml",
     "scenes/cornell-box.toml",
     "scenes/gallery.toml",
+    "scenes/studio.toml",
+    "scenes/accuracy/furnished-room.toml",
 ];
 
 /// The methods of the gallery, in column order (the exact image first).
