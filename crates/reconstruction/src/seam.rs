@@ -128,12 +128,13 @@ impl Seams {
         let mut folds = 0;
         let mut slants = 0;
         let stands = adjacency.standing();
+        let steps = StepIndex::new(steps);
         for (e, &stands) in adjacency.edges.iter().zip(&stands) {
             let fold = is_fold(e, polygons, materials);
             if !fold && !Adjacency::continuous(e, polygons, materials) {
                 continue;
             }
-            if stands || on_step(e, polygons, steps) {
+            if stands || on_step(e, polygons, &steps) {
                 standing += 1;
                 continue;
             }
@@ -251,17 +252,97 @@ enum Shape {
     Degenerate,
 }
 
+/// The steps in a uniform grid of cells about as wide as a step is long, each listed in the
+/// cells of points along it half a cell apart: the steps near a point are in the few cells
+/// around it. A large model has tens of thousands of contact lines and millions of shared
+/// edges; testing every edge against every line made loading a 580,000-polygon building take
+/// 160 s in this one loop.
+pub(crate) struct StepIndex<'s> {
+    steps: &'s [(DVec3, DVec3)],
+    /// The cells' side.
+    cell: f64,
+    /// The longest step's length.
+    longest: f64,
+    grid: HashMap<[i64; 3], Vec<u32>>,
+}
+
+impl<'s> StepIndex<'s> {
+    pub(crate) fn new(steps: &'s [(DVec3, DVec3)]) -> StepIndex<'s> {
+        let lengths: Vec<f64> = steps.iter().map(|&(p, q)| p.distance(q)).collect();
+        let longest = lengths.iter().copied().fold(0.0, f64::max);
+        let mean = lengths.iter().sum::<f64>() / lengths.len().max(1) as f64;
+        let cell = if mean.is_finite() && mean > 0.0 {
+            mean
+        } else {
+            1.0
+        };
+        let mut grid: HashMap<[i64; 3], Vec<u32>> = HashMap::new();
+        for (i, (&(p, q), &len)) in steps.iter().zip(&lengths).enumerate() {
+            let n = (2.0 * len / cell).ceil().clamp(1.0, 1e6) as usize;
+            let mut last = None;
+            for k in 0..=n {
+                let key = Self::key(p + (q - p) * (k as f64 / n as f64), cell);
+                if last != Some(key) {
+                    grid.entry(key).or_default().push(i as u32);
+                    last = Some(key);
+                }
+            }
+        }
+        StepIndex {
+            steps,
+            cell,
+            longest,
+            grid,
+        }
+    }
+
+    fn key(x: DVec3, cell: f64) -> [i64; 3] {
+        (x / cell).floor().as_i64vec3().to_array()
+    }
+
+    /// Whether any step passes `test`, of those that may pass within `reach` of `x` (each
+    /// step tested at most once; every step when the cells around `x` would outnumber them).
+    pub(crate) fn any(
+        &self,
+        x: DVec3,
+        reach: f64,
+        mut test: impl FnMut(&(DVec3, DVec3)) -> bool,
+    ) -> bool {
+        // A step within `reach` of x has a listed point within reach + a quarter cell of it.
+        let r = reach + 0.25 * self.cell;
+        let (lo, hi) = (Self::key(x - r, self.cell), Self::key(x + r, self.cell));
+        let cells: i64 = (0..3).map(|k| hi[k] - lo[k] + 1).product();
+        if !reach.is_finite() || cells > self.steps.len() as i64 {
+            return self.steps.iter().any(test);
+        }
+        let mut seen: Vec<u32> = Vec::new();
+        for i in lo[0]..=hi[0] {
+            for j in lo[1]..=hi[1] {
+                for k in lo[2]..=hi[2] {
+                    if let Some(l) = self.grid.get(&[i, j, k]) {
+                        seen.extend_from_slice(l);
+                    }
+                }
+            }
+        }
+        seen.sort_unstable();
+        seen.dedup();
+        seen.iter().any(|&s| test(&self.steps[s as usize]))
+    }
+}
+
 /// Whether the shared segment of `e` lies along one of `steps`: its middle within a small
 /// share of the step's length of the step (the loader's cut put the pieces' corners on the
 /// line, to rounding and its snap), and its direction along the step's.
-fn on_step(e: &SharedEdge, polygons: &[Polygon], steps: &[(DVec3, DVec3)]) -> bool {
-    if steps.is_empty() {
+fn on_step(e: &SharedEdge, polygons: &[Polygon], steps: &StepIndex<'_>) -> bool {
+    if steps.steps.is_empty() {
         return false;
     }
     let (s0, s1) = side_endpoints(&polygons[e.a.polygon as usize], e.a.side);
     let (a, b) = (s0 + (s1 - s0) * e.a_range[0], s0 + (s1 - s0) * e.a_range[1]);
     let (mid, dir) = (0.5 * (a + b), (b - a).normalize_or_zero());
-    steps.iter().any(|&(p, q)| {
+    let reach = STEP_TOL * steps.longest.max((b - a).length());
+    steps.any(mid, reach, |&(p, q)| {
         let d = q - p;
         let len = d.length();
         let t = ((mid - p).dot(d) / (len * len).max(f64::MIN_POSITIVE)).clamp(0.0, 1.0);

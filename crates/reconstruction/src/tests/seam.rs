@@ -586,3 +586,49 @@ fn triangles_are_joined_c0_along_a_slanted_side() {
     assert!(jv <= 1e-6, "value step {jv:.2e} of the peak");
     assert!(apart >= 10.0 * jv.max(1e-7), "apart only {apart:.2e}");
 }
+
+/// The step index finds what testing every step finds: for random segments (long and short,
+/// any direction) and random points near and far, every step within the query's reach of the
+/// point is among those it tests, so `any` with a distance predicate answers as the linear
+/// scan does.
+mod step_index {
+    use crate::seam::StepIndex;
+    use glam::DVec3;
+    use proptest::prelude::*;
+
+    fn v() -> impl Strategy<Value = DVec3> {
+        (-10.0f64..10.0, -10.0f64..10.0, -10.0f64..10.0).prop_map(|(x, y, z)| DVec3::new(x, y, z))
+    }
+
+    fn distance(x: DVec3, (p, q): (DVec3, DVec3)) -> f64 {
+        let d = q - p;
+        let t = ((x - p).dot(d) / d.length_squared().max(f64::MIN_POSITIVE)).clamp(0.0, 1.0);
+        (p + d * t).distance(x)
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig { cases: 64, ..ProptestConfig::default() })]
+        #[test]
+        fn finds_what_a_linear_scan_finds(
+            ends in prop::collection::vec((v(), v(), 0.001f64..1.0), 1..40),
+            points in prop::collection::vec((v(), 0usize..40, 0.0f64..1.0), 1..40),
+            reach in 1e-6f64..0.5,
+        ) {
+            // Steps of every length: the second end pulled toward the first.
+            let steps: Vec<(DVec3, DVec3)> =
+                ends.iter().map(|&(p, q, s)| (p, p + (q - p) * s)).collect();
+            let index = StepIndex::new(&steps);
+            for &(x, near, f) in &points {
+                // Half the points on or beside a step, the rest anywhere.
+                let x = if f < 0.5 {
+                    let (p, q) = steps[near % steps.len()];
+                    p + (q - p) * (2.0 * f) + DVec3::splat(reach * 0.5)
+                } else {
+                    x
+                };
+                let within = |s: &(DVec3, DVec3)| distance(x, *s) <= reach;
+                prop_assert_eq!(index.any(x, reach, within), steps.iter().any(within));
+            }
+        }
+    }
+}

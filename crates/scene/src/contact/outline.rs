@@ -50,6 +50,16 @@ struct Sheet {
     border: Vec<(u32, usize)>,
     /// Twice the area over the border's length.
     half_width: f64,
+    /// The largest coordinate of its corners, in absolute value (what rounding scales with).
+    magnitude: f64,
+}
+
+/// The largest coordinate of `p`'s corners, in absolute value.
+fn magnitude(p: &Polygon) -> f64 {
+    p.vertices()
+        .iter()
+        .map(|v| v.abs().max_element())
+        .fold(0.0, f64::max)
 }
 
 /// A side's key: the bits of its two corners, in a fixed order (either direction).
@@ -115,12 +125,14 @@ fn sheets(polygons: &[Polygon]) -> Vec<Sheet> {
                 members: Vec::new(),
                 border: Vec::new(),
                 half_width: 0.0,
+                magnitude: 0.0,
             });
             area.push(0.0);
             perimeter.push(0.0);
             out.len() - 1
         });
         out[s].members.push(i as u32);
+        out[s].magnitude = out[s].magnitude.max(magnitude(p));
         area[s] += p.area;
         let vs = p.vertices();
         for k in 0..vs.len() {
@@ -197,17 +209,21 @@ fn outline(
     let n = p.normal;
     let height = |v: DVec3| n.dot(v - p.corners[0]);
     let members = || sheet.members.iter().map(|&m| &polygons[m as usize]);
-    let heights: Vec<f64> = members()
-        .flat_map(|q| q.vertices().iter().map(|v| height(*v)).collect::<Vec<_>>())
-        .collect();
     // A sheet in front of `p` is over it however close (above rounding): the receiver under
-    // it sees only the sheet, or nothing (module `seal`), so it is its own piece.
-    let on = crate::seal::rounding_tolerance(
-        members()
-            .flat_map(|q| q.vertices().to_vec())
-            .chain(p.vertices().iter().copied()),
-    );
-    if heights.iter().any(|&x| x < -tol || x > reach) || heights.iter().all(|&x| x <= on) {
+    // it sees only the sheet, or nothing (module `seal`), so it is its own piece. Most sheets
+    // near `p` are not in front of it: the first corner behind it or out of reach says so.
+    let on = 1e-12 * sheet.magnitude.max(magnitude(p));
+    let mut above = false;
+    for q in members() {
+        for v in q.vertices() {
+            let h = height(*v);
+            if h < -tol || h > reach {
+                return Vec::new();
+            }
+            above |= h > on;
+        }
+    }
+    if !above {
         return Vec::new();
     }
     // Over the receiver, not beside it: a neighbour folded up from `p`'s side by a hair (two
