@@ -98,6 +98,16 @@ pub(crate) fn merge(
     (notes, warnings)
 }
 
+/// The heights over a plane below which a corner counts as on it when telling whether a face
+/// lies in front: 1e-12 of the largest coordinate of `pts`, a few ulps, what rounding alone
+/// can make of a gap.
+pub(crate) fn rounding_tolerance(pts: impl Iterator<Item = DVec3>) -> f64 {
+    1e-12
+        * pts
+            .map(|p| p.abs().max_element())
+            .fold(f64::MIN_POSITIVE, f64::max)
+}
+
 /// Largest distance between two corners of `p`.
 pub(crate) fn diameter(p: &Polygon) -> f64 {
     let vs = p.vertices();
@@ -140,7 +150,7 @@ fn coplanar_overlap(a: &Polygon, b: &Polygon) -> Option<f64> {
     }
     // One in front of the other by more than rounding lies over it: the contact cut and the
     // seal (module `seal`) give the surface under it a piece of its own that sees only it.
-    let tiny = crate::seal::rounding_tolerance(a.vertices().iter().chain(b.vertices()).copied());
+    let tiny = rounding_tolerance(a.vertices().iter().chain(b.vertices()).copied());
     let in_front = |p: &Polygon, q: &Polygon| {
         q.vertices()
             .iter()

@@ -26,7 +26,7 @@
 use glam::{DVec2, DVec3};
 
 use crate::bvh::{Aabb, Bvh, T_EPS};
-use crate::coincident::{area_abs, clip, diameter};
+use crate::coincident::{area_abs, clip, diameter, rounding_tolerance};
 use crate::contact::{Frame, PLANE_TOL};
 use crate::Scene;
 
@@ -46,16 +46,6 @@ pub const SEAL_REACH: f64 = 8.0 * T_EPS;
 /// of the larger face) or the rays' blind zone ([`SEAL_REACH`]), whichever is larger.
 pub fn seal_gap(a: f64, b: f64, core: f64) -> f64 {
     (PLANE_TOL * a.max(b)).max(SEAL_REACH * core)
-}
-
-/// The heights over a plane below which a corner counts as on it when telling whether a face
-/// lies in front: 1e-12 of the largest coordinate of `pts`, a few ulps, what rounding alone
-/// can make of a gap.
-pub(crate) fn rounding_tolerance(pts: impl Iterator<Item = DVec3>) -> f64 {
-    1e-12
-        * pts
-            .map(|p| p.abs().max_element())
-            .fold(f64::MIN_POSITIVE, f64::max)
 }
 
 /// The sealed polygons of a scene ([`sealed`]).
