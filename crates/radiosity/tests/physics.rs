@@ -432,6 +432,12 @@ fn panel_by_a_wall(panel_e: f64, gap: f64, facing_wall: bool) -> String {
     s
 }
 
+/// The face means of `scene`'s solution and its energy account.
+fn means_and_account(scene: &scene::Scene) -> (Vec<radiosity::FaceMean>, radiosity::EnergyAccount) {
+    let sol = solve(scene, &SolveOptions::default()).expect("solves");
+    (face_means(&sol, scene).expect("means"), sol.stats.energy)
+}
+
 /// What broke: the same panel turned to face the room (a lamp mounted flush on a wall) lay
 /// over the wall closer than rays resolve, so the wall under it went on receiving and
 /// reflecting the room's light through it, and the room's light that lands there was
@@ -444,15 +450,9 @@ fn a_lamp_a_hair_in_front_of_a_wall_lights_the_room_once() {
     let flush = scene::parse_scene(&panel_by_a_wall(3.0, 1e-9, false), path).expect("scene");
     let off = scene::parse_scene(&panel_by_a_wall(3.0, 1e-3, false), path).expect("scene");
     assert_eq!(flush.polygons.len(), off.polygons.len(), "the same cut");
-    let sol = solve(&flush, &SolveOptions::default()).expect("solves");
-    let e = sol.stats.energy;
+    let (means, e) = means_and_account(&flush);
     assert!(e.error().abs() <= radiosity::ENERGY_ERROR_WARN, "{e:?}");
-    let means = face_means(&sol, &flush).expect("means");
-    let off_means = face_means(
-        &solve(&off, &SolveOptions::default()).expect("solves"),
-        &off,
-    )
-    .expect("means");
+    let off_means = means_and_account(&off).0;
     let sealed = scene::seal::sealed(&flush);
     let under: Vec<usize> = (0..means.len())
         .filter(|&i| sealed.is_sealed(i as u32))
@@ -488,15 +488,9 @@ fn a_panel_facing_a_wall_a_hair_away_keeps_its_light_between_them() {
     let path = Path::new("panel-facing-wall.toml");
     let scene = scene::parse_scene(&panel_facing_a_wall(3.0), path).expect("scene");
     let dark = scene::parse_scene(&panel_facing_a_wall(0.0), path).expect("scene");
-    let sol = solve(&scene, &SolveOptions::default()).expect("solves");
-    let e = sol.stats.energy;
+    let (means, e) = means_and_account(&scene);
     assert!(e.error().abs() <= radiosity::ENERGY_ERROR_WARN, "{e:?}");
-    let means = face_means(&sol, &scene).expect("means");
-    let dark_means = face_means(
-        &solve(&dark, &SolveOptions::default()).expect("solves"),
-        &dark,
-    )
-    .expect("means");
+    let dark_means = means_and_account(&dark).0;
     let sealed = scene::seal::sealed(&scene);
     let (rho_w, rho_p, em) = (0.7, 0.5, 3.0);
     let b_w = rho_w * em / (1.0 - rho_w * rho_p);

@@ -330,16 +330,7 @@ impl Bvh {
                     if pi == skip[0] || pi == skip[1] {
                         continue;
                     }
-                    let c = &self.tris[pi as usize];
-                    let mut t = segment_triangle_in(a, d, [c[0], c[1], c[2]], t0);
-                    if self.shapes[pi as usize] == Shape::Quad {
-                        let t2 = segment_triangle_in(a, d, [c[0], c[2], c[3]], t0);
-                        t = match (t, t2) {
-                            (Some(x), Some(y)) => Some(x.min(y)),
-                            (x, y) => x.or(y),
-                        };
-                    }
-                    if let Some(t) = t {
+                    if let Some(t) = self.hit_t(pi, a, d, t0) {
                         let better = match best {
                             None => true,
                             Some((bi, bt)) => t < bt || (t == bt && pi < bi),
@@ -380,24 +371,31 @@ impl Bvh {
         best
     }
 
+    /// The parameter at which the segment a + t d, t in (`t0`, 1 - `T_EPS`), meets polygon
+    /// `pi` (the nearer of a quad's two triangles).
+    #[inline]
+    fn hit_t(&self, pi: u32, a: DVec3, d: DVec3, t0: f64) -> Option<f64> {
+        let c = &self.tris[pi as usize];
+        let t = segment_triangle_in(a, d, [c[0], c[1], c[2]], t0);
+        if self.shapes[pi as usize] != Shape::Quad {
+            return t;
+        }
+        match (t, segment_triangle_in(a, d, [c[0], c[2], c[3]], t0)) {
+            (Some(x), Some(y)) => Some(x.min(y)),
+            (x, y) => x.or(y),
+        }
+    }
+
     /// The first hit of the segment a + t d, t in (0, 1 - `T_EPS`), among the polygons `only`
     /// (no blind zone at its origin: for faces known to lie in front of it however close,
     /// `crate::seal`); ties by index.
     pub fn first_hit_among(&self, a: DVec3, d: DVec3, only: &[u32]) -> Option<(u32, f64)> {
         let mut best: Option<(u32, f64)> = None;
         for &pi in only {
-            let Some(c) = self.tris.get(pi as usize) else {
+            if pi as usize >= self.tris.len() {
                 continue;
-            };
-            let mut t = segment_triangle_in(a, d, [c[0], c[1], c[2]], 0.0);
-            if self.shapes[pi as usize] == Shape::Quad {
-                let t2 = segment_triangle_in(a, d, [c[0], c[2], c[3]], 0.0);
-                t = match (t, t2) {
-                    (Some(x), Some(y)) => Some(x.min(y)),
-                    (x, y) => x.or(y),
-                };
             }
-            if let Some(t) = t {
+            if let Some(t) = self.hit_t(pi, a, d, 0.0) {
                 if best.is_none_or(|(bi, bt)| t < bt || (t == bt && pi < bi)) {
                     best = Some((pi, t));
                 }

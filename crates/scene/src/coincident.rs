@@ -98,11 +98,13 @@ pub(crate) fn merge(
     (notes, warnings)
 }
 
-/// The heights over a plane below which a corner counts as on it when telling whether a face
-/// lies in front: 1e-12 of the largest coordinate of `pts`, a few ulps, what rounding alone
-/// can make of a gap.
+/// The share of the largest coordinate below which a height over a plane counts as on it when
+/// telling whether a face lies in front: a few ulps, what rounding alone can make of a gap.
+pub(crate) const ROUNDING: f64 = 1e-12;
+
+/// [`ROUNDING`] of the largest coordinate of `pts`.
 pub(crate) fn rounding_tolerance(pts: impl Iterator<Item = DVec3>) -> f64 {
-    1e-12
+    ROUNDING
         * pts
             .map(|p| p.abs().max_element())
             .fold(f64::MIN_POSITIVE, f64::max)

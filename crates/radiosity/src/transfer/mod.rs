@@ -602,12 +602,6 @@ impl<'a> Transfer<'a> {
         Some(hull)
     }
 
-    /// Whether light may pass between polygon `a` (`u32::MAX`: a spot) and polygon `b` at all
-    /// ([`scene::seal::may_exchange`]).
-    pub(crate) fn may_exchange(&self, a: u32, b: usize) -> bool {
-        self.sealed.may_exchange(a, b as u32)
-    }
-
     /// The sealed polygons ([`scene::seal`]).
     pub(crate) fn seals(&self) -> &scene::seal::Seals {
         &self.sealed
@@ -621,7 +615,7 @@ impl<'a> Transfer<'a> {
         let rp = &self.scene.polygons[r];
         let rv = rp.vertices();
         let above_r = |p: DVec3| rp.normal.dot(p - rv[0]) > eps;
-        if !self.may_exchange(sg.polygon, r) {
+        if !self.sealed.may_exchange(sg.polygon, r as u32) {
             return (PairClass::Culled, Vec::new());
         }
         let Some(hull) = self.facing_hull(s, r) else {

@@ -22,7 +22,7 @@ use glam::{DVec2, DVec3};
 
 use super::{clip_to_polygon, on_border, ContactLine, Frame, LineKind, PLANE_TOL};
 use crate::bvh::{Aabb, Bvh};
-use crate::coincident::{area_abs, clip, diameter};
+use crate::coincident::{area_abs, clip, diameter, ROUNDING};
 use crate::Polygon;
 
 /// A sheet in front of a receiver by at most this share of its half-width (twice its area
@@ -212,7 +212,7 @@ fn outline(
     // A sheet in front of `p` is over it however close (above rounding): the receiver under
     // it sees only the sheet, or nothing (module `seal`), so it is its own piece. Most sheets
     // near `p` are not in front of it: the first corner behind it or out of reach says so.
-    let on = 1e-12 * sheet.magnitude.max(magnitude(p));
+    let on = ROUNDING * sheet.magnitude.max(magnitude(p));
     let mut above = false;
     for q in members() {
         for v in q.vertices() {
