@@ -14,7 +14,10 @@
 //!   radiosity as the attribute `_RADIOSITY`.
 //!
 //! Both keep the model's structure: a node and a mesh per scene object, named after it, and the
-//! scene's camera as a camera node. Both bake the lighting, so every material is
+//! scene's camera as a camera node. Both leave out the buried polygons (`scene::seal`: the wall
+//! under a poster or a lamp mounted flush, a hair behind it): their depths tie with their
+//! covers' in any engine's depth buffer, so they would flicker through, and the faces over them
+//! hide them from every eye in front. Both bake the lighting, so every material is
 //! `KHR_materials_unlit`; each keeps the scene
 //! material's diffuse reflectance and emission in its `extras` for engines that relight. Every
 //! vertex carries `_POLYGON`, the scene polygon it belongs to. The container follows the file
@@ -202,13 +205,18 @@ pub fn export_lightmap(
     Ok(ExportReport {
         kind: "lightmap",
         files,
-        polygons: scene.polygons.len(),
+        polygons: scene.polygons.iter().filter(|p| exported(p)).count(),
         triangles,
         vertices,
         atlas: Some(atlas.stats(scene)),
         largest_shift_texels: shift,
         exposure,
     })
+}
+
+/// Whether polygon `p` goes into an export: all but the buried ones.
+fn exported(p: &scene::Polygon) -> bool {
+    p.sealed != scene::seal::Sealed::Buried
 }
 
 fn check_polygons(scene: &Scene) -> Result<()> {
@@ -228,6 +236,9 @@ fn lightmap_groups(scene: &Scene, atlas: &Atlas) -> (BTreeMap<(u32, u32, u32), V
     let mut groups: BTreeMap<(u32, u32, u32), Vertices> = BTreeMap::new();
     let mut shift: f64 = 0.0;
     for (p, poly) in scene.polygons.iter().enumerate() {
+        if !exported(poly) {
+            continue;
+        }
         let chart = &atlas.charts[p];
         let t = geometry::tessellate(poly, (chart.width, chart.height));
         shift = shift.max(t.shift);
@@ -373,6 +384,9 @@ fn mesh_groups(
     let mut groups: BTreeMap<(u32, u32), (Vertices, std::collections::HashMap<VertexKey, u32>)> =
         BTreeMap::new();
     for (k, tri) in mesh.scene.polygons.iter().enumerate() {
+        if !exported(tri) {
+            continue;
+        }
         let source = mesh.source_polygon[k];
         let object = scene.polygons.get(source as usize).map_or(0, |p| p.object);
         let (v, index) = groups.entry((object, tri.material)).or_insert_with(|| {
@@ -449,7 +463,7 @@ pub fn export_mesh(
     Ok(ExportReport {
         kind: "mesh",
         files,
-        polygons: scene.polygons.len(),
+        polygons: scene.polygons.iter().filter(|p| exported(p)).count(),
         triangles,
         vertices,
         atlas: None,

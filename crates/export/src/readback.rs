@@ -26,9 +26,12 @@ pub enum Pages {
 /// A lightmap export, read back.
 #[derive(Debug, Clone)]
 pub struct Imported {
-    /// The polygons, by the scene index in `_POLYGON`, with the material index the material's
-    /// extras name.
+    /// The polygons, in the order of the scene index in `_POLYGON`, with the material index
+    /// the material's extras name.
     pub polygons: Vec<Polygon>,
+    /// Each polygon's scene index (ascending; the export leaves the buried polygons out, so
+    /// there may be gaps).
+    pub ids: Vec<u32>,
     /// Each polygon's chart.
     pub charts: Vec<Chart>,
     /// The gutter the asset's extras give.
@@ -97,16 +100,11 @@ pub fn read(path: &Path, pages: Pages) -> Result<Imported> {
         .ok_or_else(|| bad(path, "no exposure in the asset's extras"))?;
     let images = read_pages(&gltf, &buffer, folder, &extras, pages, exposure, path)?;
     let found = read_corners(&gltf, &buffer, path)?;
-    if found.keys().enumerate().any(|(k, &id)| id != k as u32) {
-        return Err(bad(
-            path,
-            "the _POLYGON ids are not 0, 1, ... without a gap",
-        ));
-    }
+    let ids = found.keys().copied().collect();
     let uv_bounds = found.values().map(|f| f.bounds).collect();
     let mut polygons = Vec::with_capacity(found.len());
     let mut charts = Vec::with_capacity(found.len());
-    for (p, f) in found.values().enumerate() {
+    for (&p, f) in &found {
         let corner =
             |k: usize| f.corners[k].ok_or_else(|| bad(path, format!("polygon {p} lacks a corner")));
         let [c0, c1, c2] = [corner(0)?, corner(1)?, corner(2)?];
@@ -146,6 +144,7 @@ pub fn read(path: &Path, pages: Pages) -> Result<Imported> {
     }
     Ok(Imported {
         polygons,
+        ids,
         charts,
         gutter,
         exposure,

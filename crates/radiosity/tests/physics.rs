@@ -453,7 +453,7 @@ fn a_lamp_a_hair_in_front_of_a_wall_lights_the_room_once() {
     let (means, e) = means_and_account(&flush);
     assert!(e.error().abs() <= radiosity::ENERGY_ERROR_WARN, "{e:?}");
     let off_means = means_and_account(&off).0;
-    let sealed = scene::seal::sealed(&flush);
+    let sealed = flush.seals();
     let under: Vec<usize> = (0..means.len())
         .filter(|&i| sealed.is_sealed(i as u32))
         .collect();
@@ -491,7 +491,7 @@ fn a_panel_facing_a_wall_a_hair_away_keeps_its_light_between_them() {
     let (means, e) = means_and_account(&scene);
     assert!(e.error().abs() <= radiosity::ENERGY_ERROR_WARN, "{e:?}");
     let dark_means = means_and_account(&dark).0;
-    let sealed = scene::seal::sealed(&scene);
+    let sealed = scene.seals();
     let (rho_w, rho_p, em) = (0.7, 0.5, 3.0);
     let b_w = rho_w * em / (1.0 - rho_w * rho_p);
     let mut pair = 0;

@@ -426,9 +426,11 @@ fn mesh_polygon(
     for tri in &dm.triangles {
         let world = tri.map(|v| parent.point(v.uv[0], v.uv[1]));
         // `None`: zero world area (collapsed edge of a triangular parent); covers no sample.
-        let Some(t) = Polygon::triangle(world, parent.material, parent.object) else {
+        let Some(mut t) = Polygon::triangle(world, parent.material, parent.object) else {
             continue;
         };
+        // Drawn where its polygon is: from behind only, if faces lie over it.
+        t.sealed = parent.sealed;
         for v in tri {
             used[v.id as usize] = true;
         }

@@ -83,6 +83,10 @@ pub struct Polygon {
     /// The model's vertex normals where it marks the surface smooth ([`shading`]); `None` for
     /// a flat facet. Shared by the pieces a polygon is cut into.
     pub shading: Option<std::sync::Arc<shading::Shading>>,
+    /// Whether faces lie over its front closer than rays resolve ([`seal`]), so that every eye
+    /// in front of it sees them instead: the renderers draw it only from behind. Set by the
+    /// loader ([`Scene::mark_sealed`]); `Open` for a polygon built in code.
+    pub sealed: seal::Sealed,
 }
 
 impl Polygon {
@@ -119,6 +123,7 @@ impl Polygon {
             area: 0.5 * len,
             object,
             shading: None,
+            sealed: seal::Sealed::Open,
         })
     }
 
@@ -469,23 +474,49 @@ pub struct Scene {
     /// ([`junctions`]); polygon indices in it are those before each pass.
     pub junctions: contact::Cuts,
     /// The adjacency the T-junction pass ends with, kept for [`Scene::adjacency`].
-    adjacency_cache: AdjacencyCache,
+    adjacency_cache: Memo<adjacency::Adjacency>,
+    /// The seals [`Scene::mark_sealed`] found, kept for [`Scene::seals`].
+    seal_cache: Memo<seal::Seals>,
 }
 
-/// An adjacency kept with the fingerprint of the polygons it was found for: used only while
-/// the polygons are still those (a scene's polygons are public, and anyone may change them).
-/// Equal to every other cache: it is a memo, not part of what a scene is.
-#[derive(Debug, Clone, Default)]
-struct AdjacencyCache(Option<(u64, std::sync::Arc<adjacency::Adjacency>)>);
+/// What was found from the polygons, kept with the fingerprint of the polygons it was found
+/// for: used only while the polygons are still those (a scene's polygons are public, and
+/// anyone may change them). Equal to every other memo: it is not part of what a scene is.
+#[derive(Debug, Clone)]
+struct Memo<T>(Option<(u64, std::sync::Arc<T>)>);
 
-impl PartialEq for AdjacencyCache {
-    fn eq(&self, _: &AdjacencyCache) -> bool {
+impl<T> Default for Memo<T> {
+    fn default() -> Self {
+        Memo(None)
+    }
+}
+
+impl<T> PartialEq for Memo<T> {
+    fn eq(&self, _: &Memo<T>) -> bool {
         true
     }
 }
 
+impl<T> Memo<T> {
+    /// `value`, found for `polygons`.
+    fn of(polygons: &[Polygon], value: T) -> Memo<T> {
+        Memo(Some((
+            geometry_fingerprint(polygons),
+            std::sync::Arc::new(value),
+        )))
+    }
+
+    /// The value kept if it was found for `polygons`, else `find` of them.
+    fn get_or(&self, polygons: &[Polygon], find: impl FnOnce() -> T) -> std::sync::Arc<T> {
+        match &self.0 {
+            Some((f, a)) if *f == geometry_fingerprint(polygons) => std::sync::Arc::clone(a),
+            _ => std::sync::Arc::new(find()),
+        }
+    }
+}
+
 /// A fingerprint of the polygons' geometry (every corner's bits and shape, in order): what
-/// [`adjacency::Adjacency::of`] depends on.
+/// [`adjacency::Adjacency::of`] and [`seal::sealed`] depend on.
 fn geometry_fingerprint(polygons: &[Polygon]) -> u64 {
     // FNV-1a over 64-bit words.
     let mut h: u64 = 0xcbf2_9ce4_8422_2325;
@@ -546,7 +577,8 @@ impl Scene {
             contacts: contact::Cuts::default(),
             merged: triangle_pairs::Merged::default(),
             junctions: contact::Cuts::default(),
-            adjacency_cache: AdjacencyCache::default(),
+            adjacency_cache: Memo::default(),
+            seal_cache: Memo::default(),
         }
     }
 
@@ -575,21 +607,34 @@ impl Scene {
         let (cuts, adjacency) =
             junctions::cut(&mut self.polygons, &mut self.origins, &self.materials);
         self.junctions = cuts;
-        self.adjacency_cache = AdjacencyCache(
-            adjacency.map(|a| (geometry_fingerprint(&self.polygons), std::sync::Arc::new(a))),
-        );
+        self.adjacency_cache =
+            adjacency.map_or_else(Memo::default, |a| Memo::of(&self.polygons, a));
+    }
+
+    /// Finds the sealed polygons ([`seal::sealed`]), marks each one's [`Polygon::sealed`] and
+    /// keeps them for [`Scene::seals`]. The loader does this for every scene after its cuts; a
+    /// scene built in code does it when it asks.
+    pub fn mark_sealed(&mut self) {
+        let seals = seal::sealed(self);
+        for (i, p) in self.polygons.iter_mut().enumerate() {
+            p.sealed = seals.kind(i as u32);
+        }
+        self.seal_cache = Memo::of(&self.polygons, seals);
+    }
+
+    /// The sealed polygons ([`seal::sealed`]): those [`Scene::mark_sealed`] found while the
+    /// polygons are still those it found them for, else found now.
+    pub fn seals(&self) -> std::sync::Arc<seal::Seals> {
+        self.seal_cache
+            .get_or(&self.polygons, || seal::sealed(self))
     }
 
     /// The shared edges of the polygons ([`adjacency::Adjacency::of`]): the one the T-junction
     /// pass ended with when the polygons are still those it was found for (checked by a
     /// fingerprint of their geometry, far cheaper than finding it again), else found now.
     pub fn adjacency(&self) -> std::sync::Arc<adjacency::Adjacency> {
-        if let Some((f, a)) = &self.adjacency_cache.0 {
-            if *f == geometry_fingerprint(&self.polygons) {
-                return std::sync::Arc::clone(a);
-            }
-        }
-        std::sync::Arc::new(adjacency::Adjacency::of(&self.polygons))
+        self.adjacency_cache
+            .get_or(&self.polygons, || adjacency::Adjacency::of(&self.polygons))
     }
 
     /// Where polygon `i` was written (`file:line: key`), or `polygon i` for a scene built in

@@ -248,7 +248,7 @@ pub fn warnings(scene: &Scene) -> Vec<String> {
             object(view.worst_object())
         ));
     }
-    let sealed = crate::seal::sealed(scene);
+    let sealed = scene.seals();
     out.extend(light_warnings(scene, &bvh, reach, &sealed));
     out.extend(trapped_lights(scene, &bvh, reach, &sealed));
     out

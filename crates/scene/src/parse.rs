@@ -197,6 +197,7 @@ impl<'a> Cx<'a> {
             merged,
             junctions: crate::contact::Cuts::default(),
             adjacency_cache: Default::default(),
+            seal_cache: Default::default(),
         };
         cut(&mut scene);
         Ok(scene)
@@ -707,7 +708,8 @@ impl<'a> Cx<'a> {
 }
 
 /// The loader's cuts of a built scene, each said in a note: along its contact lines (when
-/// `radiosity.cut_contacts`), then through the T-junctions whose lattices do not line up.
+/// `radiosity.cut_contacts`), then through the T-junctions whose lattices do not line up; then
+/// the sealed polygons among the pieces marked.
 fn cut(scene: &mut Scene) {
     if scene.radiosity.cut_contacts {
         scene.cut_contacts();
@@ -725,6 +727,7 @@ fn cut(scene: &mut Scene) {
             scene.junctions.lines.len()
         ));
     }
+    scene.mark_sealed();
 }
 
 /// Gives every polygon whose material is in `materials` a twin right after it, the same

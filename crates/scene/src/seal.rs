@@ -48,6 +48,31 @@ pub fn seal_gap(a: f64, b: f64, core: f64) -> f64 {
     (PLANE_TOL * a.max(b)).max(SEAL_REACH * core)
 }
 
+/// What lies over a polygon's front closer than rays resolve ([`Polygon::sealed`]): what the
+/// renderers need to know of its seal.
+///
+/// [`Polygon::sealed`]: crate::Polygon::sealed
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub enum Sealed {
+    /// Nothing: it is drawn from either side.
+    #[default]
+    Open,
+    /// Faces facing it (a light panel a hair in front of a wall, facing it): every eye in
+    /// front of the polygon sees their backs first, so it is drawn only from behind.
+    Faced,
+    /// Faces turning their backs to it, over most of its area (the wall under a poster or a
+    /// lamp mounted flush): hidden from every eye in front of it whether or not back faces are
+    /// drawn, and it takes and gives no light; an export leaves it out.
+    Buried,
+}
+
+impl Sealed {
+    /// Whether an eye on the polygon's front side sees its covers instead of it.
+    pub fn hidden_from_front(self) -> bool {
+        self != Sealed::Open
+    }
+}
+
 /// The sealed polygons of a scene ([`sealed`]).
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct Seals {
@@ -78,6 +103,16 @@ impl Seals {
         match self.of.get(p as usize) {
             Some(Some((_, b))) => *b,
             _ => 0.0,
+        }
+    }
+
+    /// How polygon `p` is sealed: `Buried` where covers turned away from it cover more of it
+    /// than covers facing it.
+    pub fn kind(&self, p: u32) -> Sealed {
+        match self.of.get(p as usize) {
+            Some(Some((_, b))) if *b > 0.5 => Sealed::Buried,
+            Some(Some(_)) => Sealed::Faced,
+            _ => Sealed::Open,
         }
     }
 
@@ -234,6 +269,7 @@ mod tests {
             let l = sealed(&scene_of(vec![wall.clone(), square(2.0 - gap, true)]));
             assert!(!l.is_sealed(0) && l.is_sealed(1), "gap {gap}: {l:?}");
             assert_eq!((l.partners(1), l.behind(1)), (&[0][..], 0.0));
+            assert_eq!((l.kind(0), l.kind(1)), (Sealed::Open, Sealed::Faced));
             assert!(!l.may_exchange(1, u32::MAX) && l.may_exchange(0, u32::MAX));
         }
         // The piece of the wall under the panel (what the contact cut leaves) and the panel
@@ -254,6 +290,14 @@ mod tests {
         let l = sealed(&scene_of(vec![piece, square(2.0 - 1e-9, false)]));
         assert!(l.is_sealed(0) && !l.is_sealed(1), "{l:?}");
         assert!(l.partners(0).is_empty() && l.behind(0) == 1.0);
+        assert_eq!((l.kind(0), l.kind(1)), (Sealed::Buried, Sealed::Open));
+        // The loader's marks, and the seals kept for the polygons they were found for only.
+        let mut s = scene_of(vec![square(2.0, false), square(2.0 - 1e-9, false)]);
+        s.mark_sealed();
+        assert_eq!(s.polygons[0].sealed, Sealed::Buried);
+        assert!(s.seals().is_sealed(0));
+        s.polygons[1] = square(2.0 - 1e-3, false);
+        assert!(!s.seals().is_sealed(0), "found again for the moved poster");
         assert!(!l.may_exchange(0, 1) && !l.may_exchange(1, 0) && l.may_exchange(1, u32::MAX));
     }
 

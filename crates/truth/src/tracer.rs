@@ -96,7 +96,7 @@ pub(crate) struct Tracer<'a> {
     /// The sealed polygons (`scene::seal`; none in most scenes): a polygon wholly covered by
     /// faces lying over it closer than rays resolve exchanges light only with those that face
     /// it, as in the solver.
-    sealed: scene::seal::Seals,
+    sealed: std::sync::Arc<scene::seal::Seals>,
     max_bounces: u32,
 }
 
@@ -126,7 +126,7 @@ impl<'a> Tracer<'a> {
             centre: 0.5 * (lo + hi),
             diagonal,
             t0: scene.ray_t0(),
-            sealed: scene::seal::sealed(scene),
+            sealed: scene.seals(),
             max_bounces: max_bounces.unwrap_or(u32::MAX),
         }
     }

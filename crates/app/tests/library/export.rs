@@ -458,3 +458,52 @@ fn an_export_loads_back_as_the_scene_it_was_made_of() {
     let m = scene::load_scene(&dir.join("m.glb")).unwrap();
     assert!(m.polygons.len() > p.scene.polygons.len());
 }
+
+/// What broke: the piece of a wall under a lamp mounted flush (1e-9 in front of it, facing the
+/// room) was exported with it; their depths tie in any engine's depth buffer, so a viewer drew
+/// the lamp flickering with the piece's black. Both exports now leave the buried pieces out
+/// (the lightmap's `_POLYGON` ids skip them) and keep every other polygon.
+#[test]
+fn exports_leave_out_the_pieces_buried_under_flush_faces() {
+    let path = std::path::Path::new(crate::REPO).join("scenes/hard/flush.toml");
+    let p = app::prepare::prepare_path(
+        &app::context::Context::default(),
+        &path,
+        &app::context::TextureOptions::default(),
+    )
+    .unwrap();
+    let open: Vec<u32> = (0..p.scene.polygons.len() as u32)
+        .filter(|&i| p.scene.polygons[i as usize].sealed != scene::seal::Sealed::Buried)
+        .collect();
+    assert_eq!(open.len() + 2, p.scene.polygons.len(), "two pieces buried");
+    let (set, _) = p.textures().unwrap();
+    let (mesh, _) = p.mesh().unwrap();
+    let dir = tempdir("flush");
+    let outputs = base::output::Outputs::new();
+    let out = dir.join("l.glb");
+    let l = export_lightmap(
+        &p.scene,
+        set,
+        p.expanded().unwrap().0,
+        4096,
+        0.0,
+        &out,
+        &outputs,
+    );
+    assert_eq!(l.unwrap().polygons, open.len());
+    let back = read(&out, Pages::Linear).unwrap();
+    assert_eq!(back.ids, open);
+    for (a, &i) in back.polygons.iter().zip(&back.ids) {
+        let b = &p.scene.polygons[i as usize];
+        let d = (0..4).map(|k| (a.corners[k] - b.corners[k]).length());
+        assert!(d.fold(0.0, f64::max) < 1e-6, "polygon {i}");
+    }
+    let m = export_mesh(&p.scene, mesh, 0.0, &dir.join("m.glb"), &outputs).unwrap();
+    let kept = mesh
+        .source_polygon
+        .iter()
+        .filter(|s| open.contains(s))
+        .count();
+    assert!(kept < mesh.scene.polygons.len());
+    assert_eq!((m.polygons, m.triangles), (open.len(), kept));
+}

@@ -24,12 +24,31 @@
 //! closed scenes seen from inside (the Cornell box) every back face is hidden behind front faces, so
 //! the default changes no pixel there; [`crate::frame::FrameOptions::cull_back_faces`] turns culling
 //! on to save raster work in such scenes.
+//!
+//! A sealed polygon (`scene::seal`: faces lie over its front closer than the depth buffer or
+//! any ray resolves, a lamp mounted flush on a wall) is left out where it faces the camera:
+//! there its covers are in front of it, but their depths tie with its own, and the tie would
+//! go to whichever polygon comes first (the dark wall under the lamp, drawn over the lamp).
+//! From behind it is drawn as any polygon is ([`culled`]).
 
 use glam::DVec3;
 use smallvec::SmallVec;
 
 use base::error::{Error, Result};
+use scene::seal::Sealed;
 use scene::{Camera, Polygon, Projection, Shape};
+
+/// Whether a polygon sealed as `sealed`, facing the camera if `front_facing`, is left out of a
+/// frame: seen from in front when faces lying over it hide it, seen from behind when back
+/// faces are culled (`cull_back`).
+#[inline(always)]
+pub(crate) fn culled(cull_back: bool, sealed: Sealed, front_facing: bool) -> bool {
+    if front_facing {
+        sealed.hidden_from_front()
+    } else {
+        cull_back
+    }
+}
 
 /// Guard band, in pixels beyond each image edge: screen polygons are clipped to it, which bounds
 /// fixed-point coordinates to below 2^26 (8 subpixel bits) and edge functions to below 2^56.

@@ -29,7 +29,8 @@ pub(crate) enum Outcome {
 }
 
 /// Geometry and setup of triangle `poly` (scene polygon `id`) into `out`, or [`Outcome::General`]
-/// when it needs clipping; with `cull`, a triangle facing away is rejected.
+/// when it needs clipping; with `cull`, a triangle facing away is rejected, as is a sealed one
+/// facing the camera ([`super::geometry::culled`]).
 pub(crate) fn triangle_into(
     view: &View,
     poly: &Polygon,
@@ -64,7 +65,7 @@ pub(crate) fn triangle_into(
     } = view.plane_view(poly, c0);
     // The cheap rejections first (culled, off screen, covering no sample: a sixth of a mesh
     // in a typical view), the per-pixel expressions only for a triangle that is drawn.
-    if cull && !front_facing {
+    if super::geometry::culled(cull, poly.sealed, front_facing) {
         return Outcome::Rejected;
     }
     let verts = [

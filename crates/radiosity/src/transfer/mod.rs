@@ -344,7 +344,7 @@ pub(crate) struct Transfer<'a> {
     /// The sealed polygons ([`scene::seal`]; none in most scenes): a polygon wholly covered
     /// by faces lying over it closer than rays resolve exchanges light only with those that
     /// face it.
-    sealed: scene::seal::Seals,
+    sealed: std::sync::Arc<scene::seal::Seals>,
     /// Per shooter, the shape of its light over the patch (`None`: uniform; see [`shape`]).
     shapes: Vec<Option<PatchShape>>,
     /// A gather refines a patch's node while spread x F x min(1, size / distance) passes
@@ -392,7 +392,7 @@ impl<'a> Transfer<'a> {
                 4.0 * (hi - lo).length().max(1e-300)
             },
             ray_t0: scene.ray_t0(),
-            sealed: scene::seal::sealed(scene),
+            sealed: scene.seals(),
             shapes: vec![None; n],
             shape_tau: shape_tolerance(scene.radiosity.tolerance),
         }
