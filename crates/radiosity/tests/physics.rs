@@ -441,34 +441,60 @@ fn means_and_account(scene: &scene::Scene) -> (Vec<radiosity::FaceMean>, radiosi
 /// What broke: the same panel turned to face the room (a lamp mounted flush on a wall) lay
 /// over the wall closer than rays resolve, so the wall under it went on receiving and
 /// reflecting the room's light through it, and the room's light that lands there was
-/// reflected twice: the account read 14 % of the emitted light created. The piece of the wall
-/// under it is now sealed with nothing (the panel's back takes its light): it is dark, and the
-/// room reads as with the panel 1 mm off the wall, where the rays resolve the gap.
+/// reflected twice: the account read 14 % of the emitted light created; snapped into the
+/// wall's plane (gap 0), the panel and the wall both took the light of the overlap and the
+/// account read 19.5 % created. The piece of the wall under it is now buried (the panel's back
+/// takes its light; in the wall's plane the emitter lies on top): it is dark, and the room
+/// reads as with the panel 1 mm off the wall, where the rays resolve the gap.
 #[test]
 fn a_lamp_a_hair_in_front_of_a_wall_lights_the_room_once() {
     let path = Path::new("lamp-on-wall.toml");
-    let flush = scene::parse_scene(&panel_by_a_wall(3.0, 1e-9, false), path).expect("scene");
     let off = scene::parse_scene(&panel_by_a_wall(3.0, 1e-3, false), path).expect("scene");
-    assert_eq!(flush.polygons.len(), off.polygons.len(), "the same cut");
-    let (means, e) = means_and_account(&flush);
-    assert!(e.error().abs() <= radiosity::ENERGY_ERROR_WARN, "{e:?}");
     let off_means = means_and_account(&off).0;
+    for gap in [1e-9, 0.0] {
+        lamp_on_wall_lights_the_room_once(gap, &off, &off_means);
+    }
+}
+
+/// [`a_lamp_a_hair_in_front_of_a_wall_lights_the_room_once`] at `gap`, against the panel 1 mm
+/// off the wall (`off`, its face means `off_means`).
+fn lamp_on_wall_lights_the_room_once(
+    gap: f64,
+    off: &scene::Scene,
+    off_means: &[radiosity::FaceMean],
+) {
+    let path = Path::new("lamp-on-wall.toml");
+    let flush = scene::parse_scene(&panel_by_a_wall(3.0, gap, false), path).expect("scene");
+    assert_eq!(
+        flush.polygons.len(),
+        off.polygons.len(),
+        "gap {gap}: the same cut"
+    );
+    let (means, e) = means_and_account(&flush);
+    assert!(
+        e.error().abs() <= radiosity::ENERGY_ERROR_WARN,
+        "gap {gap}: {e:?}"
+    );
     let sealed = flush.seals();
     let under: Vec<usize> = (0..means.len())
         .filter(|&i| sealed.is_sealed(i as u32))
         .collect();
-    assert_eq!(under.len(), 1, "the wall under the panel: {sealed:?}");
-    for (i, (m, o)) in means.iter().zip(&off_means).enumerate() {
+    assert_eq!(
+        under.len(),
+        1,
+        "gap {gap}: the wall under the panel: {sealed:?}"
+    );
+    for (i, (m, o)) in means.iter().zip(off_means).enumerate() {
         let (b, d) = (lum(m.total), lum(o.total));
         if i == under[0] {
             assert!(
                 b == 0.0 && d < 1e-3,
-                "under the panel: {b} flush, {d} 1 mm off"
+                "gap {gap}: under the panel: {b} flush, {d} 1 mm off"
             );
         } else {
             assert!(
                 (b / d - 1.0).abs() <= 0.01,
-                "polygon {i}: {b} flush, {d} 1 mm off"
+                "gap {gap}: polygon {i}: {b} flush, {d} 1 mm off"
             );
         }
     }

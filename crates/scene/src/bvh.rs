@@ -96,6 +96,10 @@ pub struct Bvh {
     tris: Vec<[DVec3; 4]>,
     shapes: Vec<Shape>,
     boxes: Vec<Aabb>,
+    /// Per polygon, whether faces lying over its front hide it from every ray coming from in
+    /// front ([`crate::Polygon::sealed`]): a first hit never stops there, the cover is what the
+    /// ray meets, even where the two tie (a panel snapped onto a ceiling's plane).
+    hidden: Vec<bool>,
 }
 
 impl Bvh {
@@ -109,6 +113,10 @@ impl Bvh {
             tris: polygons.iter().map(|p| p.corners).collect(),
             shapes: polygons.iter().map(|p| p.shape).collect(),
             boxes: boxes.clone(),
+            hidden: polygons
+                .iter()
+                .map(|p| p.sealed.hidden_from_front())
+                .collect(),
         };
         if polygons.is_empty() {
             return bvh;
@@ -327,7 +335,7 @@ impl Bvh {
             if node.count > 0 {
                 let s = node.first as usize;
                 for &pi in &self.order[s..s + node.count as usize] {
-                    if pi == skip[0] || pi == skip[1] {
+                    if pi == skip[0] || pi == skip[1] || self.hidden_from(pi, d) {
                         continue;
                     }
                     if let Some(t) = self.hit_t(pi, a, d, t0) {
@@ -369,6 +377,15 @@ impl Bvh {
             }
         }
         best
+    }
+
+    /// Whether polygon `pi` is hidden from a ray along `d` by faces lying over its front.
+    #[inline]
+    fn hidden_from(&self, pi: u32, d: DVec3) -> bool {
+        self.hidden[pi as usize] && {
+            let c = &self.tris[pi as usize];
+            (c[1] - c[0]).cross(c[2] - c[0]).dot(d) < 0.0
+        }
     }
 
     /// The parameter at which the segment a + t d, t in (`t0`, 1 - `T_EPS`), meets polygon

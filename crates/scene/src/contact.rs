@@ -44,7 +44,7 @@
 use glam::{DVec2, DVec3};
 
 use crate::bvh::{Aabb, Bvh};
-use crate::coincident::diameter;
+use crate::coincident::{diameter, Stacking};
 use crate::Polygon;
 
 /// Points within this fraction of a polygon's size of its plane lie on it (the tolerance of
@@ -165,8 +165,9 @@ impl Cuts {
     }
 }
 
-/// Every contact line of `polygons` (see the module docs), ordered by receiver, then `by`.
-pub fn find(polygons: &[Polygon]) -> Vec<ContactLine> {
+/// Every contact line of `polygons` (see the module docs), ordered by receiver, then `by`;
+/// `stacking` says which of two polygons overlapping in one plane lies on top.
+pub(crate) fn find(polygons: &[Polygon], stacking: &Stacking) -> Vec<ContactLine> {
     let bvh = Bvh::build(polygons);
     let mut lines = Vec::new();
     for (pi, p) in polygons.iter().enumerate() {
@@ -197,7 +198,7 @@ pub fn find(polygons: &[Polygon]) -> Vec<ContactLine> {
             }
         }
     }
-    outline::outlines(polygons, &bvh, &mut lines);
+    outline::outlines(polygons, &bvh, stacking, &mut lines);
     // Stable: a pair's contact lines stay ahead of its outline's.
     lines.sort_by_key(|l| (l.receiver, l.by));
     lines

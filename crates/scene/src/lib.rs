@@ -586,7 +586,8 @@ impl Scene {
     /// and records what was cut in `contacts`. The loader does this for every scene whose
     /// `radiosity.cut_contacts` is on; a scene built in code does it when it asks.
     pub fn cut_contacts(&mut self) {
-        let lines = contact::find(&self.polygons);
+        let stacking = coincident::Stacking::of(&self.polygons, &self.materials);
+        let lines = contact::find(&self.polygons, &stacking);
         self.contacts = contact::cut(&mut self.polygons, &mut self.origins, lines);
         // Each cut polygon's first piece: the polygons before it, less the pieces they lost
         // plus those they gained.

@@ -17,16 +17,20 @@
 //! poster), and the light that reaches its covers' backs is absorbed there. The solver culls
 //! every other pair, and the rays that account for the light skip what they cannot see.
 //!
-//! Invariants: the result depends only on the polygons (candidates visited in index order), so
-//! it is the same for any thread count; two polygons in one plane (a two-sided polygon and its
-//! reversed twin, a thin wall's two sides, two copies of a face) are never sealed: with no gap,
-//! which lies in front cannot be told, and such data means back to back or a duplicate (which
-//! the loader reports).
+//! Two polygons in one plane facing one way that overlap (a light panel snapped onto a
+//! ceiling, a rug on a floor) are the limit of a gap of zero: the one on top
+//! (`crate::coincident::Stacking`) buries the piece of the other under it, as a face a hair in
+//! front of it would.
+//!
+//! Invariants: the result depends only on the polygons and their materials (candidates visited
+//! in index order), so it is the same for any thread count; two polygons in one plane facing
+//! each other (a two-sided polygon and its reversed twin, a thin wall's two sides) are never
+//! sealed: with no gap, they are back to back.
 
 use glam::{DVec2, DVec3};
 
 use crate::bvh::{Aabb, Bvh, T_EPS};
-use crate::coincident::{area_abs, clip, diameter, rounding_tolerance};
+use crate::coincident::{area_abs, clip, diameter, rounding_tolerance, Stacking};
 use crate::contact::{Frame, PLANE_TOL};
 use crate::Scene;
 
@@ -136,7 +140,8 @@ enum Cover {
 
 /// The sealed polygons of `scene`: those whose covers (polygons parallel to them, in front of
 /// them by more than rounding and at most [`seal_gap`], facing them or turning their backs to
-/// them) cover at least [`SEALED_COVER`] of them, projected onto their plane.
+/// them, or in their plane facing their way and on top of them) cover at least
+/// [`SEALED_COVER`] of them, projected onto their plane.
 pub fn sealed(scene: &Scene) -> Seals {
     let polygons = &scene.polygons;
     let mut out = Seals {
@@ -147,6 +152,7 @@ pub fn sealed(scene: &Scene) -> Seals {
     }
     let core = scene.core_diagonal();
     let bvh = Bvh::build(polygons);
+    let stacking = Stacking::of(polygons, &scene.materials);
     // A cover lies over `p` within the gap of the larger of the two, so its box meets p's
     // grown by the gap the scene's largest polygon may leave.
     let largest = polygons.iter().map(diameter).fold(0.0, f64::max);
@@ -168,7 +174,7 @@ pub fn sealed(scene: &Scene) -> Seals {
         let flat: Vec<DVec2> = p.vertices().iter().map(|v| frame.to2(*v)).collect();
         let (mut partners, mut facing, mut backing) = (Vec::new(), 0.0, 0.0);
         for q in near {
-            match cover(scene, i, q as usize, core, (&frame, &flat)) {
+            match cover(scene, (i, q as usize), (core, &stacking), (&frame, &flat)) {
                 Some((Cover::Facing, a)) => {
                     partners.push(q);
                     facing += a;
@@ -187,12 +193,12 @@ pub fn sealed(scene: &Scene) -> Seals {
 
 /// How polygon `q` covers polygon `i`, and the area it covers, if it lies over it within the
 /// seal gap: parallel (facing it or turning its back to it), every corner in front of `i` by
-/// more than rounding and at most the gap, covering a positive share of it.
+/// more than rounding and at most the gap (or, facing its way, every corner in its plane and
+/// `q` on top in the `stacking` order), covering a positive share of it.
 fn cover(
     scene: &Scene,
-    i: usize,
-    q: usize,
-    core: f64,
+    (i, q): (usize, usize),
+    (core, stacking): (f64, &Stacking),
     (frame, flat): (&Frame, &[DVec2]),
 ) -> Option<(Cover, f64)> {
     let (p, qp) = (&scene.polygons[i], &scene.polygons[q]);
@@ -207,10 +213,14 @@ fn cover(
     let gap = seal_gap(diameter(p), diameter(qp), core);
     let tiny = rounding_tolerance(p.vertices().iter().chain(qp.vertices()).copied());
     let height = |v: DVec3| p.normal.dot(v - p.corners[0]);
-    if !qp.vertices().iter().all(|&v| {
-        let h = height(v);
+    let over = |v: &DVec3| {
+        let h = height(*v);
         h > tiny && h <= gap
-    }) {
+    };
+    let on_top = kind == Cover::Backing
+        && stacking.over(q, i)
+        && qp.vertices().iter().all(|v| height(*v).abs() <= tiny);
+    if !on_top && !qp.vertices().iter().all(over) {
         return None;
     }
     let footprint: Vec<DVec2> = qp.vertices().iter().map(|v| frame.to2(*v)).collect();
@@ -302,8 +312,8 @@ mod tests {
     }
 
     /// Faces that are not a hair apart one over the other are never sealed: a polygon and its
-    /// reversed twin in one plane (a two-sided surface: back to back), a copy in its plane, the
-    /// same faces farther apart than the seal gap (the rays resolve them), and faces behind it.
+    /// reversed twin in one plane (a two-sided surface: back to back), the same faces farther
+    /// apart than the seal gap (the rays resolve them), and faces behind it.
     #[test]
     fn only_faces_a_hair_over_another_are_sealed() {
         let none = |polys: Vec<Polygon>| {
@@ -311,10 +321,58 @@ mod tests {
             assert!(!l.is_sealed(0) && !l.is_sealed(1), "{l:?}");
         };
         none(vec![square(2.0, false), square(2.0, true)]);
-        none(vec![square(2.0, false), square(2.0, false)]);
         none(vec![square(2.0, false), square(2.0 - 1e-3, true)]);
         none(vec![square(2.0, false), square(2.0 - 1e-3, false)]);
         none(vec![square(2.0, false), square(2.0 + 1e-9, true)]);
         assert!(seal_gap(1.0, 1.0, 3.0) < 1e-5);
+    }
+
+    /// Two faces in one plane facing one way, one over the other (a light panel snapped onto a
+    /// ceiling, a rug on a floor): the one on top buries the other, as a face a hair in front
+    /// would. On top: the emitter, else the smaller object, else the one listed later.
+    #[test]
+    fn a_face_on_top_in_anothers_plane_buries_it() {
+        let wall = quad([
+            [2.0, 0.0, 0.0],
+            [2.0, 0.0, 2.0],
+            [2.0, 2.0, 2.0],
+            [2.0, 2.0, 0.0],
+        ]);
+        let on_wall = square(2.0, false);
+        let mut lamp = scene_of(vec![wall.clone(), on_wall.clone()]);
+        lamp.materials.push(Material {
+            name: "lamp".into(),
+            reflectance: DVec3::ZERO,
+            emission: DVec3::ONE,
+        });
+        // The piece of the wall under the square and the square, both of object 0.
+        let piece = square(2.0, false);
+        let kinds = |s: &Scene| {
+            (0..s.polygons.len() as u32)
+                .map(|i| s.seals().kind(i))
+                .collect::<Vec<_>>()
+        };
+        let both = |first: Polygon, second: Polygon| {
+            let mut s = lamp.clone();
+            s.polygons = vec![first, second];
+            kinds(&s)
+        };
+        use Sealed::{Buried, Open};
+        // Same object, no emitter: the later one lies on top.
+        assert_eq!(both(piece.clone(), on_wall.clone()), [Buried, Open]);
+        // The emitter lies on top, listed first or last.
+        let mut lit = on_wall.clone();
+        lit.material = 1;
+        assert_eq!(both(lit.clone(), piece.clone()), [Open, Buried]);
+        assert_eq!(both(piece.clone(), lit), [Buried, Open]);
+        // The smaller object lies on top: the wall's other pieces make its object larger.
+        let mut s = lamp.clone();
+        let mut poster = on_wall.clone();
+        poster.object = 1;
+        s.polygons = vec![poster, piece.clone(), wall];
+        s.polygons[2].object = 0;
+        assert_eq!(kinds(&s)[..2], [Open, Buried]);
+        // Faces in one plane facing each other are back to back, neither on top.
+        assert_eq!(both(piece, square(2.0, true)), [Open, Open]);
     }
 }

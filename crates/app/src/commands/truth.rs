@@ -488,13 +488,18 @@ impl PolygonReport {
                 .filter(|&c| r.radiosity[c] > 0.0)
                 .map(|c| r.radiosity_se[c] / r.radiosity[c])
                 .fold(0.0, f64::max);
-            let ratio = r
-                .solver
-                .map(|m| format!("  {:>12.4}", lum(m) / lum(r.radiosity)))
-                .unwrap_or_default()
-                + &r.solution
-                    .map(|m| format!("  {:>14.4}", lum(m) / lum(r.radiosity)))
-                    .unwrap_or_default();
+            // A face that receives no light (a piece buried under a face over it) has no
+            // ratio: "-", not the NaN of 0 / 0.
+            let of = |m: [f64; 3], w: usize| {
+                let t = lum(r.radiosity);
+                if t > 0.0 {
+                    format!("  {:>w$.4}", lum(m) / t)
+                } else {
+                    format!("  {:>w$}", "-")
+                }
+            };
+            let ratio = r.solver.map(|m| of(m, 12)).unwrap_or_default()
+                + &r.solution.map(|m| of(m, 14)).unwrap_or_default();
             s += &format!(
                 "{:>4}  {:<width$} {:<26} {:>6.3}  {:<26} {:<26}{ratio}\n",
                 r.polygon,

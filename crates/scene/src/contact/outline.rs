@@ -11,6 +11,10 @@
 //! its area over its border's length) decides whether it is close, and only its border sides
 //! are outlines.
 //!
+//! A sheet in the receiver's very plane, facing the same way (a light panel snapped onto a
+//! ceiling), cuts it too where it lies on top of it (`crate::coincident::Stacking`): the
+//! piece under it is then buried, as under a sheet a hair in front of it.
+//!
 //! Invariants: the sheets and the lines depend only on the polygons (members ascending,
 //! sheets by their first member, candidates sorted), so the result is the same for any thread
 //! count; sides are matched by the exact bits of their corners, as a mesh's shared vertices
@@ -22,7 +26,7 @@ use glam::{DVec2, DVec3};
 
 use super::{clip_to_polygon, on_border, ContactLine, Frame, LineKind, PLANE_TOL};
 use crate::bvh::{Aabb, Bvh};
-use crate::coincident::{area_abs, clip, diameter, ROUNDING};
+use crate::coincident::{area_abs, clip, diameter, Stacking, ROUNDING};
 use crate::Polygon;
 
 /// A sheet in front of a receiver by at most this share of its half-width (twice its area
@@ -152,9 +156,15 @@ fn sheets(polygons: &[Polygon]) -> Vec<Sheet> {
     out
 }
 
-/// Appends the outline lines of every sheet lying close over a polygon ([`OUTLINE_GAP`]):
-/// each sheet's box, grown by the gap it may leave, finds its receivers.
-pub(super) fn outlines(polygons: &[Polygon], bvh: &Bvh, lines: &mut Vec<ContactLine>) {
+/// Appends the outline lines of every sheet lying close over a polygon ([`OUTLINE_GAP`]), or
+/// in its plane on top of it (`stacking`): each sheet's box, grown by the gap it may leave,
+/// finds its receivers.
+pub(super) fn outlines(
+    polygons: &[Polygon],
+    bvh: &Bvh,
+    stacking: &Stacking,
+    lines: &mut Vec<ContactLine>,
+) {
     for sheet in sheets(polygons) {
         let reach = OUTLINE_GAP * sheet.half_width;
         let corners: Vec<DVec3> = sheet
@@ -182,7 +192,11 @@ pub(super) fn outlines(polygons: &[Polygon], bvh: &Bvh, lines: &mut Vec<ContactL
         for pi in near {
             let p = &polygons[pi as usize];
             let tol = PLANE_TOL * diameter(p).max(size);
-            for (by, a, b, gap) in outline(p, polygons, &sheet, reach, tol) {
+            let on_top = sheet.members.iter().all(|&m| {
+                polygons[m as usize].normal.dot(p.normal) > 1.0 - 1e-9
+                    && stacking.over(m as usize, pi as usize)
+            });
+            for (by, a, b, gap) in outline(p, polygons, &sheet, (reach, tol), on_top) {
                 lines.push(ContactLine {
                     receiver: pi,
                     by,
@@ -196,15 +210,17 @@ pub(super) fn outlines(polygons: &[Polygon], bvh: &Bvh, lines: &mut Vec<ContactL
 }
 
 /// The border sides of `sheet` projected onto `p`, clipped to `p`, if the sheet lies in front
-/// of `p` within `reach` of its plane, nowhere behind it, and over it ([`OUTLINE_OVER`]);
-/// sides on `p`'s border, and sides the sheet touches `p` along (contact lines), are left out.
-/// Each side comes with the polygon it belongs to and its mean gap.
+/// of `p` within `reach` of its plane, nowhere behind it (beyond `tol`), and over it
+/// ([`OUTLINE_OVER`]), or if it lies in `p`'s plane and `on_top` of it (facing the same way and
+/// above it in the stacking order); sides on `p`'s border, and sides the sheet touches `p`
+/// along (contact lines), are left out. Each side comes with the polygon it belongs to and its
+/// mean gap.
 fn outline(
     p: &Polygon,
     polygons: &[Polygon],
     sheet: &Sheet,
-    reach: f64,
-    tol: f64,
+    (reach, tol): (f64, f64),
+    on_top: bool,
 ) -> Vec<(u32, DVec3, DVec3, f64)> {
     let n = p.normal;
     let height = |v: DVec3| n.dot(v - p.corners[0]);
@@ -213,7 +229,7 @@ fn outline(
     // it sees only the sheet, or nothing (module `seal`), so it is its own piece. Most sheets
     // near `p` are not in front of it: the first corner behind it or out of reach says so.
     let on = ROUNDING * sheet.magnitude.max(magnitude(p));
-    let mut above = false;
+    let (mut above, mut flush) = (false, on_top);
     for q in members() {
         for v in q.vertices() {
             let h = height(*v);
@@ -221,9 +237,10 @@ fn outline(
                 return Vec::new();
             }
             above |= h > on;
+            flush &= h.abs() <= on;
         }
     }
-    if !above {
+    if !above && !flush {
         return Vec::new();
     }
     // Over the receiver, not beside it: a neighbour folded up from `p`'s side by a hair (two
@@ -248,7 +265,7 @@ fn outline(
         let vs = polygons[m as usize].vertices();
         let (a, b) = (vs[k], vs[(k + 1) % vs.len()]);
         let (da, db) = (height(a), height(b));
-        if da <= on && db <= on {
+        if da <= on && db <= on && !flush {
             continue;
         }
         if let Some((a, b)) = clip_to_polygon(p, a - n * da, b - n * db, tol) {

@@ -60,7 +60,7 @@ fn a_wall_on_a_floor_cuts_it_along_its_foot() {
         [-1.0, 1.0, 0.3],
     ]);
     let mut polys = vec![floor(), wall];
-    let lines = find(&polys);
+    let lines = find(&polys, &Stacking::default());
     assert_eq!(lines.len(), 1, "{lines:?}");
     let l = lines[0].clone();
     assert_eq!((l.receiver, l.by), (0, 1));
@@ -102,7 +102,7 @@ fn a_wall_on_the_floor_border_or_floating_cuts_nothing() {
         [-1.0, 0.0, 0.3],
     ]);
     for other in [on_border, floating, below] {
-        assert!(find(&[floor(), other.clone()])
+        assert!(find(&[floor(), other.clone()], &Stacking::default())
             .iter()
             .all(|l| l.receiver != 0));
     }
@@ -119,7 +119,7 @@ fn crossing_polygons_cut_each_other() {
         [-1.0, 1.0, 0.3],
     ]);
     let mut polys = vec![floor(), wall];
-    let lines = find(&polys);
+    let lines = find(&polys, &Stacking::default());
     let receivers: Vec<u32> = lines.iter().map(|l| l.receiver).collect();
     assert_eq!(receivers, vec![0, 1]);
     let mut origins: Vec<()> = Vec::new();
@@ -144,7 +144,7 @@ fn a_box_cuts_a_floor_into_a_grid() {
     let f = [[-0.5, 0.5], [0.5, 0.5], [0.5, -0.5], [-0.5, -0.5]];
     let mut polys = vec![floor()];
     polys.extend(box_sides(f, 1.0));
-    let lines = find(&polys);
+    let lines = find(&polys, &Stacking::default());
     let on_floor: Vec<&ContactLine> = lines.iter().filter(|l| l.receiver == 0).collect();
     assert_eq!(on_floor.len(), 4);
     let mut origins: Vec<()> = Vec::new();
@@ -183,7 +183,7 @@ proptest! {
         for b in &boxes {
             polys.extend(box_sides(*b, 0.5));
         }
-        let lines = find(&polys);
+        let lines = find(&polys, &Stacking::default());
         let floor_lines: Vec<ContactLine> = lines.iter().filter(|l| l.receiver == 0).cloned().collect();
         prop_assert_eq!(floor_lines.len(), 4 * boxes.len());
         let mut origins: Vec<()> = Vec::new();
@@ -226,7 +226,7 @@ fn a_lamp_hung_under_a_ceiling_cuts_it_along_its_outline() {
     for scale in [1e-3, 1.0, 1e3] {
         let mut polys = ceiling_and_lamp(0.01, 0.5, scale);
         assert!((polys[0].normal + DVec3::Y).length() < 1e-12);
-        let lines = find(&polys);
+        let lines = find(&polys, &Stacking::default());
         assert_eq!(lines.len(), 4, "{lines:?}");
         for l in &lines {
             assert_eq!((l.receiver, l.by), (0, 1));
@@ -274,7 +274,7 @@ fn a_lamp_hung_under_a_ceiling_cuts_it_along_its_outline() {
 #[test]
 fn only_a_polygon_close_in_front_draws_its_outline() {
     let outlines = |polys: &[Polygon]| {
-        find(polys)
+        find(polys, &Stacking::default())
             .iter()
             .filter(|l| matches!(l.kind, LineKind::Outline { .. }))
             .count()
@@ -315,7 +315,7 @@ fn a_lamp_of_triangles_cuts_along_its_rim_only() {
         (polys[1].normal + DVec3::Y).length() < 1e-12,
         "the fan faces down"
     );
-    let lines = find(&polys);
+    let lines = find(&polys, &Stacking::default());
     assert_eq!(lines.len(), n, "{lines:?}");
     for l in &lines {
         assert_eq!(l.receiver, 0);
@@ -334,7 +334,7 @@ fn a_lamp_of_triangles_cuts_along_its_rim_only() {
     for t in [[c[0], c[3], c[2]], [c[0], c[2], c[1]]] {
         two.push(Polygon::triangle(t, 0, 0).expect("triangle"));
     }
-    let lines = find(&two);
+    let lines = find(&two, &Stacking::default());
     assert_eq!(lines.len(), 4, "{lines:?}");
     assert!(lines.iter().all(|l| (l.a.x.abs() - 1.0).abs() < 1e-12
         && (l.b.x.abs() - 1.0).abs() < 1e-12
@@ -366,7 +366,7 @@ proptest! {
         prop_assert!((lamp.normal + DVec3::Y).length() < 1e-9);
         let gap = 2.0 - lamp.corners[0].y;
         let mut polys = vec![ceiling_and_lamp(0.01, 0.5, 1.0).remove(0), lamp];
-        let lines = find(&polys);
+        let lines = find(&polys, &Stacking::default());
         prop_assert_eq!(lines.len(), 4, "share {}: {:?}", share, lines);
         for l in &lines {
             prop_assert_eq!((l.receiver, l.by), (0, 1));
@@ -393,11 +393,12 @@ proptest! {
 /// tolerance, so the ceiling was left whole, and the ceiling above the panel, which sees only
 /// the panel (facing it) or nothing (its back), was one surface with the ceiling beside it. A
 /// face in front of a receiver cuts it however close (down to rounding), either way it faces,
-/// so that the piece under it can be sealed (`crate::seal`); one in its plane cuts nothing.
+/// so that the piece under it can be sealed (`crate::seal`); one in its plane cuts it only if
+/// it faces its way and lies on top (`crate::coincident::Stacking`).
 #[test]
 fn a_panel_facing_a_ceiling_a_hair_away_cuts_it_along_its_outline() {
     let outlines = |polys: &[Polygon]| {
-        find(polys)
+        find(polys, &Stacking::default())
             .iter()
             .filter(|l| matches!(l.kind, LineKind::Outline { .. }))
             .count()
@@ -424,4 +425,18 @@ fn a_panel_facing_a_ceiling_a_hair_away_cuts_it_along_its_outline() {
         0,
         "its back, in the plane"
     );
+    // In the ceiling's plane, facing its way, and on top of it (listed later, one object): it
+    // cuts the ceiling as it does a hair under it; facing the ceiling, it is back to back.
+    let stacked = |polys: &[Polygon]| {
+        find(polys, &Stacking::of(polys, &[]))
+            .iter()
+            .filter(|l| matches!(l.kind, LineKind::Outline { .. }) && l.receiver == 0)
+            .count()
+    };
+    assert_eq!(
+        stacked(&ceiling_and_lamp(0.0, 0.5, 1.0)),
+        4,
+        "on top, in the plane"
+    );
+    assert_eq!(stacked(&facing(0.0)), 0, "facing it, in the plane");
 }

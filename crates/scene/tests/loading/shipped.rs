@@ -155,8 +155,9 @@ fn cornell_box_loads_with_its_quirks() {
 
 /// A surface listed twice reflects its light twice: the same wall twice put x2.05 of its light
 /// on the floor. The loader keeps the first copy (whatever corner the copy starts at) and names
-/// both lines; a polygon overlapping another in the same plane is kept with a warning; the
-/// two sides of a thin wall (back to back) are two surfaces.
+/// both lines; a polygon overlapping another in the same plane is kept with a warning, and
+/// buries the part of the other under it; the two sides of a thin wall (back to back) are two
+/// surfaces.
 #[test]
 fn repeated_polygons_are_counted_once_and_overlaps_named() {
     let copy = "[[polygons]]\nvertices = [[1, 1, 0], [0, 1, 0], [0, 0, 0], [1, 0, 0]]\nmaterial = \"white\"\n";
@@ -177,8 +178,17 @@ fn repeated_polygons_are_counted_once_and_overlaps_named() {
     );
     let half = "[[polygons]]\nvertices = [[0.5, 0, 0], [1.5, 0, 0], [1.5, 1, 0], [0.5, 1, 0]]\nmaterial = \"white\"\n";
     let s = parse_scene(&format!("{BASE}\n{half}"), Path::new("test.toml")).unwrap();
-    assert_eq!(s.polygons.len(), 3);
     assert!(s.warnings[0].contains("overlaps the one at") && s.warnings[0].contains("50.0 %"));
+    // The later of the two (the same size) lies on top: the first is cut along its outline,
+    // and the half under it is buried.
+    assert_eq!(s.polygons.len(), 4);
+    let buried: Vec<f64> = s
+        .polygons
+        .iter()
+        .filter(|p| p.sealed == scene::seal::Sealed::Buried)
+        .map(|p| p.area)
+        .collect();
+    assert!(buried.len() == 1 && (buried[0] - 0.5).abs() < 1e-9, "{buried:?}");
     let back = "[[polygons]]\nvertices = [[0, 0, 0], [0, 1, 0], [1, 1, 0], [1, 0, 0]]\nmaterial = \"white\"\n";
     let s = parse_scene(&format!("{BASE}\n{back}"), Path::new("test.toml")).unwrap();
     assert_eq!((s.polygons.len(), s.warnings.len()), (3, 0));
