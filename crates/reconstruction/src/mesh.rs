@@ -429,8 +429,10 @@ fn mesh_polygon(
         let Some(mut t) = Polygon::triangle(world, parent.material, parent.object) else {
             continue;
         };
-        // Drawn where its polygon is: from behind only, if faces lie over it.
+        // Drawn where its polygon is: from behind only if faces lie over it, from in front
+        // only if a face lies back to back with it.
         t.sealed = parent.sealed;
+        t.backed = parent.backed;
         for v in tri {
             used[v.id as usize] = true;
         }

@@ -97,9 +97,11 @@ pub struct Bvh {
     shapes: Vec<Shape>,
     boxes: Vec<Aabb>,
     /// Per polygon, whether faces lying over its front hide it from every ray coming from in
-    /// front ([`crate::Polygon::sealed`]): a first hit never stops there, the cover is what the
-    /// ray meets, even where the two tie (a panel snapped onto a ceiling's plane).
-    hidden: Vec<bool>,
+    /// front ([`crate::Polygon::sealed`]), and whether a face back to back with it shows
+    /// instead of it from behind ([`crate::Polygon::backed`]): a first hit never stops there
+    /// from that side, the other face is what the ray meets, even where the two tie (a panel
+    /// snapped onto a ceiling's plane, a two-sided polygon's reversed twin).
+    hidden: Vec<(bool, bool)>,
 }
 
 impl Bvh {
@@ -115,7 +117,7 @@ impl Bvh {
             boxes: boxes.clone(),
             hidden: polygons
                 .iter()
-                .map(|p| p.sealed.hidden_from_front())
+                .map(|p| (p.sealed.hidden_from_front(), p.backed))
                 .collect(),
         };
         if polygons.is_empty() {
@@ -379,12 +381,19 @@ impl Bvh {
         best
     }
 
-    /// Whether polygon `pi` is hidden from a ray along `d` by faces lying over its front.
+    /// Whether polygon `pi` is hidden from a ray along `d`: by faces lying over its front if
+    /// the ray comes from in front, by a face back to back with it if from behind.
     #[inline]
     fn hidden_from(&self, pi: u32, d: DVec3) -> bool {
-        self.hidden[pi as usize] && {
+        let (front, back) = self.hidden[pi as usize];
+        (front || back) && {
             let c = &self.tris[pi as usize];
-            (c[1] - c[0]).cross(c[2] - c[0]).dot(d) < 0.0
+            let towards = (c[1] - c[0]).cross(c[2] - c[0]).dot(d);
+            if towards < 0.0 {
+                front
+            } else {
+                back && towards > 0.0
+            }
         }
     }
 

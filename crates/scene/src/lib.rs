@@ -87,6 +87,10 @@ pub struct Polygon {
     /// in front of it sees them instead: the renderers draw it only from behind. Set by the
     /// loader ([`Scene::mark_sealed`]); `Open` for a polygon built in code.
     pub sealed: seal::Sealed,
+    /// Whether faces in its plane turned the other way cover it (its two-sided twin, a thin
+    /// wall's other side, [`seal::Seals::is_backed`]): from behind, they show instead of it,
+    /// where the two would tie in depth. Set by the loader ([`Scene::mark_sealed`]).
+    pub backed: bool,
 }
 
 impl Polygon {
@@ -124,6 +128,7 @@ impl Polygon {
             object,
             shading: None,
             sealed: seal::Sealed::Open,
+            backed: false,
         })
     }
 
@@ -612,13 +617,15 @@ impl Scene {
             adjacency.map_or_else(Memo::default, |a| Memo::of(&self.polygons, a));
     }
 
-    /// Finds the sealed polygons ([`seal::sealed`]), marks each one's [`Polygon::sealed`] and
-    /// keeps them for [`Scene::seals`]. The loader does this for every scene after its cuts; a
+    /// Finds the sealed polygons and those backed by a face in their plane ([`seal::sealed`]),
+    /// marks each one's [`Polygon::sealed`] and [`Polygon::backed`], and keeps them for
+    /// [`Scene::seals`]. The loader does this for every scene after its cuts; a
     /// scene built in code does it when it asks.
     pub fn mark_sealed(&mut self) {
         let seals = seal::sealed(self);
         for (i, p) in self.polygons.iter_mut().enumerate() {
             p.sealed = seals.kind(i as u32);
+            p.backed = seals.is_backed(i as u32);
         }
         self.seal_cache = Memo::of(&self.polygons, seals);
     }

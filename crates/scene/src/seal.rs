@@ -77,16 +77,25 @@ impl Sealed {
     }
 }
 
-/// The sealed polygons of a scene ([`sealed`]).
+/// The sealed polygons of a scene ([`sealed`]), and those backed by a face in their plane.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct Seals {
     /// Per polygon: `None` if it is not sealed; else the covers that face it (ascending,
     /// possibly none) and the share of its covered area under covers that turn their backs
     /// to it.
     of: Vec<Option<(Vec<u32>, f64)>>,
+    /// Per polygon: whether faces in its plane turned the other way cover it (its two-sided
+    /// twin, a thin wall's other side), so that from behind they show instead of it.
+    backed: Vec<bool>,
 }
 
 impl Seals {
+    /// Whether faces in polygon `p`'s plane, turned the other way, cover it: back to back with
+    /// it (its two-sided twin, a thin wall's other side), they show instead of it from behind.
+    pub fn is_backed(&self, p: u32) -> bool {
+        self.backed.get(p as usize).copied().unwrap_or(false)
+    }
+
     /// Whether polygon `p` is sealed.
     pub fn is_sealed(&self, p: u32) -> bool {
         self.of.get(p as usize).is_some_and(Option::is_some)
@@ -136,6 +145,10 @@ enum Cover {
     Facing,
     /// Turning its back to it: the cover's back takes the polygon's light and gives none.
     Backing,
+    /// In its plane, back to back with it (a two-sided polygon's reversed twin, a thin wall's
+    /// other side): no light passes between them, and from behind the polygon the cover's
+    /// front is what shows.
+    BackToBack,
 }
 
 /// The sealed polygons of `scene`: those whose covers (polygons parallel to them, in front of
@@ -146,6 +159,7 @@ pub fn sealed(scene: &Scene) -> Seals {
     let polygons = &scene.polygons;
     let mut out = Seals {
         of: vec![None; polygons.len()],
+        backed: vec![false; polygons.len()],
     };
     if polygons.len() < 2 {
         return out;
@@ -172,7 +186,7 @@ pub fn sealed(scene: &Scene) -> Seals {
         near.sort_unstable();
         let frame = Frame::of(p);
         let flat: Vec<DVec2> = p.vertices().iter().map(|v| frame.to2(*v)).collect();
-        let (mut partners, mut facing, mut backing) = (Vec::new(), 0.0, 0.0);
+        let (mut partners, mut facing, mut backing, mut back) = (Vec::new(), 0.0, 0.0, 0.0);
         for q in near {
             match cover(scene, (i, q as usize), (core, &stacking), (&frame, &flat)) {
                 Some((Cover::Facing, a)) => {
@@ -180,9 +194,11 @@ pub fn sealed(scene: &Scene) -> Seals {
                     facing += a;
                 }
                 Some((Cover::Backing, a)) => backing += a,
+                Some((Cover::BackToBack, a)) => back += a,
                 None => {}
             }
         }
+        out.backed[i] = back >= SEALED_COVER * p.area;
         if facing + backing >= SEALED_COVER * p.area {
             let behind = (backing / (facing + backing)).clamp(0.0, 1.0);
             out.of[i] = Some((partners, behind));
@@ -217,12 +233,13 @@ fn cover(
         let h = height(*v);
         h > tiny && h <= gap
     };
-    let on_top = kind == Cover::Backing
-        && stacking.over(q, i)
-        && qp.vertices().iter().all(|v| height(*v).abs() <= tiny);
-    if !on_top && !qp.vertices().iter().all(over) {
-        return None;
-    }
+    let in_plane = qp.vertices().iter().all(|v| height(*v).abs() <= tiny);
+    let kind = match kind {
+        Cover::Facing if in_plane => Cover::BackToBack,
+        Cover::Backing if in_plane && stacking.over(q, i) => kind,
+        _ if qp.vertices().iter().all(over) => kind,
+        _ => return None,
+    };
     let footprint: Vec<DVec2> = qp.vertices().iter().map(|v| frame.to2(*v)).collect();
     let a = area_abs(&clip(&footprint, flat));
     (a > 0.0).then_some((kind, a))
@@ -372,7 +389,11 @@ mod tests {
         s.polygons = vec![poster, piece.clone(), wall];
         s.polygons[2].object = 0;
         assert_eq!(kinds(&s)[..2], [Open, Buried]);
-        // Faces in one plane facing each other are back to back, neither on top.
-        assert_eq!(both(piece, square(2.0, true)), [Open, Open]);
+        // Faces in one plane facing each other are back to back, neither on top: each shows
+        // instead of the other from behind it. A quarter of the wall is not backed by it.
+        assert_eq!(both(piece.clone(), square(2.0, true)), [Open, Open]);
+        s.polygons = vec![piece, square(2.0, true), s.polygons[2].clone()];
+        let l = s.seals();
+        assert!(l.is_backed(0) && l.is_backed(1) && !l.is_backed(2), "{l:?}");
     }
 }

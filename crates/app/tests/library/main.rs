@@ -61,3 +61,4 @@ mod smooth_surfaces;
 mod t_junctions;
 mod texture_seams;
 mod triangles;
+mod two_sided;

@@ -29,24 +29,28 @@
 //! any ray resolves, a lamp mounted flush on a wall) is left out where it faces the camera:
 //! there its covers are in front of it, but their depths tie with its own, and the tie would
 //! go to whichever polygon comes first (the dark wall under the lamp, drawn over the lamp).
-//! From behind it is drawn as any polygon is ([`culled`]).
+//! From behind it is drawn as any polygon is ([`culled`]). The same tie at two faces back to
+//! back in one plane (a two-sided polygon and its reversed twin, which the loader makes of a
+//! two-sided material: every material of a glTF file from Blender) went to the first listed
+//! whichever way it faced, so a room whose walls face outward, made two-sided, drew as the
+//! black backs of its walls: a polygon backed by such a face is left out where it faces away.
 
 use glam::DVec3;
 use smallvec::SmallVec;
 
 use base::error::{Error, Result};
-use scene::seal::Sealed;
 use scene::{Camera, Polygon, Projection, Shape};
 
-/// Whether a polygon sealed as `sealed`, facing the camera if `front_facing`, is left out of a
-/// frame: seen from in front when faces lying over it hide it, seen from behind when back
-/// faces are culled (`cull_back`).
+/// Whether polygon `p`, facing the camera if `front_facing`, is left out of a frame: seen from
+/// in front when faces lying over it hide it (`Polygon::sealed`), seen from behind when back
+/// faces are culled (`cull_back`) or a face back to back with it shows there instead
+/// (`Polygon::backed`).
 #[inline(always)]
-pub(crate) fn culled(cull_back: bool, sealed: Sealed, front_facing: bool) -> bool {
+pub(crate) fn culled(cull_back: bool, p: &Polygon, front_facing: bool) -> bool {
     if front_facing {
-        sealed.hidden_from_front()
+        p.sealed.hidden_from_front()
     } else {
-        cull_back
+        cull_back || p.backed
     }
 }
 

@@ -340,7 +340,7 @@ fn set_up(view: &geometry::View, p: &scene::Polygon, i: u32, cull: bool, out: &m
         triangles::Outcome::Set => true,
         triangles::Outcome::Rejected => false,
         triangles::Outcome::General => match view.transform(p, i) {
-            Some(sp) if !geometry::culled(cull, p.sealed, sp.front_facing) => {
+            Some(sp) if !geometry::culled(cull, p, sp.front_facing) => {
                 let (w, h) = view.size();
                 setup::setup_into(&sp, w, h, out)
             }

@@ -30,7 +30,7 @@ pub(crate) enum Outcome {
 
 /// Geometry and setup of triangle `poly` (scene polygon `id`) into `out`, or [`Outcome::General`]
 /// when it needs clipping; with `cull`, a triangle facing away is rejected, as is a sealed one
-/// facing the camera ([`super::geometry::culled`]).
+/// facing the camera or a backed one facing away ([`super::geometry::culled`]).
 pub(crate) fn triangle_into(
     view: &View,
     poly: &Polygon,
@@ -65,7 +65,7 @@ pub(crate) fn triangle_into(
     } = view.plane_view(poly, c0);
     // The cheap rejections first (culled, off screen, covering no sample: a sixth of a mesh
     // in a typical view), the per-pixel expressions only for a triangle that is drawn.
-    if super::geometry::culled(cull, poly.sealed, front_facing) {
+    if super::geometry::culled(cull, poly, front_facing) {
         return Outcome::Rejected;
     }
     let verts = [

@@ -188,7 +188,10 @@ fn repeated_polygons_are_counted_once_and_overlaps_named() {
         .filter(|p| p.sealed == scene::seal::Sealed::Buried)
         .map(|p| p.area)
         .collect();
-    assert!(buried.len() == 1 && (buried[0] - 0.5).abs() < 1e-9, "{buried:?}");
+    assert!(
+        buried.len() == 1 && (buried[0] - 0.5).abs() < 1e-9,
+        "{buried:?}"
+    );
     let back = "[[polygons]]\nvertices = [[0, 0, 0], [0, 1, 0], [1, 1, 0], [1, 0, 0]]\nmaterial = \"white\"\n";
     let s = parse_scene(&format!("{BASE}\n{back}"), Path::new("test.toml")).unwrap();
     assert_eq!((s.polygons.len(), s.warnings.len()), (3, 0));
