@@ -8,10 +8,7 @@ use std::path::Path;
 
 use glam::{DVec2, DVec3};
 
-use app::context::Context;
-use app::context::Input;
 use app::frames::render_frame;
-use app::prepare::prepare;
 use app::prepare::Prepared;
 use base::method::{Filter, Method};
 use engine::frame::FrameOptions;
@@ -31,19 +28,8 @@ const METHODS: [Method; 5] = [
 
 /// Solves scene `text` and builds every model, as `render` does.
 fn prepared(text: &str) -> Prepared {
-    let scene = scene::parse_scene(text, Path::new("test.toml")).expect("scene");
-    let input = Input {
-        path: "test.toml".into(),
-        scene,
-        solution_file: None,
-        estimator: Default::default(),
-        sharp_levels: reconstruction::sharp::DEFAULT_LEVELS,
-        input_limit: base::output::MAX_INPUT_BYTES,
-    };
-    let tex = app::context::TextureOptions::default();
-    let policy = tex.policy(&input.scene).expect("policy");
-    let placement = tex.placement(&input.scene).expect("placement");
-    prepare(&Context::default(), input, policy, placement).expect("prepares")
+    let path = Path::new("test.toml");
+    crate::prepare_scene(path, scene::parse_scene(text, path).expect("scene"))
 }
 
 /// Luminance of each pixel of `method`'s image of `p` (its camera, `w` x `h`), row 0 on top.

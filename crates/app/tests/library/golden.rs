@@ -23,13 +23,9 @@
 //! bit-identical for any thread and renderer count, so the tolerance only absorbs what a
 //! different build could round differently.
 
-use app::context::Context;
 use std::path::{Path, PathBuf};
 
-use app::context::Input;
-use app::context::TextureOptions;
 use app::frames::render_frame;
-use app::prepare::prepare;
 use app::prepare::Prepared;
 use base::output::Outputs;
 use base::Method;
@@ -185,18 +181,7 @@ fn golden_building() {
 
 /// Checks the golden images of `scene`, built in code, prepared as if loaded from `path`.
 fn check_built(name: &str, path: &str, scene: scene::Scene) {
-    let input = Input {
-        path: root().join(path),
-        scene,
-        solution_file: None,
-        estimator: Default::default(),
-        sharp_levels: reconstruction::sharp::DEFAULT_LEVELS,
-        input_limit: base::output::MAX_INPUT_BYTES,
-    };
-    let texture = TextureOptions::default();
-    let policy = texture.policy(&input.scene).expect("texture policy");
-    let placement = texture.placement(&input.scene).expect("texel placement");
-    let p = prepare(&Context::default(), input, policy, placement).expect("scene prepares");
+    let p = crate::prepare_scene(&root().join(path), scene);
     check_prepared(name, &p);
 }
 

@@ -43,6 +43,24 @@ pub fn shipped(name: &str) -> &'static app::prepare::Prepared {
     })
 }
 
+/// `scene` solved and prepared with the default options, as `render` prepares a scene it
+/// loaded from `path`.
+pub fn prepare_scene(path: &std::path::Path, scene: scene::Scene) -> app::prepare::Prepared {
+    let input = app::context::Input {
+        path: path.to_path_buf(),
+        scene,
+        solution_file: None,
+        estimator: Default::default(),
+        sharp_levels: reconstruction::sharp::DEFAULT_LEVELS,
+        input_limit: base::output::MAX_INPUT_BYTES,
+    };
+    let texture = app::context::TextureOptions::default();
+    let policy = texture.policy(&input.scene).expect("texture policy");
+    let placement = texture.placement(&input.scene).expect("texel placement");
+    app::prepare::prepare(&app::context::Context::default(), input, policy, placement)
+        .expect("scene prepares")
+}
+
 mod camera_scale;
 mod closed_form;
 mod contact_lines;

@@ -1,9 +1,8 @@
 //! Faces back to back in one plane: a two-sided material's polygon and the reversed twin the
 //! loader gives it, drawn from either side.
 
-use app::context::{Context, Input, TextureOptions};
 use app::frames::render_frame;
-use app::prepare::{prepare, Prepared};
+use app::prepare::Prepared;
 use base::method::Method;
 use engine::frame::FrameOptions;
 use fixtures::text::{box_faces, polygon};
@@ -32,19 +31,8 @@ fn room(inward: bool, two_sided: bool) -> String {
 
 /// Solves scene `text` and builds every model, as `render` does.
 fn prepared(text: &str) -> Prepared {
-    let scene = scene::parse_scene(text, std::path::Path::new("room.toml")).expect("scene");
-    let input = Input {
-        path: "room.toml".into(),
-        scene,
-        solution_file: None,
-        estimator: Default::default(),
-        sharp_levels: reconstruction::sharp::DEFAULT_LEVELS,
-        input_limit: base::output::MAX_INPUT_BYTES,
-    };
-    let texture = TextureOptions::default();
-    let policy = texture.policy(&input.scene).expect("policy");
-    let placement = texture.placement(&input.scene).expect("placement");
-    prepare(&Context::default(), input, policy, placement).expect("prepares")
+    let path = std::path::Path::new("room.toml");
+    crate::prepare_scene(path, scene::parse_scene(text, path).expect("scene"))
 }
 
 /// What broke: a room whose faces point outward (a modelling tool's cube) made two-sided (as a
