@@ -427,3 +427,35 @@ fn a_damaged_gltf_exits_2_naming_the_file_and_key() {
         "{e}"
     );
 }
+
+/// A light panel snapped onto a ceiling in Blender (`scenes/gltf/ceiling-lamp.glb`, written by
+/// Blender 5.0.1 through `tools/make-ceiling-lamp-glb.py`): the panel lies in the ceiling's very
+/// plane, facing down with it, its material double-sided. What broke: the ceiling and the panel
+/// both took the light of the overlap, and every method drew the ceiling there (the depth tie
+/// went to the ceiling, listed first): the brightest pixel of the view up at the panel read
+/// 0.19. Now the panel lies on top (an emitter over a surface), the piece of ceiling under it
+/// is buried, the account balances, and every method draws the panel at least at its exitance
+/// (5: its emission strength; it also reflects).
+#[test]
+fn a_lamp_snapped_onto_a_ceiling_in_blender_shows_and_lights_the_room_once() {
+    use app::context::{Context, TextureOptions};
+    let path = PathBuf::from(crate::REPO).join("scenes/gltf/ceiling-lamp.glb");
+    let p = app::prepare::prepare_path(&Context::default(), &path, &TextureOptions::default())
+        .expect("prepares");
+    let buried = p
+        .scene
+        .polygons
+        .iter()
+        .filter(|q| q.sealed == scene::seal::Sealed::Buried)
+        .count();
+    assert_eq!(buried, 1, "the piece of ceiling under the panel");
+    let e = p.solution.stats.energy;
+    assert!(e.error().abs() <= radiosity::ENERGY_ERROR_WARN, "{e:?}");
+    let opts = engine::frame::FrameOptions::new(80, 45);
+    for name in base::method::Method::NAMES {
+        let m = base::method::Method::parse(name).unwrap();
+        let f = app::frames::render_frame(&p, m, &p.scene.camera, &opts).expect("renders");
+        let top = f.pixels.iter().map(|c| c.min_element()).fold(0.0, f32::max);
+        assert!(top >= 5.0, "{name}: the brightest pixel reads {top}");
+    }
+}
