@@ -286,9 +286,9 @@ pub(crate) fn on_border(p: &Polygon, a: DVec3, b: DVec3, tol: f64) -> bool {
     })
 }
 
-/// `polygons` with every polygon that has contact lines (`lines`, from [`find`] on the same
-/// polygons) replaced, in place, by its pieces; `origins` (one per polygon, or empty) kept
-/// aligned. What was cut.
+/// `polygons` with every polygon that has contact lines (`lines`, from the crate's `find` on
+/// the same polygons) replaced, in place, by its pieces; `origins` (one per polygon, or empty)
+/// kept aligned. What was cut.
 pub fn cut<T: Clone>(
     polygons: &mut Vec<Polygon>,
     origins: &mut Vec<T>,

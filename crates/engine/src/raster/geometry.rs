@@ -29,7 +29,7 @@
 //! any ray resolves, a lamp mounted flush on a wall) is left out where it faces the camera:
 //! there its covers are in front of it, but their depths tie with its own, and the tie would
 //! go to whichever polygon comes first (the dark wall under the lamp, drawn over the lamp).
-//! From behind it is drawn as any polygon is ([`culled`]). The same tie at two faces back to
+//! From behind it is drawn as any polygon is (`culled`). The same tie at two faces back to
 //! back in one plane (a two-sided polygon and its reversed twin, which the loader makes of a
 //! two-sided material: every material of a glTF file from Blender) went to the first listed
 //! whichever way it faced, so a room whose walls face outward, made two-sided, drew as the
