@@ -445,9 +445,10 @@ fn light_warnings(scene: &Scene, bvh: &Bvh, reach: Reach, sealed: &Seals) -> Vec
     }
     if let Some(first) = covered.first() {
         out.push(format!(
-            "{} emitting polygon(s) lie under a face closer than rays resolve, whose back takes \
-             all their light (first: {first}): is the lamp upside down (reversed winding), or \
-             a face left over it?",
+            "{} emitting polygon(s) lie under a face closer than rays resolve (or under one on \
+             top of them in their plane), whose back takes all their light (first: {first}): is \
+             the lamp upside down (reversed winding), sunk a hair behind a surface, or under a \
+             face left over it?",
             covered.len()
         ));
     }
