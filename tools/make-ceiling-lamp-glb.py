@@ -1,7 +1,8 @@
 #!/usr/bin/env python3
 """Writes scenes/gltf/ceiling-lamp.glb with Blender itself (its Python module, `pip install
-bpy`; Blender 5.0.1 wrote the shipped file): what a modeller gets by snapping a light panel onto
-a ceiling.
+bpy`; Blender 5.0.1 wrote the shipped files): what a modeller gets by snapping a light panel onto
+a ceiling. With `--as-modelled`, the room's normals stay as Blender's cube has them, facing
+outward (scenes/gltf/ceiling-lamp-outward.glb), which Blender still shows lit inside.
 
 The model: a room made of Blender's cube, 4 x 4 x 3 m, its normals recalculated to face inside
 (Mesh > Normals > Recalculate Inside); a 1 m plane rotated to face down and moved into the
@@ -13,6 +14,7 @@ included).
 Usage, from the repository root:
 
     python3 tools/make-ceiling-lamp-glb.py [output.glb]
+    python3 tools/make-ceiling-lamp-glb.py --as-modelled scenes/gltf/ceiling-lamp-outward.glb
 """
 
 import math
@@ -33,7 +35,7 @@ def material(name, colour, emission=None):
     return m
 
 
-def main(out):
+def main(out, inside):
     bpy.ops.wm.read_factory_settings(use_empty=True)
     bpy.ops.mesh.primitive_cube_add(size=2, location=(0, 0, 1.5))
     room = bpy.context.object
@@ -41,10 +43,11 @@ def main(out):
     room.scale = (2, 2, 1.5)
     bpy.ops.object.transform_apply(scale=True)
     room.data.materials.append(material("walls", (0.7, 0.7, 0.7)))
-    bpy.ops.object.mode_set(mode="EDIT")
-    bpy.ops.mesh.select_all(action="SELECT")
-    bpy.ops.mesh.normals_make_consistent(inside=True)
-    bpy.ops.object.mode_set(mode="OBJECT")
+    if inside:
+        bpy.ops.object.mode_set(mode="EDIT")
+        bpy.ops.mesh.select_all(action="SELECT")
+        bpy.ops.mesh.normals_make_consistent(inside=True)
+        bpy.ops.object.mode_set(mode="OBJECT")
     bpy.ops.mesh.primitive_plane_add(size=1, location=(0, 0, 3.0), rotation=(math.pi, 0, 0))
     lamp = bpy.context.object
     lamp.name = "lamp"
@@ -64,4 +67,5 @@ def main(out):
 
 
 if __name__ == "__main__":
-    main(sys.argv[1] if len(sys.argv) > 1 else "scenes/gltf/ceiling-lamp.glb")
+    args = [a for a in sys.argv[1:] if a != "--as-modelled"]
+    main(args[0] if args else "scenes/gltf/ceiling-lamp.glb", "--as-modelled" not in sys.argv)

@@ -158,6 +158,9 @@ pub(crate) struct Surfaces {
     pub(crate) materials: Vec<Material>,
     /// The materials whose polygons emit and reflect on both faces (`two_sided`).
     pub(crate) two_sided: Vec<u32>,
+    /// The materials a model file marks double-sided that stay one-sided (glTF `doubleSided`
+    /// without emission): their objects may be turned inside out (`crate::inside_out`).
+    pub(crate) double_sided: Vec<u32>,
     /// The index of every material in `materials`, by name.
     pub(crate) by_name: BTreeMap<String, u32>,
     pub(crate) objects: Vec<String>,

@@ -643,6 +643,8 @@ impl Converter<'_> {
         });
         if m.double_sided() && emission.max_element() > 0.0 {
             surfaces.two_sided.push(idx);
+        } else if m.double_sided() {
+            surfaces.double_sided.push(idx);
         }
         self.imported.insert(index, idx);
         Ok(idx)

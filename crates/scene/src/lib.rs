@@ -30,6 +30,7 @@ pub mod contact;
 mod face;
 pub mod format;
 mod gltf;
+mod inside_out;
 pub mod junctions;
 pub mod load;
 mod model;

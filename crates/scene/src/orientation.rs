@@ -46,6 +46,8 @@ pub struct Facing {
     pub front: usize,
     /// Rays whose first hit shows its back side, per object index.
     pub back: BTreeMap<u32, usize>,
+    /// Rays whose first hit shows its front side, per object index.
+    pub front_by_object: BTreeMap<u32, usize>,
     /// Rays that hit nothing.
     pub missed: usize,
 }
@@ -83,6 +85,9 @@ impl Facing {
         self.missed += o.missed;
         for (&k, &n) in &o.back {
             *self.back.entry(k).or_default() += n;
+        }
+        for (&k, &n) in &o.front_by_object {
+            *self.front_by_object.entry(k).or_default() += n;
         }
     }
 }
@@ -143,6 +148,7 @@ fn cast_rays(
                 let p = &scene.polygons[i as usize];
                 if p.normal.dot(d) < 0.0 {
                     f.front += 1;
+                    *f.front_by_object.entry(p.object).or_default() += 1;
                 } else {
                     *f.back.entry(p.object).or_default() += 1;
                 }
@@ -166,7 +172,7 @@ pub fn sphere_directions(n: usize) -> Vec<DVec3> {
 }
 
 /// The directions of the sphere lattice within `half_angle` of the unit axis `axis`.
-fn cone_directions(axis: DVec3, half_angle: f64) -> Vec<DVec3> {
+pub(crate) fn cone_directions(axis: DVec3, half_angle: f64) -> Vec<DVec3> {
     let c = half_angle.cos();
     sphere_directions(4 * SPHERE_RAYS)
         .into_iter()

@@ -167,7 +167,7 @@ impl<'a> Cx<'a> {
             Some(cp) => Some(self.camera_path(cp)?),
             None => None,
         };
-        let merged = self.repair(&mut surfaces, radiosity.merge_triangles);
+        let merged = self.repair(&mut surfaces, &spots, radiosity.merge_triangles);
         self.check_polygons_and_light(&surfaces, &spots)?;
         let Surfaces {
             materials,
@@ -203,15 +203,18 @@ impl<'a> Cx<'a> {
         Ok(scene)
     }
 
-    /// The repairs of the loaded polygons that change nothing the image shows, each said in a
-    /// note: coincident polygons counted once, coplanar triangle pairs merged into quads (when
-    /// `merge_triangles`), two-sided materials' polygons given reversed twins. Returns what was
-    /// merged.
+    /// The repairs of the loaded polygons, each said in a note: rooms of double-sided
+    /// materials modelled inside out around `spots` or emitters turned to face them
+    /// (`inside_out`), coincident polygons counted once, coplanar triangle pairs merged into
+    /// quads (when `merge_triangles`), two-sided materials' polygons given reversed twins.
+    /// Returns what was merged.
     fn repair(
         &mut self,
         surfaces: &mut Surfaces,
+        spots: &[super::SpotLight],
         merge_triangles: bool,
     ) -> super::triangle_pairs::Merged {
+        self.notes.extend(super::inside_out::turn(surfaces, spots));
         let (notes, warnings) = super::coincident::merge(&mut surfaces.polygons, &mut self.origins);
         self.notes.extend(notes);
         self.warnings.extend(warnings);
