@@ -389,6 +389,9 @@ fn light_warnings(scene: &Scene, bvh: &Bvh, reach: Reach, sealed: &Seals) -> Vec
     let sphere = sphere_directions(SPHERE_RAYS);
     let mut lit = Facing::default();
     let mut upside_down = Vec::new();
+    // Faces of two-sided emitters whose light all leaves the model (a panel snapped onto a
+    // ceiling, lit both ways because the tool marks every material double-sided).
+    let mut one_way = Vec::new();
     let mut covered = Vec::new();
     for &i in emitters.iter().step_by(step) {
         // A sealed emitter's rays start past the faces that take all its light: those facing
@@ -423,7 +426,11 @@ fn light_warnings(scene: &Scene, bvh: &Bvh, reach: Reach, sealed: &Seals) -> Vec
                 i as u32,
             );
             if b.hits() * 2 >= back.len() {
-                upside_down.push(scene.origin(i));
+                if has_twin(scene, i) {
+                    one_way.push(scene.origin(i));
+                } else {
+                    upside_down.push(scene.origin(i));
+                }
             }
         }
         lit.add(&f);
@@ -463,6 +470,15 @@ fn light_warnings(scene: &Scene, bvh: &Bvh, reach: Reach, sealed: &Seals) -> Vec
             "{} emitting polygon(s) send all their light away from the model while their back \
              faces it (first: {first}): is the lamp upside down (reversed winding)?",
             upside_down.len()
+        ));
+    }
+    if let Some(first) = one_way.first() {
+        out.push(format!(
+            "{} face(s) of two-sided emitters send all their light away from the model (first: \
+             {first}): half of the lamp's light is lost; to light one way, make its material \
+             one-sided (Blender: tick the material's Backface Culling; a scene file: \
+             two_sided = false)",
+            one_way.len()
         ));
     }
     out

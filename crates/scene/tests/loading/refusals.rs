@@ -501,3 +501,42 @@ fn a_light_a_hair_from_a_surface_is_named() {
         "{warnings:?}"
     );
 }
+
+/// A two-sided lamp over a floor: its upper face sends all its light away from the model, which
+/// its material asks for. It is named as losing half the lamp's light, with the fix, not as a
+/// lamp upside down (what every panel from Blender, whose materials are all double-sided, was
+/// called); a one-sided lamp turned up is still called upside down.
+#[test]
+fn a_two_sided_lamp_losing_one_face_is_not_called_upside_down() {
+    let warned = |text: &str| {
+        let s = parse_scene(text, Path::new("test.toml")).unwrap();
+        scene::orientation::warnings(&s)
+    };
+    // A floor wide enough to take all of the light the lamp sends down.
+    let wide = |text: String| {
+        text.replacen(
+            "[[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]]",
+            "[[-50, -50, 0], [50, -50, 0], [50, 50, 0], [-50, 50, 0]]",
+            1,
+        )
+    };
+    let two = wide(edit(
+        "emission = [1.0, 1.0, 1.0]",
+        "emission = [1.0, 1.0, 1.0]\ntwo_sided = true",
+    ));
+    let w = warned(&two);
+    assert!(
+        w.iter().any(
+            |w| w.contains("1 face(s) of two-sided emitters send all their light away")
+                && w.contains("Backface Culling")
+        ),
+        "{w:?}"
+    );
+    assert!(w.iter().all(|w| !w.contains("upside down")), "{w:?}");
+    let up = wide(edit(
+        "[[0, 0, 1], [0, 1, 1], [1, 1, 1]]",
+        "[[0, 0, 1], [1, 1, 1], [0, 1, 1]]",
+    ));
+    let w = warned(&up);
+    assert!(w.iter().any(|w| w.contains("upside down")), "{w:?}");
+}
