@@ -456,6 +456,15 @@ fn light_warnings(scene: &Scene, bvh: &Bvh, reach: Reach, sealed: &Seals) -> Vec
             100.0 * lit.back_share_of_hits()
         ));
     }
+    out.extend(emitter_warnings(&covered, &upside_down, &one_way));
+    out
+}
+
+/// The warnings naming emitters whose light goes astray (origins of each, the first named):
+/// `covered` under a face over them, `upside_down` sending all their light away while their
+/// back faces the model, `one_way` the same for a face of a two-sided emitter.
+fn emitter_warnings(covered: &[String], upside_down: &[String], one_way: &[String]) -> Vec<String> {
+    let mut out = Vec::new();
     if let Some(first) = covered.first() {
         out.push(format!(
             "{} emitting polygon(s) lie under a face closer than rays resolve (or under one on \
