@@ -24,7 +24,7 @@ use glam::DVec3;
 use crate::bvh::Bvh;
 use crate::checks::Surfaces;
 use crate::orientation::{cast, cone_directions, sphere_directions, Reach, MAX_CHECKED_LIGHTS};
-use crate::{Camera, Polygon, Projection, Scene, Shape, SpotLight};
+use crate::{Camera, Projection, Scene, SpotLight};
 
 /// Share of a light's rays that must meet an object's backs (more of them than meet its
 /// fronts, and none escaping) for the object to be a room turned inside out around it: a
@@ -72,7 +72,7 @@ pub(crate) fn turn(surfaces: &mut Surfaces, spots: &[SpotLight]) -> Option<Strin
     let mut turned = 0;
     for p in surfaces.polygons.iter_mut() {
         if turnable.contains(&p.object) {
-            if let Some(t) = reversed(p) {
+            if let Some(t) = p.reversed() {
                 *p = t;
                 turned += 1;
             }
@@ -142,21 +142,10 @@ fn enclosing(scene: &Scene) -> BTreeSet<u32> {
     out
 }
 
-/// `p` with its corners listed the other way round (facing the other way), its (u, v) origin
-/// kept at its first corner; `None` if it cannot be built.
-fn reversed(p: &Polygon) -> Option<Polygon> {
-    let c = p.corners;
-    let t = match p.shape {
-        Shape::Triangle => Polygon::triangle([c[0], c[2], c[1]], p.material, p.object),
-        Shape::Quad => Polygon::quad([c[0], c[3], c[2], c[1]], p.material, p.object),
-    };
-    t.map(|q| q.with_shading(p.shading.clone()))
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::Material;
+    use crate::{Material, Polygon};
 
     fn material(name: &str, emission: f64) -> Material {
         Material {

@@ -133,6 +133,18 @@ impl Polygon {
         })
     }
 
+    /// This polygon with its corners listed the other way round (facing the other way: a
+    /// two-sided polygon's twin, a face turned inside out), its (u, v) origin kept at its first
+    /// corner, material, object and shading kept; `None` if it cannot be built.
+    pub fn reversed(&self) -> Option<Polygon> {
+        let c = self.corners;
+        let t = match self.shape {
+            Shape::Triangle => Polygon::triangle([c[0], c[2], c[1]], self.material, self.object),
+            Shape::Quad => Polygon::quad([c[0], c[3], c[2], c[1]], self.material, self.object),
+        };
+        t.map(|q| q.with_shading(self.shading.clone()))
+    }
+
     /// This polygon with the shading frame `shading` (a piece of a cut keeps its polygon's).
     pub fn with_shading(mut self, shading: Option<std::sync::Arc<shading::Shading>>) -> Polygon {
         self.shading = shading;

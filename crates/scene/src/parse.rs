@@ -745,16 +745,7 @@ fn two_sided(polygons: &mut Vec<Polygon>, origins: &mut Vec<Location>, materials
     let old_origins = std::mem::take(origins);
     let mut n = 0;
     for (i, p) in old.into_iter().enumerate() {
-        let twin = materials.contains(&p.material).then(|| {
-            let c = p.corners;
-            match p.shape {
-                crate::Shape::Triangle => {
-                    Polygon::triangle([c[0], c[2], c[1]], p.material, p.object)
-                }
-                crate::Shape::Quad => Polygon::quad([c[0], c[3], c[2], c[1]], p.material, p.object),
-            }
-            .map(|q| q.with_shading(p.shading.clone()))
-        });
+        let twin = materials.contains(&p.material).then(|| p.reversed());
         polygons.push(p);
         if let Some(o) = old_origins.get(i) {
             origins.push(o.clone());
