@@ -12,9 +12,8 @@
 //!     SCENE POLYGON U,V [U,V ...] [--rays N] [--by-patch SOURCE]
 //! ```
 //!
-//! The scene is solved at its own settings. A hit's (u, v) is found on the parallelogram of
-//! its polygon's corners 0, 1 and 3 (exact for rectangles and parallelograms, which is what
-//! the audited scenes are made of). The rays are an R2 low-discrepancy set over the
+//! The scene is solved at its own settings. A hit's (u, v) inverts its polygon's bilinear map
+//! of the corners (Newton's method). The rays are an R2 low-discrepancy set over the
 //! cosine-weighted hemisphere, the same for every point, so two runs give the same numbers.
 
 use std::collections::BTreeMap;
@@ -80,15 +79,25 @@ fn lum(c: DVec3) -> f64 {
     0.2126 * c.x + 0.7152 * c.y + 0.0722 * c.z
 }
 
-/// (u, v) of `x` on the parallelogram of `p`'s corners 0, 1 and 3.
+/// (u, v) of `x` on `p`: the bilinear map of its corners ([`Polygon::point`]) inverted by
+/// Newton's method from the parallelogram of corners 0, 1 and 3 (exact there in one step).
 fn uv_of(p: &Polygon, x: DVec3) -> (f64, f64) {
-    let c = p.vertices();
-    let (a, b) = (c[1] - c[0], c[c.len() - 1] - c[0]);
-    let d = x - c[0];
-    let (aa, ab, bb) = (a.dot(a), a.dot(b), b.dot(b));
-    let (da, db) = (d.dot(a), d.dot(b));
-    let det = aa * bb - ab * ab;
-    ((da * bb - db * ab) / det, (db * aa - da * ab) / det)
+    let solve = |a: DVec3, b: DVec3, d: DVec3| {
+        let (aa, ab, bb) = (a.dot(a), a.dot(b), b.dot(b));
+        let (da, db) = (d.dot(a), d.dot(b));
+        let det = aa * bb - ab * ab;
+        ((da * bb - db * ab) / det, (db * aa - da * ab) / det)
+    };
+    let (mut u, mut v) = (0.5, 0.5);
+    for _ in 0..12 {
+        let (a, b) = p.tangents(u, v);
+        let (du, dv) = solve(a, b, x - p.point(u, v));
+        (u, v) = (u + du, v + dv);
+        if du.abs() + dv.abs() < 1e-14 {
+            break;
+        }
+    }
+    (u, v)
 }
 
 /// Point `i` of the R2 sequence in the unit square.
@@ -171,7 +180,17 @@ fn solver_share(
     source: u32,
     cell: Option<Cell>,
 ) -> f64 {
-    let mut only = sol.clone();
+    solver_share_of(scene, sol.clone(), (r, u, v), source, cell)
+}
+
+/// [`solver_share`] of the solution `only` (taken by value, so a caller can change it first).
+fn solver_share_of(
+    scene: &Scene,
+    mut only: Solution,
+    (r, u, v): (usize, f64, f64),
+    source: u32,
+    cell: Option<Cell>,
+) -> f64 {
     for sh in only.shooters.iter_mut() {
         let keep = match sh.kind {
             ShooterKind::Patch { polygon, cell: c } => {
@@ -230,6 +249,22 @@ fn report_patches(
         };
         let (mc, se) = mean_se(hits, inside);
         let g = solver_share(scene, sol, at, source, Some(cell));
+        // The same with the patch's light taken as uniform on both sides: what is left is the
+        // geometry (visibility and form factors), not the shape.
+        let hit_share = hits.iter().filter(|h| inside(h)).count() as f64 / hits.len() as f64;
+        let mut flat = sol.clone();
+        for f in flat.shooters.iter_mut() {
+            if matches!(f.kind, ShooterKind::Patch { polygon: p, cell: c } if p == source && c == cell)
+            {
+                f.shape = None;
+            }
+        }
+        let g_flat = solver_share_of(scene, flat, at, source, Some(cell));
+        println!(
+            "      its light taken as uniform: Monte Carlo {:.4e}, solver {g_flat:.4e}, ratio {:.4}",
+            hit_share * total,
+            g_flat / (hit_share * total)
+        );
         println!(
             "    patch u {u0:.3}-{u1:.3} v {v0:.3}-{v1:.3}: total {total:.5e} against the exact mean {:.5e} ({:.4}); Monte Carlo {mc:.4e} +- {se:.1e}, solver {g:.4e}, ratio {:.4}",
             sb / sa,
