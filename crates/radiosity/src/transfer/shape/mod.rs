@@ -347,8 +347,9 @@ fn far_moment(
 
 /// Each node's slope (see [`PatchShape::slope`]) from its first moment `moment`, its area and
 /// its cell's edges, in the views' coordinates along `axes`: a cell with edges `e1`, `e2` has
-/// the second moment `A (e1 e1^T + e2 e2^T) / 12` about its centre (a parallelogram's; a
-/// leaf grid's discrete one is a little smaller, so the slope errs low).
+/// the second moment `A (e1 e1^T + e2 e2^T) / 12` about its centre (a parallelogram's; the
+/// moment sums its leaves' own moments beside their means', so a linear light reads its slope
+/// exactly). Leaves keep theirs ([`leaf_slopes`]).
 fn inner_slopes(
     tree: &Quadtree,
     (poly, patch): (&Polygon, Cell),
@@ -430,11 +431,12 @@ fn leaf_moments(
 /// central limiter, as MUSCL schemes reconstruct cell means: a leaf at a peak or a dip has no
 /// slope and a tilted leaf never stands beyond its neighbours, while a smooth fall keeps its
 /// steepness; the smaller one-sided difference alone left a light falling exponentially
-/// toward a rim 1 % bright), the one difference there is at the patch's border. A leaf is the finest the shape knows of its
-/// light, but where the light falls steeply over a few leaves (a ceiling's rim beside a lamp
-/// hung under it, seen from across the room past the lamp), the part of a leaf a point sees
-/// is brighter or darker than its mean by that fall: as the mean alone, the walls of a room
-/// lit that way read 5-9 % more of a rim strip's light than it sends them.
+/// toward a rim 1 % bright), the one difference there is at the patch's border. A leaf is the
+/// finest the shape knows of its light, but where the light falls steeply over a few leaves
+/// (a ceiling's rim beside a lamp hung under it, seen from across the room past the lamp),
+/// the part of a leaf a point sees is brighter or darker than its mean by that fall: as the
+/// mean alone, the walls of a room lit that way read 5-9 % more of a rim strip's light than it
+/// sends them.
 fn leaf_slopes(
     tree: &Quadtree,
     (poly, patch): (&Polygon, Cell),

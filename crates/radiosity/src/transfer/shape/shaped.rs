@@ -304,13 +304,14 @@ struct Geometry<'p> {
 /// ceiling lit by the walls); a nearer node is opened, and so is a far one whose spread times
 /// its form factor times (size / distance)^2, the kernel's curvature across it, could pass
 /// `budget`; a near leaf gets Lambert's exact form factor (of its part in the part), a far
-/// leaf its mean and its own first moment (from its slope). Against a part, a node outside it is skipped, one inside
-/// it counts whole, and a far one across its border counts by the share of its area in it,
-/// its light the node's mean plus its slope times the offset of that share's centroid from the
-/// node's ([`PatchShape::slope`]: where the part seen lies on a node whose light varies across
-/// it decides how bright it is; as the mean alone, the studio's energy account lost 0.14 % of
-/// the emitted light), opened while the part in the region could differ from the node's mean
-/// by more than `budget` (its spread times its form factor bound). Children in node order.
+/// leaf its mean and its own first moment (from its slope). Against a part, a node outside it
+/// is skipped, one inside it counts whole, and a far one across its border counts by the share
+/// of its area in it, its light the node's mean plus its slope times the offset of that share's
+/// centroid from the node's ([`PatchShape::slope`]: where the part seen lies on a node whose
+/// light varies across it decides how bright it is; as the mean alone, the studio's energy
+/// account lost 0.14 % of the emitted light), opened while the part in the region could differ
+/// from the node's mean by more than `budget` (its spread times its form factor bound).
+/// Children in node order.
 fn correction(
     g: &Geometry<'_>,
     shape: &PatchShape,
@@ -350,8 +351,9 @@ fn correction(
             shape.node_spread[id as usize] as f64 * area / (std::f64::consts::PI * dist * dist);
         let open_partly = within == CellIn::Partly && spread_f > budget;
         // A far node counts as a dipole, the kernel linear across it; what that leaves is
-        // the kernel's curvature, about 4 (size / dist)^2 of it for a light concentrated at
-        // one side of the node (a lit rim beside a lamp seen from across the room).
+        // the kernel's curvature, of order (size / dist)^2 of the node's light (`size` its
+        // diagonal) where the light is piled at one side of the node (a lit rim beside a
+        // lamp, seen from across the room).
         let open_curved = far && spread_f * (size / dist).powi(2) > budget;
         if (!far || open_partly || open_curved) && !node.is_leaf() {
             let f = node.first_child;
