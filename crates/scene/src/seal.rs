@@ -280,17 +280,22 @@ mod tests {
         p
     }
 
+    /// A 2 m room's right wall: x = 2, facing into the room (-x).
+    fn right_wall() -> Polygon {
+        quad([
+            [2.0, 0.0, 0.0],
+            [2.0, 0.0, 2.0],
+            [2.0, 2.0, 2.0],
+            [2.0, 2.0, 0.0],
+        ])
+    }
+
     /// A 2 m room's right wall (x = 2, facing into the room) and a square panel `gap` in front
     /// of it facing it: the panel is sealed with the wall at every gap up to the seal gap; the
     /// wall, covered a quarter, is not.
     #[test]
     fn a_panel_facing_a_wall_a_hair_away_is_sealed_with_it() {
-        let wall = quad([
-            [2.0, 0.0, 0.0],
-            [2.0, 0.0, 2.0],
-            [2.0, 2.0, 2.0],
-            [2.0, 2.0, 0.0],
-        ]);
+        let wall = right_wall();
         assert!(wall.normal.x < 0.0);
         for gap in [1e-10, 1e-9, 1e-7, 1e-6] {
             let l = sealed(&scene_of(vec![wall.clone(), square(2.0 - gap, true)]));
@@ -349,12 +354,7 @@ mod tests {
     /// would. On top: the emitter, else the smaller object, else the one listed later.
     #[test]
     fn a_face_on_top_in_anothers_plane_buries_it() {
-        let wall = quad([
-            [2.0, 0.0, 0.0],
-            [2.0, 0.0, 2.0],
-            [2.0, 2.0, 2.0],
-            [2.0, 2.0, 0.0],
-        ]);
+        let wall = right_wall();
         let on_wall = square(2.0, false);
         let mut lamp = scene_of(vec![wall.clone(), on_wall.clone()]);
         lamp.materials.push(Material {

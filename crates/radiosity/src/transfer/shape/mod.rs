@@ -377,6 +377,19 @@ fn inner_slopes(
     }
 }
 
+/// The mean edges `e1` (along u) and `e2` (along v) of cell `cell` of patch `patch` of `poly`
+/// in the views' coordinates along `axes`, as `(e1 . f1, e1 . f2, e2 . f1, e2 . f2)`.
+fn plane_edges(
+    (poly, patch): (&Polygon, Cell),
+    cell: Cell,
+    (f1, f2): (DVec3, DVec3),
+) -> (f64, f64, f64, f64) {
+    let c = cell_corners(poly, absolute(patch, cell));
+    let e1 = 0.5 * ((c[1] - c[0]) + (c[2] - c[3]));
+    let e2 = 0.5 * ((c[3] - c[0]) + (c[2] - c[1]));
+    (e1.dot(f1), e1.dot(f2), e2.dot(f1), e2.dot(f2))
+}
+
 /// The second moment of area `(ixx, ixy, iyy)` about its centre of cell `cell` of patch `patch`
 /// of `poly` (area `area`), in the views' coordinates along `axes`: a parallelogram with edges
 /// `e1`, `e2` has `A (e1 e1^T + e2 e2^T) / 12`.
@@ -384,12 +397,9 @@ fn second_moment(
     (poly, patch): (&Polygon, Cell),
     cell: Cell,
     area: f64,
-    (f1, f2): (DVec3, DVec3),
+    axes: (DVec3, DVec3),
 ) -> (f64, f64, f64) {
-    let c = cell_corners(poly, absolute(patch, cell));
-    let e1 = 0.5 * ((c[1] - c[0]) + (c[2] - c[3]));
-    let e2 = 0.5 * ((c[3] - c[0]) + (c[2] - c[1]));
-    let (a1, b1, a2, b2) = (e1.dot(f1), e1.dot(f2), e2.dot(f1), e2.dot(f2));
+    let (a1, b1, a2, b2) = plane_edges((poly, patch), cell, axes);
     let k = area / 12.0;
     (
         k * (a1 * a1 + a2 * a2),
@@ -469,10 +479,7 @@ fn leaf_slopes(
         };
         let (east, west) = (weight(cu + step, cv), weight(cu - step, cv));
         let (north, south) = (weight(cu, cv + step), weight(cu, cv - step));
-        let c = cell_corners(poly, absolute(patch, n.cell));
-        let e1 = 0.5 * ((c[1] - c[0]) + (c[2] - c[3]));
-        let e2 = 0.5 * ((c[3] - c[0]) + (c[2] - c[1]));
-        let (a1, b1, a2, b2) = (e1.dot(f1), e1.dot(f2), e2.dot(f1), e2.dot(f2));
+        let (a1, b1, a2, b2) = plane_edges((poly, patch), n.cell, (f1, f2));
         let det = a1 * b2 - b1 * a2;
         if !(det.is_finite() && det.abs() > 1e-12 * a1.hypot(b1) * a2.hypot(b2)) {
             continue;
