@@ -31,8 +31,10 @@
 //!    (the oracle's computation), the trees are refined again against it, and the unshot power
 //!    is re-estimated from all vertices; the shape of each patch's light (`transfer::shape`:
 //!    how its radiosity varies over it) is measured from the new samples, and if that estimate
-//!    is still above the threshold or the shapes moved by more than `shapes::SHAPE_CHANGE`,
-//!    another round shoots and gathers with the new shapes (at most [`MAX_ROUNDS`] rounds);
+//!    is still above the threshold, the shapes moved by more than `shapes::SHAPE_CHANGE`, or a
+//!    patch has still to shoot more than `convergence` of its own light (its residual: the
+//!    fraction of the emitted power misses a patch whose light is a small share of it), another
+//!    round shoots and gathers with the new shapes (at most [`MAX_ROUNDS`] rounds);
 //!    once the unshot light is below the threshold, the new shapes are first settled where
 //!    they move the light where it falls by more than `tolerance` (`solver::settle`: the
 //!    points there gather again with them, a few passes, and are put back);

@@ -289,13 +289,16 @@ impl<'a, 't, 'o> Solver<'a, 't, 'o> {
             )
         });
         let converged = self.fraction < self.convergence;
-        if converged && change <= shapes::SHAPE_CHANGE {
+        let settled = change <= shapes::SHAPE_CHANGE;
+        if converged && settled && self.residual() <= self.convergence {
             return Ok(true);
         }
         if self.round < MAX_ROUNDS {
             // Once the light has converged only the shapes are left: settle them where they
-            // have not (before, the shots still move the light the shapes describe).
-            let new = if converged && !moved.is_empty() && settle::enabled() {
+            // have not (before, the shots still move the light the shapes describe). A round
+            // asked for by the residuals alone takes the shapes as measured: they have
+            // settled, and settling again where they move a little costs more than the round.
+            let new = if converged && !settled && !moved.is_empty() && settle::enabled() {
                 let (new, passes) = self.settle_shapes(new, &moved, floor);
                 self.trace(|_| {
                     format!(
@@ -678,11 +681,14 @@ impl<'a, 't, 'o> Solver<'a, 't, 'o> {
     /// The largest share of its own light a patch has still to shoot (its unshot radiosity
     /// over its total, per channel; negative unshot light counts as much as positive), a
     /// patch darker than [`RESIDUAL_FLOOR`] of the brightest patch's total counted against
-    /// that level: a trace line after each round. The unshot fraction of the emitted power,
-    /// which the rounds stop on, misses it wherever most of the power is absorbed near the
-    /// lights: a panel 4 cm under a ceiling, facing it, takes nine tenths of its light back,
-    /// and its room's walls end their rounds shooting 3 % more than they reflect while the
-    /// fraction reads 0.65 % (docs/accuracy.md, "A light facing a close surface").
+    /// that level. The rounds stop only when it is below `convergence` as well as the unshot
+    /// fraction of the emitted power, because the fraction misses it wherever most of the
+    /// power is absorbed near the lights (a panel 4 cm under a ceiling, facing it, takes nine
+    /// tenths of its light back, and its room's walls ended their rounds shooting 3 % more
+    /// than they reflect while the fraction read 0.65 %), and wherever the shapes a round
+    /// gathered with moved light the coarse shots had taken as uniform (the Cornell box's
+    /// rounds ended with a wall patch 5.5 % off its light, the floor between the boxes 3 %
+    /// bright); docs/accuracy.md, "Stopping on the residuals".
     fn residual(&self) -> f64 {
         let tr = &*self.tr;
         let is_patch = |s: &usize| matches!(tr.shooters[*s].kind, ShooterKind::Patch { .. });
