@@ -200,7 +200,7 @@ fn wall_lit_ceiling() -> String {
 /// boxes' feet), against the path tracer on the same pieces: every lit piece within 1 % (plus
 /// three of the truth's standard errors), and every face, its pieces merged, within 1 % and its
 /// indirect light within 2 %. Measured at the scene's own settings against a million samples
-/// per piece: 0.991-1.009 (docs/accuracy.md). The floor between the boxes read 1.031 while the
+/// per piece: 0.996-1.003 (docs/accuracy.md). The floor between the boxes read 1.031 while the
 /// rounds stopped on the unshot fraction of the emitted power alone: the shapes a round gathered
 /// with moved light its coarse shots had taken as uniform, and a wall patch seen through the
 /// gap ended 5.5 % off its own light. Before exact visibility and the contact lines, the faces

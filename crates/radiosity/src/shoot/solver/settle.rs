@@ -4,7 +4,7 @@
 //! a shape lags the light it describes by one round. Where the light of a corner depends on the
 //! shapes of the patches around it (a nook between a cabinet and a wall, a floor in the shadow
 //! between two boxes), each round closes only part of the gap: in a 30 cm nook beside a
-//! cabinet about half of it was left after every round, and after the four rounds the nook's
+//! cabinet about half of it was left after every round, and after four rounds the nook's
 //! floor read 2.5 % brighter than a path tracer (0.2 % after nine rounds). The light
 //! converged globally long before (the shapes' change scaled by the brightest patch's light
 //! was 0.04), because a corner's light is a small share of the scene's.
