@@ -116,7 +116,7 @@ use solver::Solver;
 /// whose shapes settle late take five to bring every patch's residual below `convergence`:
 /// the furnished room of docs/accuracy.md ended its fourth round with a cabinet's side
 /// shooting 3.2 % more than its light and the floor of the nook it faces 2 % bright (1.3 %
-/// after a fifth round, for 1.3 times the solve), the studio's dark pieces 14 % (10 %).
+/// after a fifth round, for 1.19 times the solve), the studio's dark pieces 14 % (10 %).
 pub(crate) const MAX_ROUNDS: u32 = 5;
 
 /// Indirect shooting continues until the coarse unshot estimate falls below this fraction of

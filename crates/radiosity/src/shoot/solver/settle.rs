@@ -20,10 +20,11 @@
 //! own iteration, run only where it has not converged and without shooting, refining or
 //! gathering the whole scene. Measured: the nook's floor 2.5 % -> 1.3 % bright; the studio's
 //! dark floor pieces under its furniture 26 % -> 16 % (RMS over its faces 6.7 % -> 4.3 %).
-//! The rounds still end on the criterion they always had, so a solve that converges before
-//! its last round (the Cornell box) is unchanged; making the rounds also wait for the light
-//! where it falls took the Cornell box's worst piece from 3.0 % to 0.6 % for twice the
-//! solve time, which is not done here.
+//! Settling does not decide when the rounds end: a solve whose shapes settle before its light
+//! converges (the Cornell box) never settles, and a round that only the patches' residuals ask
+//! for takes the shapes as measured (`Solver::indirect_round`); making every round wait for
+//! the light where it falls took the Cornell box's worst piece from 3.0 % to 0.6 % for twice
+//! the solve time, which is not done here.
 //!
 //! Invariant: the passes change nothing but the shapes the next round installs. The samples
 //! they gather are put back and the shapes in use restored before the caller installs the
