@@ -87,33 +87,44 @@ fn ratios_of(
         .collect()
 }
 
-/// The solver's face means with the pieces of each polygon cut along contact lines merged back
-/// into one mean (area-weighted), in the order of the polygons before the cut.
-fn merged(scene: &scene::Scene, means: &[radiosity::FaceMean]) -> Vec<radiosity::FaceMean> {
+/// The runs of pieces (indices after the cut) that each polygon before the cut became, in
+/// order: one piece for a polygon the loader did not cut.
+fn piece_groups(scene: &scene::Scene, pieces_len: usize) -> Vec<std::ops::Range<usize>> {
     let mut out = Vec::new();
-    let mut pieces = scene.contacts.pieces.iter().peekable();
+    let mut cuts = scene.contacts.pieces.iter().peekable();
     let mut r = 0;
-    while r < means.len() {
-        let n = match pieces.peek() {
+    while r < pieces_len {
+        let n = match cuts.peek() {
             Some(&&(orig, n)) if orig as usize == out.len() => {
-                pieces.next();
+                cuts.next();
                 n as usize
             }
             _ => 1,
         };
-        let group = &means[r..r + n];
-        let area: f64 = group.iter().map(|m| m.area).sum();
-        let avg = |f: fn(&radiosity::FaceMean) -> DVec3| {
-            group.iter().map(|m| f(m) * m.area).sum::<DVec3>() / area
-        };
-        out.push(radiosity::FaceMean {
-            total: avg(|m| m.total),
-            direct: avg(|m| m.direct),
-            area,
-        });
+        out.push(r..r + n);
         r += n;
     }
     out
+}
+
+/// The solver's face means with the pieces of each polygon cut along contact lines merged back
+/// into one mean (area-weighted), in the order of the polygons before the cut.
+fn merged(scene: &scene::Scene, means: &[radiosity::FaceMean]) -> Vec<radiosity::FaceMean> {
+    piece_groups(scene, means.len())
+        .into_iter()
+        .map(|range| {
+            let group = &means[range];
+            let area: f64 = group.iter().map(|m| m.area).sum();
+            let avg = |f: fn(&radiosity::FaceMean) -> DVec3| {
+                group.iter().map(|m| f(m) * m.area).sum::<DVec3>() / area
+            };
+            radiosity::FaceMean {
+                total: avg(|m| m.total),
+                direct: avg(|m| m.direct),
+                area,
+            }
+        })
+        .collect()
 }
 
 fn check(name: &str, r: &[(Ratio, Ratio)], total_tol: f64, indirect_tol: f64) {
@@ -247,50 +258,29 @@ fn merged_ratios(
     ours: &[radiosity::FaceMean],
     truth: &[truth::PolygonEstimate],
 ) -> Vec<(Ratio, Ratio)> {
-    let areas_of = ours;
-    let ours = merged(scene, ours);
-    let mut out = Vec::new();
-    let mut pieces = scene.contacts.pieces.iter().peekable();
-    let mut r = 0;
-    while r < truth.len() {
-        let n = match pieces.peek() {
-            Some(&&(orig, n)) if orig as usize == out.len() => {
-                pieces.next();
-                n as usize
-            }
-            _ => 1,
-        };
-        let group = &truth[r..r + n];
-        let areas: Vec<f64> = areas_of[r..r + n].iter().map(|m| m.area).collect();
-        let area: f64 = areas.iter().sum();
-        let mean = |f: fn(&truth::PolygonEstimate) -> DVec3| {
-            group
-                .iter()
-                .zip(&areas)
-                .map(|(t, a)| f(t) * *a)
-                .sum::<DVec3>()
-                / area
-        };
-        let se = |f: fn(&truth::PolygonEstimate) -> DVec3| {
-            let v: DVec3 = group
-                .iter()
-                .zip(&areas)
-                .map(|(t, a)| (f(t) * *a) * (f(t) * *a))
-                .sum();
-            v.map(f64::sqrt) / area
-        };
-        let o = &ours[out.len()];
-        let (t, t_se) = (mean(|t| t.radiosity), se(|t| t.radiosity_se));
-        let (i, i_se) = (mean(|t| t.indirect), se(|t| t.indirect_se));
-        let ind = if lum(i) > 0.0 {
-            (lum(o.total - o.direct) / lum(i), lum(i_se) / lum(i))
-        } else {
-            (1.0, 0.0)
-        };
-        out.push(((lum(o.total) / lum(t), lum(t_se) / lum(t)), ind));
-        r += n;
-    }
-    out
+    let whole = merged(scene, ours);
+    piece_groups(scene, truth.len())
+        .into_iter()
+        .zip(&whole)
+        .map(|(range, o)| {
+            let group = &truth[range.clone()];
+            let areas: Vec<f64> = ours[range].iter().map(|m| m.area).collect();
+            let area: f64 = areas.iter().sum();
+            let weighted = |f: fn(&truth::PolygonEstimate) -> DVec3| {
+                group.iter().zip(&areas).map(move |(t, a)| f(t) * *a)
+            };
+            let mean = |f| weighted(f).sum::<DVec3>() / area;
+            let se = |f| weighted(f).map(|x| x * x).sum::<DVec3>().map(f64::sqrt) / area;
+            let (t, t_se) = (mean(|t| t.radiosity), se(|t| t.radiosity_se));
+            let (i, i_se) = (mean(|t| t.indirect), se(|t| t.indirect_se));
+            let ind = if lum(i) > 0.0 {
+                (lum(o.total - o.direct) / lum(i), lum(i_se) / lum(i))
+            } else {
+                (1.0, 0.0)
+            };
+            ((lum(o.total) / lum(t), lum(t_se) / lum(t)), ind)
+        })
+        .collect()
 }
 
 /// A 1 m light panel 2 cm under the ceiling of a closed 3 m room, facing the ceiling (what a
