@@ -32,6 +32,15 @@ fn ratios(scene: &scene::Scene, whole: &scene::Scene, samples: u64) -> Vec<(Rati
     ratios_of(scene, whole, &sol, samples)
 }
 
+/// The solver's mean radiosity `ours` over the truth's `t`, and the truth's relative standard
+/// error, in luminance.
+fn total_ratio(ours: DVec3, t: &truth::PolygonEstimate) -> Ratio {
+    (
+        lum(ours) / lum(t.radiosity),
+        lum(t.radiosity_se) / lum(t.radiosity),
+    )
+}
+
 /// Scene `text` as the solver loads it (cut along its contact lines), and whole.
 fn parsed(text: &str, name: &str) -> (scene::Scene, scene::Scene) {
     let scene = scene::parse_scene(text, Path::new(name)).expect("scene");
@@ -69,10 +78,7 @@ fn ratios_of(
     ours.iter()
         .zip(&truth)
         .map(|(o, t)| {
-            let total = (
-                lum(o.total) / lum(t.radiosity),
-                lum(t.radiosity_se) / lum(t.radiosity),
-            );
+            let total = total_ratio(o.total, t);
             let ours_indirect = o.total - o.direct;
             let ind = if lum(t.indirect) > 0.0 {
                 (
@@ -233,10 +239,7 @@ fn the_cornell_box_matches_the_path_tracer_piece_by_piece() {
             continue;
         }
         lit += 1;
-        let (ratio, se) = (
-            lum(o.total) / lum(t.radiosity),
-            lum(t.radiosity_se) / lum(t.radiosity),
-        );
+        let (ratio, se) = total_ratio(o.total, t);
         assert!(
             (ratio - 1.0).abs() <= 0.01 + 3.0 * se,
             "cornell: piece {i}: solver / truth {ratio:.4} (truth's relative SE {se:.4})"
@@ -609,10 +612,7 @@ fn a_panel_facing_a_wall_a_hair_away_keeps_its_light_between_them() {
     opts.samples_per_polygon = 16_384;
     let truth = truth::polygons(&scene, &opts, &SILENT).expect("traces");
     for (i, (m, t)) in means.iter().zip(&truth).enumerate() {
-        let (r, se) = (
-            lum(m.total) / lum(t.radiosity),
-            lum(t.radiosity_se) / lum(t.radiosity),
-        );
+        let (r, se) = total_ratio(m.total, t);
         assert!(
             (r - 1.0).abs() <= 0.02 + 3.0 * se,
             "polygon {i}: {r} (SE {se})"

@@ -672,6 +672,60 @@ mod tests {
         p.x > x0 && p.x < x1 && p.y > y0 && p.y < y1
     }
 
+    /// The rectangle `[x0, x1] x [y0, y1]` at height `z`, counter-clockwise seen from above.
+    fn rect_at(z: f64, (x0, x1, y0, y1): (f64, f64, f64, f64)) -> [DVec3; 4] {
+        [
+            DVec3::new(x0, y0, z),
+            DVec3::new(x1, y0, z),
+            DVec3::new(x1, y1, z),
+            DVec3::new(x0, y1, z),
+        ]
+    }
+
+    /// What point `x` (normal `n`) sees of patch `poly` (its root) past `occluder`, and the
+    /// transfer the solver takes for it: the seen part's form factor times the shape's base
+    /// weight plus its correction (budget 1e-3 of the unoccluded form factor), or the whole
+    /// patch's where nothing is hidden.
+    fn transfer_past(
+        poly: &Polygon,
+        shape: &PatchShape,
+        occluder: &[DVec3],
+        (x, n): (DVec3, DVec3),
+    ) -> (Sight, f64) {
+        let mut view = View::default();
+        let occ = [occluder];
+        let sight = visible::see(
+            &mut view,
+            x,
+            poly.vertices(),
+            poly.normal,
+            occ.into_iter(),
+            1e-9,
+        );
+        let f = point_to_polygon(x, n, &SmallPoly::from_corners(poly.vertices()), poly.normal);
+        let g = Geometry {
+            poly,
+            patch: Cell::ROOT,
+            x,
+            n,
+        };
+        let budget = 1e-3 * f;
+        let transfer = match sight {
+            Sight::Part => {
+                let which = view.smaller();
+                let part = Part {
+                    view: &view,
+                    which,
+                    outside: which == Region::Hidden,
+                };
+                view.form_factor(x, n, f) * shape.base.x
+                    + correction(&g, shape, Some(part), budget).x
+            }
+            _ => f * shape.base.x + correction(&g, shape, None, budget).x,
+        };
+        (sight, transfer)
+    }
+
     /// What broke: the light a point receives from a patch with a bright spot hidden from it
     /// (a ceiling's spot over a light panel 2 cm below it, seen from the floor) came out 6 %
     /// high here, and the room under such a panel 15-37 % too bright against a path tracer:
@@ -683,12 +737,7 @@ mod tests {
     /// error, on the unweighted form factor, is 0.07 %).
     #[test]
     fn a_hidden_bright_spot_is_not_delivered() {
-        let c = [
-            DVec3::new(0.0, 0.0, 1.0),
-            DVec3::new(2.0, 0.0, 1.0),
-            DVec3::new(2.0, 2.0, 1.0),
-            DVec3::new(0.0, 2.0, 1.0),
-        ];
+        let c = rect_at(1.0, (0.0, 2.0, 0.0, 2.0));
         let poly = quad_facing(c, DVec3::new(1.0, 1.0, 0.0), 0);
         let (lo, hi, gap) = (0.6875, 1.3125, 0.02);
         let levels = 6;
@@ -701,17 +750,7 @@ mod tests {
                 1.0
             }
         });
-        let root = Cell {
-            level: 0,
-            x: 0,
-            y: 0,
-        };
-        let panel = vec![
-            DVec3::new(lo, lo, 1.0 - gap),
-            DVec3::new(hi, lo, 1.0 - gap),
-            DVec3::new(hi, hi, 1.0 - gap),
-            DVec3::new(lo, hi, 1.0 - gap),
-        ];
+        let panel = rect_at(1.0 - gap, (lo, hi, lo, hi));
         let up = DVec3::Z;
         // The same function on a fine grid: leaf weight x kernel x visibility past the panel.
         let weight_at = |y: DVec3| {
@@ -740,37 +779,12 @@ mod tests {
             DVec3::new(-1.0, 0.4, 0.0),
             DVec3::new(2.5, 2.5, 0.0),
         ] {
-            let mut view = View::default();
-            let occ = [panel.as_slice()];
-            let sight = visible::see(
-                &mut view,
-                x,
-                poly.vertices(),
-                poly.normal,
-                occ.into_iter(),
-                1e-9,
-            );
+            let (sight, got) = transfer_past(&poly, &shape, &panel, (x, up));
             assert_eq!(
                 sight,
                 Sight::Part,
                 "the panel hides part of the ceiling from {x}"
             );
-            let f = point_to_polygon(x, up, &SmallPoly::from_corners(&c), poly.normal);
-            let g = Geometry {
-                poly: &poly,
-                patch: root,
-                x,
-                n: up,
-            };
-            let which = view.smaller();
-            let part = Part {
-                view: &view,
-                which,
-                outside: which == Region::Hidden,
-            };
-            let budget = 1e-3 * f;
-            let seen = view.form_factor(x, up, f) * shape.base.x;
-            let got = seen + correction(&g, &shape, Some(part), budget).x;
             let want = brute(x, &weight_at);
             assert!(
                 (got - want).abs() <= 0.01 * want,
@@ -793,12 +807,7 @@ mod tests {
     /// the room (measured 0.2-0.3 %; 1.6 % before, from beyond the lamp).
     #[test]
     fn a_rim_lit_beside_a_lamp_is_seen_as_it_falls() {
-        let c = [
-            DVec3::new(0.0, 0.0, 1.0),
-            DVec3::new(1.0, 0.0, 1.0),
-            DVec3::new(1.0, 1.0, 1.0),
-            DVec3::new(0.0, 1.0, 1.0),
-        ];
+        let c = rect_at(1.0, (0.0, 1.0, 0.0, 1.0));
         let poly = quad_facing(c, DVec3::new(0.5, 0.5, 0.0), 0);
         let (gap, decay) = (0.04, 0.04);
         let light = |p: DVec3| 1.0 + 30.0 * (-(1.0 - p.x) / decay).exp();
@@ -811,14 +820,8 @@ mod tests {
             let at = |x: f64| light(DVec3::new(x, 0.5, 1.0));
             (at(x0) + 4.0 * at(0.5 * (x0 + x1)) + at(x1)) / 6.0
         });
-        let root = Cell::ROOT;
         // The lamp beside the strip, `gap` under the ceiling's plane.
-        let lamp = vec![
-            DVec3::new(1.0, 0.0, 1.0 - gap),
-            DVec3::new(2.0, 0.0, 1.0 - gap),
-            DVec3::new(2.0, 1.0, 1.0 - gap),
-            DVec3::new(1.0, 1.0, 1.0 - gap),
-        ];
+        let lamp = rect_at(1.0 - gap, (1.0, 2.0, 0.0, 1.0));
         let brute = |x: DVec3, n: DVec3| {
             let hidden = |x: DVec3, y: DVec3| behind_panel(x, y, gap, (1.0, 2.0, 0.0, 1.0));
             grid_transfer(1.0, (x, n), &|y| light(y) / mean, &hidden)
@@ -829,39 +832,8 @@ mod tests {
             (DVec3::new(3.5, 0.5, -0.5), -DVec3::X),
             (DVec3::new(3.0, 0.2, 0.5), -DVec3::X),
         ] {
-            let mut view = View::default();
-            let occ = [lamp.as_slice()];
-            let sight = visible::see(
-                &mut view,
-                x,
-                poly.vertices(),
-                poly.normal,
-                occ.into_iter(),
-                1e-9,
-            );
-            let f = point_to_polygon(x, n, &SmallPoly::from_corners(&c), poly.normal);
-            let g = Geometry {
-                poly: &poly,
-                patch: root,
-                x,
-                n,
-            };
-            let budget = 1e-3 * f;
-            let transfer = |shape: &PatchShape| match sight {
-                Sight::Part => {
-                    let which = view.smaller();
-                    let part = Part {
-                        view: &view,
-                        which,
-                        outside: which == Region::Hidden,
-                    };
-                    view.form_factor(x, n, f) * shape.base.x
-                        + correction(&g, shape, Some(part), budget).x
-                }
-                _ => f * shape.base.x + correction(&g, shape, None, budget).x,
-            };
+            let (sight, got) = transfer_past(&poly, &shape, &lamp, (x, n));
             let want = brute(x, n);
-            let got = transfer(&shape);
             assert!(
                 (got - want).abs() <= 0.01 * want,
                 "at {x} ({sight:?}): {got} against the grid's {want}"
