@@ -149,27 +149,62 @@ fn boxes_overlap((alo, ahi): (DVec2, DVec2), (blo, bhi): (DVec2, DVec2), eps: f6
     alo.x < bhi.x - eps && blo.x < ahi.x - eps && alo.y < bhi.y - eps && blo.y < ahi.y - eps
 }
 
-/// Whether `p` lies inside or within `eps` of the counter-clockwise convex polygon `vs`.
-fn contains(vs: &[DVec2], p: DVec2, eps: f64) -> bool {
-    edges(vs).all(|(a, b)| {
+/// Whether every vertex of `c` lies inside or within `eps` of the counter-clockwise convex
+/// polygon `vs` (on the inner side of every edge's line, within `eps` times the edge's L1
+/// length), and whether one lies inside it by more than `eps` from every
+/// edge's line (so that the two overlap in more than a boundary).
+fn corners_in(vs: &[DVec2], c: &[DVec2], eps: f64) -> (bool, bool) {
+    let Some(&last) = vs.last() else {
+        return (true, false);
+    };
+    let (mut all_in, mut one_within) = (true, false);
+    for &p in c {
+        let (mut inside, mut within) = (true, true);
+        let mut a = last;
+        for &b in vs {
+            let e = b - a;
+            let tol = eps * (e.x.abs() + e.y.abs());
+            let d = e.perp_dot(p - a);
+            if d < -tol {
+                inside = false;
+                within = false;
+                break;
+            }
+            within &= d > tol;
+            a = b;
+        }
+        all_in &= inside;
+        one_within |= within;
+        if !all_in && one_within {
+            break;
+        }
+    }
+    (all_in, one_within)
+}
+
+/// Whether every vertex of `q` lies on or outside the line of an edge of the
+/// counter-clockwise convex polygon `p`, within `eps` times the edge's L1 length.
+fn separated_by(p: &[DVec2], q: &[DVec2], eps: f64) -> bool {
+    let Some(&last) = p.last() else {
+        return false;
+    };
+    let mut a = last;
+    for &b in p {
         let e = b - a;
-        e.perp_dot(p - a) >= -eps * (e.x.abs() + e.y.abs())
-    })
+        // eps times the edge's length, its L1 norm for a square root.
+        let tol = eps * (e.x.abs() + e.y.abs());
+        if q.iter().all(|&x| e.perp_dot(x - a) <= tol) {
+            return true;
+        }
+        a = b;
+    }
+    false
 }
 
 /// Whether two counter-clockwise convex polygons, whose boxes overlap, overlap in more than a
 /// boundary within `eps` (the separating-axis test on both polygons' edges).
 fn overlaps(a: &[DVec2], b: &[DVec2], eps: f64) -> bool {
-    let separated_by = |p: &[DVec2], q: &[DVec2]| {
-        edges(p).any(|(a, b)| {
-            let e = b - a;
-            // eps times the edge's length, its L1 norm for a square root.
-            let tol = eps * (e.x.abs() + e.y.abs());
-            // Every vertex of q on or outside this edge's line.
-            q.iter().all(|&x| e.perp_dot(x - a) <= tol)
-        })
-    };
-    !separated_by(a, b) && !separated_by(b, a)
+    !separated_by(a, b, eps) && !separated_by(b, a, eps)
 }
 
 /// The parts of the convex polygon `src` on each side of the line through `a` with normal
@@ -431,13 +466,15 @@ impl View {
                 continue;
             }
             let pv = self.poly(&p.range);
-            if !overlaps(pv, c, e) {
-                continue;
-            }
-            if c.iter().all(|&q| contains(pv, q, e)) {
+            let (all_in, one_within) = corners_in(pv, c, e);
+            if all_in {
                 return (CellIn::Inside, 0);
             }
-            met |= 1 << k;
+            // A corner well inside the piece is an overlap: the separating-axis test only
+            // where none is.
+            if one_within || overlaps(pv, c, e) {
+                met |= 1 << k;
+            }
         }
         if met != 0 {
             (CellIn::Partly, met)
