@@ -150,6 +150,25 @@ fn boxes_overlap((alo, ahi): (DVec2, DVec2), (blo, bhi): (DVec2, DVec2), eps: f6
 }
 
 /// Whether every vertex of `c` lies inside or within `eps` of the counter-clockwise convex
+/// polygon `vs` (the first part of [`corners_in`], stopping at the first vertex outside).
+fn holds(vs: &[DVec2], c: &[DVec2], eps: f64) -> bool {
+    let Some(&last) = vs.last() else {
+        return true;
+    };
+    c.iter().all(|&p| {
+        let mut a = last;
+        for &b in vs {
+            let e = b - a;
+            if e.perp_dot(p - a) < -eps * (e.x.abs() + e.y.abs()) {
+                return false;
+            }
+            a = b;
+        }
+        true
+    })
+}
+
+/// Whether every vertex of `c` lies inside or within `eps` of the counter-clockwise convex
 /// polygon `vs` (on the inner side of every edge's line, within `eps` times the edge's L1
 /// length), and whether one lies inside it by more than `eps` from every
 /// edge's line (so that the two overlap in more than a boundary).
@@ -458,7 +477,7 @@ impl View {
     /// none alone counts as partly in.
     pub(crate) fn classify(&self, which: Region, cell: &PlaneCell, mask: u64) -> (CellIn, u64) {
         let c = cell.verts();
-        let cb = bounds(c);
+        let cb = cell.bounds;
         let e = self.eps;
         let mut met = 0u64;
         for (k, p) in self.region(which).iter().enumerate().take(64) {
@@ -486,21 +505,28 @@ impl View {
     /// The share of the convex `cell`'s area ([`plane_cells`]) in the pieces of region `which`
     /// in `mask` (disjoint, so their overlaps with it add up), and where that part lies: the
     /// offset of its centroid from the whole cell's, in the plane's 2-D coordinates (those of
-    /// [`plane_axes`]); a share of 0.5 and no offset where the clip overflows.
+    /// [`plane_axes`]); a share of 0.5 and no offset where the clip overflows. A piece whose
+    /// box misses the cell's is not clipped, and one that holds the cell (as
+    /// [`View::classify`] finds it) makes the share 1 with no offset.
     pub(crate) fn share_offset(&self, which: Region, cell: &PlaneCell, mask: u64) -> (f64, DVec2) {
         let c = cell.verts();
-        let (area, moment) = area_moment(c);
+        let (area, moment) = cell.area_moment;
         if area <= 0.0 {
             return (0.0, DVec2::ZERO);
         }
         let centre = moment / (3.0 * area);
+        let cb = cell.bounds;
         let mut part = Buf::new();
         let (mut within, mut m) = (0.0, DVec2::ZERO);
         for (k, p) in self.region(which).iter().enumerate().take(64) {
-            if mask & (1 << k) == 0 {
+            if mask & (1 << k) == 0 || !boxes_overlap(cb, p.bounds, self.eps) {
                 continue;
             }
-            match clip_convex(self.poly(&p.range), c, self.eps, &mut part) {
+            let pv = self.poly(&p.range);
+            if holds(pv, c, self.eps) {
+                return (1.0, DVec2::ZERO);
+            }
+            match clip_convex(pv, c, self.eps, &mut part) {
                 Ok(()) if part.len >= 3 => {
                     let (a, pm) = area_moment(part.verts());
                     within += a;
@@ -689,9 +715,23 @@ impl View {
 pub(crate) struct PlaneCell {
     c: [DVec2; 4],
     len: usize,
+    /// Its bounds, and twice its area with its first moment ([`area_moment`]): what every
+    /// query on it starts from, the same at every receiver point.
+    bounds: (DVec2, DVec2),
+    area_moment: (f64, DVec2),
 }
 
 impl PlaneCell {
+    fn new(c: [DVec2; 4], len: usize) -> PlaneCell {
+        let vs = &c[..len];
+        PlaneCell {
+            c,
+            len,
+            bounds: bounds(vs),
+            area_moment: area_moment(vs),
+        }
+    }
+
     fn verts(&self) -> &[DVec2] {
         &self.c[..self.len]
     }
@@ -718,18 +758,13 @@ pub(crate) fn plane_cells(
     cells: impl Iterator<Item = [DVec3; 4]>,
 ) -> Vec<PlaneCell> {
     if outline.len() < 2 {
-        return cells
-            .map(|_| PlaneCell {
-                c: [DVec2::ZERO; 4],
-                len: 0,
-            })
-            .collect();
+        return cells.map(|_| PlaneCell::new([DVec2::ZERO; 4], 0)).collect();
     }
     let frame = Frame::of(outline, ns);
     cells
         .map(|cell| {
             let (c, len) = cell_2d(&frame, &cell);
-            PlaneCell { c, len }
+            PlaneCell::new(c, len)
         })
         .collect()
 }

@@ -334,13 +334,6 @@ fn correction(
         let (w, area) = shape.mean[id as usize];
         let (centre, size) = shape.centre_size[id as usize];
         let plane = &shape.plane[id as usize];
-        let (within, met) = match region {
-            Some(p) if mask != 0 => p.classify(plane, mask),
-            _ => (CellIn::Inside, 0),
-        };
-        if within == CellIn::Outside {
-            continue;
-        }
         let dist = (centre - x).length();
         // A node exactly twice its size away (common: receivers and cells on one grid) is near
         // at every scale: the margin is far above the rounding of either side.
@@ -349,12 +342,24 @@ fn correction(
         // stand off its mean at the point.
         let spread_f =
             shape.node_spread[id as usize] as f64 * area / (std::f64::consts::PI * dist * dist);
-        let open_partly = within == CellIn::Partly && spread_f > budget;
         // A far node counts as a dipole, the kernel linear across it; what that leaves is
         // the kernel's curvature, of order (size / dist)^2 of the node's light (`size` its
         // diagonal) where the light is piled at one side of the node (a lit rim beside a
         // lamp, seen from across the room).
         let open_curved = far && spread_f * (size / dist).powi(2) > budget;
+        // A far node that is not opened however it lies against the part counts by the share
+        // of it in the part alone, which says all the classification would (none: outside,
+        // all: inside): it is not classified first.
+        let kept_whole = far && !open_curved && (node.is_leaf() || spread_f <= budget);
+        let (within, met) = match region {
+            Some(_) if mask != 0 && kept_whole => (CellIn::Partly, mask),
+            Some(p) if mask != 0 => p.classify(plane, mask),
+            _ => (CellIn::Inside, 0),
+        };
+        if within == CellIn::Outside {
+            continue;
+        }
+        let open_partly = within == CellIn::Partly && spread_f > budget;
         if (!far || open_partly || open_curved) && !node.is_leaf() {
             let f = node.first_child;
             stack[len..len + 4].copy_from_slice(&[
