@@ -152,8 +152,9 @@ fn boxes_overlap((alo, ahi): (DVec2, DVec2), (blo, bhi): (DVec2, DVec2), eps: f6
 /// Whether every vertex of `c` lies inside or within `eps` of the counter-clockwise convex
 /// polygon `vs` (the first part of [`corners_in`], stopping at the first vertex outside).
 fn holds(vs: &[DVec2], c: &[DVec2], eps: f64) -> bool {
+    // No polygon holds anything (an empty list of edges would hold every point).
     let Some(&last) = vs.last() else {
-        return true;
+        return false;
     };
     c.iter().all(|&p| {
         let mut a = last;
@@ -170,11 +171,11 @@ fn holds(vs: &[DVec2], c: &[DVec2], eps: f64) -> bool {
 
 /// Whether every vertex of `c` lies inside or within `eps` of the counter-clockwise convex
 /// polygon `vs` (on the inner side of every edge's line, within `eps` times the edge's L1
-/// length), and whether one lies inside it by more than `eps` from every
-/// edge's line (so that the two overlap in more than a boundary).
+/// length), and whether one lies inside it by more than `eps` from every edge's line (so that
+/// the two overlap in more than a boundary); neither for an empty `vs`.
 fn corners_in(vs: &[DVec2], c: &[DVec2], eps: f64) -> (bool, bool) {
     let Some(&last) = vs.last() else {
-        return (true, false);
+        return (false, false);
     };
     let (mut all_in, mut one_within) = (true, false);
     for &p in c {

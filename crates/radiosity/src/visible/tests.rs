@@ -519,3 +519,25 @@ proptest! {
         }
     }
 }
+
+/// The corner tests of a cell against a piece: a square holds a square inside it, not one
+/// that crosses its edge (one of whose corners lies well inside it), and not one that only
+/// touches it from outside; an empty piece holds nothing (a list of no edges would hold every
+/// point).
+#[test]
+fn corner_tests_hold_what_lies_inside() {
+    let square = |o: DVec2, s: f64| [o, o + DVec2::X * s, o + DVec2::ONE * s, o + DVec2::Y * s];
+    let piece = square(DVec2::ZERO, 1.0);
+    let eps = 1e-12;
+    let inner = square(DVec2::splat(0.25), 0.5);
+    assert!(holds(&piece, &inner, eps));
+    assert_eq!(corners_in(&piece, &inner, eps), (true, true));
+    let across = square(DVec2::splat(0.75), 0.5);
+    assert!(!holds(&piece, &across, eps));
+    assert_eq!(corners_in(&piece, &across, eps), (false, true));
+    let touching = square(DVec2::new(1.0, 0.0), 0.5);
+    assert!(!holds(&piece, &touching, eps));
+    assert_eq!(corners_in(&piece, &touching, eps), (false, false));
+    assert!(!holds(&[], &inner, eps));
+    assert_eq!(corners_in(&[], &inner, eps), (false, false));
+}
