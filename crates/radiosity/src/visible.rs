@@ -149,50 +149,44 @@ fn boxes_overlap((alo, ahi): (DVec2, DVec2), (blo, bhi): (DVec2, DVec2), eps: f6
     alo.x < bhi.x - eps && blo.x < ahi.x - eps && alo.y < bhi.y - eps && blo.y < ahi.y - eps
 }
 
-/// Whether every vertex of `c` lies inside or within `eps` of the counter-clockwise convex
-/// polygon `vs` (the first part of [`corners_in`], stopping at the first vertex outside).
-fn holds(vs: &[DVec2], c: &[DVec2], eps: f64) -> bool {
-    // No polygon holds anything (an empty list of edges would hold every point).
-    let Some(&last) = vs.last() else {
-        return false;
-    };
-    c.iter().all(|&p| {
-        let mut a = last;
-        for &b in vs {
-            let e = b - a;
-            if e.perp_dot(p - a) < -eps * (e.x.abs() + e.y.abs()) {
-                return false;
-            }
-            a = b;
-        }
-        true
-    })
-}
-
-/// Whether every vertex of `c` lies inside or within `eps` of the counter-clockwise convex
-/// polygon `vs` (on the inner side of every edge's line, within `eps` times the edge's L1
-/// length), and whether one lies inside it by more than `eps` from every edge's line (so that
-/// the two overlap in more than a boundary); neither for an empty `vs`.
-fn corners_in(vs: &[DVec2], c: &[DVec2], eps: f64) -> (bool, bool) {
+/// Where `p` lies against the counter-clockwise convex polygon `vs`: inside it or within `eps`
+/// of it (on the inner side of every edge's line, within `eps` times the edge's L1 length),
+/// and inside by more than `eps` from every edge's line; neither for an empty `vs` (a list of
+/// no edges would hold every point). Stops at the first edge `p` lies outside.
+#[inline]
+fn point_in(vs: &[DVec2], p: DVec2, eps: f64) -> (bool, bool) {
     let Some(&last) = vs.last() else {
         return (false, false);
     };
+    let mut within = true;
+    let mut a = last;
+    for &b in vs {
+        let e = b - a;
+        let tol = eps * (e.x.abs() + e.y.abs());
+        let d = e.perp_dot(p - a);
+        if d < -tol {
+            return (false, false);
+        }
+        within &= d > tol;
+        a = b;
+    }
+    (true, within)
+}
+
+/// Whether every vertex of `c` lies inside or within `eps` of the counter-clockwise convex
+/// polygon `vs` ([`point_in`]), stopping at the first vertex outside.
+fn holds(vs: &[DVec2], c: &[DVec2], eps: f64) -> bool {
+    c.iter().all(|&p| point_in(vs, p, eps).0)
+}
+
+/// Whether every vertex of `c` lies inside or within `eps` of the counter-clockwise convex
+/// polygon `vs`, and whether one lies inside it by more than `eps` from every edge's line (so
+/// that the two overlap in more than a boundary): [`point_in`] over the vertices, stopping
+/// once the answer is known.
+fn corners_in(vs: &[DVec2], c: &[DVec2], eps: f64) -> (bool, bool) {
     let (mut all_in, mut one_within) = (true, false);
     for &p in c {
-        let (mut inside, mut within) = (true, true);
-        let mut a = last;
-        for &b in vs {
-            let e = b - a;
-            let tol = eps * (e.x.abs() + e.y.abs());
-            let d = e.perp_dot(p - a);
-            if d < -tol {
-                inside = false;
-                within = false;
-                break;
-            }
-            within &= d > tol;
-            a = b;
-        }
+        let (inside, within) = point_in(vs, p, eps);
         all_in &= inside;
         one_within |= within;
         if !all_in && one_within {
