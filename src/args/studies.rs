@@ -120,7 +120,7 @@ pub(crate) struct ResultsArgs {
     #[arg(long)]
     pub doc: PathBuf,
     /// Scene files, comma-separated (default: two-spots, cornell-box, gallery, studio,
-    /// accuracy/furnished-room).
+    /// accuracy/furnished-room, accuracy/building-2x1).
     #[arg(long, value_delimiter = ',')]
     pub scenes: Vec<PathBuf>,
     /// Side of the sweeps' square images.
