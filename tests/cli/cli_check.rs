@@ -469,8 +469,8 @@ fn the_solve_guard_brackets_the_measured_peak() {
     let dir = scratch("solve-peak");
     let sol = dir.join("cornell.pfsol");
     let s = sol.to_str().unwrap();
-    // Two levels shallower than the shipped box: the same kinds of memory, in a fifth of the
-    // time.
+    // Two levels shallower than the shipped box: the same kinds of memory, in about two fifths
+    // of its CPU time.
     let base = [
         "solve",
         "scenes/cornell-box.toml",
